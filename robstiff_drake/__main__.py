@@ -1,0 +1,5 @@
+import sys
+
+from robstiff_drake.commands.main import main
+
+sys.exit(main())

@@ -1,0 +1,100 @@
+"""``robstiff stiffness-map``: where the robot is soft.  The tool-point
+deflection under a force at the tool (conventional model), over a top view
+(plane at the reference machining height) and a side view (plane y = 0) of
+the workspace, with the spindle axis pointing down; in the softest direction
+and along z (the direction that a face-milling surface error takes)."""
+
+import numpy as np
+
+from robstiff_drake.commands.main import parse_vector
+from robstiff_drake.errors import InputError
+from robstiff_drake.io import save_figure_atomic
+from robstiff_drake.model import ik
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model import stiffness as st
+from robstiff_drake.model.robot import load_robot
+
+
+def deflection_grid(robot, xs_m, ys_m, zs_m, tool_m, force_N):
+    """Deflection (mm) on a 2-D grid: exactly one of xs/ys/zs has length 1.
+
+    Returns (worst_mm, along_z_mm), each of shape (len(a), len(b)) for the two
+    varying axes in x, y, z order; NaN where the pose is unreachable."""
+    grid = np.stack(np.meshgrid(xs_m, ys_m, zs_m, indexing="ij"), axis=-1).squeeze()
+    worst = np.full(grid.shape[:2], np.nan)
+    along_z = np.full(grid.shape[:2], np.nan)
+    q_ref = None
+    for i in range(grid.shape[0]):
+        for j in range(grid.shape[1]):
+            try:
+                q = ik.solve_ik(robot.dh, ik.tool_down_pose(grid[i, j]), tool_m, q_ref_rad=q_ref,
+                                q_lower_rad=robot.q_lower_rad, q_upper_rad=robot.q_upper_rad)
+            except ik.IKError:
+                continue
+            q_ref = q
+            C = st.translational_compliance(kin.jacobian(robot.dh, q, tool_m), robot.joint_stiffness_Nm_per_rad)
+            worst[i, j] = force_N * np.linalg.eigvalsh(C)[-1] * 1e3
+            along_z[i, j] = force_N * C[2, 2] * 1e3
+    return worst, along_z
+
+
+def make_map(robot, *, tool_m, force_N=500.0, resolution=41):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ws = robot.workspace
+    z_ref = ws.reference_tool_point_m[2]
+    xs = np.linspace(0.6, 2.7, resolution)
+    ys = np.linspace(-1.6, 1.6, resolution)
+    zs = np.linspace(0.0, 2.2, resolution)
+    top = deflection_grid(robot, xs, ys, [z_ref], tool_m, force_N)
+    side = deflection_grid(robot, xs, [0.0], zs, tool_m, force_N)
+    finite = np.concatenate([a[np.isfinite(a)] for a in (*top, *side)])
+    vmax = float(np.percentile(finite, 99)) if finite.size else 1.0
+
+    fig, axes = plt.subplots(2, 2, figsize=(12, 9), constrained_layout=True)
+    titles = ("softest direction", "along z (face-milling surface error)")
+    for col, (data, title) in enumerate(zip(top, titles)):
+        ax = axes[0, col]
+        im = ax.pcolormesh(xs * 1e3, ys * 1e3, data.T, vmin=0, vmax=vmax, cmap="viridis", shading="auto")
+        ax.set_title(f"top view, tool point at z = {z_ref * 1e3:.0f} mm: {title}")
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("y (mm)")
+        ax.add_patch(plt.Rectangle((ws.x_m[0] * 1e3, ws.y_m[0] * 1e3), (ws.x_m[1] - ws.x_m[0]) * 1e3,
+                                   (ws.y_m[1] - ws.y_m[0]) * 1e3, fill=False, ec="w", ls="--"))
+        ax.plot(0, 0, "r^", ms=10)
+        ax.set_aspect("equal")
+    for col, (data, title) in enumerate(zip(side, titles)):
+        ax = axes[1, col]
+        im = ax.pcolormesh(xs * 1e3, zs * 1e3, data.T, vmin=0, vmax=vmax, cmap="viridis", shading="auto")
+        ax.set_title(f"side view, plane y = 0: {title}")
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("z (mm)")
+        ax.add_patch(plt.Rectangle((ws.x_m[0] * 1e3, ws.z_m[0] * 1e3), (ws.x_m[1] - ws.x_m[0]) * 1e3,
+                                   (ws.z_m[1] - ws.z_m[0]) * 1e3, fill=False, ec="w", ls="--"))
+        ax.plot(0, 0, "r^", ms=10)
+        ax.set_aspect("equal")
+    fig.colorbar(im, ax=axes, label=f"tool-point deflection under {force_N:g} N (mm)", shrink=0.8)
+    fig.suptitle(f"{robot.name} stiffness map (conventional model, spindle axis down; white box: machining "
+                 "workspace; red: robot base; blank: out of reach or joint limits)")
+    return fig, {"top_view": top, "side_view": side, "xs_m": xs, "ys_m": ys, "zs_m": zs}
+
+
+def run(*, out, force_N=500.0, resolution=41, tool=None, robot_yaml=None):
+    if not force_N > 0:
+        raise InputError(f"stiffness-map: --force-N must be > 0, got {force_N}")
+    if not 5 <= resolution <= 301:
+        raise InputError(f"stiffness-map: --resolution must be between 5 and 301, got {resolution}")
+    if not str(out).lower().endswith(".png"):
+        raise InputError(f"stiffness-map: --out must name a .png file, got {out!r}")
+    robot = load_robot(robot_yaml)
+    tool_m = robot.payload.tool_point_m if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    fig, data = make_map(robot, tool_m=tool_m, force_N=force_N, resolution=resolution)
+    save_figure_atomic(fig, out, dpi=110)
+    worst = np.concatenate([data["top_view"][0].ravel(), data["side_view"][0].ravel()])
+    worst = worst[np.isfinite(worst)]
+    print(f"wrote {out}: deflection under {force_N:g} N in the softest direction "
+          f"{worst.min():.3f}-{worst.max():.3f} mm over the reachable points of the map")
+    return 0

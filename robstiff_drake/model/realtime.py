@@ -1,0 +1,88 @@
+"""The per-cycle path of the compensator: Jacobian at the measured joint
+angles, joint torques from the measured wrench, joint and tool deflection.
+
+It runs every controller cycle (4 ms on the IRC5), so it is written for speed
+in plain Python floats: one pass down the chain builds the joint axes and
+origins with scalar arithmetic (no small-array numpy calls, whose fixed cost
+of about a microsecond each would dominate), then the six Jacobian columns,
+tau = J^T F, dq = C_q tau and dx = J dq.  ``kinematics.jacobian`` is the
+reference it is tested against.
+
+Units: q in rad (controller convention), wrench (N, N*m about the tool
+point, base frame), dq in rad, dx = (m, rad).
+"""
+
+import math
+
+import numpy as np
+
+
+class DeflectionPredictor:
+    """dq = C_q J(q)^T F and dx = J(q) dq for one configuration per call."""
+
+    def __init__(self, dh, joint_stiffness_Nm_per_rad, tool_m=None):
+        self._home = [float(v) for v in dh.home_rad]
+        self._d = [float(v) for v in dh.d_m]
+        self._a = [float(v) for v in dh.a_m]
+        self._ca = [math.cos(v) for v in dh.alpha_rad]
+        self._sa = [math.sin(v) for v in dh.alpha_rad]
+        tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
+        self._tool = [float(v) for v in tool]
+        self.set_joint_stiffness(joint_stiffness_Nm_per_rad)
+
+    def set_joint_stiffness(self, joint_stiffness_Nm_per_rad):
+        k = np.asarray(joint_stiffness_Nm_per_rad, dtype=float).reshape(6)
+        if np.any(k <= 0):
+            raise ValueError("joint stiffness must be positive")
+        self._c = [1.0 / float(v) for v in k]
+
+    def jacobian_rows(self, q_rad):
+        """Six Jacobian columns as tuples (jvx, jvy, jvz, jwx, jwy, jwz)."""
+        # Rotation R (rows r0..r8) and position p of the current frame.
+        r0, r1, r2, r3, r4, r5, r6, r7, r8 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+        px = py = pz = 0.0
+        axes = []
+        home, d, a, ca, sa = self._home, self._d, self._a, self._ca, self._sa
+        for i, qi in enumerate(q_rad.tolist() if hasattr(q_rad, "tolist") else q_rad):
+            axes.append((r2, r5, r8, px, py, pz))  # z axis and origin of frame i
+            th = qi + home[i]
+            ct, st = math.cos(th), math.sin(th)
+            c, s = ca[i], sa[i]
+            # A = [[ct, -st c, st s, a ct], [st, ct c, -ct s, a st], [0, s, c, d]]
+            n0 = r0 * ct + r1 * st
+            n3 = r3 * ct + r4 * st
+            n6 = r6 * ct + r7 * st
+            m0 = -r0 * st + r1 * ct
+            m3 = -r3 * st + r4 * ct
+            m6 = -r6 * st + r7 * ct
+            px += a[i] * n0 + d[i] * r2
+            py += a[i] * n3 + d[i] * r5
+            pz += a[i] * n6 + d[i] * r8
+            r0, r1, r2 = n0, m0 * c + r2 * s, -m0 * s + r2 * c
+            r3, r4, r5 = n3, m3 * c + r5 * s, -m3 * s + r5 * c
+            r6, r7, r8 = n6, m6 * c + r8 * s, -m6 * s + r8 * c
+        tx, ty, tz = self._tool
+        px += r0 * tx + r1 * ty + r2 * tz
+        py += r3 * tx + r4 * ty + r5 * tz
+        pz += r6 * tx + r7 * ty + r8 * tz
+        cols = []
+        for zx, zy, zz, ox, oy, oz in axes:
+            ex, ey, ez = px - ox, py - oy, pz - oz
+            cols.append((zy * ez - zz * ey, zz * ex - zx * ez, zx * ey - zy * ex, zx, zy, zz))
+        return cols
+
+    def __call__(self, q_rad, wrench):
+        """Return (dq, dx) as numpy arrays: joint deflection (rad) and the
+        tool's deflection (m, rad) under ``wrench`` at the measured q."""
+        cols = self.jacobian_rows(q_rad)
+        f0, f1, f2, f3, f4, f5 = wrench.tolist() if hasattr(wrench, "tolist") else wrench
+        dq = [
+            c * (j0 * f0 + j1 * f1 + j2 * f2 + j3 * f3 + j4 * f4 + j5 * f5)
+            for c, (j0, j1, j2, j3, j4, j5) in zip(self._c, cols)
+        ]
+        dx = [sum(col[r] * dqi for dqi, col in zip(dq, cols)) for r in range(6)]
+        return np.array(dq), np.array(dx)
+
+    def jacobian(self, q_rad):
+        """The 6x6 Jacobian (same convention as kinematics.jacobian)."""
+        return np.array(self.jacobian_rows(q_rad)).T
