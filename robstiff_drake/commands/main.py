@@ -83,6 +83,62 @@ def build_parser():
     p.add_argument("--check", action="store_true", help="only check that the files on disk are up to date")
     _add_robot_option(p)
 
+    p = sub.add_parser("identify", help="joint stiffness from a stiffness campaign (least squares, Eq. 8)")
+    p.add_argument("data", metavar="DATA.csv")
+    _add_tool_option(p, "default: the origin of DH frame 6")
+    p.add_argument("--json", metavar="OUT", help="write the result as JSON ('-' for stdout)")
+    p.add_argument("--plot", metavar="OUT.png", help="measured vs predicted, residuals, stiffness with intervals")
+    p.add_argument("--robust", action="store_true", help="Huber loss, for campaigns with outliers")
+    _add_robot_option(p)
+
+    p = sub.add_parser("calibrate-payload", help="wrist-sensor payload: mass, centre of mass, biases")
+    p.add_argument("data", metavar="DATA.csv")
+    p.add_argument("--json", metavar="OUT", help="write the result as JSON ('-' for stdout)")
+    p.add_argument("--yaml", metavar="OUT.yaml", help="write the gravity-removal parameter block")
+    p.add_argument("--mount-rpy", metavar="R,P,Y", help="sensor frame's rotation from DH frame 6 (deg, URDF rpy)")
+    _add_robot_option(p)
+
+    p = sub.add_parser("synth", help="virtual measurement campaigns made from the model")
+    kinds = p.add_subparsers(dest="kind", metavar="KIND", parser_class=_Parser)
+    kinds.required = True
+    s = kinds.add_parser("stiffness", help="a stiffness campaign (poses, loads, CMM displacements)")
+    s.add_argument("out", metavar="OUT.csv")
+    s.add_argument("--n", type=int, default=120, help="measurements (default: %(default)s)")
+    s.add_argument("--loads-per-pose", type=int, default=4, help="(default: %(default)s)")
+    s.add_argument("--force-N", type=float, default=300.0, help="load magnitude (default: %(default)s N)")
+    s.add_argument("--noise-mm", type=float, default=0.01, help="CMM noise sigma (default: %(default)s mm)")
+    s.add_argument("--seed", type=int, default=0)
+    _add_tool_option(s, "default: the origin of DH frame 6")
+    s.add_argument("--stiffness", metavar="K1,..,K6", help="true joint stiffness, N*m/rad (default: nominal)")
+    s.add_argument("--effect", action="append", metavar="NAME[=RMS_MM]",
+                   help="switch on an effect the conventional model lacks, sized to an RMS displacement "
+                        "(default 0.04 mm); repeatable")
+    _add_robot_option(s)
+    s = kinds.add_parser("payload", help="a payload (gravity) campaign of wrist-sensor readings")
+    s.add_argument("out", metavar="OUT.csv")
+    s.add_argument("--n", type=int, default=15, help="configurations (default: %(default)s, as the seed)")
+    s.add_argument("--mass-kg", type=float, default=None, help="(default: the robot file's payload)")
+    s.add_argument("--com-mm", default=None, metavar="X,Y,Z", help="(default: the robot file's payload)")
+    s.add_argument("--noise-N", type=float, default=1.0, help="(default: %(default)s N)")
+    s.add_argument("--noise-Nm", type=float, default=0.1, help="(default: %(default)s N*m)")
+    s.add_argument("--seed", type=int, default=0)
+    _add_robot_option(s)
+
+    p = sub.add_parser("plan-poses", help="a well-conditioned measurement plan for the identification")
+    p.add_argument("n", type=int, metavar="N", help="number of measurements")
+    p.add_argument("--candidates", type=int, default=120, help="candidate poses (default: %(default)s)")
+    p.add_argument("--force-N", type=float, default=300.0, help="(default: %(default)s N)")
+    p.add_argument("--noise-mm", type=float, default=0.01, help="(default: %(default)s mm)")
+    _add_tool_option(p, "default: the origin of DH frame 6")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", metavar="PLAN.csv", help="write the plan (q1..q6, fx, fy, fz per row)")
+    p.add_argument("--json", metavar="OUT", help="write the comparison as JSON ('-' for stdout)")
+    _add_robot_option(p)
+
+    p = sub.add_parser("table2", help="the seed's Table 2: linearity in load, offsets, repeatability")
+    p.add_argument("--json", metavar="OUT", help="('-' for stdout)")
+    p.add_argument("--plot", metavar="OUT.png")
+
     p = sub.add_parser("demo", help="the main job: stiffness at the machining pose, K_g check and stiffness map")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
     return parser
@@ -107,6 +163,35 @@ def _dispatch(args):
         from robstiff_drake.commands import make_urdf
 
         return make_urdf.run(check=args.check, robot_yaml=args.robot)
+    if args.command == "identify":
+        from robstiff_drake.commands import identify
+
+        return identify.run(data=args.data, tool=args.tool, json_out=args.json, plot=args.plot,
+                            robust=args.robust, robot_yaml=args.robot)
+    if args.command == "calibrate-payload":
+        from robstiff_drake.commands import calibrate_payload
+
+        return calibrate_payload.run(data=args.data, json_out=args.json, yaml_out=args.yaml,
+                                     mount_rpy=args.mount_rpy, robot_yaml=args.robot)
+    if args.command == "synth":
+        from robstiff_drake.commands import synth
+
+        if args.kind == "stiffness":
+            return synth.run_stiffness(out=args.out, n=args.n, loads_per_pose=args.loads_per_pose,
+                                       force_N=args.force_N, noise_mm=args.noise_mm, seed=args.seed, tool=args.tool,
+                                       effects=args.effect, stiffness=args.stiffness, robot_yaml=args.robot)
+        return synth.run_payload(out=args.out, n=args.n, mass_kg=args.mass_kg, com=args.com_mm,
+                                 noise_N=args.noise_N, noise_Nm=args.noise_Nm, seed=args.seed, robot_yaml=args.robot)
+    if args.command == "plan-poses":
+        from robstiff_drake.commands import plan_poses
+
+        return plan_poses.run(n=args.n, candidates=args.candidates, force_N=args.force_N, noise_mm=args.noise_mm,
+                              tool=args.tool, seed=args.seed, out=args.out, json_out=args.json,
+                              robot_yaml=args.robot)
+    if args.command == "table2":
+        from robstiff_drake.commands import table2
+
+        return table2.run(json_out=args.json, plot_out=args.plot)
     if args.command == "demo":
         from robstiff_drake.commands import demo
 

@@ -16,6 +16,7 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.paths import DEFAULT_ROBOT_YAML
 
 N_JOINTS = 6
+GRAVITY_BASE_M_PER_S2 = np.array([0.0, 0.0, -9.81])  # in the robot base frame
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,123 @@
+"""``robstiff identify DATA.csv``: joint stiffness by least squares (Eq. 8)."""
+
+import numpy as np
+
+from robstiff_drake.commands.main import parse_vector
+from robstiff_drake.identification.campaign import read_stiffness_campaign
+from robstiff_drake.identification.joint_stiffness import identify
+from robstiff_drake.io import emit_json, save_figure_atomic
+from robstiff_drake.model.robot import load_robot
+
+
+def fit_to_dict(fit, campaign, robot, tool_m):
+    return {
+        "data": campaign.path,
+        "tool_mm": (np.asarray(tool_m) * 1e3).tolist(),
+        "joint_stiffness_Nm_per_rad": fit.stiffness_Nm_per_rad,
+        "joint_stiffness_std_Nm_per_rad": [None if np.isnan(v) else float(v) for v in fit.stiffness_std_Nm_per_rad],
+        # null: not identifiable, or unbounded (the compliance's interval reaches zero)
+        "joint_stiffness_ci95_Nm_per_rad": [[float(v) if np.isfinite(v) else None for v in row]
+                                            for row in fit.stiffness_ci95_Nm_per_rad],
+        "joint_stiffness_nominal_Nm_per_rad": robot.joint_stiffness_Nm_per_rad,
+        "joint_compliance_rad_per_Nm": fit.compliance_rad_per_Nm,
+        "identifiable": [bool(v) for v in fit.identifiable],
+        "not_identifiable_reason": fit.reasons,
+        "non_physical_joints": fit.non_physical,
+        "rms_residual_mm": fit.rms_residual_mm,
+        "sigma_mm": fit.sigma_mm,
+        "n_measurements": fit.n_measurements,
+        "dof": fit.dof,
+        "condition_number": fit.condition_number,
+        "robust": fit.robust,
+        "outlier_lines": [int(campaign.lines[i]) for i in fit.outlier_rows],
+        "residuals": [{"line": int(ln), "dx_mm": float(r[0]), "dy_mm": float(r[1]), "dz_mm": float(r[2])}
+                      for ln, r in zip(campaign.lines, fit.residuals_mm)],
+    }
+
+
+def format_fit(fit, campaign, robot):
+    lines = [
+        f"identified from {campaign.path}: {fit.n_measurements} measurements, "
+        f"{'robust (Huber)' if fit.robust else 'least squares'}, "
+        f"{'translations and rotations' if fit.residuals_rot_mrad is not None else 'translations only'}",
+        "",
+        "joint   stiffness N*m/rad   std error     95 % interval                 nominal    note",
+    ]
+    for j in range(6):
+        k = fit.stiffness_Nm_per_rad[j]
+        nom = robot.joint_stiffness_Nm_per_rad[j]
+        if fit.identifiable[j]:
+            lo, hi = fit.stiffness_ci95_Nm_per_rad[j]
+            note = "NON-PHYSICAL (negative compliance)" if (j + 1) in fit.non_physical else ""
+            lines.append(f"  {j + 1}     {k:12.4g}       {fit.stiffness_std_Nm_per_rad[j]:10.3g}   "
+                         f"[{lo:10.4g}, {hi:10.4g}]   {nom:10.4g}    {note}")
+        else:
+            lines.append(f"  {j + 1}     {k:12.4g}       {'-':>10}   {'-':^26}   {nom:10.4g}    "
+                         f"not identifiable, kept at nominal: {fit.reasons[j]}")
+    lines += [
+        "",
+        f"residual RMS {fit.rms_residual_mm:.4f} mm (all components), noise estimate sigma {fit.sigma_mm:.4f} mm, "
+        f"{fit.dof} degrees of freedom, condition number {fit.condition_number:.3g} (nominal-scaled columns)",
+    ]
+    if fit.outlier_rows:
+        lines.append("outliers (|residual| > 4 robust sigma) at lines: "
+                     + ", ".join(str(campaign.lines[i]) for i in fit.outlier_rows))
+    if fit.non_physical:
+        lines.append("warning: negative identified compliance (non-physical) for joint(s) "
+                     + ", ".join(map(str, fit.non_physical)))
+    return "\n".join(lines)
+
+
+def plot_fit(fit, campaign, robot):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.5), constrained_layout=True)
+    ax = axes[0]
+    for i, (name, color) in enumerate(zip("xyz", ("C0", "C1", "C2"))):
+        ax.plot(fit.predicted_mm[:, i], campaign.disp_mm[:, i], ".", color=color, label=f"d{name}")
+    lim = np.max(np.abs(campaign.disp_mm)) * 1.05
+    ax.plot([-lim, lim], [-lim, lim], "k-", lw=0.8)
+    ax.set_xlabel("predicted by the identified model (mm)")
+    ax.set_ylabel("measured (mm)")
+    ax.set_title("measured against predicted")
+    ax.legend()
+    ax = axes[1]
+    for i, name in enumerate("xyz"):
+        ax.plot(campaign.lines, fit.residuals_mm[:, i], ".", label=f"d{name}")
+    ax.axhline(0, color="k", lw=0.8)
+    ax.set_xlabel("file line")
+    ax.set_ylabel("residual (mm)")
+    ax.set_title(f"residuals, RMS {fit.rms_residual_mm:.4f} mm")
+    ax.legend()
+    ax = axes[2]
+    j = np.arange(1, 7)
+    rel = fit.stiffness_Nm_per_rad / robot.joint_stiffness_Nm_per_rad
+    ci = fit.stiffness_ci95_Nm_per_rad / robot.joint_stiffness_Nm_per_rad[:, None]
+    ok = fit.identifiable
+    ax.errorbar(j[ok], rel[ok], yerr=np.abs(np.vstack([rel[ok] - ci[ok, 0], np.minimum(ci[ok, 1], 10) - rel[ok]])),
+                fmt="o", capsize=4, label="identified, 95 % interval")
+    ax.plot(j[~ok], rel[~ok], "x", color="grey", ms=10, label="not identifiable (nominal)")
+    ax.axhline(1.0, color="k", lw=0.8)
+    ax.set_xticks(j)
+    ax.set_xlabel("joint")
+    ax.set_ylabel("stiffness / nominal")
+    ax.set_title("joint stiffness")
+    ax.legend()
+    return fig
+
+
+def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=None):
+    robot = load_robot(robot_yaml)
+    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    campaign = read_stiffness_campaign(data, robot)
+    fit = identify(robot, campaign, tool_m=tool_m, robust=robust)
+    if json_out is not None:
+        emit_json(fit_to_dict(fit, campaign, robot, tool_m), json_out)
+    if plot is not None:
+        save_figure_atomic(plot_fit(fit, campaign, robot), plot, dpi=100)
+    if json_out != "-":
+        print(format_fit(fit, campaign, robot))
+    return 0

@@ -1,0 +1,73 @@
+"""``robstiff synth stiffness|payload OUT.csv``: virtual measurement
+campaigns from the model (see identification/synth.py)."""
+
+import numpy as np
+
+from robstiff_drake.commands.main import parse_vector
+from robstiff_drake.errors import InputError
+from robstiff_drake.identification import synth
+from robstiff_drake.io import write_atomic
+from robstiff_drake.model.effects import EFFECTS
+from robstiff_drake.model.robot import load_robot
+
+DEFAULT_EFFECT_RMS_MM = 0.04
+
+
+def parse_effects(items):
+    """['lost_motion', 'drift=0.03'] -> {'lost_motion': 0.04, 'drift': 0.03} (RMS, mm)."""
+    out = {}
+    for item in items or []:
+        name, _, size = item.partition("=")
+        name = name.strip()
+        if name not in EFFECTS:
+            raise InputError(f"synth: unknown effect '{name}' (known: {', '.join(EFFECTS)})")
+        try:
+            rms = float(size) if size else DEFAULT_EFFECT_RMS_MM
+        except ValueError:
+            raise InputError(f"synth: --effect {item}: size '{size}' is not a number (RMS in mm)") from None
+        if not 0 < rms < 10:
+            raise InputError(f"synth: --effect {item}: RMS size must be in (0, 10) mm")
+        out[name] = rms
+    return out
+
+
+def _positive(name, value, integer=False):
+    if not value > 0 or (integer and int(value) != value):
+        raise InputError(f"synth: {name} must be a positive {'integer' if integer else 'number'}, got {value}")
+
+
+def run_stiffness(*, out, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01, seed=0, tool=None,
+                  effects=None, stiffness=None, robot_yaml=None):
+    robot = load_robot(robot_yaml)
+    _positive("--n", n, True)
+    _positive("--loads-per-pose", loads_per_pose, True)
+    _positive("--force-N", force_N)
+    if not noise_mm >= 0:
+        raise InputError(f"synth: --noise-mm must be >= 0, got {noise_mm}")
+    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    k = None
+    if stiffness is not None:
+        k = np.array(parse_vector(stiffness, 6, "--stiffness"))
+        if np.any(k <= 0):
+            raise InputError("synth: --stiffness values must be > 0 (N*m/rad)")
+    c = synth.stiffness_campaign(robot, n=n, loads_per_pose=loads_per_pose, force_N=force_N, noise_mm=noise_mm,
+                                 seed=seed, tool_m=tool_m, effects=parse_effects(effects),
+                                 true_stiffness_Nm_per_rad=k)
+    write_atomic(out, synth.stiffness_csv(c, robot=robot, noise_mm=noise_mm, seed=seed, force_N=force_N,
+                                          tool_m=tool_m))
+    extra = "".join(f", {k_} RMS {v:.4f} mm" for k_, v in c.effect_rms_mm.items())
+    print(f"wrote {out}: {n} measurements at {len(set(c.pose))} poses{extra}")
+    return 0
+
+
+def run_payload(*, out, n=15, mass_kg=None, com=None, noise_N=1.0, noise_Nm=0.1, seed=0, robot_yaml=None):
+    robot = load_robot(robot_yaml)
+    _positive("--n", n, True)
+    if mass_kg is not None:
+        _positive("--mass-kg", mass_kg)
+    com_m = None if com is None else np.array(parse_vector(com, 3, "--com-mm")) / 1000.0
+    c = synth.payload_campaign(robot, n=n, mass_kg=mass_kg, com_m=com_m, noise_N=noise_N, noise_Nm=noise_Nm,
+                               seed=seed)
+    write_atomic(out, synth.payload_csv(c, noise_N=noise_N, noise_Nm=noise_Nm, seed=seed))
+    print(f"wrote {out}: {n} configurations, payload {c.mass_kg:g} kg")
+    return 0

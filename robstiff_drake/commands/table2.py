@@ -1,0 +1,138 @@
+"""``robstiff table2``: the seed's Table 2 (data/seed_table2.csv) analysed as
+the measured evidence it is: linearity in load, the offset at zero load and
+repeatability, per assumed pose group.  The table and plot in the README come
+from ``robstiff table2 --plot docs/table2.png``.
+
+Grouping (an assumption: the paper does not say which rows share a pose):
+  A: rows 1-6 and 17 (-x loads; dx about -2.6 um/N, dy positive, dz small)
+  B: rows 7-12 (-x loads; dx about -4 um/N, dz about -2.3 um/N)
+  C: rows 13-14 (the same (0, -275, 25) N load twice)
+  D: rows 15-16 (the same (-40, -295, 10) N load twice)
+Row 17 joins A because its response (-0.934, 0.276, -0.299) mm at 360 N
+matches A's other 360 N rows, not B's (-1.43, 0.02, -0.80).  As a check of
+that assumption, A is also split into A1 (rows 1-3) and A2 (4-6, 17).
+"""
+
+import numpy as np
+
+from robstiff_drake.errors import InputError
+from robstiff_drake.identification.campaign import D_COLS, F_COLS, read_table
+from robstiff_drake.identification.linearity import analyse_group, pooled_offset
+from robstiff_drake.io import emit_json, save_figure_atomic
+from robstiff_drake.paths import REPO_ROOT
+
+TABLE2_CSV = REPO_ROOT / "data" / "seed_table2.csv"
+GROUPS = {"A": [1, 2, 3, 4, 5, 6, 17], "B": [7, 8, 9, 10, 11, 12], "C": [13, 14], "D": [15, 16]}
+SPLIT_A = {"A1": [1, 2, 3], "A2": [4, 5, 6, 17]}
+
+
+def analyse(path=TABLE2_CSV, groups=None):
+    t = read_table(path, required=("row",) + F_COLS + D_COLS)
+    rows = t.numeric["row"].astype(int).tolist()
+    F = np.column_stack([t.numeric[c] for c in F_COLS])
+    D = np.column_stack([t.numeric[c] for c in D_COLS])
+    out = []
+    for name, members in (groups or {**GROUPS, **SPLIT_A}).items():
+        missing = [m for m in members if m not in rows]
+        if missing:
+            raise InputError(f"{path}: group {name} needs rows {missing}, not in the file")
+        idx = [rows.index(m) for m in members]
+        out.append(analyse_group(name, members, F[idx], D[idx]))
+    return out, F, D, rows
+
+
+def along_load(results, F, D, rows):
+    """Offset along the load direction per two-level primary group (A, B), pooled."""
+    two_level = [g for g in results if g.components and g.name in GROUPS]
+    idx = {g.name: [rows.index(m) for m in g.rows] for g in two_level}
+    per, pooled, std, p = pooled_offset(two_level, {k: F[v] for k, v in idx.items()},
+                                        {k: D[v] for k, v in idx.items()})
+    return {"per_group_mm": {k: {"offset_mm": v, "std_mm": s} for k, (v, s) in per.items()},
+            "pooled_mm": pooled, "pooled_std_mm": std, "p_value": p}
+
+
+def to_dict(results):
+    out = []
+    for g in results:
+        out.append({
+            "group": g.name, "rows": g.rows, "load_direction": g.direction, "loads_N": g.loads_N,
+            "compliance_um_per_N_through_origin": g.compliance_um_per_N,
+            "repeatability_mm": g.repeatability_mm, "repeatability_dof": g.n_repeat_dof,
+            "components": [None if not g.components else {
+                "axis": ax, "slope_through_origin_um_per_N": c.slope0_mm_per_N * 1e3,
+                "slope_um_per_N": c.slope_mm_per_N * 1e3, "offset_at_zero_load_mm": c.intercept_mm,
+                "offset_std_mm": c.intercept_std_mm, "f_stat": c.f_stat, "p_value": c.p_value,
+                "displacement_ratio": c.disp_ratio, "load_ratio": c.load_ratio,
+                "rms_through_origin_mm": c.rms_origin_mm, "rms_with_offset_mm": c.rms_intercept_mm,
+            } for ax, c in zip("xyz", g.components or [None] * 3)],
+        })
+    return out
+
+
+def markdown(results):
+    lines = [
+        "| group | rows | loads (N) | axis | d(360)/d(180) | offset at 0 N (mm) | p (offset = 0) "
+        "| RMS through origin / with offset (mm) | repeatability sigma (mm) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for g in results:
+        loads = "/".join(f"{v:g}" for v in g.loads_N)
+        if g.components:
+            for ax, c, rep in zip("xyz", g.components, g.repeatability_mm):
+                lines.append(f"| {g.name} | {','.join(map(str, g.rows))} | {loads} | {ax} | {c.disp_ratio:.3f} | "
+                             f"{c.intercept_mm:+.4f} +- {c.intercept_std_mm:.4f} | {c.p_value:.3g} | "
+                             f"{c.rms_origin_mm:.4f} / {c.rms_intercept_mm:.4f} | {rep:.4f} |")
+        else:
+            rep = ", ".join(f"{v:.4f}" for v in g.repeatability_mm)
+            comp = ", ".join(f"{v:.2f}" for v in g.compliance_um_per_N)
+            lines.append(f"| {g.name} | {','.join(map(str, g.rows))} | {loads} | - | single load: d / load = ({comp}) "
+                         f"um/N | - | - | - | ({rep}) |")
+    return "\n".join(lines)
+
+
+def plot(results, F, D, rows):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    shown = [g for g in results if g.name in ("A", "B")]
+    fig, axes = plt.subplots(1, len(shown), figsize=(6 * len(shown), 4.5), constrained_layout=True)
+    for ax, g in zip(np.atleast_1d(axes), shown):
+        idx = [rows.index(m) for m in g.rows]
+        mag = np.linalg.norm(F[idx], axis=1)
+        x = np.linspace(0, mag.max() * 1.05, 50)
+        for i, (name, color) in enumerate(zip("xyz", ("C0", "C1", "C2"))):
+            c = g.components[i]
+            ax.plot(mag, D[idx, i], "o", color=color, label=f"d{name} measured")
+            ax.plot(x, c.slope0_mm_per_N * x, "--", color=color, lw=1, label=f"d{name} line through 0")
+            ax.plot(x, c.slope_mm_per_N * x + c.intercept_mm, "-", color=color, lw=1,
+                    label=f"d{name} with offset {c.intercept_mm:+.3f} mm")
+        ax.axhline(0, color="k", lw=0.6)
+        ax.set_xlim(0, None)
+        ax.set_xlabel("load |F| (N)")
+        ax.set_ylabel("displacement (mm)")
+        ax.set_title(f"seed Table 2, group {g.name} (rows {','.join(map(str, g.rows))})")
+        ax.legend(fontsize=7)
+    return fig
+
+
+def run(*, json_out=None, plot_out=None, data=None):
+    results, F, D, rows = analyse(data or TABLE2_CSV)
+    pooled = along_load(results, F, D, rows)
+    if json_out is not None:
+        emit_json({"data": str(data or TABLE2_CSV), "groups": to_dict(results), "offset_along_load": pooled},
+                  json_out)
+    if plot_out is not None:
+        save_figure_atomic(plot(results, F, D, rows), plot_out, dpi=100)
+    if json_out != "-":
+        print("seed Table 2: linearity in load, offset at zero load, repeatability (grouping: see --help)")
+        print(markdown(results))
+        print()
+        print("offset at zero load along the load direction (positive: the tool moved further along the load "
+              "than a line through the origin explains):")
+        for k, v in pooled["per_group_mm"].items():
+            print(f"  group {k}: {v['offset_mm']:+.4f} +- {v['std_mm']:.4f} mm")
+        print(f"  pooled:  {pooled['pooled_mm']:+.4f} +- {pooled['pooled_std_mm']:.4f} mm "
+              f"(two-sided p = {pooled['p_value']:.3g})")
+    return 0

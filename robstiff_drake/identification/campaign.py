@@ -1,0 +1,225 @@
+"""Measurement files: CSV with a header row, ``#`` comment lines, free column
+order, extra columns kept and ignored.  Plain numpy; no Drake.
+
+Stiffness campaigns (one row per loaded measurement):
+  q1..q6      joint angles, deg, controller convention (Table 1)
+  fx,fy,fz    force applied at the tool point, N, robot base frame
+  mx,my,mz    optional moment applied about the tool point, N*m, base frame
+  dx,dy,dz    measured tool-point displacement, mm, base frame (loaded minus unloaded)
+  rx,ry,rz    optional measured tool rotation (small-angle vector), mrad, base frame
+  pose        optional id shared by rows measured at the same pose
+  seq         optional measurement order
+
+Payload campaigns (one row per static configuration):
+  q1..q6      deg; fx,fy,fz (N) and mx,my,mz (N*m): the wrench the payload
+  exerts on the sensor, in the sensor frame.
+
+Every error is an InputError naming the file, line and column.
+"""
+
+import csv
+import difflib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from robstiff_drake.errors import InputError
+
+Q_COLS = tuple(f"q{i}" for i in range(1, 7))
+F_COLS = ("fx", "fy", "fz")
+M_COLS = ("mx", "my", "mz")
+D_COLS = ("dx", "dy", "dz")
+R_COLS = ("rx", "ry", "rz")
+
+
+@dataclass
+class Table:
+    """A parsed CSV: numeric columns as float arrays, text columns as lists."""
+
+    path: str
+    header_line: int
+    columns: list  # names in file order (lower case)
+    numeric: dict  # name -> float array
+    text: dict  # name -> list of str (columns not parsed as numbers)
+    lines: np.ndarray  # file line number of each row (1-based)
+    comments: list = field(default_factory=list)
+
+    def __len__(self):
+        return len(self.lines)
+
+    def where(self, row, col=None):
+        """'FILE:LINE' or 'FILE:LINE, column N (name)' for error messages."""
+        s = f"{self.path}:{self.lines[row]}"
+        if col is not None:
+            s += f", column {self.columns.index(col) + 1} ({col})"
+        return s
+
+
+def read_table(path, *, required, optional=(), text_columns=()):
+    """Read a measurement CSV.  ``required``/``optional`` columns are parsed
+    as finite floats; ``text_columns`` are kept as strings; any other column
+    is kept as text and ignored."""
+    path = Path(path)
+    try:
+        raw = path.read_text()
+    except OSError as e:
+        raise InputError(f"{path}: cannot read ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text file") from None
+    comments, rows = [], []
+    for lineno, line in enumerate(raw.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped.startswith("#"):
+            comments.append(stripped[1:].strip())
+            continue
+        rows.append((lineno, line))
+    if not rows:
+        raise InputError(f"{path}: empty file (no header row and no data)")
+    header_line, header_text = rows[0]
+    header = [h.strip().lower() for h in next(csv.reader([header_text]))]
+    seen = {}
+    for i, h in enumerate(header):
+        if not h:
+            raise InputError(f"{path}:{header_line}, column {i + 1}: empty column name in the header")
+        if h in seen:
+            raise InputError(f"{path}:{header_line}: duplicated column '{h}' (columns {seen[h] + 1} and {i + 1})")
+        seen[h] = i
+    for name in required:
+        if name not in seen:
+            unknown = [h for h in header if h not in set(required) | set(optional) | set(text_columns)]
+            close = difflib.get_close_matches(name, unknown, n=1, cutoff=0.5)
+            hint = f" (is '{close[0]}' a misspelling?)" if close else ""
+            raise InputError(f"{path}:{header_line}: missing column '{name}'{hint}; "
+                             f"required: {','.join(required)}")
+    data = rows[1:]
+    if not data:
+        raise InputError(f"{path}: no data rows after the header (line {header_line})")
+    cells = []
+    for lineno, line in data:
+        values = next(csv.reader([line]))
+        if len(values) != len(header):
+            raise InputError(f"{path}:{lineno}: expected {len(header)} cells (as in the header), got {len(values)}")
+        cells.append([v.strip() for v in values])
+    numeric_names = [c for c in list(required) + list(optional) if c in seen]
+    numeric = {}
+    for name in numeric_names:
+        col = seen[name]
+        arr = np.empty(len(cells))
+        for r, row in enumerate(cells):
+            v = row[col]
+            where = f"{path}:{data[r][0]}, column {col + 1} ({name})"
+            if v == "":
+                raise InputError(f"{where}: empty cell")
+            try:
+                arr[r] = float(v)
+            except ValueError:
+                raise InputError(f"{where}: '{v}' is not a number") from None
+            if not np.isfinite(arr[r]):
+                raise InputError(f"{where}: '{v}' is not a finite number")
+        numeric[name] = arr
+    text = {h: [row[seen[h]] for row in cells] for h in header if h not in numeric}
+    return Table(str(path), header_line, header, numeric, text,
+                 np.array([ln for ln, _ in data]), comments)
+
+
+@dataclass
+class StiffnessCampaign:
+    """A stiffness campaign in the model's units (see module docstring)."""
+
+    path: str
+    q_deg: np.ndarray  # (N, 6)
+    force_N: np.ndarray  # (N, 3)
+    moment_Nm: np.ndarray  # (N, 3), zeros when the file has none
+    disp_mm: np.ndarray  # (N, 3)
+    rot_mrad: np.ndarray | None  # (N, 3) or None
+    pose: list | None
+    seq: np.ndarray | None
+    lines: np.ndarray
+    comments: list
+    has_moments: bool
+
+    def __len__(self):
+        return len(self.lines)
+
+    @property
+    def wrench(self):
+        """(N, 6) wrench at the tool point, base frame (N, N*m)."""
+        return np.hstack([self.force_N, self.moment_Nm])
+
+
+def _optional_block(table, names, what):
+    present = [n for n in names if n in table.numeric]
+    if present and len(present) != len(names):
+        missing = [n for n in names if n not in table.numeric]
+        raise InputError(f"{table.path}:{table.header_line}: {what} columns need all of "
+                         f"{','.join(names)}; missing {','.join(missing)}")
+    return np.column_stack([table.numeric[n] for n in names]) if present else None
+
+
+def check_joint_limits(table, robot):
+    """Every row's q inside the robot's joint limits (error names line/column)."""
+    lo, hi = np.rad2deg(robot.q_lower_rad), np.rad2deg(robot.q_upper_rad)
+    for j, name in enumerate(Q_COLS):
+        v = table.numeric[name]
+        bad = np.flatnonzero((v < lo[j] - 1e-9) | (v > hi[j] + 1e-9))
+        if bad.size:
+            r = bad[0]
+            raise InputError(f"{table.where(r, name)}: {v[r]:g} deg is outside the joint limit "
+                             f"[{lo[j]:g}, {hi[j]:g}] deg")
+
+
+def read_stiffness_campaign(path, robot, *, min_rows=6):
+    table = read_table(path, required=Q_COLS + F_COLS + D_COLS, optional=M_COLS + R_COLS + ("seq",),
+                       text_columns=("pose",))
+    check_joint_limits(table, robot)
+    force = np.column_stack([table.numeric[n] for n in F_COLS])
+    moments = _optional_block(table, M_COLS, "moment")
+    rot = _optional_block(table, R_COLS, "rotation")
+    n = len(table)
+    if n < min_rows:
+        raise InputError(f"{table.path}: {n} measurement rows, fewer than the {min_rows} unknowns "
+                         f"(one compliance per joint); measure at least {min_rows}")
+    load = np.abs(force).sum(axis=1) + (0 if moments is None else np.abs(moments).sum(axis=1))
+    if np.all(load == 0):
+        raise InputError(f"{table.path}: all forces{' and moments' if moments is not None else ''} are zero: "
+                         "nothing loads the robot, so nothing can be identified")
+    return StiffnessCampaign(
+        path=table.path,
+        q_deg=np.column_stack([table.numeric[n] for n in Q_COLS]),
+        force_N=force,
+        moment_Nm=np.zeros_like(force) if moments is None else moments,
+        disp_mm=np.column_stack([table.numeric[n] for n in D_COLS]),
+        rot_mrad=rot,
+        pose=table.text.get("pose"),
+        seq=table.numeric.get("seq"),
+        lines=table.lines,
+        comments=table.comments,
+        has_moments=moments is not None,
+    )
+
+
+@dataclass
+class PayloadCampaign:
+    path: str
+    q_deg: np.ndarray  # (N, 6)
+    force_N: np.ndarray  # (N, 3), sensor frame
+    torque_Nm: np.ndarray  # (N, 3), sensor frame
+    lines: np.ndarray
+    comments: list
+
+    def __len__(self):
+        return len(self.lines)
+
+
+def read_payload_campaign(path, robot):
+    table = read_table(path, required=Q_COLS + F_COLS + M_COLS)
+    check_joint_limits(table, robot)
+    force = np.column_stack([table.numeric[n] for n in F_COLS])
+    torque = np.column_stack([table.numeric[n] for n in M_COLS])
+    if np.all(force == 0) and np.all(torque == 0):
+        raise InputError(f"{table.path}: all forces and torques are zero: the sensor saw no payload")
+    return PayloadCampaign(table.path, np.column_stack([table.numeric[n] for n in Q_COLS]),
+                           force, torque, table.lines, table.comments)
