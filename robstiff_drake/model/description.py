@@ -6,7 +6,9 @@ Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i), while URDF puts the fixed part
 first.  So URDF link i's frame is DH frame i-1 turned by joint i; the fixed
 part Tz(d_i) Tx(a_i) Rx(alpha_i), followed by the next joint's home offset
 Rz(home_{i+1}), becomes the origin of joint i+1.  The URDF joint angle is then
-exactly the controller angle q.  A fixed joint adds the ``flange`` link at
+exactly the controller angle q.  Each joint has an actuator (the servo and
+gear), which the closed-loop plant turns into a PD spring-damper between the
+commanded and the link angle.  A fixed joint adds the ``flange`` link at
 DH frame 6 (the wrist sensor frame), and another the ``spindle`` link that
 carries the payload (spindle, sensor and tool): the force-torque sensor
 measures the wrench across that weld.
@@ -17,6 +19,10 @@ import numpy as np
 from robstiff_drake.model import kinematics as kin
 
 PACKAGE_NAME = "robstiff_irb6400"
+# The servos are not torque-limited in the model (ABB publishes no motor
+# torques); the limit only has to exceed the gravity and process torques.
+EFFORT_LIMIT_NM = 1e6
+VELOCITY_LIMIT_RAD_PER_S = 10.0
 
 
 def _fmt(values):
@@ -95,8 +101,13 @@ def make_urdf(robot):
             f'    <child link="{names[i + 1]}"/>\n'
             f"    {_origin(xyz, R)}\n"
             '    <axis xyz="0 0 1"/>\n'
-            f'    <limit lower="{lo:.17g}" upper="{hi:.17g}" effort="0" velocity="0"/>\n'
+            f'    <limit lower="{lo:.17g}" upper="{hi:.17g}" effort="{EFFORT_LIMIT_NM:g}" velocity="{VELOCITY_LIMIT_RAD_PER_S:g}"/>\n'
             "  </joint>\n"
+            f'  <transmission name="joint_{i + 1}_transmission">\n'
+            '    <type>transmission_interface/SimpleTransmission</type>\n'
+            f'    <joint name="joint_{i + 1}"><hardwareInterface>PositionJointInterface</hardwareInterface></joint>\n'
+            f'    <actuator name="joint_{i + 1}_servo"><mechanicalReduction>1</mechanicalReduction></actuator>\n'
+            "  </transmission>\n"
         )
     xyz = np.array([dh.a_m[5], 0.0, dh.d_m[5]])
     out.append('  <link name="flange"/>\n')

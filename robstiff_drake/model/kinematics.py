@@ -140,3 +140,8 @@ def rpy_to_rotation(rpy):
     Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
     Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
     return Rz @ Ry @ Rx
+
+
+def cross3(a, b):
+    """Cross product of two 3-vectors, without np.cross's overhead (per-cycle code)."""
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])

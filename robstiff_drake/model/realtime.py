@@ -28,6 +28,7 @@ class DeflectionPredictor:
         self._sa = [math.sin(v) for v in dh.alpha_rad]
         tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
         self._tool = [float(v) for v in tool]
+        self._memo_q, self._memo = None, None  # the last chain, reused for the same q
         self.set_joint_stiffness(joint_stiffness_Nm_per_rad)
 
     def set_joint_stiffness(self, joint_stiffness_Nm_per_rad):
@@ -36,14 +37,39 @@ class DeflectionPredictor:
             raise ValueError("joint stiffness must be positive")
         self._c = [1.0 / float(v) for v in k]
 
+    def flange_rotation_and_tool_point(self, q_rad):
+        """Rotation of DH frame 6 (3x3 numpy) and the tool point (m), base frame."""
+        T = self._chain(q_rad)[1]
+        R = np.array(T[:9]).reshape(3, 3)
+        return R, np.array(T[9:])
+
     def jacobian_rows(self, q_rad):
         """Six Jacobian columns as tuples (jvx, jvy, jvz, jwx, jwy, jwz)."""
+        axes, T = self._chain(q_rad)
+        px, py, pz = T[9:]
+        cols = []
+        for zx, zy, zz, ox, oy, oz in axes:
+            ex, ey, ez = px - ox, py - oy, pz - oz
+            cols.append((zy * ez - zz * ey, zz * ex - zx * ez, zx * ey - zy * ex, zx, zy, zz))
+        return cols
+
+    def _chain(self, q_rad):
+        """Joint axes/origins (six tuples) and (R row-major 9 values, tool
+        point 3).  The blocks of one controller cycle ask for the same q, so
+        the last result is kept."""
+        q = tuple(q_rad.tolist() if hasattr(q_rad, "tolist") else q_rad)
+        if q == self._memo_q:
+            return self._memo
+        self._memo_q, self._memo = q, self._chain_uncached(q)
+        return self._memo
+
+    def _chain_uncached(self, q_rad):
         # Rotation R (rows r0..r8) and position p of the current frame.
         r0, r1, r2, r3, r4, r5, r6, r7, r8 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
         px = py = pz = 0.0
         axes = []
         home, d, a, ca, sa = self._home, self._d, self._a, self._ca, self._sa
-        for i, qi in enumerate(q_rad.tolist() if hasattr(q_rad, "tolist") else q_rad):
+        for i, qi in enumerate(q_rad):
             axes.append((r2, r5, r8, px, py, pz))  # z axis and origin of frame i
             th = qi + home[i]
             ct, st = math.cos(th), math.sin(th)
@@ -65,11 +91,7 @@ class DeflectionPredictor:
         px += r0 * tx + r1 * ty + r2 * tz
         py += r3 * tx + r4 * ty + r5 * tz
         pz += r6 * tx + r7 * ty + r8 * tz
-        cols = []
-        for zx, zy, zz, ox, oy, oz in axes:
-            ex, ey, ez = px - ox, py - oy, pz - oz
-            cols.append((zy * ez - zz * ey, zz * ex - zx * ez, zx * ey - zy * ex, zx, zy, zz))
-        return cols
+        return axes, (r0, r1, r2, r3, r4, r5, r6, r7, r8, px, py, pz)
 
     def __call__(self, q_rad, wrench):
         """Return (dq, dx) as numpy arrays: joint deflection (rad) and the

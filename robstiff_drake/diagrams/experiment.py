@@ -1,0 +1,104 @@
+"""Running the milling cell and reading the result: the simulation, the
+laser scan of the machined surface, and the surface-error statistics."""
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from robstiff_drake.diagrams.milling_cell import build_milling_cell, make_simulator
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.surface import envelope_heights, surface_error_stats
+
+# How long after the path ends the simulation goes on (s): lets the last
+# correction settle; the scan only covers the material anyway.
+RUN_OUT_S = 0.1
+
+
+@dataclass
+class ScanLine:
+    y_m: float
+    x_m: np.ndarray
+    commanded_m: np.ndarray
+    machined_m: np.ndarray
+
+    @property
+    def error_m(self):
+        """Surface error, positive where more was removed than commanded."""
+        return self.commanded_m - self.machined_m
+
+
+@dataclass
+class RunResult:
+    compensation: bool
+    logs: dict  # name -> (times (N,), data (N, k))
+    scans: list
+    surface_error_mm: dict
+    sim_seconds: float
+    wall_seconds: float
+    cell: object = None
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def realtime_factor(self):
+        return self.sim_seconds / self.wall_seconds if self.wall_seconds > 0 else float("inf")
+
+
+def material_top(workpiece, x, y):
+    """Top of the uncut material at (x, y) (m); NaN where there is none."""
+    top = np.full(np.shape(x), -np.inf)
+    for (x0, x1), (y0, y1), zt in zip(workpiece.x_m, workpiece.y_m, workpiece.top_m):
+        inside = (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
+        top = np.where(inside, np.maximum(top, zt), top)
+    return np.where(np.isfinite(top), top, np.nan)
+
+
+def scan_lines(cell):
+    sc = cell.scenario
+    if sc.scan.lines_y_mm:
+        return [y / 1e3 for y in sc.scan.lines_y_mm]
+    return sorted({float(np.mean(yr)) for yr in cell.workpiece.y_m})
+
+
+def scan_surface(cell, times, q):
+    """Scan lines of the surface the actual and the commanded pass leave."""
+    sc = cell.scenario
+    R = cell.force_model.cutter.radius_m
+    T6 = kin.frames(cell.robot.dh, q)[:, 6]
+    p_act = T6[:, :3, 3] + T6[:, :3, :3] @ cell.tool_m
+    n_act = -T6[:, :3, 2]  # the tool's z axis points down the spindle
+    p_cmd = cell.path.positions(times)
+    n_cmd = np.tile([0.0, 0.0, 1.0], (len(times), 1))
+    margin = sc.scan.edge_margin_mm / 1e3
+    x_lo = cell.workpiece.x_m[:, 0].min() + margin
+    x_hi = cell.workpiece.x_m[:, 1].max() - margin
+    x = np.arange(x_lo, x_hi + 1e-12, sc.scan.resolution_mm / 1e3)
+    lines = []
+    for y in scan_lines(cell):
+        top = material_top(cell.workpiece, x, np.full_like(x, y))
+        # at the box edges in y the scan would see the side: stay inside by the margin
+        h_cmd = envelope_heights(x, y, p_cmd, n_cmd, R, np.nan_to_num(top, nan=-np.inf))
+        h_act = envelope_heights(x, y, p_act, n_act, R, np.nan_to_num(top, nan=-np.inf))
+        valid = np.isfinite(top) & (h_cmd < top - 1e-9)
+        lines.append(ScanLine(y, x[valid], h_cmd[valid], h_act[valid]))
+    return lines
+
+
+def run_cut(sc, robot, *, compensation=True, cell=None):
+    """Simulate scenario ``sc`` once; return logs, scans and statistics."""
+    cell = cell or build_milling_cell(sc, robot, compensation=compensation)
+    sim = make_simulator(cell)
+    t_end = cell.path.duration_s + RUN_OUT_S
+    t0 = time.perf_counter()
+    sim.AdvanceTo(t_end)
+    wall = time.perf_counter() - t0
+    root = sim.get_context()
+    logs = {}
+    for name, logger in cell.loggers.items():
+        log = logger.FindLog(root)
+        logs[name] = (log.sample_times().copy(), log.data().T.copy())
+    t, x = logs["state"]
+    scans = scan_surface(cell, t, x[:, :6])
+    err = np.concatenate([s.error_m for s in scans])
+    stats = surface_error_stats(err) if err.size else {}
+    return RunResult(compensation, logs, scans, stats, t_end, wall, cell)

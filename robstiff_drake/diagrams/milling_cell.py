@@ -1,0 +1,279 @@
+"""The robotic milling cell as one Drake diagram: the compliant-joint
+IRB6400, the path source, the milling force source, the wrist sensor and the
+real-time compensation chain of the seed's Fig. 5.
+
+    path (TrajectorySource: q_ref, v_ref) ----------------------------+
+                                                                      v
+    plant (SAP, PD joints kp = K_q) <-- desired state <-- q_ref + correction
+      |  ^ gravity feed-forward (InverseDynamics)                     ^
+      |  +-- cutting wrench <-- MillingForceSource(q)                 |
+      +-- reaction at the flange-spindle weld --> WristForceSensor    |
+            --> WrenchGuard --> force filter (LinearSystem)           |
+            --> ZOH(T) --> GravityRemoval(q) --> DeflectionPrediction(q)
+            --> Saturation --> DiscreteTimeDelay(T, n) --> RateLimitedCorrection(T)
+
+Sample-and-hold timing (Drake's same-instant semantics: a discrete block
+updated at the same tick as its source sees the source's previous value):
+a change of the true wrench reaches the correction after one sensor sample
+(sensor), one more (guard), the filter's own lag, one controller period
+(ZOH), ``delay_steps`` periods (the delay block) and one more period (the
+correction's own update).  ``transport_delay_s`` adds these up.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
+from pydrake.multibody.tree import JointActuatorIndex, PdControllerGains
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.controllers import InverseDynamics
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import (
+    Adder,
+    Demultiplexer,
+    DiscreteTimeDelay,
+    LogVectorOutput,
+    Multiplexer,
+    Saturation,
+    TrajectorySource,
+    ZeroOrderHold,
+)
+from pydrake.trajectories import PiecewisePolynomial
+
+from robstiff_drake.diagrams.scenario import model_stiffness, payload_calibration, plant_stiffness
+from robstiff_drake.errors import InputError
+from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
+from robstiff_drake.model.path import PathError, PlannedPath
+from robstiff_drake.model.realtime import DeflectionPredictor
+from robstiff_drake.plant import add_irb6400
+from robstiff_drake.systems.deflection_prediction import DeflectionPrediction
+from robstiff_drake.systems.force_filter import (
+    filter_system,
+    group_delay_s,
+    lowpass_coefficients,
+    revolution_average_coefficients,
+    steady_state,
+)
+from robstiff_drake.systems.gravity_removal import GravityRemoval, payload_wrench
+from robstiff_drake.systems.milling_force import MillingForceSource
+from robstiff_drake.systems.reference_correction import RateLimitedCorrection
+from robstiff_drake.systems.wrist_sensor import WrenchGuard, WristForceSensor
+
+
+@dataclass
+class MillingCell:
+    """A built diagram and what is needed to run and read it."""
+
+    diagram: object
+    plant: object
+    scenario: object
+    robot: object
+    path: PlannedPath
+    q_ref_times: np.ndarray
+    q_ref: np.ndarray
+    force_model: MillingForceModel
+    workpiece: Workpiece
+    tool_m: np.ndarray
+    compensation: bool
+    loggers: dict
+    systems: dict
+    initial: dict
+    plant_time_step_s: float
+    force_period_s: float
+    transport_delay_s: float
+    damping_beta_s: float
+    natural_frequencies_hz: np.ndarray
+
+
+def cutting_setup(sc):
+    cutter = Cutter(sc.cutter.diameter_mm / 1e3, int(sc.cutter.n_teeth), sc.cutter.spindle_rpm)
+    c = sc.cutting
+    s, sa = c.tangential_radial_scale, c.axial_scale
+    coeffs = CuttingCoefficients(c.Ktc_N_per_mm2 * s, c.Krc_N_per_mm2 * s, c.Kac_N_per_mm2 * sa,
+                                 c.Kte_N_per_mm * s, c.Kre_N_per_mm * s, c.Kae_N_per_mm * sa)
+    model = MillingForceModel(cutter, coeffs, sc.path.feed_mm_per_s / 1e3)
+    workpiece = Workpiece.from_boxes(np.asarray(sc.workpiece.boxes_mm, dtype=float) / 1e3)
+    return cutter, model, workpiece
+
+
+def force_period(sc, cutter):
+    if sc.cutting.mode == "tooth":
+        return 1.0 / (cutter.tooth_pass_hz * sc.cutting.samples_per_tooth)
+    return sc.cutting.averaged_period_ms / 1e3
+
+
+def natural_frequencies(plant, context, q, k_Nm_per_rad):
+    """Undamped natural frequencies (Hz) of the joint springs at q, ascending."""
+    plant.SetPositions(context, q)
+    M = plant.CalcMassMatrix(context)
+    w2 = np.linalg.eigvals(np.linalg.solve(M, np.diag(k_Nm_per_rad))).real
+    return np.sort(np.sqrt(np.maximum(w2, 0.0))) / (2 * np.pi)
+
+
+def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
+    """Build the closed-loop diagram of scenario ``sc``."""
+    tool = robot.payload.tool_point_m
+    cutter, fmodel, workpiece = cutting_setup(sc)
+    T = sc.controller.period_ms / 1e3
+    f_period = force_period(sc, cutter)
+    dt = min(sc.plant.time_step_ms / 1e3, f_period)
+    try:
+        path = PlannedPath(np.asarray(sc.path.waypoints_mm, dtype=float) / 1e3, sc.path.feed_mm_per_s / 1e3,
+                           np.deg2rad(sc.path.yaw_deg), sc.path.dwell_s)
+        t_ref, q_ref = path.joint_references(robot, tool, sc.path.reference_period_ms / 1e3)
+    except PathError as e:
+        raise InputError(f"{sc.source}: path: {e}") from None
+
+    builder = DiagramBuilder()
+    plant, _ = AddMultibodyPlant(MultibodyPlantConfig(time_step=dt, discrete_contact_approximation="sap"), builder)
+    plant.set_name("plant")
+    instance = add_irb6400(plant)
+    k_plant = plant_stiffness(sc, robot)
+
+    # damping: kd = beta kp with beta = 2 zeta / omega_1 at the start pose
+    probe = MultibodyPlant(0.0)
+    add_irb6400(probe)
+    probe.Finalize()
+    freqs = natural_frequencies(probe, probe.CreateDefaultContext(), q_ref[0], k_plant)
+    beta = 2 * sc.plant.damping_ratio / (2 * np.pi * freqs[0])
+    for i in range(6):
+        plant.get_joint_actuator(JointActuatorIndex(i)).set_controller_gains(
+            PdControllerGains(p=k_plant[i], d=beta * k_plant[i]))
+    plant.Finalize()
+
+    # the controller's gravity feed-forward (exact model, payload included)
+    gravity = builder.AddNamedSystem("gravity_feedforward", InverseDynamics(
+        probe, InverseDynamics.InverseDynamicsMode.kGravityCompensation))
+    builder.Connect(plant.get_state_output_port(), gravity.get_input_port_estimated_state())
+    builder.Connect(gravity.get_output_port(), plant.get_actuation_input_port())
+
+    # path: q_ref and its derivative from a piecewise-linear trajectory
+    traj = PiecewisePolynomial.FirstOrderHold(t_ref, q_ref.T)
+    path_src = builder.AddNamedSystem("path", TrajectorySource(traj, output_derivative_order=1))
+    path_demux = builder.AddNamedSystem("path_demux", Demultiplexer([6, 6]))
+    builder.Connect(path_src.get_output_port(), path_demux.get_input_port())
+    state_demux = builder.AddNamedSystem("state_demux", Demultiplexer([6, 6]))
+    builder.Connect(plant.get_state_output_port(), state_demux.get_input_port())
+    q_meas = state_demux.get_output_port(0)
+
+    # the process: cutting force from the actual tool position (true kinematics)
+    fk = DeflectionPredictor(robot.dh, k_plant, tool)
+    milling = builder.AddNamedSystem("milling_force", MillingForceSource(
+        force_model=fmodel, workpiece=workpiece, path=path, kinematics=fk, tool_point_m=tool, period_s=f_period,
+        mode=sc.cutting.mode, phase_rad=np.deg2rad(sc.cutting.phase_deg)))
+    builder.Connect(q_meas, milling.get_input_port())
+    builder.Connect(milling.GetOutputPort("generalized_force"), plant.get_applied_generalized_force_input_port())
+
+    # wrist sensor, guard and filter at the sensor rate
+    ss = sc.sensor
+    R6_0, _ = fk.flange_rotation_and_tool_point(q_ref[0])
+    true_payload = payload_calibration_exact(robot, ss)
+    w0 = payload_wrench(R6_0, true_payload)  # the reading at rest, before the cut
+    sensor = builder.AddNamedSystem("wrist_sensor", WristForceSensor(
+        weld_joint_index=plant.GetJointByName("sensor_weld").index(), rate_hz=ss.rate_hz,
+        force_bias_N=ss.force_bias_N, torque_bias_Nm=ss.torque_bias_Nm, noise_N=ss.noise_N, noise_Nm=ss.noise_Nm,
+        dropout_probability=ss.dropout_probability, spike_probability=ss.spike_probability, spike_N=ss.spike_N,
+        seed=ss.seed, initial_wrench=w0))
+    builder.Connect(plant.get_reaction_forces_output_port(), sensor.GetInputPort("reaction_forces"))
+    builder.Connect(milling.GetOutputPort("wrench_sensor"), sensor.GetInputPort("process_wrench"))
+    guard = builder.AddNamedSystem("wrench_guard", WrenchGuard(rate_hz=ss.rate_hz, max_jump_N=ss.max_jump_N,
+                                                               initial_wrench=w0))
+    builder.Connect(sensor.get_output_port(), guard.GetInputPort("wrench"))
+    fc = sc.controller.filter
+    if fc.kind == "lowpass":
+        b, a = lowpass_coefficients(fc.cutoff_hz, ss.rate_hz, fc.order)
+    elif fc.kind == "revolution_average":
+        b, a = revolution_average_coefficients(cutter.spindle_rpm, ss.rate_hz)
+    else:
+        b, a = np.array([1.0]), np.array([1.0])
+    force_filter = builder.AddNamedSystem("force_filter", filter_system(b, a, ss.rate_hz))
+    builder.Connect(guard.GetOutputPort("wrench"), force_filter.get_input_port())
+
+    # the controller, every T
+    zoh_w = builder.AddNamedSystem("sample_wrench", ZeroOrderHold(T, 6))
+    zoh_q = builder.AddNamedSystem("sample_q", ZeroOrderHold(T, 6))
+    builder.Connect(force_filter.get_output_port(), zoh_w.get_input_port())
+    builder.Connect(q_meas, zoh_q.get_input_port())
+    # the compensator's model: its own stiffness and payload calibration
+    kin = DeflectionPredictor(robot.dh, model_stiffness(sc, robot), tool)
+    cal = payload_calibration(sc, robot)
+    grav_rm = builder.AddNamedSystem("gravity_removal", GravityRemoval(calibration=cal, kinematics=kin))
+    builder.Connect(zoh_w.get_output_port(), grav_rm.GetInputPort("wrench"))
+    builder.Connect(zoh_q.get_output_port(), grav_rm.GetInputPort("q"))
+    predict = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
+        predictor=kin, tool_m=tool, mount_rpy_deg=cal.sensor_mount_rpy_deg or (0.0, 0.0, 0.0)))
+    builder.Connect(grav_rm.get_output_port(), predict.GetInputPort("process_wrench"))
+    builder.Connect(zoh_q.get_output_port(), predict.GetInputPort("q"))
+    sat = np.deg2rad(sc.controller.saturation_deg) * np.ones(6)
+    saturation = builder.AddNamedSystem("saturation", Saturation(-sat, sat))
+    builder.Connect(predict.GetOutputPort("dq"), saturation.get_input_port())
+    last = saturation.get_output_port()
+    if sc.controller.delay_steps > 0:
+        delay = builder.AddNamedSystem("transport_delay", DiscreteTimeDelay(T, sc.controller.delay_steps, 6))
+        builder.Connect(last, delay.get_input_port())
+        last = delay.get_output_port()
+    correction = builder.AddNamedSystem("reference_correction", RateLimitedCorrection(
+        period_s=T, rate_limit_rad_per_s=np.deg2rad(sc.controller.rate_limit_deg_per_s)))
+    builder.Connect(last, correction.get_input_port())
+
+    # commanded joints: q_ref (+ correction), with the path's velocity
+    mux = builder.AddNamedSystem("desired_state", Multiplexer([6, 6]))
+    if compensation:
+        adder = builder.AddNamedSystem("q_command", Adder(2, 6))
+        builder.Connect(path_demux.get_output_port(0), adder.get_input_port(0))
+        builder.Connect(correction.get_output_port(), adder.get_input_port(1))
+        builder.Connect(adder.get_output_port(), mux.get_input_port(0))
+    else:
+        builder.Connect(path_demux.get_output_port(0), mux.get_input_port(0))
+    builder.Connect(path_demux.get_output_port(1), mux.get_input_port(1))
+    builder.Connect(mux.get_output_port(), plant.get_desired_state_input_port(instance))
+
+    log_dt = log_period_s or max(dt, min(f_period, 2e-3))
+    loggers = {
+        "state": LogVectorOutput(plant.get_state_output_port(), builder, log_dt),
+        "cutting_wrench": LogVectorOutput(milling.GetOutputPort("wrench"), builder, log_dt),
+        "raw_wrench": LogVectorOutput(guard.GetOutputPort("wrench"), builder, 1.0 / ss.rate_hz),
+        "filtered_wrench": LogVectorOutput(force_filter.get_output_port(), builder, T),
+        "tool_wrench": LogVectorOutput(predict.GetOutputPort("tool_wrench"), builder, T),
+        "dq": LogVectorOutput(predict.GetOutputPort("dq"), builder, T),
+        "correction": LogVectorOutput(correction.get_output_port(), builder, T),
+        "rejected": LogVectorOutput(guard.GetOutputPort("rejected"), builder, T),
+    }
+    for name, logger in loggers.items():
+        logger.set_name(f"log_{name}")
+    diagram = builder.Build()
+    diagram.set_name(f"milling_cell_{'compensated' if compensation else 'uncompensated'}")
+
+    transport = (2.0 / ss.rate_hz + group_delay_s(b, a, ss.rate_hz) + (2 + sc.controller.delay_steps) * T)
+    return MillingCell(
+        diagram=diagram, plant=plant, scenario=sc, robot=robot, path=path, q_ref_times=t_ref, q_ref=q_ref, force_model=fmodel,
+        workpiece=workpiece, tool_m=tool, compensation=compensation, loggers=loggers,
+        systems={"filter": force_filter, "zoh_w": zoh_w, "zoh_q": zoh_q, "sensor": sensor, "guard": guard,
+                 "milling": milling, "correction": correction, "prediction": predict, "gravity_removal": grav_rm,
+                 # InverseDynamics keeps only a reference to its plant: keep the plant alive with the cell
+                 "controller_plant": probe},
+        initial={"q": q_ref[0], "wrench": w0}, plant_time_step_s=dt, force_period_s=f_period,
+        transport_delay_s=transport, damping_beta_s=beta, natural_frequencies_hz=freqs)
+
+
+def payload_calibration_exact(robot, sensor_config):
+    from robstiff_drake.systems.gravity_removal import PayloadCalibration
+
+    return PayloadCalibration(mass_kg=robot.payload.mass_kg, com_mm=list(robot.payload.com_m * 1e3),
+                              force_bias_N=list(sensor_config.force_bias_N),
+                              torque_bias_Nm=list(sensor_config.torque_bias_Nm))
+
+
+def make_simulator(cell):
+    """A Simulator with the cell at rest on the path's first point: plant at
+    q_ref(0), the sensor chain settled on the payload's static reading."""
+    sim = Simulator(cell.diagram)
+    root = sim.get_mutable_context()
+    plant_ctx = cell.plant.GetMyMutableContextFromRoot(root)
+    cell.plant.SetPositions(plant_ctx, cell.initial["q"])
+    filt = cell.systems["filter"]
+    filt.GetMyMutableContextFromRoot(root).SetDiscreteState(steady_state(filt, cell.initial["wrench"]))
+    cell.systems["zoh_w"].GetMyMutableContextFromRoot(root).SetDiscreteState(cell.initial["wrench"])
+    cell.systems["zoh_q"].GetMyMutableContextFromRoot(root).SetDiscreteState(cell.initial["q"])
+    sim.Initialize()
+    return sim

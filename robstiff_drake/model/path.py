@@ -1,0 +1,90 @@
+"""The planned tool path: straight segments between waypoints at a constant
+feed, the spindle axis straight down, and the joint references that IK
+gives along it.  Plain numpy; no Drake."""
+
+import bisect
+
+import numpy as np
+
+from robstiff_drake.model import ik
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.stiffness import describe_singularity, singular_joints
+
+# Closest a path may come to a singularity: smallest over largest singular
+# value of the Jacobian (a pose this close would need huge joint rates).
+MIN_JACOBIAN_CONDITION = 1e-3
+
+
+class PathError(ValueError):
+    """The path cannot be followed (reach, joint limits, singularity)."""
+
+
+class PlannedPath:
+    """Tool point (m, base frame) along waypoints at ``feed_m_per_s``."""
+
+    def __init__(self, waypoints_m, feed_m_per_s, yaw_rad=0.0, dwell_s=0.0):
+        self.waypoints = np.asarray(waypoints_m, dtype=float).reshape(-1, 3)
+        if len(self.waypoints) < 2:
+            raise PathError("a path needs at least two waypoints")
+        if not feed_m_per_s > 0:
+            raise PathError(f"feed must be > 0, got {feed_m_per_s}")
+        seg = np.diff(self.waypoints, axis=0)
+        self.lengths = np.linalg.norm(seg, axis=1)
+        if np.any(self.lengths <= 0):
+            raise PathError("two consecutive waypoints are the same point")
+        self.directions = seg / self.lengths[:, None]
+        self.feed = float(feed_m_per_s)
+        self.yaw = float(yaw_rad)
+        self.dwell_s = float(dwell_s)  # at the start, before the feed begins
+        self.t_knots = self.dwell_s + np.r_[0.0, np.cumsum(self.lengths / self.feed)]
+        self._knots_list = self.t_knots.tolist()
+        d = self.directions[:, :2]
+        n = np.linalg.norm(d, axis=1, keepdims=True)
+        self._feed_dirs = np.where(n > 1e-12, d / np.where(n > 1e-12, n, 1.0), [1.0, 0.0])
+
+    @property
+    def duration_s(self):
+        return float(self.t_knots[-1])
+
+    def _segment(self, t):
+        i = bisect.bisect_right(self._knots_list, t) - 1
+        return min(max(i, 0), len(self.lengths) - 1)
+
+    def position(self, t):
+        t = np.clip(t, self.t_knots[0], self.t_knots[-1])
+        i = self._segment(t)
+        return self.waypoints[i] + self.directions[i] * self.feed * (t - self.t_knots[i])
+
+    def positions(self, ts):
+        return np.array([self.position(t) for t in np.atleast_1d(ts)])
+
+    def feed_direction(self, t):
+        """Horizontal unit feed direction (2,) at time t (the cutting-force
+        model's u); the last segment's after the end."""
+        return self._feed_dirs[self._segment(t)]
+
+    def joint_references(self, robot, tool_m, dt_s, q_start=None):
+        """(times, q (N, 6) rad) along the path every dt_s, by IK with each
+        solution warm-started from the previous one.  Raises PathError when
+        a point is out of reach, outside the joint limits or near a
+        singularity."""
+        ts = np.arange(0.0, self.duration_s + 0.5 * dt_s, dt_s)
+        qs = np.empty((len(ts), 6))
+        q_prev = q_start
+        for k, t in enumerate(ts):
+            p = self.position(t)
+            try:
+                q = ik.solve_ik(robot.dh, ik.tool_down_pose(p, self.yaw), tool_m, q_ref_rad=q_prev,
+                                q_lower_rad=robot.q_lower_rad, q_upper_rad=robot.q_upper_rad)
+            except ik.IKError as e:
+                raise PathError(f"path point at t = {t:.3f} s, tool point ({p[0] * 1e3:.1f}, {p[1] * 1e3:.1f}, "
+                                f"{p[2] * 1e3:.1f}) mm: {e}") from None
+            J = kin.jacobian(robot.dh, q, tool_m)
+            s = np.linalg.svd(J, compute_uv=False)
+            if s[-1] < MIN_JACOBIAN_CONDITION * s[0]:
+                joints = singular_joints(J, rel_tol=MIN_JACOBIAN_CONDITION) or (5,)
+                raise PathError(f"path point at t = {t:.3f} s, tool point ({p[0] * 1e3:.1f}, {p[1] * 1e3:.1f}, "
+                                f"{p[2] * 1e3:.1f}) mm passes through a singularity ({describe_singularity(joints)})")
+            qs[k] = q
+            q_prev = q
+        return ts, qs

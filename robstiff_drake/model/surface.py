@@ -1,0 +1,48 @@
+"""The machined surface as a laser line scan sees it (seed Fig. 6): the
+envelope of the cutter's bottom face over the pass.  Plain numpy; no Drake.
+
+The cutter's bottom face is a disc of radius R around the tool point p with
+unit axis n (pointing up the spindle).  At a scan point (x, y) covered by the
+disc, the face lies at height z = p_z - (n_x (x - p_x) + n_y (y - p_y)) / n_z.
+The surface left behind is the lowest face height that ever covered the
+point, or the material's original top where the cutter never went below it.
+
+Surface error = commanded height - machined height, positive where more
+material was removed than commanded ("cut more", the seed's sign).  The
+commanded height is the same envelope of the reference (undeflected) path.
+"""
+
+import numpy as np
+
+
+def envelope_heights(x_grid_m, y_line_m, p_m, n_up, radius_m, top_m):
+    """Height (m) of the surface along the scan line y = y_line_m.
+
+    p_m (N, 3) tool points, n_up (N, 3) unit spindle axes (pointing up),
+    top_m: height of the uncut material (scalar or per x)."""
+    x = np.asarray(x_grid_m, dtype=float)
+    h = np.full(x.shape, np.inf)
+    dy = y_line_m - p_m[:, 1]
+    covered = np.abs(dy) < radius_m
+    half = np.sqrt(np.maximum(radius_m**2 - dy**2, 0.0))
+    for i in np.flatnonzero(covered):
+        lo = np.searchsorted(x, p_m[i, 0] - half[i], side="left")
+        hi = np.searchsorted(x, p_m[i, 0] + half[i], side="right")
+        if hi <= lo:
+            continue
+        n = n_up[i]
+        z = p_m[i, 2] - (n[0] * (x[lo:hi] - p_m[i, 0]) + n[1] * dy[i]) / n[2]
+        np.minimum(h[lo:hi], z, out=h[lo:hi])
+    return np.minimum(h, top_m)
+
+
+def surface_error_stats(err_m):
+    """mean, rms, max_abs, pv of a surface-error profile, in mm."""
+    e = np.asarray(err_m, dtype=float) * 1e3
+    e = e[np.isfinite(e)]
+    return {
+        "mean": float(e.mean()),
+        "rms": float(np.sqrt(np.mean(e**2))),
+        "max_abs": float(np.max(np.abs(e))),
+        "pv": float(e.max() - e.min()),
+    }

@@ -1,0 +1,59 @@
+"""Gravity removal: subtracts the payload's weight (and the sensor's bias)
+from the filtered wrench, for any robot configuration, with the parameters
+that `robstiff calibrate-payload` identifies."""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from robstiff_drake.model.kinematics import cross3, rpy_to_rotation
+from robstiff_drake.model.robot import GRAVITY_BASE_M_PER_S2
+
+
+@dataclass
+class PayloadCalibration:
+    """What `robstiff calibrate-payload` writes (payload_calibration block)."""
+
+    mass_kg: float = 0.0
+    com_mm: list = None
+    force_bias_N: list = None
+    torque_bias_Nm: list = None
+    sensor_mount_rpy_deg: list = None
+
+    def arrays(self):
+        z = [0.0, 0.0, 0.0]
+        return (float(self.mass_kg), np.asarray(self.com_mm or z, dtype=float) / 1000.0,
+                np.asarray(self.force_bias_N or z, dtype=float), np.asarray(self.torque_bias_Nm or z, dtype=float),
+                rpy_to_rotation(np.deg2rad(self.sensor_mount_rpy_deg or z)))
+
+
+def payload_wrench(R_flange, calibration, arrays=None):
+    """The wrench the calibrated payload (weight + bias) puts on the sensor,
+    sensor frame, for the flange rotation R_flange (base <- DH frame 6).
+    ``arrays``: calibration.arrays(), when the caller keeps them."""
+    m, c, bf, bt, R_mount = arrays or calibration.arrays()
+    g_s = (R_flange @ R_mount).T @ GRAVITY_BASE_M_PER_S2
+    f = m * g_s
+    return np.concatenate([f + bf, cross3(c, f) + bt])
+
+
+class GravityRemoval(LeafSystem):
+    """Inputs ``wrench`` (6, sensor frame) and ``q`` (6, rad); output
+    ``process_wrench`` (6): the wrench minus the payload's weight and bias.
+    Direct feedthrough, recomputed only when an input changes."""
+
+    def __init__(self, *, calibration, kinematics):
+        super().__init__()
+        self._cal = calibration
+        self._arrays = calibration.arrays()
+        self._kin = kinematics
+        self._w = self.DeclareVectorInputPort("wrench", 6)
+        self._q = self.DeclareVectorInputPort("q", 6)
+        self.DeclareVectorOutputPort(
+            "process_wrench", 6, self._calc,
+            prerequisites_of_calc={self._w.ticket(), self._q.ticket()})
+
+    def _calc(self, context, output):
+        R, _ = self._kin.flange_rotation_and_tool_point(self._q.Eval(context))
+        output.SetFromVector(self._w.Eval(context) - payload_wrench(R, self._cal, self._arrays))

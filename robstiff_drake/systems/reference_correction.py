@@ -1,0 +1,30 @@
+"""Joint-reference correction: the next joint target is the path reference
+plus a correction that cancels the predicted deflection, updated once per
+controller period, with a rate limit (the saturation is Drake's Saturation
+block in front of it, and the transport delay a DiscreteTimeDelay)."""
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+
+class RateLimitedCorrection(LeafSystem):
+    """Input ``dq`` (6, rad): predicted deflection (already delayed and
+    saturated).  Every ``period_s`` the held correction moves towards -dq by
+    at most ``rate_limit_rad_per_s * period_s`` per joint.  Output
+    ``correction`` (6, rad), held between updates.  A non-finite input
+    leaves the correction where it is."""
+
+    def __init__(self, *, period_s, rate_limit_rad_per_s):
+        super().__init__()
+        self._step = np.asarray(rate_limit_rad_per_s, dtype=float) * period_s * np.ones(6)
+        self._dq = self.DeclareVectorInputPort("dq", 6)
+        self._state = self.DeclareDiscreteState(6)
+        self.DeclarePeriodicDiscreteUpdateEvent(period_s, 0.0, self._update)
+        self.DeclareStateOutputPort("correction", self._state)
+
+    def _update(self, context, discrete_state):
+        dq = self._dq.Eval(context)
+        if not np.all(np.isfinite(dq)):
+            return
+        now = context.get_discrete_state(self._state).value()
+        discrete_state.set_value(self._state, now + np.clip(-dq - now, -self._step, self._step))
