@@ -139,7 +139,14 @@ def build_parser():
     p.add_argument("--json", metavar="OUT", help="('-' for stdout)")
     p.add_argument("--plot", metavar="OUT.png")
 
-    p = sub.add_parser("demo", help="the main job: stiffness at the machining pose, K_g check and stiffness map")
+    p = sub.add_parser("simulate", help="closed-loop milling simulation of a scenario (diagrams/*.yaml)")
+    p.add_argument("scenario", metavar="SCENARIO.yaml")
+    p.add_argument("--compensation", default="both", choices=["on", "off", "both"],
+                   help="run with, without, or both (default: %(default)s)")
+    p.add_argument("--json", metavar="OUT", help="write the summary as JSON ('-' for stdout)")
+    p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
+
+    p = sub.add_parser("demo", help="the main job: the seed's block-milling test, without and with compensation")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
     return parser
 
@@ -192,6 +199,11 @@ def _dispatch(args):
         from robstiff_drake.commands import table2
 
         return table2.run(json_out=args.json, plot_out=args.plot)
+    if args.command == "simulate":
+        from robstiff_drake.commands import simulate
+
+        return simulate.run(scenario=args.scenario, compensation=args.compensation, json_out=args.json,
+                            out=args.out)
     if args.command == "demo":
         from robstiff_drake.commands import demo
 

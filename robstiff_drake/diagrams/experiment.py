@@ -19,7 +19,7 @@ RUN_OUT_S = 0.1
 class ScanLine:
     y_m: float
     x_m: np.ndarray
-    commanded_m: np.ndarray
+    commanded_m: np.ndarray  # NaN where there is no machined face (gaps)
     machined_m: np.ndarray
 
     @property
@@ -79,8 +79,11 @@ def scan_surface(cell, times, q):
         # at the box edges in y the scan would see the side: stay inside by the margin
         h_cmd = envelope_heights(x, y, p_cmd, n_cmd, R, np.nan_to_num(top, nan=-np.inf))
         h_act = envelope_heights(x, y, p_act, n_act, R, np.nan_to_num(top, nan=-np.inf))
-        valid = np.isfinite(top) & (h_cmd < top - 1e-9)
-        lines.append(ScanLine(y, x[valid], h_cmd[valid], h_act[valid]))
+        # no material, or the commanded pass does not reach it: not part of the machined face
+        gap = ~(np.isfinite(top) & (h_cmd < top - 1e-9))
+        h_cmd[gap] = np.nan
+        h_act[gap] = np.nan
+        lines.append(ScanLine(y, x, h_cmd, h_act))
     return lines
 
 
@@ -99,6 +102,6 @@ def run_cut(sc, robot, *, compensation=True, cell=None):
         logs[name] = (log.sample_times().copy(), log.data().T.copy())
     t, x = logs["state"]
     scans = scan_surface(cell, t, x[:, :6])
-    err = np.concatenate([s.error_m for s in scans])
+    err = np.concatenate([s.error_m[np.isfinite(s.error_m)] for s in scans])
     stats = surface_error_stats(err) if err.size else {}
     return RunResult(compensation, logs, scans, stats, t_end, wall, cell)

@@ -79,7 +79,6 @@ class MillingCell:
     systems: dict
     initial: dict
     plant_time_step_s: float
-    force_period_s: float
     transport_delay_s: float
     damping_beta_s: float
     natural_frequencies_hz: np.ndarray
@@ -96,12 +95,6 @@ def cutting_setup(sc):
     return cutter, model, workpiece
 
 
-def force_period(sc, cutter):
-    if sc.cutting.mode == "tooth":
-        return 1.0 / (cutter.tooth_pass_hz * sc.cutting.samples_per_tooth)
-    return sc.cutting.averaged_period_ms / 1e3
-
-
 def natural_frequencies(plant, context, q, k_Nm_per_rad):
     """Undamped natural frequencies (Hz) of the joint springs at q, ascending."""
     plant.SetPositions(context, q)
@@ -110,42 +103,125 @@ def natural_frequencies(plant, context, q, k_Nm_per_rad):
     return np.sort(np.sqrt(np.maximum(w2, 0.0))) / (2 * np.pi)
 
 
+def add_compliant_irb6400(builder, *, time_step_s, joint_stiffness_Nm_per_rad, damping_ratio, q_modes_rad):
+    """The compliant-joint IRB6400: a discrete (SAP) MultibodyPlant whose
+    joints are PD spring-dampers (kp = joint stiffness, kd = beta kp) between
+    the commanded and the link angle, plus the controller's gravity
+    feed-forward (InverseDynamics on an exact model of the arm and payload),
+    so that at rest only process loads deflect the arm.
+
+    beta = 2 zeta / omega_1 with omega_1 the first natural frequency at
+    ``q_modes_rad``: stiffness-proportional damping, the first mode at
+    ``damping_ratio`` and the higher modes more.  Returns a dict with the
+    plant, its model instance, the controller's plant (keep it alive with the
+    diagram: InverseDynamics holds only a reference), the natural
+    frequencies (Hz) and beta (s)."""
+    k = np.asarray(joint_stiffness_Nm_per_rad, dtype=float)
+    plant, _ = AddMultibodyPlant(MultibodyPlantConfig(time_step=time_step_s, discrete_contact_approximation="sap"),
+                                 builder)
+    plant.set_name("plant")
+    instance = add_irb6400(plant)
+    controller_plant = MultibodyPlant(0.0)
+    add_irb6400(controller_plant)
+    controller_plant.Finalize()
+    freqs = natural_frequencies(controller_plant, controller_plant.CreateDefaultContext(), q_modes_rad, k)
+    beta = 2 * damping_ratio / (2 * np.pi * freqs[0])
+    for i in range(6):
+        plant.get_joint_actuator(JointActuatorIndex(i)).set_controller_gains(PdControllerGains(p=k[i], d=beta * k[i]))
+    plant.Finalize()
+    gravity = builder.AddNamedSystem("gravity_feedforward", InverseDynamics(
+        controller_plant, InverseDynamics.InverseDynamicsMode.kGravityCompensation))
+    builder.Connect(plant.get_state_output_port(), gravity.get_input_port_estimated_state())
+    builder.Connect(gravity.get_output_port(), plant.get_actuation_input_port())
+    return {"plant": plant, "instance": instance, "controller_plant": controller_plant, "natural_frequencies_hz": freqs,
+            "beta_s": beta}
+
+
+def filter_coefficients(filter_config, rate_hz, spindle_rpm):
+    fc = filter_config
+    if fc.kind == "lowpass":
+        return lowpass_coefficients(fc.cutoff_hz, rate_hz, fc.order)
+    if fc.kind == "revolution_average":
+        return revolution_average_coefficients(spindle_rpm, rate_hz)
+    return np.array([1.0]), np.array([1.0])
+
+
+def add_compensation_chain(builder, *, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, saturation_rad,
+                           rate_limit_rad_per_s, calibration, predictor, tool_m, initial_wrench):
+    """The compensation chain of the seed's Fig. 5, from the sensor's raw
+    wrench to the joint-reference correction:
+
+      WrenchGuard -> force filter (LinearSystem) -> ZOH(T) -> GravityRemoval
+      -> DeflectionPrediction -> Saturation -> DiscreteTimeDelay(T, n)
+      -> RateLimitedCorrection(T)
+
+    (the measured joint angles enter through their own ZOH(T)).  Returns the
+    systems by name; inputs: guard "wrench" and zoh_q; output: correction."""
+    b, a = filter_ba
+    T = period_s
+    s = {}
+    s["guard"] = builder.AddNamedSystem("wrench_guard", WrenchGuard(rate_hz=rate_hz, max_jump_N=max_jump_N,
+                                                                    initial_wrench=initial_wrench))
+    s["filter"] = builder.AddNamedSystem("force_filter", filter_system(b, a, rate_hz))
+    builder.Connect(s["guard"].GetOutputPort("wrench"), s["filter"].get_input_port())
+    s["zoh_w"] = builder.AddNamedSystem("sample_wrench", ZeroOrderHold(T, 6))
+    s["zoh_q"] = builder.AddNamedSystem("sample_q", ZeroOrderHold(T, 6))
+    builder.Connect(s["filter"].get_output_port(), s["zoh_w"].get_input_port())
+    s["gravity_removal"] = builder.AddNamedSystem("gravity_removal", GravityRemoval(calibration=calibration,
+                                                                                     kinematics=predictor))
+    builder.Connect(s["zoh_w"].get_output_port(), s["gravity_removal"].GetInputPort("wrench"))
+    builder.Connect(s["zoh_q"].get_output_port(), s["gravity_removal"].GetInputPort("q"))
+    s["prediction"] = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
+        predictor=predictor, tool_m=tool_m, mount_rpy_deg=calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0)))
+    builder.Connect(s["gravity_removal"].get_output_port(), s["prediction"].GetInputPort("process_wrench"))
+    builder.Connect(s["zoh_q"].get_output_port(), s["prediction"].GetInputPort("q"))
+    sat = saturation_rad * np.ones(6)
+    s["saturation"] = builder.AddNamedSystem("saturation", Saturation(-sat, sat))
+    builder.Connect(s["prediction"].GetOutputPort("dq"), s["saturation"].get_input_port())
+    last = s["saturation"].get_output_port()
+    # n extra controller periods, exactly: a discrete block adds one period by
+    # its own update (same-instant semantics), so n = 1 is a ZeroOrderHold and
+    # n >= 2 a DiscreteTimeDelay of n - 1 samples (tested).
+    if delay_steps == 1:
+        s["delay"] = builder.AddNamedSystem("transport_delay", ZeroOrderHold(T, 6))
+    elif delay_steps >= 2:
+        s["delay"] = builder.AddNamedSystem("transport_delay", DiscreteTimeDelay(T, delay_steps - 1, 6))
+    if "delay" in s:
+        builder.Connect(last, s["delay"].get_input_port())
+        last = s["delay"].get_output_port()
+    s["correction"] = builder.AddNamedSystem("reference_correction", RateLimitedCorrection(
+        period_s=T, rate_limit_rad_per_s=rate_limit_rad_per_s))
+    builder.Connect(last, s["correction"].get_input_port())
+    return s
+
+
+def chain_transport_delay_s(rate_hz, filter_ba, period_s, delay_steps):
+    """How long a change of the true wrench takes to reach the correction:
+    sensor sample + guard sample + the filter's group delay + the ZOH's
+    period + the delay block + the correction's own update (upper bound; a
+    change between controller ticks waits less for the ZOH)."""
+    b, a = filter_ba
+    return 2.0 / rate_hz + group_delay_s(b, a, rate_hz) + (2 + delay_steps) * period_s
+
+
 def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
     """Build the closed-loop diagram of scenario ``sc``."""
     tool = robot.payload.tool_point_m
     cutter, fmodel, workpiece = cutting_setup(sc)
     T = sc.controller.period_ms / 1e3
-    f_period = force_period(sc, cutter)
-    dt = min(sc.plant.time_step_ms / 1e3, f_period)
+    dt = sc.plant.time_step_ms / 1e3
     try:
         path = PlannedPath(np.asarray(sc.path.waypoints_mm, dtype=float) / 1e3, sc.path.feed_mm_per_s / 1e3,
-                           np.deg2rad(sc.path.yaw_deg), sc.path.dwell_s)
+                           np.deg2rad(sc.path.yaw_deg), sc.path.dwell_s, sc.path.ramp_s)
         t_ref, q_ref = path.joint_references(robot, tool, sc.path.reference_period_ms / 1e3)
     except PathError as e:
         raise InputError(f"{sc.source}: path: {e}") from None
 
     builder = DiagramBuilder()
-    plant, _ = AddMultibodyPlant(MultibodyPlantConfig(time_step=dt, discrete_contact_approximation="sap"), builder)
-    plant.set_name("plant")
-    instance = add_irb6400(plant)
     k_plant = plant_stiffness(sc, robot)
-
-    # damping: kd = beta kp with beta = 2 zeta / omega_1 at the start pose
-    probe = MultibodyPlant(0.0)
-    add_irb6400(probe)
-    probe.Finalize()
-    freqs = natural_frequencies(probe, probe.CreateDefaultContext(), q_ref[0], k_plant)
-    beta = 2 * sc.plant.damping_ratio / (2 * np.pi * freqs[0])
-    for i in range(6):
-        plant.get_joint_actuator(JointActuatorIndex(i)).set_controller_gains(
-            PdControllerGains(p=k_plant[i], d=beta * k_plant[i]))
-    plant.Finalize()
-
-    # the controller's gravity feed-forward (exact model, payload included)
-    gravity = builder.AddNamedSystem("gravity_feedforward", InverseDynamics(
-        probe, InverseDynamics.InverseDynamicsMode.kGravityCompensation))
-    builder.Connect(plant.get_state_output_port(), gravity.get_input_port_estimated_state())
-    builder.Connect(gravity.get_output_port(), plant.get_actuation_input_port())
+    arm = add_compliant_irb6400(builder, time_step_s=dt, joint_stiffness_Nm_per_rad=k_plant,
+                                damping_ratio=sc.plant.damping_ratio, q_modes_rad=q_ref[0])
+    plant, instance = arm["plant"], arm["instance"]
 
     # path: q_ref and its derivative from a piecewise-linear trajectory
     traj = PiecewisePolynomial.FirstOrderHold(t_ref, q_ref.T)
@@ -159,16 +235,16 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
     # the process: cutting force from the actual tool position (true kinematics)
     fk = DeflectionPredictor(robot.dh, k_plant, tool)
     milling = builder.AddNamedSystem("milling_force", MillingForceSource(
-        force_model=fmodel, workpiece=workpiece, path=path, kinematics=fk, tool_point_m=tool, period_s=f_period,
-        mode=sc.cutting.mode, phase_rad=np.deg2rad(sc.cutting.phase_deg)))
+        force_model=fmodel, workpiece=workpiece, path=path, kinematics=fk, tool_point_m=tool, period_s=dt,
+        mode=sc.cutting.mode, samples_per_tooth=sc.cutting.samples_per_tooth,
+        phase_rad=np.deg2rad(sc.cutting.phase_deg)))
     builder.Connect(q_meas, milling.get_input_port())
     builder.Connect(milling.GetOutputPort("generalized_force"), plant.get_applied_generalized_force_input_port())
 
-    # wrist sensor, guard and filter at the sensor rate
+    # the wrist sensor
     ss = sc.sensor
     R6_0, _ = fk.flange_rotation_and_tool_point(q_ref[0])
-    true_payload = payload_calibration_exact(robot, ss)
-    w0 = payload_wrench(R6_0, true_payload)  # the reading at rest, before the cut
+    w0 = payload_wrench(R6_0, payload_calibration_exact(robot, ss))  # the reading at rest, before the cut
     sensor = builder.AddNamedSystem("wrist_sensor", WristForceSensor(
         weld_joint_index=plant.GetJointByName("sensor_weld").index(), rate_hz=ss.rate_hz,
         force_bias_N=ss.force_bias_N, torque_bias_Nm=ss.torque_bias_Nm, noise_N=ss.noise_N, noise_Nm=ss.noise_Nm,
@@ -176,45 +252,18 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
         seed=ss.seed, initial_wrench=w0))
     builder.Connect(plant.get_reaction_forces_output_port(), sensor.GetInputPort("reaction_forces"))
     builder.Connect(milling.GetOutputPort("wrench_sensor"), sensor.GetInputPort("process_wrench"))
-    guard = builder.AddNamedSystem("wrench_guard", WrenchGuard(rate_hz=ss.rate_hz, max_jump_N=ss.max_jump_N,
-                                                               initial_wrench=w0))
-    builder.Connect(sensor.get_output_port(), guard.GetInputPort("wrench"))
-    fc = sc.controller.filter
-    if fc.kind == "lowpass":
-        b, a = lowpass_coefficients(fc.cutoff_hz, ss.rate_hz, fc.order)
-    elif fc.kind == "revolution_average":
-        b, a = revolution_average_coefficients(cutter.spindle_rpm, ss.rate_hz)
-    else:
-        b, a = np.array([1.0]), np.array([1.0])
-    force_filter = builder.AddNamedSystem("force_filter", filter_system(b, a, ss.rate_hz))
-    builder.Connect(guard.GetOutputPort("wrench"), force_filter.get_input_port())
 
-    # the controller, every T
-    zoh_w = builder.AddNamedSystem("sample_wrench", ZeroOrderHold(T, 6))
-    zoh_q = builder.AddNamedSystem("sample_q", ZeroOrderHold(T, 6))
-    builder.Connect(force_filter.get_output_port(), zoh_w.get_input_port())
-    builder.Connect(q_meas, zoh_q.get_input_port())
-    # the compensator's model: its own stiffness and payload calibration
+    # the compensator: its own stiffness model and payload calibration
     kin = DeflectionPredictor(robot.dh, model_stiffness(sc, robot), tool)
-    cal = payload_calibration(sc, robot)
-    grav_rm = builder.AddNamedSystem("gravity_removal", GravityRemoval(calibration=cal, kinematics=kin))
-    builder.Connect(zoh_w.get_output_port(), grav_rm.GetInputPort("wrench"))
-    builder.Connect(zoh_q.get_output_port(), grav_rm.GetInputPort("q"))
-    predict = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
-        predictor=kin, tool_m=tool, mount_rpy_deg=cal.sensor_mount_rpy_deg or (0.0, 0.0, 0.0)))
-    builder.Connect(grav_rm.get_output_port(), predict.GetInputPort("process_wrench"))
-    builder.Connect(zoh_q.get_output_port(), predict.GetInputPort("q"))
-    sat = np.deg2rad(sc.controller.saturation_deg) * np.ones(6)
-    saturation = builder.AddNamedSystem("saturation", Saturation(-sat, sat))
-    builder.Connect(predict.GetOutputPort("dq"), saturation.get_input_port())
-    last = saturation.get_output_port()
-    if sc.controller.delay_steps > 0:
-        delay = builder.AddNamedSystem("transport_delay", DiscreteTimeDelay(T, sc.controller.delay_steps, 6))
-        builder.Connect(last, delay.get_input_port())
-        last = delay.get_output_port()
-    correction = builder.AddNamedSystem("reference_correction", RateLimitedCorrection(
-        period_s=T, rate_limit_rad_per_s=np.deg2rad(sc.controller.rate_limit_deg_per_s)))
-    builder.Connect(last, correction.get_input_port())
+    ba = filter_coefficients(sc.controller.filter, ss.rate_hz, cutter.spindle_rpm)
+    chain = add_compensation_chain(
+        builder, rate_hz=ss.rate_hz, filter_ba=ba, max_jump_N=ss.max_jump_N, period_s=T,
+        delay_steps=sc.controller.delay_steps, saturation_rad=np.deg2rad(sc.controller.saturation_deg),
+        rate_limit_rad_per_s=np.deg2rad(sc.controller.rate_limit_deg_per_s), calibration=payload_calibration(sc, robot),
+        predictor=kin, tool_m=tool, initial_wrench=w0)
+    builder.Connect(sensor.get_output_port(), chain["guard"].GetInputPort("wrench"))
+    builder.Connect(q_meas, chain["zoh_q"].get_input_port())
+    correction = chain["correction"]
 
     # commanded joints: q_ref (+ correction), with the path's velocity
     mux = builder.AddNamedSystem("desired_state", Multiplexer([6, 6]))
@@ -228,32 +277,29 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
     builder.Connect(path_demux.get_output_port(1), mux.get_input_port(1))
     builder.Connect(mux.get_output_port(), plant.get_desired_state_input_port(instance))
 
-    log_dt = log_period_s or max(dt, min(f_period, 2e-3))
+    log_dt = log_period_s or dt
     loggers = {
         "state": LogVectorOutput(plant.get_state_output_port(), builder, log_dt),
         "cutting_wrench": LogVectorOutput(milling.GetOutputPort("wrench"), builder, log_dt),
-        "raw_wrench": LogVectorOutput(guard.GetOutputPort("wrench"), builder, 1.0 / ss.rate_hz),
-        "filtered_wrench": LogVectorOutput(force_filter.get_output_port(), builder, T),
-        "tool_wrench": LogVectorOutput(predict.GetOutputPort("tool_wrench"), builder, T),
-        "dq": LogVectorOutput(predict.GetOutputPort("dq"), builder, T),
+        "raw_wrench": LogVectorOutput(chain["guard"].GetOutputPort("wrench"), builder, 1.0 / ss.rate_hz),
+        "filtered_wrench": LogVectorOutput(chain["filter"].get_output_port(), builder, T),
+        "tool_wrench": LogVectorOutput(chain["prediction"].GetOutputPort("tool_wrench"), builder, T),
+        "dq": LogVectorOutput(chain["prediction"].GetOutputPort("dq"), builder, T),
         "correction": LogVectorOutput(correction.get_output_port(), builder, T),
-        "rejected": LogVectorOutput(guard.GetOutputPort("rejected"), builder, T),
+        "rejected": LogVectorOutput(chain["guard"].GetOutputPort("rejected"), builder, T),
     }
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
     diagram = builder.Build()
     diagram.set_name(f"milling_cell_{'compensated' if compensation else 'uncompensated'}")
 
-    transport = (2.0 / ss.rate_hz + group_delay_s(b, a, ss.rate_hz) + (2 + sc.controller.delay_steps) * T)
+    systems = dict(chain, sensor=sensor, milling=milling, controller_plant=arm["controller_plant"])
     return MillingCell(
-        diagram=diagram, plant=plant, scenario=sc, robot=robot, path=path, q_ref_times=t_ref, q_ref=q_ref, force_model=fmodel,
-        workpiece=workpiece, tool_m=tool, compensation=compensation, loggers=loggers,
-        systems={"filter": force_filter, "zoh_w": zoh_w, "zoh_q": zoh_q, "sensor": sensor, "guard": guard,
-                 "milling": milling, "correction": correction, "prediction": predict, "gravity_removal": grav_rm,
-                 # InverseDynamics keeps only a reference to its plant: keep the plant alive with the cell
-                 "controller_plant": probe},
-        initial={"q": q_ref[0], "wrench": w0}, plant_time_step_s=dt, force_period_s=f_period,
-        transport_delay_s=transport, damping_beta_s=beta, natural_frequencies_hz=freqs)
+        diagram=diagram, plant=plant, scenario=sc, robot=robot, path=path, q_ref_times=t_ref, q_ref=q_ref,
+        force_model=fmodel, workpiece=workpiece, tool_m=tool, compensation=compensation, loggers=loggers,
+        systems=systems, initial={"q": q_ref[0], "wrench": w0}, plant_time_step_s=dt,
+        transport_delay_s=chain_transport_delay_s(ss.rate_hz, ba, T, sc.controller.delay_steps),
+        damping_beta_s=arm["beta_s"], natural_frequencies_hz=arm["natural_frequencies_hz"])
 
 
 def payload_calibration_exact(robot, sensor_config):

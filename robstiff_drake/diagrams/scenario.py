@@ -44,7 +44,6 @@ class CuttingConfig:
 
     mode: str = "averaged"  # "averaged" (over a revolution) or "tooth" (tooth-resolved)
     samples_per_tooth: int = 20  # tooth mode: force samples per tooth pass
-    averaged_period_ms: float = 2.0  # averaged mode: force sample period
     Ktc_N_per_mm2: float = 631.0
     Krc_N_per_mm2: float = 99.0
     Kac_N_per_mm2: float = 273.0
@@ -71,6 +70,7 @@ class PathConfig:
     feed_mm_per_s: float = 20.0
     yaw_deg: float = 0.0
     dwell_s: float = 0.2  # at the first waypoint before the feed starts
+    ramp_s: float = 0.5  # cosine speed-up from rest to the feed (and slow-down at the end)
     reference_period_ms: float = 4.0  # IK samples of the joint references
 
 
@@ -175,7 +175,6 @@ def check_scenario(sc):
         "plant.time_step_ms": sc.plant.time_step_ms,
         "cutter.diameter_mm": sc.cutter.diameter_mm,
         "cutter.spindle_rpm": sc.cutter.spindle_rpm,
-        "cutting.averaged_period_ms": sc.cutting.averaged_period_ms,
         "path.feed_mm_per_s": sc.path.feed_mm_per_s,
         "path.reference_period_ms": sc.path.reference_period_ms,
         "sensor.rate_hz": sc.sensor.rate_hz,
@@ -188,6 +187,8 @@ def check_scenario(sc):
     for key, v in positive.items():
         if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
             _fail(sc, key, f"must be a positive number, got {v}")
+    if not sc.path.ramp_s >= 0 or not sc.path.dwell_s >= 0:
+        _fail(sc, "path.ramp_s", "ramp_s and dwell_s must be >= 0")
     if sc.cutter.n_teeth < 1:
         _fail(sc, "cutter.n_teeth", f"must be >= 1, got {sc.cutter.n_teeth}")
     if not 10 <= sc.cutter.diameter_mm <= 250:

@@ -143,10 +143,12 @@ class MillingForceModel:
 
     def tooth_wrench(self, t_s, tool_point_m, feed_dir_xy, workpiece, phase_rad=0.0):
         """Wrench (force N, moment N*m about the tool point), base frame, on
-        the tool at time t with the teeth at their angles then."""
+        the tool at time t with the teeth at their angles then.  With an
+        array of times, the sum over them (divide by their number for the
+        mean)."""
         u = np.asarray(feed_dir_xy, dtype=float)
-        base = phase_rad - self.cutter.spindle_rad_per_s * t_s  # clockwise from above
-        theta = base + 2 * np.pi * np.arange(self.cutter.n_teeth) / self.cutter.n_teeth
+        base = phase_rad - self.cutter.spindle_rad_per_s * np.atleast_1d(t_s)  # clockwise from above
+        theta = (base[:, None] + 2 * np.pi * np.arange(self.cutter.n_teeth) / self.cutter.n_teeth).ravel()
         F, M, _ = self._per_tooth(np.cos(theta), np.sin(theta), np.asarray(tool_point_m[:2]), tool_point_m[2], u,
                                   workpiece)
         return np.concatenate([self._to_base(F, u), self._to_base(M, u)])

@@ -20,9 +20,14 @@ class PathError(ValueError):
 
 
 class PlannedPath:
-    """Tool point (m, base frame) along waypoints at ``feed_m_per_s``."""
+    """Tool point (m, base frame) along waypoints at ``feed_m_per_s``.
 
-    def __init__(self, waypoints_m, feed_m_per_s, yaw_rad=0.0, dwell_s=0.0):
+    The motion starts after ``dwell_s`` at rest and speeds up (and, at the
+    end, slows down) with a cosine velocity ramp of ``ramp_s``: a step in the
+    commanded velocity would ring the arm's first mode, which no real path
+    planner does.  The feed is constant between the ramps."""
+
+    def __init__(self, waypoints_m, feed_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0):
         self.waypoints = np.asarray(waypoints_m, dtype=float).reshape(-1, 3)
         if len(self.waypoints) < 2:
             raise PathError("a path needs at least two waypoints")
@@ -35,33 +40,52 @@ class PlannedPath:
         self.directions = seg / self.lengths[:, None]
         self.feed = float(feed_m_per_s)
         self.yaw = float(yaw_rad)
-        self.dwell_s = float(dwell_s)  # at the start, before the feed begins
-        self.t_knots = self.dwell_s + np.r_[0.0, np.cumsum(self.lengths / self.feed)]
-        self._knots_list = self.t_knots.tolist()
+        self.dwell_s = float(dwell_s)
+        self.total_length = float(self.lengths.sum())
+        self.ramp_s = min(float(ramp_s), self.total_length / self.feed)  # a short path has no cruise phase
+        self._s_knots = np.r_[0.0, np.cumsum(self.lengths)].tolist()
         d = self.directions[:, :2]
         n = np.linalg.norm(d, axis=1, keepdims=True)
         self._feed_dirs = np.where(n > 1e-12, d / np.where(n > 1e-12, n, 1.0), [1.0, 0.0])
+        self.move_s = self.total_length / self.feed + self.ramp_s
 
     @property
     def duration_s(self):
-        return float(self.t_knots[-1])
+        return self.dwell_s + self.move_s
 
-    def _segment(self, t):
-        i = bisect.bisect_right(self._knots_list, t) - 1
+    def _ramp_distance(self, tau):
+        """Distance covered tau seconds into a cosine speed-up from rest."""
+        tr = self.ramp_s
+        return 0.5 * self.feed * (tau - tr / np.pi * np.sin(np.pi * tau / tr))
+
+    def arc_length(self, t):
+        """Distance along the path at time t (m)."""
+        tau = min(max(t - self.dwell_s, 0.0), self.move_s)
+        tr = self.ramp_s
+        if tr <= 0:
+            return self.feed * tau
+        if tau < tr:
+            return self._ramp_distance(tau)
+        if tau <= self.move_s - tr:
+            return 0.5 * self.feed * tr + self.feed * (tau - tr)
+        return self.total_length - self._ramp_distance(self.move_s - tau)
+
+    def _segment(self, s):
+        i = bisect.bisect_right(self._s_knots, s) - 1
         return min(max(i, 0), len(self.lengths) - 1)
 
     def position(self, t):
-        t = np.clip(t, self.t_knots[0], self.t_knots[-1])
-        i = self._segment(t)
-        return self.waypoints[i] + self.directions[i] * self.feed * (t - self.t_knots[i])
+        s = self.arc_length(t)
+        i = self._segment(s)
+        return self.waypoints[i] + self.directions[i] * (s - self._s_knots[i])
 
     def positions(self, ts):
         return np.array([self.position(t) for t in np.atleast_1d(ts)])
 
     def feed_direction(self, t):
         """Horizontal unit feed direction (2,) at time t (the cutting-force
-        model's u); the last segment's after the end."""
-        return self._feed_dirs[self._segment(t)]
+        model's u); the first segment's before the start, the last's after."""
+        return self._feed_dirs[self._segment(self.arc_length(t))]
 
     def joint_references(self, robot, tool_m, dt_s, q_start=None):
         """(times, q (N, 6) rad) along the path every dt_s, by IK with each

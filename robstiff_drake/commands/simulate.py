@@ -1,0 +1,176 @@
+"""``robstiff simulate SCENARIO.yaml``: the closed-loop milling simulation,
+without and/or with compensation; surface-error plot (like the seed's Fig. 7),
+the diagram (Graphviz), CSV time series and a JSON summary."""
+
+import csv
+import io
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+from robstiff_drake.diagrams.experiment import run_cut
+from robstiff_drake.diagrams.milling_cell import build_milling_cell
+from robstiff_drake.diagrams.scenario import load_scenario
+from robstiff_drake.errors import InputError
+from robstiff_drake.io import emit_json, save_figure_atomic, write_atomic
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.robot import load_robot
+
+MODES = {"on": (True,), "off": (False,), "both": (False, True)}
+
+
+def label(compensation):
+    return "compensated" if compensation else "uncompensated"
+
+
+def timeseries_csv(res, robot):
+    """Controller-rate time series: raw and filtered wrench (sensor frame),
+    estimated tool wrench, dq, correction, actual and commanded tool point."""
+    t, filt = res.logs["filtered_wrench"]
+    ts, state = res.logs["state"]
+    tr, raw = res.logs["raw_wrench"]
+    cols = {}
+    cols["t_s"] = t
+    raw_i = np.clip(np.searchsorted(tr, t), 0, len(tr) - 1)
+    st_i = np.clip(np.searchsorted(ts, t), 0, len(ts) - 1)
+    for prefix, data, names in (
+        ("raw", raw[raw_i], ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")),
+        ("filtered", filt, ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")),
+        ("tool_wrench", res.logs["tool_wrench"][1], ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")),
+        ("dq", res.logs["dq"][1], tuple(f"q{i}_rad" for i in range(1, 7))),
+        ("correction", res.logs["correction"][1], tuple(f"q{i}_rad" for i in range(1, 7))),
+    ):
+        for j, n in enumerate(names):
+            cols[f"{prefix}_{n}"] = data[: len(t), j]
+    q = state[st_i, :6]
+    T = kin.frames(robot.dh, q)[:, 6]
+    p = T[:, :3, 3] + T[:, :3, :3] @ res.cell.tool_m
+    p_cmd = res.cell.path.positions(t)
+    for j, ax in enumerate("xyz"):
+        cols[f"tool_{ax}_mm"] = p[:, j] * 1e3
+    for j, ax in enumerate("xyz"):
+        cols[f"commanded_{ax}_mm"] = p_cmd[:, j] * 1e3
+    buf = io.StringIO()
+    buf.write(f"# robstiff simulate: {res.cell.scenario.source}, {label(res.compensation)}; sampled every controller "
+              "period. Wrenches: raw/filtered in the sensor frame (what the payload exerts on the sensor), "
+              "tool_wrench = the gravity-free estimate at the tool point in the base frame.\n")
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(cols.keys())
+    for row in zip(*cols.values()):
+        w.writerow([f"{v:.6g}" for v in row])
+    return buf.getvalue()
+
+
+def plot_surfaces(results, sc):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(results), 1, figsize=(10, 3.2 * len(results)), squeeze=False,
+                             constrained_layout=True)
+    for ax, res in zip(axes[:, 0], results):
+        for line in res.scans:
+            ax.plot(line.x_m * 1e3, line.error_m * 1e3, lw=1, label=f"scan at y = {line.y_m * 1e3:.1f} mm")
+        s = res.surface_error_mm
+        ax.axhline(0, color="k", lw=0.6)
+        ax.set_title(f"{label(res.compensation)}: mean {s['mean']:+.3f} mm, rms {s['rms']:.3f}, "
+                     f"max |e| {s['max_abs']:.3f}, PV {s['pv']:.3f} mm")
+        ax.set_xlabel("x along the pass (mm); gaps: no material")
+        ax.set_ylabel("surface error (mm)\n+ = cut more")
+        ax.legend(fontsize=8, loc="lower right")
+    fig.suptitle(f"{sc.name}: machined surface from the cutter's envelope (laser line scan)")
+    return fig
+
+
+def write_diagram(cell, out):
+    """diagram.dot always; diagram.svg too when Graphviz's `dot` is installed."""
+    dot_text = cell.diagram.GetGraphvizString(max_depth=1)
+    write_atomic(out / "diagram.dot", dot_text)
+    if shutil.which("dot") is None:
+        return ["diagram.dot (install Graphviz for diagram.svg)"]
+    svg = subprocess.run(["dot", "-Tsvg"], input=dot_text.encode(), capture_output=True, check=False)
+    if svg.returncode == 0:
+        write_atomic(out / "diagram.svg", svg.stdout)
+        return ["diagram.dot", "diagram.svg"]
+    return ["diagram.dot (dot failed to render the SVG)"]
+
+
+def summary(results, sc):
+    out = {"scenario": sc.source, "name": sc.name, "surface_error_mm": {}}
+    res0 = results[0]
+    for res in results:
+        out["surface_error_mm"][label(res.compensation)] = res.surface_error_mm
+    out["sim_seconds"] = sum(r.sim_seconds for r in results)
+    out["wall_seconds"] = sum(r.wall_seconds for r in results)
+    out["realtime_factor"] = out["sim_seconds"] / out["wall_seconds"]
+    out["runs"] = [{"compensation": r.compensation, "sim_seconds": r.sim_seconds, "wall_seconds": r.wall_seconds,
+                    "realtime_factor": r.realtime_factor,
+                    "rejected_sensor_samples": int(r.logs["rejected"][1][-1, 0])} for r in results]
+    cw = res0.logs["cutting_wrench"][1]
+    mid = cw[len(cw) // 2]
+    out["cutting_wrench_at_mid_pass"] = {"force_N": mid[:3], "moment_Nm": mid[3:]}
+    out["natural_frequencies_hz"] = res0.cell.natural_frequencies_hz
+    out["plant_time_step_s"] = res0.cell.plant_time_step_s
+    out["transport_delay_s"] = res0.cell.transport_delay_s
+    return out
+
+
+def format_table(summ):
+    lines = [f"{summ['name']}: surface error (mm, + = cut more)",
+             "                  mean      rms   max|e|       PV"]
+    for name, s in summ["surface_error_mm"].items():
+        lines.append(f"  {name:14s} {s['mean']:+7.3f}  {s['rms']:7.3f}  {s['max_abs']:7.3f}  {s['pv']:7.3f}")
+    f = summ["cutting_wrench_at_mid_pass"]["force_N"]
+    lines.append(f"cutting force at mid-pass (N, base frame): ({f[0]:.0f}, {f[1]:.0f}, {f[2]:.0f})")
+    lines.append("first natural frequencies at the start pose (Hz): "
+                 + ", ".join(f"{v:.1f}" for v in summ["natural_frequencies_hz"]))
+    lines.append(f"simulated {summ['sim_seconds']:.2f} s in {summ['wall_seconds']:.2f} s wall "
+                 f"({summ['realtime_factor']:.1f}x real time)")
+    return "\n".join(lines)
+
+
+def simulate(*, scenario, compensation="both", robot=None):
+    """Load and run; returns (scenario, results)."""
+    if compensation not in MODES:
+        raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
+    sc = load_scenario(scenario)
+    robot = robot or load_robot()
+    return sc, [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
+
+
+def write_outputs(sc, results, robot, out):
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    save_figure_atomic(plot_surfaces(results, sc), out / "surface_error.png", dpi=110)
+    written.append("surface_error.png")
+    written += write_diagram(results[-1].cell, out)
+    for res in results:
+        name = f"timeseries_{label(res.compensation)}.csv"
+        write_atomic(out / name, timeseries_csv(res, robot))
+        written.append(name)
+    return written
+
+
+def run(*, scenario, compensation="both", json_out=None, out="robstiff-out"):
+    robot = load_robot()
+    sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot)
+    summ = summary(results, sc)
+    written = write_outputs(sc, results, robot, out)
+    summ["outputs"] = [str(Path(out) / w.split(" ")[0]) for w in written]
+    if json_out is not None:
+        emit_json(summ, json_out)
+    if json_out != "-":
+        print(format_table(summ))
+        print(f"wrote to {out}/: " + ", ".join(written))
+    return 0
+
+
+def check_only(scenario):
+    """Build the diagram without running it (used by tests and --check)."""
+    robot = load_robot()
+    sc = load_scenario(scenario)
+    return build_milling_cell(sc, robot)

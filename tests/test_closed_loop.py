@@ -1,0 +1,222 @@
+"""The assembled closed loop: static deflection of the compliant plant, the
+chain's timing, a short cut both ways, bad samples, bad scenarios."""
+
+import copy
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce_
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
+
+from robstiff_drake.diagrams.experiment import run_cut
+from robstiff_drake.diagrams.milling_cell import add_compensation_chain, add_compliant_irb6400
+from robstiff_drake.diagrams.scenario import load_scenario
+from robstiff_drake.errors import InputError
+from robstiff_drake.model import ik
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model import stiffness as st
+from robstiff_drake.model.realtime import DeflectionPredictor
+from robstiff_drake.systems.gravity_removal import PayloadCalibration
+
+DATA = Path(__file__).parent / "data"
+SHORT = DATA / "short_block.yaml"
+
+
+def test_static_deflection_equals_the_model(robot):
+    """Constant force at the tool point: the plant settles where J C_q J^T F says (1 um)."""
+    tool = robot.payload.tool_point_m
+    q0 = ik.solve_ik(robot.dh, ik.tool_down_pose(robot.workspace.reference_tool_point_m), tool)
+    builder = DiagramBuilder()
+    arm = add_compliant_irb6400(builder, time_step_s=0.002, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
+                                damping_ratio=0.3, q_modes_rad=q0)
+    plant = arm["plant"]
+    F = np.array([-300.0, 250.0, 50.0])
+    force = ExternallyAppliedSpatialForce_[float]()
+    force.body_index = plant.GetBodyByName("spindle").index()
+    force.p_BoBq_B = tool
+    force.F_Bq_W = SpatialForce(np.zeros(3), F)
+    src = builder.AddSystem(ConstantValueSource(AbstractValue.Make([force])))
+    builder.Connect(src.get_output_port(), plant.get_applied_spatial_force_input_port())
+    des = builder.AddSystem(ConstantVectorSource(np.concatenate([q0, np.zeros(6)])))
+    builder.Connect(des.get_output_port(), plant.get_desired_state_input_port(arm["instance"]))
+    sim = Simulator(builder.Build())
+    ctx = plant.GetMyMutableContextFromRoot(sim.get_mutable_context())
+    plant.SetPositions(ctx, q0)
+    sim.AdvanceTo(6.0)
+    q = plant.GetPositions(ctx)
+    dp = kin.tool_position(robot.dh, q, tool) - kin.tool_position(robot.dh, q0, tool)
+    _, dx = st.deflection_conventional(kin.jacobian(robot.dh, q0, tool), robot.joint_stiffness_Nm_per_rad,
+                                       np.concatenate([F, np.zeros(3)]))
+    assert np.linalg.norm(dx[:3]) > 5e-4  # about a millimetre
+    np.testing.assert_allclose(dp, dx[:3], atol=1e-6)
+    assert 3 < arm["natural_frequencies_hz"][0] < 60
+
+
+class StepWrench(LeafSystem):
+    """w0 before t0, w0 + step from t0 on (a function of time, no state)."""
+
+    def __init__(self, w0, step, t0):
+        super().__init__()
+        self.DeclareVectorOutputPort("w", 6, lambda c, o: o.SetFromVector(w0 + (c.get_time() >= t0) * step))
+
+
+@pytest.mark.parametrize("delay_steps", [0, 1, 2])
+def test_chain_delay_is_what_the_design_says(robot, delay_steps):
+    """A wrench step just after a sensor sample at 10.5 ms: the guard takes
+    it at 11 ms, the ZOH at the 12 ms tick, then the delay block's n ticks
+    and the correction's own tick: the correction first moves at
+    12 + 4 (n + 1) ms."""
+    T, rate = 0.004, 1000.0
+    q = np.deg2rad([0.0, 13.6, 22.0, 0.0, 54.4, 0.0])
+    tool = robot.payload.tool_point_m
+    pred = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool)
+    cal = PayloadCalibration(mass_kg=0.0)
+    builder = DiagramBuilder()
+    chain = add_compensation_chain(
+        builder, rate_hz=rate, filter_ba=(np.array([1.0]), np.array([1.0])), max_jump_N=1e6, period_s=T,
+        delay_steps=delay_steps, saturation_rad=0.1, rate_limit_rad_per_s=10.0, calibration=cal, predictor=pred,
+        tool_m=tool, initial_wrench=np.zeros(6))
+    step = builder.AddSystem(StepWrench(np.zeros(6), np.array([-300.0, 0, 0, 0, 0, 0]), 0.0105))
+    builder.Connect(step.get_output_port(), chain["guard"].GetInputPort("wrench"))
+    qsrc = builder.AddSystem(ConstantVectorSource(q))
+    builder.Connect(qsrc.get_output_port(), chain["zoh_q"].get_input_port())
+    diagram = builder.Build()
+    sim = Simulator(diagram)
+    ctx = chain["zoh_q"].GetMyMutableContextFromRoot(sim.get_mutable_context())
+    ctx.SetDiscreteState(q)
+    corr = chain["correction"]
+    first = None
+    for k in range(1, 20):
+        sim.AdvanceTo(k * T + T / 2)  # between ticks: the updates at k*T are done
+        c = corr.get_output_port().Eval(corr.GetMyContextFromRoot(sim.get_context()))
+        if np.any(c != 0):
+            first = k * T
+            break
+    assert first == pytest.approx(0.012 + T * (delay_steps + 1))
+
+
+@pytest.fixture(scope="module")
+def short_runs():
+    from robstiff_drake.model.robot import load_robot
+
+    robot = load_robot()
+    sc = load_scenario(SHORT)
+    return sc, run_cut(sc, robot, compensation=False), run_cut(sc, robot, compensation=True)
+
+
+def test_short_cut_cuts_more_and_compensation_fixes_it(short_runs):
+    sc, off, on = short_runs
+    assert 0.25 < off.surface_error_mm["mean"] < 1.2  # the seed's "cut more" (3x the feed: more force)
+    assert abs(on.surface_error_mm["mean"]) < 0.2 * off.surface_error_mm["mean"]
+    assert on.surface_error_mm["rms"] < off.surface_error_mm["rms"]
+    # every block ran: the sensor saw the cut, the chain estimated it, the correction moved
+    tw = on.logs["tool_wrench"][1]
+    assert np.abs(tw[:, 0]).max() > 100
+    assert np.abs(on.logs["correction"][1]).max() > 1e-5
+    assert np.abs(off.logs["correction"][1]).max() > 1e-5  # computed, but not applied
+    # the estimate follows the true cutting force (filter lag aside)
+    t_c, cut = on.logs["cutting_wrench"]
+    t_e, est = on.logs["tool_wrench"]
+    mid = len(t_e) // 2
+    np.testing.assert_allclose(est[mid, :3], cut[np.searchsorted(t_c, t_e[mid]), :3], atol=25.0)
+
+
+def test_diagram_names_every_block(short_runs):
+    _, _, on = short_runs
+    dot = on.cell.diagram.GetGraphvizString(max_depth=1)
+    for name in ("plant", "gravity_feedforward", "path", "milling_force", "wrist_sensor", "wrench_guard",
+                 "force_filter", "sample_wrench", "gravity_removal", "deflection_prediction", "saturation",
+                 "transport_delay", "reference_correction", "q_command"):
+        assert name in dot, name
+
+
+def test_dropouts_and_spikes_never_reach_the_plant(robot, short_runs):
+    sc = load_scenario(SHORT)
+    sc.sensor.dropout_probability = 0.05
+    sc.sensor.spike_probability = 0.02
+    sc.sensor.spike_N = 5000.0
+    res = run_cut(sc, robot, compensation=True)
+    assert res.logs["rejected"][1][-1, 0] > 50  # the guard caught them
+    raw = res.logs["raw_wrench"][1]
+    assert np.all(np.isfinite(raw))  # what leaves the guard is finite
+    corr = res.logs["correction"][1]
+    assert np.all(np.isfinite(corr))
+    assert np.abs(corr).max() <= np.deg2rad(sc.controller.saturation_deg) + 1e-12
+    assert np.all(np.isfinite(res.logs["state"][1]))
+    # holding the last good sample costs little: the surface is nearly as without them
+    assert abs(res.surface_error_mm["mean"] - short_runs[2].surface_error_mm["mean"]) < 0.03
+
+
+def _write(tmp_path, text):
+    p = tmp_path / "scenario.yaml"
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda s: s.replace("  period_ms: 4.0", "  period_ms: 4.0\n  perod_ms: 4.0"), "perod_ms"),
+        (lambda s: s.replace("  period_ms: 4.0", "  period_ms: -4.0"), "controller.period_ms: must be a positive number"),
+        (lambda s: s.replace("  diameter_mm: 75.0", "  diameter_mm: 400.0"), "cutter.diameter_mm: 400.0 mm is not a sensible"),
+        (lambda s: s.replace("  period_ms: 4.0", "  period_ms: 1.0"), "controller.period_ms: 1.0 ms is below the plant step"),
+        (lambda s: s.replace("    cutoff_hz: 2.0", "    cutoff_hz: 900.0"), "controller.filter.cutoff_hz: 900.0 Hz"),
+        (lambda s: s.replace("  mode: averaged", "  mode: exact"), "cutting.mode: expected 'averaged' or 'tooth'"),
+        (lambda s: s.replace("    - [1497.5, 0.0, 700.0]", "    - [3497.5, 0.0, 700.0]"), "is out of reach"),
+        (lambda s: s.replace("    - [1702.5, 0.0, 700.0]", "    - [1702.5, 0.0, 1900.0]"), "outside its joint limit"),
+        (lambda s: s.replace("    - [1497.5, 0.0, 700.0]\n    - [1702.5, 0.0, 700.0]",
+                             "    - [413.0, -30.0, 0.0]\n    - [413.0, 30.0, 0.0]"), "singularity (wrist singularity"),
+    ],
+)
+def test_bad_scenarios_fail_before_simulating(tmp_path, robot, edit, message):
+    from robstiff_drake.diagrams.milling_cell import build_milling_cell
+
+    path = _write(tmp_path, edit(SHORT.read_text()))
+    with pytest.raises(InputError) as err:
+        build_milling_cell(load_scenario(path), robot)
+    assert message in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_simulate_cli_error_is_one_line(capsys, tmp_path):
+    from robstiff_drake.commands.main import main
+
+    path = _write(tmp_path, SHORT.read_text().replace("  n_teeth: 6", "  n_teeth: 6\n  colour: red"))
+    code = main(["simulate", str(path), "--out", str(tmp_path / "out")])
+    _, err = capsys.readouterr()
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and "colour" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_compensation_with_an_identified_model(robot, tmp_path, capsys):
+    """The compensator holds a model identified by `robstiff identify` from a
+    noisy synthetic campaign of a plant whose stiffness is not the nominal one:
+    mean surface error <= 0.05 mm on the block test."""
+    from robstiff_drake.commands.main import main
+
+    k_true = robot.joint_stiffness_Nm_per_rad * np.array([0.85, 1.1, 0.9, 1.2, 0.8, 1.0])
+    k_text = ",".join(f"{k:.6g}" for k in k_true)
+    campaign = tmp_path / "campaign.csv"
+    assert main(["synth", "stiffness", str(campaign), "--n", "120", "--noise-mm", "0.01", "--seed", "7",
+                 "--tool", "0,0,350", "--stiffness", k_text]) == 0
+    ident = tmp_path / "identified.json"
+    assert main(["identify", str(campaign), "--tool", "0,0,350", "--json", str(ident)]) == 0
+    capsys.readouterr()
+    text = (Path(__file__).parents[1] / "diagrams" / "block_milling.yaml").read_text()
+    text = text.replace("plant:\n", f"plant:\n  joint_stiffness_Nm_per_rad: [{k_text}]\n", 1)
+    text += "model:\n  identified_json: identified.json\n"
+    scenario = _write(tmp_path, text)
+    sc = load_scenario(scenario)
+    res = run_cut(sc, robot, compensation=True)
+    assert abs(res.surface_error_mm["mean"]) <= 0.05
+    # and the nominal model on the same plant is visibly worse (the model matters)
+    sc_nominal = copy.deepcopy(sc)
+    sc_nominal.model.identified_json = ""
+    res_nominal = run_cut(sc_nominal, robot, compensation=True)
+    assert abs(res_nominal.surface_error_mm["mean"]) > abs(res.surface_error_mm["mean"])

@@ -1,0 +1,169 @@
+"""Each block of the closed loop alone: fixed inputs, CalcOutput / one
+discrete update, assert on values (the drake_pip system-test style)."""
+
+import numpy as np
+import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.multibody.math import SpatialForce
+
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model import stiffness as st
+from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
+from robstiff_drake.model.path import PlannedPath
+from robstiff_drake.model.realtime import DeflectionPredictor
+from robstiff_drake.systems.deflection_prediction import DeflectionPrediction, sensor_to_tool_base
+from robstiff_drake.systems.force_filter import (
+    filter_system,
+    group_delay_s,
+    lowpass_coefficients,
+    revolution_average_coefficients,
+    steady_state,
+)
+from robstiff_drake.systems.gravity_removal import GravityRemoval, PayloadCalibration, payload_wrench
+from robstiff_drake.systems.milling_force import MillingForceSource
+from robstiff_drake.systems.reference_correction import RateLimitedCorrection
+from robstiff_drake.systems.wrist_sensor import WrenchGuard, WristForceSensor
+
+Q = np.deg2rad([5.0, 15.0, 20.0, 10.0, 50.0, -20.0])
+
+
+def update(system, context):
+    """Run the system's periodic discrete update once; return its new discrete state(s)."""
+    state = system.EvalUniquePeriodicDiscreteUpdate(context)
+    return [state.get_vector(i).CopyToVector() for i in range(state.num_groups())]
+
+
+def test_milling_force_source_outputs(robot):
+    tool = robot.payload.tool_point_m
+    cutter = Cutter(0.075, 6, 3600)
+    model = MillingForceModel(cutter, CuttingCoefficients(631, 99, 273, 13, 10, 2.8), 0.02)
+    kinematics = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool)
+    R, p = kinematics.flange_rotation_and_tool_point(Q)
+    wp = Workpiece.from_boxes([[p[0] - 0.05, p[0] + 0.1, p[1] - 0.02, p[1] + 0.03, p[2] + 0.003]])
+    path = PlannedPath([p, p + [0.1, 0, 0]], 0.02)
+    for mode in ("averaged", "tooth"):
+        src = MillingForceSource(force_model=model, workpiece=wp, path=path, kinematics=kinematics, tool_point_m=tool,
+                                 period_s=0.002, mode=mode)
+        ctx = src.CreateDefaultContext()
+        src.get_input_port().FixValue(ctx, Q)
+        ctx.SetDiscreteState(update(src, ctx)[0])
+        w = src.GetOutputPort("wrench").Eval(ctx)
+        expected = model.average_wrench(p, [1, 0], wp) if mode == "averaged" else model.tooth_wrench(0.0, p, [1, 0], wp)
+        np.testing.assert_allclose(w, expected, rtol=1e-12, atol=1e-9)
+        assert np.linalg.norm(w[:3]) > 100  # the cutter is in the material
+        tau = src.GetOutputPort("generalized_force").Eval(ctx)
+        held = ctx.get_discrete_state_vector().CopyToVector()[18:]
+        np.testing.assert_allclose(tau, kin.jacobian(robot.dh, Q, tool).T @ held, rtol=1e-10)
+        ws = src.GetOutputPort("wrench_sensor").Eval(ctx)
+        np.testing.assert_allclose(sensor_to_tool_base(ws, R, tool), w, atol=1e-9)  # round trip
+
+
+def test_wrist_sensor_reads_weight_plus_process_plus_bias():
+    sensor = WristForceSensor(weld_joint_index=2, rate_hz=1000, force_bias_N=[1, 2, 3], torque_bias_Nm=[0.1, 0.2, 0.3])
+    ctx = sensor.CreateDefaultContext()
+    zero = SpatialForce(np.zeros(3), np.zeros(3))
+    reactions = [zero, zero, SpatialForce([1.0, -2.0, 0.5], [10.0, 20.0, -392.0])]
+    sensor.GetInputPort("reaction_forces").FixValue(ctx, AbstractValue.Make(reactions))
+    sensor.GetInputPort("process_wrench").FixValue(ctx, [100.0, 0, 0, 0, 0, 5.0])
+    (w,) = update(sensor, ctx)
+    # the payload exerts on the sensor minus what the flange exerts on the payload
+    np.testing.assert_allclose(w, [-10 + 100 + 1, -20 + 2, 392 + 3, -1 + 0.1, 2 + 0.2, -0.5 + 5 + 0.3])
+
+
+def test_wrist_sensor_noise_and_dropouts():
+    sensor = WristForceSensor(weld_joint_index=0, rate_hz=1000, noise_N=2.0, noise_Nm=0.2, dropout_probability=0.3,
+                              seed=4)
+    ctx = sensor.CreateDefaultContext()
+    sensor.GetInputPort("reaction_forces").FixValue(ctx, AbstractValue.Make([SpatialForce(np.zeros(3), np.zeros(3))]))
+    sensor.GetInputPort("process_wrench").FixValue(ctx, np.zeros(6))
+    samples = []
+    for k in range(3000):
+        ctx.SetTime(k * 1e-3)  # a new instant: the update is evaluated again, not cached
+        samples.append(update(sensor, ctx)[0])
+    samples = np.array(samples)
+    dropped = np.isnan(samples).all(axis=1)
+    assert 0.25 < dropped.mean() < 0.35
+    good = samples[~dropped]
+    np.testing.assert_allclose(good.std(axis=0), [2, 2, 2, 0.2, 0.2, 0.2], rtol=0.1)
+
+
+def test_guard_holds_last_good_value():
+    guard = WrenchGuard(rate_hz=1000, max_jump_N=500, initial_wrench=np.ones(6))
+    ctx = guard.CreateDefaultContext()
+    for bad in ([np.nan] * 6, [np.inf, 0, 0, 0, 0, 0], [1 + 800.0, 1, 1, 1, 1, 1]):
+        guard.get_input_port().FixValue(ctx, bad)
+        held, count = update(guard, ctx)
+        np.testing.assert_array_equal(held, np.ones(6))
+        ctx.SetDiscreteState(1, count)
+    assert ctx.get_discrete_state(1).value()[0] == 3
+    guard.get_input_port().FixValue(ctx, [50.0, 1, 1, 1, 1, 1])
+    held, _ = update(guard, ctx)
+    np.testing.assert_array_equal(held, [50.0, 1, 1, 1, 1, 1])
+
+
+@pytest.mark.parametrize("kind", ["lowpass", "average"])
+def test_force_filter(kind):
+    rate = 1000.0
+    b, a = lowpass_coefficients(10.0, rate) if kind == "lowpass" else revolution_average_coefficients(3600, rate)
+    filt = filter_system(b, a, rate)
+    ctx = filt.CreateDefaultContext()
+    u = np.array([100.0, -50, 20, 1, 2, 3])
+    ctx.SetDiscreteState(steady_state(filt, u))
+    filt.get_input_port().FixValue(ctx, u)
+    np.testing.assert_allclose(filt.get_output_port().Eval(ctx), u, rtol=1e-9)  # unit DC gain, settled
+    # a sine at the tooth-pass frequency (360 Hz): the 10 Hz low-pass attenuates it by
+    # more than 50 dB; the revolution average (17 samples at 1 kHz for a 16.7 ms
+    # revolution: not a whole number of samples) leaves a few per cent
+    ctx.SetDiscreteState(np.zeros(filt.A().shape[0]))
+    out = []
+    for k in range(2000):
+        filt.get_input_port().FixValue(ctx, np.full(6, np.sin(2 * np.pi * 360.0 * k / rate)))
+        out.append(filt.get_output_port().Eval(ctx)[0])
+        ctx.SetDiscreteState(update(filt, ctx)[0])
+    assert np.max(np.abs(out[1000:])) < (3e-3 if kind == "lowpass" else 0.03)
+    assert group_delay_s(b, a, rate) > 0
+
+
+def test_gravity_removal_cancels_the_payload(robot, rng):
+    cal = PayloadCalibration(mass_kg=40.0, com_mm=[5.0, -3.0, 180.0], force_bias_N=[2, -1, 3],
+                             torque_bias_Nm=[0.1, 0.0, -0.2])
+    kinematics = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad)
+    sys_ = GravityRemoval(calibration=cal, kinematics=kinematics)
+    ctx = sys_.CreateDefaultContext()
+    for q in rng.uniform(robot.q_lower_rad, robot.q_upper_rad, size=(10, 6)):
+        R = kin.frames(robot.dh, q)[6, :3, :3]
+        process = np.array([120.0, -40.0, 10.0, 1.0, -2.0, 3.0])
+        reading = payload_wrench(R, cal) + process
+        assert np.linalg.norm(payload_wrench(R, cal)[:3] - [2, -1, 3]) == pytest.approx(40 * 9.81, rel=1e-12)
+        sys_.GetInputPort("wrench").FixValue(ctx, reading)
+        sys_.GetInputPort("q").FixValue(ctx, q)
+        np.testing.assert_allclose(sys_.get_output_port().Eval(ctx), process, atol=1e-9)
+
+
+def test_deflection_prediction_matches_the_model(robot):
+    tool = robot.payload.tool_point_m
+    k_model = robot.joint_stiffness_Nm_per_rad * 1.1  # the predictor's own model
+    pred = DeflectionPredictor(robot.dh, k_model, tool)
+    sys_ = DeflectionPrediction(predictor=pred, tool_m=tool)
+    ctx = sys_.CreateDefaultContext()
+    w_tool = np.array([-300.0, 250.0, 50.0, 1.0, -2.0, 15.0])  # at the tool, base frame
+    R = kin.frames(robot.dh, Q)[6, :3, :3]
+    f_s = R.T @ w_tool[:3]
+    w_sensor = np.concatenate([f_s, R.T @ w_tool[3:] + np.cross(tool, f_s)])
+    sys_.GetInputPort("process_wrench").FixValue(ctx, w_sensor)
+    sys_.GetInputPort("q").FixValue(ctx, Q)
+    np.testing.assert_allclose(sys_.GetOutputPort("tool_wrench").Eval(ctx), w_tool, atol=1e-9)
+    dq_ref, _ = st.deflection_conventional(kin.jacobian(robot.dh, Q, tool), k_model, w_tool)
+    np.testing.assert_allclose(sys_.GetOutputPort("dq").Eval(ctx), dq_ref, rtol=1e-10)
+
+
+def test_correction_rate_limit_and_nan():
+    corr = RateLimitedCorrection(period_s=0.004, rate_limit_rad_per_s=0.1)
+    ctx = corr.CreateDefaultContext()
+    corr.get_input_port().FixValue(ctx, [1e-3, -1e-3, 1e-5, 0, 0, 0])
+    (x,) = update(corr, ctx)
+    np.testing.assert_allclose(x, [-4e-4, 4e-4, -1e-5, 0, 0, 0])  # 0.1 rad/s * 4 ms = 0.4 mrad per step
+    ctx.SetDiscreteState(x)
+    corr.get_input_port().FixValue(ctx, [np.nan] * 6)
+    (y,) = update(corr, ctx)
+    np.testing.assert_array_equal(y, x)
