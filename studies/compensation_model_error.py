@@ -16,7 +16,6 @@ import numpy as np
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.identification import synth
-from robstiff_drake.identification.campaign import StiffnessCampaign
 from robstiff_drake.identification.joint_stiffness import identify
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import DIAGRAMS_DIR
@@ -29,9 +28,7 @@ def main():
     k_true = robot.joint_stiffness_Nm_per_rad * OFFSET
     tool = robot.payload.tool_point_m
     c = synth.stiffness_campaign(robot, n=120, noise_mm=0.01, seed=7, tool_m=tool, true_stiffness_Nm_per_rad=k_true)
-    camp = StiffnessCampaign("synthetic", c.q_deg, c.force_N, np.zeros((120, 3)), c.disp_mm, None, c.pose, c.seq,
-                             np.arange(120), [], False)
-    fit = identify(robot, camp, tool_m=tool)
+    fit = identify(robot, c.to_campaign(), tool_m=tool)
     base = load_scenario(DIAGRAMS_DIR / "block_milling.yaml")
     base.plant.joint_stiffness_Nm_per_rad = list(k_true)
     rows = []

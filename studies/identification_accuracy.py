@@ -14,7 +14,6 @@ import argparse
 import numpy as np
 
 from robstiff_drake.identification import synth
-from robstiff_drake.identification.campaign import StiffnessCampaign
 from robstiff_drake.identification.joint_stiffness import identify
 from robstiff_drake.model.robot import load_robot
 
@@ -31,9 +30,7 @@ def main():
     for seed in range(args.seeds):
         c = synth.stiffness_campaign(robot, n=120, noise_mm=args.noise_mm, seed=10_000 + seed,
                                      true_stiffness_Nm_per_rad=K_TRUE)
-        camp = StiffnessCampaign("synthetic", c.q_deg, c.force_N, np.zeros((120, 3)), c.disp_mm, None, c.pose,
-                                 c.seq, np.arange(120), [], False)
-        fit = identify(robot, camp)
+        fit = identify(robot, c.to_campaign())
         rel = np.where(fit.identifiable, fit.stiffness_Nm_per_rad / K_TRUE - 1, np.nan)
         errs.append(rel)
         for j in np.flatnonzero(fit.identifiable):

@@ -4,15 +4,15 @@ import numpy as np
 import pytest
 
 from robstiff_drake.identification import synth
-from robstiff_drake.identification.campaign import StiffnessCampaign
 from robstiff_drake.identification.joint_stiffness import identify
 
 
 def as_campaign(c, moments=None, rot_mrad=None):
-    n = len(c.seq)
-    return StiffnessCampaign("synthetic.csv", c.q_deg, c.force_N,
-                             np.zeros((n, 3)) if moments is None else moments, c.disp_mm, rot_mrad,
-                             c.pose, c.seq, np.arange(n) + 10, [], moments is not None)
+    camp = c.to_campaign("synthetic.csv")
+    if moments is not None:
+        camp.moment_Nm, camp.has_moments = moments, True
+    camp.rot_mrad = rot_mrad
+    return camp
 
 
 def reload(robot, c, force_N, noise_mm=0.01, seed=0):

@@ -56,26 +56,21 @@ def make_map(robot, *, tool_m, force_N=500.0, resolution=41):
 
     fig, axes = plt.subplots(2, 2, figsize=(12, 9), constrained_layout=True)
     titles = ("softest direction", "along z (face-milling surface error)")
-    for col, (data, title) in enumerate(zip(top, titles)):
-        ax = axes[0, col]
-        im = ax.pcolormesh(xs * 1e3, ys * 1e3, data.T, vmin=0, vmax=vmax, cmap="viridis", shading="auto")
-        ax.set_title(f"top view, tool point at z = {z_ref * 1e3:.0f} mm: {title}")
-        ax.set_xlabel("x (mm)")
-        ax.set_ylabel("y (mm)")
-        ax.add_patch(plt.Rectangle((ws.x_m[0] * 1e3, ws.y_m[0] * 1e3), (ws.x_m[1] - ws.x_m[0]) * 1e3,
-                                   (ws.y_m[1] - ws.y_m[0]) * 1e3, fill=False, ec="w", ls="--"))
-        ax.plot(0, 0, "r^", ms=10)
-        ax.set_aspect("equal")
-    for col, (data, title) in enumerate(zip(side, titles)):
-        ax = axes[1, col]
-        im = ax.pcolormesh(xs * 1e3, zs * 1e3, data.T, vmin=0, vmax=vmax, cmap="viridis", shading="auto")
-        ax.set_title(f"side view, plane y = 0: {title}")
-        ax.set_xlabel("x (mm)")
-        ax.set_ylabel("z (mm)")
-        ax.add_patch(plt.Rectangle((ws.x_m[0] * 1e3, ws.z_m[0] * 1e3), (ws.x_m[1] - ws.x_m[0]) * 1e3,
-                                   (ws.z_m[1] - ws.z_m[0]) * 1e3, fill=False, ec="w", ls="--"))
-        ax.plot(0, 0, "r^", ms=10)
-        ax.set_aspect("equal")
+    views = (  # row, grids, vertical axis, workspace range on it, view title
+        (0, top, ys, "y", ws.y_m, f"top view, tool point at z = {z_ref * 1e3:.0f} mm"),
+        (1, side, zs, "z", ws.z_m, "side view, plane y = 0"),
+    )
+    for row, grids, vs, vname, vrange, view in views:
+        for col, (data, title) in enumerate(zip(grids, titles)):
+            ax = axes[row, col]
+            im = ax.pcolormesh(xs * 1e3, vs * 1e3, data.T, vmin=0, vmax=vmax, cmap="viridis", shading="auto")
+            ax.set_title(f"{view}: {title}")
+            ax.set_xlabel("x (mm)")
+            ax.set_ylabel(f"{vname} (mm)")
+            ax.add_patch(plt.Rectangle((ws.x_m[0] * 1e3, vrange[0] * 1e3), (ws.x_m[1] - ws.x_m[0]) * 1e3,
+                                       (vrange[1] - vrange[0]) * 1e3, fill=False, ec="w", ls="--"))
+            ax.plot(0, 0, "r^", ms=10)
+            ax.set_aspect("equal")
     fig.colorbar(im, ax=axes, label=f"tool-point deflection under {force_N:g} N (mm)", shrink=0.8)
     fig.suptitle(f"{robot.name} stiffness map (conventional model, spindle axis down; white box: machining "
                  "workspace; red: robot base; blank: out of reach or joint limits)")

@@ -69,6 +69,14 @@ class SynthStiffness:
     effect_rms_mm: dict
     true_stiffness_Nm_per_rad: np.ndarray
 
+    def to_campaign(self, path="synthetic"):
+        """The campaign as `robstiff identify` reads it from a file."""
+        from robstiff_drake.identification.campaign import StiffnessCampaign
+
+        n = len(self.seq)
+        return StiffnessCampaign(path, self.q_deg, self.force_N, np.zeros((n, 3)), self.disp_mm, None,
+                                 list(self.pose), np.asarray(self.seq, dtype=float), np.arange(n) + 1, [], False)
+
 
 def stiffness_campaign(robot, *, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01, seed=0,
                        tool_m=None, effects=None, true_stiffness_Nm_per_rad=None):
