@@ -146,6 +146,20 @@ def build_parser():
     p.add_argument("--json", metavar="OUT", help="write the summary as JSON ('-' for stdout)")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
 
+    p = sub.add_parser("sweep", help="sampling-delay study: closed-loop runs over period, delay, cutoff and mode")
+    p.add_argument("scenario", metavar="SCENARIO.yaml")
+    p.add_argument("--period-ms", required=True, help="controller periods, e.g. 0.5,1,2,4,8,12,16,24,32,48,100")
+    p.add_argument("--delay-steps", default="1", help="transport delays in periods (default: %(default)s)")
+    p.add_argument("--cutoff-hz", default="5", help="force-filter cutoffs (default: %(default)s)")
+    p.add_argument("--mode", default="plain", help="plain and/or predictive (default: %(default)s)")
+    p.add_argument("--json", metavar="OUT", help="write all runs as JSON ('-' for stdout)")
+    p.add_argument("--plot", metavar="OUT.png", help="error against period, one curve per cutoff and mode")
+    p.add_argument("--workers", type=int, default=None, help="local processes (default: the number of cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://127.0.0.1:8786")
+    p.add_argument("--plant-step-ms", type=float, default=None, help="plant step for every run (default: the scenario's)")
+    p.add_argument("--no-predict", action="store_true", help="skip the linear loop model's predictions")
+    p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
+
     p = sub.add_parser("demo", help="the main job: the seed's block-milling test, without and with compensation")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
     return parser
@@ -204,6 +218,13 @@ def _dispatch(args):
 
         return simulate.run(scenario=args.scenario, compensation=args.compensation, json_out=args.json,
                             out=args.out)
+    if args.command == "sweep":
+        from robstiff_drake.commands import sweep
+
+        return sweep.run(scenario=args.scenario, periods=args.period_ms, delays=args.delay_steps,
+                         cutoffs=args.cutoff_hz, modes=args.mode, json_out=args.json, plot_out=args.plot,
+                         workers=args.workers, scheduler=args.scheduler, plant_step_ms=args.plant_step_ms,
+                         predict=not args.no_predict, progress=args.progress)
     if args.command == "demo":
         from robstiff_drake.commands import demo
 

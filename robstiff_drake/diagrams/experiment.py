@@ -87,6 +87,41 @@ def scan_surface(cell, times, q):
     return lines
 
 
+def zone_masks(cell, x):
+    """Boolean masks over scan positions x (m): entry zones (the first
+    ``zone`` after each box's leading edge in the feed direction), exit zones
+    (the last ``zone`` before its trailing edge), and the steady rest.  The
+    zone is the cutter radius unless the scenario sets scan.zone_mm."""
+    zone = cell.scenario.scan.zone_mm / 1e3 or cell.force_model.cutter.radius_m
+    forward = cell.path.directions[0, 0] >= 0
+    entry = np.zeros(x.shape, dtype=bool)
+    exit_ = np.zeros(x.shape, dtype=bool)
+    for x0, x1 in cell.workpiece.x_m:
+        lead, trail = (x0, x1) if forward else (x1, x0)
+        sign = 1.0 if forward else -1.0
+        entry |= (sign * (x - lead) >= 0) & (sign * (x - lead) <= zone)
+        exit_ |= (sign * (trail - x) >= 0) & (sign * (trail - x) <= zone)
+    return entry, exit_, ~(entry | exit_)
+
+
+def zone_stats(cell, scans):
+    """Largest |error| (mm) in the entry and exit zones, and the steady part's
+    mean and largest |error|."""
+    out = {}
+    parts = {"entry": [], "exit": [], "steady": []}
+    for line in scans:
+        masks = zone_masks(cell, line.x_m)
+        for name, m in zip(("entry", "exit", "steady"), masks):
+            e = line.error_m[m]
+            parts[name].append(e[np.isfinite(e)])
+    for name, chunks in parts.items():
+        e = np.concatenate(chunks) * 1e3 if chunks else np.zeros(0)
+        out[f"{name}_max_abs"] = float(np.max(np.abs(e))) if e.size else 0.0
+        if name == "steady":
+            out["steady_mean"] = float(e.mean()) if e.size else 0.0
+    return out
+
+
 def run_cut(sc, robot, *, compensation=True, cell=None):
     """Simulate scenario ``sc`` once; return logs, scans and statistics."""
     cell = cell or build_milling_cell(sc, robot, compensation=compensation)
@@ -104,4 +139,5 @@ def run_cut(sc, robot, *, compensation=True, cell=None):
     scans = scan_surface(cell, t, x[:, :6])
     err = np.concatenate([s.error_m[np.isfinite(s.error_m)] for s in scans])
     stats = surface_error_stats(err) if err.size else {}
+    stats.update(zone_stats(cell, scans))
     return RunResult(compensation, logs, scans, stats, t_end, wall, cell)

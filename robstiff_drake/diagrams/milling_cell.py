@@ -56,6 +56,7 @@ from robstiff_drake.systems.force_filter import (
 )
 from robstiff_drake.systems.gravity_removal import GravityRemoval, payload_wrench
 from robstiff_drake.systems.milling_force import MillingForceSource
+from robstiff_drake.systems.predictive_wrench import PredictiveWrench
 from robstiff_drake.systems.reference_correction import RateLimitedCorrection
 from robstiff_drake.systems.wrist_sensor import WrenchGuard, WristForceSensor
 
@@ -84,10 +85,12 @@ class MillingCell:
     natural_frequencies_hz: np.ndarray
 
 
-def cutting_setup(sc):
+def cutting_setup(sc, scale=1.0):
+    """(cutter, force model, workpiece); ``scale`` multiplies every
+    coefficient (a compensator's model that is off by that factor)."""
     cutter = Cutter(sc.cutter.diameter_mm / 1e3, int(sc.cutter.n_teeth), sc.cutter.spindle_rpm)
     c = sc.cutting
-    s, sa = c.tangential_radial_scale, c.axial_scale
+    s, sa = c.tangential_radial_scale * scale, c.axial_scale * scale
     coeffs = CuttingCoefficients(c.Ktc_N_per_mm2 * s, c.Krc_N_per_mm2 * s, c.Kac_N_per_mm2 * sa,
                                  c.Kte_N_per_mm * s, c.Kre_N_per_mm * s, c.Kae_N_per_mm * sa)
     model = MillingForceModel(cutter, coeffs, sc.path.feed_mm_per_s / 1e3)
@@ -101,6 +104,26 @@ def natural_frequencies(plant, context, q, k_Nm_per_rad):
     M = plant.CalcMassMatrix(context)
     w2 = np.linalg.eigvals(np.linalg.solve(M, np.diag(k_Nm_per_rad))).real
     return np.sort(np.sqrt(np.maximum(w2, 0.0))) / (2 * np.pi)
+
+
+_REFERENCES = {}  # IK along a path, reused by the runs of a sweep in one process
+
+
+def planned_path(sc, robot, tool):
+    """(PlannedPath, times, joint references) of the scenario's path; the IK
+    is done once per process for a given path, robot file and tool."""
+    p = sc.path
+    key = (str(p.waypoints_mm), p.feed_mm_per_s, p.yaw_deg, p.dwell_s, p.ramp_s, p.reference_period_ms, robot.source,
+           tuple(np.round(tool, 12)), robot.q_lower_rad.tobytes(), robot.q_upper_rad.tobytes())
+    try:
+        path = PlannedPath(np.asarray(p.waypoints_mm, dtype=float) / 1e3, p.feed_mm_per_s / 1e3,
+                           np.deg2rad(p.yaw_deg), p.dwell_s, p.ramp_s)
+        if key not in _REFERENCES:
+            _REFERENCES[key] = path.joint_references(robot, tool, p.reference_period_ms / 1e3)
+    except PathError as e:
+        raise InputError(f"{sc.source}: path: {e}") from None
+    t_ref, q_ref = _REFERENCES[key]
+    return path, t_ref, q_ref
 
 
 def add_compliant_irb6400(builder, *, time_step_s, joint_stiffness_Nm_per_rad, damping_ratio, q_modes_rad):
@@ -147,7 +170,7 @@ def filter_coefficients(filter_config, rate_hz, spindle_rpm):
 
 
 def add_compensation_chain(builder, *, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, saturation_rad,
-                           rate_limit_rad_per_s, calibration, predictor, tool_m, initial_wrench):
+                           rate_limit_rad_per_s, calibration, predictor, tool_m, initial_wrench, predictive=None):
     """The compensation chain of the seed's Fig. 5, from the sensor's raw
     wrench to the joint-reference correction:
 
@@ -155,8 +178,10 @@ def add_compensation_chain(builder, *, rate_hz, filter_ba, max_jump_N, period_s,
       -> DeflectionPrediction -> Saturation -> DiscreteTimeDelay(T, n)
       -> RateLimitedCorrection(T)
 
-    (the measured joint angles enter through their own ZOH(T)).  Returns the
-    systems by name; inputs: guard "wrench" and zoh_q; output: correction."""
+    (the measured joint angles enter through their own ZOH(T)).  With
+    ``predictive`` (a PredictiveWrench), it sits between GravityRemoval and
+    DeflectionPrediction.  Returns the systems by name; inputs: guard
+    "wrench" and zoh_q; output: correction."""
     b, a = filter_ba
     T = period_s
     s = {}
@@ -173,7 +198,13 @@ def add_compensation_chain(builder, *, rate_hz, filter_ba, max_jump_N, period_s,
     builder.Connect(s["zoh_q"].get_output_port(), s["gravity_removal"].GetInputPort("q"))
     s["prediction"] = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
         predictor=predictor, tool_m=tool_m, mount_rpy_deg=calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0)))
-    builder.Connect(s["gravity_removal"].get_output_port(), s["prediction"].GetInputPort("process_wrench"))
+    process = s["gravity_removal"].get_output_port()
+    if predictive is not None:
+        s["predictive"] = builder.AddNamedSystem("predictive_wrench", predictive)
+        builder.Connect(process, predictive.GetInputPort("process_wrench"))
+        builder.Connect(s["zoh_q"].get_output_port(), predictive.GetInputPort("q"))
+        process = predictive.GetOutputPort("process_wrench")
+    builder.Connect(process, s["prediction"].GetInputPort("process_wrench"))
     builder.Connect(s["zoh_q"].get_output_port(), s["prediction"].GetInputPort("q"))
     sat = saturation_rad * np.ones(6)
     s["saturation"] = builder.AddNamedSystem("saturation", Saturation(-sat, sat))
@@ -210,12 +241,7 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
     cutter, fmodel, workpiece = cutting_setup(sc)
     T = sc.controller.period_ms / 1e3
     dt = sc.plant.time_step_ms / 1e3
-    try:
-        path = PlannedPath(np.asarray(sc.path.waypoints_mm, dtype=float) / 1e3, sc.path.feed_mm_per_s / 1e3,
-                           np.deg2rad(sc.path.yaw_deg), sc.path.dwell_s, sc.path.ramp_s)
-        t_ref, q_ref = path.joint_references(robot, tool, sc.path.reference_period_ms / 1e3)
-    except PathError as e:
-        raise InputError(f"{sc.source}: path: {e}") from None
+    path, t_ref, q_ref = planned_path(sc, robot, tool)
 
     builder = DiagramBuilder()
     k_plant = plant_stiffness(sc, robot)
@@ -256,11 +282,17 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
     # the compensator: its own stiffness model and payload calibration
     kin = DeflectionPredictor(robot.dh, model_stiffness(sc, robot), tool)
     ba = filter_coefficients(sc.controller.filter, ss.rate_hz, cutter.spindle_rpm)
+    predictive = None
+    if sc.controller.mode == "predictive":
+        _, model_forces, _ = cutting_setup(sc, scale=sc.model.force_model_scale)
+        predictive = PredictiveWrench(
+            force_model=model_forces, workpiece=workpiece, path=path, kinematics=kin, tool_m=tool,
+            lead_s=(sc.controller.delay_steps + 1.5) * T, filter_ba=ba, rate_hz=ss.rate_hz, period_s=T)
     chain = add_compensation_chain(
         builder, rate_hz=ss.rate_hz, filter_ba=ba, max_jump_N=ss.max_jump_N, period_s=T,
         delay_steps=sc.controller.delay_steps, saturation_rad=np.deg2rad(sc.controller.saturation_deg),
         rate_limit_rad_per_s=np.deg2rad(sc.controller.rate_limit_deg_per_s), calibration=payload_calibration(sc, robot),
-        predictor=kin, tool_m=tool, initial_wrench=w0)
+        predictor=kin, tool_m=tool, initial_wrench=w0, predictive=predictive)
     builder.Connect(sensor.get_output_port(), chain["guard"].GetInputPort("wrench"))
     builder.Connect(q_meas, chain["zoh_q"].get_input_port())
     correction = chain["correction"]

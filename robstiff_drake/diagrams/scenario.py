@@ -97,6 +97,10 @@ class FilterConfig:
 
 @dataclass
 class ControllerConfig:
+    # "plain": the seed's compensator (the measured force, filtered and
+    # delayed); "predictive": the model's force where the correction will act,
+    # plus the filtered measured residual (see systems/predictive_wrench.py)
+    mode: str = "plain"
     period_ms: float = 4.0
     delay_steps: int = 1
     filter: FilterConfig = field(default_factory=FilterConfig)
@@ -115,6 +119,9 @@ class ModelConfig:
     # The YAML that `robstiff calibrate-payload --yaml` wrote; empty: the
     # exact payload and sensor bias (a perfect calibration).
     payload_yaml: str = ""
+    # Predictive mode's cutting-force model: the scenario's coefficients
+    # times this factor (1: exact; 1.2: the model over-predicts by 20 %).
+    force_model_scale: float = 1.0
 
 
 @dataclass
@@ -124,6 +131,9 @@ class ScanConfig:
     lines_y_mm: list[float] = field(default_factory=list)  # empty: the centre line of each box
     resolution_mm: float = 0.5
     edge_margin_mm: float = 2.0  # left out at each box edge (burrs, scan edge)
+    # entry / exit zones of the statistics: this far from each box's leading /
+    # trailing edge (0: the cutter radius, where the engagement changes)
+    zone_mm: float = 0.0
 
 
 @dataclass
@@ -198,6 +208,10 @@ def check_scenario(sc):
         _fail(sc, "cutting.mode", f"expected 'averaged' or 'tooth', got {sc.cutting.mode!r}")
     if sc.cutting.samples_per_tooth < 1:
         _fail(sc, "cutting.samples_per_tooth", "must be >= 1")
+    if sc.controller.mode not in ("plain", "predictive"):
+        _fail(sc, "controller.mode", f"expected 'plain' or 'predictive', got {sc.controller.mode!r}")
+    if not sc.model.force_model_scale > 0:
+        _fail(sc, "model.force_model_scale", f"must be > 0, got {sc.model.force_model_scale}")
     if sc.controller.filter.kind not in ("lowpass", "revolution_average", "none"):
         _fail(sc, "controller.filter.kind",
               f"expected 'lowpass', 'revolution_average' or 'none', got {sc.controller.filter.kind!r}")

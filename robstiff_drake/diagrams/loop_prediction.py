@@ -1,0 +1,111 @@
+"""The linear loop model (model/loop_model.py) set up for a scenario and a
+sweep combination: what it predicts for stability and surface error, to set
+beside the closed-loop simulation."""
+
+import numpy as np
+from pydrake.multibody.plant import MultibodyPlant
+
+from robstiff_drake.diagrams.experiment import ScanLine, zone_stats
+from robstiff_drake.diagrams.milling_cell import cutting_setup, filter_coefficients, natural_frequencies
+from robstiff_drake.diagrams.scenario import model_stiffness, plant_stiffness
+from robstiff_drake.diagrams.sweep import configure
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, process_stiffness
+from robstiff_drake.model.path import PlannedPath
+from robstiff_drake.model.surface import envelope_heights, surface_error_stats
+from robstiff_drake.plant import add_irb6400
+
+KP_EVERY = 25  # recompute the process stiffness every this many sensor samples
+
+
+class _Cell:
+    """The few fields of a MillingCell that zone_stats reads."""
+
+    def __init__(self, sc, path, workpiece, force_model):
+        self.scenario, self.path, self.workpiece, self.force_model = sc, path, workpiece, force_model
+
+
+def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None):
+    """Predicted closed-loop poles and surface-error statistics for one sweep
+    combination (dict with spectral_radius, stable, surface_error_mm,
+    first_order_lag_error_mm)."""
+    sc = configure(sc, combo, plant_step_ms)
+    tool = robot.payload.tool_point_m
+    cutter, fmodel, workpiece = cutting_setup(sc)
+    path = PlannedPath(np.asarray(sc.path.waypoints_mm) / 1e3, sc.path.feed_mm_per_s / 1e3,
+                       np.deg2rad(sc.path.yaw_deg), sc.path.dwell_s, sc.path.ramp_s)
+    from robstiff_drake.model import ik
+
+    t_mid = path.dwell_s + 0.5 * path.move_s
+    q_mid = ik.solve_ik(robot.dh, ik.tool_down_pose(path.position(t_mid), path.yaw), tool)
+    key = tuple(np.round(q_mid, 9))
+    cache = mass_matrix_cache if mass_matrix_cache is not None else {}
+    if key not in cache:
+        plant = MultibodyPlant(0.0)
+        add_irb6400(plant)
+        plant.Finalize()
+        ctx = plant.CreateDefaultContext()
+        k_plant = plant_stiffness(sc, robot)
+        freqs = natural_frequencies(plant, ctx, q_mid, k_plant)
+        plant.SetPositions(ctx, q_mid)
+        cache[key] = (plant.CalcMassMatrix(ctx), freqs)
+    M, freqs = cache[key]
+    beta = 2 * sc.plant.damping_ratio / (2 * np.pi * freqs[0])
+    ba = filter_coefficients(sc.controller.filter, sc.sensor.rate_hz, cutter.spindle_rpm)
+    T = sc.controller.period_ms / 1e3
+    scale = sc.model.force_model_scale
+    loop = LoopModel(M=M, K=plant_stiffness(sc, robot), beta_s=beta, J=kin.jacobian(robot.dh, q_mid, tool),
+                     C_model=1.0 / model_stiffness(sc, robot), filter_ba=ba, rate_hz=sc.sensor.rate_hz, period_s=T,
+                     delay_steps=sc.controller.delay_steps, mode=sc.controller.mode, model_scale=scale)
+
+    h = loop.h
+    t = np.arange(0.0, path.duration_s + 0.1, h)
+    pos = path.positions(t)
+
+    def force_at(p, tt):
+        return fmodel.average_wrench(p, path.feed_direction(tt), workpiece)
+
+    W = np.array([force_at(p, tt) for p, tt in zip(pos, t)])
+    Kp = np.empty((len(t), 3, 3))
+    kp_max, kp_now = np.zeros((3, 3)), np.zeros((3, 3))
+    for j in range(len(t)):
+        if j % KP_EVERY == 0:
+            kp_now = process_stiffness(lambda p, tt=t[j]: force_at(p, tt), pos[j])
+            if np.linalg.norm(kp_now) > np.linalg.norm(kp_max):
+                kp_max = kp_now
+        Kp[j] = kp_now
+    lead = (sc.controller.delay_steps + 1.5) * T
+    ff = (scale * np.array([force_at(path.position(tt + lead), tt + lead) for tt in t])
+          if sc.controller.mode == "predictive" else np.zeros_like(W))
+    dev = loop.simulate(t, W, Kp, ff)
+    _, radius = loop.poles(kp_max)
+
+    # the surface the predicted tool path leaves, scanned like the simulation's
+    cell = _Cell(sc, path, workpiece, fmodel)
+    R = cutter.radius_m
+    up = np.tile([0.0, 0.0, 1.0], (len(t), 1))
+    margin = sc.scan.edge_margin_mm / 1e3
+    x = np.arange(workpiece.x_m[:, 0].min() + margin, workpiece.x_m[:, 1].max() - margin + 1e-12,
+                  sc.scan.resolution_mm / 1e3)
+    from robstiff_drake.diagrams.experiment import material_top
+
+    lines = []
+    ys = [y / 1e3 for y in sc.scan.lines_y_mm] or sorted({float(np.mean(yr)) for yr in workpiece.y_m})
+    for y in ys:
+        top = np.nan_to_num(material_top(workpiece, x, np.full_like(x, y)), nan=-np.inf)
+        h_cmd = envelope_heights(x, y, pos, up, R, top)
+        h_act = envelope_heights(x, y, pos + dev, up, R, top)
+        gap = ~(np.isfinite(top) & (h_cmd < top - 1e-9))
+        h_cmd[gap], h_act[gap] = np.nan, np.nan
+        lines.append(ScanLine(y, x, h_cmd, h_act))
+    err = np.concatenate([ln.error_m[np.isfinite(ln.error_m)] for ln in lines])
+    stats = surface_error_stats(err) if err.size else {}
+    stats.update(zone_stats(cell, lines))
+    # first-order lag error: C dF/dt * lag along the surface normal (z)
+    C = loop.J[:3] @ np.diag(loop.C_model) @ loop.J.T  # 3x6 (m per N / N m)
+    dz = (W @ C.T)[:, 2]
+    rate = np.gradient(dz, h)
+    lag = first_order_lag_s(ba, sc.sensor.rate_hz, T, sc.controller.delay_steps)
+    first = float(np.max(np.abs(rate)) * lag * 1e3) if sc.controller.mode == "plain" else None
+    return {"spectral_radius": radius, "stable": radius < 1.0, "surface_error_mm": stats,
+            "first_order_lag_error_mm": first, "lag_s": lag}

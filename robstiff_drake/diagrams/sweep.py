@@ -1,0 +1,156 @@
+"""Parameter sweeps of the closed loop: every combination of controller
+period, transport delay, filter cutoff and compensation mode is one
+closed-loop simulation, run on a local process pool or a Dask cluster.
+
+A run that fails comes back as a row that says why; the others are kept.
+"""
+
+import copy
+import itertools
+import math
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+
+import numpy as np
+
+from robstiff_drake.errors import InputError
+
+# A run counts as diverged past these (the loop blew up or saturated for good).
+DIVERGED_SURFACE_MM = 3.0
+SATURATED_SHARE = 0.5  # of the last second of correction samples at the saturation limit
+
+
+def combinations(periods_ms, delay_steps, cutoffs_hz, modes):
+    return [{"period_ms": float(p), "delay_steps": int(d), "cutoff_hz": float(c), "mode": m}
+            for p, d, c, m in itertools.product(periods_ms, delay_steps, cutoffs_hz, modes)]
+
+
+def check_combinations(sc, combos):
+    """Refuse, before anything runs, a combination the scenario cannot take."""
+    for c in combos:
+        if c["period_ms"] < sc.plant.time_step_ms - 1e-12:
+            raise InputError(f"sweep: period {c['period_ms']:g} ms is below the plant step "
+                             f"({sc.plant.time_step_ms:g} ms); pass --plant-step-ms {c['period_ms']:g} or drop it")
+        if not 0 < c["cutoff_hz"] < 0.5 * sc.sensor.rate_hz:
+            raise InputError(f"sweep: cutoff {c['cutoff_hz']:g} Hz must be between 0 and half the sensor rate "
+                             f"({0.5 * sc.sensor.rate_hz:g} Hz)")
+        if c["delay_steps"] < 0:
+            raise InputError(f"sweep: delay steps must be >= 0, got {c['delay_steps']}")
+        if c["mode"] not in ("plain", "predictive"):
+            raise InputError(f"sweep: mode must be plain or predictive, got {c['mode']!r}")
+
+
+def configure(sc, combo, plant_step_ms=None):
+    sc = copy.deepcopy(sc)
+    sc.controller.period_ms = combo["period_ms"]
+    sc.controller.delay_steps = combo["delay_steps"]
+    sc.controller.filter.kind = "lowpass"
+    sc.controller.filter.cutoff_hz = combo["cutoff_hz"]
+    sc.controller.mode = combo["mode"]
+    if plant_step_ms:
+        sc.plant.time_step_ms = plant_step_ms
+    return sc
+
+
+_MASS_MATRICES = {}  # per process: the loop model's mass matrix at a pose
+
+
+def run_one(scenario_path, combo, plant_step_ms=None, predict=True):
+    """One sweep run (a top-level function: picklable for process pools and
+    Dask workers), with the linear loop model's prediction for the same
+    combination.  Never raises: a failure is a row with ``error``."""
+    from robstiff_drake.diagrams.experiment import run_cut
+    from robstiff_drake.diagrams.scenario import load_scenario
+    from robstiff_drake.model.robot import load_robot
+
+    row = dict(combo)
+    t0 = time.perf_counter()
+    try:
+        base = load_scenario(scenario_path)
+        robot = load_robot()
+        if predict:
+            from robstiff_drake.diagrams.loop_prediction import predict as loop_predict
+
+            row["predicted"] = loop_predict(base, robot, combo, plant_step_ms=plant_step_ms,
+                                            mass_matrix_cache=_MASS_MATRICES)
+        sc = configure(base, combo, plant_step_ms)
+        res = run_cut(sc, robot, compensation=True)
+        s = res.surface_error_mm
+        corr = res.logs["correction"][1]
+        last = corr[-max(1, int(round(1000.0 / combo["period_ms"]))):]
+        sat = math.radians(sc.controller.saturation_deg)
+        saturated = float(np.mean(np.any(np.abs(last) >= sat * (1 - 1e-9), axis=1)))
+        finite = bool(np.all(np.isfinite(res.logs["state"][1])))
+        stable = finite and bool(s) and s["max_abs"] < DIVERGED_SURFACE_MM and saturated < SATURATED_SHARE
+        row.update(surface_error_mm=s, stable=stable, saturated_share=saturated,
+                   wall_seconds=res.wall_seconds, sim_seconds=res.sim_seconds)
+        if not stable:
+            row["why"] = ("state not finite" if not finite else "correction saturated" if saturated >= SATURATED_SHARE
+                          else f"surface error above {DIVERGED_SURFACE_MM} mm")
+    except Exception as e:  # a failed run is a row, not the end of the sweep
+        row.update(stable=False, error=" ".join(f"{type(e).__name__}: {e}".split())[:500])
+    row["run_seconds"] = time.perf_counter() - t0
+    return row
+
+
+class Progress:
+    """A one-line progress bar on stderr (only on a terminal unless forced)."""
+
+    def __init__(self, total, enabled=None):
+        self.total, self.done, self.t0 = total, 0, time.perf_counter()
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+
+    def step(self):
+        self.done += 1
+        if not self.enabled:
+            return
+        width = 30
+        filled = int(width * self.done / self.total)
+        elapsed = time.perf_counter() - self.t0
+        eta = elapsed / self.done * (self.total - self.done)
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} runs, "
+                         f"{elapsed:.0f} s, about {eta:.0f} s left ")
+        if self.done == self.total:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+
+def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step_ms=None, progress=None,
+              predict=True):
+    """All runs, in the order of ``combos``."""
+    bar = Progress(len(combos), progress)
+    rows = [None] * len(combos)
+    if scheduler:
+        try:
+            from distributed import Client
+        except ImportError:
+            raise InputError("sweep: --scheduler needs Dask: pip install 'dask[distributed]'") from None
+        try:
+            client = Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as e:
+            raise InputError(f"sweep: cannot reach the Dask scheduler at {scheduler} ({type(e).__name__})") from None
+        try:
+            futures = [client.submit(run_one, str(scenario_path), c, plant_step_ms, predict, pure=False) for c in combos]
+            index = {f.key: i for i, f in enumerate(futures)}
+            from distributed import as_completed as dask_completed
+
+            for f in dask_completed(futures):
+                rows[index[f.key]] = f.result()
+                bar.step()
+        finally:
+            client.close()
+        return rows
+    workers = workers or os.cpu_count() or 1
+    if workers == 1:
+        for i, c in enumerate(combos):
+            rows[i] = run_one(str(scenario_path), c, plant_step_ms, predict)
+            bar.step()
+        return rows
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = {pool.submit(run_one, str(scenario_path), c, plant_step_ms, predict): i for i, c in enumerate(combos)}
+        for f in as_completed(futures):
+            rows[futures[f]] = f.result()
+            bar.step()
+    return rows

@@ -1,0 +1,147 @@
+"""A linear model of the compensation loop that predicts what the sweep
+measures.  Plain numpy/scipy: the caller supplies the arm's mass matrix.
+
+The loop, linearised at one pose and stepped at the sensor rate h:
+
+  arm       M dq'' + D dq' + K dq = J^T W + K c     (ZOH over h; D = beta K)
+  process   W = W_nom(t) + [K_p J_v dq; 0]           (the cut's stiffness: the
+                                                     force's change with the
+                                                     tool's position, N/m)
+  sensor    S <- W   (plain)   or  S <- W - s W_nom (predictive: the
+            measured-minus-model bracket, s the model's scale)
+  guard     G <- S
+  filter    X <- A_f X + B_f G,  y = C_f X + D_f G  (the same discrete filter)
+  every T = N h, all at once (Drake's same-instant semantics):
+  ZOH       Z <- y
+  predict   P = C_m J^T (Z + W_ff),  W_ff = s W_nom(t + lead) in predictive mode
+  delay     n-sample shift register of P
+  correct   c <- -(the register's oldest, or P when n = 0)
+
+Over one controller period the homogeneous loop is the linear map
+Phi = (fast step)^(N-1) (tick step); its eigenvalues are the closed-loop
+poles (stable when all are inside the unit circle).  The same steps with
+W_nom(t) from the planned path give the tool's deviation over a pass, from
+which the surface error is predicted.  What it leaves out: saturation and
+rate limit, the arm's nonlinearity (one pose), the tool's tilt, noise.
+
+First-order lag error at an engagement change:
+  e ~ C (dF/dx) v (filter group delay + (n + 1.5) T + 2 h)
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg, signal
+
+
+@dataclass
+class LoopModel:
+    M: np.ndarray  # (6, 6) joint-space mass matrix at the pose, kg m^2
+    K: np.ndarray  # (6,) plant joint stiffness, N m/rad
+    beta_s: float  # stiffness-proportional damping, D = beta K
+    J: np.ndarray  # (6, 6) Jacobian at the tool point (linear rows first)
+    C_model: np.ndarray  # (6,) the compensator's joint compliance, rad/(N m)
+    filter_ba: tuple  # discrete filter at the sensor rate
+    rate_hz: float
+    period_s: float
+    delay_steps: int
+    mode: str = "plain"
+    model_scale: float = 1.0
+
+    def __post_init__(self):
+        self.h = 1.0 / self.rate_hz
+        self.N = max(1, int(round(self.period_s * self.rate_hz)))
+        Kd = np.diag(self.K)
+        Minv = np.linalg.inv(self.M)
+        Ac = np.block([[np.zeros((6, 6)), np.eye(6)], [-Minv @ Kd, -self.beta_s * Minv @ Kd]])
+        Bc = np.vstack([np.zeros((6, 12)), np.hstack([Minv @ self.J.T, Minv @ Kd])])  # inputs: W (6), c (6)
+        E = linalg.expm(np.block([[Ac, Bc], [np.zeros((12, 24))]]) * self.h)
+        self.Ad, self.Bw, self.Bc = E[:12, :12], E[:12, 12:18], E[:12, 18:24]
+        A, B, C, D = signal.tf2ss(*self.filter_ba)
+        self.nf = A.shape[0]
+        self.Af, self.Bf, self.Cf, self.Df = A, B[:, 0], C[0] if self.nf else np.zeros(0), float(np.squeeze(D))
+        self.PJ = self.C_model[:, None] * self.J.T  # dq = C_m J^T W
+        n = self.delay_steps
+        # state layout
+        sizes = {"arm": 12, "S": 6, "G": 6, "X": 6 * self.nf, "Z": 6, "buf": 6 * n, "c": 6, "ff": 6}
+        self.idx, k = {}, 0
+        for name, size in sizes.items():
+            self.idx[name] = slice(k, k + size)
+            k += size
+        self.size = k
+
+    # -- one step of the hybrid loop (affine in z) ------------------------------------------------------------------
+    def step(self, z, W_nom, Kp, tick, ff_next):
+        """z at t_j -> z at t_j + h.  W_nom (6) the nominal wrench at t_j, Kp
+        (3x3) the process stiffness, ``tick`` whether t_j is a controller
+        tick, ``ff_next`` the feed-forward wrench the tick stores (predictive)."""
+        I = self.idx
+        x_arm, S, G = z[I["arm"]], z[I["S"]], z[I["G"]]
+        X = z[I["X"]].reshape(self.nf, 6) if self.nf else np.zeros((0, 6))
+        Z, buf, c, ff = z[I["Z"]], z[I["buf"]].reshape(-1, 6), z[I["c"]], z[I["ff"]]
+        p = self.J[:3] @ x_arm[:6]  # tool displacement (m)
+        W = W_nom + np.concatenate([Kp @ p, np.zeros(3)])
+        out = np.empty_like(z)
+        out[I["arm"]] = self.Ad @ x_arm + self.Bw @ W + self.Bc @ c
+        out[I["S"]] = W - (self.model_scale * W_nom if self.mode == "predictive" else 0.0)
+        out[I["G"]] = S
+        if self.nf:
+            out[I["X"]] = (self.Af @ X + np.outer(self.Bf, G)).ravel()
+        if tick:
+            y = (self.Cf @ X if self.nf else 0.0) + self.Df * G
+            P = self.PJ @ (Z + ff)
+            out[I["Z"]] = y
+            if len(buf):
+                out[I["c"]] = -buf[-1]
+                out[I["buf"]] = np.concatenate([P, buf[:-1].ravel()])
+            else:
+                out[I["c"]] = -P
+            out[I["ff"]] = ff_next
+        else:
+            out[I["Z"]], out[I["buf"]], out[I["c"]], out[I["ff"]] = Z, buf.ravel(), c, ff
+        return out
+
+    def period_map(self, Kp):
+        """The homogeneous map over one controller period (tick first)."""
+        Phi = np.empty((self.size, self.size))
+        zero = np.zeros(6)
+        for k in range(self.size):
+            z = np.zeros(self.size)
+            z[k] = 1.0
+            z = self.step(z, zero, Kp, True, zero)
+            for _ in range(self.N - 1):
+                z = self.step(z, zero, Kp, False, zero)
+            Phi[:, k] = z
+        return Phi
+
+    def poles(self, Kp):
+        """Closed-loop poles over one period (z-plane) and the spectral radius."""
+        lam = np.linalg.eigvals(self.period_map(Kp))
+        return lam, float(np.max(np.abs(lam)))
+
+    def simulate(self, t, W_nom, Kp, ff):
+        """Tool deviation p (N, 3) in m over times t (every h from 0), given the
+        nominal wrench (N, 6), process stiffness (N, 3, 3) and the feed-forward
+        wrench for each tick (N, 6: used at ticks only)."""
+        z = np.zeros(self.size)
+        out = np.empty((len(t), 3))
+        for j in range(len(t)):
+            out[j] = self.J[:3] @ z[self.idx["arm"]][:6]
+            z = self.step(z, W_nom[j], Kp[j], j % self.N == 0, ff[j])
+        return out
+
+
+def first_order_lag_s(filter_ba, rate_hz, period_s, delay_steps):
+    """Filter group delay + (n + 1.5) T + two sensor samples (s)."""
+    w, gd = signal.group_delay(filter_ba, w=[0.5], fs=rate_hz)
+    return float(gd[0]) / rate_hz + (delay_steps + 1.5) * period_s + 2.0 / rate_hz
+
+
+def process_stiffness(force_fn, p, delta_m=1e-4):
+    """K_p = dF/dp (3x3, N/m) of a force model at the tool point p, by central differences."""
+    Kp = np.empty((3, 3))
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = delta_m
+        Kp[:, k] = (force_fn(p + e)[:3] - force_fn(p - e)[:3]) / (2 * delta_m)
+    return Kp
