@@ -51,6 +51,9 @@ def configure(sc, combo, plant_step_ms=None):
     sc.controller.mode = combo["mode"]
     if plant_step_ms:
         sc.plant.time_step_ms = plant_step_ms
+    from robstiff_drake.diagrams.scenario import check_scenario
+
+    check_scenario(sc)
     return sc
 
 
