@@ -75,7 +75,7 @@ def test_sweep_bad_input(capsys, tmp_path, argv, message):
 
 
 def test_dask_cluster_on_loopback(tmp_path):
-    distributed = pytest.importorskip("distributed")
+    import distributed  # a test dependency (pyproject's [test] extra): the Dask path must be tested
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                                   dashboard_address=None) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
