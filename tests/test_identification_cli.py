@@ -49,8 +49,8 @@ def test_identify_plot_and_table(capsys, tmp_path):
 def test_synth_with_an_effect_says_so(capsys, tmp_path):
     data = tmp_path / "c.csv"
     code, out, _ = cli(capsys, "synth", "stiffness", data, "--effect", "lost_motion=0.03", "--seed", 2)
-    assert code == 0 and "lost_motion RMS 0.0300 mm" in out
-    assert "# Effect switched on: lost_motion (RMS 0.0300 mm)" in data.read_text()
+    assert code == 0 and "(0.0300 mm beyond the six-spring model)" in out
+    assert "0.0300 mm of it beyond what refitting the six joint compliances absorbs" in data.read_text()
     code, _, err = cli(capsys, "synth", "stiffness", data, "--effect", "gremlins")
     assert code == 2 and "unknown effect 'gremlins'" in err
 

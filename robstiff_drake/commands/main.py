@@ -111,8 +111,9 @@ def build_parser():
     _add_tool_option(s, "default: the origin of DH frame 6")
     s.add_argument("--stiffness", metavar="K1,..,K6", help="true joint stiffness, N*m/rad (default: nominal)")
     s.add_argument("--effect", action="append", metavar="NAME[=RMS_MM]",
-                   help="switch on an effect the conventional model lacks, sized to an RMS displacement "
-                        "(default 0.04 mm); repeatable")
+                   help="switch on an effect the conventional model lacks, sized so that the part of its "
+                        "displacement the six joint springs cannot absorb has this RMS (default 0.04 mm); "
+                        "repeatable")
     _add_robot_option(s)
     s = kinds.add_parser("payload", help="a payload (gravity) campaign of wrist-sensor readings")
     s.add_argument("out", metavar="OUT.csv")
@@ -123,6 +124,14 @@ def build_parser():
     s.add_argument("--noise-Nm", type=float, default=0.1, help="(default: %(default)s N*m)")
     s.add_argument("--seed", type=int, default=0)
     _add_robot_option(s)
+
+    p = sub.add_parser("diagnose", help="which effect the six-spring model lacks explains a campaign's residual")
+    p.add_argument("data", metavar="DATA.csv")
+    _add_tool_option(p, "default: the origin of DH frame 6")
+    p.add_argument("--json", metavar="OUT", help="write the diagnosis as JSON ('-' for stdout)")
+    p.add_argument("--report", metavar="OUT.md", help="write a Markdown report")
+    p.add_argument("--plots", metavar="DIR", help="write the residual views (one PNG per view)")
+    _add_robot_option(p)
 
     p = sub.add_parser("plan-poses", help="a well-conditioned measurement plan for the identification")
     p.add_argument("n", type=int, metavar="N", help="number of measurements")
@@ -203,6 +212,11 @@ def _dispatch(args):
                                        effects=args.effect, stiffness=args.stiffness, robot_yaml=args.robot)
         return synth.run_payload(out=args.out, n=args.n, mass_kg=args.mass_kg, com=args.com_mm,
                                  noise_N=args.noise_N, noise_Nm=args.noise_Nm, seed=args.seed, robot_yaml=args.robot)
+    if args.command == "diagnose":
+        from robstiff_drake.commands import diagnose
+
+        return diagnose.run(data=args.data, tool=args.tool, json_out=args.json, report=args.report,
+                            plots=args.plots, robot_yaml=args.robot)
     if args.command == "plan-poses":
         from robstiff_drake.commands import plan_poses
 

@@ -50,12 +50,16 @@ def run_stiffness(*, out, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01,
         k = np.array(parse_vector(stiffness, 6, "--stiffness"))
         if np.any(k <= 0):
             raise InputError("synth: --stiffness values must be > 0 (N*m/rad)")
-    c = synth.stiffness_campaign(robot, n=n, loads_per_pose=loads_per_pose, force_N=force_N, noise_mm=noise_mm,
-                                 seed=seed, tool_m=tool_m, effects=parse_effects(effects),
-                                 true_stiffness_Nm_per_rad=k)
+    try:
+        c = synth.stiffness_campaign(robot, n=n, loads_per_pose=loads_per_pose, force_N=force_N, noise_mm=noise_mm,
+                                     seed=seed, tool_m=tool_m, effects=parse_effects(effects),
+                                     true_stiffness_Nm_per_rad=k)
+    except ValueError as e:
+        raise InputError(f"synth: {e}") from None
     write_atomic(out, synth.stiffness_csv(c, robot=robot, noise_mm=noise_mm, seed=seed, force_N=force_N,
                                           tool_m=tool_m))
-    extra = "".join(f", {k_} RMS {v:.4f} mm" for k_, v in c.effect_rms_mm.items())
+    extra = "".join(f", {k_} RMS {raw:.4f} mm ({vis:.4f} mm beyond the six-spring model)"
+                    for k_, (raw, vis) in c.effect_rms_mm.items())
     print(f"wrote {out}: {n} measurements at {len(set(c.pose))} poses{extra}")
     return 0
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.campaign import D_COLS, F_COLS, read_table
-from robstiff_drake.identification.linearity import analyse_group, pooled_offset
+from robstiff_drake.identification.linearity import analyse_group, cartesian_diagnosis, pooled_offset
 from robstiff_drake.io import emit_json, save_figure_atomic
 from robstiff_drake.paths import REPO_ROOT
 
@@ -49,6 +49,26 @@ def along_load(results, F, D, rows):
                                         {k: D[v] for k, v in idx.items()})
     return {"per_group_mm": {k: {"offset_mm": v, "std_mm": s} for k, (v, s) in per.items()},
             "pooled_mm": pooled, "pooled_std_mm": std, "p_value": p}
+
+
+def diagnosis(results, F, D, rows):
+    """The residual diagnosis per two-level primary group (A, B)."""
+    out = {}
+    for g in results:
+        if g.components and g.name in GROUPS:
+            idx = [rows.index(m) for m in g.rows]
+            out[g.name] = cartesian_diagnosis(g.rows, F[idx], D[idx])
+    return out
+
+
+def diagnosis_markdown(diag):
+    lines = ["| group | model | leave-one-out RMS (mm) | fit RMS (mm) | F | p |", "|---|---|---|---|---|---|"]
+    for g, models in diag.items():
+        for name, e in models.items():
+            f = f"{e['f_stat']:.2f}" if "f_stat" in e else "-"
+            p = f"{e['p_value']:.3g}" if "p_value" in e else "-"
+            lines.append(f"| {g} | {name} | {e['loo_rms_mm']:.4f} | {e['fit_rms_mm']:.4f} | {f} | {p} |")
+    return "\n".join(lines)
 
 
 def to_dict(results):
@@ -120,9 +140,10 @@ def plot(results, F, D, rows):
 def run(*, json_out=None, plot_out=None, data=None):
     results, F, D, rows = analyse(data or TABLE2_CSV)
     pooled = along_load(results, F, D, rows)
+    diag = diagnosis(results, F, D, rows)
     if json_out is not None:
-        emit_json({"data": str(data or TABLE2_CSV), "groups": to_dict(results), "offset_along_load": pooled},
-                  json_out)
+        emit_json({"data": str(data or TABLE2_CSV), "groups": to_dict(results), "offset_along_load": pooled,
+                   "diagnosis": diag}, json_out)
     if plot_out is not None:
         save_figure_atomic(plot(results, F, D, rows), plot_out, dpi=100)
     if json_out != "-":
@@ -135,4 +156,8 @@ def run(*, json_out=None, plot_out=None, data=None):
             print(f"  group {k}: {v['offset_mm']:+.4f} +- {v['std_mm']:.4f} mm")
         print(f"  pooled:  {pooled['pooled_mm']:+.4f} +- {pooled['pooled_std_mm']:.4f} mm "
               f"(two-sided p = {pooled['p_value']:.3g})")
+        print()
+        print("residual diagnosis without joint angles (per group: a line through the origin per component, "
+              "and the extensions that can show):")
+        print(diagnosis_markdown(diag))
     return 0

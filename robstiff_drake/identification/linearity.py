@@ -106,3 +106,50 @@ def pooled_offset(groups, force_by_group, disp_by_group):
     pooled_std = float(1.0 / np.sqrt(np.sum(w)))
     p = float(2 * stats.norm.sf(abs(pooled) / pooled_std))
     return per, pooled, pooled_std, p
+
+
+CARTESIAN_EXTENSIONS = ("lost_motion", "load_dependent_stiffness", "drift")
+
+
+def cartesian_diagnosis(rows, force_N, disp_mm):
+    """The residual diagnosis as far as data without joint angles allow: at
+    one pose and load direction, the six-spring model is d = s |F| per
+    component (a line through the origin); the extensions that can show are
+    a constant offset along the load's sign (lost motion), a term in |F|^2
+    (load-dependent stiffness) and a term in measurement order (drift).
+    Returns, per extension and for the base, the leave-one-out RMS (mm) over
+    all components, the fit RMS, and the nested F-test against the base."""
+    F = np.asarray(force_N, dtype=float)
+    D = np.asarray(disp_mm, dtype=float)
+    mag = np.linalg.norm(F, axis=1)
+    order = np.asarray(rows, dtype=float)
+    designs = {
+        "base (line through 0)": [mag],
+        "lost_motion": [mag, np.sign(F @ F[0]) * 1.0],
+        "load_dependent_stiffness": [mag, mag**2],
+        "drift": [mag, order],
+    }
+    n = len(mag)
+    out = {}
+    base_rss = None
+    for name, cols in designs.items():
+        X = np.column_stack(cols)
+        rss, loo = 0.0, 0.0
+        for k in range(3):
+            coef, *_ = np.linalg.lstsq(X, D[:, k], rcond=None)
+            r = D[:, k] - X @ coef
+            rss += float(r @ r)
+            H = X @ np.linalg.pinv(X)
+            loo += float(np.sum((r / np.maximum(1 - np.diag(H), 1e-12)) ** 2))
+        entry = {"loo_rms_mm": float(np.sqrt(loo / (3 * n))), "fit_rms_mm": float(np.sqrt(rss / (3 * n))),
+                 "rank": int(np.linalg.matrix_rank(X))}
+        if base_rss is None:
+            base_rss, base_p = rss, X.shape[1]
+        else:
+            p_e = 3 * (entry["rank"] - base_p)
+            df2 = 3 * (n - entry["rank"])
+            if p_e > 0 and df2 > 0 and rss > 0:
+                f = ((base_rss - rss) / p_e) / (rss / df2)
+                entry.update(f_stat=float(f), p_value=float(stats.f.sf(f, p_e, df2)))
+        out[name] = entry
+    return out

@@ -66,7 +66,7 @@ class SynthStiffness:
     pose: list
     seq: np.ndarray
     effects: dict  # name -> params (SI)
-    effect_rms_mm: dict
+    effect_rms_mm: dict  # name -> (RMS of the effect, RMS of its part the conventional model cannot absorb), mm
     true_stiffness_Nm_per_rad: np.ndarray
 
     def to_campaign(self, path="synthetic"):
@@ -97,9 +97,9 @@ def stiffness_campaign(robot, *, n=120, loads_per_pose=4, force_N=300.0, noise_m
     disp = ctx.disp_from_wrench(wrench)
     applied, sizes = {}, {}
     for name, rms_mm in (effects or {}).items():
-        params, extra = fx.sized_effect(name, ctx, rms_mm * 1e-3, rng)
+        params, extra, (raw, visible) = fx.sized_effect(name, ctx, rms_mm * 1e-3, rng)
         applied[name] = params
-        sizes[name] = float(np.sqrt(np.mean(extra**2)) * 1e3)
+        sizes[name] = (raw * 1e3, visible * 1e3)
         disp = disp + extra
     disp_mm = disp * 1e3 + rng.normal(scale=noise_mm, size=(n, 3))
     return SynthStiffness(np.rad2deg(q), force, disp_mm, [f"P{i + 1:03d}" for i in pose_idx], seq,
@@ -167,7 +167,9 @@ def stiffness_csv(c, *, robot, noise_mm, seed, force_N, tool_m, how=None):
     if c.effects:
         for name, params in c.effects.items():
             ptxt = "; ".join(f"{k} = {np.round(np.asarray(v), 12).tolist()}" for k, v in params.items())
-            lines.append(f"# Effect switched on: {name} (RMS {c.effect_rms_mm[name]:.4f} mm): {ptxt}")
+            raw, vis = c.effect_rms_mm[name]
+            lines.append(f"# Effect switched on: {name} (RMS {raw:.4f} mm; {vis:.4f} mm of it beyond what refitting "
+                         f"the six joint compliances absorbs): {ptxt}")
     else:
         lines.append("# Effects switched on: none (the data follow the conventional model exactly, plus noise).")
     lines.append("pose,seq,q1,q2,q3,q4,q5,q6,fx,fy,fz,dx,dy,dz")

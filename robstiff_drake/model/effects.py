@@ -180,17 +180,47 @@ def scale_params(params, s):
     return {k: np.asarray(v) * s for k, v in params.items()}
 
 
-def sized_effect(name, ctx, rms_m, rng):
+def base_regressor(ctx):
+    """The conventional model's columns for this campaign (3N, 6): the
+    displacement per unit change of each joint compliance."""
+    A = ctx.J[:, :3, :] * ctx.tau[:, None, :]
+    return A.reshape(-1, 6)
+
+
+def unexplained(extra, A):
+    """The part of a displacement set (N, 3) that no change of the joint
+    compliances can explain (its residual after the least-squares fit of A)."""
+    y = extra.reshape(-1)
+    norms = np.linalg.norm(A, axis=0)
+    keep = norms > 1e-12 * max(norms.max(), 1e-300)
+    An = A[:, keep] / norms[keep]
+    coef, *_ = np.linalg.lstsq(An, y, rcond=None)
+    return (y - An @ coef).reshape(extra.shape)
+
+
+def sized_effect(name, ctx, rms_m, rng, visible=True):
     """Parameters of effect ``name`` scaled so that its displacement has the
-    RMS ``rms_m`` (m) over the campaign's components; returns (params, extra)."""
+    RMS ``rms_m`` (m) over the campaign's components; with ``visible`` the
+    RMS of the part the six-spring model cannot absorb by refitting its
+    compliances (what a residual diagnosis can see at all).  Returns
+    (params, extra displacement, (raw RMS, unexplained RMS) in m)."""
     fn = EFFECTS[name]
     params = default_shape(name, rng)
+    A = base_regressor(ctx)
+
+    def size(extra):
+        part = unexplained(extra, A) if visible else extra
+        return float(np.sqrt(np.mean(part**2)))
+
     s = 1.0
     for _ in range(4):  # linear effects converge at once; the others in a few steps
         extra = fn(ctx, scale_params(params, s))
-        rms = np.sqrt(np.mean(extra**2))
-        if rms == 0:
-            raise ValueError(f"effect {name} has no effect on this campaign")
+        rms = size(extra)
+        if rms <= 1e-9 * max(float(np.sqrt(np.mean(extra**2))), 1e-300):
+            raise ValueError(f"effect {name} cannot show in this campaign: the six joint springs absorb all of it "
+                             "(too few poses or load directions)")
         s *= rms_m / rms
     params = scale_params(params, s)
-    return params, fn(ctx, params)
+    extra = fn(ctx, params)
+    return params, extra, (float(np.sqrt(np.mean(extra**2))), size(extra) if visible else
+                           float(np.sqrt(np.mean(unexplained(extra, A)**2))))
