@@ -133,6 +133,11 @@ def build_parser():
     p.add_argument("--plots", metavar="DIR", help="write the residual views (one PNG per view)")
     _add_robot_option(p)
 
+    p = sub.add_parser("diagnose-run", help="trace a machining run's residual surface error to its cause, fix, rerun")
+    p.add_argument("run_dir", metavar="RUN_DIR", help="a folder written by `robstiff simulate ... --out RUN_DIR`")
+    p.add_argument("--json", metavar="OUT", help="write the report as JSON ('-' for stdout)")
+    p.add_argument("--out", metavar="DIR", help="where to write the plot and JSON (default: RUN_DIR/diagnosis)")
+
     p = sub.add_parser("plan-poses", help="a well-conditioned measurement plan for the identification")
     p.add_argument("n", type=int, metavar="N", help="number of measurements")
     p.add_argument("--candidates", type=int, default=120, help="candidate poses (default: %(default)s)")
@@ -217,6 +222,10 @@ def _dispatch(args):
 
         return diagnose.run(data=args.data, tool=args.tool, json_out=args.json, report=args.report,
                             plots=args.plots, robot_yaml=args.robot)
+    if args.command == "diagnose-run":
+        from robstiff_drake.commands import diagnose_run
+
+        return diagnose_run.run(run_dir=args.run_dir, json_out=args.json, out=args.out)
     if args.command == "plan-poses":
         from robstiff_drake.commands import plan_poses
 

@@ -45,6 +45,12 @@ def timeseries_csv(res, robot):
         for j, n in enumerate(names):
             cols[f"{prefix}_{n}"] = data[: len(t), j]
     q = state[st_i, :6]
+    # the joint angles the controller commands (motor side: what a robot's encoders report)
+    q_ref = np.column_stack([np.interp(t, res.cell.q_ref_times, res.cell.q_ref[:, j]) for j in range(6)])
+    corr = res.logs["correction"][1][: len(t)] if res.compensation else 0.0
+    q_cmd = q_ref + corr
+    for j in range(6):
+        cols[f"q{j + 1}_deg"] = np.rad2deg(q_cmd[:, j])
     T = kin.frames(robot.dh, q)[:, 6]
     p = T[:, :3, 3] + T[:, :3, :3] @ res.cell.tool_m
     p_cmd = res.cell.path.positions(t)
@@ -55,7 +61,9 @@ def timeseries_csv(res, robot):
     buf = io.StringIO()
     buf.write(f"# robstiff simulate: {res.cell.scenario.source}, {label(res.compensation)}; sampled every controller "
               "period. Wrenches: raw/filtered in the sensor frame (what the payload exerts on the sensor), "
-              "tool_wrench = the gravity-free estimate at the tool point in the base frame.\n")
+              "tool_wrench = the gravity-free estimate at the tool point in the base frame. q*_deg: the joint "
+              "angles the controller commands (motor side). tool_*: the actual tool point (the simulation's "
+              "truth, which a real cell does not measure); commanded_*: the planned one.\n")
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(cols.keys())
     for row in zip(*cols.values()):
@@ -141,10 +149,41 @@ def simulate(*, scenario, compensation="both", robot=None):
     return sc, [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
 
 
+def surface_csv(res):
+    """The laser scans of one run: x, y, commanded and machined height, error (mm)."""
+    buf = io.StringIO()
+    buf.write(f"# robstiff simulate: machined surface, {label(res.compensation)}; error = commanded - machined "
+              "(positive: cut more); empty where there is no machined face.\n")
+    buf.write("x_mm,y_mm,commanded_mm,machined_mm,error_mm\n")
+    for line in res.scans:
+        for x, c, m, e in zip(line.x_m, line.commanded_m, line.machined_m, line.error_m):
+            vals = [x * 1e3, line.y_m * 1e3, c * 1e3, m * 1e3, e * 1e3]
+            buf.write(",".join("" if not np.isfinite(v) else f"{v:.6f}" for v in vals) + "\n")
+    return buf.getvalue()
+
+
+def save_scenario(sc, path):
+    """The scenario as run, with its file references made absolute."""
+    import copy
+
+    from pydrake.common.yaml import yaml_dump_typed
+
+    from robstiff_drake.diagrams.scenario import Scenario, resolve
+
+    sc = copy.deepcopy(sc)
+    for attr in ("identified_json", "payload_yaml"):
+        if getattr(sc.model, attr):
+            setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
+    source, sc.source = sc.source, ""
+    write_atomic(path, f"# the scenario of this run (from {source})\n" + yaml_dump_typed(sc, schema=Scenario))
+
+
 def write_outputs(sc, results, robot, out):
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     written = []
+    save_scenario(sc, out / "scenario.yaml")
+    written.append("scenario.yaml")
     save_figure_atomic(plot_surfaces(results, sc), out / "surface_error.png", dpi=110)
     written.append("surface_error.png")
     written += write_diagram(results[-1].cell, out)
@@ -152,6 +191,11 @@ def write_outputs(sc, results, robot, out):
         name = f"timeseries_{label(res.compensation)}.csv"
         write_atomic(out / name, timeseries_csv(res, robot))
         written.append(name)
+        name = f"surface_{label(res.compensation)}.csv"
+        write_atomic(out / name, surface_csv(res))
+        written.append(name)
+    emit_json(summary(results, sc), out / "summary.json")
+    written.append("summary.json")
     return written
 
 

@@ -55,6 +55,7 @@ from robstiff_drake.systems.force_filter import (
     steady_state,
 )
 from robstiff_drake.systems.gravity_removal import GravityRemoval, payload_wrench
+from robstiff_drake.systems.joint_effects import JointEffects
 from robstiff_drake.systems.milling_force import MillingForceSource
 from robstiff_drake.systems.predictive_wrench import PredictiveWrench
 from robstiff_drake.systems.reference_correction import RateLimitedCorrection
@@ -170,7 +171,8 @@ def filter_coefficients(filter_config, rate_hz, spindle_rpm):
 
 
 def add_compensation_chain(builder, *, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, saturation_rad,
-                           rate_limit_rad_per_s, calibration, predictor, tool_m, initial_wrench, predictive=None):
+                           rate_limit_rad_per_s, calibration, predictor, tool_m, initial_wrench, predictive=None,
+                           lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0):
     """The compensation chain of the seed's Fig. 5, from the sensor's raw
     wrench to the joint-reference correction:
 
@@ -197,7 +199,8 @@ def add_compensation_chain(builder, *, rate_hz, filter_ba, max_jump_N, period_s,
     builder.Connect(s["zoh_w"].get_output_port(), s["gravity_removal"].GetInputPort("wrench"))
     builder.Connect(s["zoh_q"].get_output_port(), s["gravity_removal"].GetInputPort("q"))
     s["prediction"] = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
-        predictor=predictor, tool_m=tool_m, mount_rpy_deg=calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0)))
+        predictor=predictor, tool_m=tool_m, mount_rpy_deg=calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0),
+        lost_motion_rad=lost_motion_rad, coupling_c23_rad_per_Nm=coupling_c23_rad_per_Nm))
     process = s["gravity_removal"].get_output_port()
     if predictive is not None:
         s["predictive"] = builder.AddNamedSystem("predictive_wrench", predictive)
@@ -292,7 +295,8 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
         builder, rate_hz=ss.rate_hz, filter_ba=ba, max_jump_N=ss.max_jump_N, period_s=T,
         delay_steps=sc.controller.delay_steps, saturation_rad=np.deg2rad(sc.controller.saturation_deg),
         rate_limit_rad_per_s=np.deg2rad(sc.controller.rate_limit_deg_per_s), calibration=payload_calibration(sc, robot),
-        predictor=kin, tool_m=tool, initial_wrench=w0, predictive=predictive)
+        predictor=kin, tool_m=tool, initial_wrench=w0, predictive=predictive,
+        lost_motion_rad=sc.model.lost_motion_rad or None, coupling_c23_rad_per_Nm=sc.model.coupling_c23_rad_per_Nm)
     builder.Connect(sensor.get_output_port(), chain["guard"].GetInputPort("wrench"))
     builder.Connect(q_meas, chain["zoh_q"].get_input_port())
     correction = chain["correction"]
@@ -307,7 +311,15 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
     else:
         builder.Connect(path_demux.get_output_port(0), mux.get_input_port(0))
     builder.Connect(path_demux.get_output_port(1), mux.get_input_port(1))
-    builder.Connect(mux.get_output_port(), plant.get_desired_state_input_port(instance))
+    desired = mux.get_output_port()
+    if sc.plant.lost_motion_rad or sc.plant.coupling_c23_rad_per_Nm:
+        effects = builder.AddNamedSystem("plant_joint_effects", JointEffects(
+            lost_motion_rad=sc.plant.lost_motion_rad or np.zeros(6),
+            coupling_c23_rad_per_Nm=sc.plant.coupling_c23_rad_per_Nm))
+        builder.Connect(desired, effects.GetInputPort("desired_state"))
+        builder.Connect(milling.GetOutputPort("generalized_force"), effects.GetInputPort("joint_torque"))
+        desired = effects.get_output_port()
+    builder.Connect(desired, plant.get_desired_state_input_port(instance))
 
     log_dt = log_period_s or dt
     loggers = {

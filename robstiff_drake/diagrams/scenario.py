@@ -28,6 +28,11 @@ class PlantConfig:
     # Stiffness-proportional damping kd = beta * kp, beta = 2 zeta / omega_1:
     # the first mode gets damping ratio zeta, higher modes more.
     damping_ratio: float = 0.05
+    # Joint effects beyond the springs (systems/joint_effects.py): lost motion
+    # per joint (rad, the link lags by b in the load's direction) and the
+    # coupling compliance between joints 2 and 3 (rad/(N*m)).  Empty / 0: none.
+    lost_motion_rad: list[float] = field(default_factory=list)
+    coupling_c23_rad_per_Nm: float = 0.0
 
 
 @dataclass
@@ -122,6 +127,10 @@ class ModelConfig:
     # Predictive mode's cutting-force model: the scenario's coefficients
     # times this factor (1: exact; 1.2: the model over-predicts by 20 %).
     force_model_scale: float = 1.0
+    # The compensator's own model of the joint effects (see PlantConfig):
+    # what `robstiff diagnose-run` adds when it finds them.
+    lost_motion_rad: list[float] = field(default_factory=list)
+    coupling_c23_rad_per_Nm: float = 0.0
 
 
 @dataclass
@@ -244,6 +253,9 @@ def check_scenario(sc):
                    ("model.joint_stiffness_Nm_per_rad", sc.model.joint_stiffness_Nm_per_rad)):
         if v and (len(v) != 6 or min(v) <= 0):
             _fail(sc, key, "expected six positive stiffnesses (N*m/rad)")
+    for key, v in (("plant.lost_motion_rad", sc.plant.lost_motion_rad), ("model.lost_motion_rad", sc.model.lost_motion_rad)):
+        if v and (len(v) != 6 or min(v) < 0):
+            _fail(sc, key, "expected six lost-motion amplitudes >= 0 (rad)")
     if sc.model.joint_stiffness_Nm_per_rad and sc.model.identified_json:
         _fail(sc, "model", "give joint_stiffness_Nm_per_rad or identified_json, not both")
 

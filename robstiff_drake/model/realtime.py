@@ -37,6 +37,11 @@ class DeflectionPredictor:
             raise ValueError("joint stiffness must be positive")
         self._c = [1.0 / float(v) for v in k]
 
+    @property
+    def joint_compliance(self):
+        """The joint compliances (rad/(N*m)) this predictor uses."""
+        return np.array(self._c)
+
     def flange_rotation_and_tool_point(self, q_rad):
         """Rotation of DH frame 6 (3x3 numpy) and the tool point (m), base frame."""
         T = self._chain(q_rad)[1]

@@ -27,9 +27,13 @@ class DeflectionPrediction(LeafSystem):
     ``tool_wrench`` (6): the wrench at the tool point, base frame.
     Both are recomputed only when an input changes."""
 
-    def __init__(self, *, predictor, tool_m, mount_rpy_deg=(0.0, 0.0, 0.0)):
+    def __init__(self, *, predictor, tool_m, mount_rpy_deg=(0.0, 0.0, 0.0), lost_motion_rad=None,
+                 coupling_c23_rad_per_Nm=0.0):
         super().__init__()
         self._pred = predictor
+        # the model's joint effects beyond the springs (see systems/joint_effects.py)
+        self._lost = None if not lost_motion_rad else np.asarray(lost_motion_rad, dtype=float)
+        self._c23 = float(coupling_c23_rad_per_Nm)
         self._tool = np.asarray(tool_m, dtype=float)
         self._R_mount = rpy_to_rotation(np.deg2rad(mount_rpy_deg))
         self._w = self.DeclareVectorInputPort("process_wrench", 6)
@@ -52,4 +56,9 @@ class DeflectionPrediction(LeafSystem):
         R, _ = self._pred.flange_rotation_and_tool_point(q)
         w = sensor_to_tool_base(self._w.Eval(context), R, self._tool, self._R_mount)
         dq, _ = self._pred(q, w)
+        if self._lost is not None or self._c23:
+            from robstiff_drake.systems.joint_effects import effect_dq
+
+            tau = dq / self._pred.joint_compliance
+            dq = dq + effect_dq(tau, self._lost if self._lost is not None else np.zeros(6), self._c23)
         value.set_value(np.concatenate([w, dq]))
