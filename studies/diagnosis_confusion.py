@@ -30,6 +30,8 @@ NOISE_MM = 0.01
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", type=int, default=30)
+    ap.add_argument("--min-mm", type=float, default=0.02, help="smallest effect size (RMS beyond the springs)")
+    ap.add_argument("--max-mm", type=float, default=0.06)
     args = ap.parse_args()
     robot = load_robot()
     truths = ["none"] + list(CANDIDATES)
@@ -39,7 +41,7 @@ def main():
     for t_i, truth in enumerate(truths):
         for k in range(args.cases):
             seed = 100_000 * (t_i + 1) + k
-            size = float(rng.uniform(0.02, 0.06))
+            size = float(rng.uniform(args.min_mm, args.max_mm))
             effects = None if truth == "none" else {truth: size}
             c = synth.stiffness_campaign(robot, n=120, noise_mm=NOISE_MM, seed=seed, effects=effects)
             t0 = time.perf_counter()
@@ -49,7 +51,8 @@ def main():
             after[truth].append(d.rms_after_mm)
     cols = truths
     short = {n: n.replace("_stiffness", "").replace("force_frame_rotation", "frame_rot") for n in cols}
-    print(f"{args.cases} campaigns per row; first effect named by `diagnose` (columns)")
+    print(f"{args.cases} campaigns per row, effects of {args.min_mm:g}-{args.max_mm:g} mm RMS beyond the springs, "
+          f"noise {NOISE_MM:g} mm; first effect named by `diagnose` (columns)")
     print("| present \\ named | " + " | ".join(short[c] for c in cols) + " | held-out RMS after / noise |")
     print("|---" * (len(cols) + 2) + "|")
     for t in truths:
