@@ -1,7 +1,6 @@
 """``robstiff calibrate-payload DATA.csv``: the wrist sensor's payload (mass,
 centre of mass, force and torque bias) from static readings."""
 
-import numpy as np
 
 from robstiff_drake.commands.main import parse_vector
 from robstiff_drake.identification.campaign import read_payload_campaign

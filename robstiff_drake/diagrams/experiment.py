@@ -2,7 +2,7 @@
 laser scan of the machined surface, and the surface-error statistics."""
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -37,7 +37,6 @@ class RunResult:
     sim_seconds: float
     wall_seconds: float
     cell: object = None
-    extra: dict = field(default_factory=dict)
 
     @property
     def realtime_factor(self):

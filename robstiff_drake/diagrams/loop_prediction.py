@@ -5,10 +5,11 @@ beside the closed-loop simulation."""
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 
-from robstiff_drake.diagrams.experiment import ScanLine, zone_stats
+from robstiff_drake.diagrams.experiment import ScanLine, material_top, zone_stats
 from robstiff_drake.diagrams.milling_cell import cutting_setup, filter_coefficients, natural_frequencies
 from robstiff_drake.diagrams.scenario import model_stiffness, plant_stiffness
 from robstiff_drake.diagrams.sweep import configure
+from robstiff_drake.model import ik
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, process_stiffness
 from robstiff_drake.model.path import PlannedPath
@@ -34,8 +35,6 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None):
     cutter, fmodel, workpiece = cutting_setup(sc)
     path = PlannedPath(np.asarray(sc.path.waypoints_mm) / 1e3, sc.path.feed_mm_per_s / 1e3,
                        np.deg2rad(sc.path.yaw_deg), sc.path.dwell_s, sc.path.ramp_s)
-    from robstiff_drake.model import ik
-
     t_mid = path.dwell_s + 0.5 * path.move_s
     q_mid = ik.solve_ik(robot.dh, ik.tool_down_pose(path.position(t_mid), path.yaw), tool)
     key = tuple(np.round(q_mid, 9))
@@ -87,8 +86,6 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None):
     margin = sc.scan.edge_margin_mm / 1e3
     x = np.arange(workpiece.x_m[:, 0].min() + margin, workpiece.x_m[:, 1].max() - margin + 1e-12,
                   sc.scan.resolution_mm / 1e3)
-    from robstiff_drake.diagrams.experiment import material_top
-
     lines = []
     ys = [y / 1e3 for y in sc.scan.lines_y_mm] or sorted({float(np.mean(yr)) for yr in workpiece.y_m})
     for y in ys:

@@ -171,13 +171,13 @@ def load_robot(path=None):
     try:
         text = path.read_text()
     except OSError as e:
-        raise InputError(f"{path}: cannot read robot parameter file ({e.strerror})")
+        raise InputError(f"{path}: cannot read robot parameter file ({e.strerror})") from None
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-        raise InputError(f"{path}: {where}invalid YAML ({getattr(e, 'problem', e)})")
+        raise InputError(f"{path}: {where}invalid YAML ({getattr(e, 'problem', e)})") from None
     r = _Reader(path)
     if not isinstance(doc, dict):
         raise InputError(f"{path}: expected a mapping at the top level")
