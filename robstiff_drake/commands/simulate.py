@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.diagrams.experiment import run_cut
-from robstiff_drake.diagrams.milling_cell import build_milling_cell
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import emit_json, save_figure_atomic, write_atomic
@@ -211,10 +210,3 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out"):
         print(format_table(summ))
         print(f"wrote to {out}/: " + ", ".join(written))
     return 0
-
-
-def check_only(scenario):
-    """Build the diagram without running it (used by tests and --check)."""
-    robot = load_robot()
-    sc = load_scenario(scenario)
-    return build_milling_cell(sc, robot)

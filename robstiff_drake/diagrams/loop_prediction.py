@@ -7,12 +7,11 @@ from pydrake.multibody.plant import MultibodyPlant
 
 from robstiff_drake.diagrams.experiment import ScanLine, material_top, zone_stats
 from robstiff_drake.diagrams.milling_cell import cutting_setup, filter_coefficients, natural_frequencies
-from robstiff_drake.diagrams.scenario import model_stiffness, plant_stiffness
+from robstiff_drake.diagrams.scenario import model_stiffness, planned_path, plant_stiffness
 from robstiff_drake.diagrams.sweep import configure
 from robstiff_drake.model import ik
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, process_stiffness
-from robstiff_drake.model.path import PlannedPath
 from robstiff_drake.model.surface import envelope_heights, surface_error_stats
 from robstiff_drake.plant import add_irb6400
 
@@ -33,8 +32,7 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None):
     sc = configure(sc, combo, plant_step_ms)
     tool = robot.payload.tool_point_m
     cutter, fmodel, workpiece = cutting_setup(sc)
-    path = PlannedPath(np.asarray(sc.path.waypoints_mm) / 1e3, sc.path.feed_mm_per_s / 1e3,
-                       np.deg2rad(sc.path.yaw_deg), sc.path.dwell_s, sc.path.ramp_s)
+    path = planned_path(sc)
     t_mid = path.dwell_s + 0.5 * path.move_s
     q_mid = ik.solve_ik(robot.dh, ik.tool_down_pose(path.position(t_mid), path.yaw), tool)
     key = tuple(np.round(q_mid, 9))

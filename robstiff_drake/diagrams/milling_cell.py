@@ -40,7 +40,13 @@ from pydrake.systems.primitives import (
 )
 from pydrake.trajectories import PiecewisePolynomial
 
-from robstiff_drake.diagrams.scenario import model_stiffness, payload_calibration, plant_stiffness
+from robstiff_drake.diagrams.scenario import (
+    exact_payload_calibration,
+    model_stiffness,
+    payload_calibration,
+    plant_stiffness,
+)
+from robstiff_drake.diagrams.scenario import planned_path as scenario_path
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.path import PathError, PlannedPath
@@ -117,8 +123,7 @@ def planned_path(sc, robot, tool):
     key = (str(p.waypoints_mm), p.feed_mm_per_s, p.yaw_deg, p.dwell_s, p.ramp_s, p.reference_period_ms, robot.source,
            tuple(np.round(tool, 12)), robot.q_lower_rad.tobytes(), robot.q_upper_rad.tobytes())
     try:
-        path = PlannedPath(np.asarray(p.waypoints_mm, dtype=float) / 1e3, p.feed_mm_per_s / 1e3,
-                           np.deg2rad(p.yaw_deg), p.dwell_s, p.ramp_s)
+        path = scenario_path(sc)
         if key not in _REFERENCES:
             _REFERENCES[key] = path.joint_references(robot, tool, p.reference_period_ms / 1e3)
     except PathError as e:
@@ -273,7 +278,7 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
     # the wrist sensor
     ss = sc.sensor
     R6_0, _ = fk.flange_rotation_and_tool_point(q_ref[0])
-    w0 = payload_wrench(R6_0, payload_calibration_exact(robot, ss))  # the reading at rest, before the cut
+    w0 = payload_wrench(R6_0, exact_payload_calibration(sc, robot))  # the reading at rest, before the cut
     sensor = builder.AddNamedSystem("wrist_sensor", WristForceSensor(
         weld_joint_index=plant.GetJointByName("sensor_weld").index(), rate_hz=ss.rate_hz,
         force_bias_N=ss.force_bias_N, torque_bias_Nm=ss.torque_bias_Nm, noise_N=ss.noise_N, noise_Nm=ss.noise_Nm,
@@ -344,14 +349,6 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
         systems=systems, initial={"q": q_ref[0], "wrench": w0}, plant_time_step_s=dt,
         transport_delay_s=chain_transport_delay_s(ss.rate_hz, ba, T, sc.controller.delay_steps),
         damping_beta_s=arm["beta_s"], natural_frequencies_hz=arm["natural_frequencies_hz"])
-
-
-def payload_calibration_exact(robot, sensor_config):
-    from robstiff_drake.systems.gravity_removal import PayloadCalibration
-
-    return PayloadCalibration(mass_kg=robot.payload.mass_kg, com_mm=list(robot.payload.com_m * 1e3),
-                              force_bias_N=list(sensor_config.force_bias_N),
-                              torque_bias_Nm=list(sensor_config.torque_bias_Nm))
 
 
 def make_simulator(cell):

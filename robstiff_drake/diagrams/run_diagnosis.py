@@ -30,10 +30,9 @@ import numpy as np
 from scipy import stats
 
 from robstiff_drake.diagrams.experiment import run_cut
-from robstiff_drake.diagrams.scenario import load_scenario, model_stiffness
+from robstiff_drake.diagrams.scenario import load_scenario, model_stiffness, planned_path
 from robstiff_drake.errors import InputError
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.model.path import PlannedPath
 from robstiff_drake.systems.joint_effects import LOST_MOTION_TORQUE_NM
 
 ALPHA = 1e-4
@@ -98,8 +97,7 @@ def signatures(run, robot):
     tau = np.einsum("nrj,nr->nj", J, run.W)
     c = 1.0 / model_stiffness(sc, robot)
     Jz = J[:, 2, :]  # the tool's vertical row
-    path = PlannedPath(np.asarray(sc.path.waypoints_mm) / 1e3, sc.path.feed_mm_per_s / 1e3,
-                       np.deg2rad(sc.path.yaw_deg), sc.path.dwell_s, sc.path.ramp_s)
+    path = planned_path(sc)
     centre = path.positions(run.t)
     R = sc.cutter.diameter_mm / 2e3
     y_scan = run.y

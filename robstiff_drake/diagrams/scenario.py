@@ -14,6 +14,7 @@ import numpy as np
 import yaml
 
 from robstiff_drake.errors import InputError
+from robstiff_drake.model.path import PlannedPath
 from robstiff_drake.systems.gravity_removal import PayloadCalibration
 
 
@@ -287,6 +288,20 @@ def plant_stiffness(sc, robot):
     return robot.joint_stiffness_Nm_per_rad
 
 
+def planned_path(sc):
+    """The scenario's tool path (PlannedPath, SI units); PathError if it is malformed."""
+    p = sc.path
+    return PlannedPath(np.asarray(p.waypoints_mm, dtype=float) / 1e3, p.feed_mm_per_s / 1e3, np.deg2rad(p.yaw_deg),
+                       p.dwell_s, p.ramp_s)
+
+
+def exact_payload_calibration(sc, robot):
+    """The true payload (robot file) and the scenario's sensor bias: a perfect calibration."""
+    return PayloadCalibration(mass_kg=robot.payload.mass_kg, com_mm=list(robot.payload.com_m * 1e3),
+                              force_bias_N=list(sc.sensor.force_bias_N), torque_bias_Nm=list(sc.sensor.torque_bias_Nm),
+                              sensor_mount_rpy_deg=[0.0, 0.0, 0.0])
+
+
 def payload_calibration(sc, robot):
     """The gravity-removal parameters: from the scenario's payload_yaml, or
     the exact payload and sensor bias."""
@@ -298,6 +313,4 @@ def payload_calibration(sc, robot):
         except (OSError, yaml.YAMLError, KeyError, TypeError) as e:
             raise InputError(f"{sc.source}: model.payload_yaml: cannot read payload_calibration from {p} ({e})") \
                 from None
-    return PayloadCalibration(mass_kg=robot.payload.mass_kg, com_mm=list(robot.payload.com_m * 1e3),
-                              force_bias_N=list(sc.sensor.force_bias_N), torque_bias_Nm=list(sc.sensor.torque_bias_Nm),
-                              sensor_mount_rpy_deg=[0.0, 0.0, 0.0])
+    return exact_payload_calibration(sc, robot)

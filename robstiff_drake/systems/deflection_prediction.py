@@ -8,6 +8,7 @@ from pydrake.common.value import AbstractValue
 from pydrake.systems.framework import LeafSystem, ValueProducer
 
 from robstiff_drake.model.kinematics import cross3, rpy_to_rotation
+from robstiff_drake.systems.joint_effects import effect_dq
 
 
 def sensor_to_tool_base(w_sensor, R_flange, tool_m, R_mount=None):
@@ -57,8 +58,6 @@ class DeflectionPrediction(LeafSystem):
         w = sensor_to_tool_base(self._w.Eval(context), R, self._tool, self._R_mount)
         dq, _ = self._pred(q, w)
         if self._lost is not None or self._c23:
-            from robstiff_drake.systems.joint_effects import effect_dq
-
             tau = dq / self._pred.joint_compliance
             dq = dq + effect_dq(tau, self._lost if self._lost is not None else np.zeros(6), self._c23)
         value.set_value(np.concatenate([w, dq]))

@@ -37,8 +37,9 @@ class MillingForceSource(LeafSystem):
         self._tool = np.asarray(tool_point_m, dtype=float)
         self._mode = mode
         self._phase = phase_rad
-        tooth_dt = 1.0 / (force_model.cutter.tooth_pass_hz * samples_per_tooth)
-        self._sub_t = np.arange(max(1, int(round(period_s / tooth_dt)))) * (period_s / max(1, round(period_s / tooth_dt)))
+        # tooth-resolved: the step's mean over samples_per_tooth samples per tooth pass
+        n_sub = max(1, int(round(period_s * force_model.cutter.tooth_pass_hz * samples_per_tooth)))
+        self._sub_t = np.arange(n_sub) * (period_s / n_sub)
         self._q = self.DeclareVectorInputPort("q", 6)
         # held: tool point (3), flange rotation (9), joint torques (6), step wrench (6)
         self._state = self.DeclareDiscreteState(24)
