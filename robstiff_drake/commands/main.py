@@ -52,6 +52,16 @@ def _add_tool_option(p, default_help):
                         f"{default_help}. Write negative values as --tool=-10,0,350")
 
 
+def _add_campaign_command(sub, name, help_text, json_what):
+    """A subcommand that reads a stiffness campaign: DATA.csv, --tool, --json, --robot."""
+    p = sub.add_parser(name, help=help_text)
+    p.add_argument("data", metavar="DATA.csv")
+    _add_tool_option(p, "default: the origin of DH frame 6")
+    p.add_argument("--json", metavar="OUT", help=f"write the {json_what} as JSON ('-' for stdout)")
+    _add_robot_option(p)
+    return p
+
+
 def build_parser():
     parser = _Parser(prog="robstiff", description="Joint-stiffness models and compensation for machining robots.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -83,13 +93,10 @@ def build_parser():
     p.add_argument("--check", action="store_true", help="only check that the files on disk are up to date")
     _add_robot_option(p)
 
-    p = sub.add_parser("identify", help="joint stiffness from a stiffness campaign (least squares, Eq. 8)")
-    p.add_argument("data", metavar="DATA.csv")
-    _add_tool_option(p, "default: the origin of DH frame 6")
-    p.add_argument("--json", metavar="OUT", help="write the result as JSON ('-' for stdout)")
+    p = _add_campaign_command(sub, "identify", "joint stiffness from a stiffness campaign (least squares, Eq. 8)",
+                              "result")
     p.add_argument("--plot", metavar="OUT.png", help="measured vs predicted, residuals, stiffness with intervals")
     p.add_argument("--robust", action="store_true", help="Huber loss, for campaigns with outliers")
-    _add_robot_option(p)
 
     p = sub.add_parser("calibrate-payload", help="wrist-sensor payload: mass, centre of mass, biases")
     p.add_argument("data", metavar="DATA.csv")
@@ -125,13 +132,10 @@ def build_parser():
     s.add_argument("--seed", type=int, default=0)
     _add_robot_option(s)
 
-    p = sub.add_parser("diagnose", help="which effect the six-spring model lacks explains a campaign's residual")
-    p.add_argument("data", metavar="DATA.csv")
-    _add_tool_option(p, "default: the origin of DH frame 6")
-    p.add_argument("--json", metavar="OUT", help="write the diagnosis as JSON ('-' for stdout)")
+    p = _add_campaign_command(sub, "diagnose", "which effect the six-spring model lacks explains a campaign's residual",
+                              "diagnosis")
     p.add_argument("--report", metavar="OUT.md", help="write a Markdown report")
     p.add_argument("--plots", metavar="DIR", help="write the residual views (one PNG per view)")
-    _add_robot_option(p)
 
     p = sub.add_parser("diagnose-run", help="trace a machining run's residual surface error to its cause, fix, rerun")
     p.add_argument("run_dir", metavar="RUN_DIR", help="a folder written by `robstiff simulate ... --out RUN_DIR`")

@@ -57,8 +57,7 @@ def plot(rows, out):
                 axes[row, col].plot(T, pred, ":", marker="x", color=colors[(cut, mode)], alpha=0.7)
                 unstable = [t for t, r in zip(T, sel) if not r.get("stable")]
                 if unstable:
-                    axes[row, col].plot(unstable, [axes[row, col].get_ylim()[1] * 0.0 + 0.0] * len(unstable), "rX",
-                                        ms=10)
+                    axes[row, col].plot(unstable, [0.0] * len(unstable), "rX", ms=10)
         for row, label in enumerate(("entry/exit max |error| (mm)", "mean error (mm)")):
             ax = axes[row, col]
             ax.set_xscale("log")
