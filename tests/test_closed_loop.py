@@ -14,7 +14,7 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 
 from robstiff_drake.diagrams.experiment import run_cut
-from robstiff_drake.diagrams.milling_cell import add_compensation_chain, add_compliant_irb6400
+from robstiff_drake.diagrams.milling_cell import add_compensation_chain, add_compliant_irb6400, spring_step_is_stable
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.errors import InputError
 from robstiff_drake.model import ik
@@ -43,7 +43,7 @@ def test_static_deflection_equals_the_model(robot):
     src = builder.AddSystem(ConstantValueSource(AbstractValue.Make([force])))
     builder.Connect(src.get_output_port(), plant.get_applied_spatial_force_input_port())
     des = builder.AddSystem(ConstantVectorSource(np.concatenate([q0, np.zeros(6)])))
-    builder.Connect(des.get_output_port(), plant.get_desired_state_input_port(arm["instance"]))
+    builder.Connect(des.get_output_port(), arm["desired_state"])
     sim = Simulator(builder.Build())
     ctx = plant.GetMyMutableContextFromRoot(sim.get_mutable_context())
     plant.SetPositions(ctx, q0)
@@ -55,6 +55,58 @@ def test_static_deflection_equals_the_model(robot):
     assert np.linalg.norm(dx[:3]) > 5e-4  # about a millimetre
     np.testing.assert_allclose(dp, dx[:3], atol=1e-6)
     assert 3 < arm["natural_frequencies_hz"][0] < 60
+
+
+def test_step_stability_criterion_is_the_recursion(rng):
+    """spring_step_is_stable against the step it describes, iterated: symplectic
+    Euler for the spring, implicit stiffness-proportional damping."""
+    for _ in range(300):
+        w = rng.uniform(10.0, 2000.0)  # rad/s
+        h = rng.uniform(1e-4, 1e-2)
+        beta = rng.uniform(0.0, 0.01)
+        q, v, peak = 1.0, 0.0, 0.0
+        for k in range(3000):
+            v = (v - h * w * w * q) / (1.0 + beta * w * w * h)
+            q += h * v
+            if not abs(q) < 1e6:  # diverged (or overflowed to inf / nan)
+                peak = np.inf
+                break
+            if k > 2000:
+                peak = max(peak, abs(q))
+        criterion = spring_step_is_stable([w / (2 * np.pi)], beta, h)
+        margin = h * h * w * w - (4.0 + 2.0 * beta * w * w * h)
+        if abs(margin) > 0.05:  # clear of the boundary, where growth is too slow to see in 3000 steps
+            assert criterion == (peak < 1.0), (w, h, beta, peak)
+
+
+@pytest.mark.parametrize("zeta, stable", [(0.01, False), (0.025, True)])
+def test_plant_step_is_stable_where_the_criterion_says(robot, zeta, stable):
+    """The criterion is the Drake plant's: at a 4 ms step its joint damping is
+    implicit (or the 2.5 % case would diverge too) and its spring explicit
+    (or the 1 % case would not).  Both keep beta below h / 2; 1 % is on the
+    unstable side of the bound for the 124 Hz mode, 2.5 % on the stable."""
+    h = 0.004
+    q0 = ik.solve_ik(robot.dh, ik.tool_down_pose(robot.workspace.reference_tool_point_m), robot.payload.tool_point_m)
+    builder = DiagramBuilder()
+    arm = add_compliant_irb6400(builder, time_step_s=h, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
+                                damping_ratio=zeta, q_modes_rad=q0, check_stability=False)
+    assert spring_step_is_stable(arm["natural_frequencies_hz"], arm["beta_s"], h) == stable
+    assert arm["beta_s"] < h / 2  # the bound for every mode does not hold: the top mode decides
+    des = builder.AddSystem(ConstantVectorSource(np.concatenate([q0, np.zeros(6)])))
+    builder.Connect(des.get_output_port(), arm["desired_state"])
+    sim = Simulator(builder.Build())
+    plant = arm["plant"]
+    ctx = plant.GetMyMutableContextFromRoot(sim.get_mutable_context())
+    plant.SetPositions(ctx, q0 + 1e-4)  # every joint off by 0.1 mrad: all modes excited
+    try:
+        sim.AdvanceTo(1.0)
+        dev = np.abs(plant.GetPositions(ctx) - q0).max()
+    except RuntimeError:  # the solver gave up on a diverging state
+        dev = np.inf
+    if stable:
+        assert dev < 1e-4
+    else:
+        assert not dev < 1e-2
 
 
 class StepWrench(LeafSystem):
@@ -152,6 +204,19 @@ def test_dropouts_and_spikes_never_reach_the_plant(robot, short_runs):
     assert abs(res.surface_error_mm["mean"] - short_runs[2].surface_error_mm["mean"]) < 0.03
 
 
+def test_surface_is_converged_in_the_plant_step(short_runs):
+    """The scenarios step the plant at 4 ms: the uncut surface (the loop's
+    biggest signal) is the same as at 2 ms to 1 um in the mean, 5 um in PV."""
+    from robstiff_drake.model.robot import load_robot
+
+    sc, off, _ = short_runs
+    coarse = copy.deepcopy(sc)
+    coarse.plant.time_step_ms = 4.0
+    off4 = run_cut(coarse, load_robot(), compensation=False)
+    assert abs(off4.surface_error_mm["mean"] - off.surface_error_mm["mean"]) < 1e-3
+    assert abs(off4.surface_error_mm["pv"] - off.surface_error_mm["pv"]) < 5e-3
+
+
 def _write(tmp_path, text):
     p = tmp_path / "scenario.yaml"
     p.write_text(text)
@@ -167,6 +232,8 @@ def _write(tmp_path, text):
         (lambda s: s.replace("  period_ms: 4.0", "  period_ms: 1.0"), "controller.period_ms: 1.0 ms is below the plant step"),
         (lambda s: s.replace("    cutoff_hz: 2.0", "    cutoff_hz: 900.0"), "controller.filter.cutoff_hz: 900.0 Hz"),
         (lambda s: s.replace("  mode: averaged", "  mode: exact"), "cutting.mode: expected 'averaged' or 'tooth'"),
+        (lambda s: s.replace("  time_step_ms: 2.0\n  damping_ratio: 0.10", "  time_step_ms: 4.0\n  damping_ratio: 0.01"),
+         "plant.time_step_ms: a 4 ms plant step is unstable for the 124 Hz joint mode"),
         (lambda s: s.replace("    - [1497.5, 0.0, 700.0]", "    - [3497.5, 0.0, 700.0]"), "is out of reach"),
         (lambda s: s.replace("    - [1702.5, 0.0, 700.0]", "    - [1702.5, 0.0, 1900.0]"), "outside its joint limit"),
         (lambda s: s.replace("    - [1497.5, 0.0, 700.0]\n    - [1702.5, 0.0, 700.0]",

@@ -156,3 +156,55 @@ def test_loop_model_predicts_the_simulation(robot):
     assert model == pytest.approx(sim, rel=0.25)
     assert p["surface_error_mm"]["mean"] == pytest.approx(row["surface_error_mm"]["mean"], rel=0.25)
     assert p["first_order_lag_error_mm"] == pytest.approx(sim, rel=0.5)
+
+
+def test_payload_inertia_map_is_what_drake_reports_at_the_weld(robot, rng):
+    """L q'' (loop model) against Drake: a continuous plant at rest driven to
+    the joint accelerations q''; the weld's reaction minus the static one is
+    the payload's inertial wrench, moved to the tool point in the base frame."""
+    from pydrake.multibody.plant import MultibodyPlant
+
+    from robstiff_drake.diagrams.loop_prediction import payload_inertial_wrench_map
+    from robstiff_drake.model import kinematics as kin
+    from robstiff_drake.plant import add_irb6400
+    from robstiff_drake.systems.deflection_prediction import sensor_to_tool_base
+
+    plant = MultibodyPlant(0.0)
+    add_irb6400(plant)
+    plant.Finalize()
+    weld = plant.GetJointByName("sensor_weld").index()
+    q = np.deg2rad([10.0, 20.0, 15.0, 30.0, 40.0, -25.0])
+    R = kin.frames(robot.dh, q)[6, :3, :3]
+
+    def reading(qdd):
+        ctx = plant.CreateDefaultContext()
+        plant.SetPositions(ctx, q)
+        tau = plant.CalcMassMatrix(ctx) @ qdd - plant.CalcGravityGeneralizedForces(ctx)
+        plant.get_actuation_input_port().FixValue(ctx, tau)
+        F = plant.get_reaction_forces_output_port().Eval(ctx)[weld]
+        return -np.concatenate([F.translational(), F.rotational()])  # the payload on the sensor
+
+    L = payload_inertial_wrench_map(robot, q)
+    static = reading(np.zeros(6))
+    for _ in range(3):
+        qdd = rng.normal(0.0, 2.0, 6)
+        inertial = sensor_to_tool_base(reading(qdd) - static, R, robot.payload.tool_point_m)
+        np.testing.assert_allclose(inertial, L @ qdd, atol=1e-6 * max(1.0, np.abs(L @ qdd).max()))
+    assert np.abs(L).max() > 10  # 40 kg: not negligible
+
+
+def test_loop_model_needs_the_payload_inertia_at_a_resonance(robot):
+    """16 ms, 20 Hz: the compensation loop rings (the sensor reads the
+    payload's inertia as cutting load).  The loop model follows it with the
+    inertia in its sensor and misses it by 5x without."""
+    from robstiff_drake.diagrams import loop_prediction
+
+    sc = load_scenario(INTERRUPTED)
+    combo = {"period_ms": 16.0, "delay_steps": 1, "cutoff_hz": 20.0, "mode": "plain"}
+    row = run_one(str(INTERRUPTED), combo, predict=False)
+    sim = max(row["surface_error_mm"]["entry_max_abs"], row["surface_error_mm"]["exit_max_abs"])
+    p = loop_prediction.predict(sc, robot, combo)
+    assert max(p["surface_error_mm"]["entry_max_abs"], p["surface_error_mm"]["exit_max_abs"]) == pytest.approx(
+        sim, rel=0.25)
+    blind = loop_prediction.predict(sc, robot, combo, sensor_feels_inertia=False)
+    assert max(blind["surface_error_mm"]["entry_max_abs"], blind["surface_error_mm"]["exit_max_abs"]) < 0.2 * sim

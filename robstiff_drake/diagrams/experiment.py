@@ -130,10 +130,7 @@ def run_cut(sc, robot, *, compensation=True, cell=None):
     sim.AdvanceTo(t_end)
     wall = time.perf_counter() - t0
     root = sim.get_context()
-    logs = {}
-    for name, logger in cell.loggers.items():
-        log = logger.FindLog(root)
-        logs[name] = (log.sample_times().copy(), log.data().T.copy())
+    logs = {name: signal.read(root) for name, signal in cell.loggers.items()}
     t, x = logs["state"]
     scans = scan_surface(cell, t, x[:, :6])
     err = np.concatenate([s.error_m[np.isfinite(s.error_m)] for s in scans])

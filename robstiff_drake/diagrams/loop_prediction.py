@@ -25,10 +25,25 @@ class _Cell:
         self.scenario, self.path, self.workpiece, self.force_model = sc, path, workpiece, force_model
 
 
-def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None):
+def payload_inertial_wrench_map(robot, q):
+    """L (6, 6): the wrench the payload's inertia puts on the sensor, at the
+    tool point in the base frame, per joint acceleration at q (rad/s^2):
+    force -m a_com, moment -(r_com - r_tool) x m a_com - I alpha."""
+    pl = robot.payload
+    J_com = kin.jacobian(robot.dh, q, pl.com_m)
+    R = kin.frames(robot.dh, q)[6, :3, :3]
+    r = R @ (pl.com_m - pl.tool_point_m)  # tool point -> centre of mass, base frame
+    skew = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
+    force = -pl.mass_kg * J_com[:3]
+    return np.vstack([force, skew @ force - R @ pl.inertia_about_com_kg_m2 @ R.T @ J_com[3:]])
+
+
+def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sensor_feels_inertia=True):
     """Predicted closed-loop poles and surface-error statistics for one sweep
     combination (dict with spectral_radius, stable, surface_error_mm,
-    first_order_lag_error_mm)."""
+    first_order_lag_error_mm).  ``sensor_feels_inertia=False`` leaves the
+    payload's inertia out of the model's sensor (what the model missed
+    before it was traced; kept for that comparison)."""
     sc = configure(sc, combo, plant_step_ms)
     tool = robot.payload.tool_point_m
     cutter, fmodel, workpiece = cutting_setup(sc)
@@ -53,7 +68,8 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None):
     scale = sc.model.force_model_scale
     loop = LoopModel(M=M, K=plant_stiffness(sc, robot), beta_s=beta, J=kin.jacobian(robot.dh, q_mid, tool),
                      C_model=1.0 / model_stiffness(sc, robot), filter_ba=ba, rate_hz=sc.sensor.rate_hz, period_s=T,
-                     delay_steps=sc.controller.delay_steps, mode=sc.controller.mode, model_scale=scale)
+                     delay_steps=sc.controller.delay_steps, mode=sc.controller.mode, model_scale=scale,
+                     sensor_inertia=payload_inertial_wrench_map(robot, q_mid) if sensor_feels_inertia else None)
 
     h = loop.h
     t = np.arange(0.0, path.duration_s + 0.1, h)

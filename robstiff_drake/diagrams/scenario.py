@@ -20,14 +20,16 @@ from robstiff_drake.systems.gravity_removal import PayloadCalibration
 
 @dataclass
 class PlantConfig:
-    """The 'true' robot: a discrete MultibodyPlant (SAP) whose joints are PD
-    spring-dampers between the commanded and the link angle."""
+    """The 'true' robot: a discrete MultibodyPlant whose joints are servo
+    springs and dampers between the commanded and the link angle
+    (diagrams/milling_cell.py: add_compliant_irb6400)."""
 
     time_step_ms: float = 2.0
     # Joint stiffness of the plant (N*m/rad); empty: the robot file's nominal.
     joint_stiffness_Nm_per_rad: list[float] = field(default_factory=list)
-    # Stiffness-proportional damping kd = beta * kp, beta = 2 zeta / omega_1:
-    # the first mode gets damping ratio zeta, higher modes more.
+    # Stiffness-proportional damping D = beta * K, beta = 2 zeta / omega_1:
+    # the first mode gets damping ratio zeta, higher modes more.  The step
+    # must keep every mode stable: beta >= step / 2 does for any stiffness.
     damping_ratio: float = 0.05
     # Joint effects beyond the springs (systems/joint_effects.py): lost motion
     # per joint (rad, the link lags by b in the load's direction) and the

@@ -7,7 +7,7 @@ first.  So URDF link i's frame is DH frame i-1 turned by joint i; the fixed
 part Tz(d_i) Tx(a_i) Rx(alpha_i), followed by the next joint's home offset
 Rz(home_{i+1}), becomes the origin of joint i+1.  The URDF joint angle is then
 exactly the controller angle q.  Each joint has an actuator (the servo and
-gear), which the closed-loop plant turns into a PD spring-damper between the
+gear), which the closed-loop plant drives as a spring-damper between the
 commanded and the link angle.  A fixed joint adds the ``flange`` link at
 DH frame 6 (the wrist sensor frame), and another the ``spindle`` link that
 carries the payload (spindle, sensor and tool): the force-torque sensor
@@ -119,16 +119,15 @@ def make_urdf(robot):
         "  </joint>\n"
     )
     pl = robot.payload
-    # The payload as a solid cylinder along the spindle axis, 120 mm in radius
-    # and twice its centre of mass's distance from the flange in length.
-    length = max(2.0 * abs(pl.com_m[2]), 0.05)
-    inertia = np.diag([pl.mass_kg * (3 * 0.12**2 + length**2) / 12.0] * 2 + [0.5 * pl.mass_kg * 0.12**2])
+    # The payload as a solid cylinder along the spindle axis (Payload)
+    length = pl.length_m
+    inertia = pl.inertia_about_com_kg_m2
     out.append('  <link name="spindle">\n')
     out.append(_inertial(pl.mass_kg, pl.com_m, inertia))
     out.append(
         "    <visual>\n"
         f'      <origin xyz="{_fmt(pl.com_m)}" rpy="0 0 0"/>\n'
-        f'      <geometry><cylinder radius="0.12" length="{length:.17g}"/></geometry>\n'
+        f'      <geometry><cylinder radius="{pl.RADIUS_M:g}" length="{length:.17g}"/></geometry>\n'
         '      <material name="steel"><color rgba="0.6 0.6 0.65 1"/></material>\n'
         "    </visual>\n"
     )

@@ -7,8 +7,13 @@ The loop, linearised at one pose and stepped at the sensor rate h:
   process   W = W_nom(t) + [K_p J_v dq; 0]           (the cut's stiffness: the
                                                      force's change with the
                                                      tool's position, N/m)
-  sensor    S <- W   (plain)   or  S <- W - s W_nom (predictive: the
-            measured-minus-model bracket, s the model's scale)
+  sensor    S <- W + L dq''   (plain)   or   S <- W + L dq'' - s W_nom
+            (predictive: the measured-minus-model bracket, s the model's
+            scale).  L dq'' is the payload's inertia as the sensor feels it
+            (the wrench it needs to be accelerated with the flange): the
+            chain cannot tell it from the cutting load, so it feeds back too;
+            at the arm's higher modes it is larger than the cut's own
+            stiffness.  dq'' from the arm's equation at the sample.
   guard     G <- S
   filter    X <- A_f X + B_f G,  y = C_f X + D_f G  (the same discrete filter)
   every T = N h, all at once (Drake's same-instant semantics):
@@ -47,6 +52,10 @@ class LoopModel:
     delay_steps: int
     mode: str = "plain"
     model_scale: float = 1.0
+    # (6, 6) the payload's inertial wrench at the tool point (base frame) per
+    # joint acceleration: -[m J_com; m (r_com - r_tool) x J_com + I J_w].
+    # None: a sensor that feels no inertia.
+    sensor_inertia: np.ndarray = None
 
     def __post_init__(self):
         self.h = 1.0 / self.rate_hz
@@ -61,6 +70,8 @@ class LoopModel:
         self.nf = A.shape[0]
         self.Af, self.Bf, self.Cf, self.Df = A, B[:, 0], C[0] if self.nf else np.zeros(0), float(np.squeeze(D))
         self.PJ = self.C_model[:, None] * self.J.T  # dq = C_m J^T W
+        # joint acceleration from the arm's state and inputs: dq'' = A_q x + B_w W + B_c c
+        self.acc_x, self.acc_w, self.acc_c = Ac[6:], Bc[6:, :6], Bc[6:, 6:]
         n = self.delay_steps
         # state layout
         sizes = {"arm": 12, "S": 6, "G": 6, "X": 6 * self.nf, "Z": 6, "buf": 6 * n, "c": 6, "ff": 6}
@@ -83,7 +94,10 @@ class LoopModel:
         W = W_nom + np.concatenate([Kp @ p, np.zeros(3)])
         out = np.empty_like(z)
         out[I["arm"]] = self.Ad @ x_arm + self.Bw @ W + self.Bc @ c
-        out[I["S"]] = W - (self.model_scale * W_nom if self.mode == "predictive" else 0.0)
+        S_new = W - (self.model_scale * W_nom if self.mode == "predictive" else 0.0)
+        if self.sensor_inertia is not None:
+            S_new = S_new + self.sensor_inertia @ (self.acc_x @ x_arm + self.acc_w @ W + self.acc_c @ c)
+        out[I["S"]] = S_new
         out[I["G"]] = S
         if self.nf:
             out[I["X"]] = (self.Af @ X + np.outer(self.Bf, G)).ravel()

@@ -22,11 +22,17 @@ torque about the spindle axis, which the spindle housing, and so the wrist
 sensor, carries).
 
 Two modes: ``tooth_wrench`` at the current tooth angles (tooth-resolved),
-and ``average_wrench`` over one spindle revolution (the mean of the
-tooth-resolved force, integrated over a fine angle grid).
+and ``average_wrench`` over one spindle revolution: the mean of the
+tooth-resolved wrench, W = N / (2 pi) * integral over the leading half of
+a(theta) w(theta) d theta.  Each component of w is a combination of 1,
+cos, sin, cos sin and cos^2 (h = c_f cos theta is linear in cos theta), and
+a(theta) is piecewise constant between the angles where the tooth tip
+crosses a box edge, so the integral is exact in closed form: no angle grid.
 """
 
+import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -85,29 +91,35 @@ class Workpiece:
         b = np.asarray(boxes_m, dtype=float).reshape(-1, 5)
         return Workpiece(b[:, 0:2], b[:, 2:4], b[:, 4])
 
+    @cached_property
+    def boxes(self):
+        """The boxes as tuples of floats (x0, x1, y0, y1, top), for scalar code."""
+        return tuple((x0, x1, y0, y1, top) for (x0, x1), (y0, y1), top in
+                     zip(self.x_m.tolist(), self.y_m.tolist(), self.top_m.tolist()))
+
 
 class MillingForceModel:
     """Wrench on the tool for a cutter position, in either mode."""
 
-    def __init__(self, cutter, coefficients, feed_m_per_s, n_grid=720):
+    def __init__(self, cutter, coefficients, feed_m_per_s):
         self.cutter = cutter
         self.Kc, self.Ke = coefficients.si()
         self.feed_m_per_s = float(feed_m_per_s)
         self.c_f = cutter.feed_per_tooth_m(feed_m_per_s)
-        self._grid = (np.arange(n_grid) + 0.5) * (2 * np.pi / n_grid) - np.pi
-        self._cg, self._sg = np.cos(self._grid), np.sin(self._grid)
-        # For the revolution average, the chip thickness at each grid angle is
-        # fixed, so each wrench component is a fixed weight times the axial
-        # depth there: W = weights @ a (six dot products in one product).
-        lead = self._cg > 0
-        self._lead_cg, self._lead_sg = self._cg[lead], self._sg[lead]
-        h = self.c_f * self._lead_cg
-        kt, kr, ka = (self.Kc[i] * h + self.Ke[i] for i in range(3))
-        c, s_ = self._lead_cg, self._lead_sg
+        # Revolution average: rows (f_u, f_v, f_z, m_u, m_v, m_z) of the
+        # per-tooth wrench per metre of depth as coefficients of the basis
+        # (1, c, s, c s, c^2), c = cos theta, s = sin theta; times N / (2 pi).
+        (Ktc, Krc, Kac), (Kte, Kre, Kae) = self.Kc * self.c_f, self.Ke
         R = cutter.radius_m
-        fu, fv, fz = -kt * s_ - kr * c, kt * c - kr * s_, ka
-        scale = cutter.n_teeth / n_grid
-        self._weights = scale * np.vstack([fu, fv, fz, R * s_ * fz, -R * c * fz, R * (c * fv - s_ * fu)])
+        basis = np.array([
+            [0.0, -Kre, -Kte, -Ktc, -Krc],   # f_u = -k_t s - k_r c
+            [0.0, Kte, -Kre, -Krc, Ktc],     # f_v = k_t c - k_r s
+            [Kae, Kac, 0.0, 0.0, 0.0],       # f_z = k_a
+            [0.0, 0.0, R * Kae, R * Kac, 0.0],  # m_u = R s f_z
+            [0.0, -R * Kae, 0.0, 0.0, -R * Kac],  # m_v = -R c f_z
+            [R * Kte, R * Ktc, 0.0, 0.0, 0.0],  # m_z = R k_t (the cutting torque)
+        ]) * (cutter.n_teeth / (2 * np.pi))
+        self._basis = [tuple(float(v) for v in row) for row in basis]
 
     def _per_tooth(self, theta_cos, theta_sin, c_xy, z_b, u, workpiece):
         """Force and moment (about the tool point) for teeth at the given angles,
@@ -153,25 +165,65 @@ class MillingForceModel:
                                   workpiece)
         return np.concatenate([self._to_base(F, u), self._to_base(M, u)])
 
-    def average_wrench(self, tool_point_m, feed_dir_xy, workpiece):
-        """Wrench averaged over one spindle revolution (N teeth each sweep the grid)."""
+    def lead_intervals(self, tool_point_m, feed_dir_xy, workpiece):
+        """The leading half of the cutter (theta in [-pi/2, pi/2]) split where a
+        tooth tip crosses a box edge: a list of (theta_a, theta_b, depth m)
+        with depth > 0, the highest uncut top above the cutter bottom there."""
         u0, u1 = float(feed_dir_xy[0]), float(feed_dir_xy[1])
+        phi = math.atan2(u1, u0)  # tip at absolute angle theta + phi
         R = self.cutter.radius_m
-        cg, sg = self._lead_cg, self._lead_sg
-        tx = tool_point_m[0] + R * (cg * u0 - sg * u1)
-        ty = tool_point_m[1] + R * (cg * u1 + sg * u0)
-        z_b = tool_point_m[2]
-        a = np.zeros(len(cg))
-        for (x0, x1), (y0, y1), top in zip(workpiece.x_m, workpiece.y_m, workpiece.top_m):
-            if top > z_b:
-                inside = (tx >= x0) & (tx <= x1) & (ty >= y0) & (ty <= y1)
-                np.maximum(a, np.where(inside, top - z_b, 0.0), out=a)
-        w = self._weights @ a
+        cx, cy, z_b = float(tool_point_m[0]), float(tool_point_m[1]), float(tool_point_m[2])
+        boxes = [(x0, x1, y0, y1, top - z_b) for x0, x1, y0, y1, top in workpiece.boxes if top > z_b]
+        if not boxes:
+            return []
+        half = 0.5 * math.pi
+        cuts = [-half, half]
+        for x0, x1, y0, y1, _ in boxes:
+            for X in (x0, x1):
+                r = (X - cx) / R
+                if -1.0 < r < 1.0:
+                    a = math.acos(r)
+                    cuts += [a - phi, -a - phi]
+            for Y in (y0, y1):
+                r = (Y - cy) / R
+                if -1.0 < r < 1.0:
+                    a = math.asin(r)
+                    cuts += [a - phi, math.pi - a - phi]
+        two_pi = 2 * math.pi
+        angles = sorted({t for t in ((c + math.pi) % two_pi - math.pi for c in cuts) if -half <= t <= half})
+        out = []
+        for ta, tb in zip(angles[:-1], angles[1:]):
+            tm = 0.5 * (ta + tb) + phi
+            x, y = cx + R * math.cos(tm), cy + R * math.sin(tm)
+            depth = 0.0
+            for x0, x1, y0, y1, d in boxes:
+                if d > depth and x0 <= x <= x1 and y0 <= y <= y1:
+                    depth = d
+            if depth > 0.0:
+                if out and out[-1][1] == ta and out[-1][2] == depth:
+                    out[-1] = (out[-1][0], tb, depth)
+                else:
+                    out.append((ta, tb, depth))
+        return out
+
+    def average_wrench(self, tool_point_m, feed_dir_xy, workpiece):
+        """Wrench (force N, moment N*m about the tool point, base frame) averaged
+        over one spindle revolution, integrated exactly over the engaged arcs."""
+        S0 = S1 = S2 = S3 = S4 = 0.0
+        for ta, tb, a in self.lead_intervals(tool_point_m, feed_dir_xy, workpiece):
+            sa, ca, sb, cb = math.sin(ta), math.cos(ta), math.sin(tb), math.cos(tb)
+            # antiderivatives of 1, c, s, c s, c^2
+            S0 += a * (tb - ta)
+            S1 += a * (sb - sa)
+            S2 += a * (ca - cb)
+            S3 += a * 0.5 * (sb * sb - sa * sa)
+            S4 += a * 0.5 * ((tb - ta) + sb * cb - sa * ca)
+        w = [b0 * S0 + b1 * S1 + b2 * S2 + b3 * S3 + b4 * S4 for b0, b1, b2, b3, b4 in self._basis]
+        u0, u1 = float(feed_dir_xy[0]), float(feed_dir_xy[1])
         return np.array([w[0] * u0 - w[1] * u1, w[0] * u1 + w[1] * u0, w[2],
                          w[3] * u0 - w[4] * u1, w[3] * u1 + w[4] * u0, w[5]])
 
     def engagement(self, tool_point_m, feed_dir_xy, workpiece):
         """(radial engagement angle, rad; max axial depth, m) for reporting."""
-        u = np.asarray(feed_dir_xy, dtype=float)
-        _, _, a = self._per_tooth(self._cg, self._sg, np.asarray(tool_point_m[:2]), tool_point_m[2], u, workpiece)
-        return float(np.count_nonzero(a > 0) * 2 * np.pi / len(self._grid)), float(a.max(initial=0.0))
+        arcs = self.lead_intervals(tool_point_m, feed_dir_xy, workpiece)
+        return sum(tb - ta for ta, tb, _ in arcs), max((a for _, _, a in arcs), default=0.0)

@@ -3,6 +3,7 @@ feed, the spindle axis straight down, and the joint references that IK
 gives along it.  Plain numpy; no Drake."""
 
 import bisect
+import math
 
 import numpy as np
 
@@ -46,7 +47,8 @@ class PlannedPath:
         self._s_knots = np.r_[0.0, np.cumsum(self.lengths)].tolist()
         d = self.directions[:, :2]
         n = np.linalg.norm(d, axis=1, keepdims=True)
-        self._feed_dirs = np.where(n > 1e-12, d / np.where(n > 1e-12, n, 1.0), [1.0, 0.0])
+        dirs = np.where(n > 1e-12, d / np.where(n > 1e-12, n, 1.0), [1.0, 0.0])
+        self._feed_dirs = [tuple(u) for u in dirs.tolist()]
         self.move_s = self.total_length / self.feed + self.ramp_s
 
     @property
@@ -56,7 +58,7 @@ class PlannedPath:
     def _ramp_distance(self, tau):
         """Distance covered tau seconds into a cosine speed-up from rest."""
         tr = self.ramp_s
-        return 0.5 * self.feed * (tau - tr / np.pi * np.sin(np.pi * tau / tr))
+        return 0.5 * self.feed * (tau - tr / math.pi * math.sin(math.pi * tau / tr))
 
     def arc_length(self, t):
         """Distance along the path at time t (m)."""
@@ -83,8 +85,11 @@ class PlannedPath:
         return np.array([self.position(t) for t in np.atleast_1d(ts)])
 
     def feed_direction(self, t):
-        """Horizontal unit feed direction (2,) at time t (the cutting-force
-        model's u); the first segment's before the start, the last's after."""
+        """Horizontal unit feed direction (u_x, u_y) at time t (the
+        cutting-force model's u); the first segment's before the start, the
+        last's after."""
+        if len(self._feed_dirs) == 1:
+            return self._feed_dirs[0]
         return self._feed_dirs[self._segment(self.arc_length(t))]
 
     def joint_references(self, robot, tool_m, dt_s, q_start=None):

@@ -16,6 +16,21 @@ import math
 
 import numpy as np
 
+MEMO_SIZE = 4
+_SHARED_CHAINS = {}  # arm and tool -> {q: chain}, insertion-ordered
+
+
+def rotate(R, v):
+    """R v for R row-major (9 floats) and v (3 floats)."""
+    return (R[0] * v[0] + R[1] * v[1] + R[2] * v[2], R[3] * v[0] + R[4] * v[1] + R[5] * v[2],
+            R[6] * v[0] + R[7] * v[1] + R[8] * v[2])
+
+
+def rotate_transposed(R, v):
+    """R^T v for R row-major (9 floats) and v (3 floats)."""
+    return (R[0] * v[0] + R[3] * v[1] + R[6] * v[2], R[1] * v[0] + R[4] * v[1] + R[7] * v[2],
+            R[2] * v[0] + R[5] * v[1] + R[8] * v[2])
+
 
 class DeflectionPredictor:
     """dq = C_q J(q)^T F and dx = J(q) dq for one configuration per call."""
@@ -28,7 +43,10 @@ class DeflectionPredictor:
         self._sa = [math.sin(v) for v in dh.alpha_rad]
         tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
         self._tool = [float(v) for v in tool]
-        self._memo_q, self._memo = None, None  # the last chain, reused for the same q
+        # The last chains, shared by every predictor of the same arm and tool
+        # (the plant's and the compensator's differ only in stiffness).
+        key = (tuple(self._home), tuple(self._d), tuple(self._a), tuple(self._ca), tuple(self._sa), tuple(self._tool))
+        self._memo = _SHARED_CHAINS.setdefault(key, {})
         self.set_joint_stiffness(joint_stiffness_Nm_per_rad)
 
     def set_joint_stiffness(self, joint_stiffness_Nm_per_rad):
@@ -42,31 +60,46 @@ class DeflectionPredictor:
         """The joint compliances (rad/(N*m)) this predictor uses."""
         return np.array(self._c)
 
+    @property
+    def joint_compliance_list(self):
+        """The joint compliances (rad/(N*m)) as a list of floats."""
+        return self._c
+
     def flange_rotation_and_tool_point(self, q_rad):
         """Rotation of DH frame 6 (3x3 numpy) and the tool point (m), base frame."""
         T = self._chain(q_rad)[1]
         R = np.array(T[:9]).reshape(3, 3)
         return R, np.array(T[9:])
 
+    def pose(self, q_rad):
+        """(R row-major 9 floats, tool point 3 floats, m): the flange rotation
+        and the tool point in the base frame, as a tuple (no numpy)."""
+        return self._chain(q_rad)[1]
+
+    def joint_torques(self, q_rad, wrench):
+        """tau = J(q)^T W (N*m) as a list, for a wrench (N, N*m about the tool
+        point, base frame)."""
+        f0, f1, f2, f3, f4, f5 = wrench
+        return [j0 * f0 + j1 * f1 + j2 * f2 + j3 * f3 + j4 * f4 + j5 * f5
+                for j0, j1, j2, j3, j4, j5 in self.jacobian_rows(q_rad)]
+
     def jacobian_rows(self, q_rad):
         """Six Jacobian columns as tuples (jvx, jvy, jvz, jwx, jwy, jwz)."""
-        axes, T = self._chain(q_rad)
-        px, py, pz = T[9:]
-        cols = []
-        for zx, zy, zz, ox, oy, oz in axes:
-            ex, ey, ez = px - ox, py - oy, pz - oz
-            cols.append((zy * ez - zz * ey, zz * ex - zx * ez, zx * ey - zy * ex, zx, zy, zz))
-        return cols
+        return self._chain(q_rad)[2]
 
     def _chain(self, q_rad):
-        """Joint axes/origins (six tuples) and (R row-major 9 values, tool
-        point 3).  The blocks of one controller cycle ask for the same q, so
-        the last result is kept."""
+        """Joint axes/origins (six tuples), (R row-major 9 values, tool
+        point 3) and the six Jacobian columns.  The blocks of a controller cycle ask for the same few q
+        (the plant's now and the one sampled a period ago), so the last
+        ``MEMO_SIZE`` results are kept."""
         q = tuple(q_rad.tolist() if hasattr(q_rad, "tolist") else q_rad)
-        if q == self._memo_q:
-            return self._memo
-        self._memo_q, self._memo = q, self._chain_uncached(q)
-        return self._memo
+        memo = self._memo
+        chain = memo.get(q)
+        if chain is None:
+            if len(memo) >= MEMO_SIZE:
+                del memo[next(iter(memo))]  # the oldest
+            chain = memo[q] = self._chain_uncached(q)
+        return chain
 
     def _chain_uncached(self, q_rad):
         # Rotation R (rows r0..r8) and position p of the current frame.
@@ -96,17 +129,18 @@ class DeflectionPredictor:
         px += r0 * tx + r1 * ty + r2 * tz
         py += r3 * tx + r4 * ty + r5 * tz
         pz += r6 * tx + r7 * ty + r8 * tz
-        return axes, (r0, r1, r2, r3, r4, r5, r6, r7, r8, px, py, pz)
+        cols = []  # Jacobian columns: (z x (p - o), z)
+        for zx, zy, zz, ox, oy, oz in axes:
+            ex, ey, ez = px - ox, py - oy, pz - oz
+            cols.append((zy * ez - zz * ey, zz * ex - zx * ez, zx * ey - zy * ex, zx, zy, zz))
+        return axes, (r0, r1, r2, r3, r4, r5, r6, r7, r8, px, py, pz), tuple(cols)
 
     def __call__(self, q_rad, wrench):
         """Return (dq, dx) as numpy arrays: joint deflection (rad) and the
         tool's deflection (m, rad) under ``wrench`` at the measured q."""
         cols = self.jacobian_rows(q_rad)
-        f0, f1, f2, f3, f4, f5 = wrench.tolist() if hasattr(wrench, "tolist") else wrench
-        dq = [
-            c * (j0 * f0 + j1 * f1 + j2 * f2 + j3 * f3 + j4 * f4 + j5 * f5)
-            for c, (j0, j1, j2, j3, j4, j5) in zip(self._c, cols)
-        ]
+        dq = [c * t for c, t in zip(self._c, self.joint_torques(q_rad, wrench.tolist() if hasattr(wrench, "tolist")
+                                                                    else wrench))]
         dx = [sum(col[r] * dqi for dqi, col in zip(dq, cols)) for r in range(6)]
         return np.array(dq), np.array(dx)
 

@@ -52,6 +52,21 @@ class Payload:
     com_m: np.ndarray
     tool_point_m: np.ndarray
 
+    # ASSUMPTION: the payload's shape is a solid cylinder along the spindle
+    # axis, 120 mm in radius and twice its centre of mass's distance from
+    # the flange in length (no drawing of the spindle is available).
+    RADIUS_M = 0.12
+
+    @property
+    def length_m(self):
+        return max(2.0 * abs(float(self.com_m[2])), 0.05)
+
+    @property
+    def inertia_about_com_kg_m2(self):
+        """(3, 3) rotational inertia about the centre of mass, flange axes."""
+        m, r, L = self.mass_kg, self.RADIUS_M, self.length_m
+        return np.diag([m * (3 * r**2 + L**2) / 12.0] * 2 + [0.5 * m * r**2])
+
 
 @dataclass(frozen=True)
 class Workspace:

@@ -4,10 +4,10 @@ Jacobian at the measured joint angles and the compensator's stiffness model
 (which may differ from the plant's)."""
 
 import numpy as np
-from pydrake.common.value import AbstractValue
-from pydrake.systems.framework import LeafSystem, ValueProducer
+from pydrake.systems.framework import LeafSystem
 
 from robstiff_drake.model.kinematics import cross3, rpy_to_rotation
+from robstiff_drake.model.realtime import rotate
 from robstiff_drake.systems.joint_effects import effect_dq
 
 
@@ -26,38 +26,50 @@ class DeflectionPrediction(LeafSystem):
     """Inputs ``process_wrench`` (6, sensor frame) and ``q`` (6, rad).
     Outputs ``dq`` (6, rad): the predicted joint deflection, and
     ``tool_wrench`` (6): the wrench at the tool point, base frame.
-    Both are recomputed only when an input changes."""
+    Each is recomputed only when an input changes (the tool wrench is
+    computed by both: two cheap transforms cost less than a shared cache
+    entry's extra call into Python)."""
 
     def __init__(self, *, predictor, tool_m, mount_rpy_deg=(0.0, 0.0, 0.0), lost_motion_rad=None,
                  coupling_c23_rad_per_Nm=0.0):
+        """``predictor``: the compensator's DeflectionPredictor; ``tool_m``:
+        the tool point in the flange frame (m); ``mount_rpy_deg``: the sensor
+        frame's rotation on the flange (deg)."""
         super().__init__()
         self._pred = predictor
         # the model's joint effects beyond the springs (see systems/joint_effects.py)
         self._lost = None if not lost_motion_rad else np.asarray(lost_motion_rad, dtype=float)
         self._c23 = float(coupling_c23_rad_per_Nm)
-        self._tool = np.asarray(tool_m, dtype=float)
-        self._R_mount = rpy_to_rotation(np.deg2rad(mount_rpy_deg))
+        R_mount = rpy_to_rotation(np.deg2rad(mount_rpy_deg))
+        self._R_mount = tuple(R_mount.ravel().tolist())
+        self._r_s = tuple((R_mount.T @ np.asarray(tool_m, dtype=float)).tolist())  # tool point, sensor frame
         self._w = self.DeclareVectorInputPort("process_wrench", 6)
         self._q = self.DeclareVectorInputPort("q", 6)
+        self._identity_mount = bool(np.allclose(R_mount, np.eye(3), rtol=0.0, atol=0.0))
         deps = {self._w.ticket(), self._q.ticket()}
-        # one computation serves both outputs
-        self._both = self.DeclareCacheEntry(
-            "tool_wrench_and_dq", ValueProducer(allocate=lambda: AbstractValue.Make(np.zeros(12)),
-                                                calc=self._calc_both), prerequisites_of_calc=deps)
-        self.DeclareVectorOutputPort("dq", 6, lambda c, o: o.SetFromVector(self._get(c)[6:]),
-                                     prerequisites_of_calc={self._both.ticket()})
-        self.DeclareVectorOutputPort("tool_wrench", 6, lambda c, o: o.SetFromVector(self._get(c)[:6]),
-                                     prerequisites_of_calc={self._both.ticket()})
+        self.DeclareVectorOutputPort("dq", 6, self._calc_dq, prerequisites_of_calc=deps)
+        self.DeclareVectorOutputPort("tool_wrench", 6, lambda c, o: o.SetFromVector(self._tool_wrench(c)[0]),
+                                     prerequisites_of_calc=deps)
 
-    def _get(self, context):
-        return self._both.Eval(context)
-
-    def _calc_both(self, context, value):
+    def _tool_wrench(self, context):
+        """(the wrench at the tool point, base frame, as a list; q): what
+        sensor_to_tool_base computes, in scalar arithmetic (the per-cycle
+        path)."""
         q = self._q.Eval(context)
-        R, _ = self._pred.flange_rotation_and_tool_point(q)
-        w = sensor_to_tool_base(self._w.Eval(context), R, self._tool, self._R_mount)
-        dq, _ = self._pred(q, w)
+        R = self._pred.pose(q)
+        if not self._identity_mount:
+            M = self._R_mount
+            R = [R[3 * i] * M[j] + R[3 * i + 1] * M[3 + j] + R[3 * i + 2] * M[6 + j] for i in range(3) for j in range(3)]
+        fx, fy, fz, mx, my, mz = self._w.Eval(context).tolist()
+        rx, ry, rz = self._r_s
+        f = rotate(R, (fx, fy, fz))
+        m = rotate(R, (mx - (ry * fz - rz * fy), my - (rz * fx - rx * fz), mz - (rx * fy - ry * fx)))
+        return list(f + m), q
+
+    def _calc_dq(self, context, output):
+        w, q = self._tool_wrench(context)
+        dq = [c * t for c, t in zip(self._pred.joint_compliance_list, self._pred.joint_torques(q, w))]
         if self._lost is not None or self._c23:
-            tau = dq / self._pred.joint_compliance
-            dq = dq + effect_dq(tau, self._lost if self._lost is not None else np.zeros(6), self._c23)
-        value.set_value(np.concatenate([w, dq]))
+            tau = np.array(dq) / self._pred.joint_compliance
+            dq = np.asarray(dq) + effect_dq(tau, self._lost if self._lost is not None else np.zeros(6), self._c23)
+        output.SetFromVector(dq)

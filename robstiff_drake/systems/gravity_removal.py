@@ -8,6 +8,7 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from robstiff_drake.model.kinematics import cross3, rpy_to_rotation
+from robstiff_drake.model.realtime import rotate_transposed
 from robstiff_drake.model.robot import GRAVITY_BASE_M_PER_S2
 
 
@@ -40,13 +41,18 @@ def payload_wrench(R_flange, calibration, arrays=None):
 
 class GravityRemoval(LeafSystem):
     """Inputs ``wrench`` (6, sensor frame) and ``q`` (6, rad); output
-    ``process_wrench`` (6): the wrench minus the payload's weight and bias.
+    ``process_wrench`` (6): the wrench minus the payload's weight and bias
+    (``payload_wrench``, here in scalar arithmetic for the per-cycle path).
     Direct feedthrough, recomputed only when an input changes."""
 
     def __init__(self, *, calibration, kinematics):
         super().__init__()
-        self._cal = calibration
-        self._arrays = calibration.arrays()
+        m, c, bf, bt, R_mount = calibration.arrays()
+        self._m = m
+        self._c = tuple(c.tolist())
+        self._bias = np.concatenate([bf, bt])
+        self._R_mount = tuple(R_mount.ravel().tolist())
+        self._g = tuple(GRAVITY_BASE_M_PER_S2.tolist())
         self._kin = kinematics
         self._w = self.DeclareVectorInputPort("wrench", 6)
         self._q = self.DeclareVectorInputPort("q", 6)
@@ -55,5 +61,10 @@ class GravityRemoval(LeafSystem):
             prerequisites_of_calc={self._w.ticket(), self._q.ticket()})
 
     def _calc(self, context, output):
-        R, _ = self._kin.flange_rotation_and_tool_point(self._q.Eval(context))
-        output.SetFromVector(self._w.Eval(context) - payload_wrench(R, self._cal, self._arrays))
+        R = self._kin.pose(self._q.Eval(context))  # rotation in the first nine
+        m = self._m
+        gx, gy, gz = rotate_transposed(self._R_mount, rotate_transposed(R, self._g))  # gravity, sensor frame
+        fx, fy, fz = m * gx, m * gy, m * gz
+        cx, cy, cz = self._c
+        weight = (fx, fy, fz, cy * fz - cz * fy, cz * fx - cx * fz, cx * fy - cy * fx)
+        output.SetFromVector(self._w.Eval(context) - self._bias - weight)

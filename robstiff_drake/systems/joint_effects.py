@@ -2,7 +2,7 @@
 robot that the compensator's model does not fully describe: lost motion
 (backlash: the link lags the motor by b_i in the direction of the joint
 load) and coupling between joints 2 and 3 (the parallel arm).  They shift
-the servo's set-point, which in the PD joint model is the same as an extra
+the servo's set-point, which in the servo-spring joint model is the same as an extra
 deflection: dq_i = b_i sign(tau_i) and dq_2 = c23 tau_3, dq_3 = c23 tau_2,
 with tau the process load's joint torques.  The sign is smoothed,
 tanh(tau / 50 N*m): near zero load the backlash is taken up gradually (by
@@ -11,7 +11,6 @@ newtons either way would flip."""
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
-
 
 LOST_MOTION_TORQUE_NM = 50.0  # torque over which the backlash is taken up (tanh scale)
 

@@ -4,25 +4,41 @@ tool position against the workpiece (the process loop)."""
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from robstiff_drake.model.kinematics import cross3
+from robstiff_drake.model.realtime import rotate_transposed
+
+
+def to_sensor_frame(R, tool_m, w):
+    """A wrench (force N, moment N*m about the tool point, base frame) as the
+    wrist sensor sees it: (force, moment about the sensor origin) in the
+    sensor frame.  R: flange rotation, row-major 9 floats (base <- DH 6);
+    tool_m: the tool point in the flange frame (3 floats)."""
+    f0, f1, f2 = rotate_transposed(R, w[:3])
+    m0, m1, m2 = rotate_transposed(R, w[3:])
+    tx, ty, tz = tool_m
+    # moment about the sensor origin: m + tool x f
+    return [f0, f1, f2, m0 + ty * f2 - tz * f1, m1 + tz * f0 - tx * f2, m2 + tx * f1 - ty * f0]
 
 
 class MillingForceSource(LeafSystem):
-    """Samples the robot's joint angles every ``period_s`` (the plant step)
-    and computes the cutting load at the actual tool point.
+    """Samples the robot's joint angles every ``period_s`` and computes the
+    cutting load at the actual tool point.
 
     Input  ``q`` (6): link angles, rad (controller convention).
     Output ``generalized_force`` (6): joint torques J^T W of the load held
-      over the step (N*m), for the plant.  The spindle is welded to the
+      over the period (N*m), for the plant.  The spindle is welded to the
       flange, so this is exactly the wrench applied to the spindle body.
       Tooth-resolved mode: W is the mean of the tooth-resolved wrench over the
-      step, sampled ``samples_per_tooth`` times per tooth pass.
+      period, sampled ``samples_per_tooth`` times per tooth pass.
     Output ``wrench`` (6): the wrench on the tool (force N, moment N*m about
       the tool point, base frame) at the current time: in tooth-resolved mode
       the instantaneous tooth forces at the held tool position (what a
       fast sensor sees), in averaged mode the revolution average.
     Output ``wrench_sensor`` (6): ``wrench`` as the wrist sensor sees it,
       (force, moment about the sensor origin) in the sensor frame (DH 6).
+
+    In averaged mode every output is held state (no computation between
+    updates); in tooth-resolved mode ``wrench`` and ``wrench_sensor`` are
+    computed from the time and the held tool pose.
     """
 
     def __init__(self, *, force_model, workpiece, path, kinematics, tool_point_m, period_s, mode="averaged",
@@ -34,52 +50,56 @@ class MillingForceSource(LeafSystem):
         self._workpiece = workpiece
         self._path = path
         self._kin = kinematics
-        self._tool = np.asarray(tool_point_m, dtype=float)
+        self._tool = tuple(float(v) for v in tool_point_m)
         self._mode = mode
         self._phase = phase_rad
-        # tooth-resolved: the step's mean over samples_per_tooth samples per tooth pass
+        # tooth-resolved: the period's mean over samples_per_tooth samples per tooth pass
         n_sub = max(1, int(round(period_s * force_model.cutter.tooth_pass_hz * samples_per_tooth)))
         self._sub_t = np.arange(n_sub) * (period_s / n_sub)
         self._q = self.DeclareVectorInputPort("q", 6)
-        # held: tool point (3), flange rotation (9), joint torques (6), step wrench (6)
-        self._state = self.DeclareDiscreteState(24)
+        # held: flange rotation (9) and tool point (3); joint torques; the
+        # period's wrench (base frame, at the tool point) and as the sensor sees it
+        self._pose = self.DeclareDiscreteState(12)
+        self._tau = self.DeclareDiscreteState(6)
+        self._w = self.DeclareDiscreteState(6)
+        self._ws = self.DeclareDiscreteState(6)
         self.DeclarePeriodicDiscreteUpdateEvent(period_s, 0.0, self._update)
-        held = {self.discrete_state_ticket(self._state)}
-        now = held | ({self.time_ticket()} if mode == "tooth" else set())
-        self.DeclareVectorOutputPort("generalized_force", 6, lambda c, o: o.SetFromVector(self._held(c)[12:18]),
-                                     prerequisites_of_calc=held)
-        self.DeclareVectorOutputPort("wrench", 6, lambda c, o: o.SetFromVector(self._wrench_now(c)),
-                                     prerequisites_of_calc=now)
-        self.DeclareVectorOutputPort("wrench_sensor", 6, self._calc_sensor, prerequisites_of_calc=now)
+        self.DeclareStateOutputPort("generalized_force", self._tau)
+        if mode == "averaged":
+            self.DeclareStateOutputPort("wrench", self._w)
+            self.DeclareStateOutputPort("wrench_sensor", self._ws)
+        else:
+            now = {self.discrete_state_ticket(self._pose), self.time_ticket()}
+            self.DeclareVectorOutputPort("wrench", 6, lambda c, o: o.SetFromVector(self._tooth_wrench_now(c)),
+                                         prerequisites_of_calc=now)
+            self.DeclareVectorOutputPort("wrench_sensor", 6, self._calc_sensor, prerequisites_of_calc=now)
 
-    def _held(self, context):
-        return context.get_discrete_state(self._state).value()
-
-    def _wrench_now(self, context):
-        x = self._held(context)
-        if self._mode == "averaged":
-            return x[18:24]
+    def _tooth_wrench_now(self, context):
+        p = context.get_discrete_state(self._pose).value()[9:]
         t = context.get_time()
-        return self._model.tooth_wrench(t, x[:3], self._path.feed_direction(t), self._workpiece, self._phase)
+        return self._model.tooth_wrench(t, p, self._path.feed_direction(t), self._workpiece, self._phase)
 
     def _calc_sensor(self, context, output):
-        w = self._wrench_now(context)
-        R = self._held(context)[3:12].reshape(3, 3)
-        f_s = R.T @ w[:3]
-        output.SetFromVector(np.concatenate([f_s, R.T @ w[3:] + cross3(self._tool, f_s)]))
+        R = context.get_discrete_state(self._pose).value()[:9].tolist()
+        output.SetFromVector(to_sensor_frame(R, self._tool, self._tooth_wrench_now(context).tolist()))
 
     def step_wrench(self, t, q):
-        """(wrench over the step starting at t, flange rotation, tool point)."""
-        R, p = self._kin.flange_rotation_and_tool_point(q)
+        """(wrench over the period starting at t as a list, pose): the pose is
+        the flange rotation (row-major 9) and the tool point (3), m."""
+        pose = self._kin.pose(q)
+        p = pose[9:]
         u = self._path.feed_direction(t)
         if self._mode == "tooth":
             w = self._model.tooth_wrench(t + self._sub_t, p, u, self._workpiece, self._phase) / len(self._sub_t)
         else:
             w = self._model.average_wrench(p, u, self._workpiece)
-        return w, R, p
+        return w.tolist(), pose
 
     def _update(self, context, discrete_state):
         q = self._q.Eval(context)
-        w, R, p = self.step_wrench(context.get_time(), q)
-        tau = np.array(self._kin.jacobian_rows(q)) @ w  # rows of J^T
-        discrete_state.set_value(self._state, np.concatenate([p, R.ravel(), tau, w]))
+        w, pose = self.step_wrench(context.get_time(), q)
+        # (numpy arrays: set_value converts them faster than lists)
+        discrete_state.set_value(self._pose, np.array(pose))
+        discrete_state.set_value(self._tau, np.array(self._kin.joint_torques(q, w)))
+        discrete_state.set_value(self._w, np.array(w))
+        discrete_state.set_value(self._ws, np.array(to_sensor_frame(pose[:9], self._tool, w)))

@@ -3,6 +3,8 @@ plus a correction that cancels the predicted deflection, updated once per
 controller period, with a rate limit (the saturation is Drake's Saturation
 block in front of it, and the transport delay a DiscreteTimeDelay)."""
 
+import math
+
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
@@ -16,15 +18,16 @@ class RateLimitedCorrection(LeafSystem):
 
     def __init__(self, *, period_s, rate_limit_rad_per_s):
         super().__init__()
-        self._step = np.asarray(rate_limit_rad_per_s, dtype=float) * period_s * np.ones(6)
+        self._step = (np.asarray(rate_limit_rad_per_s, dtype=float) * period_s * np.ones(6)).tolist()
         self._dq = self.DeclareVectorInputPort("dq", 6)
         self._state = self.DeclareDiscreteState(6)
         self.DeclarePeriodicDiscreteUpdateEvent(period_s, 0.0, self._update)
         self.DeclareStateOutputPort("correction", self._state)
 
     def _update(self, context, discrete_state):
-        dq = self._dq.Eval(context)
-        if not np.all(np.isfinite(dq)):
+        dq = self._dq.Eval(context).tolist()
+        if not math.isfinite(sum(dq)):
             return
-        now = context.get_discrete_state(self._state).value()
-        discrete_state.set_value(self._state, now + np.clip(-dq - now, -self._step, self._step))
+        now = context.get_discrete_state(self._state).value().tolist()
+        discrete_state.set_value(self._state, np.array([x + min(s, max(-s, -d - x))
+                                                        for x, d, s in zip(now, dq, self._step)]))

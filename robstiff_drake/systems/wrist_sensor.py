@@ -1,6 +1,8 @@
 """The wrist force/torque sensor between flange and spindle, and the guard
 that keeps bad samples (dropouts, spikes) out of the compensation chain."""
 
+import math
+
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
@@ -43,28 +45,34 @@ class WristForceSensor(LeafSystem):
         self.DeclareStateOutputPort("wrench", self._state)
 
     def true_wrench(self, context):
-        """The noise-free, bias-free wrench (sensor frame) at this instant."""
-        F_CJc = self._reaction.Eval(context)[self._joint]  # on the spindle, from the flange
-        weight_and_inertia = -np.concatenate([F_CJc.translational(), F_CJc.rotational()])
-        return weight_and_inertia + self._process.Eval(context)
+        """The noise-free, bias-free wrench (sensor frame) at this instant, a list."""
+        # the weld's reaction on the spindle, from the flange: (torque, force)
+        t0, t1, t2, f0, f1, f2 = self._reaction.Eval(context)[self._joint].get_coeffs().tolist()
+        p0, p1, p2, p3, p4, p5 = self._process.Eval(context).tolist()
+        return [p0 - f0, p1 - f1, p2 - f2, p3 - t0, p4 - t1, p5 - t2]
 
     def _draw(self):
+        """(noise 6, dropout and spike uniforms, spike axis, spike sign) for
+        one sample, from blocks drawn at once and kept as Python lists."""
         if self._next >= NOISE_BLOCK:
-            self._block = (self._rng.standard_normal((NOISE_BLOCK, 6)), self._rng.random((NOISE_BLOCK, 2)),
-                           self._rng.integers(0, 3, NOISE_BLOCK), self._rng.choice([-1.0, 1.0], NOISE_BLOCK))
+            r = self._rng
+            self._block = ((r.standard_normal((NOISE_BLOCK, 6)) * self._noise + self._bias).tolist(),
+                           r.random((NOISE_BLOCK, 2)).tolist(), r.integers(0, 3, NOISE_BLOCK).tolist(),
+                           r.choice([-1.0, 1.0], NOISE_BLOCK).tolist())
             self._next = 0
         i = self._next
         self._next += 1
         return self._block[0][i], self._block[1][i], self._block[2][i], self._block[3][i]
 
     def _sample(self, context, discrete_state):
-        z, u, axis, sign = self._draw()
-        w = self.true_wrench(context) + self._bias + self._noise * z
-        if u[0] < self._p_drop:
-            w = np.full(6, np.nan)
-        elif u[1] < self._p_spike:
-            w[axis] += self._spike * sign
-        discrete_state.set_value(self._state, w)
+        offset, u, axis, sign = self._draw()  # bias + noise
+        w = [a + b for a, b in zip(self.true_wrench(context), offset)]
+        if self._p_drop or self._p_spike:
+            if u[0] < self._p_drop:
+                w = [math.nan] * 6
+            elif u[1] < self._p_spike:
+                w[axis] += self._spike * sign
+        discrete_state.set_value(self._state, np.array(w))
 
 
 class WrenchGuard(LeafSystem):
@@ -87,9 +95,11 @@ class WrenchGuard(LeafSystem):
 
     def _update(self, context, discrete_state):
         w = self._in.Eval(context)
-        last = context.get_discrete_state(self._state).value()
-        finite = bool(np.isfinite(w).all())
-        if finite and max(abs(w[0] - last[0]), abs(w[1] - last[1]), abs(w[2] - last[2])) <= self._max_jump:
+        x, y, z, a, b, c = w.tolist()
+        lx, ly, lz = context.get_discrete_state(self._state).value()[:3].tolist()
+        # NaN fails every comparison, so a dropout is rejected here too
+        good = abs(x - lx) <= self._max_jump and abs(y - ly) <= self._max_jump and abs(z - lz) <= self._max_jump
+        if good and math.isfinite(a + b + c):
             discrete_state.set_value(self._state, w)
         else:
             n = context.get_discrete_state(self._count).value()[0]
