@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robstiff_drake.diagrams.milling_cell import build_milling_cell, make_simulator
+from robstiff_drake.diagrams.milling_cell import build_milling_cell, make_simulator, tool_wrench_log
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.surface import envelope_heights, surface_error_stats
 
@@ -131,6 +131,7 @@ def run_cut(sc, robot, *, compensation=True, cell=None):
     wall = time.perf_counter() - t0
     root = sim.get_context()
     logs = {name: signal.read(root) for name, signal in cell.loggers.items()}
+    logs["tool_wrench"] = tool_wrench_log(cell, logs)
     t, x = logs["state"]
     scans = scan_surface(cell, t, x[:, :6])
     err = np.concatenate([s.error_m[np.isfinite(s.error_m)] for s in scans])

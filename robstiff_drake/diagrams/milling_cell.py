@@ -381,7 +381,11 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
         "cutting_wrench": (milling.GetOutputPort("wrench"), log_dt),
         "raw_wrench": (chain["guard"].GetOutputPort("wrench"), 1.0 / ss.rate_hz),
         "filtered_wrench": (chain["filter"].get_output_port(), T),
-        "tool_wrench": (chain["prediction"].GetOutputPort("tool_wrench"), T),
+        # what the prediction reads (its tool_wrench output is derived from
+        # these after the run: tool_wrench_log, no Python call per tick)
+        "process_wrench": ((chain["predictive"].GetOutputPort("process_wrench") if "predictive" in chain
+                            else chain["gravity_removal"].get_output_port()), T),
+        "q_sampled": (chain["zoh_q"].get_output_port(), T),
         "dq": (chain["prediction"].GetOutputPort("dq"), T),
         "correction": (correction.get_output_port(), T),
         "rejected": (chain["guard"].GetOutputPort("rejected"), T),
@@ -396,6 +400,16 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
         systems=systems, initial={"q": q_ref[0], "wrench": w0}, plant_time_step_s=dt,
         transport_delay_s=chain_transport_delay_s(ss.rate_hz, ba, T, sc.controller.delay_steps),
         damping_beta_s=arm["beta_s"], natural_frequencies_hz=arm["natural_frequencies_hz"])
+
+
+def tool_wrench_log(cell, logs):
+    """(times, (N, 6)): the wrench the prediction used, at the tool point in
+    the base frame (its ``tool_wrench`` output), from the logged sensor-frame
+    process wrench and the sampled joint angles."""
+    t, w = logs["process_wrench"]
+    _, q = logs["q_sampled"]
+    pred = cell.systems["prediction"]
+    return t, np.array([pred.tool_wrench_of(wk, qk) for wk, qk in zip(w, q)]).reshape(-1, 6)
 
 
 @dataclass

@@ -52,19 +52,24 @@ class DeflectionPrediction(LeafSystem):
                                      prerequisites_of_calc=deps)
 
     def _tool_wrench(self, context):
-        """(the wrench at the tool point, base frame, as a list; q): what
+        """(the wrench at the tool point, base frame, as a list; q)."""
+        q = self._q.Eval(context)
+        return self.tool_wrench_of(self._w.Eval(context), q), q
+
+    def tool_wrench_of(self, process_wrench, q):
+        """The wrench at the tool point (base frame, list of 6) for a process
+        wrench in the sensor frame at joint angles q (rad): what
         sensor_to_tool_base computes, in scalar arithmetic (the per-cycle
         path)."""
-        q = self._q.Eval(context)
         R = self._pred.pose(q)
         if not self._identity_mount:
             M = self._R_mount
             R = [R[3 * i] * M[j] + R[3 * i + 1] * M[3 + j] + R[3 * i + 2] * M[6 + j] for i in range(3) for j in range(3)]
-        fx, fy, fz, mx, my, mz = self._w.Eval(context).tolist()
+        fx, fy, fz, mx, my, mz = process_wrench.tolist() if hasattr(process_wrench, "tolist") else process_wrench
         rx, ry, rz = self._r_s
         f = rotate(R, (fx, fy, fz))
         m = rotate(R, (mx - (ry * fz - rz * fy), my - (rz * fx - rx * fz), mz - (rx * fy - ry * fx)))
-        return list(f + m), q
+        return list(f + m)
 
     def _calc_dq(self, context, output):
         w, q = self._tool_wrench(context)

@@ -28,6 +28,5 @@ class RateLimitedCorrection(LeafSystem):
         dq = self._dq.Eval(context).tolist()
         if not math.isfinite(sum(dq)):
             return
-        now = context.get_discrete_state(self._state).value().tolist()
-        discrete_state.set_value(self._state, np.array([x + min(s, max(-s, -d - x))
-                                                        for x, d, s in zip(now, dq, self._step)]))
+        held = discrete_state.get_mutable_vector(int(self._state)).get_mutable_value()  # the current correction
+        held[:] = [x + min(s, max(-s, -d - x)) for x, d, s in zip(held.tolist(), dq, self._step)]

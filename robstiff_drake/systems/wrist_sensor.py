@@ -94,13 +94,15 @@ class WrenchGuard(LeafSystem):
         self.DeclareStateOutputPort("rejected", self._count)
 
     def _update(self, context, discrete_state):
+        # discrete_state arrives holding the current state: overwrite it in
+        # place when the sample is good, count it when it is not
         w = self._in.Eval(context)
+        held = discrete_state.get_mutable_vector(int(self._state)).get_mutable_value()
         x, y, z, a, b, c = w.tolist()
-        lx, ly, lz = context.get_discrete_state(self._state).value()[:3].tolist()
+        lx, ly, lz = held[:3].tolist()
         # NaN fails every comparison, so a dropout is rejected here too
         good = abs(x - lx) <= self._max_jump and abs(y - ly) <= self._max_jump and abs(z - lz) <= self._max_jump
         if good and math.isfinite(a + b + c):
-            discrete_state.set_value(self._state, w)
+            held[:] = w
         else:
-            n = context.get_discrete_state(self._count).value()[0]
-            discrete_state.set_value(self._count, [n + 1])
+            discrete_state.get_mutable_vector(int(self._count)).get_mutable_value()[0] += 1.0
