@@ -233,7 +233,7 @@ def _write(tmp_path, text):
         (lambda s: s.replace("    cutoff_hz: 2.0", "    cutoff_hz: 900.0"), "controller.filter.cutoff_hz: 900.0 Hz"),
         (lambda s: s.replace("  mode: averaged", "  mode: exact"), "cutting.mode: expected 'averaged' or 'tooth'"),
         (lambda s: s.replace("  time_step_ms: 2.0\n  damping_ratio: 0.10", "  time_step_ms: 4.0\n  damping_ratio: 0.01"),
-         "plant.time_step_ms: a 4 ms plant step is unstable for the 124 Hz joint mode"),
+         "plant.time_step_ms: a 4 ms plant step is unstable for the 124 Hz joint mode at damping ratio 0.01"),
         (lambda s: s.replace("    - [1497.5, 0.0, 700.0]", "    - [3497.5, 0.0, 700.0]"), "is out of reach"),
         (lambda s: s.replace("    - [1702.5, 0.0, 700.0]", "    - [1702.5, 0.0, 1900.0]"), "outside its joint limit"),
         (lambda s: s.replace("    - [1497.5, 0.0, 700.0]\n    - [1702.5, 0.0, 700.0]",

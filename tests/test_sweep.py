@@ -60,6 +60,7 @@ def test_failed_run_is_a_row(tmp_path):
         (["--period-ms", "4,x"], "'x' is not a number"),
         (["--period-ms", "4,-8"], "values must be > 0"),
         (["--period-ms", "1"], "period 1 ms is below the plant step (2 ms)"),
+        (["--period-ms", "16", "--plant-step-ms", "16"], "a 16 ms plant step is unstable for the 124 Hz joint mode"),
         (["--period-ms", "4", "--delay-steps", "1.5"], "'1.5' is not a whole number"),
         (["--period-ms", "4", "--cutoff-hz", "700"], "cutoff 700 Hz must be between 0 and half the sensor rate"),
         (["--period-ms", "4", "--mode", "plain,clever"], "expected plain and/or predictive"),

@@ -7,10 +7,12 @@ from pathlib import Path
 
 import numpy as np
 
+from robstiff_drake.diagrams.milling_cell import check_plant_step
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.diagrams.sweep import check_combinations, combinations, run_sweep
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import emit_json, save_figure_atomic
+from robstiff_drake.model.robot import load_robot
 
 
 def parse_list(text, what, kind=float):
@@ -96,6 +98,7 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
         sc.plant.time_step_ms = plant_step_ms
     combos = combinations(periods_ms, delay_steps, cutoffs_hz, mode_list)
     check_combinations(sc, combos)
+    check_plant_step(sc, load_robot())
     rows = run_sweep(Path(scenario), combos, workers=workers, scheduler=scheduler, plant_step_ms=plant_step_ms,
                      progress=progress, predict=predict)
     result = {"scenario": str(scenario), "n_runs": len(rows), "complete": True, "runs": rows}

@@ -149,6 +149,33 @@ def spring_step_is_stable(freqs_hz, beta_s, time_step_s):
     return bool(np.all(h * h * w2 < 4.0 + 2.0 * beta_s * w2 * h))
 
 
+def unstable_step_message(freqs_hz, beta_s, time_step_s, damping_ratio):
+    """None when the plant step is stable for every joint mode, else why not
+    (one line)."""
+    if spring_step_is_stable(freqs_hz, beta_s, time_step_s):
+        return None
+    w2 = (2 * np.pi * np.asarray(freqs_hz)) ** 2
+    h = time_step_s
+    worst = float(np.asarray(freqs_hz)[np.argmax(h * h * w2 - 2.0 * beta_s * w2 * h)])
+    return (f"a {h * 1e3:g} ms plant step is unstable for the {worst:.0f} Hz joint mode at damping ratio "
+            f"{damping_ratio:g}: shorten the step or raise the damping (every mode is stable when "
+            f"beta = 2 zeta / omega_1 >= step / 2; here beta = {beta_s * 1e3:.2f} ms)")
+
+
+def check_plant_step(sc, robot):
+    """Refuse, before anything runs, a scenario whose plant step is unstable
+    for its joint modes at the path's first pose (InputError, one line)."""
+    _, _, q_ref = planned_path(sc, robot, robot.payload.tool_point_m)
+    plant = MultibodyPlant(0.0)
+    add_irb6400(plant)
+    plant.Finalize()
+    freqs = natural_frequencies(plant, plant.CreateDefaultContext(), q_ref[0], plant_stiffness(sc, robot))
+    beta = 2 * sc.plant.damping_ratio / (2 * np.pi * freqs[0])
+    why = unstable_step_message(freqs, beta, sc.plant.time_step_ms / 1e3, sc.plant.damping_ratio)
+    if why:
+        raise InputError(f"{sc.source}: plant.time_step_ms: {why}")
+
+
 def add_compliant_irb6400(builder, *, time_step_s, joint_stiffness_Nm_per_rad, damping_ratio, q_modes_rad,
                           check_stability=True):
     """The compliant-joint IRB6400: a discrete MultibodyPlant whose joints
@@ -186,10 +213,9 @@ def add_compliant_irb6400(builder, *, time_step_s, joint_stiffness_Nm_per_rad, d
     controller_plant.Finalize()
     freqs = natural_frequencies(controller_plant, controller_plant.CreateDefaultContext(), q_modes_rad, k)
     beta = 2 * damping_ratio / (2 * np.pi * freqs[0])
-    if check_stability and not spring_step_is_stable(freqs, beta, time_step_s):
-        raise ValueError(f"a {time_step_s * 1e3:g} ms plant step is unstable for the {freqs[-1]:.0f} Hz joint mode "
-                         f"with damping ratio {damping_ratio:g} (needs beta = {beta * 1e3:.2f} ms >= step / 2, "
-                         f"or a shorter step)")
+    why = unstable_step_message(freqs, beta, time_step_s, damping_ratio) if check_stability else None
+    if why:
+        raise ValueError(why)
     for i, name in enumerate(JOINT_NAMES):
         plant.GetMutableJointByName(name, instance).set_default_damping(beta * k[i])
     plant.Finalize()
