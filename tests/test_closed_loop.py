@@ -287,3 +287,16 @@ def test_compensation_with_an_identified_model(robot, tmp_path, capsys):
     sc_nominal.model.identified_json = ""
     res_nominal = run_cut(sc_nominal, robot, compensation=True)
     assert abs(res_nominal.surface_error_mm["mean"]) > abs(res.surface_error_mm["mean"])
+
+
+def test_a_reused_diagram_gives_the_same_run(robot):
+    """The sensor's noise restarts with each simulation: two runs of one built
+    diagram are identical to the last sample."""
+    from robstiff_drake.diagrams.milling_cell import build_milling_cell
+
+    sc = load_scenario(SHORT)
+    assert sc.sensor.noise_N > 0
+    cell = build_milling_cell(sc, robot, compensation=True)
+    a, b = (run_cut(sc, robot, compensation=True, cell=cell) for _ in range(2))
+    np.testing.assert_array_equal(a.logs["raw_wrench"][1], b.logs["raw_wrench"][1])
+    assert a.surface_error_mm == b.surface_error_mm

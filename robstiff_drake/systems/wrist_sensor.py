@@ -35,14 +35,21 @@ class WristForceSensor(LeafSystem):
         self._p_drop = float(dropout_probability)
         self._p_spike = float(spike_probability)
         self._spike = float(spike_N)
-        self._rng = np.random.default_rng(seed)
-        self._block, self._next = None, NOISE_BLOCK
+        self._seed = seed
+        self._restart_noise()
         self._reaction = self.DeclareAbstractInputPort("reaction_forces", AbstractValue.Make([SpatialForce()]))
         self._process = self.DeclareVectorInputPort("process_wrench", 6)
         init = np.zeros(6) if initial_wrench is None else np.asarray(initial_wrench, dtype=float)
         self._state = self.DeclareDiscreteState(init)
         self.DeclarePeriodicDiscreteUpdateEvent(1.0 / rate_hz, 0.0, self._sample)
+        # every simulation starts the noise sequence afresh: the same
+        # scenario gives the same numbers, even when a diagram is reused
+        self.DeclareInitializationDiscreteUpdateEvent(lambda context, discrete_state: self._restart_noise())
         self.DeclareStateOutputPort("wrench", self._state)
+
+    def _restart_noise(self):
+        self._rng = np.random.default_rng(self._seed)
+        self._block, self._next = None, NOISE_BLOCK
 
     def true_wrench(self, context):
         """The noise-free, bias-free wrench (sensor frame) at this instant, a list."""
