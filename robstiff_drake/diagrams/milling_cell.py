@@ -461,7 +461,7 @@ def log_signals(builder, signals):
     out = {}
     for period, items in groups.items():
         sizes = [port.size() for _, port in items]
-        mux = builder.AddNamedSystem(f"log_mux_{len(out)}", Multiplexer(sizes))
+        mux = builder.AddNamedSystem(f"log_every_{period * 1e3:g}_ms_mux", Multiplexer(sizes))
         for i, (_, port) in enumerate(items):
             builder.Connect(port, mux.get_input_port(i))
         logger = LogVectorOutput(mux.get_output_port(), builder, period)
