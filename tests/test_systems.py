@@ -138,6 +138,9 @@ def test_gravity_removal_cancels_the_payload(robot, rng):
         process = np.array([120.0, -40.0, 10.0, 1.0, -2.0, 3.0])
         reading = payload_wrench(R, cal) + process
         assert np.linalg.norm(payload_wrench(R, cal)[:3] - [2, -1, 3]) == pytest.approx(40 * 9.81, rel=1e-12)
+        f = 40.0 * R.T @ [0.0, 0.0, -9.81]  # the weight in the sensor frame, by hand
+        np.testing.assert_allclose(payload_wrench(R, cal), np.concatenate(
+            [f + [2, -1, 3], np.cross([0.005, -0.003, 0.18], f) + [0.1, 0.0, -0.2]]), atol=1e-9)
         sys_.GetInputPort("wrench").FixValue(ctx, reading)
         sys_.GetInputPort("q").FixValue(ctx, q)
         np.testing.assert_allclose(sys_.get_output_port().Eval(ctx), process, atol=1e-9)

@@ -6,7 +6,12 @@ import numpy as np
 from pydrake.multibody.plant import MultibodyPlant
 
 from robstiff_drake.diagrams.experiment import ScanLine, material_top, zone_stats
-from robstiff_drake.diagrams.milling_cell import cutting_setup, filter_coefficients, natural_frequencies
+from robstiff_drake.diagrams.milling_cell import (
+    cutting_setup,
+    filter_coefficients,
+    natural_frequencies,
+    stiffness_proportional_beta_s,
+)
 from robstiff_drake.diagrams.scenario import model_stiffness, planned_path, plant_stiffness
 from robstiff_drake.diagrams.sweep import configure
 from robstiff_drake.model import ik
@@ -62,7 +67,7 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
         plant.SetPositions(ctx, q_mid)
         cache[key] = (plant.CalcMassMatrix(ctx), freqs)
     M, freqs = cache[key]
-    beta = 2 * sc.plant.damping_ratio / (2 * np.pi * freqs[0])
+    beta = stiffness_proportional_beta_s(freqs, sc.plant.damping_ratio)
     ba = filter_coefficients(sc.controller.filter, sc.sensor.rate_hz, cutter.spindle_rpm)
     T = sc.controller.period_ms / 1e3
     scale = sc.model.force_model_scale

@@ -134,6 +134,12 @@ def planned_path(sc, robot, tool):
     return path, t_ref, q_ref
 
 
+def stiffness_proportional_beta_s(freqs_hz, damping_ratio):
+    """beta (s) of the damping D = beta K that gives the first mode
+    ``damping_ratio``: beta = 2 zeta / omega_1 (the higher modes get more)."""
+    return 2.0 * damping_ratio / (2.0 * np.pi * float(freqs_hz[0]))
+
+
 def spring_step_is_stable(freqs_hz, beta_s, time_step_s):
     """Whether every joint-spring mode is stable in the plant's discrete step.
 
@@ -170,7 +176,7 @@ def check_plant_step(sc, robot):
     add_irb6400(plant)
     plant.Finalize()
     freqs = natural_frequencies(plant, plant.CreateDefaultContext(), q_ref[0], plant_stiffness(sc, robot))
-    beta = 2 * sc.plant.damping_ratio / (2 * np.pi * freqs[0])
+    beta = stiffness_proportional_beta_s(freqs, sc.plant.damping_ratio)
     why = unstable_step_message(freqs, beta, sc.plant.time_step_ms / 1e3, sc.plant.damping_ratio)
     if why:
         raise InputError(f"{sc.source}: plant.time_step_ms: {why}")
@@ -212,7 +218,7 @@ def add_compliant_irb6400(builder, *, time_step_s, joint_stiffness_Nm_per_rad, d
     add_irb6400(controller_plant)
     controller_plant.Finalize()
     freqs = natural_frequencies(controller_plant, controller_plant.CreateDefaultContext(), q_modes_rad, k)
-    beta = 2 * damping_ratio / (2 * np.pi * freqs[0])
+    beta = stiffness_proportional_beta_s(freqs, damping_ratio)
     why = unstable_step_message(freqs, beta, time_step_s, damping_ratio) if check_stability else None
     if why:
         raise ValueError(why)

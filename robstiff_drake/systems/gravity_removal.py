@@ -7,9 +7,11 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from robstiff_drake.model.kinematics import cross3, rpy_to_rotation
+from robstiff_drake.model.kinematics import rpy_to_rotation
 from robstiff_drake.model.realtime import rotate_transposed
 from robstiff_drake.model.robot import GRAVITY_BASE_M_PER_S2
+
+_GRAVITY = tuple(GRAVITY_BASE_M_PER_S2.tolist())
 
 
 @dataclass
@@ -29,14 +31,24 @@ class PayloadCalibration:
                 rpy_to_rotation(np.deg2rad(self.sensor_mount_rpy_deg or z)))
 
 
+def payload_weight(R_flange, R_mount, mass_kg, com_m):
+    """The payload's weight as the sensor feels it: (force N, moment N*m
+    about the sensor origin), sensor frame, a tuple.  R_flange (base <- DH
+    frame 6) and R_mount (DH 6 <- sensor) row-major, 9 floats each; com_m
+    (3 floats) in the sensor frame.  Scalar arithmetic: the per-cycle path."""
+    gx, gy, gz = rotate_transposed(R_mount, rotate_transposed(R_flange, _GRAVITY))  # gravity, sensor frame
+    fx, fy, fz = mass_kg * gx, mass_kg * gy, mass_kg * gz
+    cx, cy, cz = com_m
+    return (fx, fy, fz, cy * fz - cz * fy, cz * fx - cx * fz, cx * fy - cy * fx)
+
+
 def payload_wrench(R_flange, calibration, arrays=None):
     """The wrench the calibrated payload (weight + bias) puts on the sensor,
-    sensor frame, for the flange rotation R_flange (base <- DH frame 6).
+    sensor frame, for the flange rotation R_flange (3x3, base <- DH frame 6).
     ``arrays``: calibration.arrays(), when the caller keeps them."""
     m, c, bf, bt, R_mount = arrays or calibration.arrays()
-    g_s = (R_flange @ R_mount).T @ GRAVITY_BASE_M_PER_S2
-    f = m * g_s
-    return np.concatenate([f + bf, cross3(c, f) + bt])
+    weight = payload_weight(np.ravel(R_flange).tolist(), R_mount.ravel().tolist(), m, c.tolist())
+    return np.array(weight) + np.concatenate([bf, bt])
 
 
 class GravityRemoval(LeafSystem):
@@ -52,7 +64,6 @@ class GravityRemoval(LeafSystem):
         self._c = tuple(c.tolist())
         self._bias = np.concatenate([bf, bt])
         self._R_mount = tuple(R_mount.ravel().tolist())
-        self._g = tuple(GRAVITY_BASE_M_PER_S2.tolist())
         self._kin = kinematics
         self._w = self.DeclareVectorInputPort("wrench", 6)
         self._q = self.DeclareVectorInputPort("q", 6)
@@ -62,9 +73,5 @@ class GravityRemoval(LeafSystem):
 
     def _calc(self, context, output):
         R = self._kin.pose(self._q.Eval(context))  # rotation in the first nine
-        m = self._m
-        gx, gy, gz = rotate_transposed(self._R_mount, rotate_transposed(R, self._g))  # gravity, sensor frame
-        fx, fy, fz = m * gx, m * gy, m * gz
-        cx, cy, cz = self._c
-        weight = (fx, fy, fz, cy * fz - cz * fy, cz * fx - cx * fz, cx * fy - cy * fx)
+        weight = payload_weight(R, self._R_mount, self._m, self._c)
         output.SetFromVector(self._w.Eval(context) - self._bias - weight)

@@ -17,7 +17,7 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 from scipy import signal
 
-from robstiff_drake.model.kinematics import cross3
+from robstiff_drake.systems.milling_force import to_sensor_frame
 
 
 class PredictiveWrench(LeafSystem):
@@ -33,7 +33,7 @@ class PredictiveWrench(LeafSystem):
         self._wp = workpiece
         self._path = path
         self._kin = kinematics
-        self._tool = np.asarray(tool_m, dtype=float)
+        self._tool = tuple(float(v) for v in tool_m)
         self._lead = float(lead_s)
         self._h = 1.0 / rate_hz
         self._n_sub = max(1, int(round(period_s * rate_hz)))
@@ -54,8 +54,9 @@ class PredictiveWrench(LeafSystem):
         return self._model.average_wrench(self._path.position(t), self._path.feed_direction(t), self._wp)
 
     def _to_sensor(self, w, R):
-        f_s = R.T @ w[:3]
-        return np.concatenate([f_s, R.T @ w[3:] + cross3(self._tool, f_s)])
+        """A wrench at the tool point (base frame) as the sensor sees it, for
+        the flange rotation R (row-major 9 floats)."""
+        return np.array(to_sensor_frame(R, self._tool, w.tolist()))
 
     def _split(self, context):
         x = context.get_discrete_state(self._state).value()
@@ -73,6 +74,6 @@ class PredictiveWrench(LeafSystem):
     def _calc(self, context, output):
         X, t = self._split(context)
         replica = self._C @ X + self._D * self.model_wrench_base(t - 2 * self._h)
-        R, _ = self._kin.flange_rotation_and_tool_point(self._q.Eval(context))
+        R = self._kin.pose(self._q.Eval(context))[:9]
         ahead = self._to_sensor(self.model_wrench_base(t + self._lead), R)
         output.SetFromVector(ahead + self._w.Eval(context) - self._to_sensor(replica, R))
