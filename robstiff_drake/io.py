@@ -1,61 +1,389 @@
-"""Output helpers shared by every command: atomic writes and JSON."""
+"""The output layer shared by every command.
+
+* ``check_outputs(...)``: refuse, before any computation, an output that is
+  an input, a folder where a file is wanted (or the reverse), a special file
+  (device, FIFO, socket), a read-only file, or a place that cannot be
+  written (InputError: one line, exit status 2).
+* ``write_atomic`` / ``save_figure_atomic`` / ``emit_json``: a temporary
+  file in the target's folder and a rename, so a reader never sees a
+  half-written file; through a symlink the link's target is replaced (the
+  link stays); a new file gets the mode the umask gives, an existing file
+  keeps its own.
+* ``RunFolder``: a folder of outputs written as a whole (a temporary folder,
+  renamed into place when every file is written), stamped with a run id.
+* ``Warnings``: implausible results, one line each, printed to stderr as
+  ``robstiff: warning: ...`` and listed under ``warnings`` in the JSON.
+* JSON is always valid JSON: NaN and infinities become null, with a warning.
+"""
 
 import json
+import math
 import os
+import secrets
+import shutil
+import stat
 import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from robstiff_drake.errors import InputError
 
-def write_atomic(path, data):
-    """Write ``data`` (str or bytes) to ``path`` through a temporary file in
-    the same folder and a rename, so a reader never sees a half-written file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    mode = "wb" if isinstance(data, bytes) else "w"
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+STDOUT = "-"
+RUN_ID_FILE = "RUN_ID"
+
+
+class OutputError(InputError):
+    """An output that cannot be written (one line, exit status 2)."""
+
+
+# ---------------------------------------------------------------- warnings
+
+
+class Warnings(list):
+    """One-line warnings about a legal input whose result is implausible.
+
+    ``add`` prints the line to stderr at once (so a long run shows it when
+    it happens) and keeps it for the JSON's ``warnings`` key."""
+
+    def __init__(self, *, quiet=False):
+        super().__init__()
+        self.quiet = quiet
+
+    def add(self, message):
+        message = " ".join(str(message).split())
+        if message in self:
+            return
+        self.append(message)
+        if not self.quiet:
+            print(f"robstiff: warning: {message}", file=sys.stderr)
+
+    def extend_from(self, messages):
+        for m in messages or ():
+            self.add(m)
+
+
+# ---------------------------------------------------------------- checks
+
+
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _same(a, b):
     try:
-        with os.fdopen(fd, mode) as f:
-            f.write(data)
-        os.replace(tmp, path)
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.realpath(a) == os.path.realpath(b)
+
+
+def _inside(path, folder):
+    p, f = os.path.realpath(path), os.path.realpath(folder)
+    return p == f or p.startswith(f.rstrip(os.sep) + os.sep)
+
+
+def _existing_ancestor(path):
+    """The nearest ancestor of ``path`` that exists (Path), and the part below it."""
+    p = Path(os.path.abspath(path)).parent
+    while not p.exists():
+        if p.is_symlink():  # a dangling symlink on the way
+            return p, True
+        p = p.parent
+    return p, False
+
+
+def _check_parent(path, key):
+    anc, dangling = _existing_ancestor(path)
+    if dangling:
+        raise OutputError(f"{key} {path}: {anc} is a broken symbolic link")
+    if not anc.is_dir():
+        raise OutputError(f"{key} {path}: {anc} is a file, not a folder")
+    if not os.access(anc, os.W_OK | os.X_OK):
+        raise OutputError(f"{key} {path}: cannot write in {anc} (permission denied)")
+
+
+def _check_file_output(path, key, inputs):
+    text = str(path)
+    if text == STDOUT:
+        return
+    if text == "" or text.endswith(os.sep):
+        raise OutputError(f"{key} {text!r}: expected a file name")
+    target = os.path.realpath(text)
+    for src in inputs:
+        if src is not None and str(src) != STDOUT and os.path.exists(src) and _same(text, src):
+            raise OutputError(f"{key} {text}: this is an input of the command ({src}); "
+                              "choose another output file, inputs are never overwritten")
+    if os.path.lexists(text) and not os.path.exists(text):
+        raise OutputError(f"{key} {text}: a symbolic link to {os.readlink(text)}, which does not exist")
+    if os.path.exists(target):
+        st = os.stat(target)
+        if stat.S_ISDIR(st.st_mode):
+            raise OutputError(f"{key} {text}: is a folder; give a file name")
+        if not stat.S_ISREG(st.st_mode):
+            kind = ("a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else
+                    "a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
+                    else "not a regular file")
+            raise OutputError(f"{key} {text}: is {kind}; outputs go to regular files "
+                              f"(use '{STDOUT}' for standard output where the option takes it)")
+        if not st.st_mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH) or not os.access(target, os.W_OK):
+            raise OutputError(f"{key} {text}: the file is read-only; it is not replaced")
+    _check_parent(target, key)
+
+
+def _is_run_folder(path):
+    return (Path(path) / RUN_ID_FILE).is_file()
+
+
+def _check_folder_output(path, key, inputs):
+    text = str(path)
+    if text in ("", STDOUT):
+        raise OutputError(f"{key} {text!r}: expected a folder name")
+    if os.path.lexists(text) and not os.path.exists(text):
+        raise OutputError(f"{key} {text}: a symbolic link to {os.readlink(text)}, which does not exist")
+    real = os.path.realpath(text)
+    if os.path.exists(real):
+        if not os.path.isdir(real):
+            raise OutputError(f"{key} {text}: is a file, not a folder")
+        for src in inputs:
+            if src is not None and str(src) != STDOUT and os.path.exists(src) and _inside(src, real):
+                raise OutputError(f"{key} {text}: the folder holds an input of the command ({src}), and a run "
+                                  "folder is replaced as a whole; choose another output folder")
+        if any(Path(real).iterdir()) and not _is_run_folder(real):
+            raise OutputError(f"{key} {text}: the folder exists and is not a robstiff run folder (no {RUN_ID_FILE} "
+                              "file); choose a new folder or empty it, it would be replaced as a whole")
+        if os.path.ismount(real) or real == os.path.realpath(os.getcwd()):
+            raise OutputError(f"{key} {text}: cannot replace this folder as a whole; choose a sub-folder")
+    for src in inputs:  # e.g. --out . with an input inside
+        if src is not None and str(src) != STDOUT and _inside(real, src) and os.path.isdir(src):
+            raise OutputError(f"{key} {text}: inside the input folder {src}; choose a folder elsewhere")
+    _check_parent(real, key)
+
+
+def check_outputs(*, inputs=(), files=None, folders=None):
+    """Refuse bad outputs before anything is computed.
+
+    ``inputs``: paths the command reads (files or folders).  ``files`` and
+    ``folders``: ``{option name: path or None}`` of the outputs (None: not
+    asked for).  Raises OutputError (one line naming the option and path)."""
+    inputs = [os.fspath(p) for p in inputs if p is not None]
+    seen = {}
+    for key, path in (files or {}).items():
+        if path is None:
+            continue
+        _check_file_output(os.fspath(path), key, inputs)
+        if str(path) != STDOUT:
+            real = os.path.realpath(path)
+            if real in seen:
+                raise OutputError(f"{key} {path}: the same file as {seen[real]}")
+            seen[real] = key
+    for key, path in (folders or {}).items():
+        if path is None:
+            continue
+        _check_folder_output(os.fspath(path), key, inputs)
+
+
+# ---------------------------------------------------------------- writing
+
+
+def _target(path):
+    """Where the bytes go: through a symlink, its target."""
+    return Path(os.path.realpath(path))
+
+
+def _final_mode(target):
+    if target.exists():
+        return stat.S_IMODE(target.stat().st_mode)
+    return 0o666 & ~_umask()
+
+
+def _write_error(path, e):
+    return OutputError(f"cannot write {path}: {e.strerror or e}")
+
+
+def _replace_atomic(path, write):
+    """Write through ``write(tmp_path)`` into a temporary file next to the
+    target, then rename it over the target."""
+    target = _target(path)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        mode = _final_mode(target)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as e:
+        raise _write_error(path, e) from None
+    try:
+        os.close(fd)
+        write(tmp)
+        os.chmod(tmp, mode)
+        os.replace(tmp, target)
+    except OSError as e:
+        Path(tmp).unlink(missing_ok=True)
+        raise _write_error(path, e) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def write_atomic(path, data):
+    """Write ``data`` (str or bytes) to ``path`` atomically (see module docstring)."""
+    raw = data if isinstance(data, bytes) else data.encode("utf-8")
+
+    def write(tmp):
+        with open(tmp, "wb") as f:
+            f.write(raw)
+            f.flush()
+            os.fsync(f.fileno())
+
+    _replace_atomic(path, write)
 
 
 def save_figure_atomic(fig, path, **kwargs):
-    """Save a matplotlib figure as PNG atomically (temporary file + rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(fd)
+    """Save a matplotlib figure as PNG atomically, and close it."""
+    import matplotlib.pyplot as plt
+
     try:
-        fig.savefig(tmp, format="png", **kwargs)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+        _replace_atomic(path, lambda tmp: fig.savefig(tmp, format="png", **kwargs))
+    finally:
+        plt.close(fig)
 
 
-def _to_jsonable(obj):
+# ---------------------------------------------------------------- JSON
+
+
+def _to_jsonable(obj, where, bad):
     if isinstance(obj, dict):
-        return {k: _to_jsonable(v) for k, v in obj.items()}
+        return {str(k): _to_jsonable(v, f"{where}.{k}" if where else str(k), bad) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_to_jsonable(v) for v in obj]
+        return [_to_jsonable(v, f"{where}[{i}]", bad) for i, v in enumerate(obj)]
     if isinstance(obj, np.ndarray):
-        return _to_jsonable(obj.tolist())
+        return _to_jsonable(obj.tolist(), where, bad)
+    if isinstance(obj, (np.bool_, bool)):
+        return bool(obj)
     if isinstance(obj, np.generic):
-        return obj.item()
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        bad.append(where)
+        return None
+    if isinstance(obj, Path):
+        return str(obj)
     return obj
+
+
+def json_text(obj):
+    """``obj`` as JSON text; NaN and infinities become null, and when ``obj``
+    is a dict a warning in its ``warnings`` list names them."""
+    bad = []
+    data = _to_jsonable(obj, "", bad)
+    if bad and isinstance(data, dict):
+        shown = ", ".join(bad[:5]) + (f" and {len(bad) - 5} more" if len(bad) > 5 else "")
+        data.setdefault("warnings", [])
+        note = f"not finite, written as null: {shown}"
+        if note not in data["warnings"]:
+            data["warnings"].append(note)
+    return json.dumps(data, indent=2, allow_nan=False) + "\n"
 
 
 def emit_json(obj, destination):
     """Write ``obj`` as JSON to ``destination``: a path, or ``-`` for stdout."""
-    text = json.dumps(_to_jsonable(obj), indent=2) + "\n"
-    if str(destination) == "-":
+    text = json_text(obj)
+    if str(destination) == STDOUT:
         sys.stdout.write(text)
         sys.stdout.flush()
     else:
         write_atomic(destination, text)
+
+
+# ---------------------------------------------------------------- run folders
+
+
+def new_run_id():
+    return secrets.token_hex(6)
+
+
+class RunFolder:
+    """A folder of outputs written as a whole::
+
+        with RunFolder("robstiff-out") as run:
+            run.write("summary.json", text)
+            run.save_figure("plot.png", fig)
+
+    Files go to a temporary folder beside the target; on success a
+    ``RUN_ID`` file is added and the folder is renamed into place, replacing
+    an earlier run folder (never any other folder: ``check_outputs``
+    refuses those).  On an error or an interrupt the temporary folder is
+    removed and the earlier run is left as it was.  ``run.run_id`` is the
+    id to stamp into every file."""
+
+    def __init__(self, path, run_id=None):
+        self.path = Path(path)
+        self.run_id = run_id or new_run_id()
+        self.written = []
+        self._tmp = None
+
+    def __enter__(self):
+        target = _target(self.path)
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            self._tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+        except OSError as e:
+            raise _write_error(self.path, e) from None
+        return self
+
+    def file(self, name):
+        """The path of ``name`` inside the folder being written."""
+        return self._tmp / name
+
+    def write(self, name, data):
+        raw = data if isinstance(data, bytes) else data.encode("utf-8")
+        p = self.file(name)
+        try:
+            p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_bytes(raw)
+        except OSError as e:
+            raise _write_error(self.path / name, e) from None
+        self.written.append(name)
+
+    def save_figure(self, name, fig, **kwargs):
+        import matplotlib.pyplot as plt
+
+        try:
+            fig.savefig(self.file(name), format="png", **kwargs)
+        except OSError as e:
+            raise _write_error(self.path / name, e) from None
+        finally:
+            plt.close(fig)
+        self.written.append(name)
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is not None:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            return False
+        target = _target(self.path)
+        old = None
+        try:
+            (self._tmp / RUN_ID_FILE).write_text(self.run_id + "\n")
+            dir_mode = 0o777 & ~_umask()
+            file_mode = 0o666 & ~_umask()
+            for p in self._tmp.rglob("*"):
+                os.chmod(p, dir_mode if p.is_dir() else file_mode)
+            os.chmod(self._tmp, dir_mode)
+            if target.exists():
+                old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
+                os.rmdir(old)
+                os.replace(target, old)
+            os.replace(self._tmp, target)
+        except OSError as e:
+            if old is not None and old.exists() and not target.exists():
+                os.replace(old, target)
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            raise _write_error(self.path, e) from None
+        except BaseException:
+            if old is not None and old.exists() and not target.exists():
+                os.replace(old, target)
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            raise
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+        return False
