@@ -6,12 +6,10 @@ Prints the surface-error table and why the uncompensated robot cuts more
 ``out`` (default ./robstiff-out/): surface_error.png (like Fig. 7), the
 diagram, time series CSVs, demo.json and the stiffness map."""
 
-from pathlib import Path
-
 import numpy as np
 
 from robstiff_drake.commands import simulate, stiffness_map
-from robstiff_drake.io import emit_json, save_figure_atomic
+from robstiff_drake.io import RunFolder, check_outputs, json_text
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.robot import load_robot
@@ -52,21 +50,22 @@ def format_explanation(e):
 
 
 def run(*, out="robstiff-out"):
-    out = Path(out)
+    check_outputs(folders={"--out": out})
     robot = load_robot()
     sc, results = simulate.simulate(scenario=BLOCK, compensation="both", robot=robot)
     summ = simulate.summary(results, sc)
-    written = simulate.write_outputs(sc, results, robot, out)
     expl = cut_more_explanation(results[0], robot)
-    print("== the seed's block-milling test (Table 3), simulated ==")
+    print("== the paper's block-milling test (Table 3), simulated ==")
     print(simulate.format_table(summ))
     print()
     print(format_explanation(expl))
-    fig, _ = stiffness_map.make_map(robot, tool_m=robot.payload.tool_point_m)
-    save_figure_atomic(fig, out / "stiffness_map.png", dpi=110)
-    written.append("stiffness_map.png")
     summ["cut_more_explanation"] = expl
-    emit_json(summ, out / "demo.json")
-    written.append("demo.json")
+    with RunFolder(out) as run:
+        written = simulate.write_outputs(sc, results, robot, run)
+        fig, _ = stiffness_map.make_map(robot, tool_m=robot.payload.tool_point_m)
+        run.save_figure("stiffness_map.png", fig, dpi=110)
+        written.append("stiffness_map.png")
+        run.write("demo.json", json_text(dict(summ, run_id=run.run_id)))
+        written.append("demo.json")
     print(f"\nwrote to {out}/: " + ", ".join(written))
     return 0

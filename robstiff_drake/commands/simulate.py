@@ -13,7 +13,7 @@ import numpy as np
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.errors import InputError
-from robstiff_drake.io import emit_json, save_figure_atomic, write_atomic
+from robstiff_drake.io import RunFolder, check_outputs, emit_json, json_text
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.robot import load_robot
 
@@ -24,7 +24,7 @@ def label(compensation):
     return "compensated" if compensation else "uncompensated"
 
 
-def timeseries_csv(res, robot):
+def timeseries_csv(res, robot, run_id=""):
     """Controller-rate time series: raw and filtered wrench (sensor frame),
     estimated tool wrench, dq, correction, actual and commanded tool point."""
     t, filt = res.logs["filtered_wrench"]
@@ -58,6 +58,7 @@ def timeseries_csv(res, robot):
     for j, ax in enumerate("xyz"):
         cols[f"commanded_{ax}_mm"] = p_cmd[:, j] * 1e3
     buf = io.StringIO()
+    buf.write(f"# run_id: {run_id}\n")
     buf.write(f"# robstiff simulate: {res.cell.scenario.source}, {label(res.compensation)}; sampled every controller "
               "period. Wrenches: raw/filtered in the sensor frame (what the payload exerts on the sensor), "
               "tool_wrench = the gravity-free estimate at the tool point in the base frame. q*_deg: the joint "
@@ -92,15 +93,15 @@ def plot_surfaces(results, sc):
     return fig
 
 
-def write_diagram(cell, out):
+def write_diagram(cell, run):
     """diagram.dot always; diagram.svg too when Graphviz's `dot` is installed."""
     dot_text = cell.diagram.GetGraphvizString(max_depth=1)
-    write_atomic(out / "diagram.dot", dot_text)
+    run.write("diagram.dot", dot_text)
     if shutil.which("dot") is None:
         return ["diagram.dot (install Graphviz for diagram.svg)"]
     svg = subprocess.run(["dot", "-Tsvg"], input=dot_text.encode(), capture_output=True, check=False)
     if svg.returncode == 0:
-        write_atomic(out / "diagram.svg", svg.stdout)
+        run.write("diagram.svg", svg.stdout)
         return ["diagram.dot", "diagram.svg"]
     return ["diagram.dot (dot failed to render the SVG)"]
 
@@ -148,9 +149,10 @@ def simulate(*, scenario, compensation="both", robot=None):
     return sc, [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
 
 
-def surface_csv(res):
+def surface_csv(res, run_id=""):
     """The laser scans of one run: x, y, commanded and machined height, error (mm)."""
     buf = io.StringIO()
+    buf.write(f"# run_id: {run_id}\n")
     buf.write(f"# robstiff simulate: machined surface, {label(res.compensation)}; error = commanded - machined "
               "(positive: cut more); empty where there is no machined face.\n")
     buf.write("x_mm,y_mm,commanded_mm,machined_mm,error_mm\n")
@@ -161,8 +163,8 @@ def surface_csv(res):
     return buf.getvalue()
 
 
-def save_scenario(sc, path):
-    """The scenario as run, with its file references made absolute."""
+def scenario_text(sc, run_id=""):
+    """The scenario as run (YAML), with its file references made absolute."""
     import copy
 
     from pydrake.common.yaml import yaml_dump_typed
@@ -174,35 +176,38 @@ def save_scenario(sc, path):
         if getattr(sc.model, attr):
             setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
     source, sc.source = sc.source, ""
-    write_atomic(path, f"# the scenario of this run (from {source})\n" + yaml_dump_typed(sc, schema=Scenario))
+    return f"# run_id: {run_id}\n# the scenario of this run (from {source})\n" + yaml_dump_typed(sc, schema=Scenario)
 
 
-def write_outputs(sc, results, robot, out):
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+def write_outputs(sc, results, robot, run):
+    """Every file of a run into ``run`` (an io.RunFolder), each stamped with
+    its run id; returns the names written."""
     written = []
-    save_scenario(sc, out / "scenario.yaml")
+    run.write("scenario.yaml", scenario_text(sc, run.run_id))
     written.append("scenario.yaml")
-    save_figure_atomic(plot_surfaces(results, sc), out / "surface_error.png", dpi=110)
+    run.save_figure("surface_error.png", plot_surfaces(results, sc), dpi=110)
     written.append("surface_error.png")
-    written += write_diagram(results[-1].cell, out)
+    written += write_diagram(results[-1].cell, run)
     for res in results:
         name = f"timeseries_{label(res.compensation)}.csv"
-        write_atomic(out / name, timeseries_csv(res, robot))
+        run.write(name, timeseries_csv(res, robot, run.run_id))
         written.append(name)
         name = f"surface_{label(res.compensation)}.csv"
-        write_atomic(out / name, surface_csv(res))
+        run.write(name, surface_csv(res, run.run_id))
         written.append(name)
-    emit_json(summary(results, sc), out / "summary.json")
+    run.write("summary.json", json_text(dict(summary(results, sc), run_id=run.run_id)))
     written.append("summary.json")
     return written
 
 
 def run(*, scenario, compensation="both", json_out=None, out="robstiff-out"):
+    check_outputs(inputs=[scenario], files={"--json": json_out}, folders={"--out": out})
     robot = load_robot()
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot)
     summ = summary(results, sc)
-    written = write_outputs(sc, results, robot, out)
+    with RunFolder(out) as run_folder:
+        written = write_outputs(sc, results, robot, run_folder)
+    summ["run_id"] = run_folder.run_id
     summ["outputs"] = [str(Path(out) / w.split(" ")[0]) for w in written]
     if json_out is not None:
         emit_json(summ, json_out)
