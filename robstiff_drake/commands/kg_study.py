@@ -7,7 +7,7 @@ model is from the large-deflection equilibrium of the same joint springs."""
 import numpy as np
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.io import emit_json
+from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model import ik
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.robot import load_robot
@@ -97,6 +97,7 @@ def run(*, grid=5, force_N=500.0, payload_kg=150.0, json_out=None, robot_yaml=No
         raise InputError(f"kg-study: --grid must be >= 1, got {grid}")
     if not (force_N > 0 and payload_kg > 0):
         raise InputError("kg-study: --force-N and --payload-kg must be > 0")
+    check_outputs(inputs=[robot_yaml], files={"--json": json_out})
     res = study(load_robot(robot_yaml), grid=grid, force_N=force_N, payload_kg=payload_kg)
     if json_out is not None:
         emit_json(res, json_out)

@@ -5,7 +5,7 @@ import numpy as np
 
 from robstiff_drake.commands.main import parse_vector
 from robstiff_drake.errors import InputError, SingularPoseError
-from robstiff_drake.io import emit_json
+from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.robot import load_robot
@@ -90,6 +90,7 @@ def format_report(rep, robot):
 
 
 def run(*, q, tool=None, kx=False, json_out=None, robot_yaml=None):
+    check_outputs(inputs=[robot_yaml], files={"--json": json_out})
     robot = load_robot(robot_yaml)
     q_deg = parse_q_deg(q)
     robot.check_q_deg(q_deg, where="stiffness")
