@@ -13,9 +13,10 @@ MAX_REJECTED_SHARE = 0.02
 # The stiffness model is linear in small joint deflections; a surface error
 # beyond this (mm) means the arm has left that range or the loop diverged.
 SMALL_DEFLECTION_MM = 2.0
-# Compensation that changes the surface by less than this (mm, RMS of the
-# difference of the means and RMS) did nothing.
-NO_EFFECT_MM = 1e-4
+# Compensation that leaves more than this share of the uncompensated RMS
+# error did (almost) nothing: a sensor the guard rejects, a saturation or a
+# rate limit too tight, a period too long.
+NO_EFFECT_SHARE = 0.9
 # Compensated worse than uncompensated by more than this factor (RMS).
 WORSE_FACTOR = 1.05
 
@@ -54,7 +55,8 @@ def run_warnings(results, sc):
             if b["rms"] > WORSE_FACTOR * a["rms"]:
                 out.append(f"compensation made the surface worse: RMS {b['rms']:.3f} mm with it against "
                            f"{a['rms']:.3f} mm without (mean {b['mean']:+.3f} against {a['mean']:+.3f} mm)")
-            elif np.hypot(b["mean"] - a["mean"], b["rms"] - a["rms"]) < NO_EFFECT_MM:
-                out.append("compensation changed nothing: the compensated surface equals the uncompensated one "
-                           "(check the sensor, the guard, the saturation and the controller period)")
+            elif b["rms"] > NO_EFFECT_SHARE * a["rms"]:
+                out.append(f"compensation removed less than {100 * (1 - NO_EFFECT_SHARE):.0f} % of the surface error "
+                           f"(RMS {b['rms']:.3f} mm with it, {a['rms']:.3f} mm without): check the sensor, the guard, "
+                           "the saturation, the rate limit and the controller period")
     return out
