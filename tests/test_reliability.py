@@ -415,3 +415,19 @@ def test_sigterm_stops_a_sweep_and_its_workers(tmp_path):
     assert left == [], f"worker processes left behind: {left}"
     assert not out.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == [scen.name]
+
+
+def test_ctrl_c_during_a_simulation_leaves_nothing_behind(tmp_path):
+    scen = tmp_path / "slow.yaml"
+    scen.write_text((ROOT / "diagrams" / "block_milling.yaml").read_text().replace("  feed_mm_per_s: 20.0",
+                                                                                 "  feed_mm_per_s: 1.0"))
+    proc = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "simulate", str(scen), "--out",
+                             str(tmp_path / "run"), "--json", str(tmp_path / "s.json")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    time.sleep(4.0)
+    assert proc.poll() is None, "the simulation ended before it could be interrupted"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert err.strip() == "robstiff: interrupted"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["slow.yaml"]

@@ -53,6 +53,9 @@ def run(*, n, candidates=120, force_N=300.0, noise_mm=0.01, tool=None, seed=0, o
         "rel_std_planned": [None if np.isnan(v) else float(v) for v in plan.rel_std_planned],
         "rel_std_random_median": [None if np.isnan(v) else float(v) for v in plan.rel_std_random],
         "d_efficiency_gain": float(np.exp((plan.logdet_planned - plan.logdet_random) / plan.identifiable.sum())),
+        "warnings": [f"joint {j + 1} is not identifiable with this tool point (the loads give it no torque); "
+                     "use a tool point off the flange axis or apply moments" for j in range(6)
+                     if not plan.identifiable[j]],
     }
     if json_out is not None:
         emit_json(res, json_out)

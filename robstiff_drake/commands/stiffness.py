@@ -49,6 +49,8 @@ def pose_report(robot, q_deg, tool_m):
         "stiffness_N_per_um": None if K3 is None else K3.tolist(),
         "stiffness_N_per_um_principal": [None if not np.isfinite(s) else float(s) for s in stiff_eig_N_per_um],
         "singular_joints": list(joints),
+        "warnings": ([f"singular pose ({st.describe_singularity(joints)}): the stiffness along the lost direction "
+                      "is unbounded and K_x does not exist"] if joints else []),
     }
 
 

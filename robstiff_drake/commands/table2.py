@@ -144,7 +144,7 @@ def run(*, json_out=None, plot_out=None, data=None):
     diag = diagnosis(results, F, D, rows)
     if json_out is not None:
         emit_json({"data": str(data or TABLE2_CSV), "groups": to_dict(results), "offset_along_load": pooled,
-                   "diagnosis": diag}, json_out)
+                   "diagnosis": diag, "warnings": []}, json_out)
     if plot_out is not None:
         save_figure_atomic(plot(results, F, D, rows), plot_out, dpi=100)
     if json_out != "-":
