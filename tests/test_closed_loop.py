@@ -20,8 +20,8 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.model import ik
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
+from robstiff_drake.model.payload import PayloadCalibration
 from robstiff_drake.model.realtime import DeflectionPredictor
-from robstiff_drake.systems.gravity_removal import PayloadCalibration
 
 DATA = Path(__file__).parent / "data"
 SHORT = DATA / "short_block.yaml"

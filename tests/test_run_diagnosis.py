@@ -4,7 +4,6 @@ compensator's model lacks (or whose loop lags) is traced, fixed and re-run."""
 import json
 from pathlib import Path
 
-
 from robstiff_drake.commands.main import main
 
 ROOT = Path(__file__).parents[1]

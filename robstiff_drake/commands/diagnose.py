@@ -4,10 +4,10 @@ it, and report the held-out error before and after."""
 
 import numpy as np
 
+from robstiff_drake.commands.identify import campaign_warnings
 from robstiff_drake.commands.main import parse_vector
 from robstiff_drake.identification.campaign import read_stiffness_campaign
 from robstiff_drake.identification.diagnosis import ALPHA, CANDIDATES, MIN_GAIN, diagnose
-from robstiff_drake.commands.identify import campaign_warnings
 from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, write_atomic
 from robstiff_drake.model.robot import load_robot

@@ -5,7 +5,6 @@ compensation), run again, and report before and after."""
 
 from pathlib import Path
 
-
 from robstiff_drake.diagrams.run_diagnosis import diagnose_run
 from robstiff_drake.io import emit_json, save_figure_atomic
 from robstiff_drake.model.robot import load_robot

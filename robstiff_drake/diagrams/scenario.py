@@ -19,8 +19,7 @@ import yaml
 from robstiff_drake.diagrams.schema import check_object, choice, num, rows, text, validate, vec
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.path import PlannedPath
-from robstiff_drake.systems.gravity_removal import PayloadCalibration
-
+from robstiff_drake.model.payload import PayloadCalibration
 
 # Ranges: what a machining robot's cell can physically be, wide enough for
 # any real set-up, narrow enough that a typo (a unit slip, a missing decimal

@@ -19,7 +19,6 @@ import yaml
 
 from robstiff_drake.errors import InputError
 
-
 # A number as YAML 1.2 (and Drake's loader) reads it: PyYAML's YAML 1.1
 # takes "1e9" (no dot) for text, so plain ASCII numbers in text are numbers.
 _NUMBER = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?")

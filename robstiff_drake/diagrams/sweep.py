@@ -9,9 +9,9 @@ import copy
 import itertools
 import math
 import os
+import signal
 import sys
 import time
-import signal
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 
