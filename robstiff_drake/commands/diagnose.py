@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_vector
-from robstiff_drake.identification.campaign import read_stiffness_campaign
+from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
 from robstiff_drake.identification.diagnosis import ALPHA, CANDIDATES, MIN_GAIN, diagnose
-from robstiff_drake.io import emit_json, save_figure_atomic, write_atomic
+from robstiff_drake.io import Warnings, emit_json, save_figure_atomic, write_atomic
 from robstiff_drake.model.robot import load_robot
 
 
@@ -151,8 +151,8 @@ def residual_views(d, campaign, robot, out_dir):
 
 def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=None):
     robot = load_robot(robot_yaml)
-    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
     campaign = read_stiffness_campaign(data, robot)
+    tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), Warnings(quiet=json_out == "-"))
     d = diagnose(robot, campaign, tool_m=tool_m)
     if json_out is not None:
         emit_json(_nan_json(to_dict(d, campaign)), json_out)

@@ -8,7 +8,17 @@ from pathlib import Path
 
 from robstiff_drake.diagrams.run_diagnosis import diagnose_run
 from robstiff_drake.io import emit_json, save_figure_atomic
-from robstiff_drake.model.robot import load_robot
+from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+from robstiff_drake.errors import InputError
+
+
+def run_robot(run_dir, robot_yaml=None):
+    """The robot of a run folder: the one its scenario.yaml names (--robot
+    must agree with it)."""
+    path = Path(run_dir) / "scenario.yaml"
+    if not path.is_file():
+        raise InputError(f"{run_dir}: not a simulate output folder (no scenario.yaml)")
+    return scenario_robot(load_scenario(path), robot_yaml)
 
 
 def plot(before, after, path, title):
@@ -61,8 +71,8 @@ def format_report(rep):
     return "\n".join(lines)
 
 
-def run(*, run_dir, json_out=None, out=None):
-    robot = load_robot()
+def run(*, run_dir, json_out=None, out=None, robot_yaml=None):
+    robot = run_robot(run_dir, robot_yaml)
     rep, before, after = diagnose_run(run_dir, robot)
     out = Path(out) if out else Path(run_dir) / "diagnosis"
     plot(before, after, out / "before_after.png", f"{Path(run_dir).name}: fix = {rep['fix']}")

@@ -2,16 +2,17 @@
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_vector
-from robstiff_drake.identification.campaign import read_stiffness_campaign
+from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
 from robstiff_drake.identification.joint_stiffness import identify
-from robstiff_drake.io import emit_json, save_figure_atomic
+from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic
 from robstiff_drake.model.robot import load_robot
 
 
 def fit_to_dict(fit, campaign, robot, tool_m):
     return {
         "data": campaign.path,
+        "robot": robot.name,
         "tool_mm": (np.asarray(tool_m) * 1e3).tolist(),
         "joint_stiffness_Nm_per_rad": fit.stiffness_Nm_per_rad,
         "joint_stiffness_std_Nm_per_rad": [None if np.isnan(v) else float(v) for v in fit.stiffness_std_Nm_per_rad],
@@ -110,12 +111,15 @@ def plot_fit(fit, campaign, robot):
 
 
 def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=None):
+    check_outputs(inputs=[data], files={"--json": json_out, "--plot": plot})
     robot = load_robot(robot_yaml)
-    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    tool_arg = parse_tool(tool)
     campaign = read_stiffness_campaign(data, robot)
+    warnings = Warnings(quiet=json_out == "-")
+    tool_m = campaign_tool_m(campaign, robot, tool_arg, warnings)
     fit = identify(robot, campaign, tool_m=tool_m, robust=robust)
     if json_out is not None:
-        emit_json(fit_to_dict(fit, campaign, robot, tool_m), json_out)
+        emit_json(dict(fit_to_dict(fit, campaign, robot, tool_m), warnings=list(warnings)), json_out)
     if plot is not None:
         save_figure_atomic(plot_fit(fit, campaign, robot), plot, dpi=100)
     if json_out != "-":

@@ -11,11 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.diagrams.experiment import run_cut
-from robstiff_drake.diagrams.scenario import load_scenario
+from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import emit_json, save_figure_atomic, write_atomic
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.model.robot import load_robot
 
 MODES = {"on": (True,), "off": (False,), "both": (False, True)}
 
@@ -48,8 +47,9 @@ def timeseries_csv(res, robot):
     q_ref = np.column_stack([np.interp(t, res.cell.q_ref_times, res.cell.q_ref[:, j]) for j in range(6)])
     corr = res.logs["correction"][1][: len(t)] if res.compensation else 0.0
     q_cmd = q_ref + corr
+    q_cmd_deg = robot.controller_deg(q_cmd)  # the controller's convention
     for j in range(6):
-        cols[f"q{j + 1}_deg"] = np.rad2deg(q_cmd[:, j])
+        cols[f"q{j + 1}_deg"] = q_cmd_deg[:, j]
     T = kin.frames(robot.dh, q)[:, 6]
     p = T[:, :3, 3] + T[:, :3, :3] @ res.cell.tool_m
     p_cmd = res.cell.path.positions(t)
@@ -106,7 +106,7 @@ def write_diagram(cell, out):
 
 
 def summary(results, sc):
-    out = {"scenario": sc.source, "name": sc.name, "surface_error_mm": {}}
+    out = {"scenario": sc.source, "name": sc.name, "robot": results[0].cell.robot.name, "surface_error_mm": {}}
     res0 = results[0]
     for res in results:
         out["surface_error_mm"][label(res.compensation)] = res.surface_error_mm
@@ -139,12 +139,13 @@ def format_table(summ):
     return "\n".join(lines)
 
 
-def simulate(*, scenario, compensation="both", robot=None):
-    """Load and run; returns (scenario, results)."""
+def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None):
+    """Load and run; returns (scenario, results).  The robot: ``robot`` (a
+    RobotModel), else --robot's ``robot_yaml``, else the scenario's own."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
     sc = load_scenario(scenario)
-    robot = robot or load_robot()
+    robot = robot or scenario_robot(sc, robot_yaml)
     return sc, [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
 
 
@@ -167,12 +168,15 @@ def save_scenario(sc, path):
 
     from pydrake.common.yaml import yaml_dump_typed
 
-    from robstiff_drake.diagrams.scenario import Scenario, resolve
+    from robstiff_drake.diagrams.scenario import Scenario, resolve, robot_spec
 
     sc = copy.deepcopy(sc)
     for attr in ("identified_json", "payload_yaml"):
         if getattr(sc.model, attr):
             setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
+    spec = robot_spec(sc)
+    if spec is not None and spec != sc.robot:  # a robot file: make its path absolute
+        sc.robot = str(Path(spec).resolve())
     source, sc.source = sc.source, ""
     write_atomic(path, f"# the scenario of this run (from {source})\n" + yaml_dump_typed(sc, schema=Scenario))
 
@@ -198,8 +202,9 @@ def write_outputs(sc, results, robot, out):
     return written
 
 
-def run(*, scenario, compensation="both", json_out=None, out="robstiff-out"):
-    robot = load_robot()
+def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", robot_yaml=None):
+    sc = load_scenario(scenario)
+    robot = scenario_robot(sc, robot_yaml)
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot)
     summ = summary(results, sc)
     written = write_outputs(sc, results, robot, out)

@@ -152,6 +152,9 @@ class ScanConfig:
 class Scenario:
     name: str = ""
     description: str = ""
+    # The robot: a library name (`robstiff robots`) or a robot file (relative
+    # to this file); empty: the IRB6400.
+    robot: str = ""
     plant: PlantConfig = field(default_factory=PlantConfig)
     cutter: CutterConfig = field(default_factory=CutterConfig)
     cutting: CuttingConfig = field(default_factory=CuttingConfig)
@@ -316,3 +319,28 @@ def payload_calibration(sc, robot):
             raise InputError(f"{sc.source}: model.payload_yaml: cannot read payload_calibration from {p} ({e})") \
                 from None
     return exact_payload_calibration(sc, robot)
+
+
+def robot_spec(sc):
+    """The scenario's ``robot:`` as load_robot takes it (a library name, or
+    its file resolved against the scenario's folder); None when empty."""
+    if not sc.robot:
+        return None
+    from robstiff_drake.paths import library_robots
+
+    if sc.robot in library_robots():
+        return sc.robot
+    return str(resolve(sc, sc.robot))
+
+
+def scenario_robot(sc, override=None):
+    """The RobotModel that runs scenario ``sc``: ``override`` (--robot) or
+    the scenario's ``robot:`` (default: the IRB6400).  InputError, naming
+    both, when the two are given and name different robots."""
+    from robstiff_drake.model.robot import load_robot, same_robot_file
+
+    spec = robot_spec(sc)
+    if override is not None and spec is not None and not same_robot_file(spec, override):
+        raise InputError(f"--robot {override} disagrees with the robot of {sc.source or 'the scenario'} "
+                         f"(robot: {sc.robot}); drop --robot or edit the scenario")
+    return load_robot(override if override is not None else spec)
