@@ -5,20 +5,23 @@ compensation), run again, and report before and after."""
 
 from pathlib import Path
 
+import yaml
 
 from robstiff_drake.diagrams.run_diagnosis import diagnose_run
+from robstiff_drake.diagrams.scenario import Scenario, scenario_robot
 from robstiff_drake.io import emit_json, save_figure_atomic
-from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
-from robstiff_drake.errors import InputError
 
 
 def run_robot(run_dir, robot_yaml=None):
     """The robot of a run folder: the one its scenario.yaml names (--robot
-    must agree with it)."""
+    must agree with it); the scenario itself is checked by diagnose_run."""
     path = Path(run_dir) / "scenario.yaml"
-    if not path.is_file():
-        raise InputError(f"{run_dir}: not a simulate output folder (no scenario.yaml)")
-    return scenario_robot(load_scenario(path), robot_yaml)
+    try:
+        doc = yaml.safe_load(path.read_text()) if path.is_file() else {}
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        doc = {}
+    spec = doc.get("robot", "") if isinstance(doc, dict) else ""
+    return scenario_robot(Scenario(robot=str(spec or ""), source=str(path)), robot_yaml)
 
 
 def plot(before, after, path, title):

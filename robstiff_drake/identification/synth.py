@@ -165,11 +165,11 @@ def stiffness_csv(c, *, robot, noise_mm, seed, force_N, tool_m, how=None):
     lines = [
         "# Synthetic stiffness campaign made by robstiff-drake (robstiff_drake/identification/synth.py).",
         f"# Made with: {how or command_line()}",
-        f"# Robot model: {robot.source} ({robot.name}); true joint stiffness N*m/rad: "
-        + ", ".join(f"{k:.6g}" for k in c.true_stiffness_Nm_per_rad),
-        f"# Joint angles q1..q6: the {robot.manufacturer} controller's convention (deg), as the pendant shows them.",
-        f"# Poses: tool point {np.round(np.asarray(tool_m) * 1e3, 3).tolist()} mm (flange frame) uniform in the "
-        "machining workspace box, spindle axis tilted up to 25 deg from straight down, yaw within +-90 deg; IK.",
+        f"# Robot model: {robot.source} ({robot.name}; q1..q6 in its controller's convention, deg); true joint "
+        "stiffness N*m/rad: " + ", ".join(f"{k:.6g}" for k in c.true_stiffness_Nm_per_rad),
+        f"# Poses: the tool point (the tool_mm line, flange frame) uniform in the machining workspace box, spindle "
+        "axis tilted up to 25 deg from straight down, yaw within +-90 deg; IK.",
+        tool_header_line(tool_m),
         f"# Loads: {force_N:g} N in uniformly random directions, {len(set(c.pose))} poses, rows grouped by 'pose'.",
         f"# Displacements: conventional model dx = Jv diag(1/k) J^T F (mm), plus Gaussian CMM noise "
         f"sigma = {noise_mm:g} mm per component; random seed {seed}.",
@@ -182,8 +182,6 @@ def stiffness_csv(c, *, robot, noise_mm, seed, force_N, tool_m, how=None):
                          f"the six joint compliances absorbs): {ptxt}")
     else:
         lines.append("# Effects switched on: none (the data follow the conventional model exactly, plus noise).")
-    lines.append("# The tool point the displacements were measured at (flange frame, mm); identify and diagnose read it:")
-    lines.append(tool_header_line(tool_m))
     lines.append("pose,seq,q1,q2,q3,q4,q5,q6,fx,fy,fz,dx,dy,dz")
     for i in range(len(c.seq)):
         row = [c.pose[i], str(int(c.seq[i]))]

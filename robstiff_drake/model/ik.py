@@ -134,14 +134,15 @@ def _arm(dh, pc):
     e = d[1] + d[2] + np.cos(al[2]) * d[3]  # wrist centre's height along axis 2, frame 1
     k = (e - np.cos(al[0]) * (z - d[0])) / np.sin(al[0])  # = x sin(theta1) - y cos(theta1)
     r = np.hypot(x, y)
-    if abs(k) > r:
+    if abs(k) > r + 1e-12:
         return None
     phi = np.arctan2(y, x)
+    shift = np.arcsin(np.clip(k / r, -1.0, 1.0)) if r > 1e-12 else 0.0  # r = 0: on axis 1, any theta1
     w = np.array([a[2], -np.sin(al[2]) * d[3]])
     L = np.hypot(*w)
     phi_w = np.arctan2(w[1], w[0])
     best = None
-    for th1 in (phi + np.arcsin(k / r), phi + np.pi - np.arcsin(k / r)):
+    for th1 in (phi + shift, phi + np.pi - shift):
         T1 = base @ _link(dh, 0, th1)
         v = np.linalg.solve(T1, np.r_[pc, 1.0])[:3]
         c = (v[0] ** 2 + v[1] ** 2 - a[1] ** 2 - L ** 2) / (2 * a[1] * L)
