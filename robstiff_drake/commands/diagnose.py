@@ -152,7 +152,7 @@ def residual_views(d, campaign, robot, out_dir):
 def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=None):
     robot = load_robot(robot_yaml)
     campaign = read_stiffness_campaign(data, robot)
-    tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), Warnings(quiet=json_out == "-"))
+    tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), Warnings())
     d = diagnose(robot, campaign, tool_m=tool_m)
     if json_out is not None:
         emit_json(_nan_json(to_dict(d, campaign)), json_out)

@@ -115,7 +115,7 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
     robot = load_robot(robot_yaml)
     tool_arg = parse_tool(tool)
     campaign = read_stiffness_campaign(data, robot)
-    warnings = Warnings(quiet=json_out == "-")
+    warnings = Warnings()
     tool_m = campaign_tool_m(campaign, robot, tool_arg, warnings)
     fit = identify(robot, campaign, tool_m=tool_m, robust=robust)
     if json_out is not None:

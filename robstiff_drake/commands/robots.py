@@ -36,9 +36,9 @@ def run(*, json_out=None):
     if json_out is not None:
         emit_json({"robots": rows}, json_out)
     if json_out != "-":
-        print(f"{'name':14s} {'manufacturer':12s} {'model':26s} {'convention':12s} {'controller':20s} source")
+        print(f"{'name':14s} {'manufacturer':12s} {'model':26s} {'convention':12s} {'controller':21s} source")
         for r in rows:
             print(f"{r['name']:14s} {r['manufacturer']:12s} {r['model']:26s} {r['convention']:12s} "
-                  f"{r['controller_map']:20s} {r['source']}")
+                  f"{r['controller_map']:21s} {r['source']}")
         print("use one with --robot NAME, or give your own robot file with --robot PATH.yaml (docs/your_robot.md)")
     return 0
