@@ -5,9 +5,23 @@ compensation), run again, and report before and after."""
 
 from pathlib import Path
 
+import yaml
+
 from robstiff_drake.diagrams.run_diagnosis import diagnose_run
+from robstiff_drake.diagrams.scenario import Scenario, scenario_robot
 from robstiff_drake.io import emit_json, save_figure_atomic
-from robstiff_drake.model.robot import load_robot
+
+
+def run_robot(run_dir, robot_yaml=None):
+    """The robot of a run folder: the one its scenario.yaml names (--robot
+    must agree with it); the scenario itself is checked by diagnose_run."""
+    path = Path(run_dir) / "scenario.yaml"
+    try:
+        doc = yaml.safe_load(path.read_text()) if path.is_file() else {}
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        doc = {}
+    spec = doc.get("robot", "") if isinstance(doc, dict) else ""
+    return scenario_robot(Scenario(robot=str(spec or ""), source=str(path)), robot_yaml)
 
 
 def plot(before, after, path, title):
@@ -60,8 +74,8 @@ def format_report(rep):
     return "\n".join(lines)
 
 
-def run(*, run_dir, json_out=None, out=None):
-    robot = load_robot()
+def run(*, run_dir, json_out=None, out=None, robot_yaml=None):
+    robot = run_robot(run_dir, robot_yaml)
     rep, before, after = diagnose_run(run_dir, robot)
     out = Path(out) if out else Path(run_dir) / "diagnosis"
     plot(before, after, out / "before_after.png", f"{Path(run_dir).name}: fix = {rep['fix']}")

@@ -12,11 +12,10 @@ import numpy as np
 
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, run_warnings
-from robstiff_drake.diagrams.scenario import load_scenario, scenario_warnings
+from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.model.robot import load_robot
 
 MODES = {"on": (True,), "off": (False,), "both": (False, True)}
 
@@ -49,8 +48,9 @@ def timeseries_csv(res, robot, run_id=""):
     q_ref = np.column_stack([np.interp(t, res.cell.q_ref_times, res.cell.q_ref[:, j]) for j in range(6)])
     corr = res.logs["correction"][1][: len(t)] if res.compensation else 0.0
     q_cmd = q_ref + corr
+    q_cmd_deg = robot.controller_deg(q_cmd)  # the controller's convention
     for j in range(6):
-        cols[f"q{j + 1}_deg"] = np.rad2deg(q_cmd[:, j])
+        cols[f"q{j + 1}_deg"] = q_cmd_deg[:, j]
     T = kin.frames(robot.dh, q)[:, 6]
     p = T[:, :3, 3] + T[:, :3, :3] @ res.cell.tool_m
     p_cmd = res.cell.path.positions(t)
@@ -108,7 +108,8 @@ def write_diagram(cell, run):
 
 
 def summary(results, sc, warnings=()):
-    out = {"scenario": sc.source, "name": sc.name, "surface_error_mm": {}, "warnings": list(warnings)}
+    out = {"scenario": sc.source, "name": sc.name, "robot": results[0].cell.robot.name, "surface_error_mm": {},
+           "warnings": list(warnings)}
     res0 = results[0]
     for res in results:
         out["surface_error_mm"][label(res.compensation)] = res.surface_error_mm
@@ -144,13 +145,15 @@ def format_table(summ):
     return "\n".join(lines)
 
 
-def simulate(*, scenario, compensation="both", robot=None, warnings=None):
-    """Load and run; returns (scenario, results).  Warnings about the
-    settings and the result go to ``warnings`` (an io.Warnings) if given."""
+def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None):
+    """Load and run; returns (scenario, results).  The robot: ``robot`` (a
+    RobotModel), else --robot's ``robot_yaml``, else the scenario's own.
+    Warnings about the settings and the result go to ``warnings`` (an
+    io.Warnings) if given."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
     sc = load_scenario(scenario)
-    robot = robot or load_robot()
+    robot = robot or scenario_robot(sc, robot_yaml)
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot))
     results = [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
@@ -179,12 +182,15 @@ def scenario_text(sc, run_id=""):
 
     from pydrake.common.yaml import yaml_dump_typed
 
-    from robstiff_drake.diagrams.scenario import Scenario, resolve
+    from robstiff_drake.diagrams.scenario import Scenario, resolve, robot_spec
 
     sc = copy.deepcopy(sc)
     for attr in ("identified_json", "payload_yaml"):
         if getattr(sc.model, attr):
             setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
+    spec = robot_spec(sc)
+    if spec is not None and spec != sc.robot:  # a robot file: make its path absolute
+        sc.robot = str(Path(spec).resolve())
     source, sc.source = sc.source, ""
     body = "".join(line for line in yaml_dump_typed(sc, schema=Scenario).splitlines(keepends=True)
                    if not line.startswith("source:"))  # set by the loader, not a key of the file
@@ -212,9 +218,9 @@ def write_outputs(sc, results, robot, run, warnings=()):
     return written
 
 
-def run(*, scenario, compensation="both", json_out=None, out="robstiff-out"):
+def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", robot_yaml=None):
     check_outputs(inputs=[scenario], files={"--json": json_out}, folders={"--out": out})
-    robot = load_robot()
+    robot = scenario_robot(load_scenario(scenario), robot_yaml)
     warnings = Warnings()
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings)
     summ = summary(results, sc, warnings)

@@ -18,7 +18,7 @@ from robstiff_drake.model import ik
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, process_stiffness
 from robstiff_drake.model.surface import envelope_heights, surface_error_stats
-from robstiff_drake.plant import add_irb6400
+from robstiff_drake.plant import add_robot
 
 KP_EVERY = 25  # recompute the process stiffness every this many sensor samples
 
@@ -50,16 +50,16 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
     payload's inertia out of the model's sensor (what the model missed
     before it was traced; kept for that comparison)."""
     sc = configure(sc, combo, plant_step_ms)
-    tool = robot.payload.tool_point_m
+    tool = robot.tool_point(where="the loop model")
     cutter, fmodel, workpiece = cutting_setup(sc)
     path = planned_path(sc)
     t_mid = path.dwell_s + 0.5 * path.move_s
     q_mid = ik.solve_ik(robot.dh, ik.tool_down_pose(path.position(t_mid), path.yaw), tool)
-    key = tuple(np.round(q_mid, 9))
+    key = (robot.source, tuple(np.round(q_mid, 9)))
     cache = mass_matrix_cache if mass_matrix_cache is not None else {}
     if key not in cache:
         plant = MultibodyPlant(0.0)
-        add_irb6400(plant)
+        add_robot(plant, robot)
         plant.Finalize()
         ctx = plant.CreateDefaultContext()
         k_plant = plant_stiffness(sc, robot)

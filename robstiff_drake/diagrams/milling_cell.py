@@ -1,5 +1,5 @@
 """The robotic milling cell as one Drake diagram: the compliant-joint
-IRB6400, the path source, the milling force source, the wrist sensor and the
+arm (any robot of the library or a robot file), the path source, the milling force source, the wrist sensor and the
 real-time compensation chain of the seed's Fig. 5.
 
     path (TrajectorySource: q_ref, v_ref) ----------------------------+
@@ -54,7 +54,7 @@ from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingFor
 from robstiff_drake.model.path import PathError, PlannedPath
 from robstiff_drake.model.payload import payload_wrench
 from robstiff_drake.model.realtime import DeflectionPredictor
-from robstiff_drake.plant import JOINT_NAMES, add_irb6400
+from robstiff_drake.plant import JOINT_NAMES, add_robot, check_plant_matches
 from robstiff_drake.systems.deflection_prediction import DeflectionPrediction
 from robstiff_drake.systems.force_filter import (
     filter_system,
@@ -130,7 +130,7 @@ def planned_path(sc, robot, tool):
         if key not in _REFERENCES:
             _REFERENCES[key] = path.joint_references(robot, tool, p.reference_period_ms / 1e3)
     except PathError as e:
-        raise InputError(f"{sc.source}: path: {e}") from None
+        raise InputError(f"{sc.source}: path: {e} (robot {robot.name})") from None
     t_ref, q_ref = _REFERENCES[key]
     return path, t_ref, q_ref
 
@@ -172,9 +172,9 @@ def unstable_step_message(freqs_hz, beta_s, time_step_s, damping_ratio):
 def check_plant_step(sc, robot):
     """Refuse, before anything runs, a scenario whose plant step is unstable
     for its joint modes at the path's first pose (InputError, one line)."""
-    _, _, q_ref = planned_path(sc, robot, robot.payload.tool_point_m)
+    _, _, q_ref = planned_path(sc, robot, robot.tool_point(where="the closed loop"))
     plant = MultibodyPlant(0.0)
-    add_irb6400(plant)
+    add_robot(plant, robot)
     plant.Finalize()
     freqs = natural_frequencies(plant, plant.CreateDefaultContext(), q_ref[0], plant_stiffness(sc, robot))
     beta = stiffness_proportional_beta_s(freqs, sc.plant.damping_ratio)
@@ -183,9 +183,11 @@ def check_plant_step(sc, robot):
         raise InputError(f"{sc.source}: plant.time_step_ms: {why}")
 
 
-def add_compliant_irb6400(builder, *, time_step_s, joint_stiffness_Nm_per_rad, damping_ratio, q_modes_rad,
-                          check_stability=True):
-    """The compliant-joint IRB6400: a discrete MultibodyPlant whose joints
+def add_compliant_arm(builder, *, time_step_s, joint_stiffness_Nm_per_rad, damping_ratio, q_modes_rad,
+                      check_stability=True, robot=None):
+    """The compliant-joint arm of ``robot`` (default: the IRB6400), after
+    checking its Drake model against its robot file (check_plant_matches):
+    a discrete MultibodyPlant whose joints
     are servo springs between the commanded and the link angle, plus the
     controller's gravity feed-forward (InverseDynamics on an exact model of
     the arm and payload), so that at rest only process loads deflect the arm.
@@ -214,10 +216,12 @@ def add_compliant_irb6400(builder, *, time_step_s, joint_stiffness_Nm_per_rad, d
     plant, _ = AddMultibodyPlant(MultibodyPlantConfig(time_step=time_step_s, discrete_contact_approximation="sap"),
                                  builder)
     plant.set_name("plant")
-    instance = add_irb6400(plant)
+    instance = add_robot(plant, robot)
     controller_plant = MultibodyPlant(0.0)
-    add_irb6400(controller_plant)
+    add_robot(controller_plant, robot)
     controller_plant.Finalize()
+    if robot is not None:
+        check_plant_matches(controller_plant, robot)
     freqs = natural_frequencies(controller_plant, controller_plant.CreateDefaultContext(), q_modes_rad, k)
     beta = stiffness_proportional_beta_s(freqs, damping_ratio)
     why = unstable_step_message(freqs, beta, time_step_s, damping_ratio) if check_stability else None
@@ -242,6 +246,9 @@ def add_compliant_irb6400(builder, *, time_step_s, joint_stiffness_Nm_per_rad, d
     builder.Connect(torque.get_output_port(), plant.get_actuation_input_port())
     return {"plant": plant, "instance": instance, "desired_state": inputs.get_input_port(0),
             "controller_plant": controller_plant, "natural_frequencies_hz": freqs, "beta_s": beta}
+
+
+add_compliant_irb6400 = add_compliant_arm  # the name before the robot library
 
 
 def filter_coefficients(filter_config, rate_hz, spindle_rpm):
@@ -322,8 +329,8 @@ def chain_transport_delay_s(rate_hz, filter_ba, period_s, delay_steps):
 
 
 def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
-    """Build the closed-loop diagram of scenario ``sc``."""
-    tool = robot.payload.tool_point_m
+    """Build the closed-loop diagram of scenario ``sc`` for ``robot``."""
+    tool = robot.tool_point(where="the closed loop")
     cutter, fmodel, workpiece = cutting_setup(sc)
     T = sc.controller.period_ms / 1e3
     dt = sc.plant.time_step_ms / 1e3
@@ -332,8 +339,8 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
     builder = DiagramBuilder()
     k_plant = plant_stiffness(sc, robot)
     try:
-        arm = add_compliant_irb6400(builder, time_step_s=dt, joint_stiffness_Nm_per_rad=k_plant,
-                                    damping_ratio=sc.plant.damping_ratio, q_modes_rad=q_ref[0])
+        arm = add_compliant_arm(builder, time_step_s=dt, joint_stiffness_Nm_per_rad=k_plant,
+                                damping_ratio=sc.plant.damping_ratio, q_modes_rad=q_ref[0], robot=robot)
     except ValueError as e:
         raise InputError(f"{sc.source}: plant.time_step_ms: {e}") from None
     plant = arm["plant"]

@@ -61,7 +61,7 @@ class RunData:
     error_mm: np.ndarray  # compensated surface error
 
 
-def load_run(run_dir):
+def load_run(run_dir, robot):
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise InputError(f"{run_dir}: no such run directory")
@@ -74,7 +74,7 @@ def load_run(run_dir):
     for key in ("t_s", "q1_deg", "tool_wrench_fx_N"):
         if key not in ts:
             raise InputError(f"{run_dir / 'timeseries_compensated.csv'}: missing column {key}")
-    q = np.deg2rad(np.column_stack([ts[f"q{j}_deg"] for j in range(1, 7)]))
+    q = robot.joint_rad(np.column_stack([ts[f"q{j}_deg"] for j in range(1, 7)]))
     W = np.column_stack([ts[f"tool_wrench_{c}"] for c in ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")])
     surf = read_csv(run_dir / "surface_compensated.csv")
     ok = np.isfinite(surf["error_mm"])
@@ -248,7 +248,7 @@ def diagnose_run(run_dir, robot, try_alternatives=True):
     others (within 10 % of its held-out error), each of their fixes is run
     too: a second cut decides what one pass cannot.  Returns (report dict,
     the run before, the run with the best fix or None)."""
-    run = load_run(run_dir)
+    run = load_run(run_dir, robot)
     found = trace(run, robot)
     report = {"run_dir": str(run.run_dir), **found}
     before = run_cut(run.scenario, robot, compensation=True)

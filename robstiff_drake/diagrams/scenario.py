@@ -173,6 +173,9 @@ class ScanConfig:
 class Scenario:
     name: str = text("", max_length=200)
     description: str = text("")
+    # The robot: a library name (`robstiff robots`) or a robot file (relative
+    # to this file); empty: the IRB6400.
+    robot: str = text("", max_length=4096)
     plant: PlantConfig = field(default_factory=PlantConfig)
     cutter: CutterConfig = field(default_factory=CutterConfig)
     cutting: CuttingConfig = field(default_factory=CuttingConfig)
@@ -456,3 +459,26 @@ def scenario_warnings(sc, robot):
             out.append(f"sensor.rate_hz: {sc.sensor.rate_hz:g} Hz samples below twice the tooth-passing frequency "
                        f"({tooth_hz:g} Hz) in tooth-resolved mode: the tooth force aliases into the loop")
     return out
+def robot_spec(sc):
+    """The scenario's ``robot:`` as load_robot takes it (a library name, or
+    its file resolved against the scenario's folder); None when empty."""
+    if not sc.robot:
+        return None
+    from robstiff_drake.paths import library_robots
+
+    if sc.robot in library_robots():
+        return sc.robot
+    return str(resolve(sc, sc.robot))
+
+
+def scenario_robot(sc, override=None):
+    """The RobotModel that runs scenario ``sc``: ``override`` (--robot) or
+    the scenario's ``robot:`` (default: the IRB6400).  InputError, naming
+    both, when the two are given and name different robots."""
+    from robstiff_drake.model.robot import load_robot, same_robot_file
+
+    spec = robot_spec(sc)
+    if override is not None and spec is not None and not same_robot_file(spec, override):
+        raise InputError(f"--robot {override} disagrees with the robot of {sc.source or 'the scenario'} "
+                         f"(robot: {sc.robot}); drop --robot or edit the scenario")
+    return load_robot(override if override is not None else spec)

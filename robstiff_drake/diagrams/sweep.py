@@ -67,19 +67,18 @@ def configure(sc, combo, plant_step_ms=None):
 _MASS_MATRICES = {}  # per process: the loop model's mass matrix at a pose
 
 
-def run_one(scenario_path, combo, plant_step_ms=None, predict=True):
+def run_one(scenario_path, combo, plant_step_ms=None, predict=True, robot_spec=None):
     """One sweep run (a top-level function: picklable for process pools and
     Dask workers), with the linear loop model's prediction for the same
     combination.  Never raises: a failure is a row with ``error``."""
     from robstiff_drake.diagrams.experiment import run_cut
-    from robstiff_drake.diagrams.scenario import load_scenario
-    from robstiff_drake.model.robot import load_robot
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 
     row = dict(combo)
     t0 = time.perf_counter()
     try:
         base = load_scenario(scenario_path)
-        robot = load_robot()
+        robot = scenario_robot(base, robot_spec)
         if predict:
             from robstiff_drake.diagrams.loop_prediction import predict as loop_predict
 
@@ -128,8 +127,9 @@ class Progress:
 
 
 def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step_ms=None, progress=None,
-              predict=True):
-    """All runs, in the order of ``combos``."""
+              predict=True, robot_spec=None):
+    """All runs, in the order of ``combos`` (``robot_spec``: --robot, or None
+    for the scenario's robot)."""
     bar = Progress(len(combos), progress)
     rows = [None] * len(combos)
     if scheduler:
@@ -142,7 +142,8 @@ def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step
         except (OSError, TimeoutError) as e:
             raise InputError(f"sweep: cannot reach the Dask scheduler at {scheduler} ({type(e).__name__})") from None
         try:
-            futures = [client.submit(run_one, str(scenario_path), c, plant_step_ms, predict, pure=False) for c in combos]
+            futures = [client.submit(run_one, str(scenario_path), c, plant_step_ms, predict, robot_spec, pure=False)
+                       for c in combos]
             index = {f.key: i for i, f in enumerate(futures)}
             from distributed import as_completed as dask_completed
 
@@ -155,12 +156,13 @@ def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step
     workers = min(workers or os.cpu_count() or 1, len(combos))
     if workers == 1:
         for i, c in enumerate(combos):
-            rows[i] = run_one(str(scenario_path), c, plant_step_ms, predict)
+            rows[i] = run_one(str(scenario_path), c, plant_step_ms, predict, robot_spec)
             bar.step()
         return rows
     pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
     try:
-        futures = {pool.submit(run_one, str(scenario_path), c, plant_step_ms, predict): i for i, c in enumerate(combos)}
+        futures = {pool.submit(run_one, str(scenario_path), c, plant_step_ms, predict, robot_spec): i
+                   for i, c in enumerate(combos)}
         for f in as_completed(futures):
             i = futures[f]
             try:
