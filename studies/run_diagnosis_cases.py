@@ -137,7 +137,7 @@ def main():
         print(table_row(name, rep, verified), flush=True)
         if args.docs:
             shutil.copy(out / f"{name}_diagnosis" / "diagnosis.png", REPO_ROOT / "docs" / f"run_diagnosis_{name}.png")
-    print(f"\ndiagnose-run per run (first cut, command line, including start-up): "
+    print("\ndiagnose-run per run (first cut, in this process: without the 1-2 s of Python and Drake start-up): "
           + ", ".join(f"{s:.1f}" for s in seconds) + " s")
     if args.out is None:
         shutil.rmtree(out, ignore_errors=True)

@@ -98,7 +98,7 @@ def main():
               flush=True)
     print(f"\nmodel or set-up cause named (false positive): {false_model} of {n} runs; any cause named (loop_lag "
           f"included): {any_named} of {n}")
-    print(f"diagnose-run per run: median {sorted(seconds)[len(seconds) // 2]:.1f} s, max {max(seconds):.1f} s; "
+    print(f"diagnose-run per run (in this process): median {sorted(seconds)[len(seconds) // 2]:.1f} s, max {max(seconds):.1f} s; "
           f"study {time.perf_counter() - t0:.0f} s")
     if args.out is None:
         shutil.rmtree(out, ignore_errors=True)

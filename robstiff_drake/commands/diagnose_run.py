@@ -22,7 +22,7 @@ def plot(rep, extras, title):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(10, 4.5), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(10, 5.5), constrained_layout=True)
     scan = extras["scan"]
     s = rep["surface_error_before_mm"]
     ax.plot(scan.x_mm, scan.error_mm, ".", ms=2, color="0.5",
@@ -37,8 +37,8 @@ def plot(rep, extras, title):
     ax.axhline(0, color="k", lw=0.6)
     ax.set_xlabel("x along the pass (mm)")
     ax.set_ylabel("surface error (mm), + = cut more")
-    ax.set_title(title)
-    ax.legend(fontsize=8)
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
     return fig
 
 
@@ -113,7 +113,11 @@ def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None):
             folder.write(rel, settings_text(s, folder.run_id, [note]))
         if extras["plan"]:
             folder.write("verification_plan.md", plan_markdown(extras["plan"]))
-        title = f"{Path(run_dir).name}: " + (", ".join(c["name"] for c in rep["causes"]) or "no cause named")
+        title = f"{Path(run_dir).name}: traced " + (", ".join(c["name"] for c in rep["causes"]) or "no cause")
+        if rep.get("verification"):
+            fix = rep["fix"]
+            title += f"; from the verification cuts: {fix['status']}" + (f" ({fix['candidate']})"
+                                                                          if fix.get("candidate") else "")
         folder.save_figure("diagnosis.png", plot(rep, extras, title), dpi=100)
         rep["out"] = str(out)
         folder.write("diagnosis.json", json_text(dict(rep, diagnosis_run_id=folder.run_id)))

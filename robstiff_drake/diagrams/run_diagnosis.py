@@ -565,7 +565,7 @@ def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
         "also_consistent_with": [r["name"] for r, _ in alts],
         "alternatives": [{"name": r["name"], "instead_of": r["instead_of"], "rms_mm": r["rms_mm"],
                           "size_mm": r["size_mm"], "params": r["params"]} for r, _ in alts],
-        "rounds": rounds,
+        "rounds": rounds, "candidates": [],
         "surface_error_before_mm": ss.surface_stats(scan.x_mm, scan.error_mm, ss.segments(scan.x_mm, scan.y_mm), D),
     }
     extras = {"scan": scan, "covered": env.covered, "model_mm": (env.surface(final.columns() @ final.theta) * 1e3
@@ -588,7 +588,7 @@ def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
                 plan_rows.append((name, rel, "; ".join(changes)))
                 extras["settings"][rel] = s
                 sets.append(f)
-            report.setdefault("candidates", []).append(entry)
+            report["candidates"].append(entry)
         if plan_rows:
             differ = _where_they_differ(env, scan, sets) if len(sets) > 1 else None
             extras["plan"] = rv.verification_plan(plan_rows, scan, differ, floor_mm)

@@ -604,7 +604,8 @@ def load_run_files(folder, names=CELL_FILES):
     for name in names:
         if not (folder / name).is_file():
             raise InputError(f"{folder}: missing {name} (a run folder holds {', '.join(CELL_FILES)} and "
-                             f"{RUN_ID_FILE}; see docs/run_files.md)")
+                             f"{RUN_ID_FILE}, see docs/run_files.md; `robstiff simulate` writes them for its "
+                             "compensated cut)")
     run_id = read_run_id(folder)
     got = {}
     for name in names:
