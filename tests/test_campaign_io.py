@@ -92,7 +92,8 @@ BAD = [
     ("fewer rows than unknowns", lambda h, r: (h, r[:5]), "5 measurement rows, fewer than the 6 unknowns"),
     ("all-zero forces", _scale(["fx", "fy", "fz"], 0.0), "all forces are zero"),
     ("metres", _scale(["dx", "dy", "dz"], 1e-3), "look like metres, not mm"),
-    ("micrometres", _scale(["dx", "dy", "dz"], 1e3), "look like micrometres, not mm"),
+    ("micrometres", _scale(["dx", "dy", "dz"], 1e3), "outside the plausible range [-100, 100] mm (other units?)"),
+    ("micrometres, small", _scale(["dx", "dy", "dz"], 1e2 / 1.5), "look like micrometres, not mm"),
     ("joint limit", _set_cell(1, "q2", "85"), "data.csv:10, column 4 (q2): 85 deg is outside the joint limit [-70, 70] deg"),
     ("short row", lambda h, r: (h, [r[0][:-1]] + r[1:]), "data.csv:9: expected 14 cells (as in the header), got 13"),
 ]

@@ -69,7 +69,7 @@ def test_negative_angles_are_accepted(capsys):
         (["stiffness", "0", "0", "0", "0", "45", "0", "--tool", "1,x,2"], "--tool: component 2 'x' is not a number"),
         (["stiffness", "0", "0", "0", "0", "0", "0", "--kx"], "joints 4, 6"),
         (["stiffness-map", "--out", "x.svg"], "must name a .png file"),
-        (["kg-study", "--grid", "0"], "--grid must be >= 1"),
+        (["kg-study", "--grid", "0"], "argument --grid: 0 is outside the allowed range [1, 20]"),
         (["nonsense"], "invalid choice"),
         (["stiffness", "--robot", "/nonexistent.yaml", "0", "0", "0", "0", "45", "0"], "cannot read robot parameter file"),
     ],

@@ -20,8 +20,8 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.model import ik
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
+from robstiff_drake.model.payload import PayloadCalibration
 from robstiff_drake.model.realtime import DeflectionPredictor
-from robstiff_drake.systems.gravity_removal import PayloadCalibration
 
 DATA = Path(__file__).parent / "data"
 SHORT = DATA / "short_block.yaml"
@@ -227,17 +227,33 @@ def _write(tmp_path, text):
     "edit, message",
     [
         (lambda s: s.replace("  period_ms: 4.0", "  period_ms: 4.0\n  perod_ms: 4.0"), "perod_ms"),
-        (lambda s: s.replace("  period_ms: 4.0", "  period_ms: -4.0"), "controller.period_ms: must be a positive number"),
-        (lambda s: s.replace("  diameter_mm: 75.0", "  diameter_mm: 400.0"), "cutter.diameter_mm: 400.0 mm is not a sensible"),
-        (lambda s: s.replace("  period_ms: 4.0", "  period_ms: 1.0"), "controller.period_ms: 1.0 ms is below the plant step"),
-        (lambda s: s.replace("    cutoff_hz: 2.0", "    cutoff_hz: 900.0"), "controller.filter.cutoff_hz: 900.0 Hz"),
-        (lambda s: s.replace("  mode: averaged", "  mode: exact"), "cutting.mode: expected 'averaged' or 'tooth'"),
+        (lambda s: s.replace("  period_ms: 4.0", "  period_ms: -4.0"), "controller.period_ms: -4 is outside the allowed range [0.1, 1000] ms"),
+        (lambda s: s.replace("  diameter_mm: 75.0", "  diameter_mm: 400.0"), "cutter.diameter_mm: 400 is outside the allowed range [10, 250] mm"),
+        (lambda s: s.replace("  period_ms: 4.0", "  period_ms: 1.0"), "controller.period_ms: 1 ms is below the plant step"),
+        (lambda s: s.replace("    cutoff_hz: 2.0", "    cutoff_hz: 900.0"), "controller.filter.cutoff_hz: 900 Hz must be between 0 and half"),
+        (lambda s: s.replace("  mode: averaged", "  mode: exact"), "cutting.mode: expected one of 'averaged', 'tooth', got 'exact'"),
         (lambda s: s.replace("  time_step_ms: 2.0\n  damping_ratio: 0.10", "  time_step_ms: 4.0\n  damping_ratio: 0.01"),
          "plant.time_step_ms: a 4 ms plant step is unstable for the 124 Hz joint mode at damping ratio 0.01"),
-        (lambda s: s.replace("    - [1497.5, 0.0, 700.0]", "    - [3497.5, 0.0, 700.0]"), "is out of reach"),
-        (lambda s: s.replace("    - [1702.5, 0.0, 700.0]", "    - [1702.5, 0.0, 1900.0]"), "outside its joint limit"),
+        (lambda s: s.replace("    - [1702.5, 0.0, 700.0]", "    - [1702.5, 0.0, 700.0]\n    - [1702.5, 0.0, 1900.0]"),
+         "outside its joint limit"),
         (lambda s: s.replace("    - [1497.5, 0.0, 700.0]\n    - [1702.5, 0.0, 700.0]",
-                             "    - [413.0, -30.0, 0.0]\n    - [413.0, 30.0, 0.0]"), "singularity (wrist singularity"),
+                             "    - [413.0, -30.0, 0.0]\n    - [413.0, 30.0, 0.0]").replace(
+            "    - [1540.0, 1660.0, -10.0, 40.0, 703.0]", "    - [380.0, 446.0, -10.0, 10.0, 3.0]"),
+         "singularity (wrist singularity"),
+        (lambda s: s.replace("700.0]", "710.0]"), "never comes below the top of a workpiece box"),
+        (lambda s: s.replace("controller:", "controller:\n  period_ms: 8.0\ncontroller:", 1),
+         "duplicated key 'controller'"),
+        (lambda s: s.replace("  period_ms: 4.0", '  period_ms: "four"'),
+         "controller.period_ms: expected a number in ms, got 'four'"),
+        (lambda s: s.replace("  n_teeth: 6", "  n_teeth: 60"), "tooth pitch of 3.9 mm"),
+        (lambda s: s.replace("  feed_mm_per_s: 60.0", "  feed_mm_per_s: 1e-6"), "outside the allowed range [0.1, 2000]"),
+        (lambda s: s.replace("  feed_mm_per_s: 60.0", "  feed_mm_per_s: 0.1").replace("  time_step_ms: 2.0",
+                                                                                  "  time_step_ms: 0.05"),
+         "plant steps, more than"),
+        (lambda s: s.replace("  force_bias_N: [3.0, -2.0, 5.0]", "  force_bias_N: [3.0, -2.0]"),
+         "sensor.force_bias_N: expected 3 numbers, got 2"),
+        (lambda s: s.replace("  yaw_deg: 0.0", "  yaw_deg: .nan"), "path.yaw_deg: nan is not a finite number"),
+        (lambda s: s.replace("  seed: 1", "  seed: -1"), "sensor.seed: -1 is outside the allowed range"),
     ],
 )
 def test_bad_scenarios_fail_before_simulating(tmp_path, robot, edit, message):

@@ -85,7 +85,7 @@ def test_plan_poses_beats_random(capsys, tmp_path):
     assert len(t) == 48
     assert "Measure dx,dy,dz" in " ".join(t.comments)
     code, _, err = cli(capsys, "plan-poses", 3)
-    assert code == 2 and "at least 6" in err
+    assert code == 2 and "outside the allowed range [6, 500]" in err
 
 
 def test_table2_analysis(capsys, tmp_path):

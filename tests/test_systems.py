@@ -10,8 +10,10 @@ from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.path import PlannedPath
+from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
 from robstiff_drake.model.realtime import DeflectionPredictor
-from robstiff_drake.systems.deflection_prediction import DeflectionPrediction, sensor_to_tool_base
+from robstiff_drake.model.wrench_frames import sensor_to_tool_base
+from robstiff_drake.systems.deflection_prediction import DeflectionPrediction
 from robstiff_drake.systems.force_filter import (
     filter_system,
     group_delay_s,
@@ -19,7 +21,7 @@ from robstiff_drake.systems.force_filter import (
     revolution_average_coefficients,
     steady_state,
 )
-from robstiff_drake.systems.gravity_removal import GravityRemoval, PayloadCalibration, payload_wrench
+from robstiff_drake.systems.gravity_removal import GravityRemoval
 from robstiff_drake.systems.milling_force import MillingForceSource
 from robstiff_drake.systems.reference_correction import RateLimitedCorrection
 from robstiff_drake.systems.wrist_sensor import WrenchGuard, WristForceSensor

@@ -9,7 +9,7 @@ diagram, time series CSVs, demo.json and the stiffness map."""
 import numpy as np
 
 from robstiff_drake.commands import simulate, stiffness_map
-from robstiff_drake.io import RunFolder, check_outputs, json_text
+from robstiff_drake.io import RunFolder, Warnings, check_outputs, json_text
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.robot import load_robot
@@ -52,8 +52,9 @@ def format_explanation(e):
 def run(*, out="robstiff-out"):
     check_outputs(folders={"--out": out})
     robot = load_robot()
-    sc, results = simulate.simulate(scenario=BLOCK, compensation="both", robot=robot)
-    summ = simulate.summary(results, sc)
+    warnings = Warnings()
+    sc, results = simulate.simulate(scenario=BLOCK, compensation="both", robot=robot, warnings=warnings)
+    summ = simulate.summary(results, sc, warnings)
     expl = cut_more_explanation(results[0], robot)
     print("== the paper's block-milling test (Table 3), simulated ==")
     print(simulate.format_table(summ))
@@ -61,7 +62,7 @@ def run(*, out="robstiff-out"):
     print(format_explanation(expl))
     summ["cut_more_explanation"] = expl
     with RunFolder(out) as run:
-        written = simulate.write_outputs(sc, results, robot, run)
+        written = simulate.write_outputs(sc, results, robot, run, warnings)
         fig, _ = stiffness_map.make_map(robot, tool_m=robot.payload.tool_point_m)
         run.save_figure("stiffness_map.png", fig, dpi=110)
         written.append("stiffness_map.png")

@@ -2,14 +2,14 @@
 in a stiffness campaign, trace it to an effect of the candidate library, add
 it, and report the held-out error before and after."""
 
-from pathlib import Path
-
 import numpy as np
 
+from robstiff_drake.commands.identify import campaign_warnings
 from robstiff_drake.commands.main import parse_vector
 from robstiff_drake.identification.campaign import read_stiffness_campaign
 from robstiff_drake.identification.diagnosis import ALPHA, CANDIDATES, MIN_GAIN, diagnose
-from robstiff_drake.io import emit_json, save_figure_atomic, write_atomic
+from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
+from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, write_atomic
 from robstiff_drake.model.robot import load_robot
 
 
@@ -31,16 +31,6 @@ def to_dict(d, campaign):
         "joint_stiffness_Nm_per_rad": d.joint_stiffness_Nm_per_rad,
         "identifiable": [bool(v) for v in d.identifiable],
     }
-
-
-def _nan_json(obj):
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None
-    if isinstance(obj, dict):
-        return {k: _nan_json(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_nan_json(v) for v in obj]
-    return obj
 
 
 def format_report(d, campaign, markdown=False):
@@ -74,14 +64,14 @@ def format_report(d, campaign, markdown=False):
     return "\n".join(lines)
 
 
-def residual_views(d, campaign, robot, out_dir):
-    """One PNG per view of the base model's residual (what the trace reads)."""
+def residual_views(d, campaign, robot, folder):
+    """One PNG per view of the base model's residual (what the trace reads),
+    into ``folder`` (an io.RunFolder)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    out_dir = Path(out_dir)
     r = d.residual_before_mm
     F = campaign.force_N
     mag = np.linalg.norm(F, axis=1)
@@ -90,8 +80,7 @@ def residual_views(d, campaign, robot, out_dir):
     written = []
 
     def save(fig, name):
-        save_figure_atomic(fig, out_dir / name, dpi=90)
-        plt.close(fig)
+        folder.save_figure(name, fig, dpi=90)
         written.append(name)
 
     fig, ax = plt.subplots(1, 3, figsize=(12, 3.5), constrained_layout=True)
@@ -150,16 +139,23 @@ def residual_views(d, campaign, robot, out_dir):
 
 
 def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=None):
+    check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--report": report},
+                  folders={"--plots": plots})
     robot = load_robot(robot_yaml)
     tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    warnings = Warnings()
     campaign = read_stiffness_campaign(data, robot)
+    warnings.extend_from(campaign_warnings(campaign))
+    check_angle_units(robot, campaign, tool_m)
+    warnings.extend_from(check_signs(identify(robot, campaign, tool_m=tool_m), campaign))
     d = diagnose(robot, campaign, tool_m=tool_m)
     if json_out is not None:
-        emit_json(_nan_json(to_dict(d, campaign)), json_out)
+        emit_json(dict(to_dict(d, campaign), warnings=list(warnings)), json_out)
     if report is not None:
         write_atomic(report, format_report(d, campaign, markdown=True) + "\n")
     if plots is not None:
-        residual_views(d, campaign, robot, plots)
+        with RunFolder(plots) as folder:
+            residual_views(d, campaign, robot, folder)
     if json_out != "-":
         print(format_report(d, campaign))
     return 0

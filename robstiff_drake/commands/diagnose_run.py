@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.diagrams.run_diagnosis import diagnose_run
+from robstiff_drake.identification.run_diagnosis import diagnose_run
 from robstiff_drake.identification.run_files import settings_text
 from robstiff_drake.identification.run_verification import plan_markdown
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text

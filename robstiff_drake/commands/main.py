@@ -6,6 +6,7 @@ status 2 (no traceback).
 """
 
 import argparse
+import signal
 import sys
 
 from robstiff_drake.errors import InputError
@@ -24,8 +25,15 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageError(self.prog, message)
 
 
+# Allowed ranges of the vector options (a tool 5 m from the flange is no
+# robot tool; a stiffness outside 1e3-1e9 N*m/rad is no robot joint).
+VECTOR_RANGES = {"--tool": (-5000.0, 5000.0, "mm"), "--com-mm": (-2000.0, 2000.0, "mm"),
+                 "--mount-rpy": (-360.0, 360.0, "deg"), "--stiffness": (1e3, 1e9, "N*m/rad")}
+
+
 def parse_vector(text, n, what):
-    """'X,Y,Z' -> list of n floats, with an error that names the bad part."""
+    """'X,Y,Z' -> list of n floats, with an error that names the bad part
+    (and its allowed range, for the options in VECTOR_RANGES)."""
     parts = [p.strip() for p in str(text).split(",")]
     if len(parts) != n:
         raise InputError(f"{what}: expected {n} comma-separated numbers, got {text!r}")
@@ -37,8 +45,34 @@ def parse_vector(text, n, what):
             raise InputError(f"{what}: component {i + 1} {p!r} is not a number") from None
         if v != v or v in (float("inf"), float("-inf")):
             raise InputError(f"{what}: component {i + 1} {p!r} is not finite")
+        lo, hi, unit = VECTOR_RANGES.get(what, (-float("inf"), float("inf"), ""))
+        if not lo <= v <= hi:
+            raise InputError(f"{what}: component {i + 1} {p!r} is outside the allowed range [{lo:g}, {hi:g}] {unit}")
         values.append(v)
     return values
+
+
+def _number_in(lo, hi, unit="", integer=False):
+    """An argparse type: a finite number (whole, if ``integer``) in [lo, hi],
+    with an error that gives the range (argparse names the option)."""
+    def parse(text):
+        try:
+            v = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a {'whole number' if integer else 'number'}") from None
+        if v != v or not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{text} is outside the allowed range [{lo:g}, {hi:g}]"
+                                             + (f" {unit}" if unit else ""))
+        return v
+    parse.__name__ = "whole number" if integer else "number"
+    return parse
+
+
+# Ranges of the numeric options (wide enough for any real use, narrow enough
+# that a typo cannot start a run of hours or allocate more than the machine has).
+FORCE_N = _number_in(1e-3, 1e5, "N")
+SEED = _number_in(0, 2**32 - 1, integer=True)
+NOISE_MM = _number_in(0.0, 10.0, "mm")
 
 
 def _add_robot_option(p):
@@ -76,16 +110,16 @@ def build_parser():
     _add_robot_option(p)
 
     p = sub.add_parser("stiffness-map", help="PNG map of the deflection under a tool force over the workspace")
-    p.add_argument("--out", default="robstiff-out/stiffness_map.png", help="PNG path (default: %(default)s)")
-    p.add_argument("--force-N", type=float, default=500.0, help="force magnitude at the tool (default: %(default)s N)")
-    p.add_argument("--resolution", type=int, default=41, help="grid points per side (default: %(default)s)")
+    p.add_argument("--out", default="stiffness_map.png", help="PNG path (default: %(default)s)")
+    p.add_argument("--force-N", type=FORCE_N, default=500.0, help="force magnitude at the tool (default: %(default)s N)")
+    p.add_argument("--resolution", type=_number_in(5, 301, integer=True), default=41, help="grid points per side (default: %(default)s)")
     _add_tool_option(p, "default: the spindle's tool point from the robot file")
     _add_robot_option(p)
 
     p = sub.add_parser("kg-study", help="how much the CCT term K_g changes the deflection over machining poses")
-    p.add_argument("--grid", type=int, default=5, help="grid points per axis of the workspace box (default: %(default)s)")
-    p.add_argument("--force-N", type=float, default=500.0, help="tool force magnitude (default: %(default)s N)")
-    p.add_argument("--payload-kg", type=float, default=150.0, help="payload mass (default: %(default)s kg)")
+    p.add_argument("--grid", type=_number_in(1, 20, integer=True), default=5, help="grid points per axis of the workspace box (default: %(default)s)")
+    p.add_argument("--force-N", type=FORCE_N, default=500.0, help="tool force magnitude (default: %(default)s N)")
+    p.add_argument("--payload-kg", type=_number_in(1e-3, 2000.0, "kg"), default=150.0, help="payload mass (default: %(default)s kg)")
     p.add_argument("--json", metavar="OUT", help="write the results as JSON ('-' for stdout)")
     _add_robot_option(p)
 
@@ -109,12 +143,12 @@ def build_parser():
     kinds = p.add_subparsers(dest="kind", metavar="KIND", parser_class=_Parser)
     kinds.required = True
     s = kinds.add_parser("stiffness", help="a stiffness campaign (poses, loads, CMM displacements)")
-    s.add_argument("out", metavar="OUT.csv")
-    s.add_argument("--n", type=int, default=120, help="measurements (default: %(default)s)")
-    s.add_argument("--loads-per-pose", type=int, default=4, help="(default: %(default)s)")
-    s.add_argument("--force-N", type=float, default=300.0, help="load magnitude (default: %(default)s N)")
-    s.add_argument("--noise-mm", type=float, default=0.01, help="CMM noise sigma (default: %(default)s mm)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("out", metavar="OUT.csv", help="the campaign file ('-' for stdout)")
+    s.add_argument("--n", type=_number_in(6, 100000, integer=True), default=120, help="measurements (default: %(default)s)")
+    s.add_argument("--loads-per-pose", type=_number_in(1, 100, integer=True), default=4, help="(default: %(default)s)")
+    s.add_argument("--force-N", type=FORCE_N, default=300.0, help="load magnitude (default: %(default)s N)")
+    s.add_argument("--noise-mm", type=NOISE_MM, default=0.01, help="CMM noise sigma (default: %(default)s mm)")
+    s.add_argument("--seed", type=SEED, default=0)
     _add_tool_option(s, "default: the origin of DH frame 6")
     s.add_argument("--stiffness", metavar="K1,..,K6", help="true joint stiffness, N*m/rad (default: nominal)")
     s.add_argument("--effect", action="append", metavar="NAME[=RMS_MM]",
@@ -123,13 +157,13 @@ def build_parser():
                         "repeatable")
     _add_robot_option(s)
     s = kinds.add_parser("payload", help="a payload (gravity) campaign of wrist-sensor readings")
-    s.add_argument("out", metavar="OUT.csv")
-    s.add_argument("--n", type=int, default=15, help="configurations (default: %(default)s, as the seed)")
-    s.add_argument("--mass-kg", type=float, default=None, help="(default: the robot file's payload)")
+    s.add_argument("out", metavar="OUT.csv", help="the campaign file ('-' for stdout)")
+    s.add_argument("--n", type=_number_in(3, 100000, integer=True), default=15, help="configurations (default: %(default)s, as the seed)")
+    s.add_argument("--mass-kg", type=_number_in(1e-3, 2000.0, "kg"), default=None, help="(default: the robot file's payload)")
     s.add_argument("--com-mm", default=None, metavar="X,Y,Z", help="(default: the robot file's payload)")
-    s.add_argument("--noise-N", type=float, default=1.0, help="(default: %(default)s N)")
-    s.add_argument("--noise-Nm", type=float, default=0.1, help="(default: %(default)s N*m)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--noise-N", type=_number_in(0.0, 1000.0, "N"), default=1.0, help="(default: %(default)s N)")
+    s.add_argument("--noise-Nm", type=_number_in(0.0, 100.0, "N*m"), default=0.1, help="(default: %(default)s N*m)")
+    s.add_argument("--seed", type=SEED, default=0)
     _add_robot_option(s)
 
     p = _add_campaign_command(sub, "diagnose", "which effect the six-spring model lacks explains a campaign's residual",
@@ -152,12 +186,12 @@ def build_parser():
                                                 "(default: RUN_DIR/diagnosis)")
 
     p = sub.add_parser("plan-poses", help="a well-conditioned measurement plan for the identification")
-    p.add_argument("n", type=int, metavar="N", help="number of measurements")
-    p.add_argument("--candidates", type=int, default=120, help="candidate poses (default: %(default)s)")
-    p.add_argument("--force-N", type=float, default=300.0, help="(default: %(default)s N)")
-    p.add_argument("--noise-mm", type=float, default=0.01, help="(default: %(default)s mm)")
+    p.add_argument("n", type=_number_in(6, 500, integer=True), metavar="N", help="number of measurements (6-500)")
+    p.add_argument("--candidates", type=_number_in(2, 1000, integer=True), default=120, help="candidate poses (default: %(default)s)")
+    p.add_argument("--force-N", type=FORCE_N, default=300.0, help="(default: %(default)s N)")
+    p.add_argument("--noise-mm", type=_number_in(1e-6, 10.0, "mm"), default=0.01, help="(default: %(default)s mm)")
     _add_tool_option(p, "default: the origin of DH frame 6")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("--out", metavar="PLAN.csv", help="write the plan (q1..q6, fx, fy, fz per row)")
     p.add_argument("--json", metavar="OUT", help="write the comparison as JSON ('-' for stdout)")
     _add_robot_option(p)
@@ -187,9 +221,9 @@ def build_parser():
     p.add_argument("--mode", default="plain", help="plain and/or predictive (default: %(default)s)")
     p.add_argument("--json", metavar="OUT", help="write all runs as JSON ('-' for stdout)")
     p.add_argument("--plot", metavar="OUT.png", help="error against period, one curve per cutoff and mode")
-    p.add_argument("--workers", type=int, default=None, help="local processes (default: the number of cores)")
+    p.add_argument("--workers", type=_number_in(1, 64, integer=True), default=None, help="local processes (default: the number of cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://127.0.0.1:8786")
-    p.add_argument("--plant-step-ms", type=float, default=None, help="plant step for every run (default: the scenario's)")
+    p.add_argument("--plant-step-ms", type=_number_in(0.05, 20.0, "ms"), default=None, help="plant step for every run (default: the scenario's)")
     p.add_argument("--no-predict", action="store_true", help="skip the linear loop model's predictions")
     p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
 
@@ -275,7 +309,20 @@ def _dispatch(args):
     raise AssertionError(args.command)
 
 
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread so that every cleanup runs (a
+    temporary file or folder removed, a worker pool stopped)."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
 def main(argv=None):
+    try:
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (e.g. called from a worker): leave signals alone
+        previous = None
     try:
         args = build_parser().parse_args(argv)
         return _dispatch(args) or 0
@@ -291,6 +338,15 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("robstiff: interrupted", file=sys.stderr)
         return 130
+    except Terminated:
+        print("robstiff: terminated", file=sys.stderr)
+        return 143
+    except MemoryError:
+        print("robstiff: error: out of memory", file=sys.stderr)
+        return 2
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ from robstiff_drake.commands.main import parse_vector
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.pose_planning import plan_poses
 from robstiff_drake.identification.synth import command_line
-from robstiff_drake.io import emit_json, write_atomic
+from robstiff_drake.io import check_outputs, emit_json, write_atomic
 from robstiff_drake.model.robot import load_robot
 
 
@@ -40,6 +40,7 @@ def run(*, n, candidates=120, force_N=300.0, noise_mm=0.01, tool=None, seed=0, o
         raise InputError(f"plan-poses: --candidates must be at least 2, got {candidates}")
     if not (force_N > 0 and noise_mm > 0):
         raise InputError("plan-poses: --force-N and --noise-mm must be > 0")
+    check_outputs(inputs=[robot_yaml], files={"--out": out, "--json": json_out})
     robot = load_robot(robot_yaml)
     tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
     plan = plan_poses(robot, n, n_candidate_poses=candidates, force_N=force_N, noise_mm=noise_mm, tool_m=tool_m,
@@ -52,6 +53,9 @@ def run(*, n, candidates=120, force_N=300.0, noise_mm=0.01, tool=None, seed=0, o
         "rel_std_planned": [None if np.isnan(v) else float(v) for v in plan.rel_std_planned],
         "rel_std_random_median": [None if np.isnan(v) else float(v) for v in plan.rel_std_random],
         "d_efficiency_gain": float(np.exp((plan.logdet_planned - plan.logdet_random) / plan.identifiable.sum())),
+        "warnings": [f"joint {j + 1} is not identifiable with this tool point (the loads give it no torque); "
+                     "use a tool point off the flange axis or apply moments" for j in range(6)
+                     if not plan.identifiable[j]],
     }
     if json_out is not None:
         emit_json(res, json_out)

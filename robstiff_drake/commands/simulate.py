@@ -20,10 +20,11 @@ import numpy as np
 
 from robstiff_drake.diagrams.cell_record import cell_files, scenario_with_compensator
 from robstiff_drake.diagrams.experiment import run_cut
-from robstiff_drake.diagrams.scenario import load_scenario
+from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, run_warnings
+from robstiff_drake.diagrams.scenario import load_scenario, scenario_warnings
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.run_files import SIM_PREFIX, read_settings
-from robstiff_drake.io import RunFolder, check_outputs, emit_json, json_text
+from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.robot import load_robot
 
@@ -116,8 +117,8 @@ def write_diagram(cell, run):
     return ["diagram.dot (dot failed to render the SVG)"]
 
 
-def summary(results, sc):
-    out = {"scenario": sc.source, "name": sc.name, "surface_error_mm": {}}
+def summary(results, sc, warnings=()):
+    out = {"scenario": sc.source, "name": sc.name, "surface_error_mm": {}, "warnings": list(warnings)}
     res0 = results[0]
     for res in results:
         out["surface_error_mm"][label(res.compensation)] = res.surface_error_mm
@@ -133,6 +134,9 @@ def summary(results, sc):
     out["natural_frequencies_hz"] = res0.cell.natural_frequencies_hz
     out["plant_time_step_s"] = res0.cell.plant_time_step_s
     out["transport_delay_s"] = res0.cell.transport_delay_s
+    errs = out["surface_error_mm"]
+    out["compensation_made_it_worse"] = (bool(errs["compensated"]["rms"] > WORSE_FACTOR * errs["uncompensated"]["rms"])
+                                         if len(errs) == 2 else None)
     return out
 
 
@@ -155,8 +159,6 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None):
     settings file (``compensator``) and the sensor's and scanner's noise
     seeds set to ``noise_seed`` (a repeated cut: new noise) when given."""
     sc = load_scenario(scenario)
-    if not (np.isfinite(sc.scan.noise_mm) and 0 <= sc.scan.noise_mm <= 1.0):
-        raise InputError(f"{sc.source}: scan.noise_mm: must be between 0 and 1 mm, got {sc.scan.noise_mm}")
     if compensator is not None:
         _, settings = read_settings(compensator)
         sc = scenario_with_compensator(sc, settings, robot)
@@ -165,13 +167,20 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None):
     return sc
 
 
-def simulate(*, scenario, compensation="both", robot=None, compensator=None, noise_seed=None):
-    """Load and run; returns (scenario, results)."""
+def simulate(*, scenario, compensation="both", robot=None, warnings=None, compensator=None, noise_seed=None):
+    """Load and run; returns (scenario, results).  Warnings about the
+    settings and the result go to ``warnings`` (an io.Warnings) if given.
+    ``compensator``, ``noise_seed``: see load_for_run."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
     robot = robot or load_robot()
     sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed)
-    return sc, [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
+    if warnings is not None:
+        warnings.extend_from(scenario_warnings(sc, robot))
+    results = [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
+    if warnings is not None:
+        warnings.extend_from(run_warnings(results, sc))
+    return sc, results
 
 
 def surface_csv(res, run_id=""):
@@ -203,11 +212,13 @@ def scenario_text(sc, run_id=""):
         if getattr(sc.model, attr):
             setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
     source, sc.source = sc.source, ""
+    body = "".join(line for line in yaml_dump_typed(sc, schema=Scenario).splitlines(keepends=True)
+                   if not line.startswith("source:"))  # set by the loader, not a key of the file
     return (f"# run_id: {run_id}\n# the scenario of this run (from {source}), with its plant: the simulation's "
-            "truth, which diagnose-run never reads\n" + yaml_dump_typed(sc, schema=Scenario))
+            "truth, which diagnose-run never reads\n" + body)
 
 
-def write_outputs(sc, results, robot, run):
+def write_outputs(sc, results, robot, run, warnings=()):
     """Every file of a run into ``run`` (an io.RunFolder), each stamped with
     its run id; returns the names written.  The compensated cut's cell files
     (docs/run_files.md) and the simulation's truth (``sim_*``)."""
@@ -229,7 +240,7 @@ def write_outputs(sc, results, robot, run):
         name = f"{SIM_PREFIX}surface_{label(res.compensation)}.csv"
         run.write(name, surface_csv(res, run.run_id))
         written.append(name)
-    run.write("summary.json", json_text(dict(summary(results, sc), run_id=run.run_id)))
+    run.write("summary.json", json_text(dict(summary(results, sc, warnings), run_id=run.run_id)))
     written.append("summary.json")
     return written
 
@@ -237,11 +248,12 @@ def write_outputs(sc, results, robot, run):
 def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None):
     check_outputs(inputs=[scenario, compensator], files={"--json": json_out}, folders={"--out": out})
     robot = load_robot()
-    sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, compensator=compensator,
-                           noise_seed=noise_seed)
-    summ = summary(results, sc)
+    warnings = Warnings()
+    sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
+                           compensator=compensator, noise_seed=noise_seed)
+    summ = summary(results, sc, warnings)
     with RunFolder(out) as run_folder:
-        written = write_outputs(sc, results, robot, run_folder)
+        written = write_outputs(sc, results, robot, run_folder, warnings)
     summ["run_id"] = run_folder.run_id
     summ["outputs"] = [str(Path(out) / w.split(" ")[0]) for w in written]
     if json_out is not None:

@@ -5,7 +5,7 @@ import numpy as np
 
 from robstiff_drake.commands.main import parse_vector
 from robstiff_drake.errors import InputError, SingularPoseError
-from robstiff_drake.io import emit_json
+from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.robot import load_robot
@@ -49,6 +49,8 @@ def pose_report(robot, q_deg, tool_m):
         "stiffness_N_per_um": None if K3 is None else K3.tolist(),
         "stiffness_N_per_um_principal": [None if not np.isfinite(s) else float(s) for s in stiff_eig_N_per_um],
         "singular_joints": list(joints),
+        "warnings": ([f"singular pose ({st.describe_singularity(joints)}): the stiffness along the lost direction "
+                      "is unbounded and K_x does not exist"] if joints else []),
     }
 
 
@@ -90,6 +92,7 @@ def format_report(rep, robot):
 
 
 def run(*, q, tool=None, kx=False, json_out=None, robot_yaml=None):
+    check_outputs(inputs=[robot_yaml], files={"--json": json_out})
     robot = load_robot(robot_yaml)
     q_deg = parse_q_deg(q)
     robot.check_q_deg(q_deg, where="stiffness")

@@ -8,7 +8,7 @@ import numpy as np
 
 from robstiff_drake.commands.main import parse_vector
 from robstiff_drake.errors import InputError
-from robstiff_drake.io import save_figure_atomic
+from robstiff_drake.io import check_outputs, save_figure_atomic
 from robstiff_drake.model import ik
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
@@ -84,6 +84,7 @@ def run(*, out, force_N=500.0, resolution=41, tool=None, robot_yaml=None):
         raise InputError(f"stiffness-map: --resolution must be between 5 and 301, got {resolution}")
     if not str(out).lower().endswith(".png"):
         raise InputError(f"stiffness-map: --out must name a .png file, got {out!r}")
+    check_outputs(inputs=[robot_yaml], files={"--out": out})
     robot = load_robot(robot_yaml)
     tool_m = robot.payload.tool_point_m if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
     fig, data = make_map(robot, tool_m=tool_m, force_N=force_N, resolution=resolution)

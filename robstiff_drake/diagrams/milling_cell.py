@@ -52,6 +52,7 @@ from robstiff_drake.diagrams.scenario import planned_path as scenario_path
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.path import PathError, PlannedPath
+from robstiff_drake.model.payload import payload_wrench
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.plant import JOINT_NAMES, add_irb6400
 from robstiff_drake.systems.deflection_prediction import DeflectionPrediction
@@ -62,7 +63,7 @@ from robstiff_drake.systems.force_filter import (
     revolution_average_coefficients,
     steady_state,
 )
-from robstiff_drake.systems.gravity_removal import GravityRemoval, payload_wrench
+from robstiff_drake.systems.gravity_removal import GravityRemoval
 from robstiff_drake.systems.joint_effects import JointEffects
 from robstiff_drake.systems.milling_force import MillingForceSource
 from robstiff_drake.systems.predictive_wrench import PredictiveWrench

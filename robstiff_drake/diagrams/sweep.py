@@ -9,9 +9,11 @@ import copy
 import itertools
 import math
 import os
+import signal
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
@@ -27,7 +29,7 @@ def combinations(periods_ms, delay_steps, cutoffs_hz, modes):
             for p, d, c, m in itertools.product(periods_ms, delay_steps, cutoffs_hz, modes)]
 
 
-def check_combinations(sc, combos):
+def check_combinations(sc, combos, plant_step_ms=None):
     """Refuse, before anything runs, a combination the scenario cannot take."""
     for c in combos:
         if c["period_ms"] < sc.plant.time_step_ms - 1e-12:
@@ -40,6 +42,11 @@ def check_combinations(sc, combos):
             raise InputError(f"sweep: delay steps must be >= 0, got {c['delay_steps']}")
         if c["mode"] not in ("plain", "predictive"):
             raise InputError(f"sweep: mode must be plain or predictive, got {c['mode']!r}")
+        try:
+            configure(sc, c, plant_step_ms)  # every key of the run within its range, and its size
+        except InputError as e:
+            raise InputError(f"sweep: period {c['period_ms']:g} ms, delay {c['delay_steps']}, cutoff "
+                             f"{c['cutoff_hz']:g} Hz: {e}") from None
 
 
 def configure(sc, combo, plant_step_ms=None):
@@ -145,15 +152,44 @@ def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step
         finally:
             client.close()
         return rows
-    workers = workers or os.cpu_count() or 1
+    workers = min(workers or os.cpu_count() or 1, len(combos))
     if workers == 1:
         for i, c in enumerate(combos):
             rows[i] = run_one(str(scenario_path), c, plant_step_ms, predict)
             bar.step()
         return rows
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
+    try:
         futures = {pool.submit(run_one, str(scenario_path), c, plant_step_ms, predict): i for i, c in enumerate(combos)}
         for f in as_completed(futures):
-            rows[futures[f]] = f.result()
+            i = futures[f]
+            try:
+                rows[i] = f.result()
+            except BrokenProcessPool:  # a worker died (killed, out of memory): its run and the rest fail
+                break
             bar.step()
+    finally:
+        _stop(pool)
+    for i, c in enumerate(combos):
+        if rows[i] is None:
+            rows[i] = dict(c, stable=False, error="the worker process running it died (killed, or out of memory)")
     return rows
+
+
+def _worker_init():
+    """Workers leave Ctrl-C to the parent, which stops them, and die
+    quietly on SIGTERM (the parent's handler is not theirs)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _stop(pool):
+    """Shut a process pool down at once: queued runs cancelled, running
+    workers terminated (an interrupted sweep leaves no process behind)."""
+    procs = list(getattr(pool, "_processes", {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    for p in procs:
+        p.join(timeout=5)

@@ -7,29 +7,8 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from robstiff_drake.model.kinematics import rpy_to_rotation
-from robstiff_drake.model.realtime import rotate
+from robstiff_drake.model.wrench_frames import wrench_to_tool_base
 from robstiff_drake.systems.joint_effects import effect_dq
-
-
-def wrench_to_tool_base(R_sensor, r_s, w_sensor):
-    """The scalar core of sensor_to_tool_base (the per-cycle path): R_sensor
-    (base <- sensor) row-major, 9 floats; r_s the tool point in the sensor
-    frame; w_sensor 6 floats.  Returns a list of 6."""
-    fx, fy, fz, mx, my, mz = w_sensor
-    rx, ry, rz = r_s
-    f = rotate(R_sensor, (fx, fy, fz))
-    m = rotate(R_sensor, (mx - (ry * fz - rz * fy), my - (rz * fx - rx * fz), mz - (rx * fy - ry * fx)))
-    return list(f + m)
-
-
-def sensor_to_tool_base(w_sensor, R_flange, tool_m, R_mount=None):
-    """A wrench measured in the sensor frame (about its origin, which is the
-    flange origin) as a wrench (force N, moment N*m about the tool point) in
-    the base frame.  ``tool_m`` is the tool point in the flange frame."""
-    R_mount = np.eye(3) if R_mount is None else np.asarray(R_mount, dtype=float)
-    Rs = np.asarray(R_flange, dtype=float) @ R_mount
-    r_s = R_mount.T @ np.asarray(tool_m, dtype=float)  # tool point in the sensor frame
-    return np.array(wrench_to_tool_base(Rs.ravel().tolist(), r_s.tolist(), np.asarray(w_sensor, dtype=float).tolist()))
 
 
 class DeflectionPrediction(LeafSystem):

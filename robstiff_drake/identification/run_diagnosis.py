@@ -5,7 +5,7 @@ the scan of the machined face) find what the compensated surface error is,
 trace it to a cause, write each candidate fix as compensator settings with
 a verification-cut plan, and decide from the verification cuts' scans.
 Nothing here reads the simulation's truth (``sim_*`` files) or runs a
-simulation: a cell's own logs are enough.
+simulation: a cell's own logs are enough.  Plain numpy and scipy; no Drake.
 
 Signals.  The wrench log, gravity removed with the settings' payload
 calibration and moved to the tool point (base frame), gives the process
@@ -55,9 +55,9 @@ from robstiff_drake.identification import run_files as rf
 from robstiff_drake.identification import run_verification as rv
 from robstiff_drake.identification import scan_statistics as ss
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.systems.deflection_prediction import sensor_to_tool_base
-from robstiff_drake.systems.gravity_removal import PayloadCalibration, payload_wrench
-from robstiff_drake.systems.joint_effects import LOST_MOTION_TORQUE_NM, effect_dq
+from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
+from robstiff_drake.model.transmission import TAU_B_NM, twist
+from robstiff_drake.model.wrench_frames import sensor_to_tool_base
 
 SMOOTH_HZ = 10.0  # ASSUMPTION: the arm's first modes are 5-10 Hz (this robot: 4.9, 8.6, 11.2 Hz)
 GRID_HZ = 200.0  # resampling rate after the smoothing (nothing faster is left)
@@ -138,9 +138,9 @@ def run_signals(files, robot):
     J = kin.jacobian(robot.dh, q_nom, tool)
     tau = np.einsum("nrj,nr->nj", J, W)
     c = 1.0 / np.asarray(s.joint_stiffness_Nm_per_rad, dtype=float)
-    effects = np.array([effect_dq(tk, s.lost_motion_rad, s.coupling_c23_rad_per_Nm) for tk in tau])
-    return RunSignals(grid, q_nom, corr, W, tau, J[:, 2, :], kin.tool_position(robot.dh, q_nom, tool), c,
-                      c * tau + effects)
+    # what the compensator predicts: its model's twist under the process load (as DeflectionPrediction)
+    model_dq = twist(tau, c, s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
+    return RunSignals(grid, q_nom, corr, W, tau, J[:, 2, :], kin.tool_position(robot.dh, q_nom, tool), c, model_dq)
 
 
 @dataclass
@@ -189,7 +189,7 @@ def candidates(sig):
                              f"joint {j + 1}'s compliance differs from the model's"))
     # ASSUMPTION: lost motion up to 300 urad (1 arcmin); industrial gears are specified at 10-60 urad
     out.append(Candidate("lost_motion",
-                         np.column_stack([Jz[:, j] * np.tanh(tau[:, j] / LOST_MOTION_TORQUE_NM) for j in range(3)]),
+                         np.column_stack([Jz[:, j] * np.tanh(tau[:, j] / TAU_B_NM) for j in range(3)]),
                          [Param(f"b{j + 1}", "urad", 1e6, 0.0, 3e-4, True) for j in range(3)],
                          "lost motion (backlash) in joints 1-3 beyond the model's"))
     # ASSUMPTION: |c23| <= 0.3 sqrt(c2 c3); a positive-definite compliance needs < 1
