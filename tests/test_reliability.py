@@ -167,12 +167,13 @@ def test_a_run_folder_is_written_as_a_whole(capsys, tmp_path):
     out = tmp_path / "run"
     assert cli(capsys, "simulate", SHORT, "--out", out)[0] == 0
     first = (out / RUN_ID_FILE).read_text().strip()
-    assert (out / "timeseries_uncompensated.csv").exists()
+    assert (out / "sim_timeseries_uncompensated.csv").exists()
     assert cli(capsys, "simulate", SHORT, "--compensation", "on", "--out", out)[0] == 0
     second = (out / RUN_ID_FILE).read_text().strip()
     assert second != first
-    assert not (out / "timeseries_uncompensated.csv").exists()  # nothing of the first run is left beside it
-    for name in ("timeseries_compensated.csv", "surface_compensated.csv", "scenario.yaml"):
+    assert not (out / "sim_timeseries_uncompensated.csv").exists()  # nothing of the first run is left beside it
+    for name in ("sim_timeseries_compensated.csv", "sim_surface_compensated.csv", "sim_scenario.yaml",
+                 "wrench_log.csv", "joint_log.csv", "compensator.yaml", "scan.csv"):
         assert f"# run_id: {second}" in (out / name).read_text().splitlines()[0]
     assert json.loads((out / "summary.json").read_text())["run_id"] == second
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no temporary folder

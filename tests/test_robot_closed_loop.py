@@ -61,22 +61,27 @@ def test_the_fanuc_runs_in_the_closed_loop_and_compensation_works(fanuc_run):
 
 
 def test_the_run_folder_holds_the_controllers_angles(fanuc_run):
-    """timeseries q*_deg are FANUC's J1..J6; read back with the robot they
-    put the tool on the commanded path (within the arm's deflection)."""
-    from robstiff_drake.diagrams.run_diagnosis import load_run, read_csv
+    """The joint log's q*_deg are FANUC's J1..J6 and its corrections the
+    controller's; read back with the robot they put the tool on the
+    commanded path (within the arm's deflection), and the run's settings
+    name the robot."""
+    from robstiff_drake.identification import run_files as rf
 
     _, out, _ = fanuc_run
     robot = load_robot("r2000ic_165f")
-    assert yaml.safe_load((out / "scenario.yaml").read_text())["robot"] == "r2000ic_165f"
-    run = load_run(out, robot)
-    rows = read_csv(out / "timeseries_compensated.csv")
-    correction = np.column_stack([rows[f"correction_q{j}_rad"] for j in range(1, 7)])  # on the model's joints
-    p = kin.tool_position(robot.dh, run.q - correction, robot.payload.tool_point_m)
-    cmd = np.column_stack([rows[f"commanded_{a}_mm"] for a in "xyz"]) / 1e3
+    assert yaml.safe_load((out / "sim_scenario.yaml").read_text())["robot"] == "r2000ic_165f"
+    assert rf.read_settings(out / "compensator.yaml")[1].robot == "r2000ic_165f"
+    _, log = rf.read_joint_log(out / "joint_log.csv")
+    path_q = robot.joint_rad(log.q_deg) - robot.model_delta_rad(log.correction_deg)
+    p = kin.tool_position(robot.dh, path_q, robot.payload.tool_point_m)
+    lines = [ln for ln in (out / "sim_timeseries_compensated.csv").read_text().splitlines() if not ln.startswith("#")]
+    header = lines[0].split(",")
+    table = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
+    rows = {h: table[:, i] for i, h in enumerate(header)}
+    cmd = np.column_stack([np.interp(log.t_s, rows["t_s"], rows[f"commanded_{a}_mm"]) for a in "xyz"]) / 1e3
     assert np.max(np.abs(p - cmd)) < 5e-5  # the path's joint references put the tool on the path (CSV rounding)
     # the same numbers read as if they were the model's angles would be far off (J3 is coupled, J3..J6 flipped)
-    wrong = kin.tool_position(robot.dh, np.deg2rad(np.column_stack([rows[f"q{j}_deg"] for j in range(1, 7)])),
-                              robot.payload.tool_point_m)
+    wrong = kin.tool_position(robot.dh, np.deg2rad(log.q_deg - log.correction_deg), robot.payload.tool_point_m)
     assert np.max(np.abs(wrong - cmd)) > 0.1
 
 

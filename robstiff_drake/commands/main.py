@@ -200,11 +200,20 @@ def build_parser():
     p.add_argument("--report", metavar="OUT.md", help="write a Markdown report")
     p.add_argument("--plots", metavar="DIR", help="write the residual views (one PNG per view)")
 
-    p = sub.add_parser("diagnose-run", help="trace a machining run's residual surface error to its cause, fix, rerun")
-    p.add_argument("run_dir", metavar="RUN_DIR", help="a folder written by `robstiff simulate ... --out RUN_DIR`")
+    p = sub.add_parser("diagnose-run", help="trace a machining run's residual surface error to its cause; write "
+                                            "each candidate fix and decide from verification cuts")
+    p.add_argument("run_dir", metavar="RUN_DIR", help="a run folder (docs/run_files.md): a cell's logs, or "
+                                                      "`robstiff simulate ... --out RUN_DIR`")
+    p.add_argument("--noise-mm", type=_number_in(1e-6, 10.0, "mm"), metavar="SIGMA",
+                   help="the scan's 1-sigma height noise (mm); default: scan.csv's noise_mm, and the estimate "
+                        "from the scan is reported too")
+    p.add_argument("--verify", nargs="+", metavar="CUT_DIR",
+                   help="run folders of verification cuts (one per candidate fix's compensator.yaml): decide "
+                        "from their scans")
     p.add_argument("--json", metavar="OUT", help="write the report as JSON ('-' for stdout)")
-    p.add_argument("--out", metavar="DIR", help="where to write the plot and JSON (default: RUN_DIR/diagnosis)")
-    _add_robot_option(p, "the run's robot (default: the one its scenario.yaml names); must agree with it")
+    p.add_argument("--out", metavar="DIR", help="where to write the report, candidate settings and plot "
+                                                "(default: RUN_DIR/diagnosis)")
+    _add_robot_option(p, "the run's robot (default: the one its compensator.yaml names); must agree with it")
 
     p = sub.add_parser("plan-poses", help="a well-conditioned measurement plan for the identification")
     p.add_argument("n", type=_number_in(6, 500, integer=True), metavar="N", help="number of measurements (6-500)")
@@ -228,6 +237,12 @@ def build_parser():
                    help="run with, without, or both (default: %(default)s)")
     p.add_argument("--json", metavar="OUT", help="write the summary as JSON ('-' for stdout)")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
+    p.add_argument("--compensator", metavar="SETTINGS.yaml",
+                   help="run the scenario's machine with this compensator (a compensator.yaml, e.g. a candidate "
+                        "fix of diagnose-run): a verification cut")
+    p.add_argument("--noise-seed", type=SEED, metavar="N",
+                   help="seed of the sensor's and the scanner's noise (default: the scenario's); a repeated cut "
+                        "draws new noise")
     _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
                          "scenario's `robot:` when it has one")
 
@@ -308,7 +323,8 @@ def _dispatch(args):
     if args.command == "diagnose-run":
         from robstiff_drake.commands import diagnose_run
 
-        return diagnose_run.run(run_dir=args.run_dir, json_out=args.json, out=args.out, robot_yaml=args.robot)
+        return diagnose_run.run(run_dir=args.run_dir, json_out=args.json, out=args.out, noise_mm=args.noise_mm,
+                                verify=args.verify, robot_yaml=args.robot)
     if args.command == "plan-poses":
         from robstiff_drake.commands import plan_poses
 
@@ -323,7 +339,8 @@ def _dispatch(args):
         from robstiff_drake.commands import simulate
 
         return simulate.run(scenario=args.scenario, compensation=args.compensation, json_out=args.json,
-                            out=args.out, robot_yaml=args.robot)
+                            out=args.out, compensator=args.compensator, noise_seed=args.noise_seed,
+                            robot_yaml=args.robot)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep
 

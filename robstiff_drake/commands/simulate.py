@@ -1,6 +1,14 @@
 """``robstiff simulate SCENARIO.yaml``: the closed-loop milling simulation,
 without and/or with compensation; surface-error plot (like the seed's Fig. 7),
-the diagram (Graphviz), CSV time series and a JSON summary."""
+the diagram (Graphviz), CSV time series and a JSON summary.
+
+The run folder (``--out``) holds the compensated cut as a cell records it
+(wrench_log.csv, joint_log.csv, compensator.yaml, scan.csv: the formats of
+docs/run_files.md, written by identification/run_files.py) and the
+simulation's own files, named ``sim_*`` (the scenario with its plant, the
+actual tool path, the true surface): the truth that ``robstiff
+diagnose-run`` never reads.  ``--compensator SETTINGS.yaml`` runs the
+scenario's machine with another compensator (a verification cut)."""
 
 import csv
 import io
@@ -10,10 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
+from robstiff_drake.diagrams.cell_record import cell_files, scenario_with_compensator
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, run_warnings
 from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
 from robstiff_drake.errors import InputError
+from robstiff_drake.identification.run_files import SIM_PREFIX, read_settings
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model import kinematics as kin
 
@@ -145,15 +155,29 @@ def format_table(summ):
     return "\n".join(lines)
 
 
-def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None):
+def load_for_run(scenario, robot, *, compensator=None, noise_seed=None):
+    """The scenario to simulate: from its file, with the compensator of a
+    settings file (``compensator``) and the sensor's and scanner's noise
+    seeds set to ``noise_seed`` (a repeated cut: new noise) when given."""
+    sc = load_scenario(scenario)
+    if compensator is not None:
+        _, settings = read_settings(compensator)
+        sc = scenario_with_compensator(sc, settings, robot)
+    if noise_seed is not None:
+        sc.sensor.seed = sc.scan.seed = int(noise_seed)
+    return sc
+
+
+def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None, compensator=None,
+             noise_seed=None):
     """Load and run; returns (scenario, results).  The robot: ``robot`` (a
     RobotModel), else --robot's ``robot_yaml``, else the scenario's own.
     Warnings about the settings and the result go to ``warnings`` (an
-    io.Warnings) if given."""
+    io.Warnings) if given.  ``compensator``, ``noise_seed``: see load_for_run."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
-    sc = load_scenario(scenario)
-    robot = robot or scenario_robot(sc, robot_yaml)
+    robot = robot or scenario_robot(load_scenario(scenario), robot_yaml)
+    sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed)
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot))
     results = [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
@@ -163,10 +187,12 @@ def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warn
 
 
 def surface_csv(res, run_id=""):
-    """The laser scans of one run: x, y, commanded and machined height, error (mm)."""
+    """The true machined surface of one run (the simulation's truth, without
+    the scanner's noise): x, y, commanded and machined height, error (mm)."""
     buf = io.StringIO()
     buf.write(f"# run_id: {run_id}\n")
-    buf.write(f"# robstiff simulate: machined surface, {label(res.compensation)}; error = commanded - machined "
+    buf.write(f"# robstiff simulate: the true machined surface (simulation only; scan.csv is what the scanner "
+              f"measures), {label(res.compensation)}; error = commanded - machined "
               "(positive: cut more); empty where there is no machined face.\n")
     buf.write("x_mm,y_mm,commanded_mm,machined_mm,error_mm\n")
     for line in res.scans:
@@ -194,23 +220,30 @@ def scenario_text(sc, run_id=""):
     source, sc.source = sc.source, ""
     body = "".join(line for line in yaml_dump_typed(sc, schema=Scenario).splitlines(keepends=True)
                    if not line.startswith("source:"))  # set by the loader, not a key of the file
-    return f"# run_id: {run_id}\n# the scenario of this run (from {source})\n" + body
+    return (f"# run_id: {run_id}\n# the scenario of this run (from {source}), with its plant: the simulation's "
+            "truth, which diagnose-run never reads\n" + body)
 
 
 def write_outputs(sc, results, robot, run, warnings=()):
     """Every file of a run into ``run`` (an io.RunFolder), each stamped with
-    its run id; returns the names written."""
+    its run id; returns the names written.  The compensated cut's cell files
+    (docs/run_files.md) and the simulation's truth (``sim_*``)."""
     written = []
-    run.write("scenario.yaml", scenario_text(sc, run.run_id))
-    written.append("scenario.yaml")
+    for res in results:
+        if res.compensation:
+            for name, text in cell_files(sc, res, robot, run.run_id).items():
+                run.write(name, text)
+                written.append(name)
+    run.write(f"{SIM_PREFIX}scenario.yaml", scenario_text(sc, run.run_id))
+    written.append(f"{SIM_PREFIX}scenario.yaml")
     run.save_figure("surface_error.png", plot_surfaces(results, sc), dpi=110)
     written.append("surface_error.png")
     written += write_diagram(results[-1].cell, run)
     for res in results:
-        name = f"timeseries_{label(res.compensation)}.csv"
+        name = f"{SIM_PREFIX}timeseries_{label(res.compensation)}.csv"
         run.write(name, timeseries_csv(res, robot, run.run_id))
         written.append(name)
-        name = f"surface_{label(res.compensation)}.csv"
+        name = f"{SIM_PREFIX}surface_{label(res.compensation)}.csv"
         run.write(name, surface_csv(res, run.run_id))
         written.append(name)
     run.write("summary.json", json_text(dict(summary(results, sc, warnings), run_id=run.run_id)))
@@ -218,11 +251,13 @@ def write_outputs(sc, results, robot, run, warnings=()):
     return written
 
 
-def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", robot_yaml=None):
-    check_outputs(inputs=[scenario], files={"--json": json_out}, folders={"--out": out})
+def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None,
+        robot_yaml=None):
+    check_outputs(inputs=[scenario, compensator], files={"--json": json_out}, folders={"--out": out})
     robot = scenario_robot(load_scenario(scenario), robot_yaml)
     warnings = Warnings()
-    sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings)
+    sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
+                           compensator=compensator, noise_seed=noise_seed)
     summ = summary(results, sc, warnings)
     with RunFolder(out) as run_folder:
         written = write_outputs(sc, results, robot, run_folder, warnings)

@@ -167,6 +167,15 @@ class ScanConfig:
     # entry / exit zones of the statistics: this far from each box's leading /
     # trailing edge (0: the cutter radius, where the engagement changes)
     zone_mm: float = num(0.0, 0.0, 500.0, "mm")
+    # The scanner's height noise, 1 sigma per point, added to the measured
+    # scan (scan.csv; the statistics of the simulation's own summary stay
+    # those of the true surface).  ASSUMPTION, 3 um: a laser line scanner's
+    # own repeatability is about 0.5-2 um (Keyence LJ-X8000, Micro-Epsilon
+    # scanCONTROL 30xx data sheets), a face-milled aluminium surface adds its
+    # roughness (Ra 0.8-1.6 um, sigma about 1.25 Ra) and a scanner carried
+    # over the part adds its vibration: together a few um.
+    noise_mm: float = num(0.003, 0.0, 1.0, "mm", why="1 mm of scan noise is no measurement of a milled face")
+    seed: int = num(0, 0, 2**32 - 1, "", integer=True)  # of the scan noise (each cut and line draws its own)
 
 
 @dataclass

@@ -192,6 +192,14 @@ class RobotModel:
         """Controller angles (deg) of model joint angles in radians, (..., 6)."""
         return np.rad2deg(self.joint_map.to_controller(q_rad))
 
+    def controller_delta_deg(self, dq_rad):
+        """A change of the model's joint angles (rad) as the controller's (deg), (..., 6)."""
+        return np.rad2deg(np.asarray(dq_rad, dtype=float) @ np.linalg.inv(self.joint_map.G).T)
+
+    def model_delta_rad(self, dq_ctrl_deg):
+        """A change of the controller's angles (deg) as the model's (rad), (..., 6)."""
+        return np.deg2rad(np.asarray(dq_ctrl_deg, dtype=float)) @ self.joint_map.G.T
+
     @property
     def model_limits_rad(self):
         """(lower, upper) box of the model's joint angles that the
