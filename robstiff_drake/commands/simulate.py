@@ -128,7 +128,10 @@ def summary(results, sc, warnings=()):
     out["realtime_factor"] = out["sim_seconds"] / out["wall_seconds"]
     out["runs"] = [{"compensation": r.compensation, "sim_seconds": r.sim_seconds, "wall_seconds": r.wall_seconds,
                     "realtime_factor": r.realtime_factor,
-                    "rejected_sensor_samples": int(r.logs["rejected"][1][-1, 0])} for r in results]
+                    "rejected_sensor_samples": int(r.logs["rejected"][1][-1, 0]), "spindle": r.spindle}
+                   for r in results]
+    out["spindle_power_W"] = max(r.spindle["power_W_max"] for r in results)
+    out["spindle_rating_W"] = sc.cutter.spindle_rating_W
     cw = res0.logs["cutting_wrench"][1]
     mid = cw[len(cw) // 2]
     out["cutting_wrench_at_mid_pass"] = {"force_N": mid[:3], "moment_Nm": mid[3:]}
@@ -147,7 +150,8 @@ def format_table(summ):
     for name, s in summ["surface_error_mm"].items():
         lines.append(f"  {name:14s} {s['mean']:+7.3f}  {s['rms']:7.3f}  {s['max_abs']:7.3f}  {s['pv']:7.3f}")
     f = summ["cutting_wrench_at_mid_pass"]["force_N"]
-    lines.append(f"cutting force at mid-pass (N, base frame): ({f[0]:.0f}, {f[1]:.0f}, {f[2]:.0f})")
+    lines.append(f"cutting force at mid-pass (N, base frame): ({f[0]:.0f}, {f[1]:.0f}, {f[2]:.0f}); spindle power up "
+                 f"to {summ['spindle_power_W'] / 1e3:.2f} kW (rating {summ['spindle_rating_W'] / 1e3:.2f} kW)")
     lines.append("first natural frequencies at the start pose (Hz): "
                  + ", ".join(f"{v:.1f}" for v in summ["natural_frequencies_hz"]))
     lines.append(f"simulated {summ['sim_seconds']:.2f} s in {summ['wall_seconds']:.2f} s wall "

@@ -96,7 +96,7 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
         raise InputError(f"sweep: --plant-step-ms must be > 0, got {plant_step_ms}")
     sc = load_scenario(scenario)
     if plant_step_ms:
-        sc.plant.time_step_ms = plant_step_ms
+        sc.plant_config.time_step = plant_step_ms / 1e3
     combos = combinations(periods_ms, delay_steps, cutoffs_hz, mode_list)
     check_combinations(sc, combos, plant_step_ms)
     robot = scenario_robot(sc, robot_yaml)

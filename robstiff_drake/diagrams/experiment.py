@@ -8,6 +8,7 @@ import numpy as np
 
 from robstiff_drake.diagrams.milling_cell import build_milling_cell, make_simulator, tool_wrench_log
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.spindle import spindle_power_W, spindle_torque_Nm
 from robstiff_drake.model.surface import envelope_heights, surface_error_stats
 
 # How long after the path ends the simulation goes on (s): lets the last
@@ -43,6 +44,7 @@ class RunResult:
     sim_seconds: float
     wall_seconds: float
     cell: object = None
+    spindle: dict = None  # power_W_max, power_W_mean (while cutting), torque_Nm_max
 
     @property
     def realtime_factor(self):
@@ -153,4 +155,19 @@ def run_cut(sc, robot, *, compensation=True, cell=None):
     err = np.concatenate([s.error_m[np.isfinite(s.error_m)] for s in scans])
     stats = surface_error_stats(err) if err.size else {}
     stats.update(zone_stats(cell, scans))
-    return RunResult(compensation, logs, scans, stats, t_end, wall, cell)
+    return RunResult(compensation, logs, scans, stats, t_end, wall, cell, spindle_load(cell, logs))
+
+
+def spindle_load(cell, logs):
+    """The spindle's torque and power over the run, from the cutting wrench
+    and the tool axis (the flange z axis) at the logged link angles."""
+    t, w = logs["cutting_wrench"]
+    ts, x = logs["state"]
+    i = np.clip(np.searchsorted(ts, t), 0, len(ts) - 1)
+    axis = kin.frames(cell.robot.dh, x[i, :6])[:, 6, :3, 2]
+    torque = spindle_torque_Nm(w, axis)
+    power = spindle_power_W(torque, cell.scenario.cutter.spindle_rpm)
+    cutting = power > 1.0
+    return {"power_W_max": float(power.max()) if power.size else 0.0,
+            "power_W_mean": float(power[cutting].mean()) if np.any(cutting) else 0.0,
+            "torque_Nm_max": float(torque.max()) if torque.size else 0.0}

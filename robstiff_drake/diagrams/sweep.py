@@ -32,9 +32,10 @@ def combinations(periods_ms, delay_steps, cutoffs_hz, modes):
 def check_combinations(sc, combos, plant_step_ms=None):
     """Refuse, before anything runs, a combination the scenario cannot take."""
     for c in combos:
-        if c["period_ms"] < sc.plant.time_step_ms - 1e-12:
+        step_ms = plant_step_ms or sc.plant_config.time_step * 1e3
+        if c["period_ms"] < step_ms - 1e-9:
             raise InputError(f"sweep: period {c['period_ms']:g} ms is below the plant step "
-                             f"({sc.plant.time_step_ms:g} ms); pass --plant-step-ms {c['period_ms']:g} or drop it")
+                             f"({step_ms:g} ms); pass --plant-step-ms {c['period_ms']:g} or drop it")
         if not 0 < c["cutoff_hz"] < 0.5 * sc.sensor.rate_hz:
             raise InputError(f"sweep: cutoff {c['cutoff_hz']:g} Hz must be between 0 and half the sensor rate "
                              f"({0.5 * sc.sensor.rate_hz:g} Hz)")
@@ -57,7 +58,7 @@ def configure(sc, combo, plant_step_ms=None):
     sc.controller.filter.cutoff_hz = combo["cutoff_hz"]
     sc.controller.mode = combo["mode"]
     if plant_step_ms:
-        sc.plant.time_step_ms = plant_step_ms
+        sc.plant_config.time_step = plant_step_ms / 1e3
     from robstiff_drake.diagrams.scenario import check_scenario
 
     check_scenario(sc)
