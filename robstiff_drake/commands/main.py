@@ -197,6 +197,8 @@ def build_parser():
                    help="run with, without, or both (default: %(default)s)")
     p.add_argument("--json", metavar="OUT", help="write the summary as JSON ('-' for stdout)")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
+    p.add_argument("--toolpath", metavar="PROGRAM", help="a G-code program as the path, placed by the scenario's "
+                                                        "toolpath.work_offset_mm (docs/toolpaths.md)")
 
     p = sub.add_parser("sweep", help="sampling-delay study: closed-loop runs over period, delay, cutoff and mode")
     p.add_argument("scenario", metavar="SCENARIO.yaml")
@@ -278,7 +280,7 @@ def _dispatch(args):
         from robstiff_drake.commands import simulate
 
         return simulate.run(scenario=args.scenario, compensation=args.compensation, json_out=args.json,
-                            out=args.out)
+                            out=args.out, toolpath=args.toolpath)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep
 

@@ -80,14 +80,19 @@ def plot_surfaces(results, sc):
 
     fig, axes = plt.subplots(len(results), 1, figsize=(10, 3.2 * len(results)), squeeze=False,
                              constrained_layout=True)
+    along_path = results[0].scans and results[0].scans[0].s_m is not None
     for ax, res in zip(axes[:, 0], results):
         for line in res.scans:
-            ax.plot(line.x_m * 1e3, line.error_m * 1e3, lw=1, label=f"scan at y = {line.y_m * 1e3:.1f} mm")
+            if along_path:
+                ax.plot(line.s_m * 1e3, line.error_m * 1e3, lw=1, label=f"along the path, offset {line.offset_m * 1e3:+.1f} mm")
+            else:
+                ax.plot(line.x_m * 1e3, line.error_m * 1e3, lw=1, label=f"scan at y = {line.y_m * 1e3:.1f} mm")
         s = res.surface_error_mm
         ax.axhline(0, color="k", lw=0.6)
         ax.set_title(f"{label(res.compensation)}: mean {s['mean']:+.3f} mm, rms {s['rms']:.3f}, "
                      f"max |e| {s['max_abs']:.3f}, PV {s['pv']:.3f} mm")
-        ax.set_xlabel("x along the pass (mm); gaps: no material")
+        ax.set_xlabel("arc length along the path (mm); gaps: no material" if along_path
+                      else "x along the pass (mm); gaps: no material")
         ax.set_ylabel("surface error (mm)\n+ = cut more")
         ax.legend(fontsize=8, loc="lower right")
     fig.suptitle(f"{sc.name}: machined surface from the cutter's envelope (laser line scan)")
@@ -144,12 +149,13 @@ def format_table(summ):
     return "\n".join(lines)
 
 
-def simulate(*, scenario, compensation="both", robot=None, warnings=None):
+def simulate(*, scenario, compensation="both", robot=None, warnings=None, toolpath=None):
     """Load and run; returns (scenario, results).  Warnings about the
-    settings and the result go to ``warnings`` (an io.Warnings) if given."""
+    settings and the result go to ``warnings`` (an io.Warnings) if given.
+    ``toolpath``: a G-code program replacing the scenario's path."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
-    sc = load_scenario(scenario)
+    sc = load_scenario(scenario, toolpath=toolpath)
     robot = robot or load_robot()
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot))
@@ -165,10 +171,11 @@ def surface_csv(res, run_id=""):
     buf.write(f"# run_id: {run_id}\n")
     buf.write(f"# robstiff simulate: machined surface, {label(res.compensation)}; error = commanded - machined "
               "(positive: cut more); empty where there is no machined face.\n")
-    buf.write("x_mm,y_mm,commanded_mm,machined_mm,error_mm\n")
+    buf.write("x_mm,y_mm,commanded_mm,machined_mm,error_mm,s_mm\n")  # s_mm: arc length along the path (path scans)
     for line in res.scans:
-        for x, c, m, e in zip(line.x_m, line.commanded_m, line.machined_m, line.error_m):
-            vals = [x * 1e3, line.y_m * 1e3, c * 1e3, m * 1e3, e * 1e3]
+        s_mm = line.s_m * 1e3 if line.s_m is not None else np.full(line.x_m.shape, np.nan)
+        for x, y, c, m, e, s in zip(line.x_m, line.y_at, line.commanded_m, line.machined_m, line.error_m, s_mm):
+            vals = [x * 1e3, y * 1e3, c * 1e3, m * 1e3, e * 1e3, s]
             buf.write(",".join("" if not np.isfinite(v) else f"{v:.6f}" for v in vals) + "\n")
     return buf.getvalue()
 
@@ -185,6 +192,8 @@ def scenario_text(sc, run_id=""):
     for attr in ("identified_json", "payload_yaml"):
         if getattr(sc.model, attr):
             setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
+    if sc.toolpath.program:
+        sc.toolpath.program = str(resolve(sc, sc.toolpath.program).resolve())
     source, sc.source = sc.source, ""
     body = "".join(line for line in yaml_dump_typed(sc, schema=Scenario).splitlines(keepends=True)
                    if not line.startswith("source:"))  # set by the loader, not a key of the file
@@ -212,11 +221,12 @@ def write_outputs(sc, results, robot, run, warnings=()):
     return written
 
 
-def run(*, scenario, compensation="both", json_out=None, out="robstiff-out"):
-    check_outputs(inputs=[scenario], files={"--json": json_out}, folders={"--out": out})
+def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", toolpath=None):
+    check_outputs(inputs=[scenario, toolpath], files={"--json": json_out}, folders={"--out": out})
     robot = load_robot()
     warnings = Warnings()
-    sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings)
+    sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
+                           toolpath=toolpath)
     summ = summary(results, sc, warnings)
     with RunFolder(out) as run_folder:
         written = write_outputs(sc, results, robot, run_folder, warnings)
