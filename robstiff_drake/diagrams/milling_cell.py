@@ -50,18 +50,13 @@ from robstiff_drake.diagrams.scenario import (
 )
 from robstiff_drake.diagrams.scenario import planned_path as scenario_path
 from robstiff_drake.errors import InputError
+from robstiff_drake.model.filters import filter_coefficients as model_filter_coefficients
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.path import PathError, PlannedPath
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.plant import JOINT_NAMES, add_irb6400
 from robstiff_drake.systems.deflection_prediction import DeflectionPrediction
-from robstiff_drake.systems.force_filter import (
-    filter_system,
-    group_delay_s,
-    lowpass_coefficients,
-    revolution_average_coefficients,
-    steady_state,
-)
+from robstiff_drake.systems.force_filter import filter_system, group_delay_s, steady_state
 from robstiff_drake.systems.gravity_removal import GravityRemoval, payload_wrench
 from robstiff_drake.systems.joint_effects import JointEffects
 from robstiff_drake.systems.milling_force import MillingForceSource
@@ -245,11 +240,7 @@ def add_compliant_irb6400(builder, *, time_step_s, joint_stiffness_Nm_per_rad, d
 
 def filter_coefficients(filter_config, rate_hz, spindle_rpm):
     fc = filter_config
-    if fc.kind == "lowpass":
-        return lowpass_coefficients(fc.cutoff_hz, rate_hz, fc.order)
-    if fc.kind == "revolution_average":
-        return revolution_average_coefficients(spindle_rpm, rate_hz)
-    return np.array([1.0]), np.array([1.0])
+    return model_filter_coefficients(fc.kind, fc.cutoff_hz, fc.order, rate_hz, spindle_rpm)
 
 
 def add_compensation_chain(builder, *, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, saturation_rad,

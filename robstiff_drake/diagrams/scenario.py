@@ -21,7 +21,7 @@ from robstiff_drake.diagrams.schema import check_object, choice, num, rows, text
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.gcode import read_program_file
 from robstiff_drake.model.path import PathError, PlannedPath, program_elements
-from robstiff_drake.systems.gravity_removal import PayloadCalibration
+from robstiff_drake.model.gravity import PayloadCalibration
 
 
 # Ranges: what a machining robot's cell can physically be, wide enough for

@@ -6,30 +6,10 @@ Jacobian at the measured joint angles and the compensator's stiffness model
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from robstiff_drake.model.kinematics import rpy_to_rotation
-from robstiff_drake.model.realtime import rotate
-from robstiff_drake.systems.joint_effects import effect_dq
+from robstiff_drake.model.compensator import DeflectionModel
+from robstiff_drake.model.realtime import sensor_to_tool_base, wrench_to_tool_base
 
-
-def wrench_to_tool_base(R_sensor, r_s, w_sensor):
-    """The scalar core of sensor_to_tool_base (the per-cycle path): R_sensor
-    (base <- sensor) row-major, 9 floats; r_s the tool point in the sensor
-    frame; w_sensor 6 floats.  Returns a list of 6."""
-    fx, fy, fz, mx, my, mz = w_sensor
-    rx, ry, rz = r_s
-    f = rotate(R_sensor, (fx, fy, fz))
-    m = rotate(R_sensor, (mx - (ry * fz - rz * fy), my - (rz * fx - rx * fz), mz - (rx * fy - ry * fx)))
-    return list(f + m)
-
-
-def sensor_to_tool_base(w_sensor, R_flange, tool_m, R_mount=None):
-    """A wrench measured in the sensor frame (about its origin, which is the
-    flange origin) as a wrench (force N, moment N*m about the tool point) in
-    the base frame.  ``tool_m`` is the tool point in the flange frame."""
-    R_mount = np.eye(3) if R_mount is None else np.asarray(R_mount, dtype=float)
-    Rs = np.asarray(R_flange, dtype=float) @ R_mount
-    r_s = R_mount.T @ np.asarray(tool_m, dtype=float)  # tool point in the sensor frame
-    return np.array(wrench_to_tool_base(Rs.ravel().tolist(), r_s.tolist(), np.asarray(w_sensor, dtype=float).tolist()))
+__all__ = ["DeflectionPrediction", "sensor_to_tool_base", "wrench_to_tool_base"]
 
 
 class DeflectionPrediction(LeafSystem):
@@ -46,16 +26,9 @@ class DeflectionPrediction(LeafSystem):
         the tool point in the flange frame (m); ``mount_rpy_deg``: the sensor
         frame's rotation on the flange (deg)."""
         super().__init__()
-        self._pred = predictor
-        # the model's joint effects beyond the springs (see systems/joint_effects.py)
-        self._lost = None if not lost_motion_rad else np.asarray(lost_motion_rad, dtype=float)
-        self._c23 = float(coupling_c23_rad_per_Nm)
-        R_mount = rpy_to_rotation(np.deg2rad(mount_rpy_deg))
-        self._R_mount = tuple(R_mount.ravel().tolist())
-        self._r_s = tuple((R_mount.T @ np.asarray(tool_m, dtype=float)).tolist())  # tool point, sensor frame
+        self._model = DeflectionModel(predictor, tool_m, mount_rpy_deg, lost_motion_rad, coupling_c23_rad_per_Nm)
         self._w = self.DeclareVectorInputPort("process_wrench", 6)
         self._q = self.DeclareVectorInputPort("q", 6)
-        self._identity_mount = bool(np.allclose(R_mount, np.eye(3), rtol=0.0, atol=0.0))
         deps = {self._w.ticket(), self._q.ticket()}
         self.DeclareVectorOutputPort("dq", 6, self._calc_dq, prerequisites_of_calc=deps)
         self.DeclareVectorOutputPort("tool_wrench", 6, lambda c, o: o.SetFromVector(self._tool_wrench(c)[0]),
@@ -68,20 +41,9 @@ class DeflectionPrediction(LeafSystem):
 
     def tool_wrench_of(self, process_wrench, q):
         """The wrench at the tool point (base frame, list of 6) for a process
-        wrench in the sensor frame at joint angles q (rad): what
-        sensor_to_tool_base computes, in scalar arithmetic (the per-cycle
-        path)."""
-        R = self._pred.pose(q)
-        if not self._identity_mount:
-            M = self._R_mount
-            R = [R[3 * i] * M[j] + R[3 * i + 1] * M[3 + j] + R[3 * i + 2] * M[6 + j] for i in range(3) for j in range(3)]
-        w = process_wrench.tolist() if hasattr(process_wrench, "tolist") else process_wrench
-        return wrench_to_tool_base(R, self._r_s, w)
+        wrench in the sensor frame at joint angles q (rad)
+        (model/compensator.DeflectionModel)."""
+        return self._model.tool_wrench(process_wrench, q)
 
     def _calc_dq(self, context, output):
-        w, q = self._tool_wrench(context)
-        dq = [c * t for c, t in zip(self._pred.joint_compliance_list, self._pred.joint_torques(q, w))]
-        if self._lost is not None or self._c23:
-            tau = np.array(dq) / self._pred.joint_compliance
-            dq = np.asarray(dq) + effect_dq(tau, self._lost if self._lost is not None else np.zeros(6), self._c23)
-        output.SetFromVector(dq)
+        output.SetFromVector(np.asarray(self._model.dq(self._w.Eval(context), self._q.Eval(context))))

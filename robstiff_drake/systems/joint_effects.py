@@ -7,20 +7,14 @@ deflection: dq_i = b_i sign(tau_i) and dq_2 = c23 tau_3, dq_3 = c23 tau_2,
 with tau the process load's joint torques.  The sign is smoothed,
 tanh(tau / 50 N*m): near zero load the backlash is taken up gradually (by
 friction and the gear's preload), not in a jump that a torque of a few
-newtons either way would flip."""
+newtons either way would flip.  The laws are model/joint_effects.py's."""
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-LOST_MOTION_TORQUE_NM = 50.0  # torque over which the backlash is taken up (tanh scale)
+from robstiff_drake.model.joint_effects import LOST_MOTION_TORQUE_NM, effect_dq
 
-
-def effect_dq(tau, lost_motion_rad, coupling_c23):
-    """Extra joint deflection (rad) of lost motion and 2-3 coupling for joint torques tau (N*m)."""
-    dq = np.asarray(lost_motion_rad, dtype=float) * np.tanh(np.asarray(tau) / LOST_MOTION_TORQUE_NM)
-    dq[1] += coupling_c23 * tau[2]
-    dq[2] += coupling_c23 * tau[1]
-    return dq
+__all__ = ["JointEffects", "LOST_MOTION_TORQUE_NM", "effect_dq"]
 
 
 class JointEffects(LeafSystem):

@@ -4,19 +4,9 @@ tool position against the workpiece (the process loop)."""
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from robstiff_drake.model.realtime import rotate_transposed
+from robstiff_drake.model.realtime import to_sensor_frame
 
-
-def to_sensor_frame(R, tool_m, w):
-    """A wrench (force N, moment N*m about the tool point, base frame) as the
-    wrist sensor sees it: (force, moment about the sensor origin) in the
-    sensor frame.  R: flange rotation, row-major 9 floats (base <- DH 6);
-    tool_m: the tool point in the flange frame (3 floats)."""
-    f0, f1, f2 = rotate_transposed(R, w[:3])
-    m0, m1, m2 = rotate_transposed(R, w[3:])
-    tx, ty, tz = tool_m
-    # moment about the sensor origin: m + tool x f
-    return [f0, f1, f2, m0 + ty * f2 - tz * f1, m1 + tz * f0 - tx * f2, m2 + tx * f1 - ty * f0]
+__all__ = ["MillingForceSource", "to_sensor_frame"]
 
 
 class MillingForceSource(LeafSystem):
