@@ -67,7 +67,9 @@ class LoopLog:
     compute_s: list = field(default_factory=list)
     age_s: list = field(default_factory=list)
     gaps_s: list = field(default_factory=list)  # time between consecutive messages
-    missed: int = 0  # messages that arrived more than 1.5 periods after the previous one
+    gaps_over: int = 0  # messages that arrived more than 1.5 periods after the previous one (the controller's side)
+    skipped: int = 0  # messages that arrived while the compensator was busy and were never answered
+    late_answers: int = 0  # answers sent after the next message had arrived
     wrong_messages: int = 0
 
 
@@ -131,6 +133,7 @@ class CompensatorLoop:
         self.latest_sample_time = None
         self.t_start = None
         self.t_last_msg = None
+        self.t_last_answer = 0.0
         self.pending_reseed = False
 
     # ------------------------------------------------------------ events
@@ -254,6 +257,7 @@ class CompensatorLoop:
         self.link.send_joints(target)
         t_done = time.monotonic()
         self.log.compute_s.append(t_done - t_arr)
+        self.t_last_answer = t_done
         age = t_done - self.latest_sample_time if self.latest_sample_time is not None else float("nan")
         self.log.age_s.append(age)
         self.log.rows.append((self.t_session, t_arr - self.t_start, *q_ref, *self.q, *corr, *self.comp.dq,
@@ -293,12 +297,15 @@ class CompensatorLoop:
                 gap = t_arr - self.t_last_msg
                 self.log.gaps_s.append(gap)
                 if gap > 1.5 * T:
-                    self.log.missed += 1
+                    self.log.gaps_over += 1
+                if self.log.compute_s and self.t_last_answer > t_arr:
+                    self.log.late_answers += 1
                 self.t_last_msg = t_arr
                 self.fault_off("egm", "EGM: messages again")
                 self.cycle(data, t_arr)
         except KeyboardInterrupt:
             self.event("interrupted: the run ends")
+        self.log.skipped = getattr(self.link, "skipped", 0)
         return self.log
 
 
@@ -317,6 +324,9 @@ def cycle_stats(log, period_s):
                                                     else float("nan")},
             "correction_age_ms": {"median": q(a, 50), "p99": q(a, 99), "max": float(a.max()) if a.size else float("nan")},
             "message_gap_ms": {"median": q(g, 50), "p99": q(g, 99), "max": float(g.max()) if g.size else float("nan")},
-            "missed_cycles": int(log.missed), "over_budget": int(np.sum(c > period_s * 1e3)),
+            # a missed cycle: a message never answered (it came while the compensator was busy) or answered after
+            # the next one had arrived
+            "missed_cycles": int(log.skipped + log.late_answers), "controller_gaps": int(log.gaps_over),
+            "over_budget": int(np.sum(c > period_s * 1e3)),
             "wrong_messages": int(log.wrong_messages), "sensor_records": len(log.wrench),
             "faults": [{"t_s": t, "event": e} for t, e in log.events]}

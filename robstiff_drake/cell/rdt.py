@@ -17,6 +17,7 @@ no package implements a Net F/T server.  The client side is pynetft's
 the sequence numbers, and recovers from a stalled or faulted stream.
 """
 
+import collections
 import socket
 import struct
 import time
@@ -111,15 +112,25 @@ class NetFTReader:
         cal = p.Calibration(counts_per_force, counts_per_torque, p.ForceUnit.NEWTON, p.TorqueUnit.NEWTON_METER)
         self._config = p.Config(sensor_host=host, rdt_port=port, calibration_override=cal,
                                 receive_timeout=receive_timeout_s, deliver_samples_with_error_status=True)
-        self._client = p.Client(self._config, queue_size=queue_size)
-        self._clock_offset_s = None
+        # callback delivery into a deque: pynetft's iterator costs about
+        # 0.1 ms per call on an empty queue (a timed wait), too much for a
+        # 4 ms cycle; popping a deque costs about a microsecond
+        self._queue = collections.deque(maxlen=queue_size)
+        self._client = p.Client(self._config, queue_size=queue_size, callback=self._on_sample)
+
+    def _on_sample(self, s):
+        # (the arrival on time.monotonic's clock, taken as pynetft hands the record over)
+        self._queue.append((s.force + s.torque, time.monotonic(), s.status))
 
     def open(self, timeout_s=2.0):
         try:
             self._client.start()
         except Exception as e:  # pynetft's configuration / socket errors
             raise InputError(f"--netft {self.host}:{self.port}: cannot start the RDT stream ({e})") from None
-        if not self._client.wait_for_first_sample(timeout_s):
+        t_end = time.monotonic() + timeout_s
+        while not self._queue and time.monotonic() < t_end:
+            time.sleep(0.005)
+        if not self._queue:
             h = self._client.health()
             self.close()
             if h.malformed_count:
@@ -129,29 +140,14 @@ class NetFTReader:
             raise InputError(f"--netft {self.host}:{self.port}: no RDT record within {timeout_s:g} s (is the Net F/T "
                              "on, at this address, with RDT on this UDP port, and no other client streaming?)")
 
-    def _monotonic(self, received_at_ns):
-        """pynetft's receive time (steady clock, ns) on time.monotonic's clock."""
-        if self._clock_offset_s is None:
-            off = time.monotonic() - received_at_ns * 1e-9
-            self._clock_offset_s = off if abs(off) < 1.0 else None  # another clock: use the drain time
-            if self._clock_offset_s is None:
-                self._clock_offset_s = float("nan")
-        if self._clock_offset_s != self._clock_offset_s:
-            return time.monotonic()
-        return received_at_ns * 1e-9 + self._clock_offset_s
-
     def drain(self):
         out = []
-        try:
-            for s in self._client.samples(timeout=0.0):
-                w = s.force + s.torque
-                if not status_is_valid(s.status):
-                    w = (float("nan"),) * 6
-                out.append((w, self._monotonic(s.received_at_ns), s.status))
-        except TimeoutError:
-            pass
-        except Exception:  # a latched fault: reported by health(); the stream is restarted by pynetft
-            pass
+        q = self._queue
+        while q:
+            w, t_arr, status = q.popleft()
+            if not status_is_valid(status):
+                w = (float("nan"),) * 6
+            out.append((w, t_arr, status))
         return out
 
     def health(self):

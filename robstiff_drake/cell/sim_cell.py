@@ -61,6 +61,7 @@ class NetworkStats:
     answered: int = 0  # EGM messages followed by an answer before the next one
     unanswered: int = 0
     late_ticks: int = 0  # ticks sent more than half a period late
+    skipped_ticks: int = 0  # ticks left out because the loop was more than a period late
     tick_error_s: list = field(default_factory=list)
     t: list = field(default_factory=list)
     q_cmd: list = field(default_factory=list)  # rad
@@ -122,6 +123,9 @@ class CellNetwork:
             self.stats.tick_error_s.append(t - k * T)
             if t - k * T > 0.5 * T:
                 self.stats.late_ticks += 1
+                if t - k * T > T:  # a controller does not send a burst to catch up: the missed ticks are gone
+                    self.stats.skipped_ticks += int((t - k * T) / T)
+                    k = int(t / T)
             self.rdt.poll()
             targets = self.egm.receive_targets()
             if targets is not None:
