@@ -9,8 +9,11 @@ Prints the table of docs/toolpaths.md:
     python studies/corner_blending.py
 
 Columns: surface error along the path's scan (mean, RMS, largest |e|,
-peak-to-valley, mm, + = cut more) and the tool point's largest deviation
-from the commanded path during the pass (mm, the corner's excursion).
+peak-to-valley, mm, + = cut more); the tool point's largest deviation from
+the commanded path during the pass less its median (mm: the excursion,
+which includes the deflection's slow change when the force turns with the
+path); and its ringing: the deviation's largest departure from its own
+0.4 s moving average (mm: the first mode, about 5 Hz, rung by the corner).
 Takes about a minute per row on one core.
 """
 
@@ -30,16 +33,33 @@ CASES = [("L-shaped contour", ROOT / "diagrams" / "l_contour.yaml"),
          ("contour_with_arcs.nc", ROOT / "diagrams" / "contour_with_arcs.yaml")]
 
 
-def excursion_mm(res, robot):
-    """Largest distance (mm) between the actual and the commanded tool point
-    while the tool moves, after removing the pass's median deviation (the
-    static deflection under the cut), i.e. the dynamic part."""
+def deviations_m(res, robot):
+    """(times, actual - commanded tool point (m, (N, 3))) while the tool moves."""
     t, x = res.logs["state"]
     moving = (t > res.cell.path.dwell_s) & (t < res.cell.path.duration_s)
     T6 = kin.frames(robot.dh, x[moving, :6])[:, 6]
     p = T6[:, :3, 3] + T6[:, :3, :3] @ res.cell.tool_m
-    d = p - res.cell.path.positions(t[moving])
+    return t[moving], p - res.cell.path.positions(t[moving])
+
+
+def excursion_mm(res, robot):
+    """Largest distance (mm) between the actual and the commanded tool
+    point while the tool moves, less the pass's median deviation (the
+    static deflection under the cut): the corner's whole excursion."""
+    _, d = deviations_m(res, robot)
     return float(np.max(np.linalg.norm(d - np.median(d, axis=0), axis=1)) * 1e3)
+
+
+def ringing_mm(res, robot, window_s=0.4):
+    """Largest distance (mm) of the deviation from its own moving average
+    over ``window_s`` (two periods of the ~5 Hz first mode): the ringing,
+    without the slow change of the deflection when the force turns."""
+    t, d = deviations_m(res, robot)
+    n = max(1, int(round(window_s / np.median(np.diff(t)))))
+    k = np.ones(n) / n
+    smooth = np.column_stack([np.convolve(np.pad(d[:, j], (n // 2, n - 1 - n // 2), mode="edge"), k, mode="valid")
+                              for j in range(3)])
+    return float(np.max(np.linalg.norm(d - smooth, axis=1)) * 1e3)
 
 
 def main():
@@ -54,15 +74,17 @@ def main():
             for comp in (False, True):
                 res = run_cut(sc, robot, compensation=comp)
                 s = res.surface_error_mm
-                rows.append((name, zone, comp, s["mean"], s["rms"], s["max_abs"], s["pv"], excursion_mm(res, robot)))
+                rows.append((name, zone, comp, s["mean"], s["rms"], s["max_abs"], s["pv"], excursion_mm(res, robot),
+                             ringing_mm(res, robot)))
                 print(f"  done: {name}, zone {zone:g} mm, {'compensated' if comp else 'uncompensated'}",
                       file=sys.stderr, flush=True)
-    print("| path | corner zone | compensation | mean (mm) | RMS (mm) | max abs (mm) | PV (mm) | excursion (mm) |")
-    print("|---|---|---|---|---|---|---|---|")
-    for name, zone, comp, mean, rms, mx, pv, exc in rows:
+    print("| path | corner zone | compensation | mean (mm) | RMS (mm) | max abs (mm) | PV (mm) | excursion (mm) "
+          "| ringing (mm) |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for name, zone, comp, mean, rms, mx, pv, exc, ring in rows:
         z = "0 (sharp, full speed)" if zone == 0 else f"z{zone:g} ({zone:g} mm)"
         print(f"| {name} | {z} | {'on' if comp else 'off'} | {mean:+.3f} | {rms:.3f} | {mx:.3f} | {pv:.3f} | "
-              f"{exc:.3f} |")
+              f"{exc:.3f} | {ring:.3f} |")
 
 
 if __name__ == "__main__":

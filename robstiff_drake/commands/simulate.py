@@ -72,6 +72,18 @@ def timeseries_csv(res, robot, run_id=""):
     return buf.getvalue()
 
 
+def joint_reference_csv(cell, run_id=""):
+    """The path's joint references (IK every path.reference_period_ms):
+    what `robstiff compensate --reference` streams to a robot in EGMRunJoint."""
+    buf = io.StringIO()
+    buf.write(f"# run_id: {run_id}\n# robstiff simulate: the joint references of {cell.scenario.source}'s path "
+              "(controller degrees), for `robstiff compensate --reference`\n")
+    buf.write("t_s," + ",".join(f"q{j}_deg" for j in range(1, 7)) + "\n")
+    for t, q in zip(cell.q_ref_times, np.degrees(cell.q_ref)):
+        buf.write(f"{t:.6f}," + ",".join(f"{v:.9f}" for v in q) + "\n")
+    return buf.getvalue()
+
+
 def plot_surfaces(results, sc):
     import matplotlib
 
@@ -216,6 +228,8 @@ def write_outputs(sc, results, robot, run, warnings=()):
         name = f"surface_{label(res.compensation)}.csv"
         run.write(name, surface_csv(res, run.run_id))
         written.append(name)
+    run.write("joint_reference.csv", joint_reference_csv(results[0].cell, run.run_id))
+    written.append("joint_reference.csv")
     run.write("summary.json", json_text(dict(summary(results, sc, warnings), run_id=run.run_id)))
     written.append("summary.json")
     return written
