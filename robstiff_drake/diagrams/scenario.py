@@ -564,6 +564,15 @@ def scenario_warnings(sc, robot):
         dc = np.linalg.norm(np.asarray(cal.com_mm or [0, 0, 0]) - robot.payload.com_m * 1e3)
         if dc > PAYLOAD_COM_MM:
             out.append(f"model.payload_yaml: calibrated centre of mass is {dc:.0f} mm from the robot file's")
+    feeds = getattr(sc, "_program_feeds", [])
+    if len(feeds) > 1:
+        out.append(f"toolpath.program: {len(feeds)} cutting feeds ({', '.join(f'F{f:g}' for f in feeds)} mm/min); the "
+                   f"force model takes the one over most of the cut ({sc.path.feed_mm_per_s * 60:g} mm/min) for the "
+                   "chip thickness everywhere")
+    speeds = getattr(sc, "_program_speeds", [])
+    if len(speeds) > 1:
+        out.append(f"toolpath.program: {len(speeds)} spindle speeds; the force model takes "
+                   f"S{sc.cutter.spindle_rpm:g} everywhere")
     if sc.cutting.mode == "tooth":
         tooth_hz = sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth
         if sc.sensor.rate_hz < 2.0 * tooth_hz:
