@@ -272,8 +272,11 @@ def load_scenario(path, toolpath=None):
 def _program(sc):
     """The scenario's G-code program (model/gcode.Program), read once."""
     prog = getattr(sc, "_program", None)
-    if prog is None or prog.path != str(resolve(sc, sc.toolpath.program)):
-        prog = sc._program = read_program_file(resolve(sc, sc.toolpath.program))
+    p = resolve(sc, sc.toolpath.program)
+    if prog is None or prog.path != str(p):
+        if not p.is_file():
+            _fail(sc, "toolpath.program", f"no such G-code program {p}" if not p.exists() else f"{p} is not a file")
+        prog = sc._program = read_program_file(p)
     return prog
 
 
