@@ -71,12 +71,16 @@ def in_process_us(robot, repeats=3000):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0, help="length of the run (default: %(default)s)")
+    ap.add_argument("--rt-priority", type=int, default=0,
+                    help="compensate --rt-priority, and the simulated controller 10 above it (default: off)")
     args = ap.parse_args()
     robot = load_robot()
     t_pred, t_chain = in_process_us(robot)
     load0 = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
-        cp, stats, log = h.run_compensate_against_cell(tmp, duration_s=args.seconds)
+        extra = ["--rt-priority", str(args.rt_priority)] if args.rt_priority else []
+        cp, stats, log = h.run_compensate_against_cell(tmp, duration_s=args.seconds, extra=extra,
+                                                       cell_rt_priority=args.rt_priority + 10 if args.rt_priority else 0)
         if cp.returncode != 0:
             print(cp.stderr, file=sys.stderr)
             return 1
@@ -85,7 +89,8 @@ def main():
     c = summary["cycles"]
     comp, age = c["compute_ms"], c["correction_age_ms"]
     missed = c["missed_cycles"]
-    print(f"robstiff compensate over loopback, EGM cycle 4 ms, {args.seconds:g} s, {c['messages']} messages "
+    rt = f", SCHED_FIFO priority {args.rt_priority}" if args.rt_priority else ", normal scheduling"
+    print(f"robstiff compensate over loopback, EGM cycle 4 ms{rt}, {args.seconds:g} s, {c['messages']} messages "
           f"(load average {load0:.2f} before, {load1:.2f} after, 2 cores)")
     print(f"  computation per message (arrival -> answer): median {comp['median']:.3f} ms, p99 {comp['p99']:.3f} ms, "
           f"max {comp['max']:.3f} ms")

@@ -56,18 +56,18 @@ def write_inputs(folder, robot, *, feed_mm_per_s=20.0, duration_s=3.0, robot_nam
                 f"  mass_kg: {float(cal.mass_kg)}\n  com_mm: {[float(v) for v in cal.com_mm]}\n"
                 f"  force_bias_N: {[float(v) for v in cal.force_bias_N]}\n"
                 f"  torque_bias_Nm: {[float(v) for v in cal.torque_bias_Nm]}\n  sensor_mount_rpy_deg: [0.0, 0.0, 0.0]\n")
-    # a straight pass along x at the feed, by IK every 4 ms
-    ts = np.arange(0.0, duration_s + 1e-9, 0.004)
+    # a straight pass along x at the feed for 3 s (60 mm), then at rest; by IK every 4 ms
+    ts = np.arange(0.0, min(duration_s, 3.5) + 1e-9, 0.004)
     q_prev, qs = None, []
     for t in ts:
-        p = np.array(START_MM) / 1e3 + [feed_mm_per_s * t / 1e3, 0.0, 0.0]
+        p = np.array(START_MM) / 1e3 + [feed_mm_per_s * min(t, 3.0) / 1e3, 0.0, 0.0]
         q_prev = ik.solve_ik(robot.dh, ik.tool_down_pose(p, 0.0), robot.payload.tool_point_m, q_ref_rad=q_prev,
                              q_lower_rad=robot.q_lower_rad, q_upper_rad=robot.q_upper_rad)
         qs.append(q_prev)
     qs = np.array(qs)
     ref = os.path.join(folder, "reference.csv")
     with open(ref, "w") as f:
-        f.write("# test joint reference: a straight pass along +x from (1600, 0, 700) mm, IK every 4 ms\n")
+        f.write("# test joint reference: a straight pass along +x from (1600, 0, 700) mm for 3 s, IK every 4 ms\n")
         f.write("t_s," + ",".join(f"q{j}_deg" for j in range(1, 7)) + "\n")
         for t, q in zip(ts, np.degrees(qs)):
             f.write(f"{t:.4f}," + ",".join(f"{v:.9f}" for v in q) + "\n")
@@ -91,13 +91,20 @@ def cutting_wrench(t0=0.8, ramp_s=0.3, force_N=(-300.0, 260.0, 50.0)):
     return W
 
 
-def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=None, wrench=None):
-    """A simulated cell (stand-in arm) in a thread; returns (thread, network)."""
+def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=None, wrench=None, rt_priority=0):
+    """A simulated cell (stand-in arm) in a thread; returns (thread, network).
+    ``rt_priority``: run the thread under SCHED_FIFO (a controller is hard
+    real-time; the benchmark's option)."""
     station = ServoArmStandIn(robot=robot, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
                               calibration=calibration(robot), process_wrench=wrench or cutting_wrench(),
                               reference=reference, q_start_rad=reference(0.0), seed=3)
     net = CellNetwork(station, egm_to=("127.0.0.1", egm_port), netft_port=netft_port, faults=faults or Faults())
-    th = threading.Thread(target=net.run, args=(duration_s, reference(0.0)), daemon=True)
+    def run():
+        if rt_priority:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
+        net.run(duration_s, reference(0.0))
+
+    th = threading.Thread(target=run, daemon=True)
     th.start()
     return th, net
 
@@ -113,7 +120,8 @@ def compensate_cmd(model, payload, reference, *, egm_port, netft_port, log=None,
     return cmd + list(extra)
 
 
-def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), wrench=None, stream_reference=False):
+def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), wrench=None, stream_reference=False,
+                                cell_rt_priority=0):
     """Start `robstiff compensate` as a separate process and the simulated
     cell; returns (completed process, network stats, log folder).  Without
     ``stream_reference`` the compensator holds the start pose (no
@@ -127,7 +135,7 @@ def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), w
     # the cell first, standing still (its sensor streaming, its controller
     # sending EGM messages) until the compensator answers, as a real one
     th, net = start_cell(robot, reference, egm_port=egm_port, netft_port=netft_port, duration_s=duration_s + 15.0,
-                         faults=faults, wrench=wrench)
+                         faults=faults, wrench=wrench, rt_priority=cell_rt_priority)
     proc = subprocess.Popen(compensate_cmd(model, payload, ref if stream_reference else None, egm_port=egm_port, netft_port=netft_port, log=log,
                                            extra=list(extra) + ["--duration-s", str(duration_s)]), cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -126,7 +126,7 @@ def read_reference(path, robot):
 def run(*, egm_port, netft, robot_yaml=None, model, payload, reference=None, log=None, period_ms=4.0,
         sensor_rate_hz=1000.0, filter_kind="lowpass", cutoff_hz=10.0, filter_order=2, spindle_rpm=3600.0,
         max_jump_N=1000.0, saturation_deg=0.5, rate_limit_deg_per_s=5.0, delay_steps=0, netft_counts=None,
-        wait_s=30.0, duration_s=0.0, idle_exit_s=0.0, sensor_timeout_ms=20.0):
+        wait_s=30.0, duration_s=0.0, idle_exit_s=0.0, sensor_timeout_ms=20.0, rt_priority=0):
     check_outputs(inputs=[model, payload, reference, robot_yaml], folders={"--log": log})
     robot = load_robot(robot_yaml)
     k = read_model(model, robot)
@@ -158,6 +158,7 @@ def run(*, egm_port, netft, robot_yaml=None, model, payload, reference=None, log
         print(f"robstiff: compensate: sensor {host}:{port} streaming; waiting for the controller on UDP port "
               f"{egm_port}", file=sys.stderr, flush=True)
         gc_frozen = _quiet_gc()
+        _realtime(rt_priority)
         first = loop.first_message(wait_s)
         q0 = first[4]
         if ref.q is None:
@@ -192,6 +193,21 @@ def run(*, egm_port, netft, robot_yaml=None, model, payload, reference=None, log
             written = write_log(run_folder, log_data, comp.model, summary, f"robot {robot.name}, model {model}")
         print(f"wrote to {log}/: " + ", ".join(written), file=sys.stderr)
     return 0
+
+
+def _realtime(priority):
+    """Run the loop's thread under SCHED_FIFO at ``priority`` (1-99), as a
+    real-time PC would; 0: leave the scheduling alone.  Not permitted (no
+    privilege): a warning, and the loop runs anyway."""
+    if not priority:
+        return
+    import os
+
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
+    except (AttributeError, PermissionError, OSError) as e:
+        print(f"robstiff: warning: --rt-priority {priority}: cannot switch to real-time scheduling ({e}); running "
+              "without it", file=sys.stderr)
 
 
 def _quiet_gc():

@@ -248,6 +248,8 @@ def build_parser():
                    help="end when the controller is silent this long (0: never)")
     p.add_argument("--sensor-timeout-ms", type=_number_in(1.0, 10000.0, "ms"), default=20.0,
                    help="a sensor silent or invalid this long ramps the correction to zero (default: %(default)s)")
+    p.add_argument("--rt-priority", type=_number_in(0, 99, integer=True), default=0,
+                   help="run the loop under SCHED_FIFO at this priority (Linux, needs the privilege; 0: off)")
 
     p = sub.add_parser("demo", help="the main job: the seed's block-milling test, without and with compensation")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
@@ -336,7 +338,8 @@ def _dispatch(args):
                               max_jump_N=args.max_jump_N, saturation_deg=args.saturation_deg,
                               rate_limit_deg_per_s=args.rate_limit_deg_per_s, delay_steps=args.delay_steps,
                               netft_counts=counts, wait_s=args.wait_s, duration_s=args.duration_s,
-                              idle_exit_s=args.idle_exit_s, sensor_timeout_ms=args.sensor_timeout_ms)
+                              idle_exit_s=args.idle_exit_s, sensor_timeout_ms=args.sensor_timeout_ms,
+                              rt_priority=args.rt_priority)
     if args.command == "demo":
         from robstiff_drake.commands import demo
 
