@@ -90,10 +90,11 @@ def test_compensate_streams_the_reference(tmp_path):
     assert cp.returncode == 0, cp.stderr
     t, e = tool_errors(stats)
     moving = (t > 0.5) & (t < 1.9)  # (the compensator runs 2 s)
-    # the tool follows the 20 mm/s pass along x: across it within a few um,
-    # along it behind by the servo's lag and a cycle or two (at most 40 ms: 0.8 mm)
+    # the tool follows the 20 mm/s pass along x: across it within 10 um,
+    # along it within the servo's lag and a cycle or two (40 ms: 0.8 mm)
     assert np.abs(e[moving, 1:]).max() < 0.01e-3
-    assert 0.0 < -np.median(e[moving, 0]) < 0.8e-3
+    assert abs(np.median(e[moving, 0])) < 0.8e-3
+    assert np.ptp(e[moving, 0]) < 0.8e-3
 
 
 def test_faults_ramp_the_correction_down_and_are_logged(tmp_path):
@@ -112,18 +113,24 @@ def test_faults_ramp_the_correction_down_and_are_logged(tmp_path):
     # never a jump beyond the rate limit, lost messages or not
     assert steps.max() <= RATE_LIMIT_RAD_PER_S * 2 * PERIOD_S * (1 + 1e-6)
     # during the silence the correction ramps to zero at the rate limit: it
-    # shrinks, and is zero once the ramp has had time to finish
-    size = np.abs(c).max(axis=1)
-    before = size[(t > 1.5) & (t < 1.6)].mean()
-    assert before > 1e-4
-    silent = (t > 1.6 + 0.025) & (t < 1.88)  # after the 20 ms of detection
-    assert np.all(np.diff(size[silent]) <= 1e-7)  # (the log keeps 6 digits)
-    done = 1.6 + 0.02 + before / RATE_LIMIT_RAD_PER_S + 0.03  # detection + ramp + margin
-    assert size[(t > done) & (t < 1.88)].max() == 0.0
-    # and it comes back afterwards
-    assert size[(t > 2.3) & (t < 2.55)].mean() > 0.8 * before
+    # shrinks from the fault's log line on, and is zero once the ramp has had
+    # time to finish, until the sensor is back (times from the run's events)
     summary = json.load(open(os.path.join(log, "summary.json")))
-    assert summary["cycles"]["missed_cycles"] >= 0.8 * stats.cycles / 25 * 0.5
+    events = summary["cycles"]["faults"]
+    t_on = next(e["t_s"] for e in events if "sensor: no record" in e["event"])
+    t_off = next(e["t_s"] for e in events if "valid records again" in e["event"] and e["t_s"] > t_on)
+    assert 0.25 < t_off - t_on < 0.6  # the 0.3 s silence (+ pynetft's reconnection)
+    size = np.abs(c).max(axis=1)
+    before = size[(t > t_on - 0.1) & (t < t_on - 0.03)].mean()
+    assert before > 1e-4
+    fault = (t > t_on + 0.01) & (t < t_off - 0.01)
+    assert np.all(np.diff(size[fault]) <= 1e-7)  # (the log keeps 6 digits)
+    done = t_on + before / RATE_LIMIT_RAD_PER_S + 0.06  # (+ a margin for the two clocks of the log)
+    assert size[(t > done) & (t < t_off - 0.01)].max() == 0.0
+    # and it comes back afterwards
+    assert size[(t > t_off + 0.2) & (t < t_off + 0.4)].mean() > 0.8 * before
+    # the lost messages are seen (every 25th: gaps of two periods)
+    assert summary["cycles"]["controller_gaps"] >= 0.5 * stats.cycles / 25
 
 
 def test_nan_joint_feedback_is_a_fault(tmp_path):

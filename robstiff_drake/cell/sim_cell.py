@@ -123,9 +123,13 @@ class CellNetwork:
             self.stats.tick_error_s.append(t - k * T)
             if t - k * T > 0.5 * T:
                 self.stats.late_ticks += 1
-                if t - k * T > T:  # a controller does not send a burst to catch up: the missed ticks are gone
-                    self.stats.skipped_ticks += int((t - k * T) / T)
-                    k = int(t / T)
+                if t - k * T > T:  # a controller does not send a burst to catch up: the missed messages are gone,
+                    n_skip = int((t - k * T) / T)  # but the arm moved on: the station steps through them
+                    self.stats.skipped_ticks += n_skip
+                    for _ in range(n_skip if engaged else 0):
+                        _, w_skip = self.station.step(q_cmd)
+                        self._send_wrench(w_skip, t - t_eng)
+                    k += n_skip
             self.rdt.poll()
             targets = self.egm.receive_targets()
             if targets is not None:
