@@ -15,7 +15,7 @@ import numpy as np
 
 from robstiff_drake.cell.sim_cell import CellNetwork, Faults, ServoArmStandIn
 from robstiff_drake.model import ik
-from robstiff_drake.model.gravity import PayloadCalibration
+from robstiff_drake.model.payload import PayloadCalibration
 from robstiff_drake.model.robot import load_robot
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

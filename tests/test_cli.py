@@ -132,8 +132,8 @@ def test_demo_writes_outputs(capsys, tmp_path):
     code, out, _ = run_cli(capsys, "demo", "--out", str(tmp_path))
     assert code == 0
     assert "block-milling test" in out and "why the uncompensated robot cuts more" in out
-    for name in ("surface_error.png", "stiffness_map.png", "diagram.dot", "timeseries_compensated.csv",
-                 "timeseries_uncompensated.csv"):
+    for name in ("surface_error.png", "stiffness_map.png", "diagram.dot", "sim_timeseries_compensated.csv", "scan.csv",
+                 "sim_timeseries_uncompensated.csv"):
         assert (tmp_path / name).exists(), name
     rep = json.loads((tmp_path / "demo.json").read_text())
     unc = rep["surface_error_mm"]["uncompensated"]

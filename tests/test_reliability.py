@@ -167,12 +167,13 @@ def test_a_run_folder_is_written_as_a_whole(capsys, tmp_path):
     out = tmp_path / "run"
     assert cli(capsys, "simulate", SHORT, "--out", out)[0] == 0
     first = (out / RUN_ID_FILE).read_text().strip()
-    assert (out / "timeseries_uncompensated.csv").exists()
+    assert (out / "sim_timeseries_uncompensated.csv").exists()
     assert cli(capsys, "simulate", SHORT, "--compensation", "on", "--out", out)[0] == 0
     second = (out / RUN_ID_FILE).read_text().strip()
     assert second != first
-    assert not (out / "timeseries_uncompensated.csv").exists()  # nothing of the first run is left beside it
-    for name in ("timeseries_compensated.csv", "surface_compensated.csv", "scenario.yaml"):
+    assert not (out / "sim_timeseries_uncompensated.csv").exists()  # nothing of the first run is left beside it
+    for name in ("sim_timeseries_compensated.csv", "sim_surface_compensated.csv", "sim_scenario.yaml",
+                 "wrench_log.csv", "joint_log.csv", "compensator.yaml", "scan.csv"):
         assert f"# run_id: {second}" in (out / name).read_text().splitlines()[0]
     assert json.loads((out / "summary.json").read_text())["run_id"] == second
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no temporary folder
@@ -415,3 +416,19 @@ def test_sigterm_stops_a_sweep_and_its_workers(tmp_path):
     assert left == [], f"worker processes left behind: {left}"
     assert not out.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == [scen.name]
+
+
+def test_ctrl_c_during_a_simulation_leaves_nothing_behind(tmp_path):
+    scen = tmp_path / "slow.yaml"
+    scen.write_text((ROOT / "diagrams" / "block_milling.yaml").read_text().replace("  feed_mm_per_s: 20.0",
+                                                                                 "  feed_mm_per_s: 1.0"))
+    proc = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "simulate", str(scen), "--out",
+                             str(tmp_path / "run"), "--json", str(tmp_path / "s.json")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    time.sleep(4.0)
+    assert proc.poll() is None, "the simulation ended before it could be interrupted"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert err.strip() == "robstiff: interrupted"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["slow.yaml"]

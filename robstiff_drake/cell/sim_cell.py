@@ -211,8 +211,8 @@ class ServoArmStandIn:
         return self.theta.copy(), self._sensor(self.theta, np.zeros(6))
 
     def _sensor(self, q_link, W):
-        from robstiff_drake.model.gravity import payload_wrench
-        from robstiff_drake.model.realtime import to_sensor_frame
+        from robstiff_drake.model.payload import payload_wrench
+        from robstiff_drake.model.wrench_frames import to_sensor_frame
 
         R, _ = self.kin.flange_rotation_and_tool_point(q_link)
         w_sensor = payload_wrench(R, self.cal) + np.array(to_sensor_frame(R.ravel().tolist(), self.tool, W.tolist()))

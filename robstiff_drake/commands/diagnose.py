@@ -4,10 +4,10 @@ it, and report the held-out error before and after."""
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_vector
-from robstiff_drake.identification.campaign import read_stiffness_campaign
-from robstiff_drake.identification.diagnosis import ALPHA, CANDIDATES, MIN_GAIN, diagnose
 from robstiff_drake.commands.identify import campaign_warnings
+from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
+from robstiff_drake.identification.diagnosis import ALPHA, CANDIDATES, MIN_GAIN, diagnose
 from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, write_atomic
 from robstiff_drake.model.robot import load_robot
@@ -142,9 +142,9 @@ def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=N
     check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--report": report},
                   folders={"--plots": plots})
     robot = load_robot(robot_yaml)
-    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
     warnings = Warnings()
     campaign = read_stiffness_campaign(data, robot)
+    tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), warnings)
     warnings.extend_from(campaign_warnings(campaign))
     check_angle_units(robot, campaign, tool_m)
     warnings.extend_from(check_signs(identify(robot, campaign, tool_m=tool_m), campaign))

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_vector
-from robstiff_drake.identification.campaign import read_stiffness_campaign
+from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
 from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
 from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic
 from robstiff_drake.model.robot import load_robot
@@ -12,6 +12,7 @@ from robstiff_drake.model.robot import load_robot
 def fit_to_dict(fit, campaign, robot, tool_m):
     return {
         "data": campaign.path,
+        "robot": robot.name,
         "tool_mm": (np.asarray(tool_m) * 1e3).tolist(),
         "joint_stiffness_Nm_per_rad": fit.stiffness_Nm_per_rad,
         "joint_stiffness_std_Nm_per_rad": [None if np.isnan(v) else float(v) for v in fit.stiffness_std_Nm_per_rad],
@@ -120,9 +121,10 @@ def campaign_warnings(campaign):
 def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=None):
     check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--plot": plot})
     robot = load_robot(robot_yaml)
-    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    tool_arg = parse_tool(tool)
     warnings = Warnings()
     campaign = read_stiffness_campaign(data, robot)
+    tool_m = campaign_tool_m(campaign, robot, tool_arg, warnings)
     warnings.extend_from(campaign_warnings(campaign))
     check_angle_units(robot, campaign, tool_m)
     fit = identify(robot, campaign, tool_m=tool_m, robust=robust)

@@ -24,7 +24,7 @@ def _directions():
 
 def study(robot, *, grid=5, force_N=500.0, payload_kg=150.0):
     """The study's numbers as a dict (see module docstring)."""
-    tool = robot.payload.tool_point_m
+    tool = robot.tool_point(where="kg-study")
     points, qs = ik.workspace_poses(robot, grid, tool)
     if len(qs) == 0:
         raise InputError("kg-study: no pose of the workspace box is reachable")
@@ -66,6 +66,8 @@ def study(robot, *, grid=5, force_N=500.0, payload_kg=150.0):
         "tool_point_mm": (tool * 1e3).tolist(),
         "joint_stiffness_Nm_per_rad": robot.joint_stiffness_Nm_per_rad.tolist(),
         "cases": results,
+        "warnings": ([f"only {len(qs)} of {grid ** 3} grid points are reachable with the spindle down: the study "
+                      "covers part of the box"] if len(qs) < 0.5 * grid ** 3 else []),
     }
 
 

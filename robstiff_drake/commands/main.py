@@ -75,12 +75,24 @@ SEED = _number_in(0, 2**32 - 1, integer=True)
 NOISE_MM = _number_in(0.0, 10.0, "mm")
 
 
-def _add_robot_option(p):
-    p.add_argument("--robot", metavar="YAML", default=None,
-                   help="robot parameter file (default: models/irb6400.yaml)")
+def parse_tool(text):
+    """--tool 'X,Y,Z' (mm) -> the tool point in metres (numpy), None when not given."""
+    if text is None:
+        return None
+    import numpy as np
+
+    return np.array(parse_vector(text, 3, "--tool")) / 1000.0
 
 
-def _add_tool_option(p, default_help):
+ROBOT_HELP = "a library robot (see `robstiff robots`) or a robot file (YAML); default: irb6400"
+TOOL_DEFAULT = "the robot file's payload.tool_point_mm"
+
+
+def _add_robot_option(p, help_text=ROBOT_HELP):
+    p.add_argument("--robot", metavar="NAME|YAML", default=None, help=help_text)
+
+
+def _add_tool_option(p, default_help=f"default: {TOOL_DEFAULT}"):
     p.add_argument("--tool", metavar="X,Y,Z", default=None,
                    help="tool point in the flange frame (DH frame 6), mm; "
                         f"{default_help}. Write negative values as --tool=-10,0,350")
@@ -90,7 +102,8 @@ def _add_campaign_command(sub, name, help_text, json_what):
     """A subcommand that reads a stiffness campaign: DATA.csv, --tool, --json, --robot."""
     p = sub.add_parser(name, help=help_text)
     p.add_argument("data", metavar="DATA.csv")
-    _add_tool_option(p, "default: the origin of DH frame 6")
+    _add_tool_option(p, f"default: the file's '# tool_mm:' line, else {TOOL_DEFAULT}; a --tool that disagrees "
+                        "with the file's line is an error")
     p.add_argument("--json", metavar="OUT", help=f"write the {json_what} as JSON ('-' for stdout)")
     _add_robot_option(p)
     return p
@@ -98,12 +111,24 @@ def _add_campaign_command(sub, name, help_text, json_what):
 
 def build_parser():
     parser = _Parser(prog="robstiff", description="Joint-stiffness models and compensation for machining robots.")
+    from robstiff_drake import __version__
+
+    parser.add_argument("--version", action="version", version=f"robstiff-drake {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
+    p = sub.add_parser("robots", help="the robot library: name, manufacturer, kinematic convention, source")
+    p.add_argument("--json", metavar="OUT", help="write the list as JSON ('-' for stdout)")
+
+    p = sub.add_parser("fk", help="forward kinematics: the flange (or --tool point) for six controller angles")
+    p.add_argument("q", nargs="*", metavar="Q", help="six joint angles in degrees (the robot's controller convention)")
+    _add_tool_option(p, "default: none, the flange itself")
+    p.add_argument("--json", metavar="OUT", help="write a JSON object to OUT ('-' for stdout)")
+    _add_robot_option(p)
+
     p = sub.add_parser("stiffness", help="Cartesian compliance and stiffness at one configuration")
-    p.add_argument("q", nargs="*", metavar="Q", help="six joint angles in degrees (controller convention, Table 1)")
-    _add_tool_option(p, "default: the origin of DH frame 6")
+    p.add_argument("q", nargs="*", metavar="Q", help="six joint angles in degrees (the robot's controller convention)")
+    _add_tool_option(p)
     p.add_argument("--kx", action="store_true",
                    help="also print the 6x6 Cartesian stiffness K_x (an error at a singular pose)")
     p.add_argument("--json", metavar="OUT", help="write a JSON object to OUT ('-' for stdout)")
@@ -112,8 +137,9 @@ def build_parser():
     p = sub.add_parser("stiffness-map", help="PNG map of the deflection under a tool force over the workspace")
     p.add_argument("--out", default="stiffness_map.png", help="PNG path (default: %(default)s)")
     p.add_argument("--force-N", type=FORCE_N, default=500.0, help="force magnitude at the tool (default: %(default)s N)")
-    p.add_argument("--resolution", type=_number_in(5, 301, integer=True), default=41, help="grid points per side (default: %(default)s)")
-    _add_tool_option(p, "default: the spindle's tool point from the robot file")
+    p.add_argument("--resolution", type=_number_in(5, 301, integer=True), default=41,
+                   help="grid points per side (default: %(default)s)")
+    _add_tool_option(p)
     _add_robot_option(p)
 
     p = sub.add_parser("kg-study", help="how much the CCT term K_g changes the deflection over machining poses")
@@ -123,8 +149,10 @@ def build_parser():
     p.add_argument("--json", metavar="OUT", help="write the results as JSON ('-' for stdout)")
     _add_robot_option(p)
 
-    p = sub.add_parser("make-urdf", help="regenerate models/irb6400/ (URDF and package.xml) from the YAML")
-    p.add_argument("--check", action="store_true", help="only check that the files on disk are up to date")
+    p = sub.add_parser("make-urdf", help="write a robot's Drake/ROS description (URDF, package.xml) into a folder")
+    p.add_argument("--out", default="robstiff-out/urdf",
+                   help="folder; the files go to OUT/robstiff_NAME/ (default: %(default)s)")
+    p.add_argument("--check", action="store_true", help="only check that the files in OUT are up to date")
     _add_robot_option(p)
 
     p = _add_campaign_command(sub, "identify", "joint stiffness from a stiffness campaign (least squares, Eq. 8)",
@@ -144,12 +172,13 @@ def build_parser():
     kinds.required = True
     s = kinds.add_parser("stiffness", help="a stiffness campaign (poses, loads, CMM displacements)")
     s.add_argument("out", metavar="OUT.csv", help="the campaign file ('-' for stdout)")
-    s.add_argument("--n", type=_number_in(6, 100000, integer=True), default=120, help="measurements (default: %(default)s)")
+    s.add_argument("--n", type=_number_in(6, 100000, integer=True), default=120,
+                   help="measurements (default: %(default)s)")
     s.add_argument("--loads-per-pose", type=_number_in(1, 100, integer=True), default=4, help="(default: %(default)s)")
     s.add_argument("--force-N", type=FORCE_N, default=300.0, help="load magnitude (default: %(default)s N)")
     s.add_argument("--noise-mm", type=NOISE_MM, default=0.01, help="CMM noise sigma (default: %(default)s mm)")
     s.add_argument("--seed", type=SEED, default=0)
-    _add_tool_option(s, "default: the origin of DH frame 6")
+    _add_tool_option(s, f"default: {TOOL_DEFAULT}; written into the file's '# tool_mm:' line")
     s.add_argument("--stiffness", metavar="K1,..,K6", help="true joint stiffness, N*m/rad (default: nominal)")
     s.add_argument("--effect", action="append", metavar="NAME[=RMS_MM]",
                    help="switch on an effect the conventional model lacks, sized so that the part of its "
@@ -171,17 +200,28 @@ def build_parser():
     p.add_argument("--report", metavar="OUT.md", help="write a Markdown report")
     p.add_argument("--plots", metavar="DIR", help="write the residual views (one PNG per view)")
 
-    p = sub.add_parser("diagnose-run", help="trace a machining run's residual surface error to its cause, fix, rerun")
-    p.add_argument("run_dir", metavar="RUN_DIR", help="a folder written by `robstiff simulate ... --out RUN_DIR`")
+    p = sub.add_parser("diagnose-run", help="trace a machining run's residual surface error to its cause; write "
+                                            "each candidate fix and decide from verification cuts")
+    p.add_argument("run_dir", metavar="RUN_DIR", help="a run folder (docs/run_files.md): a cell's logs, or "
+                                                      "`robstiff simulate ... --out RUN_DIR`")
+    p.add_argument("--noise-mm", type=_number_in(1e-6, 10.0, "mm"), metavar="SIGMA",
+                   help="the scan's 1-sigma height noise (mm); default: scan.csv's noise_mm, and the estimate "
+                        "from the scan is reported too")
+    p.add_argument("--verify", nargs="+", metavar="CUT_DIR",
+                   help="run folders of verification cuts (one per candidate fix's compensator.yaml): decide "
+                        "from their scans")
     p.add_argument("--json", metavar="OUT", help="write the report as JSON ('-' for stdout)")
-    p.add_argument("--out", metavar="DIR", help="where to write the plot and JSON (default: RUN_DIR/diagnosis)")
+    p.add_argument("--out", metavar="DIR", help="where to write the report, candidate settings and plot "
+                                                "(default: RUN_DIR/diagnosis)")
+    _add_robot_option(p, "the run's robot (default: the one its compensator.yaml names); must agree with it")
 
     p = sub.add_parser("plan-poses", help="a well-conditioned measurement plan for the identification")
     p.add_argument("n", type=_number_in(6, 500, integer=True), metavar="N", help="number of measurements (6-500)")
-    p.add_argument("--candidates", type=_number_in(2, 1000, integer=True), default=120, help="candidate poses (default: %(default)s)")
+    p.add_argument("--candidates", type=_number_in(2, 1000, integer=True), default=120,
+                   help="candidate poses (default: %(default)s)")
     p.add_argument("--force-N", type=FORCE_N, default=300.0, help="(default: %(default)s N)")
     p.add_argument("--noise-mm", type=_number_in(1e-6, 10.0, "mm"), default=0.01, help="(default: %(default)s mm)")
-    _add_tool_option(p, "default: the origin of DH frame 6")
+    _add_tool_option(p, f"default: {TOOL_DEFAULT}; written into the plan's '# tool_mm:' line")
     p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("--out", metavar="PLAN.csv", help="write the plan (q1..q6, fx, fy, fz per row)")
     p.add_argument("--json", metavar="OUT", help="write the comparison as JSON ('-' for stdout)")
@@ -199,6 +239,14 @@ def build_parser():
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
     p.add_argument("--toolpath", metavar="PROGRAM", help="a G-code program as the path, placed by the scenario's "
                                                         "toolpath.work_offset_mm (docs/toolpaths.md)")
+    p.add_argument("--compensator", metavar="SETTINGS.yaml",
+                   help="run the scenario's machine with this compensator (a compensator.yaml, e.g. a candidate "
+                        "fix of diagnose-run): a verification cut")
+    p.add_argument("--noise-seed", type=SEED, metavar="N",
+                   help="seed of the sensor's and the scanner's noise (default: the scenario's); a repeated cut "
+                        "draws new noise")
+    _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
+                         "scenario's `robot:` when it has one")
 
     p = sub.add_parser("sweep", help="sampling-delay study: closed-loop runs over period, delay, cutoff and mode")
     p.add_argument("scenario", metavar="SCENARIO.yaml")
@@ -213,6 +261,8 @@ def build_parser():
     p.add_argument("--plant-step-ms", type=_number_in(0.05, 20.0, "ms"), default=None, help="plant step for every run (default: the scenario's)")
     p.add_argument("--no-predict", action="store_true", help="skip the linear loop model's predictions")
     p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
+    _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
+                         "scenario's `robot:` when it has one")
 
     p = sub.add_parser("compensate", help="the compensator as a process: ABB EGM and an ATI Net F/T over UDP "
                                           "(docs/real_cell.md)")
@@ -253,10 +303,20 @@ def build_parser():
 
     p = sub.add_parser("demo", help="the main job: the seed's block-milling test, without and with compensation")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
+    _add_robot_option(p, "run the block test of this library robot (diagrams/block_milling_NAME.yaml) or of a "
+                         "robot file on the IRB6400's block scenario; default: irb6400")
     return parser
 
 
 def _dispatch(args):
+    if args.command == "robots":
+        from robstiff_drake.commands import robots
+
+        return robots.run(json_out=args.json)
+    if args.command == "fk":
+        from robstiff_drake.commands import fk
+
+        return fk.run(q=args.q, tool=args.tool, json_out=args.json, robot_yaml=args.robot)
     if args.command == "stiffness":
         from robstiff_drake.commands import stiffness
 
@@ -274,7 +334,7 @@ def _dispatch(args):
     if args.command == "make-urdf":
         from robstiff_drake.commands import make_urdf
 
-        return make_urdf.run(check=args.check, robot_yaml=args.robot)
+        return make_urdf.run(check=args.check, out=args.out, robot_yaml=args.robot)
     if args.command == "identify":
         from robstiff_drake.commands import identify
 
@@ -302,7 +362,8 @@ def _dispatch(args):
     if args.command == "diagnose-run":
         from robstiff_drake.commands import diagnose_run
 
-        return diagnose_run.run(run_dir=args.run_dir, json_out=args.json, out=args.out)
+        return diagnose_run.run(run_dir=args.run_dir, json_out=args.json, out=args.out, noise_mm=args.noise_mm,
+                                verify=args.verify, robot_yaml=args.robot)
     if args.command == "plan-poses":
         from robstiff_drake.commands import plan_poses
 
@@ -317,14 +378,15 @@ def _dispatch(args):
         from robstiff_drake.commands import simulate
 
         return simulate.run(scenario=args.scenario, compensation=args.compensation, json_out=args.json,
-                            out=args.out, toolpath=args.toolpath)
+                            out=args.out, compensator=args.compensator, noise_seed=args.noise_seed,
+                            robot_yaml=args.robot, toolpath=args.toolpath)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep
 
         return sweep.run(scenario=args.scenario, periods=args.period_ms, delays=args.delay_steps,
                          cutoffs=args.cutoff_hz, modes=args.mode, json_out=args.json, plot_out=args.plot,
                          workers=args.workers, scheduler=args.scheduler, plant_step_ms=args.plant_step_ms,
-                         predict=not args.no_predict, progress=args.progress)
+                         predict=not args.no_predict, progress=args.progress, robot_yaml=args.robot)
     if args.command == "compensate":
         from robstiff_drake.commands import compensate
 
@@ -343,7 +405,7 @@ def _dispatch(args):
     if args.command == "demo":
         from robstiff_drake.commands import demo
 
-        return demo.run(out=args.out)
+        return demo.run(out=args.out, robot_yaml=args.robot)
     raise AssertionError(args.command)
 
 

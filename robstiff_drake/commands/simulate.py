@@ -1,6 +1,14 @@
 """``robstiff simulate SCENARIO.yaml``: the closed-loop milling simulation,
 without and/or with compensation; surface-error plot (like the seed's Fig. 7),
-the diagram (Graphviz), CSV time series and a JSON summary."""
+the diagram (Graphviz), CSV time series and a JSON summary.
+
+The run folder (``--out``) holds the compensated cut as a cell records it
+(wrench_log.csv, joint_log.csv, compensator.yaml, scan.csv: the formats of
+docs/run_files.md, written by identification/run_files.py) and the
+simulation's own files, named ``sim_*`` (the scenario with its plant, the
+actual tool path, the true surface): the truth that ``robstiff
+diagnose-run`` never reads.  ``--compensator SETTINGS.yaml`` runs the
+scenario's machine with another compensator (a verification cut)."""
 
 import csv
 import io
@@ -10,13 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
+from robstiff_drake.diagrams.cell_record import cell_files, scenario_with_compensator
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, run_warnings
-from robstiff_drake.diagrams.scenario import load_scenario, scenario_warnings
+from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
 from robstiff_drake.errors import InputError
+from robstiff_drake.identification.run_files import SIM_PREFIX, read_settings
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.model.robot import load_robot
 
 MODES = {"on": (True,), "off": (False,), "both": (False, True)}
 
@@ -49,8 +58,9 @@ def timeseries_csv(res, robot, run_id=""):
     q_ref = np.column_stack([np.interp(t, res.cell.q_ref_times, res.cell.q_ref[:, j]) for j in range(6)])
     corr = res.logs["correction"][1][: len(t)] if res.compensation else 0.0
     q_cmd = q_ref + corr
+    q_cmd_deg = robot.controller_deg(q_cmd)  # the controller's convention
     for j in range(6):
-        cols[f"q{j + 1}_deg"] = np.rad2deg(q_cmd[:, j])
+        cols[f"q{j + 1}_deg"] = q_cmd_deg[:, j]
     T = kin.frames(robot.dh, q)[:, 6]
     p = T[:, :3, 3] + T[:, :3, :3] @ res.cell.tool_m
     p_cmd = res.cell.path.positions(t)
@@ -125,7 +135,8 @@ def write_diagram(cell, run):
 
 
 def summary(results, sc, warnings=()):
-    out = {"scenario": sc.source, "name": sc.name, "surface_error_mm": {}, "warnings": list(warnings)}
+    out = {"scenario": sc.source, "name": sc.name, "robot": results[0].cell.robot.name, "surface_error_mm": {},
+           "warnings": list(warnings)}
     res0 = results[0]
     for res in results:
         out["surface_error_mm"][label(res.compensation)] = res.surface_error_mm
@@ -134,7 +145,10 @@ def summary(results, sc, warnings=()):
     out["realtime_factor"] = out["sim_seconds"] / out["wall_seconds"]
     out["runs"] = [{"compensation": r.compensation, "sim_seconds": r.sim_seconds, "wall_seconds": r.wall_seconds,
                     "realtime_factor": r.realtime_factor,
-                    "rejected_sensor_samples": int(r.logs["rejected"][1][-1, 0])} for r in results]
+                    "rejected_sensor_samples": int(r.logs["rejected"][1][-1, 0]), "spindle": r.spindle}
+                   for r in results]
+    out["spindle_power_W"] = max(r.spindle["power_W_max"] for r in results)
+    out["spindle_rating_W"] = sc.cutter.spindle_rating_W
     cw = res0.logs["cutting_wrench"][1]
     mid = cw[len(cw) // 2]
     out["cutting_wrench_at_mid_pass"] = {"force_N": mid[:3], "moment_Nm": mid[3:]}
@@ -153,7 +167,8 @@ def format_table(summ):
     for name, s in summ["surface_error_mm"].items():
         lines.append(f"  {name:14s} {s['mean']:+7.3f}  {s['rms']:7.3f}  {s['max_abs']:7.3f}  {s['pv']:7.3f}")
     f = summ["cutting_wrench_at_mid_pass"]["force_N"]
-    lines.append(f"cutting force at mid-pass (N, base frame): ({f[0]:.0f}, {f[1]:.0f}, {f[2]:.0f})")
+    lines.append(f"cutting force at mid-pass (N, base frame): ({f[0]:.0f}, {f[1]:.0f}, {f[2]:.0f}); spindle power up "
+                 f"to {summ['spindle_power_W'] / 1e3:.2f} kW (rating {summ['spindle_rating_W'] / 1e3:.2f} kW)")
     lines.append("first natural frequencies at the start pose (Hz): "
                  + ", ".join(f"{v:.1f}" for v in summ["natural_frequencies_hz"]))
     lines.append(f"simulated {summ['sim_seconds']:.2f} s in {summ['wall_seconds']:.2f} s wall "
@@ -161,14 +176,30 @@ def format_table(summ):
     return "\n".join(lines)
 
 
-def simulate(*, scenario, compensation="both", robot=None, warnings=None, toolpath=None):
-    """Load and run; returns (scenario, results).  Warnings about the
-    settings and the result go to ``warnings`` (an io.Warnings) if given.
-    ``toolpath``: a G-code program replacing the scenario's path."""
+def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath=None):
+    """The scenario to simulate: from its file (its path replaced by the
+    G-code program ``toolpath`` when given), with the compensator of a
+    settings file (``compensator``) and the sensor's and scanner's noise
+    seeds set to ``noise_seed`` (a repeated cut: new noise) when given."""
+    sc = load_scenario(scenario, toolpath=toolpath)
+    if compensator is not None:
+        _, settings = read_settings(compensator)
+        sc = scenario_with_compensator(sc, settings, robot)
+    if noise_seed is not None:
+        sc.sensor.seed = sc.scan.seed = int(noise_seed)
+    return sc
+
+
+def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None, compensator=None,
+             noise_seed=None, toolpath=None):
+    """Load and run; returns (scenario, results).  The robot: ``robot`` (a
+    RobotModel), else --robot's ``robot_yaml``, else the scenario's own.
+    Warnings about the settings and the result go to ``warnings`` (an
+    io.Warnings) if given.  ``compensator``, ``noise_seed``, ``toolpath``: see load_for_run."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
-    sc = load_scenario(scenario, toolpath=toolpath)
-    robot = robot or load_robot()
+    robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath), robot_yaml)
+    sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed, toolpath=toolpath)
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot))
     results = [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
@@ -178,10 +209,12 @@ def simulate(*, scenario, compensation="both", robot=None, warnings=None, toolpa
 
 
 def surface_csv(res, run_id=""):
-    """The laser scans of one run: x, y, commanded and machined height, error (mm)."""
+    """The true machined surface of one run (the simulation's truth, without
+    the scanner's noise): x, y, commanded and machined height, error (mm)."""
     buf = io.StringIO()
     buf.write(f"# run_id: {run_id}\n")
-    buf.write(f"# robstiff simulate: machined surface, {label(res.compensation)}; error = commanded - machined "
+    buf.write(f"# robstiff simulate: the true machined surface (simulation only; scan.csv is what the scanner "
+              f"measures), {label(res.compensation)}; error = commanded - machined "
               "(positive: cut more); empty where there is no machined face.\n")
     buf.write("x_mm,y_mm,commanded_mm,machined_mm,error_mm,s_mm\n")  # s_mm: arc length along the path (path scans)
     for line in res.scans:
@@ -198,7 +231,7 @@ def scenario_text(sc, run_id=""):
 
     from pydrake.common.yaml import yaml_dump_typed
 
-    from robstiff_drake.diagrams.scenario import Scenario, resolve
+    from robstiff_drake.diagrams.scenario import Scenario, resolve, robot_spec
 
     sc = copy.deepcopy(sc)
     for attr in ("identified_json", "payload_yaml"):
@@ -206,26 +239,36 @@ def scenario_text(sc, run_id=""):
             setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
     if sc.toolpath.program:
         sc.toolpath.program = str(resolve(sc, sc.toolpath.program).resolve())
+    spec = robot_spec(sc)
+    if spec is not None and spec != sc.robot:  # a robot file: make its path absolute
+        sc.robot = str(Path(spec).resolve())
     source, sc.source = sc.source, ""
     body = "".join(line for line in yaml_dump_typed(sc, schema=Scenario).splitlines(keepends=True)
                    if not line.startswith("source:"))  # set by the loader, not a key of the file
-    return f"# run_id: {run_id}\n# the scenario of this run (from {source})\n" + body
+    return (f"# run_id: {run_id}\n# the scenario of this run (from {source}), with its plant: the simulation's "
+            "truth, which diagnose-run never reads\n" + body)
 
 
 def write_outputs(sc, results, robot, run, warnings=()):
     """Every file of a run into ``run`` (an io.RunFolder), each stamped with
-    its run id; returns the names written."""
+    its run id; returns the names written.  The compensated cut's cell files
+    (docs/run_files.md) and the simulation's truth (``sim_*``)."""
     written = []
-    run.write("scenario.yaml", scenario_text(sc, run.run_id))
-    written.append("scenario.yaml")
+    for res in results:
+        if res.compensation:
+            for name, text in cell_files(sc, res, robot, run.run_id).items():
+                run.write(name, text)
+                written.append(name)
+    run.write(f"{SIM_PREFIX}scenario.yaml", scenario_text(sc, run.run_id))
+    written.append(f"{SIM_PREFIX}scenario.yaml")
     run.save_figure("surface_error.png", plot_surfaces(results, sc), dpi=110)
     written.append("surface_error.png")
     written += write_diagram(results[-1].cell, run)
     for res in results:
-        name = f"timeseries_{label(res.compensation)}.csv"
+        name = f"{SIM_PREFIX}timeseries_{label(res.compensation)}.csv"
         run.write(name, timeseries_csv(res, robot, run.run_id))
         written.append(name)
-        name = f"surface_{label(res.compensation)}.csv"
+        name = f"{SIM_PREFIX}surface_{label(res.compensation)}.csv"
         run.write(name, surface_csv(res, run.run_id))
         written.append(name)
     run.write("joint_reference.csv", joint_reference_csv(results[0].cell, run.run_id))
@@ -235,12 +278,13 @@ def write_outputs(sc, results, robot, run, warnings=()):
     return written
 
 
-def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", toolpath=None):
-    check_outputs(inputs=[scenario, toolpath], files={"--json": json_out}, folders={"--out": out})
-    robot = load_robot()
+def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None,
+        robot_yaml=None, toolpath=None):
+    check_outputs(inputs=[scenario, compensator, toolpath], files={"--json": json_out}, folders={"--out": out})
+    robot = scenario_robot(load_scenario(scenario, toolpath=toolpath), robot_yaml)
     warnings = Warnings()
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
-                           toolpath=toolpath)
+                           compensator=compensator, noise_seed=noise_seed, toolpath=toolpath)
     summ = summary(results, sc, warnings)
     with RunFolder(out) as run_folder:
         written = write_outputs(sc, results, robot, run_folder, warnings)

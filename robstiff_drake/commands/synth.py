@@ -5,7 +5,7 @@ import sys
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_vector
+from robstiff_drake.commands.main import parse_tool, parse_vector
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification import synth
 from robstiff_drake.io import STDOUT, check_outputs, write_atomic
@@ -60,7 +60,7 @@ def run_stiffness(*, out, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01,
     _positive("--force-N", force_N)
     if not noise_mm >= 0:
         raise InputError(f"synth: --noise-mm must be >= 0, got {noise_mm}")
-    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    tool_m = robot.tool_point(parse_tool(tool), where="synth stiffness")
     k = None
     if stiffness is not None:
         k = np.array(parse_vector(stiffness, 6, "--stiffness"))

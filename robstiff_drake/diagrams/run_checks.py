@@ -48,6 +48,12 @@ def run_warnings(results, sc):
             if share > 0.05:
                 out.append(f"compensated: the correction sat at its saturation ({sc.controller.saturation_deg:g} deg) "
                            f"for {100 * share:.0f} % of the run")
+    power = max((r.spindle or {}).get("power_W_max", 0.0) for r in results)
+    rating = sc.cutter.spindle_rating_W
+    if power > rating:
+        out.append(f"the cut takes up to {power / 1e3:.2f} kW at the spindle, more than its {rating / 1e3:.2f} kW "
+                   "rating (cutter.spindle_rating_W): the cutting forces are not physical for this spindle, or the "
+                   "spindle would stall")
     if "compensated" in by_label and "uncompensated" in by_label:
         a = by_label["uncompensated"].surface_error_mm
         b = by_label["compensated"].surface_error_mm

@@ -17,12 +17,15 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from robstiff_drake.diagrams.schema import check_object, choice, num, rows, text, validate, vec
+from pydrake.multibody.plant import MultibodyPlantConfig
+from pydrake.systems.analysis import SimulatorConfig
+
+from robstiff_drake.diagrams.schema import check_object, choice, drake_config, num, rows, text, validate, vec
 from robstiff_drake.errors import InputError
+from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.gcode import read_program_file
 from robstiff_drake.model.path import PathError, PlannedPath, program_elements
-from robstiff_drake.model.gravity import PayloadCalibration
-
+from robstiff_drake.model.payload import PayloadCalibration
 
 # Ranges: what a machining robot's cell can physically be, wide enough for
 # any real set-up, narrow enough that a typo (a unit slip, a missing decimal
@@ -31,31 +34,66 @@ STIFFNESS_RANGE_NM_PER_RAD = (1e3, 1e9)  # a small cobot's wrist ~1e3; the stiff
 MAX_COORD_MM = 10000.0  # a cell: 10 m from the robot base covers the largest arm on a track
 
 
+def _plant_config():
+    # The arm's joints are the only "contact": SAP's discrete solver treats
+    # the joints' damping implicitly (see add_compliant_arm).
+    return MultibodyPlantConfig(time_step=0.004, discrete_contact_approximation="sap")
+
+
 @dataclass
 class PlantConfig:
-    """The 'true' robot: a discrete MultibodyPlant whose joints are servo
-    springs and dampers between the commanded and the link angle
-    (diagrams/milling_cell.py: add_compliant_irb6400)."""
+    """The 'true' robot: a discrete MultibodyPlant (its step and solver in
+    the scenario's ``plant_config``, Drake's MultibodyPlantConfig) whose
+    joints are gears (springs) between the motor angle the servo holds and
+    the link angle (diagrams/station.py)."""
 
-    time_step_ms: float = num(2.0, 0.05, 20.0, "ms", why="a joint-spring plant needs a step well under its modes' "
-                                                         "periods; 20 ms would skip modes above 25 Hz")
     # Joint stiffness of the plant (N*m/rad); empty: the robot file's nominal.
     joint_stiffness_Nm_per_rad: list[float] = vec([], (0, 6), *STIFFNESS_RANGE_NM_PER_RAD, "N*m/rad")
     # Stiffness-proportional damping D = beta * K, beta = 2 zeta / omega_1:
     # the first mode gets damping ratio zeta, higher modes more.  The step
     # must keep every mode stable: beta >= step / 2 does for any stiffness.
-    damping_ratio: float = num(0.05, 0.0, 1.0, "", hi_open=True)
-    # Joint effects beyond the springs (systems/joint_effects.py): lost motion
-    # per joint (rad, the link lags by b in the load's direction) and the
-    # coupling compliance between joints 2 and 3 (rad/(N*m)).  Empty / 0: none.
+    # ASSUMPTION: 10 % (modal tests of large industrial arms report 5-15 %).
+    damping_ratio: float = num(0.10, 0.0, 1.0, "", hi_open=True)
+    # The gears' lost motion (rad, taken up in the direction of the total
+    # torque the gear carries) and the coupling compliance between joints 2
+    # and 3 (rad/(N*m)): model/transmission.py.  Empty / 0: none.
     lost_motion_rad: list[float] = vec([], (0, 6), 0.0, 0.01, "rad", why="10 mrad is a worn-out gearbox")
     coupling_c23_rad_per_Nm: float = num(0.0, -1e-5, 1e-5, "rad/(N*m)", why="at most the softest joint's own "
                                                                          "compliance (1e-5 rad/(N*m) = 1e5 N*m/rad)")
 
 
 @dataclass
+class ServoConfig:
+    """The robot controller between a joint target and the motor
+    (model/servo.py): the interpolator's dead time, then a position loop
+    around a velocity loop with velocity feed-forward, on the motor side.
+
+    ASSUMPTIONS (ABB publishes none of these for the IRC5):
+    * the dead time from a new joint target to the drives: 12 ms, three 4 ms
+      path cycles; users of ABB's Externally Guided Motion measure 10-50 ms
+      from a sent target to the robot moving, network and EGM's own filter
+      included (ros-industrial/abb_libegm issues 49 and 111);
+    * a velocity-loop bandwidth of 30 Hz and a position gain of 60 1/s: the
+      position loop's closed-loop bandwidth is then about 17 Hz and a
+      correction without velocity feed-forward lags by 1 / Kp = 17 ms, the
+      range of large robots' published servo bandwidths (5-20 Hz);
+    * full velocity feed-forward of the path (the planned path is followed
+      with no steady lag; the interpolator knows the path's velocity)."""
+
+    interpolator_delay_ms: float = num(12.0, 0.0, 200.0, "ms")
+    interpolator_period_ms: float = num(4.0, 0.5, 50.0, "ms")  # the path's cycle in the robot controller
+    position_gain_per_s: float = num(60.0, 1.0, 1000.0, "1/s")
+    velocity_bandwidth_hz: float = num(30.0, 1.0, 500.0, "Hz")
+    velocity_feedforward: float = num(1.0, 0.0, 1.0, "")
+
+
+@dataclass
 class CutterConfig:
     diameter_mm: float = num(75.0, 10.0, 250.0, "mm", why="face mills a robot spindle carries")
+    # The spindle's rated power: every run reports the cutting power it
+    # implies (spindle_power_W) and warns above this.  The paper's spindle:
+    # SETCO 5 HP (3.73 kW), 8000 rpm (its Table 3).
+    spindle_rating_W: float = num(3730.0, 10.0, 200000.0, "W")
     # Inserts on the cutter; the tooth pitch pi D / n must stay >= MIN_TOOTH_PITCH_MM (checked below).
     n_teeth: int = num(6, 1, 100, "", integer=True)
     spindle_rpm: float = num(3600.0, 10.0, 60000.0, "rpm", why="the fastest machining spindles")
@@ -143,7 +181,9 @@ class SensorConfig:
 @dataclass
 class FilterConfig:
     kind: str = choice("lowpass", ("lowpass", "revolution_average", "none"))
-    cutoff_hz: float = num(10.0, 0.0, 10000.0, "Hz", lo_open=True)
+    # 2 Hz: far below the arm's first mode (about 5 Hz), where a faster
+    # filter makes the loop ring (see docs on the sampling-delay study)
+    cutoff_hz: float = num(2.0, 0.0, 10000.0, "Hz", lo_open=True)
     # Butterworth order: above 8 the group delay and the coefficients' round-off make no sense for force control.
     order: int = num(2, 1, 8, "", integer=True)
 
@@ -200,13 +240,33 @@ class ScanConfig:
     # entry / exit zones of the statistics: this far from each box's leading /
     # trailing edge (0: the cutter radius, where the engagement changes)
     zone_mm: float = num(0.0, 0.0, 500.0, "mm")
+    # The scanner's height noise, 1 sigma per point, added to the measured
+    # scan (scan.csv; the statistics of the simulation's own summary stay
+    # those of the true surface).  ASSUMPTION, 3 um: a laser line scanner's
+    # own repeatability is about 0.5-2 um (Keyence LJ-X8000, Micro-Epsilon
+    # scanCONTROL 30xx data sheets), a face-milled aluminium surface adds its
+    # roughness (Ra 0.8-1.6 um, sigma about 1.25 Ra) and a scanner carried
+    # over the part adds its vibration: together a few um.
+    noise_mm: float = num(0.003, 0.0, 1.0, "mm", why="1 mm of scan noise is no measurement of a milled face")
+    seed: int = num(0, 0, 2**32 - 1, "", integer=True)  # of the scan noise (each cut and line draws its own)
 
 
 @dataclass
 class Scenario:
     name: str = text("", max_length=200)
     description: str = text("")
+    # The robot: a library name (`robstiff robots`) or a robot file (relative
+    # to this file); empty: the IRB6400.
+    robot: str = text("", max_length=4096)
+    # Drake's own configuration of the plant (its step, s, and discrete
+    # solver) and of the simulator, as Drake's hardware_sim embeds them.
+    plant_config: MultibodyPlantConfig = drake_config(
+        _plant_config, ranges={"time_step": (5e-5, 0.02, "s")},
+        choices={"discrete_contact_approximation": ("sap", "lagged", "similar")})
+    simulator_config: SimulatorConfig = drake_config(
+        SimulatorConfig, ranges={"target_realtime_rate": (0.0, 1e6, ""), "start_time": (0.0, 0.0, "s")})
     plant: PlantConfig = field(default_factory=PlantConfig)
+    servo: ServoConfig = field(default_factory=ServoConfig)
     cutter: CutterConfig = field(default_factory=CutterConfig)
     cutting: CuttingConfig = field(default_factory=CuttingConfig)
     workpiece: WorkpieceConfig = field(default_factory=WorkpieceConfig)
@@ -310,6 +370,11 @@ def apply_program(sc):
     sc._program_speeds = sorted(speeds)
 
 
+def plant_step_s(sc):
+    """The plant's discrete step (s)."""
+    return float(sc.plant_config.time_step)
+
+
 def _fail(sc, key, what):
     lines = getattr(sc, "_key_lines", {})
     line = lines.get(tuple(key.split(".")))
@@ -335,9 +400,9 @@ def check_scenario(sc):
         if taps > MAX_FILTER_TAPS:
             _fail(sc, "controller.filter.kind", f"a revolution average at {c.spindle_rpm:g} rpm and "
                                                 f"{sen.rate_hz:g} Hz needs {taps:.0f} taps (at most {MAX_FILTER_TAPS})")
-    if ctl.period_ms < sc.plant.time_step_ms - 1e-12:
-        _fail(sc, "controller.period_ms", f"{ctl.period_ms:g} ms is below the plant step "
-                                          f"({sc.plant.time_step_ms:g} ms)")
+    step_ms = plant_step_s(sc) * 1e3
+    if ctl.period_ms < step_ms - 1e-9:
+        _fail(sc, "controller.period_ms", f"{ctl.period_ms:g} ms is below the plant step ({step_ms:g} ms)")
     for i, b in enumerate(sc.workpiece.boxes_mm):
         if not (b[0] < b[1] and b[2] < b[3]):
             _fail(sc, "workpiece.boxes_mm", f"box {i + 1}: expected [x0, x1, y0, y1, top] with x0 < x1 and "
@@ -389,7 +454,7 @@ def _check_sizes(sc):
     duration_s = path.duration_s
     length_mm = path.total_length * 1e3
     checks = (
-        ("plant.time_step_ms", duration_s / (sc.plant.time_step_ms / 1e3), MAX_PLANT_STEPS, "plant steps"),
+        ("plant_config.time_step", duration_s / plant_step_s(sc), MAX_PLANT_STEPS, "plant steps"),
         ("sensor.rate_hz", duration_s * sc.sensor.rate_hz, MAX_SENSOR_SAMPLES, "sensor samples"),
         ("path.reference_period_ms", duration_s / (p.reference_period_ms / 1e3), MAX_REFERENCE_SAMPLES,
          "joint-reference (IK) samples"),
@@ -400,8 +465,7 @@ def _check_sizes(sc):
                            f"{n:.3g} {what}, more than the {limit:.0e} a run may take; shorten the path or raise "
                            "the feed")
     if sc.cutting.mode == "tooth":
-        per_step = (sc.plant.time_step_ms / 1e3) * sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth \
-            * sc.cutting.samples_per_tooth
+        per_step = plant_step_s(sc) * sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth * sc.cutting.samples_per_tooth
         if per_step > MAX_TOOTH_SAMPLES_PER_STEP:
             _fail(sc, "cutting.samples_per_tooth", f"{per_step:.3g} force samples per plant step (at most "
                                                    f"{MAX_TOOTH_SAMPLES_PER_STEP}); lower the spindle speed, the "
@@ -485,6 +549,19 @@ def planned_path(sc):
                                          p.zone_mm / 1e3)
     return PlannedPath(np.asarray(p.waypoints_mm, dtype=float) / 1e3, p.feed_mm_per_s / 1e3, np.deg2rad(p.yaw_deg),
                        p.dwell_s, p.ramp_s, p.zone_mm / 1e3)
+
+
+def cutting_setup(sc, scale=1.0):
+    """(cutter, force model, workpiece) of the scenario; ``scale`` multiplies
+    every coefficient (a compensator's model that is off by that factor)."""
+    cutter = Cutter(sc.cutter.diameter_mm / 1e3, int(sc.cutter.n_teeth), sc.cutter.spindle_rpm)
+    c = sc.cutting
+    s, sa = c.tangential_radial_scale * scale, c.axial_scale * scale
+    coeffs = CuttingCoefficients(c.Ktc_N_per_mm2 * s, c.Krc_N_per_mm2 * s, c.Kac_N_per_mm2 * sa,
+                                 c.Kte_N_per_mm * s, c.Kre_N_per_mm * s, c.Kae_N_per_mm * sa)
+    model = MillingForceModel(cutter, coeffs, sc.path.feed_mm_per_s / 1e3)
+    workpiece = Workpiece.from_boxes(np.asarray(sc.workpiece.boxes_mm, dtype=float) / 1e3)
+    return cutter, model, workpiece
 
 
 def exact_payload_calibration(sc, robot):
@@ -582,3 +659,26 @@ def scenario_warnings(sc, robot):
             out.append(f"sensor.rate_hz: {sc.sensor.rate_hz:g} Hz samples below twice the tooth-passing frequency "
                        f"({tooth_hz:g} Hz) in tooth-resolved mode: the tooth force aliases into the loop")
     return out
+def robot_spec(sc):
+    """The scenario's ``robot:`` as load_robot takes it (a library name, or
+    its file resolved against the scenario's folder); None when empty."""
+    if not sc.robot:
+        return None
+    from robstiff_drake.paths import library_robots
+
+    if sc.robot in library_robots():
+        return sc.robot
+    return str(resolve(sc, sc.robot))
+
+
+def scenario_robot(sc, override=None):
+    """The RobotModel that runs scenario ``sc``: ``override`` (--robot) or
+    the scenario's ``robot:`` (default: the IRB6400).  InputError, naming
+    both, when the two are given and name different robots."""
+    from robstiff_drake.model.robot import load_robot, same_robot_file
+
+    spec = robot_spec(sc)
+    if override is not None and spec is not None and not same_robot_file(spec, override):
+        raise InputError(f"--robot {override} disagrees with the robot of {sc.source or 'the scenario'} "
+                         f"(robot: {sc.robot}); drop --robot or edit the scenario")
+    return load_robot(override if override is not None else spec)

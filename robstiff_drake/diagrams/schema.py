@@ -13,12 +13,11 @@ infinities, values outside their physical range, lists of the wrong length.
 import math
 import re
 import typing
-from dataclasses import MISSING, field, fields, is_dataclass
+from dataclasses import field, fields, is_dataclass
 
 import yaml
 
 from robstiff_drake.errors import InputError
-
 
 # A number as YAML 1.2 (and Drake's loader) reads it: PyYAML's YAML 1.1
 # takes "1e9" (no dot) for text, so plain ASCII numbers in text are numbers.
@@ -51,6 +50,14 @@ def rows(width, lo, hi, unit, *, min_rows=0, max_rows=10000, names="", why=""):
     """A list of rows of ``width`` numbers each (boxes, waypoints)."""
     return field(default_factory=list, metadata=_meta("rows", width=width, lo=lo, hi=hi, unit=unit,
                                                       min_rows=min_rows, max_rows=max_rows, names=names, why=why))
+
+
+def drake_config(factory, ranges=None, choices=None):
+    """A field holding one of Drake's own config structs (MultibodyPlantConfig,
+    SimulatorConfig): its keys are checked against the struct's fields, its
+    values against their types, and ``ranges`` ({field: (lo, hi, unit)}) and
+    ``choices`` ({field: options}) where given."""
+    return field(default_factory=factory, metadata=_meta("drake", ranges=ranges or {}, choices=choices or {}))
 
 
 def choice(default, options):
@@ -186,6 +193,10 @@ class _Checker:
                 self.fail(p, f"unknown key (allowed here: {allowed})")
             f = by_name[key]
             t = hints[key]
+            m = f.metadata.get("schema")
+            if m is not None and m["kind"] == "drake":
+                self._drake(p, value, m, t)
+                continue
             if is_dataclass(t):
                 self.check(t, value, p)
                 continue
@@ -193,6 +204,31 @@ class _Checker:
             if m is None:
                 raise AssertionError(f"schema: field {dotted(p)} has no range")  # a programming error
             getattr(self, "_" + m["kind"])(p, value, m)
+
+    def _drake(self, p, value, m, struct):
+        if value is None:
+            return
+        if not isinstance(value, dict):
+            self.fail(p, f"expected a section of {struct.__name__} keys, got {value!r}")
+        types = {f.name: f.type for f in struct.__fields__}
+        for key, v in value.items():
+            q = p + (key,)
+            if key not in types:
+                self.fail(q, f"unknown key of Drake's {struct.__name__} (allowed: {', '.join(types)})")
+            self._drake_value(q, key, v, types[key], m)
+
+    def _drake_value(self, q, key, v, kind, m):
+        if key in m["ranges"]:
+            lo, hi, unit = m["ranges"][key]
+            self.number(q, v, dict(lo=lo, hi=hi, unit=unit, integer=False, lo_open=False, hi_open=False))
+        elif key in m["choices"]:
+            self._choice(q, v, {"options": m["choices"][key]})
+        elif kind is bool and not isinstance(v, bool):
+            self.fail(q, f"expected true or false, got {v!r}")
+        elif kind is float:
+            self.number(q, v, dict(lo=-math.inf, hi=math.inf, unit="", integer=False, lo_open=False, hi_open=False))
+        elif kind is str and not isinstance(v, str):
+            self.fail(q, f"expected text, got {v!r}")
 
     def _num(self, p, value, m):
         self.number(p, value, m, "a whole number" if m["integer"] else "a number")
@@ -245,15 +281,13 @@ def check_object(schema_cls, obj, source, lines=None, path=()):
             continue
         value = getattr(obj, f.name)
         p = path + (f.name,)
+        m = f.metadata.get("schema")
+        if m is not None and m["kind"] == "drake":
+            for key in list(m["ranges"]) + list(m["choices"]):
+                checker._drake_value(p + (key,), key, getattr(value, key), None, m)
+            continue
         if is_dataclass(value):
             check_object(type(value), value, source, lines, p)
             continue
-        m = f.metadata.get("schema")
         if m is not None:
             getattr(checker, "_" + m["kind"])(p, value, m)
-
-
-def default_of(f):
-    if f.default is not MISSING:
-        return f.default
-    return f.default_factory()

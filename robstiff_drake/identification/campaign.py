@@ -10,6 +10,10 @@ Stiffness campaigns (one row per loaded measurement):
   pose        optional id shared by rows measured at the same pose
   seq         optional measurement order
 
+A stiffness campaign records its tool point in a comment line before the
+header row, ``# tool_mm: x, y, z`` (mm, flange frame = DH frame 6; see
+read_tool_header); the commands that read the file use it.
+
 Payload campaigns (one row per static configuration):
   q1..q6      deg; fx,fy,fz (N) and mx,my,mz (N*m): the wrench the payload
   exerts on the sensor, in the sensor frame.
@@ -214,6 +218,7 @@ class StiffnessCampaign:
     comments: list
     has_moments: bool
     copies: list = field(default_factory=list)  # [(file line, line of the row it repeats)], set aside
+    tool_mm: np.ndarray | None = None  # the file's '# tool_mm:' line (flange frame, mm), None without one
 
     def __len__(self):
         return len(self.lines)
@@ -310,6 +315,7 @@ def read_stiffness_campaign(path, robot, *, min_rows=6):
         comments=table.comments,
         has_moments=moments is not None,
         copies=copy_lines,
+        tool_mm=read_tool_header(path),
     )
 
 
@@ -335,3 +341,61 @@ def read_payload_campaign(path, robot):
         raise InputError(f"{table.path}: all forces and torques are zero: the sensor saw no payload")
     return PayloadCampaign(table.path, np.column_stack([table.numeric[n] for n in Q_COLS]),
                            force, torque, table.lines, table.comments)
+
+
+TOOL_KEY = "tool_mm"
+
+
+def tool_header_line(tool_m):
+    """The comment line that records a tool point (m) in a measurement file."""
+    return "# " + TOOL_KEY + ": " + ", ".join(f"{v * 1e3:.6g}" for v in np.asarray(tool_m, dtype=float))
+
+
+def read_tool_header(path):
+    """The tool point (mm, flange frame) of a measurement file's
+    ``# tool_mm: x, y, z`` line before its header row, or None without one.
+    InputError (file and line) for a malformed or repeated line."""
+    raw, _ = decode_text(path)
+    found = None
+    for lineno, line in enumerate(raw.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if not stripped.startswith("#"):
+            break  # the header row: comments after it are not the file's header
+        key, sep, value = stripped[1:].partition(":")
+        if key.strip().lower() != TOOL_KEY or not sep:
+            continue
+        if found is not None:
+            raise InputError(f"{path}:{lineno}: a second '# {TOOL_KEY}:' line (the first is line {found[0]})")
+        parts = [v.strip() for v in value.split(",")]
+        try:
+            tool = np.array([float(v) for v in parts])
+        except ValueError:
+            tool = np.array([])
+        if tool.shape != (3,) or not np.all(np.isfinite(tool)) or np.any(np.abs(tool) > 5000.0):
+            raise InputError(f"{path}:{lineno}: '# {TOOL_KEY}:' expects three numbers x, y, z within +-5000 mm (flange frame), "
+                             f"got {value.strip()!r}")
+        found = (lineno, tool)
+    return None if found is None else found[1]
+
+
+def campaign_tool_m(campaign, robot, tool_m=None, warnings=None):
+    """The tool point (m) the measurements of ``campaign`` refer to: the
+    file's ``# tool_mm:`` line; else ``tool_m`` (--tool); else the robot
+    file's tool point (payload.tool_point_mm), with a warning.  A --tool
+    that disagrees with the file's line is an InputError naming both."""
+    fmt = lambda t: ", ".join(f"{v:g}" for v in np.round(np.asarray(t) * 1e3, 6))  # noqa: E731
+    if campaign.tool_mm is not None:
+        file_m = np.asarray(campaign.tool_mm, dtype=float) / 1e3
+        if tool_m is not None and np.max(np.abs(np.asarray(tool_m) - file_m)) > 1e-9:
+            raise InputError(f"--tool {fmt(tool_m)} mm disagrees with the tool point ({fmt(file_m)}) mm that "
+                             f"{campaign.path} records in its '# {TOOL_KEY}:' line; drop --tool or correct the file")
+        return file_m
+    if tool_m is not None:
+        return np.asarray(tool_m, dtype=float)
+    tool = robot.tool_point(where=f"{campaign.path} (it has no '# {TOOL_KEY}:' line and no --tool was given)")
+    if warnings is not None:
+        warnings.add(f"{campaign.path} has no '# {TOOL_KEY}:' line: its measurements are taken to be at the robot "
+                     f"file's tool point ({fmt(tool)}) mm; record the tool point in the file or pass --tool")
+    return tool

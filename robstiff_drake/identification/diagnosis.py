@@ -80,7 +80,7 @@ class CampaignContext:
         self.robot = robot
         self.campaign = campaign
         self.tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
-        self.q = np.deg2rad(campaign.q_deg)
+        self.q = robot.joint_rad(campaign.q_deg)
         self.W = campaign.wrench
         self.J = kin.jacobian(robot.dh, self.q, self.tool)
         self.Jv = self.J[:, :3, :]
@@ -215,7 +215,7 @@ class Design:
     """The base regressor (free joints, nominal-scaled) and the target."""
 
     def __init__(self, robot, campaign, tool_m, base_fit):
-        A_d, _ = regressor(robot.dh, np.deg2rad(campaign.q_deg), campaign.wrench, tool_m)
+        A_d, _ = regressor(robot.dh, robot.joint_rad(campaign.q_deg), campaign.wrench, tool_m)
         c_nom = 1.0 / robot.joint_stiffness_Nm_per_rad
         A = (A_d * c_nom).reshape(-1, 6)
         self.free = np.flatnonzero(base_fit.identifiable)

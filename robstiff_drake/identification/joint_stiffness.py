@@ -164,7 +164,7 @@ def identify(robot, campaign, *, tool_m=None, robust=False, use_rotations=True):
     """Identify the six joint stiffnesses from a StiffnessCampaign."""
     k_nom = robot.joint_stiffness_Nm_per_rad
     c_nom = 1.0 / k_nom
-    q = np.deg2rad(campaign.q_deg)
+    q = robot.joint_rad(campaign.q_deg)
     W = campaign.wrench
     A_d, A_r = regressor(robot.dh, q, W, tool_m)
     pred_nom_mm = (A_d @ c_nom) * 1e3

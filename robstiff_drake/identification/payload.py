@@ -67,7 +67,7 @@ def count_directions(g_s):
 def calibrate(robot, campaign, *, mount_rpy_deg=(0.0, 0.0, 0.0)):
     """Mass, centre of mass (sensor frame), force and torque bias."""
     R_mount = kin.rpy_to_rotation(np.deg2rad(mount_rpy_deg))
-    g_s = gravity_in_sensor(robot.dh, np.deg2rad(campaign.q_deg), R_mount)
+    g_s = gravity_in_sensor(robot.dh, robot.joint_rad(campaign.q_deg), R_mount)
     n = len(campaign)
     n_dir = count_directions(g_s)
     if n_dir < MIN_DIRECTIONS:

@@ -4,10 +4,10 @@ filter, gravity removal, the deflection prediction, the saturation, the
 transport delay and the rate-limited correction.  No Drake.
 
 The Drake blocks of the simulated cell (systems/) call the same functions
-(``guard_accepts``, ``rate_limited_step``, ``DeflectionModel``,
-model/gravity.GravityRemover, model/filters), and ``Compensator`` strings
-them together for the compensator process (cell/compensate.py), so the
-chain is written once.
+(``guard_accepts``, ``rate_limited_step``, ``GravityRemover``,
+``DeflectionModel``, model/filters), and ``Compensator`` strings them
+together for the compensator process (cell/compensate.py), so the chain is
+written once.
 
 Units: wrenches (N, N*m) in the sensor frame unless named otherwise; q and
 corrections in rad; times in s.
@@ -18,11 +18,11 @@ from collections import deque
 
 import numpy as np
 
+from robstiff_drake.model import transmission
 from robstiff_drake.model.filters import SampleFilter
-from robstiff_drake.model.gravity import GravityRemover
-from robstiff_drake.model.joint_effects import effect_dq
 from robstiff_drake.model.kinematics import rpy_to_rotation
-from robstiff_drake.model.realtime import wrench_to_tool_base
+from robstiff_drake.model.payload import payload_weight
+from robstiff_drake.model.wrench_frames import wrench_to_tool_base
 
 
 def guard_accepts(w, held, max_jump_N):
@@ -42,19 +42,42 @@ def rate_limited_step(held, dq, step):
     return [x + min(s, max(-s, -d - x)) for x, d, s in zip(held, dq, step)]
 
 
+class GravityRemover:
+    """process wrench = measured wrench - bias - the payload's weight at q
+    (sensor frame), in scalar arithmetic for the per-cycle path.
+    ``kinematics``: a DeflectionPredictor (its ``pose(q)``)."""
+
+    def __init__(self, calibration, kinematics):
+        m, c, bf, bt, R_mount = calibration.arrays()
+        self._m = m
+        self._c = tuple(c.tolist())
+        self._bias = tuple(np.concatenate([bf, bt]).tolist())
+        self._R_mount = tuple(R_mount.ravel().tolist())
+        self._kin = kinematics
+
+    def __call__(self, wrench, q_rad):
+        """The process wrench (list of 6) for a measured wrench and q (rad)."""
+        R = self._kin.pose(q_rad)  # rotation in the first nine
+        weight = payload_weight(R, self._R_mount, self._m, self._c)
+        return [w - b - g for w, b, g in zip(wrench, self._bias, weight)]
+
+
 class DeflectionModel:
-    """dq = C_q J(q)^T W (+ the model's joint effects) from a process
-    wrench in the sensor frame: the deflection prediction block's
-    arithmetic.  ``predictor``: the compensator's DeflectionPredictor;
-    ``tool_m``: the tool point in the flange frame (m); ``mount_rpy_deg``:
-    the sensor frame's rotation on the flange (deg)."""
+    """dq = C_q J(q)^T W from a process wrench in the sensor frame, and with
+    lost motion or coupling in the model the transmission law
+    (model/transmission.static_deflection: the extra twist when the process
+    torque adds to the static torque the gears already carry): the
+    deflection prediction block's arithmetic.  ``predictor``: the
+    compensator's DeflectionPredictor; ``tool_m``: the tool point in the
+    flange frame (m); ``mount_rpy_deg``: the sensor frame's rotation on the
+    flange (deg)."""
 
     def __init__(self, predictor, tool_m, mount_rpy_deg=(0.0, 0.0, 0.0), lost_motion_rad=None,
                  coupling_c23_rad_per_Nm=0.0):
         self._pred = predictor
-        self._lost = None if lost_motion_rad is None or not len(lost_motion_rad) else \
+        self.lost = None if lost_motion_rad is None or not np.any(np.asarray(lost_motion_rad) != 0) else \
             np.asarray(lost_motion_rad, dtype=float)
-        self._c23 = float(coupling_c23_rad_per_Nm)
+        self.c23 = float(coupling_c23_rad_per_Nm)
         R_mount = rpy_to_rotation(np.deg2rad(mount_rpy_deg))
         self._R_mount = tuple(R_mount.ravel().tolist())
         self._r_s = tuple((R_mount.T @ np.asarray(tool_m, dtype=float)).tolist())  # tool point, sensor frame
@@ -70,14 +93,15 @@ class DeflectionModel:
         w = process_wrench.tolist() if hasattr(process_wrench, "tolist") else process_wrench
         return wrench_to_tool_base(R, self._r_s, w)
 
-    def dq(self, process_wrench, q):
-        """The predicted joint deflection (rad, a list or an array with the joint effects)."""
-        w = self.tool_wrench(process_wrench, q)
-        dq = [c * t for c, t in zip(self._pred.joint_compliance_list, self._pred.joint_torques(q, w))]
-        if self._lost is not None or self._c23:
-            tau = np.array(dq) / self._pred.joint_compliance
-            dq = np.asarray(dq) + effect_dq(tau, self._lost if self._lost is not None else np.zeros(6), self._c23)
-        return dq
+    def dq(self, process_wrench, q, static_torque=None):
+        """The predicted joint deflection (rad, list or array); with lost
+        motion, ``static_torque`` (6, N*m) is what the gears carry before the
+        cut (gravity)."""
+        tau = self._pred.joint_torques(q, self.tool_wrench(process_wrench, q))
+        if self.lost is None and not self.c23:
+            return [c * t for c, t in zip(self._pred.joint_compliance_list, tau)]
+        static = np.zeros(6) if static_torque is None else static_torque
+        return transmission.static_deflection(static, tau, self._pred.joint_compliance, self.lost, self.c23)
 
 
 class Compensator:

@@ -43,9 +43,12 @@ class DeflectionPredictor:
         self._sa = [math.sin(v) for v in dh.alpha_rad]
         tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
         self._tool = [float(v) for v in tool]
+        base = np.eye(4) if getattr(dh, "base", None) is None else np.asarray(dh.base, dtype=float)
+        self._base = tuple(float(v) for v in base[:3, :3].ravel()) + tuple(float(v) for v in base[:3, 3])
         # The last chains, shared by every predictor of the same arm and tool
         # (the plant's and the compensator's differ only in stiffness).
-        key = (tuple(self._home), tuple(self._d), tuple(self._a), tuple(self._ca), tuple(self._sa), tuple(self._tool))
+        key = (tuple(self._home), tuple(self._d), tuple(self._a), tuple(self._ca), tuple(self._sa), tuple(self._tool),
+               self._base)
         self._memo = _SHARED_CHAINS.setdefault(key, {})
         self.set_joint_stiffness(joint_stiffness_Nm_per_rad)
 
@@ -102,9 +105,9 @@ class DeflectionPredictor:
         return chain
 
     def _chain_uncached(self, q_rad):
-        # Rotation R (rows r0..r8) and position p of the current frame.
-        r0, r1, r2, r3, r4, r5, r6, r7, r8 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
-        px = py = pz = 0.0
+        # Rotation R (rows r0..r8) and position p of the current frame, from
+        # the chain's base transform.
+        r0, r1, r2, r3, r4, r5, r6, r7, r8, px, py, pz = self._base
         axes = []
         home, d, a, ca, sa = self._home, self._d, self._a, self._ca, self._sa
         for i, qi in enumerate(q_rad):
@@ -147,36 +150,3 @@ class DeflectionPredictor:
     def jacobian(self, q_rad):
         """The 6x6 Jacobian (same convention as kinematics.jacobian)."""
         return np.array(self.jacobian_rows(q_rad)).T
-
-
-def wrench_to_tool_base(R_sensor, r_s, w_sensor):
-    """The scalar core of sensor_to_tool_base (the per-cycle path): R_sensor
-    (base <- sensor) row-major, 9 floats; r_s the tool point in the sensor
-    frame; w_sensor 6 floats.  Returns a list of 6."""
-    fx, fy, fz, mx, my, mz = w_sensor
-    rx, ry, rz = r_s
-    f = rotate(R_sensor, (fx, fy, fz))
-    m = rotate(R_sensor, (mx - (ry * fz - rz * fy), my - (rz * fx - rx * fz), mz - (rx * fy - ry * fx)))
-    return list(f + m)
-
-
-def sensor_to_tool_base(w_sensor, R_flange, tool_m, R_mount=None):
-    """A wrench measured in the sensor frame (about its origin, which is the
-    flange origin) as a wrench (force N, moment N*m about the tool point) in
-    the base frame.  ``tool_m`` is the tool point in the flange frame."""
-    R_mount = np.eye(3) if R_mount is None else np.asarray(R_mount, dtype=float)
-    Rs = np.asarray(R_flange, dtype=float) @ R_mount
-    r_s = R_mount.T @ np.asarray(tool_m, dtype=float)  # tool point in the sensor frame
-    return np.array(wrench_to_tool_base(Rs.ravel().tolist(), r_s.tolist(), np.asarray(w_sensor, dtype=float).tolist()))
-
-
-def to_sensor_frame(R, tool_m, w):
-    """A wrench (force N, moment N*m about the tool point, base frame) as the
-    wrist sensor sees it: (force, moment about the sensor origin) in the
-    sensor frame.  R: flange rotation, row-major 9 floats (base <- DH 6);
-    tool_m: the tool point in the flange frame (3 floats)."""
-    f0, f1, f2 = rotate_transposed(R, w[:3])
-    m0, m1, m2 = rotate_transposed(R, w[3:])
-    tx, ty, tz = tool_m
-    # moment about the sensor origin: m + tool x f
-    return [f0, f1, f2, m0 + ty * f2 - tz * f1, m1 + tz * f0 - tx * f2, m2 + tx * f1 - ty * f0]

@@ -1,21 +1,19 @@
 """Gravity removal: subtracts the payload's weight (and the sensor's bias)
 from the filtered wrench, for any robot configuration, with the parameters
 that `robstiff calibrate-payload` identifies.  The arithmetic is
-model/gravity.py's (shared with the compensator process)."""
+model/compensator.GravityRemover's (shared with the compensator process)."""
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from robstiff_drake.model.gravity import GravityRemover, PayloadCalibration, payload_weight, payload_wrench
-
-__all__ = ["GravityRemoval", "PayloadCalibration", "payload_weight", "payload_wrench"]
+from robstiff_drake.model.compensator import GravityRemover
 
 
 class GravityRemoval(LeafSystem):
     """Inputs ``wrench`` (6, sensor frame) and ``q`` (6, rad); output
     ``process_wrench`` (6): the wrench minus the payload's weight and bias
-    (model/gravity.GravityRemover).  Direct feedthrough, recomputed only
-    when an input changes."""
+    (model/compensator.GravityRemover, scalar arithmetic for the per-cycle
+    path).  Direct feedthrough, recomputed only when an input changes."""
 
     def __init__(self, *, calibration, kinematics):
         super().__init__()

@@ -1,8 +1,6 @@
-"""The payload's weight as the wrist sensor feels it, and the calibration
-that `robstiff calibrate-payload` identifies (mass, centre of mass, sensor
-biases, the sensor's mounting).  Plain Python / numpy; no Drake: the Drake
-block (systems/gravity_removal.py) and the compensator process
-(cell/compensate.py) both call these."""
+"""The wrist sensor's payload (spindle, adapter, tool) as the sensor feels
+it: its calibration (what `robstiff calibrate-payload` identifies) and its
+weight in the sensor frame for any flange orientation.  Plain numpy."""
 
 from dataclasses import dataclass
 
@@ -26,6 +24,8 @@ class PayloadCalibration:
     sensor_mount_rpy_deg: list = None
 
     def arrays(self):
+        """(mass kg, centre of mass m (3,), force bias N, torque bias N*m,
+        R_mount (3x3, DH 6 <- sensor))."""
         z = [0.0, 0.0, 0.0]
         return (float(self.mass_kg), np.asarray(self.com_mm or z, dtype=float) / 1000.0,
                 np.asarray(self.force_bias_N or z, dtype=float), np.asarray(self.torque_bias_Nm or z, dtype=float),
@@ -50,23 +50,3 @@ def payload_wrench(R_flange, calibration, arrays=None):
     m, c, bf, bt, R_mount = arrays or calibration.arrays()
     weight = payload_weight(np.ravel(R_flange).tolist(), R_mount.ravel().tolist(), m, c.tolist())
     return np.array(weight) + np.concatenate([bf, bt])
-
-
-class GravityRemover:
-    """process wrench = measured wrench - bias - the payload's weight at q
-    (sensor frame), in scalar arithmetic for the per-cycle path.
-    ``kinematics``: a DeflectionPredictor (its ``pose(q)``)."""
-
-    def __init__(self, calibration, kinematics):
-        m, c, bf, bt, R_mount = calibration.arrays()
-        self._m = m
-        self._c = tuple(c.tolist())
-        self._bias = tuple(np.concatenate([bf, bt]).tolist())
-        self._R_mount = tuple(R_mount.ravel().tolist())
-        self._kin = kinematics
-
-    def __call__(self, wrench, q_rad):
-        """The process wrench (list of 6) for a measured wrench and q (rad)."""
-        R = self._kin.pose(q_rad)  # rotation in the first nine
-        weight = payload_weight(R, self._R_mount, self._m, self._c)
-        return [w - b - g for w, b, g in zip(wrench, self._bias, weight)]
