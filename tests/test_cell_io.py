@@ -122,7 +122,7 @@ def test_faults_ramp_the_correction_down_and_are_logged(tmp_path):
     # (the injected silence starts at 1.6 s; a loaded machine may stall the simulated sensor briefly before)
     t_on = next(e["t_s"] for e in events if "sensor: no record" in e["event"] and e["t_s"] > 1.58)
     t_off = next(e["t_s"] for e in events if "valid records again" in e["event"] and e["t_s"] > t_on)
-    assert 0.25 < t_off - t_on < 0.6  # the 0.3 s silence (+ pynetft's reconnection)
+    assert 0.25 < t_off - t_on < 1.5  # the 0.3 s silence (+ pynetft's reconnection, with its back-off)
     size = np.abs(c).max(axis=1)
     before = size[(t > t_on - 0.1) & (t < t_on - 0.03)].mean()
     assert before > 1e-4
@@ -131,7 +131,7 @@ def test_faults_ramp_the_correction_down_and_are_logged(tmp_path):
     done = t_on + before / RATE_LIMIT_RAD_PER_S + 0.06  # (+ a margin for the two clocks of the log)
     assert size[(t > done) & (t < t_off - 0.01)].max() == 0.0
     # and it comes back afterwards
-    assert size[(t > t_off + 0.2) & (t < t_off + 0.4)].mean() > 0.8 * before
+    assert size[(t > t_off + 0.05) & (t < t_off + 0.15)].mean() > 0.8 * before
     # the lost messages are seen (every 25th: gaps of two periods)
     assert summary["cycles"]["controller_gaps"] >= 0.5 * stats.cycles / 25
 
