@@ -128,7 +128,7 @@ def _force_bias_ok(v, info):
 
 # -- the loaded (and measured) point is the model's tool point plus delta (flange frame)
 def _tool_offset_effect(ctx, c, theta):
-    return (ctx.disp_of_wrench(ctx.W, c, ctx.tool + theta) - ctx.disp_of_wrench(ctx.W, c)).reshape(-1)
+    return (ctx.disp_of_wrench(ctx.W, c, theta) - ctx.disp_of_wrench(ctx.W, c)).reshape(-1)
 
 
 def _tool_offset_ok(v, info):

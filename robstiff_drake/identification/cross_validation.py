@@ -8,12 +8,13 @@ every test here treats a pose as one unit.
     it, rows with identical joint angles);
   * ``folds``: K test folds, a pose's rows never split between fitting and
     testing; the permutation has a fixed seed, so a run is reproducible;
-  * ``grouped_gain_test``: is the held-out error per pose smaller with one
-    model than with another?  A one-sided paired t-test over poses.
+  * ``clustered_wald``: are some coefficients of a least-squares fit zero?
+    A Wald test with the pose-clustered (sandwich) covariance, referred to
+    F(q, G - 1): valid whatever the correlation of a pose's rows;
 """
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 K_FOLDS = 5
 FOLD_SEED = 0  # fixed: the same file always gets the same folds
@@ -43,29 +44,41 @@ def folds(groups, k=K_FOLDS, seed=FOLD_SEED):
     return out
 
 
+def splits(rows, groups, k=K_FOLDS, seed=FOLD_SEED):
+    """[(train rows, test rows)] of the k pose-grouped folds over ``rows``."""
+    rows = np.asarray(rows)
+    out = []
+    for f in folds(np.asarray(groups)[rows], k, seed):
+        test = rows[f]
+        out.append((np.setdiff1d(rows, test), test))
+    return out
+
+
 def rows_to_eq(rows):
     """Row indices -> equation indices (three displacement components per row)."""
     rows = np.asarray(rows)
     return (3 * rows[:, None] + np.arange(3)).ravel()
 
 
-def per_group_sse(residual_eq, groups):
-    """Sum of squared residuals per group; residual_eq is (3N,)."""
-    r2 = residual_eq.reshape(-1, 3)
-    r2 = np.sum(r2 * r2, axis=1)
-    return np.bincount(groups, weights=r2, minlength=int(groups.max()) + 1)
-
-
-def grouped_gain_test(sse_old, sse_new):
-    """One-sided paired t-test over groups that the new model's held-out
-    error is smaller.  Returns (p, t).  With fewer than 3 groups, p = 1."""
-    d = np.asarray(sse_old) - np.asarray(sse_new)
-    g = len(d)
-    if g < 3:
-        return 1.0, 0.0
-    sd = float(np.std(d, ddof=1))
-    mean = float(np.mean(d))
-    if sd == 0:
-        return (0.0, np.inf) if mean > 0 else (1.0, 0.0)
-    t = mean / (sd / np.sqrt(g))
-    return float(stats.t.sf(t, g - 1)), float(t)
+def clustered_wald(X, y, groups_eq, cols):
+    """Least squares of y (n,) on X (n, p), and the p-value of the Wald test
+    that the coefficients ``cols`` (a slice) are zero, with the covariance
+    clustered by ``groups_eq`` (n,) (CR1 factor G / (G - 1)) and referred to
+    F(q, G - 1).  Returns (p, coefficients, residual)."""
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    coef_s, *_ = np.linalg.lstsq(Xs, y, rcond=None)
+    r = y - Xs @ coef_s
+    U = np.zeros((int(groups_eq.max()) + 1, X.shape[1]))
+    np.add.at(U, groups_eq, Xs * r[:, None])
+    U = U[np.bincount(groups_eq) > 0]
+    G = len(U)
+    if G < 3:
+        return 1.0, coef_s / scale, r
+    bread = np.linalg.pinv(Xs.T @ Xs)
+    V = bread @ (U.T @ U) @ bread * (G / (G - 1))
+    b = coef_s[cols]
+    q = len(b)
+    W = float(b @ np.linalg.pinv(V[cols, cols]) @ b)
+    return float(special.fdtrc(q, G - 1, W / q)), coef_s / scale, r

@@ -31,7 +31,7 @@ from scipy import stats
 from robstiff_drake.identification import noise_floor as nf
 from robstiff_drake.identification import robust_fit, selection
 from robstiff_drake.identification.candidates import CANDIDATES
-from robstiff_drake.identification.cross_validation import FOLD_SEED, K_FOLDS, folds, pose_groups, rows_to_eq
+from robstiff_drake.identification.cross_validation import FOLD_SEED, K_FOLDS, pose_groups, rows_to_eq, splits
 from robstiff_drake.identification.dictionary import DICTIONARY
 from robstiff_drake.identification.joint_stiffness import identify
 from robstiff_drake.identification.residual_structure import residual_structure
@@ -143,7 +143,7 @@ def _run(robot, campaign, tool_m, rows, groups, noise_mm, terms_by_name):
     base = identify(robot, subset(campaign, rows), tool_m=tool_m)
     ctx = Context(robot, campaign, tool_m, base.identifiable)
     floor = nf.estimate_floor(campaign, groups, rows, noise_mm)
-    fold_rows = [rows[f] for f in folds(groups[rows])]
+    fold_rows = splits(rows, groups)
     result = selection.search(ctx, rows, fold_rows, terms_by_name)
     return base, ctx, floor, fold_rows, result
 
@@ -187,13 +187,14 @@ def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, di
     base_all = identify(robot, campaign, tool_m=tool_m)
     ctx0 = Context(robot, campaign, tool_m, base_all.identifiable)
     floor_m = None if noise_mm is None else noise_mm * 1e-3
-    flagged, _ = robust_fit.screen_rows(robust_fit.tukey_springs(ctx0, all_rows, floor_m), all_rows, floor_m)
+    flagged, _ = robust_fit.screen_rows(robust_fit.tukey_springs(ctx0, all_rows, floor_m), all_rows, floor_m,
+                                        robust_fit.PRE_SCREEN_SIGMAS)
     for attempt in range(2):
         rows = np.setdiff1d(all_rows, flagged)
         base, ctx, floor, fold_rows, result = _run(robot, campaign, tool_m, rows, groups, noise_mm, terms_by_name)
         resid_all = (ctx.b - result.state.full.predict()).reshape(-1, 3)
         f_m = None if floor.sigma_mm is None else floor.sigma_mm * 1e-3
-        flagged2, _ = robust_fit.screen_rows(resid_all, rows, f_m)
+        flagged2, _ = robust_fit.screen_rows(resid_all, rows, f_m, robust_fit.POST_SCREEN_SIGMAS)
         if attempt == 1 or set(flagged2.tolist()) == set(flagged.tolist()):
             break
         flagged = flagged2

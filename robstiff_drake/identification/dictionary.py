@@ -7,13 +7,15 @@ For each of the six joints j:
   * nonlinear_stiffness_jJ  odd cubic law: dq_j += a c_j (tau_j / tau_max)^2 tau_j
                           (a > 0 softening, a < 0 hardening)
   * angle_compliance_jJ  compliance varying smoothly with its own angle:
-                          dq_j += c_j tau_j (a P1(x_j) + b P2(x_j)), x_j = q_j scaled
-                          to [-1, 1] over the campaign, P Legendre polynomials
+                          dq_j += c_j tau_j (a1 P1(x_j) + a2 P2(x_j) + a3 P3(x_j)),
+                          x_j = q_j scaled to [-1, 1] over the campaign, P Legendre
   * angle_compliance_jJ_qK  ... and linearly with another joint's angle q_k
-  * hysteresis_prev_jJ   dependence on the previous load: dq_j += h sign(tau_j of
-                          the previous measurement)
-  * hysteresis_ref_jJ    the pose's unloaded reading kept the deflection of the
-                          last load before it: dq_j += h sign(that load's tau_j)
+  * hysteresis_jJ        dependence on the previous loads (a play held by friction):
+                          dq_j += h_load s_after + h_reference s_pose, s_after the side
+                          (sign of tau_j) of the last load so far above a friction
+                          torque tau_f (from a grid), s_pose that side when the row's
+                          pose began (its unloaded reading); one play gives
+                          h_reference = -h_load
 and for every pair j < k (2-3 is the named joint_coupling):
   * coupling_jJK         dq_j += c tau_k, dq_k += c tau_j
 Outside the joints:
@@ -38,7 +40,8 @@ import numpy as np
 from robstiff_drake.identification import plausibility as pl
 from robstiff_drake.identification.terms import BILINEAR, GRID, LINEAR, Term, stack
 
-BACKLASH_TAU0_FRACTIONS = (0.02, 0.1, 0.3)  # transition torque / largest |tau_j| of the campaign
+BACKLASH_TAU0_FRACTIONS = (0.01, 0.02, 0.05, 0.1, 0.2, 0.4)  # transition torque / largest |tau_j| of the campaign
+HYSTERESIS_FRICTION_FRACTIONS = (0.0, 0.01, 0.02, 0.05, 0.1, 0.2)  # torque that moves a held joint / largest |tau_j|
 MIN_ANGLE_RANGE_DEG = 1.0  # an angle that varies less than this cannot carry a dependence
 
 
@@ -77,14 +80,6 @@ def _needs_angle(j, k=None):
 
 def _needs_seq(ctx):
     return None if ctx.seq is not None else "the file has no seq column (measurement order)"
-
-
-def _needs_seq_and_poses(ctx):
-    if ctx.seq is None:
-        return "the file has no seq column (measurement order)"
-    if len(np.unique(ctx.groups)) < 3:
-        return "fewer than three poses"
-    return None
 
 
 # -------------------------------------------------------------- joints
@@ -134,7 +129,7 @@ def _angle(j, k=None):
 
     def basis(ctx):
         x, _ = _scaled_angle(ctx, kk)
-        return [x, 1.5 * x**2 - 0.5] if own else [x]
+        return [x, 1.5 * x**2 - 0.5, 2.5 * x**3 - 1.5 * x] if own else [x]
 
     def columns(ctx):
         return stack([_dq_col(ctx, j, ctx.c_nom[j] * ctx.tau[:, j] * b) for b in basis(ctx)])
@@ -150,53 +145,52 @@ def _angle(j, k=None):
                 f"{100 * dc.max() / c:+.3g} % over q{kk + 1} = {lo:.0f}..{hi:.0f} deg")
 
     name = f"angle_compliance_j{j + 1}" + ("" if own else f"_q{k + 1}")
-    params = [("a1", "x nominal compliance", 1.0), ("a2", "x nominal compliance", 1.0)] if own else \
+    params = [(f"a{i}", "x nominal compliance", 1.0) for i in (1, 2, 3)] if own else \
         [("a", "x nominal compliance per half range", 1.0)]
     return Term(name, "dictionary", LINEAR, params, columns=columns, describe=describe,
                 plausible=lambda v, info: pl.compliance_ratio(info["c"][j], variation(v, info)),
                 needs=_needs_angle(j, k))
 
 
-def _previous_load_sign(ctx, j):
-    """sign(tau_j) of the measurement before each one (in seq order); 0 for the first."""
+def _held_sides(ctx, j, tau_f):
+    """Per row (in seq order): the side of joint j's play after the row's load
+    (the sign of the last load so far whose |tau_j| exceeded tau_f: friction
+    holds the link where a load put it), and the side when the row's pose
+    began (what its unloaded reading saw)."""
     order = np.argsort(ctx.seq, kind="stable")
-    s = np.zeros(ctx.n)
-    s[order[1:]] = np.sign(ctx.tau[order[:-1], j])
-    return s
-
-
-def _reference_load_sign(ctx, j):
-    """sign(tau_j) of the last measurement before each pose's first one (the
-    load the pose's unloaded reading followed); 0 for the first pose."""
-    order = np.argsort(ctx.seq, kind="stable")
-    s = np.zeros(ctx.n)
-    first_seen = {}
-    for pos, row in enumerate(order):
+    after, at_pose = np.zeros(ctx.n), np.zeros(ctx.n)
+    side, pose_side = 0.0, {}
+    for row in order:
         g = ctx.groups[row]
-        if g not in first_seen:
-            first_seen[g] = np.sign(ctx.tau[order[pos - 1], j]) if pos > 0 else 0.0
-        s[row] = first_seen[g]
-    return s
+        if g not in pose_side:
+            pose_side[g] = side
+        if abs(ctx.tau[row, j]) > tau_f:
+            side = np.sign(ctx.tau[row, j])
+        after[row], at_pose[row] = side, pose_side[g]
+    return after, at_pose
 
 
-def _hysteresis(j, which):
-    sign = _previous_load_sign if which == "prev" else _reference_load_sign
+def _hysteresis(j):
+    def grid(ctx):
+        return [f * _tau_max(ctx, j) for f in HYSTERESIS_FRICTION_FRACTIONS]
 
-    def columns(ctx):
-        return stack([_dq_col(ctx, j, sign(ctx, j))])
+    def columns(ctx, g):
+        after, at_pose = _held_sides(ctx, j, g)
+        return stack([_dq_col(ctx, j, after), _dq_col(ctx, j, at_pose)])
 
     def describe(v, info):
-        if which == "prev":
-            return (f"joint {j + 1} hysteresis: each deflection shifted by {v[0] * 1e6:+.3g} urad toward the "
-                    "previous measurement's torque")
-        return (f"joint {j + 1} hysteresis: each pose's unloaded reading kept {v[0] * 1e6:+.3g} urad of the "
-                "deflection of the last load before it")
+        held = f"loads above {info['g']:.3g} N*m move it" if info["g"] > 0 else "every load moves it"
+        return (f"joint {j + 1} play held by friction ({held}): the link sits {v[0] * 1e6:+.3g} urad toward the "
+                f"side the last load left it on, each pose's unloaded reading {v[1] * 1e6:+.3g} urad")
 
-    needs = _needs_seq if which == "prev" else _needs_seq_and_poses
-    return Term(f"hysteresis_{which}_j{j + 1}", "dictionary", LINEAR, [("h", "urad", 1e6)], columns=columns,
-                describe=describe,
-                plausible=lambda v, info: pl.within(v, pl.LOST_MOTION_MAX_RAD, "hysteresis", "urad", 1e6),
-                needs=lambda ctx: _needs_torque(j)(ctx) or needs(ctx))
+    def needs(ctx):
+        if ctx.seq is None:
+            return "the file has no seq column (measurement order)"
+        return _needs_torque(j)(ctx)
+
+    return Term(f"hysteresis_j{j + 1}", "dictionary", GRID, [("h_load", "urad", 1e6), ("h_reference", "urad", 1e6)],
+                columns=columns, grid=grid, grid_param=("tau_friction", "N*m", 1.0), describe=describe,
+                plausible=lambda v, info: pl.within(v, pl.LOST_MOTION_MAX_RAD, "play", "urad", 1e6), needs=needs)
 
 
 def _coupling(j, k):
@@ -330,7 +324,7 @@ def build_dictionary():
     for j in range(6):
         terms += [_backlash(j), _nonlinear(j), _angle(j)]
         terms += [_angle(j, k) for k in range(6) if k != j]
-        terms += [_hysteresis(j, "prev"), _hysteresis(j, "ref")]
+        terms.append(_hysteresis(j))
     terms += [_coupling(j, k) for j in range(6) for k in range(j + 1, 6) if (j, k) != (1, 2)]
     terms += [
         _compliance_term("base_tilt", "the base tilts on its foundation", _base_tilt, pl.BASE_TILT_COMPLIANCE_MAX),

@@ -83,7 +83,7 @@ def estimate_floor(campaign, groups, rows, stated_mm=None):
     return Floor(None, None, None, None, dof, len(sets))
 
 
-def cv_map(X, fold_rows, rows):
+def cv_map(X, folds, rows):
     """M with e = M y over the equations of ``rows`` (held-out residuals of a
     linear model with columns X, (3N, p), refitted in each fold)."""
     eq_all = rows_to_eq(rows)
@@ -92,8 +92,7 @@ def cv_map(X, fold_rows, rows):
     scale = np.linalg.norm(X[eq_all], axis=0)
     scale[scale == 0] = 1.0
     Xs = X / scale
-    for test in fold_rows:
-        train = np.setdiff1d(rows, test)
+    for train, test in folds:
         te, tr = rows_to_eq(test), rows_to_eq(train)
         P = Xs[te] @ np.linalg.pinv(Xs[tr])
         M[np.ix_([pos[int(e)] for e in te], [pos[int(e)] for e in tr])] = -P
@@ -120,11 +119,11 @@ class LackOfFit:
     test: str
 
 
-def lack_of_fit(resid_eq_m, X, fold_rows, rows, groups, floor):
+def lack_of_fit(resid_eq_m, X, folds, rows, groups, floor):
     """Test the held-out residuals (3N,) m against the floor (see module docstring)."""
     eq = rows_to_eq(rows)
     Q = float(resid_eq_m[eq] @ resid_eq_m[eq])
-    M = cv_map(X, fold_rows, rows)
+    M = cv_map(X, folds, rows)
     g_rows = np.asarray(groups)[rows]
     rhos = [0.0] + ([SHARED_REFERENCE_CORRELATION] if len(np.unique(g_rows)) < len(g_rows) else [])
     best = None

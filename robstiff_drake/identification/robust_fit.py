@@ -23,6 +23,13 @@ from robstiff_drake.identification.cross_validation import rows_to_eq
 from robstiff_drake.identification.terms import lstsq
 
 ALPHA_OUTLIER = 0.01
+# The first screen, against the six springs alone, flags only rows beyond
+# this many robust sigma (an effect the springs lack leaves large but not
+# gross residuals); the final model's screen uses the chi-square level.
+PRE_SCREEN_SIGMAS = 8.0
+# A gross error is also at least this long against the final model (a row the
+# final model merely fits less well, at a few sigma, is not a gross error).
+POST_SCREEN_SIGMAS = 6.0
 TUKEY_C = 6.0  # biweight cut-off, in robust sigma per component (about 4.685 scaled to a 3-D length)
 _CHI2_3_MEDIAN = stats.chi2.ppf(0.5, 3)
 
@@ -37,16 +44,17 @@ def threshold(n_rows):
     return float(stats.chi2.isf(ALPHA_OUTLIER / max(n_rows, 1), 3))
 
 
-def screen_rows(resid_rows_m, fit_rows, floor_m=None):
+def screen_rows(resid_rows_m, fit_rows, floor_m=None, min_sigmas=0.0):
     """Flag rows whose residual (N, 3) is gross against the robust scale of
-    ``fit_rows``' residuals.  Returns (flagged row indices, sigma_m)."""
+    ``fit_rows``' residuals (and longer than ``min_sigmas`` of it).  Returns
+    (flagged row indices, sigma_m)."""
     lengths = np.linalg.norm(resid_rows_m, axis=1)
     s = robust_scale(lengths[fit_rows])
     if floor_m is not None:
         s = max(s, floor_m)
     if s == 0:
         return np.array([], dtype=int), s
-    flagged = np.flatnonzero(lengths**2 / s**2 > threshold(len(lengths)))
+    flagged = np.flatnonzero(lengths**2 / s**2 > max(threshold(len(lengths)), min_sigmas**2))
     return flagged, s
 
 

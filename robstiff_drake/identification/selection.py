@@ -7,8 +7,9 @@ the dictionary together) and measures, on the same pose-grouped folds:
 
   * its held-out RMS (all displacement components; every nonlinear parameter
     refitted inside each fold, see identification/terms.py);
-  * a grouped test of its held-out gain: a one-sided paired t-test over
-    poses of the held-out squared error with and without it;
+  * a grouped test of its parameters: a Wald test on all rows with the
+    covariance clustered by pose (cross_validation.clustered_wald), valid
+    whatever the correlation of a pose's rows;
   * for reference, a nested F-test on all rows and the change in BIC (these
     treat rows as independent; the decision does not use them).
 
@@ -26,10 +27,10 @@ skipped, with the reason.
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
-from robstiff_drake.identification.cross_validation import grouped_gain_test, per_group_sse, rows_to_eq
-from robstiff_drake.identification.terms import GAUSS_NEWTON, GRID, fit_model, held_out, lstsq, rms_mm, term_columns
+from robstiff_drake.identification.cross_validation import clustered_wald, rows_to_eq
+from robstiff_drake.identification.terms import GAUSS_NEWTON, GRID, fit_model, held_out, rms_mm, term_columns
 
 ALPHA_ROUND = 0.01
 MIN_GAIN = {"library": 0.10, "dictionary": 0.05}
@@ -38,6 +39,7 @@ MIN_KEEP_GAIN = 0.02  # backward check: a kept term must still lower the held-ou
 MAX_LIBRARY = 3
 MAX_TERMS = 5
 RANK_TOL = 1e-6
+GN_CANDIDATE_ITER = 3  # Gauss-Newton steps for a candidate (the selected model is iterated to convergence)
 
 
 @dataclass
@@ -50,10 +52,54 @@ class CandidateResult:
     f_stat: float = float("nan")
     p_value: float = float("nan")
     delta_bic: float = float("nan")
-    p_grouped: float = float("nan")
+    p_grouped: float = float("nan")  # pose-clustered Wald test of its parameters, all rows
     params: dict = field(default_factory=dict)  # "name (unit)" -> value, fitted on all rows
     values: np.ndarray = None  # SI
     grid: float = None
+
+
+class Projection:
+    """The current model's least-squares fit on some equations, kept so that
+    a candidate's columns are added at the cost of a projection (the
+    Frisch-Waugh-Lovell form of the joint fit: exact)."""
+
+    def __init__(self, X, target, eq_fit, eq_pred=None):
+        Xf = X[eq_fit]
+        self.scale = np.linalg.norm(Xf, axis=0)
+        self.scale[self.scale == 0] = 1.0
+        self.Q, self.R = np.linalg.qr(Xf / self.scale)
+        y = target[eq_fit]
+        self.coef_s = np.linalg.solve(self.R, self.Q.T @ y)
+        self.r = y - self.Q @ (self.Q.T @ y)
+        self.eq_fit, self.eq_pred = eq_fit, eq_pred
+        if eq_pred is not None:
+            self.Xp = X[eq_pred] / self.scale
+            self.pred0 = self.Xp @ self.coef_s
+
+    def add(self, Z):
+        """(term coefficients (SI), prediction on eq_pred (without the offset), SSE on eq_fit)."""
+        Zf = Z[self.eq_fit]
+        zn = np.linalg.norm(Zf, axis=0)
+        zn[zn == 0] = 1.0
+        Zs = Zf / zn
+        QtZ = self.Q.T @ Zs
+        Zperp = Zs - self.Q @ QtZ
+        g, *_ = np.linalg.lstsq(Zperp, self.r, rcond=None)
+        res = self.r - Zperp @ g
+        pred = None
+        if self.eq_pred is not None:
+            pred = self.pred0 + (Z[self.eq_pred] / zn) @ g - self.Xp @ np.linalg.solve(self.R, QtZ @ g)
+        return g / zn, pred, float(res @ res)
+
+    def rank_added(self, Z):
+        """How many independent directions Z's columns add to the fit's."""
+        Zf = Z[self.eq_fit]
+        zn = np.linalg.norm(Zf, axis=0)
+        if np.any(zn == 0):
+            return 0
+        Zs = Zf / zn
+        Zperp = Zs - self.Q @ (self.Q.T @ Zs)
+        return int(np.sum(np.linalg.svd(Zperp, compute_uv=False) > RANK_TOL))
 
 
 @dataclass
@@ -65,27 +111,30 @@ class State:
     rms_mm: float
     fold_fits: list
     full: object  # ModelFit on all rows
-    sse: np.ndarray  # held-out SSE per pose
     rss: float
-    basis: np.ndarray  # orthonormal basis of the full fit's columns on the rows
+    folds_proj: list  # Projection per fold (fit on its training rows, predict its test rows)
+    full_proj: Projection  # on all rows
 
 
-def model_state(ctx, terms, rows, fold_rows, gidx):
-    resid, fits = held_out(ctx, terms, fold_rows, rows)
+def model_state(ctx, terms, rows, folds, gidx):
+    resid, fits = held_out(ctx, terms, folds)
     full = fit_model(ctx, terms, rows)
     eq = rows_to_eq(rows)
-    r = ctx.b[eq] - full.predict(rows)
-    X = full.X[eq]
-    Q, _ = np.linalg.qr(X / np.maximum(np.linalg.norm(X, axis=0), 1e-300))
-    return State(list(terms), resid, rms_mm(resid[eq]), fits, full, per_group_sse(resid[eq], gidx), float(r @ r), Q)
+    full_proj = Projection(full.X, ctx.b - full.offset, eq)
+    folds_proj = [Projection(f.X, ctx.b - f.offset, rows_to_eq(train), rows_to_eq(test))
+                  for f, (train, test) in zip(fits, folds)]
+    return State(list(terms), resid, rms_mm(resid[eq]), fits, full, float(full_proj.r @ full_proj.r), folds_proj,
+                 full_proj)
 
 
 def _label(t):
     return [f"{n} ({u})" for n, u, _ in t.params]
 
 
-def evaluate(ctx, rows, fold_rows, gidx, state, t):
-    """One candidate added to the current model (see module docstring)."""
+def evaluate(ctx, rows, folds, gidx, state, t, gain_needed):
+    """One candidate added to the current model (see module docstring).  The
+    pose-clustered Wald test is computed only when the held-out RMS falls to
+    ``gain_needed`` (mm) or below (otherwise the candidate cannot qualify)."""
     reason = t.needs(ctx) if t.needs else None
     if reason:
         return CandidateResult(t.name, t.source, "skipped", reason)
@@ -95,59 +144,49 @@ def evaluate(ctx, rows, fold_rows, gidx, state, t):
         return CandidateResult(t.name, t.source, "skipped", f"{pe} more parameters need more than the {len(rows)} "
                                "measurements (3 equations each)")
     grid = t.grid(ctx) if t.kind == GRID else [None]
-    Z0, _ = term_columns(ctx, t, state.full.c, None, grid[0])
-    Z = Z0[eq]
-    norms = np.linalg.norm(Z, axis=0)
-    added = 0
-    if np.all(norms > 0):
-        Zs = Z / norms
-        Zp = Zs - state.basis @ (state.basis.T @ Zs)
-        added = int(np.sum(np.linalg.svd(Zp, compute_uv=False) > RANK_TOL))
+    added = state.full_proj.rank_added(term_columns(ctx, t, state.full.c, None, grid[0])[0])
     if added < pe:
         return CandidateResult(t.name, t.source, "not identifiable",
                                f"its {pe} column(s) add only {added} independent direction(s) to the model's: "
                                "the campaign cannot separate it")
     resid = np.zeros(3 * ctx.n)
-    for test, fk in zip(fold_rows, state.fold_fits):
-        train = np.setdiff1d(rows, test)
-        te, tr = rows_to_eq(test), rows_to_eq(train)
+    for (train, test), fk, pk in zip(folds, state.fold_fits, state.folds_proj):
+        te = rows_to_eq(test)
         if t.kind == GAUSS_NEWTON:
-            pred = fit_model(ctx, state.terms + [t], train, grid=fk.grid).predict(test)
+            pred = fit_model(ctx, state.terms + [t], train, grid=fk.grid, max_iter=GN_CANDIDATE_ITER).predict(test)
         else:
             best = None
             for g in grid:
-                Zk, _ = term_columns(ctx, t, fk.c, None, g)
-                X = np.hstack([fk.X, Zk])
-                coef = lstsq(X[tr], ctx.b[tr] - fk.offset[tr])
-                sse = 0.0
-                if len(grid) > 1:
-                    r = ctx.b[tr] - fk.offset[tr] - X[tr] @ coef
-                    sse = float(r @ r)
+                _, pred_g, sse = pk.add(term_columns(ctx, t, fk.c, None, g)[0])
                 if best is None or sse < best[0]:
-                    best = (sse, X[te] @ coef + fk.offset[te])
-            pred = best[1]
+                    best = (sse, pred_g)
+            pred = best[1] + fk.offset[te]
         resid[te] = ctx.b[te] - pred
     rms = rms_mm(resid[eq])
-    sse_groups = per_group_sse(resid[eq], gidx)
-    p_grouped, _ = grouped_gain_test(state.sse, sse_groups)
-    # all rows: parameters, F-test and BIC
+    # all rows: parameters, F-test, BIC and (if it can qualify) the pose-clustered Wald test
+    geq = np.repeat(gidx, 3)
     if t.kind == GAUSS_NEWTON:
-        f = fit_model(ctx, state.terms + [t], rows)
+        f = fit_model(ctx, state.terms + [t], rows, max_iter=GN_CANDIDATE_ITER)
         r = ctx.b[eq] - f.predict(rows)
-        rss1, values, g_best = float(r @ r), f.values[t.name], None
+        rss1, values, g_best, Zf = float(r @ r), f.values[t.name], None, None
     else:
         best = None
         for g in grid:
-            Zf, _ = term_columns(ctx, t, state.full.c, None, g)
+            Zf = term_columns(ctx, t, state.full.c, None, g)[0]
+            coef, _, sse = state.full_proj.add(Zf)
+            if best is None or sse < best[0]:
+                best = (sse, coef, g, Zf)
+        rss1, values, g_best, Zf = best
+    p_grouped = float("nan")
+    if rms <= gain_needed:
+        if t.kind == GAUSS_NEWTON:
+            p_grouped, _, _ = clustered_wald(f.X[eq], ctx.b[eq] - f.offset[eq], geq, f.slices[t.name])
+        else:
             X = np.hstack([state.full.X, Zf])
-            coef = lstsq(X[eq], ctx.b[eq] - state.full.offset[eq])
-            r = ctx.b[eq] - state.full.offset[eq] - X[eq] @ coef
-            if best is None or r @ r < best[0]:
-                best = (float(r @ r), coef[p0:], g)
-        rss1, values, g_best = best
+            p_grouped, _, _ = clustered_wald(X[eq], ctx.b[eq] - state.full.offset[eq], geq, slice(p0, p0 + pe))
     df2 = n_eq - p0 - pe
     F = ((state.rss - rss1) / pe) / (rss1 / df2) if rss1 > 0 else np.inf
-    p = float(stats.f.sf(F, pe, df2)) if np.isfinite(F) else 0.0
+    p = float(special.fdtrc(pe, df2, F)) if np.isfinite(F) else 0.0
     dbic = n_eq * np.log(rss1 / state.rss) + pe * np.log(n_eq) if state.rss > 0 and rss1 > 0 else float("nan")
     params = {lab: float(v * s) for lab, (_, _, s), v in zip(_label(t), t.params, values)}
     return CandidateResult(t.name, t.source, "ok", "", rms, float(F), p, float(dbic), p_grouped, params,
@@ -155,8 +194,8 @@ def evaluate(ctx, rows, fold_rows, gidx, state, t):
 
 
 def _qualifies(r, current_rms, m):
-    return (r.status == "ok" and r.p_grouped < ALPHA_ROUND / max(m, 1)
-            and r.rms_mm <= (1 - MIN_GAIN[r.source]) * current_rms)
+    return (r.status == "ok" and r.rms_mm <= (1 - MIN_GAIN[r.source]) * current_rms
+            and r.p_grouped < ALPHA_ROUND / max(m, 1))
 
 
 def _choose(qualified):
@@ -180,10 +219,10 @@ class SearchResult:
     rms_without_mm: dict  # kept term -> held-out RMS of the final model without it
 
 
-def search(ctx, rows, fold_rows, terms_by_name):
+def search(ctx, rows, folds, terms_by_name):
     """Forward selection over ``terms_by_name`` (library and dictionary), then the backward check."""
     gidx = np.unique(ctx.groups[rows], return_inverse=True)[1]
-    state = model_state(ctx, [], rows, fold_rows, gidx)
+    state = model_state(ctx, [], rows, folds, gidx)
     rms_before = state.rms_mm
     rounds, added, dropped, n_tried = [], [], [], 0
     while len(state.terms) < MAX_TERMS:
@@ -193,22 +232,26 @@ def search(ctx, rows, fold_rows, terms_by_name):
                 and (t.source != "library" or n_lib < MAX_LIBRARY)]
         if not pool:
             break
-        results = [evaluate(ctx, rows, fold_rows, gidx, state, t) for t in pool]
+        need = (1 - min(MIN_GAIN.values())) * state.rms_mm
+        results = [evaluate(ctx, rows, folds, gidx, state, t, need) for t in pool]
         rounds.append(results)
         m = sum(r.status == "ok" for r in results)
         n_tried += m
         best = _choose([r for r in results if _qualifies(r, state.rms_mm, m)])
         if best is None:
             break
-        new = model_state(ctx, state.terms + [terms_by_name[best.name]], rows, fold_rows, gidx)
+        new = model_state(ctx, state.terms + [terms_by_name[best.name]], rows, folds, gidx)
         added.append((best.name, state.rms_mm, new.rms_mm))
         state = new
     without = {}
     while len(state.terms) > 1:
         trial = {}
+        geq = np.repeat(gidx, 3)
+        eq = rows_to_eq(rows)
         for t in state.terms:
-            s = model_state(ctx, [u for u in state.terms if u is not t], rows, fold_rows, gidx)
-            p, _ = grouped_gain_test(s.sse, state.sse)
+            s = model_state(ctx, [u for u in state.terms if u is not t], rows, folds, gidx)
+            p, _, _ = clustered_wald(state.full.X[eq], ctx.b[eq] - state.full.offset[eq], geq,
+                                     state.full.slices[t.name])
             trial[t.name] = (s, p, 1 - state.rms_mm / s.rms_mm)
         weak = [(gain, name) for name, (s, p, gain) in trial.items()
                 if p > ALPHA_ROUND / len(state.terms) or gain < MIN_KEEP_GAIN]

@@ -107,9 +107,18 @@ class Context:
         """Flange rotation (N, 3) rad of joint deflections dq (N, 6)."""
         return np.einsum("nrj,nj->nr", self.Jw, dq)
 
-    def disp_of_wrench(self, W, c, tool=None):
-        """Six-spring displacement (N, 3) m of wrenches W (N, 6) at the tool point."""
-        J = self.J if tool is None else kin.jacobian(self.robot.dh, self.q, tool)
+    def jacobian_moved(self, delta_m):
+        """The Jacobian (N, 6, 6) at the tool point moved by delta_m (flange frame):
+        the linear rows gain z_i x (R_6 delta), the angular rows stay."""
+        s = np.einsum("nij,j->ni", self.frames[:, 6, :3, :3], np.asarray(delta_m, dtype=float))
+        z = np.swapaxes(self.Jw, 1, 2)  # (N, 6 joints, 3)
+        Jv = self.Jv + np.swapaxes(np.cross(z, s[:, None, :]), 1, 2)
+        return np.concatenate([Jv, self.Jw], axis=1)
+
+    def disp_of_wrench(self, W, c, delta_m=None):
+        """Six-spring displacement (N, 3) m of wrenches W (N, 6) at the tool
+        point (moved by delta_m, flange frame, when given)."""
+        J = self.J if delta_m is None else self.jacobian_moved(delta_m)
         tau = np.einsum("nrj,nr->nj", J, W)
         return np.einsum("nrj,nj->nr", J[:, :3, :], tau * c)
 
@@ -180,14 +189,14 @@ def gauss_newton_columns(ctx, t, c, theta):
     return G, f0, Jc
 
 
-def _fit_fixed_grid(ctx, terms, rows, grid):
+def _fit_fixed_grid(ctx, terms, rows, grid, max_iter=MAX_ITER):
     eq = rows_to_eq(rows)
     x = lstsq(ctx.A[eq], ctx.b[eq])
     c = ctx.c_from(x)
     theta = {t.name: np.zeros(len(t.params)) for t in terms if t.kind == GAUSS_NEWTON}
     iterative = any(t.kind in (BILINEAR, GAUSS_NEWTON) for t in terms)
     nf = len(ctx.free)
-    for _ in range(MAX_ITER if iterative else 1):
+    for _ in range(max_iter if iterative else 1):
         base, blocks, offset, slices, i = ctx.A, [], np.zeros(3 * ctx.n), {}, nf
         for t in terms:
             if t.kind == GAUSS_NEWTON:  # full Gauss-Newton: the springs' columns move with it too
@@ -216,7 +225,7 @@ def _fit_fixed_grid(ctx, terms, rows, grid):
     return ModelFit(list(terms), np.asarray(rows), X, offset, coef, c, slices, values, dict(grid))
 
 
-def fit_model(ctx, terms, rows, grid=None):
+def fit_model(ctx, terms, rows, grid=None, max_iter=MAX_ITER):
     """Fit the springs plus ``terms`` to ``rows`` (see module docstring).  A
     GRID term's value is taken from ``grid`` or chosen by the fit error on
     these rows (one coordinate pass, in the terms' order)."""
@@ -226,22 +235,22 @@ def fit_model(ctx, terms, rows, grid=None):
             best = None
             for g in t.grid(ctx):
                 trial = {**{u.name: u.grid(ctx)[0] for u in terms if u.kind == GRID}, **grid, t.name: g}
-                f = _fit_fixed_grid(ctx, terms, rows, trial)
+                f = _fit_fixed_grid(ctx, terms, rows, trial, max_iter)
                 r = ctx.b[rows_to_eq(rows)] - f.predict(rows)
                 sse = float(r @ r)
                 if best is None or sse < best[0]:
                     best = (sse, g)
             grid[t.name] = best[1]
-    return _fit_fixed_grid(ctx, terms, rows, grid)
+    return _fit_fixed_grid(ctx, terms, rows, grid, max_iter)
 
 
-def held_out(ctx, terms, fold_rows, rows):
-    """Held-out residual (3N,) m of the model over ``rows`` (zero elsewhere),
-    each fold fitted on the other rows only; and the fold fits."""
+def held_out(ctx, terms, folds):
+    """Held-out residual (3N,) m of the model over the folds' test rows (zero
+    elsewhere), each fold fitted on its training rows only; and the fold fits.
+    ``folds``: [(train rows, test rows)]."""
     resid = np.zeros(3 * ctx.n)
     fits = []
-    for test in fold_rows:
-        train = np.setdiff1d(rows, test)
+    for train, test in folds:
         f = fit_model(ctx, terms, train)
         eq = rows_to_eq(test)
         resid[eq] = ctx.b[eq] - f.predict(test)
