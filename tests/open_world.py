@@ -272,8 +272,11 @@ def _solve_size(make, target, p0, lo, hi):
     return p, make(p)
 
 
-def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_mm=NOISE_MM, size_range=(2.0, 5.0)):
-    """One campaign of ``kind`` (see the module docstring)."""
+def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_mm=NOISE_MM, size_range=(2.0, 5.0),
+                  repeats=1):
+    """One campaign of ``kind`` (see the module docstring); with ``repeats``
+    > 1 each load is read that many times in a row (replicate rows: same
+    pose and load, independent noise)."""
     if kind not in KINDS:
         raise ValueError(f"unknown kind {kind}")
     rng = np.random.default_rng(seed)
@@ -283,7 +286,7 @@ def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_
     poses = sample_poses(plain, rng, n_poses)
     pose_idx = np.repeat(np.arange(n_poses), loads_per_pose)[:n]
     q_cmd = poses[pose_idx]
-    dirs = rng.normal(size=(n, 3))
+    dirs = np.repeat(rng.normal(size=(-(-n // repeats), 3)), repeats, axis=0)[:n]
     force = dirs / np.linalg.norm(dirs, axis=1, keepdims=True) * FORCE_N
     target = float(rng.uniform(*size_range)) * noise_mm * 1e-3
     d0 = displacements(plain, Physics(k), q_cmd, force, pose_idx)
@@ -354,7 +357,8 @@ def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_
         "the physics; see that file's docstring).",
         f"Effect: {kind}; parameters {params}; RMS beyond the six springs {visible * 1e3:.4f} mm; seed {seed}.",
         f"Loads: {FORCE_N:g} N at the tool point {TOOL_M * 1e3} mm (flange frame), random directions, "
-        f"{loads_per_pose} per pose; CMM noise {noise_mm} mm per component.",
+        f"{loads_per_pose} per pose" + (f" (each load read {repeats} times)" if repeats > 1 else "")
+        + f"; CMM noise {noise_mm} mm per component.",
     ]
     lines = np.arange(n) + 1 + len(comments) + 1  # file lines when written by to_csv
     camp = StiffnessCampaign("open_world", np.rad2deg(q_cmd), force, np.zeros((n, 3)), disp_mm, None, pose,

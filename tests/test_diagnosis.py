@@ -81,7 +81,7 @@ def test_diagnose_cli_outputs(capsys, tmp_path, robot):
     assert res["rms_after_mm"] < 0.5 * res["rms_before_mm"]
     assert "# Residual diagnosis" in report.read_text()
     names = {p.name for p in plots.iterdir()}
-    assert {"residual_vs_load_sign.png", "residual_vs_load_magnitude.png", "residual_vs_joint_angles.png",
+    assert {"residual_vs_joint_torque.png", "residual_vs_load_magnitude.png", "residual_vs_joint_angles.png",
             "residual_vs_order.png"} <= names
     assert {f"candidate_{n}.png" for n in CANDIDATES} <= names
 

@@ -18,6 +18,7 @@ from scipy import special
 
 K_FOLDS = 5
 FOLD_SEED = 0  # fixed: the same file always gets the same folds
+MIN_POSES = 3  # fewer poses: the tests fall back to rows as units (and say so)
 Q_MATCH_DEG = 1e-6  # rows whose six angles agree to this are one pose when the file has no pose column
 
 
@@ -29,6 +30,14 @@ def pose_groups(campaign):
     key = np.round(np.asarray(campaign.q_deg) / Q_MATCH_DEG).astype(np.int64)
     _, idx = np.unique(key, axis=0, return_inverse=True)
     return idx.ravel()
+
+
+def test_groups(groups, rows):
+    """The units of the grouped tests: the poses, or the rows when the rows
+    used span fewer than MIN_POSES poses.  Returns (groups, poses are units)."""
+    if len(np.unique(np.asarray(groups)[rows])) >= MIN_POSES:
+        return np.asarray(groups), True
+    return np.arange(len(groups)), False
 
 
 def folds(groups, k=K_FOLDS, seed=FOLD_SEED):

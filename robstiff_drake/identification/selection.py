@@ -219,9 +219,10 @@ class SearchResult:
     rms_without_mm: dict  # kept term -> held-out RMS of the final model without it
 
 
-def search(ctx, rows, folds, terms_by_name):
-    """Forward selection over ``terms_by_name`` (library and dictionary), then the backward check."""
-    gidx = np.unique(ctx.groups[rows], return_inverse=True)[1]
+def search(ctx, rows, folds, terms_by_name, groups):
+    """Forward selection over ``terms_by_name`` (library and dictionary), then
+    the backward check; ``groups`` (N,): the units of the clustered tests."""
+    gidx = np.unique(np.asarray(groups)[rows], return_inverse=True)[1]
     state = model_state(ctx, [], rows, folds, gidx)
     rms_before = state.rms_mm
     rounds, added, dropped, n_tried = [], [], [], 0
