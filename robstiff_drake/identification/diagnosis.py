@@ -119,6 +119,21 @@ def _cluster_ci(ctx, fit, rows, units):
     return stats.t.ppf(0.975, max(G - 1, 1)) * std
 
 
+def _plausible(t, v, half_width, info):
+    """The term's plausibility at its estimate; a size beyond the physical
+    range whose 95 % interval still reaches the range (each parameter moved
+    toward zero by its half-width) is not called implausible."""
+    if t.plausible is None:
+        return True, ""
+    ok, why = t.plausible(v, info)
+    if ok:
+        return ok, why
+    smallest = np.sign(v) * np.maximum(np.abs(v) - half_width, 0.0)
+    if t.plausible(smallest, info)[0]:
+        return True, why + ", but its 95 % interval reaches the physical range"
+    return False, why
+
+
 def _term_reports(ctx, result, rows, units):
     fit = result.state.full
     half = _cluster_ci(ctx, fit, rows, units)
@@ -126,9 +141,9 @@ def _term_reports(ctx, result, rows, units):
     for t in result.state.terms:
         v = fit.values[t.name]
         info = {"ctx": ctx, "c": fit.c, "g": fit.grid.get(t.name)}
-        ok, why = t.plausible(v, info) if t.plausible else (True, "")
         sl = fit.slices[t.name]
         hw = half[sl]
+        ok, why = _plausible(t, v, hw, info)
         params = {f"{n} ({u})": float(x * s) for (n, u, s), x in zip(t.params, v)}
         ci = {f"{n} ({u})": [float((x - h) * s), float((x + h) * s)] for (n, u, s), x, h in zip(t.params, v, hw)}
         if t.kind == GRID:
@@ -206,7 +221,10 @@ def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, di
     eq = rows_to_eq(rows)
     k = np.array(robot.joint_stiffness_Nm_per_rad, dtype=float)
     k[ctx.free] = 1.0 / fit.c[ctx.free]
-    non_physical = sorted(set(base.non_physical) | {int(j) + 1 for j in ctx.free if fit.c[j] <= 0})
+    non_physical = [int(j) + 1 for j in ctx.free if fit.c[j] <= 0]
+    if base.non_physical and not non_physical:
+        w.add(f"the six springs alone give joint(s) {', '.join(map(str, base.non_physical))} a negative compliance; "
+              "the final model does not")
 
     # six springs alone on the rows kept (the "before" residual)
     springs = fit_model(ctx, [], rows)
