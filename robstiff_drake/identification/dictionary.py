@@ -22,8 +22,9 @@ Outside the joints:
   * base_tilt            the base tilts on its foundation about horizontal
                           axes through the base origin: theta = c (M_x, M_y, 0)
   * base_shear           the base slides: d += c F
-  * lower_arm_bending, forearm_bending, lower_arm_torsion: a link bends (or
-                          twists) as a virtual joint a third of the way along it
+  * turret_bending, lower_arm_bending, upper_arm_bending, forearm_bending,
+    lower_arm_torsion    a link bends (or twists) as a virtual joint a third of
+                          the way along it
 The measurement:
   * measurement_frame_rotation  displacements measured in a frame turned by phi
   * measured_point_offset       the measured point is delta (flange frame) from
@@ -31,6 +32,8 @@ The measurement:
                                 rotation
   * displacement_offset  a constant offset of the displacements
   * drift_quadratic      drift that grows with the square of measurement order
+A translation of the measuring frame against the base cancels in loaded-minus-
+unloaded displacements, so it has no term; a constant displacement offset does.
 
 Every term carries its plausibility check (identification/plausibility.py).
 """
@@ -235,14 +238,17 @@ def _base_shear(ctx):
     return stack([ctx.W[:, :3]])
 
 
+# Each link as the segment between DH frame origins i and i + 1: the turret
+# (base to the axis-2 point), the lower arm (axis 2 to axis 3), the upper arm
+# (axis 3 to the forearm's root) and the forearm (along z3 to the wrist centre).
+LINKS = {"turret": 0, "lower_arm": 1, "upper_arm": 2, "forearm": 3}
+
+
 def _link_segment(ctx, which):
     """(pivot, unit axis) of a link, (N, 3) each: the pivot a third of the way
     from its root (a cantilever's tip moves as if it turned about that point)."""
     T = ctx.frames
-    if which == "lower_arm":  # joint 2 to joint 3: origins of DH frames 1 and 2
-        a, b = T[:, 1, :3, 3], T[:, 2, :3, 3]
-    else:  # forearm: DH frame 3 origin along z3 to the wrist centre (frame 4 origin)
-        a, b = T[:, 3, :3, 3], T[:, 4, :3, 3]
+    a, b = T[:, LINKS[which], :3, 3], T[:, LINKS[which] + 1, :3, 3]
     u = (b - a) / np.linalg.norm(b - a, axis=1, keepdims=True)
     return a + (b - a) / 3.0, u
 
@@ -330,9 +336,8 @@ def build_dictionary():
         _compliance_term("base_tilt", "the base tilts on its foundation", _base_tilt, pl.BASE_TILT_COMPLIANCE_MAX),
         _compliance_term("base_shear", "the base slides on its foundation", _base_shear, pl.BASE_SHEAR_COMPLIANCE_MAX,
                          unit="m/N"),
-        _compliance_term("lower_arm_bending", "the lower arm bends", _bending("lower_arm"),
-                         pl.LINK_BENDING_COMPLIANCE_MAX),
-        _compliance_term("forearm_bending", "the forearm bends", _bending("forearm"), pl.LINK_BENDING_COMPLIANCE_MAX),
+        *[_compliance_term(f"{link}_bending", f"the {link.replace('_', ' ')} bends", _bending(link),
+                           pl.LINK_BENDING_COMPLIANCE_MAX) for link in LINKS],
         _compliance_term("lower_arm_torsion", "the lower arm twists", _torsion, pl.LINK_BENDING_COMPLIANCE_MAX),
         _vec_term("measurement_frame_rotation", BILINEAR, [(f"phi_{a}", "mrad", 1e3) for a in "xyz"],
                   "displacements measured in a frame turned against the base", _frame_rotation,
