@@ -15,7 +15,8 @@ B  The named library at physical sizes: the same, with each effect's
 C  Out of the library: tests/open_world.py, the IRB6400 as Drake's
    MultibodyPlant with the effect in its physics (700 N loads), sized to an
    RMS beyond the springs of 2-5x the noise within the effect's physical
-   range; plus campaigns with no effect and with gross outlier rows.
+   range; plus campaigns with no effect (also with the rows of a pose
+   sharing one unloaded reading's noise) and with gross outlier rows.
 
 Prints the tables, the false-verdict count (explains_data true on a campaign
 with an effect the final model does not contain, or not true on one without
@@ -141,13 +142,19 @@ def print_named(title, cases, truths, rows, verdicts, after, visible, missed):
     return wrong + (cases - verdicts["none"][True])
 
 
+SHARED = "none, shared unloaded reading"
+
+
 def open_world_table(robot, cases, base_seed):
-    kinds = list(ow.KINDS)
+    kinds = list(ow.KINDS) + [SHARED]
     res = {k: collections.defaultdict(list) for k in kinds}
     times = []
     for k_i, kind in enumerate(kinds):
         for k in range(cases):
-            c = ow.make_campaign(kind, base_seed * 1000 + 100 * k_i + k)
+            if kind == SHARED:  # the rows of a pose share their unloaded reading's noise
+                c = ow.make_campaign("none", base_seed * 1000 + 100 * k_i + k, shared_reference=True)
+            else:
+                c = ow.make_campaign(kind, base_seed * 1000 + 100 * k_i + k)
             t0 = time.perf_counter()
             d = diagnose(robot, c.campaign, tool_m=ow.TOOL_M, noise_mm=NOISE_MM)
             times.append(time.perf_counter() - t0)

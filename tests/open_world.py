@@ -273,10 +273,13 @@ def _solve_size(make, target, p0, lo, hi):
 
 
 def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_mm=NOISE_MM, size_range=(2.0, 5.0),
-                  repeats=1):
+                  repeats=1, shared_reference=False):
     """One campaign of ``kind`` (see the module docstring); with ``repeats``
     > 1 each load is read that many times in a row (replicate rows: same
-    pose and load, independent noise)."""
+    pose and load, independent noise).  The noise is ``noise_mm`` per
+    displacement component; with ``shared_reference`` it is the loaded
+    reading's noise minus the pose's one unloaded reading's (each
+    noise_mm / sqrt(2)), so the rows of a pose share part of it."""
     if kind not in KINDS:
         raise ValueError(f"unknown kind {kind}")
     rng = np.random.default_rng(seed)
@@ -341,7 +344,11 @@ def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_
         d = make(r)
         params = {"offset_m": (r * POINT_OFFSET_DIR).tolist(), "range_m": POINT_OFFSET_RANGE_M}
     visible = visible_rms(d - d0, cols) if kind not in ("none", "outliers") else 0.0
-    disp_mm = d * 1e3 + rng.normal(scale=noise_mm, size=d.shape)
+    if shared_reference:
+        reference = rng.normal(scale=noise_mm / np.sqrt(2), size=(n_poses, 3))[pose_idx]
+        disp_mm = d * 1e3 + rng.normal(scale=noise_mm / np.sqrt(2), size=d.shape) - reference
+    else:
+        disp_mm = d * 1e3 + rng.normal(scale=noise_mm, size=d.shape)
     if kind == "outliers":
         outlier_rows = sorted(rng.choice(n, N_OUTLIERS, replace=False).tolist())
         for r in outlier_rows:
@@ -358,7 +365,8 @@ def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_
         f"Effect: {kind}; parameters {params}; RMS beyond the six springs {visible * 1e3:.4f} mm; seed {seed}.",
         f"Loads: {FORCE_N:g} N at the tool point {TOOL_M * 1e3} mm (flange frame), random directions, "
         f"{loads_per_pose} per pose" + (f" (each load read {repeats} times)" if repeats > 1 else "")
-        + f"; CMM noise {noise_mm} mm per component.",
+        + f"; CMM noise {noise_mm} mm per component"
+        + (" (loaded minus the pose's one unloaded reading, each noise/sqrt(2))." if shared_reference else "."),
     ]
     lines = np.arange(n) + 1 + len(comments) + 1  # file lines when written by to_csv
     camp = StiffnessCampaign("open_world", np.rad2deg(q_cmd), force, np.zeros((n, 3)), disp_mm, None, pose,
@@ -375,3 +383,13 @@ def to_csv(c):
               [f"{v:.9g}" for v in cp.force_N[i]] + [f"{v:.9g}" for v in cp.disp_mm[i]]
         out.append(",".join(row))
     return "\n".join(out) + "\n"
+
+
+if __name__ == "__main__":  # python3 tests/open_world.py KIND SEED OUT.csv
+    import sys
+
+    kind, seed, out = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+    c = make_campaign(kind, seed)
+    with open(out, "x") as f:  # never overwrites
+        f.write(to_csv(c))
+    print(f"{out}: {kind}, {c.visible_mm:.4f} mm RMS beyond the six springs; {c.params}")

@@ -188,11 +188,13 @@ def residual_views(d, campaign, robot, out_dir, tool_m=None):
         ok = used & (n > 1e-9)
         proj = np.sum(r * v, axis=1) / np.maximum(n, 1e-12)
         ax.plot(tau[ok, j], proj[ok], ".", alpha=0.6)
+        if not np.any(ok) or np.ptp(tau[ok, j]) == 0:
+            ax.text(0.5, 0.5, "no torque from these loads", transform=ax.transAxes, ha="center")
         ax.axvline(0, color="k", lw=0.6)
         ax.set_xlabel(f"torque of joint {j + 1} (N*m)")
         ax.set_ylabel(f"residual along joint {j + 1}'s motion (mm)")
-    fig.suptitle("six-spring residual along the direction each joint moves the tool point, against that joint's "
-                 "torque: a lost motion in a joint shows as a step at zero torque")
+    fig.suptitle("six-spring residual along the direction each joint moves the tool point, against that joint's torque\n"
+                 "(lost motion in a joint shows as a step at zero torque; the springs' refit tilts it)")
     save(fig, "residual_vs_joint_torque.png")
 
     fig, ax = plt.subplots(figsize=(6, 4), constrained_layout=True)
