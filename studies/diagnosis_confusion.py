@@ -160,6 +160,10 @@ def open_world_table(robot, cases, base_seed):
             times.append(time.perf_counter() - t0)
             r = res[kind]
             r["explains"].append(d.explains_data)
+            # the same campaign with the named library only (no dictionary): does the lack-of-fit test alone
+            # refuse the verdict when nothing in the library fits?
+            r["library_only"].append(diagnose(robot, c.campaign, tool_m=ow.TOOL_M, noise_mm=NOISE_MM,
+                                              dictionary=False).explains_data)
             r["after"].append(d.rms_after_mm / NOISE_MM)
             r["before"].append(d.rms_before_mm / NOISE_MM)
             r["visible"].append(c.visible_mm / NOISE_MM)
@@ -177,13 +181,15 @@ def open_world_table(robot, cases, base_seed):
 def print_open_world(cases, kinds, res):
     print(f"\nC. Out of the library (tests/open_world.py, Drake plant, 700 N, noise {NOISE_MM} mm stated)\n"
           f"{cases} campaigns per row")
-    print("| effect | effect/noise (median) | before/noise | explains T/F/null | traced to (expected term kept) | "
-          "most often first | after/noise (median) | after <= 1.25x noise | rows wrongly flagged |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("| effect | effect/noise (median) | before/noise | explains T/F/null | library only: explains T/F/null | "
+          "traced to (expected term kept) | most often first | after/noise (median) | after <= 1.25x noise | "
+          "rows wrongly flagged |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     false_verdicts, within, n_out = 0, 0, 0
     for kind in kinds:
         r = res[kind]
         v = collections.Counter(r["explains"])
+        lo = collections.Counter(r["library_only"])
         if kind in EXPECTED:
             traced = f"{sum(r['expected'])}/{cases} ({EXPECTED[kind]})"
         elif kind == "outliers":
@@ -192,7 +198,8 @@ def print_open_world(cases, kinds, res):
             traced = f"{sum(n == 0 for n in r['terms'])}/{cases} with nothing added"
         first = collections.Counter(r["first"]).most_common(1)[0]
         ok = sum(a <= 1.25 for a in r["after"])
-        print(f"| {kind} | {np.median(r['visible']):.2f} | {np.median(r['before']):.2f} | {v[True]}/{v[False]}/{v[None]} "
+        print(f"| {kind} | {np.median(r['visible']):.2f} | {np.median(r['before']):.2f} | "
+              f"{v[True]}/{v[False]}/{v[None]} | {lo[True]}/{lo[False]}/{lo[None]} "
               f"| {traced} | {first[0]} ({first[1]}) | {np.median(r['after']):.2f} | {ok}/{cases} | "
               f"{sum(r['false_outliers'])} |")
         if kind in EXPECTED:

@@ -339,7 +339,8 @@ def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_
         params = {"joint": 3, "rod_share": share, "q_ref_deg": np.rad2deg(q_ref), "range": ROD_SHARE_RANGE}
     elif kind == "point_offset":
         def make(r):
-            return displacements(plain, Physics(k), q_cmd, force, pose_idx, measured_point=TOOL_M + r * POINT_OFFSET_DIR)
+            return displacements(plain, Physics(k), q_cmd, force, pose_idx,
+                                 measured_point=TOOL_M + r * POINT_OFFSET_DIR)
         r, _ = _solve_size(lambda r: visible_rms(make(r) - d0, cols), target, 0.05, *POINT_OFFSET_RANGE_M)
         d = make(r)
         params = {"offset_m": (r * POINT_OFFSET_DIR).tolist(), "range_m": POINT_OFFSET_RANGE_M}

@@ -129,7 +129,8 @@ def format_report(d, campaign, markdown=False):
                   "|---|---|---|---|---|---|---|"]
     else:
         lines.append("(clustered p: '-' when the held-out gain is too small for the candidate to qualify)")
-        lines.append("candidate (first round)             held-out RMS  clustered p      F     p (rows)    dBIC   status")
+        lines.append("candidate (first round)             held-out RMS  clustered p      F     p (rows)    dBIC   "
+                     "status")
     for r in lib + dic:
         status = r.status if r.status == "ok" else f"{r.status}: {r.reason}"
         name = r.name + (" (dictionary)" if r.source == "dictionary" else "")
@@ -138,7 +139,8 @@ def format_report(d, campaign, markdown=False):
                          f"{_g(r.p_value, '.2g')} | {_g(r.delta_bic, '.1f')} | {status} |")
         else:
             lines.append(f"  {name:34s} {_g(r.rms_mm, '8.4f')} mm {_g(r.p_grouped, '9.2g'):>9} "
-                         f"{_g(r.f_stat, '9.3g'):>9} {_g(r.p_value, '9.2g'):>9} {_g(r.delta_bic, '8.1f'):>8}   {status}")
+                         f"{_g(r.f_stat, '9.3g'):>9} {_g(r.p_value, '9.2g'):>9} {_g(r.delta_bic, '8.1f'):>8}   "
+                         f"{status}")
     th = d.thresholds
     lines += ["", f"tests: {d.n_hypotheses} hypotheses tried in {len(d.rounds)} round(s) ({len(CANDIDATES)} named, "
               f"{len(DICTIONARY)} in the dictionary); a term is added when its pose-clustered Wald test passes at "
@@ -193,7 +195,8 @@ def residual_views(d, campaign, robot, out_dir, tool_m=None):
         ax.axvline(0, color="k", lw=0.6)
         ax.set_xlabel(f"torque of joint {j + 1} (N*m)")
         ax.set_ylabel(f"residual along joint {j + 1}'s motion (mm)")
-    fig.suptitle("six-spring residual along the direction each joint moves the tool point, against that joint's torque\n"
+    fig.suptitle("six-spring residual along the direction each joint moves the tool point, against that joint's "
+                 "torque\n"
                  "(lost motion in a joint shows as a step at zero torque; the springs' refit tilts it)")
     save(fig, "residual_vs_joint_torque.png")
 

@@ -36,7 +36,7 @@ from robstiff_drake.identification.cross_validation import (FOLD_SEED, K_FOLDS, 
 from robstiff_drake.identification.dictionary import DICTIONARY
 from robstiff_drake.identification.joint_stiffness import identify
 from robstiff_drake.identification.residual_structure import residual_structure
-from robstiff_drake.identification.terms import GRID, Context, fit_model, stack, term_columns
+from robstiff_drake.identification.terms import GRID, Context, fit_model, term_columns
 from robstiff_drake.io import Warnings
 
 # kept for callers of the earlier interface
@@ -289,4 +289,4 @@ def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, di
         thresholds=thresholds())
 
 
-__all__ = ["diagnose", "Diagnosis", "CANDIDATES", "DICTIONARY", "stack"]
+__all__ = ["diagnose", "Diagnosis", "CANDIDATES", "DICTIONARY"]
