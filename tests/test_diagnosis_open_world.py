@@ -195,3 +195,14 @@ def test_cli_on_an_open_world_file(capsys, tmp_path):
     assert any("outlier" in m for m in res["warnings"]) and "robstiff: warning:" in err
     k_with, k = np.array(res["joint_stiffness_with_outliers_Nm_per_rad"]), np.array(res["joint_stiffness_Nm_per_rad"])
     assert np.max(np.abs(k_with / k - 1)) > 0.005  # the bad rows would have moved it
+
+
+def test_moved_tool_jacobian_matches_the_kinematics(robot):
+    # the tool-offset term moves the Jacobian's point analytically; the package's
+    # kinematics at the moved tool point must agree
+    c = synth.stiffness_campaign(robot, n=40, seed=2).to_campaign()
+    tool = np.array([0.0, 0.0, 0.35])
+    ctx = Context(robot, c, tool, [True] * 5 + [False])
+    for delta in ([0.01, -0.02, 0.03], [0.0, 0.0, -0.1]):
+        np.testing.assert_allclose(ctx.jacobian_moved(delta), kin.jacobian(robot.dh, ctx.q, tool + np.array(delta)),
+                                   atol=1e-12)

@@ -188,6 +188,32 @@ def _verdict(d, floor, lof, non_physical, discovered, implausible, structure, n_
     return True, f"the final model explains the data as far as the noise allows: {text}"
 
 
+def _outlier_report(campaign, flagged, resid_mm, k, k_with, free, w):
+    """[{line, pose, residual_mm}] of the rows left out, and the warning
+    saying how far they would move the stiffness."""
+    outliers = [{"line": int(campaign.lines[i]), "pose": None if campaign.pose is None else campaign.pose[i],
+                 "residual_mm": float(np.linalg.norm(resid_mm[i]))} for i in flagged]
+    if outliers:
+        shift = [f"joint {j + 1} {100 * (k_with[j] / k[j] - 1):+.1f} %" for j in free
+                 if abs(k_with[j] / k[j] - 1) > 0.005]
+        w.add(f"{len(outliers)} gross outlier row(s) left out (file lines "
+              f"{', '.join(str(o['line']) for o in outliers)}); with them the stiffness would change: "
+              + (", ".join(shift) if shift else "by less than 0.5 %"))
+    return outliers
+
+
+def _named_columns(ctx, names, c):
+    """Each named candidate's columns at compliances c (for the residual views)."""
+    columns = {}
+    for name in names:
+        t = CANDIDATES[name]
+        if t.needs and t.needs(ctx):
+            continue
+        grid = t.grid(ctx)[0] if t.kind == GRID else None
+        columns[name] = term_columns(ctx, t, c, None, grid)[0]
+    return columns
+
+
 def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None):
     """Diagnose a campaign (see the module docstring).  ``noise_mm``: the
     stated 1-sigma noise of one displacement component; ``candidates``: names
@@ -218,7 +244,6 @@ def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, di
         flagged = flagged2
     state = result.state
     fit = state.full
-    eq = rows_to_eq(rows)
     k = np.array(robot.joint_stiffness_Nm_per_rad, dtype=float)
     k[ctx.free] = 1.0 / fit.c[ctx.free]
     non_physical = [int(j) + 1 for j in ctx.free if fit.c[j] <= 0]
@@ -255,29 +280,12 @@ def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, di
     if non_physical:
         w.add(verdict)
 
-    outliers = []
     resid_final_mm = (ctx.b - fit.predict()).reshape(-1, 3) * 1e3
-    for i in flagged:
-        outliers.append({"line": int(campaign.lines[i]),
-                         "pose": None if campaign.pose is None else campaign.pose[i],
-                         "residual_mm": float(np.linalg.norm(resid_final_mm[i]))})
     k_with = base_all.stiffness_Nm_per_rad
-    if len(flagged):
-        shift = [f"joint {j + 1} {100 * (k_with[j] / k[j] - 1):+.1f} %" for j in ctx.free
-                 if abs(k_with[j] / k[j] - 1) > 0.005]
-        w.add(f"{len(flagged)} gross outlier row(s) left out (file lines "
-              f"{', '.join(str(o['line']) for o in outliers)}); with them the stiffness would change: "
-              + (", ".join(shift) if shift else "by less than 0.5 %"))
-
+    outliers = _outlier_report(campaign, flagged, resid_final_mm, k, k_with, ctx.free, w)
     library = [t.name for t in state.terms if t.source == "library"]
     final_params = {r["name"]: r["params"] for r in reports if r["source"] == "library"}
-    columns = {}
-    for name in names:
-        t = CANDIDATES[name]
-        if t.needs and t.needs(ctx):
-            continue
-        grid = t.grid(ctx)[0] if t.kind == GRID else None
-        columns[name] = term_columns(ctx, t, springs.c, None, grid)[0]
+    columns = _named_columns(ctx, names, springs.c)
     return Diagnosis(
         rms_before_mm=result.rms_before_mm, rms_after_mm=state.rms_mm, rms_fit_before_mm=rms_fit_before,
         selected=library, rounds=result.rounds, joint_stiffness_Nm_per_rad=k, identifiable=ctx.identifiable,

@@ -109,11 +109,20 @@ class Context:
 
     def jacobian_moved(self, delta_m):
         """The Jacobian (N, 6, 6) at the tool point moved by delta_m (flange frame):
-        the linear rows gain z_i x (R_6 delta), the angular rows stay."""
-        s = np.einsum("nij,j->ni", self.frames[:, 6, :3, :3], np.asarray(delta_m, dtype=float))
-        z = np.swapaxes(self.Jw, 1, 2)  # (N, 6 joints, 3)
-        Jv = self.Jv + np.swapaxes(np.cross(z, s[:, None, :]), 1, 2)
-        return np.concatenate([Jv, self.Jw], axis=1)
+        the linear rows gain z_i x (R_6 delta) = -[R_6 delta]x z_i, the angular
+        rows stay.  The last few are kept (a Gauss-Newton step asks for the
+        same offset several times)."""
+        key = tuple(np.round(np.asarray(delta_m, dtype=float), 15))
+        memo = self._cache.setdefault("jacobian_moved", {})
+        if key not in memo:
+            s = np.einsum("nij,j->ni", self.frames[:, 6, :3, :3], np.asarray(delta_m, dtype=float))
+            S = np.zeros((self.n, 3, 3))
+            S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -s[:, 2], s[:, 1], -s[:, 0]
+            S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = s[:, 2], -s[:, 1], s[:, 0]
+            if len(memo) >= 16:
+                memo.pop(next(iter(memo)))
+            memo[key] = np.concatenate([self.Jv - S @ self.Jw, self.Jw], axis=1)
+        return memo[key]
 
     def disp_of_wrench(self, W, c, delta_m=None):
         """Six-spring displacement (N, 3) m of wrenches W (N, 6) at the tool
