@@ -248,7 +248,7 @@ def residual_views(d, campaign, robot, out_dir, tool_m=None):
 
 
 def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=None, noise_mm=None):
-    check_outputs(inputs=[data], files={"--json": json_out, "--report": report})
+    check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--report": report})
     if plots is not None and os.path.exists(plots) and not os.path.isdir(plots):
         raise InputError(f"--plots {plots}: is a file, not a folder")
     if noise_mm is not None and not 0 < noise_mm <= MAX_NOISE_MM:
