@@ -156,9 +156,6 @@ def _check_folder_output(path, key, inputs):
                               "file); choose a new folder or empty it, it would be replaced as a whole")
         if os.path.ismount(real) or real == os.path.realpath(os.getcwd()):
             raise OutputError(f"{key} {text}: cannot replace this folder as a whole; choose a sub-folder")
-    for src in inputs:  # e.g. --out . with an input inside
-        if src is not None and str(src) != STDOUT and _inside(real, src) and os.path.isdir(src):
-            raise OutputError(f"{key} {text}: inside the input folder {src}; choose a folder elsewhere")
     _check_parent(real, key)
 
 

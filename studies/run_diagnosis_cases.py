@@ -1,25 +1,34 @@
-"""The machining-run loop closed three times: a compensated cut whose plant
-carries something the compensator lacks is simulated, `robstiff diagnose-run`
-traces the residual surface error from the run's own data (force estimate,
-commanded joint angles, laser scan), fixes the compensator and cuts again.
+"""The machining-run loop closed three times, with scan noise and decisions
+from measured scans only: a compensated cut whose plant carries something
+the compensator lacks is simulated (`robstiff simulate`), `robstiff
+diagnose-run` traces the residual from the run's cell files (wrench log,
+joint log, compensator settings, scan with 3 um noise), writes each
+candidate fix as compensator settings, each candidate is cut once more on
+the same simulated machine (`robstiff simulate RUN/sim_scenario.yaml
+--compensator CANDIDATE.yaml`, new sensor and scan noise), and
+`robstiff diagnose-run RUN --verify CUT ...` decides from the cuts' scans
+(the simulation's truth files are deleted before it runs).
 
-  softer joint 3   block test, the plant's joint 3 20 % softer than the model
-  lost motion      block test, 40 urad of backlash on joints 1-3
-  loop lag         interrupted_cut, plain compensation at a 24 ms period
+  softer_joint_3   block test, the plant's joint 3 20 % softer than the model
+  lost_motion      block test, 40 urad of backlash on joints 1-3
+  loop_lag         interrupted_cut, plain compensation at a 24 ms period
 
-Prints the before/after table; writes each case's run and diagnosis under
-OUT (default: a temporary folder) and copies the plots to docs/ with --docs.
-The README's table comes from `python3 studies/run_diagnosis_cases.py --docs`.
+Prints the before/after table (docs/run_diagnosis.md); writes each case's
+folders under OUT (default: a temporary folder, removed afterwards) and the
+plots to docs/ with --docs.
+
+    python3 studies/run_diagnosis_cases.py [--docs] [--out DIR]
 """
 
 import argparse
+import json
 import shutil
 import tempfile
+import time
 from pathlib import Path
 
 from robstiff_drake.commands.main import main as robstiff
-from robstiff_drake.diagrams.run_diagnosis import diagnose_run
-from robstiff_drake.model.robot import load_robot
+from robstiff_drake.identification.run_files import SIM_PREFIX
 from robstiff_drake.paths import DIAGRAMS_DIR, REPO_ROOT
 
 BLOCK = (DIAGRAMS_DIR / "block_milling.yaml").read_text()
@@ -29,37 +38,107 @@ CASES = {
     "lost_motion": BLOCK.replace("plant:\n", "plant:\n  lost_motion_rad: [4.0e-5, 4.0e-5, 4.0e-5, 0.0, 0.0, 0.0]\n", 1),
     "loop_lag": (DIAGRAMS_DIR / "interrupted_cut.yaml").read_text(),
 }
+VERIFY_SEED = 1000  # noise seeds of the verification cuts: 1000, 1001, ... (the first cut keeps the scenario's)
+
+
+def _quiet(args):
+    """robstiff(args) with its printout swallowed; its exit status."""
+    import contextlib
+    import io
+
+    with contextlib.redirect_stdout(io.StringIO()):
+        return robstiff(args)
+
+
+def diagnose(run_dir, extra=()):
+    """diagnose-run's JSON report (and the seconds it took)."""
+    out = Path(run_dir).parent / f"{Path(run_dir).name}_diagnosis.json"
+    t0 = time.perf_counter()
+    code = _quiet(["diagnose-run", str(run_dir), "--json", str(out), "--out", str(Path(run_dir).parent /
+                                                                               f"{Path(run_dir).name}_diagnosis"),
+                   *extra])
+    if code != 0:
+        raise SystemExit(f"diagnose-run {run_dir} failed ({code})")
+    return json.loads(out.read_text()), time.perf_counter() - t0
+
+
+def close_loop(scenario_text, folder, name, *, scenario_seed=None):
+    """Simulate, diagnose, cut each candidate fix on the same machine, and
+    decide from the cuts' scans.  Returns (first report, verified report or
+    None, diagnose-run seconds)."""
+    folder = Path(folder)
+    sc = folder / f"{name}.yaml"
+    sc.write_text(scenario_text)
+    run_dir = folder / name
+    args = ["simulate", str(sc), "--compensation", "on", "--out", str(run_dir)]
+    if scenario_seed is not None:
+        args += ["--noise-seed", str(scenario_seed)]
+    if _quiet(args) != 0:
+        raise SystemExit(f"simulate {sc} failed")
+    rep, seconds = diagnose(run_dir)
+    cands = [c for c in rep.get("candidates", []) if "settings" in c]
+    if not cands:
+        return rep, None, seconds
+    diag = folder / f"{name}_diagnosis"
+    cuts = []
+    for i, c in enumerate(cands):
+        cut = folder / f"{name}_cut{i}"
+        if _quiet(["simulate", str(run_dir / f"{SIM_PREFIX}scenario.yaml"), "--compensation", "on",
+                   "--compensator", str(diag / c["settings"]), "--noise-seed", str(VERIFY_SEED + i),
+                   "--out", str(cut)]) != 0:
+            raise SystemExit(f"verification cut {cut} failed")
+        cuts.append(cut)
+    # the decision reads the run folders' cell files only: the truth goes first
+    for p in [run_dir, *cuts]:
+        for f in Path(p).glob(f"{SIM_PREFIX}*"):
+            f.unlink()
+    verified, _ = diagnose(run_dir, ["--verify", *map(str, cuts)])
+    return rep, verified, seconds
+
+
+def _fmt_params(p):
+    return ", ".join(f"{k} = {v:.3g}" for k, v in p.items())
+
+
+def table_row(name, rep, verified):
+    causes = "; ".join(f"{c['name']} ({_fmt_params(c['params'])})" for c in rep["causes"]) or "none"
+    alike = rep.get("also_consistent_with") or []
+    if alike:
+        causes += f"; as good on the one pass: {', '.join(alike)}"
+    b = rep["surface_error_before_mm"]
+    if verified is None:
+        return (f"| {name} | {causes} | {rep['fix']['status'] if rep['fix'] else 'none'} | - | "
+                f"{b['mean']:+.3f} / {b['max_abs']:.3f} | - |")
+    v = verified["verification"]
+    fix = verified["fix"]
+    decided = (f"{fix['candidate']}: {'; '.join(fix['changes'])}" if fix["candidate"]
+               else f"{fix['status']} ({', '.join(fix.get('tied', []))})")
+    rows = {r["candidate"]: r["surface_error_mm"] for r in v["cuts"]}
+    a = rows[v["best"]]
+    cut_rms = ", ".join(f"{k} {s['rms']:.4f}" for k, s in rows.items())
+    return (f"| {name} | {causes} | {decided} | {cut_rms} | {b['mean']:+.3f} / {b['max_abs']:.3f} "
+            f"(edges {b['edges_max_abs']:.3f}) | {a['mean']:+.3f} / {a['max_abs']:.3f} (edges {a['edges_max_abs']:.3f}) |")
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=None)
-    ap.add_argument("--docs", action="store_true", help="copy the before/after plots to docs/")
+    ap.add_argument("--docs", action="store_true", help="copy the diagnosis plots to docs/")
     args = ap.parse_args()
     out = Path(args.out or tempfile.mkdtemp(prefix="robstiff-run-diagnosis-"))
-    robot = load_robot()
-    print("| case (what the plant has) | traced cause (fitted) | fix | before: mean / max abs (mm) | "
-          "after: mean / max abs (mm) |")
-    print("|---|---|---|---|---|")
+    out.mkdir(parents=True, exist_ok=True)
+    print("| case (what the plant has) | traced from the first cut (fitted) | decided from the verification cuts' "
+          "scans | verification cuts: rms (mm) | before: mean / max abs (mm) | after: mean / max abs (mm) |")
+    print("|---|---|---|---|---|---|")
+    seconds = []
     for name, text in CASES.items():
-        sc = out / f"{name}.yaml"
-        sc.write_text(text)
-        run_dir = out / name
-        robstiff(["simulate", str(sc), "--compensation", "on", "--out", str(run_dir)])
-        rep, before, after = diagnose_run(run_dir, robot)
-        cause = rep.get("cause", rep["selected"][0] if rep["selected"] else "none")
-        params = rep["params"].get(cause) or next(
-            (r["params"] for r in rep["rounds"][0] if r["name"] == cause and r["status"] == "ok"), {})
-        fitted = ", ".join(f"{k} = {v:.3g}" for k, v in params.items())
-        b, a = rep["surface_error_before_mm"], rep.get("surface_error_after_mm", {})
-        alt = (f" (from the one pass: {rep['selected'][0]} first, {', '.join(rep['also_consistent_with'])} as "
-               "good; the second cut with each fix decided)") if rep.get("also_consistent_with") else ""
-        print(f"| {name} | {cause} ({fitted}){alt} | {rep['fix']} | {b['mean']:+.3f} / {b['max_abs']:.3f} | "
-              f"{a.get('mean', float('nan')):+.3f} / {a.get('max_abs', float('nan')):.3f} |")
+        rep, verified, s = close_loop(text, out, name)
+        seconds.append(s)
+        print(table_row(name, rep, verified), flush=True)
         if args.docs:
-            from robstiff_drake.commands.diagnose_run import plot
-
-            plot(before, after, REPO_ROOT / "docs" / f"run_diagnosis_{name}.png", f"{name}: fix = {rep['fix']}")
+            shutil.copy(out / f"{name}_diagnosis" / "diagnosis.png", REPO_ROOT / "docs" / f"run_diagnosis_{name}.png")
+    print("\ndiagnose-run per run (first cut, in this process: without the 1-2 s of Python and Drake start-up): "
+          + ", ".join(f"{s:.1f}" for s in seconds) + " s")
     if args.out is None:
         shutil.rmtree(out, ignore_errors=True)
 

@@ -32,7 +32,7 @@ def main():
         base = load_scenario(DIAGRAMS_DIR / f"{name}.yaml")
         for step_ms, rate_hz in SETTINGS:
             sc = copy.deepcopy(base)
-            sc.plant.time_step_ms, sc.sensor.rate_hz = step_ms, rate_hz
+            sc.plant_config.time_step, sc.sensor.rate_hz = step_ms / 1e3, rate_hz
             off, on = (run_cut(sc, robot, compensation=c) for c in (False, True))
             a, b = off.surface_error_mm, on.surface_error_mm
             print(f"| {name} | {step_ms:g} | {rate_hz:g} | {a['mean'] * 1e3:+.1f} / {a['pv'] * 1e3:.1f} | "
@@ -45,7 +45,7 @@ def main():
         cells = []
         for step_ms in (2.0, 1.0, 0.5):
             sc = copy.deepcopy(base)
-            sc.plant.time_step_ms, sc.controller.period_ms = step_ms, period_ms
+            sc.plant_config.time_step, sc.controller.period_ms = step_ms / 1e3, period_ms
             sc.controller.filter.cutoff_hz, sc.controller.delay_steps = cutoff_hz, 1
             e = run_cut(sc, robot, compensation=True).surface_error_mm
             cells.append(f"{max(e['entry_max_abs'], e['exit_max_abs']):.3f}")

@@ -1,7 +1,23 @@
+import os
+
 import numpy as np
 import pytest
 
 from robstiff_drake.model.robot import load_robot
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _urdf_cache(tmp_path_factory):
+    """Generated URDFs go to a temporary folder, not the user's cache."""
+    from robstiff_drake.plant import CACHE_ENV
+
+    old = os.environ.get(CACHE_ENV)
+    os.environ[CACHE_ENV] = str(tmp_path_factory.mktemp("urdf_cache"))
+    yield
+    if old is None:
+        os.environ.pop(CACHE_ENV, None)
+    else:
+        os.environ[CACHE_ENV] = old
 
 
 @pytest.fixture(scope="session")

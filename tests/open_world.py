@@ -57,10 +57,9 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import MultibodyForces, RevoluteJoint, SpatialInertia, UnitInertia
 
-from robstiff_drake.identification.campaign import StiffnessCampaign
+from robstiff_drake.identification.campaign import StiffnessCampaign, tool_header_line
 from robstiff_drake.model.robot import load_robot
-from robstiff_drake.plant import IRB6400_URL, JOINT_NAMES
-from robstiff_drake.paths import IRB6400_PACKAGE_XML
+from robstiff_drake.plant import JOINT_NAMES, robot_urdf
 
 NOISE_MM = 0.01
 # Loads: 700 N.  At 300 N the foundation and the rod drive of the cases below
@@ -94,12 +93,10 @@ class DrakeRobot:
     """The IRB6400 in Drake, optionally on a compliant base (two extra
     revolute joints at the floor)."""
 
-    def __init__(self, compliant_base=False):
+    def __init__(self, robot, compliant_base=False):
         self.plant = plant = MultibodyPlant(time_step=0.0)
-        parser = Parser(plant)
-        parser.package_map().AddPackageXml(str(IRB6400_PACKAGE_XML))
-        (instance,) = parser.AddModelsFromUrl(IRB6400_URL)
-        base = plant.GetFrameByName("base", instance)
+        (instance,) = Parser(plant).AddModels(str(robot_urdf(robot)))
+        base = plant.GetFrameByName(robot.links[0].name, instance)
         if compliant_base:
             inertia = SpatialInertia(1.0, np.zeros(3), UnitInertia(0.01, 0.01, 0.01))
             bx = plant.AddRigidBody("tilt_x", instance, inertia)
@@ -283,8 +280,9 @@ def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_
     if kind not in KINDS:
         raise ValueError(f"unknown kind {kind}")
     rng = np.random.default_rng(seed)
-    k = np.asarray(load_robot().joint_stiffness_Nm_per_rad, dtype=float)
-    plain = DrakeRobot()
+    model = load_robot()
+    k = np.asarray(model.joint_stiffness_Nm_per_rad, dtype=float)
+    plain = DrakeRobot(model)
     n_poses = int(np.ceil(n / loads_per_pose))
     poses = sample_poses(plain, rng, n_poses)
     pose_idx = np.repeat(np.arange(n_poses), loads_per_pose)[:n]
@@ -296,7 +294,7 @@ def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_
     cols = spring_columns(plain, q_cmd, force, k)
     params, outlier_rows, d = {}, [], d0
     if kind == "base":
-        robot = DrakeRobot(compliant_base=True)
+        robot = DrakeRobot(model, compliant_base=True)
 
         def make(kf):
             return displacements(robot, Physics(k, base_k_Nm_per_rad=kf), q_cmd, force, pose_idx)
@@ -369,15 +367,16 @@ def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_
         + f"; CMM noise {noise_mm} mm per component"
         + (" (loaded minus the pose's one unloaded reading, each noise/sqrt(2))." if shared_reference else "."),
     ]
-    lines = np.arange(n) + 1 + len(comments) + 1  # file lines when written by to_csv
-    camp = StiffnessCampaign("open_world", np.rad2deg(q_cmd), force, np.zeros((n, 3)), disp_mm, None, pose,
-                             np.arange(1, n + 1, dtype=float), lines, comments, False)
+    lines = np.arange(n) + 1 + len(comments) + 2  # file lines when written by to_csv (comments, tool line, header)
+    camp = StiffnessCampaign("open_world", model.controller_deg(q_cmd), force, np.zeros((n, 3)), disp_mm, None, pose,
+                             np.arange(1, n + 1, dtype=float), lines, comments, False, tool_mm=TOOL_M * 1e3)
     return OpenWorldCampaign(kind, camp, params, visible * 1e3, target * 1e3, outlier_rows, comments)
 
 
 def to_csv(c):
     """CSV text of an OpenWorldCampaign (comment lines first, then the header)."""
-    out = [f"# {line}" for line in c.comments] + ["pose,seq,q1,q2,q3,q4,q5,q6,fx,fy,fz,dx,dy,dz"]
+    out = [f"# {line}" for line in c.comments] + [tool_header_line(TOOL_M),
+                                                   "pose,seq,q1,q2,q3,q4,q5,q6,fx,fy,fz,dx,dy,dz"]
     cp = c.campaign
     for i in range(len(cp)):
         row = [cp.pose[i], str(int(cp.seq[i]))] + [f"{v:.9g}" for v in cp.q_deg[i]] + \

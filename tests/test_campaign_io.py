@@ -49,7 +49,7 @@ def test_good_file_with_reordered_and_extra_columns(capsys, tmp_path):
     for key in ("joint_stiffness_Nm_per_rad", "joint_stiffness_std_Nm_per_rad", "identifiable", "rms_residual_mm",
                 "n_measurements", "condition_number"):
         assert key in res
-    assert len(res["residuals"]) == 24 and res["residuals"][0]["line"] == 9  # 7 comment lines + header
+    assert len(res["residuals"]) == 24 and res["residuals"][0]["line"] == 10  # 8 comment lines + header
 
 
 def _drop_column(name):
@@ -82,19 +82,20 @@ def _scale(cols, factor):
 
 
 BAD = [
-    ("missing column", _drop_column("dz"), "data.csv:8: missing column 'dz'"),
+    ("missing column", _drop_column("dz"), "data.csv:9: missing column 'dz'"),
     ("misspelled column", _rename_column("fz", "fzz"), "missing column 'fz' (is 'fzz' a misspelling?)"),
-    ("non-numeric cell", _set_cell(3, "fy", "abc"), "data.csv:12, column 10 (fy): 'abc' is not a number"),
-    ("nan", _set_cell(0, "dx", "nan"), "data.csv:9, column 12 (dx): 'nan' is not a finite number"),
-    ("inf", _set_cell(5, "q2", "inf"), "data.csv:14, column 4 (q2): 'inf' is not a finite number"),
-    ("empty cell", _set_cell(2, "q5", ""), "data.csv:11, column 7 (q5): empty cell"),
-    ("duplicated header", _rename_column("seq", "fx"), "data.csv:8: duplicated column 'fx' (columns 2 and 9)"),
+    ("non-numeric cell", _set_cell(3, "fy", "abc"), "data.csv:13, column 10 (fy): 'abc' is not a number"),
+    ("nan", _set_cell(0, "dx", "nan"), "data.csv:10, column 12 (dx): 'nan' is not a finite number"),
+    ("inf", _set_cell(5, "q2", "inf"), "data.csv:15, column 4 (q2): 'inf' is not a finite number"),
+    ("empty cell", _set_cell(2, "q5", ""), "data.csv:12, column 7 (q5): empty cell"),
+    ("duplicated header", _rename_column("seq", "fx"), "data.csv:9: duplicated column 'fx' (columns 2 and 9)"),
     ("fewer rows than unknowns", lambda h, r: (h, r[:5]), "5 measurement rows, fewer than the 6 unknowns"),
     ("all-zero forces", _scale(["fx", "fy", "fz"], 0.0), "all forces are zero"),
     ("metres", _scale(["dx", "dy", "dz"], 1e-3), "look like metres, not mm"),
-    ("micrometres", _scale(["dx", "dy", "dz"], 1e3), "look like micrometres, not mm"),
-    ("joint limit", _set_cell(1, "q2", "85"), "data.csv:10, column 4 (q2): 85 deg is outside the joint limit [-70, 70] deg"),
-    ("short row", lambda h, r: (h, [r[0][:-1]] + r[1:]), "data.csv:9: expected 14 cells (as in the header), got 13"),
+    ("micrometres", _scale(["dx", "dy", "dz"], 1e3), "outside the plausible range [-100, 100] mm (other units?)"),
+    ("micrometres, small", _scale(["dx", "dy", "dz"], 1e2 / 1.5), "look like micrometres, not mm"),
+    ("joint limit", _set_cell(1, "q2", "85"), "data.csv:11, column 4 (q2): 85 deg is outside the joint limit [-70, 70] deg"),
+    ("short row", lambda h, r: (h, [r[0][:-1]] + r[1:]), "data.csv:10: expected 14 cells (as in the header), got 13"),
 ]
 
 

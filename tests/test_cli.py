@@ -69,7 +69,7 @@ def test_negative_angles_are_accepted(capsys):
         (["stiffness", "0", "0", "0", "0", "45", "0", "--tool", "1,x,2"], "--tool: component 2 'x' is not a number"),
         (["stiffness", "0", "0", "0", "0", "0", "0", "--kx"], "joints 4, 6"),
         (["stiffness-map", "--out", "x.svg"], "must name a .png file"),
-        (["kg-study", "--grid", "0"], "--grid must be >= 1"),
+        (["kg-study", "--grid", "0"], "argument --grid: 0 is outside the allowed range [1, 20]"),
         (["nonsense"], "invalid choice"),
         (["stiffness", "--robot", "/nonexistent.yaml", "0", "0", "0", "0", "45", "0"], "cannot read robot parameter file"),
     ],
@@ -132,8 +132,8 @@ def test_demo_writes_outputs(capsys, tmp_path):
     code, out, _ = run_cli(capsys, "demo", "--out", str(tmp_path))
     assert code == 0
     assert "block-milling test" in out and "why the uncompensated robot cuts more" in out
-    for name in ("surface_error.png", "stiffness_map.png", "diagram.dot", "timeseries_compensated.csv",
-                 "timeseries_uncompensated.csv"):
+    for name in ("surface_error.png", "stiffness_map.png", "diagram.dot", "sim_timeseries_compensated.csv", "scan.csv",
+                 "sim_timeseries_uncompensated.csv"):
         assert (tmp_path / name).exists(), name
     rep = json.loads((tmp_path / "demo.json").read_text())
     unc = rep["surface_error_mm"]["uncompensated"]

@@ -6,107 +6,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from pydrake.common.value import AbstractValue
-from pydrake.multibody.math import SpatialForce
-from pydrake.multibody.plant import ExternallyAppliedSpatialForce_
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
+from pydrake.systems.primitives import ConstantVectorSource
 
 from robstiff_drake.diagrams.experiment import run_cut
-from robstiff_drake.diagrams.milling_cell import add_compensation_chain, add_compliant_irb6400, spring_step_is_stable
+from robstiff_drake.diagrams.compensator import make_compensator
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.errors import InputError
-from robstiff_drake.model import ik
-from robstiff_drake.model import kinematics as kin
-from robstiff_drake.model import stiffness as st
-from robstiff_drake.model.realtime import DeflectionPredictor
-from robstiff_drake.systems.gravity_removal import PayloadCalibration
+from robstiff_drake.model.payload import PayloadCalibration
 
 DATA = Path(__file__).parent / "data"
 SHORT = DATA / "short_block.yaml"
-
-
-def test_static_deflection_equals_the_model(robot):
-    """Constant force at the tool point: the plant settles where J C_q J^T F says (1 um)."""
-    tool = robot.payload.tool_point_m
-    q0 = ik.solve_ik(robot.dh, ik.tool_down_pose(robot.workspace.reference_tool_point_m), tool)
-    builder = DiagramBuilder()
-    arm = add_compliant_irb6400(builder, time_step_s=0.002, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
-                                damping_ratio=0.3, q_modes_rad=q0)
-    plant = arm["plant"]
-    F = np.array([-300.0, 250.0, 50.0])
-    force = ExternallyAppliedSpatialForce_[float]()
-    force.body_index = plant.GetBodyByName("spindle").index()
-    force.p_BoBq_B = tool
-    force.F_Bq_W = SpatialForce(np.zeros(3), F)
-    src = builder.AddSystem(ConstantValueSource(AbstractValue.Make([force])))
-    builder.Connect(src.get_output_port(), plant.get_applied_spatial_force_input_port())
-    des = builder.AddSystem(ConstantVectorSource(np.concatenate([q0, np.zeros(6)])))
-    builder.Connect(des.get_output_port(), arm["desired_state"])
-    sim = Simulator(builder.Build())
-    ctx = plant.GetMyMutableContextFromRoot(sim.get_mutable_context())
-    plant.SetPositions(ctx, q0)
-    sim.AdvanceTo(6.0)
-    q = plant.GetPositions(ctx)
-    dp = kin.tool_position(robot.dh, q, tool) - kin.tool_position(robot.dh, q0, tool)
-    _, dx = st.deflection_conventional(kin.jacobian(robot.dh, q0, tool), robot.joint_stiffness_Nm_per_rad,
-                                       np.concatenate([F, np.zeros(3)]))
-    assert np.linalg.norm(dx[:3]) > 5e-4  # about a millimetre
-    np.testing.assert_allclose(dp, dx[:3], atol=1e-6)
-    assert 3 < arm["natural_frequencies_hz"][0] < 60
-
-
-def test_step_stability_criterion_is_the_recursion(rng):
-    """spring_step_is_stable against the step it describes, iterated: symplectic
-    Euler for the spring, implicit stiffness-proportional damping."""
-    for _ in range(300):
-        w = rng.uniform(10.0, 2000.0)  # rad/s
-        h = rng.uniform(1e-4, 1e-2)
-        beta = rng.uniform(0.0, 0.01)
-        q, v, peak = 1.0, 0.0, 0.0
-        for k in range(3000):
-            v = (v - h * w * w * q) / (1.0 + beta * w * w * h)
-            q += h * v
-            if not abs(q) < 1e6:  # diverged (or overflowed to inf / nan)
-                peak = np.inf
-                break
-            if k > 2000:
-                peak = max(peak, abs(q))
-        criterion = spring_step_is_stable([w / (2 * np.pi)], beta, h)
-        margin = h * h * w * w - (4.0 + 2.0 * beta * w * w * h)
-        if abs(margin) > 0.05:  # clear of the boundary, where growth is too slow to see in 3000 steps
-            assert criterion == (peak < 1.0), (w, h, beta, peak)
-
-
-@pytest.mark.parametrize("zeta, stable", [(0.01, False), (0.025, True)])
-def test_plant_step_is_stable_where_the_criterion_says(robot, zeta, stable):
-    """The criterion is the Drake plant's: at a 4 ms step its joint damping is
-    implicit (or the 2.5 % case would diverge too) and its spring explicit
-    (or the 1 % case would not).  Both keep beta below h / 2; 1 % is on the
-    unstable side of the bound for the 124 Hz mode, 2.5 % on the stable."""
-    h = 0.004
-    q0 = ik.solve_ik(robot.dh, ik.tool_down_pose(robot.workspace.reference_tool_point_m), robot.payload.tool_point_m)
-    builder = DiagramBuilder()
-    arm = add_compliant_irb6400(builder, time_step_s=h, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
-                                damping_ratio=zeta, q_modes_rad=q0, check_stability=False)
-    assert spring_step_is_stable(arm["natural_frequencies_hz"], arm["beta_s"], h) == stable
-    assert arm["beta_s"] < h / 2  # the bound for every mode does not hold: the top mode decides
-    des = builder.AddSystem(ConstantVectorSource(np.concatenate([q0, np.zeros(6)])))
-    builder.Connect(des.get_output_port(), arm["desired_state"])
-    sim = Simulator(builder.Build())
-    plant = arm["plant"]
-    ctx = plant.GetMyMutableContextFromRoot(sim.get_mutable_context())
-    plant.SetPositions(ctx, q0 + 1e-4)  # every joint off by 0.1 mrad: all modes excited
-    try:
-        sim.AdvanceTo(1.0)
-        dev = np.abs(plant.GetPositions(ctx) - q0).max()
-    except RuntimeError:  # the solver gave up on a diverging state
-        dev = np.inf
-    if stable:
-        assert dev < 1e-4
-    else:
-        assert not dev < 1e-2
 
 
 class StepWrench(LeafSystem):
@@ -126,30 +37,28 @@ def test_chain_delay_is_what_the_design_says(robot, delay_steps):
     T, rate = 0.004, 1000.0
     q = np.deg2rad([0.0, 13.6, 22.0, 0.0, 54.4, 0.0])
     tool = robot.payload.tool_point_m
-    pred = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool)
-    cal = PayloadCalibration(mass_kg=0.0)
+    comp = make_compensator(rate_hz=rate, filter_ba=(np.array([1.0]), np.array([1.0])), max_jump_N=1e6, period_s=T,
+                            delay_steps=delay_steps, saturation_rad=0.1, rate_limit_rad_per_s=10.0,
+                            calibration=PayloadCalibration(mass_kg=0.0), model_dh=robot.dh,
+                            model_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad, tool_m=tool)
     builder = DiagramBuilder()
-    chain = add_compensation_chain(
-        builder, rate_hz=rate, filter_ba=(np.array([1.0]), np.array([1.0])), max_jump_N=1e6, period_s=T,
-        delay_steps=delay_steps, saturation_rad=0.1, rate_limit_rad_per_s=10.0, calibration=cal, predictor=pred,
-        tool_m=tool, initial_wrench=np.zeros(6))
+    c = builder.AddSystem(comp.diagram)
     step = builder.AddSystem(StepWrench(np.zeros(6), np.array([-300.0, 0, 0, 0, 0, 0]), 0.0105))
-    builder.Connect(step.get_output_port(), chain["guard"].GetInputPort("wrench"))
+    builder.Connect(step.get_output_port(), c.GetInputPort("wrench"))
     qsrc = builder.AddSystem(ConstantVectorSource(q))
-    builder.Connect(qsrc.get_output_port(), chain["zoh_q"].get_input_port())
+    builder.Connect(qsrc.get_output_port(), c.GetInputPort("position_measured"))
     diagram = builder.Build()
     sim = Simulator(diagram)
-    ctx = chain["zoh_q"].GetMyMutableContextFromRoot(sim.get_mutable_context())
-    ctx.SetDiscreteState(q)
-    corr = chain["correction"]
+    comp.set_initial_state(sim.get_mutable_context(), np.zeros(6), q)
     first = None
     for k in range(1, 20):
         sim.AdvanceTo(k * T + T / 2)  # between ticks: the updates at k*T are done
-        c = corr.get_output_port().Eval(corr.GetMyContextFromRoot(sim.get_context()))
-        if np.any(c != 0):
+        out = c.GetOutputPort("correction").Eval(c.GetMyContextFromRoot(sim.get_context()))
+        if np.any(out != 0):
             first = k * T
             break
     assert first == pytest.approx(0.012 + T * (delay_steps + 1))
+    assert comp.chain_delay_s == pytest.approx(2.0 / rate + (2 + delay_steps) * T)
 
 
 @pytest.fixture(scope="module")
@@ -180,10 +89,11 @@ def test_short_cut_cuts_more_and_compensation_fixes_it(short_runs):
 
 def test_diagram_names_every_block(short_runs):
     _, _, on = short_runs
-    dot = on.cell.diagram.GetGraphvizString(max_depth=1)
-    for name in ("plant", "gravity_feedforward", "path", "milling_force", "wrist_sensor", "wrench_guard",
-                 "force_filter", "sample_wrench", "gravity_removal", "deflection_prediction", "saturation",
-                 "transport_delay", "reference_correction", "q_command"):
+    dot = on.cell.diagram.GetGraphvizString(max_depth=2)
+    for name in ("milling_station", "compensator", "plant", "joint_servo", "interpolator_hold", "gear_spring",
+                 "motor_reference_gravity", "position_reported", "path", "milling_force", "wrist_sensor",
+                 "wrench_guard", "force_filter", "sample_wrench", "gravity_removal", "deflection_prediction",
+                 "saturation", "transport_delay", "reference_correction", "q_command"):
         assert name in dot, name
 
 
@@ -211,7 +121,7 @@ def test_surface_is_converged_in_the_plant_step(short_runs):
 
     sc, off, _ = short_runs
     coarse = copy.deepcopy(sc)
-    coarse.plant.time_step_ms = 4.0
+    coarse.plant_config.time_step = 0.004
     off4 = run_cut(coarse, load_robot(), compensation=False)
     assert abs(off4.surface_error_mm["mean"] - off.surface_error_mm["mean"]) < 1e-3
     assert abs(off4.surface_error_mm["pv"] - off.surface_error_mm["pv"]) < 5e-3
@@ -227,17 +137,34 @@ def _write(tmp_path, text):
     "edit, message",
     [
         (lambda s: s.replace("  period_ms: 4.0", "  period_ms: 4.0\n  perod_ms: 4.0"), "perod_ms"),
-        (lambda s: s.replace("  period_ms: 4.0", "  period_ms: -4.0"), "controller.period_ms: must be a positive number"),
-        (lambda s: s.replace("  diameter_mm: 75.0", "  diameter_mm: 400.0"), "cutter.diameter_mm: 400.0 mm is not a sensible"),
-        (lambda s: s.replace("  period_ms: 4.0", "  period_ms: 1.0"), "controller.period_ms: 1.0 ms is below the plant step"),
-        (lambda s: s.replace("    cutoff_hz: 2.0", "    cutoff_hz: 900.0"), "controller.filter.cutoff_hz: 900.0 Hz"),
-        (lambda s: s.replace("  mode: averaged", "  mode: exact"), "cutting.mode: expected 'averaged' or 'tooth'"),
-        (lambda s: s.replace("  time_step_ms: 2.0\n  damping_ratio: 0.10", "  time_step_ms: 4.0\n  damping_ratio: 0.01"),
-         "plant.time_step_ms: a 4 ms plant step is unstable for the 124 Hz joint mode at damping ratio 0.01"),
-        (lambda s: s.replace("    - [1497.5, 0.0, 700.0]", "    - [3497.5, 0.0, 700.0]"), "is out of reach"),
-        (lambda s: s.replace("    - [1702.5, 0.0, 700.0]", "    - [1702.5, 0.0, 1900.0]"), "outside its joint limit"),
+        (lambda s: s.replace("  period_ms: 4.0", "  period_ms: -4.0"), "controller.period_ms: -4 is outside the allowed range [0.1, 1000] ms"),
+        (lambda s: s.replace("  diameter_mm: 75.0", "  diameter_mm: 400.0"), "cutter.diameter_mm: 400 is outside the allowed range [10, 250] mm"),
+        (lambda s: s.replace("  period_ms: 4.0", "  period_ms: 1.0"), "controller.period_ms: 1 ms is below the plant step"),
+        (lambda s: s.replace("    cutoff_hz: 2.0", "    cutoff_hz: 900.0"), "controller.filter.cutoff_hz: 900 Hz must be between 0 and half"),
+        (lambda s: s.replace("  mode: averaged", "  mode: exact"), "cutting.mode: expected one of 'averaged', 'tooth', got 'exact'"),
+        (lambda s: s.replace("  time_step: 0.002", "  time_step: 0.004").replace("  damping_ratio: 0.10",
+                                                                                "  damping_ratio: 0.01"),
+         "plant_config.time_step: a 4 ms plant step is unstable for the 124 Hz joint mode at damping ratio 0.01"),
+        (lambda s: s.replace("    - [1702.5, 0.0, 700.0]", "    - [1702.5, 0.0, 700.0]\n    - [1702.5, 0.0, 1900.0]"),
+         "outside its joint limit"),
         (lambda s: s.replace("    - [1497.5, 0.0, 700.0]\n    - [1702.5, 0.0, 700.0]",
-                             "    - [413.0, -30.0, 0.0]\n    - [413.0, 30.0, 0.0]"), "singularity (wrist singularity"),
+                             "    - [413.0, -30.0, 0.0]\n    - [413.0, 30.0, 0.0]").replace(
+            "    - [1540.0, 1660.0, -10.0, 40.0, 703.0]", "    - [380.0, 446.0, -10.0, 10.0, 3.0]"),
+         "singularity (wrist singularity"),
+        (lambda s: s.replace("700.0]", "710.0]"), "never comes below the top of a workpiece box"),
+        (lambda s: s.replace("controller:", "controller:\n  period_ms: 8.0\ncontroller:", 1),
+         "duplicated key 'controller'"),
+        (lambda s: s.replace("  period_ms: 4.0", '  period_ms: "four"'),
+         "controller.period_ms: expected a number in ms, got 'four'"),
+        (lambda s: s.replace("  n_teeth: 6", "  n_teeth: 60"), "tooth pitch of 3.9 mm"),
+        (lambda s: s.replace("  feed_mm_per_s: 60.0", "  feed_mm_per_s: 1e-6"), "outside the allowed range [0.1, 2000]"),
+        (lambda s: s.replace("  feed_mm_per_s: 60.0", "  feed_mm_per_s: 0.1").replace("  time_step: 0.002",
+                                                                                  "  time_step: 5.0e-5"),
+         "plant steps, more than"),
+        (lambda s: s.replace("  force_bias_N: [3.0, -2.0, 5.0]", "  force_bias_N: [3.0, -2.0]"),
+         "sensor.force_bias_N: expected 3 numbers, got 2"),
+        (lambda s: s.replace("  yaw_deg: 0.0", "  yaw_deg: .nan"), "path.yaw_deg: nan is not a finite number"),
+        (lambda s: s.replace("  seed: 1", "  seed: -1"), "sensor.seed: -1 is outside the allowed range"),
     ],
 )
 def test_bad_scenarios_fail_before_simulating(tmp_path, robot, edit, message):

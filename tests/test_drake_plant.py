@@ -1,4 +1,6 @@
-"""The Drake MultibodyPlant loaded from models/ agrees with the numpy model."""
+"""The Drake MultibodyPlant, parsed from the URDF generated out of the
+robot file, agrees with the numpy model (the other library robots:
+tests/test_robot_library.py)."""
 
 import numpy as np
 import pytest
@@ -6,7 +8,6 @@ from conftest import random_q
 from pydrake.autodiffutils import ExtractGradient, ExtractValue, InitializeAutoDiff
 from pydrake.multibody.tree import JacobianWrtVariable
 
-from robstiff_drake.commands import make_urdf
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.plant import make_irb6400_plant, tool_position_and_jacobian
 
@@ -15,10 +16,6 @@ from robstiff_drake.plant import make_irb6400_plant, tool_position_and_jacobian
 def plant():
     plant, _ = make_irb6400_plant()
     return plant
-
-
-def test_urdf_on_disk_is_generated_from_the_yaml():
-    assert make_urdf.run(check=True) == 0
 
 
 def test_plant_structure_and_mass(plant, robot):

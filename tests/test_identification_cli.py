@@ -30,8 +30,12 @@ def test_synth_then_identify(capsys, tmp_path, robot):
     assert res["joint_stiffness_std_Nm_per_rad"][5] is None
     assert res["n_measurements"] == 120
     assert res["rms_residual_mm"] == pytest.approx(0.01, rel=0.2)
-    # with the wrong tool point the fit is visibly worse
+    # the file records its tool point: identify without --tool uses it
     code, out, _ = cli(capsys, "identify", data, "--json", "-")
+    assert json.loads(out)["joint_stiffness_Nm_per_rad"] == res["joint_stiffness_Nm_per_rad"]
+    # with the wrong tool point (the line removed, --tool at the flange) the fit is visibly worse
+    data.write_text("".join(ln for ln in text.splitlines(keepends=True) if not ln.startswith("# tool_mm:")))
+    code, out, _ = cli(capsys, "identify", data, "--tool", "0,0,0", "--json", "-")
     assert json.loads(out)["rms_residual_mm"] > 2 * res["rms_residual_mm"]
 
 
@@ -85,7 +89,7 @@ def test_plan_poses_beats_random(capsys, tmp_path):
     assert len(t) == 48
     assert "Measure dx,dy,dz" in " ".join(t.comments)
     code, _, err = cli(capsys, "plan-poses", 3)
-    assert code == 2 and "at least 6" in err
+    assert code == 2 and "outside the allowed range [6, 500]" in err
 
 
 def test_table2_analysis(capsys, tmp_path):

@@ -167,8 +167,8 @@ def test_payload_inertia_map_is_what_drake_reports_at_the_weld(robot, rng):
 
     from robstiff_drake.diagrams.loop_prediction import payload_inertial_wrench_map
     from robstiff_drake.model import kinematics as kin
+    from robstiff_drake.model.wrench_frames import sensor_to_tool_base
     from robstiff_drake.plant import add_irb6400
-    from robstiff_drake.systems.deflection_prediction import sensor_to_tool_base
 
     plant = MultibodyPlant(0.0)
     add_irb6400(plant)

@@ -5,13 +5,16 @@ import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.tree import BodyIndex
 
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.path import PlannedPath
+from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
 from robstiff_drake.model.realtime import DeflectionPredictor
-from robstiff_drake.systems.deflection_prediction import DeflectionPrediction, sensor_to_tool_base
+from robstiff_drake.model.wrench_frames import sensor_to_tool_base
+from robstiff_drake.systems.deflection_prediction import DeflectionPrediction
 from robstiff_drake.systems.force_filter import (
     filter_system,
     group_delay_s,
@@ -19,10 +22,10 @@ from robstiff_drake.systems.force_filter import (
     revolution_average_coefficients,
     steady_state,
 )
-from robstiff_drake.systems.gravity_removal import GravityRemoval, PayloadCalibration, payload_wrench
+from robstiff_drake.systems.gravity_removal import GravityRemoval
 from robstiff_drake.systems.milling_force import MillingForceSource
 from robstiff_drake.systems.reference_correction import RateLimitedCorrection
-from robstiff_drake.systems.wrist_sensor import WrenchGuard, WristForceSensor
+from robstiff_drake.systems.wrist_sensor import WrenchGuard, WristForceSensor, add_random_inputs
 
 Q = np.deg2rad([5.0, 15.0, 20.0, 10.0, 50.0, -20.0])
 
@@ -34,6 +37,12 @@ def update(system, context):
 
 
 def test_milling_force_source_outputs(robot):
+    """Averaged and tooth-resolved: the held wrench is the model's, the spatial
+    force is that wrench on the spindle at the tool point, and in tooth mode
+    the sensor's ripple is the instantaneous minus the held wrench (sensor
+    frame)."""
+    from pydrake.systems.analysis import Simulator
+
     tool = robot.payload.tool_point_m
     cutter = Cutter(0.075, 6, 3600)
     model = MillingForceModel(cutter, CuttingCoefficients(631, 99, 273, 13, 10, 2.8), 0.02)
@@ -43,51 +52,85 @@ def test_milling_force_source_outputs(robot):
     path = PlannedPath([p, p + [0.1, 0, 0]], 0.02)
     for mode in ("averaged", "tooth"):
         src = MillingForceSource(force_model=model, workpiece=wp, path=path, kinematics=kinematics, tool_point_m=tool,
-                                 period_s=0.002, mode=mode)
-        ctx = src.CreateDefaultContext()
+                                 period_s=0.002, spindle_body_index=BodyIndex(7), mode=mode)
+        sim = Simulator(src)
+        ctx = sim.get_mutable_context()
         src.get_input_port().FixValue(ctx, Q)
-        for i, value in enumerate(update(src, ctx)):
-            ctx.SetDiscreteState(i, value)
+        sim.AdvanceTo(1e-4)  # the update at t = 0 has run
+        held = ctx.get_discrete_state(1).CopyToVector()  # the period's wrench
+        expected = (model.average_wrench(p, [1, 0], wp) if mode == "averaged" else
+                    model.tooth_wrench(0.002 * np.arange(len(src._sub_t)) / len(src._sub_t), p, [1, 0], wp).reshape(-1)
+                    / len(src._sub_t))
+        np.testing.assert_allclose(held, expected, rtol=1e-12, atol=1e-9)
+        assert np.linalg.norm(held[:3]) > 100  # the cutter is in the material
+        (force,) = src.GetOutputPort("spatial_force").Eval(ctx)
+        assert int(force.body_index) == 7
+        np.testing.assert_allclose(force.p_BoBq_B, tool)
+        np.testing.assert_allclose(np.concatenate([force.F_Bq_W.translational(), force.F_Bq_W.rotational()]), held)
         w = src.GetOutputPort("wrench").Eval(ctx)
-        expected = model.average_wrench(p, [1, 0], wp) if mode == "averaged" else model.tooth_wrench(0.0, p, [1, 0], wp)
-        np.testing.assert_allclose(w, expected, rtol=1e-12, atol=1e-9)
-        assert np.linalg.norm(w[:3]) > 100  # the cutter is in the material
-        tau = src.GetOutputPort("generalized_force").Eval(ctx)
-        held = ctx.get_discrete_state(2).CopyToVector()  # the period's wrench
         if mode == "averaged":
-            np.testing.assert_array_equal(held, w)
-        np.testing.assert_allclose(tau, kin.jacobian(robot.dh, Q, tool).T @ held, rtol=1e-10)
-        ws = src.GetOutputPort("wrench_sensor").Eval(ctx)
-        np.testing.assert_allclose(sensor_to_tool_base(ws, R, tool), w, atol=1e-9)  # round trip
+            np.testing.assert_array_equal(w, held)
+        else:
+            np.testing.assert_allclose(w, model.tooth_wrench(1e-4, p, [1, 0], wp), rtol=1e-12, atol=1e-9)
+            ripple = src.GetOutputPort("ripple_sensor").Eval(ctx)
+            np.testing.assert_allclose(sensor_to_tool_base(ripple, R, tool), w - held, atol=1e-9)
 
 
-def test_wrist_sensor_reads_weight_plus_process_plus_bias():
-    sensor = WristForceSensor(weld_joint_index=2, rate_hz=1000, force_bias_N=[1, 2, 3], torque_bias_Nm=[0.1, 0.2, 0.3])
+def _sensor(**kw):
+    sensor = WristForceSensor(**kw)
     ctx = sensor.CreateDefaultContext()
+    return sensor, ctx
+
+
+def test_wrist_sensor_reads_the_weld_plus_bias():
+    sensor, ctx = _sensor(weld_joint_index=2, rate_hz=1000, force_bias_N=[1, 2, 3], torque_bias_Nm=[0.1, 0.2, 0.3])
     zero = SpatialForce(np.zeros(3), np.zeros(3))
     reactions = [zero, zero, SpatialForce([1.0, -2.0, 0.5], [10.0, 20.0, -392.0])]
     sensor.GetInputPort("reaction_forces").FixValue(ctx, AbstractValue.Make(reactions))
-    sensor.GetInputPort("process_wrench").FixValue(ctx, [100.0, 0, 0, 0, 0, 5.0])
+    sensor.GetInputPort("gaussian").FixValue(ctx, np.ones(6))  # no noise set: ignored
+    sensor.GetInputPort("uniform").FixValue(ctx, np.zeros(3))
     (w,) = update(sensor, ctx)
-    # the payload exerts on the sensor minus what the flange exerts on the payload
-    np.testing.assert_allclose(w, [-10 + 100 + 1, -20 + 2, 392 + 3, -1 + 0.1, 2 + 0.2, -0.5 + 5 + 0.3])
+    # what the payload (with the load on it) exerts on the sensor: minus what the flange exerts on it
+    np.testing.assert_allclose(w, [-10 + 1, -20 + 2, 392 + 3, -1 + 0.1, 2 + 0.2, -0.5 + 0.3])
 
 
-def test_wrist_sensor_noise_and_dropouts():
-    sensor = WristForceSensor(weld_joint_index=0, rate_hz=1000, noise_N=2.0, noise_Nm=0.2, dropout_probability=0.3,
-                              seed=4)
-    ctx = sensor.CreateDefaultContext()
+def test_wrist_sensor_noise_dropouts_and_spikes_come_from_its_random_inputs():
+    sensor, ctx = _sensor(weld_joint_index=0, rate_hz=1000, noise_N=2.0, noise_Nm=0.2, dropout_probability=0.3,
+                          spike_probability=0.5, spike_N=1000.0)
     sensor.GetInputPort("reaction_forces").FixValue(ctx, AbstractValue.Make([SpatialForce(np.zeros(3), np.zeros(3))]))
-    sensor.GetInputPort("process_wrench").FixValue(ctx, np.zeros(6))
-    samples = []
-    for k in range(3000):
-        ctx.SetTime(k * 1e-3)  # a new instant: the update is evaluated again, not cached
-        samples.append(update(sensor, ctx)[0])
-    samples = np.array(samples)
+    g = np.array([1.0, -1.0, 0.5, 2.0, -2.0, 0.0])
+    sensor.GetInputPort("gaussian").FixValue(ctx, g)
+    sensor.GetInputPort("uniform").FixValue(ctx, [0.5, 0.9, 0.0])  # no dropout (0.5 > 0.3), no spike
+    np.testing.assert_allclose(update(sensor, ctx)[0], g * [2, 2, 2, 0.2, 0.2, 0.2])
+    sensor.GetInputPort("uniform").FixValue(ctx, [0.1, 0.9, 0.0])  # a dropout
+    assert np.all(np.isnan(update(sensor, ctx)[0]))
+    sensor.GetInputPort("uniform").FixValue(ctx, [0.5, 0.1, 0.7])  # a spike on force axis 1 (0.7 * 6 = 4: -y)
+    np.testing.assert_allclose(update(sensor, ctx)[0], g * [2, 2, 2, 0.2, 0.2, 0.2] + [0, -1000.0, 0, 0, 0, 0])
+
+
+def test_wrist_sensor_noise_statistics_in_a_simulation():
+    """Through Drake's RandomSources, seeded by the context's generator: the
+    noise has the set sigma and the dropouts their rate."""
+    from pydrake.common import RandomGenerator
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantValueSource, LogVectorOutput
+
+    builder = DiagramBuilder()
+    sensor = builder.AddSystem(WristForceSensor(weld_joint_index=0, rate_hz=1000, noise_N=2.0, noise_Nm=0.2,
+                                                dropout_probability=0.3))
+    src = builder.AddSystem(ConstantValueSource(AbstractValue.Make([SpatialForce(np.zeros(3), np.zeros(3))])))
+    builder.Connect(src.get_output_port(), sensor.GetInputPort("reaction_forces"))
+    add_random_inputs(builder, sensor)
+    log = LogVectorOutput(sensor.get_output_port(), builder, 1e-3)
+    diagram = builder.Build()
+    sim = Simulator(diagram)
+    diagram.SetRandomContext(sim.get_mutable_context(), RandomGenerator(4))
+    sim.AdvanceTo(3.0)
+    samples = log.FindLog(sim.get_context()).data().T[2:]
     dropped = np.isnan(samples).all(axis=1)
     assert 0.25 < dropped.mean() < 0.35
-    good = samples[~dropped]
-    np.testing.assert_allclose(good.std(axis=0), [2, 2, 2, 0.2, 0.2, 0.2], rtol=0.1)
+    np.testing.assert_allclose(samples[~dropped].std(axis=0), [2, 2, 2, 0.2, 0.2, 0.2], rtol=0.1)
 
 
 def test_guard_holds_last_good_value():

@@ -4,16 +4,19 @@ centre of mass, force and torque bias) from static readings."""
 
 from robstiff_drake.commands.main import parse_vector
 from robstiff_drake.identification.campaign import read_payload_campaign
-from robstiff_drake.identification.payload import calibrate, t95, yaml_block
-from robstiff_drake.io import emit_json, write_atomic
+from robstiff_drake.identification.payload import calibrate, check_payload_fit, t95, yaml_block
+from robstiff_drake.io import Warnings, check_outputs, emit_json, write_atomic
 from robstiff_drake.model.robot import load_robot
 
 
 def run(*, data, json_out=None, yaml_out=None, mount_rpy=None, robot_yaml=None):
+    check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--yaml": yaml_out})
     robot = load_robot(robot_yaml)
     mount = (0.0, 0.0, 0.0) if mount_rpy is None else parse_vector(mount_rpy, 3, "--mount-rpy")
+    warnings = Warnings()
     campaign = read_payload_campaign(data, robot)
     fit = calibrate(robot, campaign, mount_rpy_deg=mount)
+    warnings.extend_from(check_payload_fit(fit, robot, campaign.path))
     block = yaml_block(fit, data)
     if json_out is not None:
         emit_json({
@@ -32,6 +35,7 @@ def run(*, data, json_out=None, yaml_out=None, mount_rpy=None, robot_yaml=None):
             "residuals": [{"line": int(ln), "force_N": f, "torque_Nm": t}
                           for ln, f, t in zip(campaign.lines, fit.residual_force_N, fit.residual_torque_Nm)],
             "yaml": block,
+            "warnings": list(warnings),
         }, json_out)
     if yaml_out is not None:
         write_atomic(yaml_out, block)

@@ -3,17 +3,16 @@ in a stiffness campaign, trace it to a physical effect (the named library or
 the open dictionary), add it, report the held-out error before and after and
 whether the result explains the data against the noise floor."""
 
-import os
-from pathlib import Path
-
 import numpy as np
 
-from robstiff_drake.commands.main import parse_vector
+from robstiff_drake.commands.identify import campaign_warnings
+from robstiff_drake.commands.main import parse_tool
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.campaign import read_stiffness_campaign
+from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
 from robstiff_drake.identification.diagnosis import CANDIDATES, DICTIONARY, diagnose
+from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
 from robstiff_drake.identification.selection import ALPHA_ROUND, MIN_GAIN
-from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic, write_atomic
+from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, write_atomic
 from robstiff_drake.model.robot import load_robot
 
 MAX_NOISE_MM = 10.0
@@ -157,8 +156,9 @@ def format_report(d, campaign, markdown=False):
     return "\n".join(lines)
 
 
-def residual_views(d, campaign, robot, out_dir, tool_m=None):
-    """One PNG per view of the six-spring model's residual (what the trace reads)."""
+def residual_views(d, campaign, robot, folder, tool_m=None):
+    """One PNG per view of the six-spring model's residual (what the trace
+    reads), into ``folder`` (an io.RunFolder)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -166,7 +166,6 @@ def residual_views(d, campaign, robot, out_dir, tool_m=None):
 
     from robstiff_drake.model import kinematics as kin
 
-    out_dir = Path(out_dir)
     r = d.residual_before_mm
     used = np.zeros(len(campaign), dtype=bool)
     used[d.rows_used] = True
@@ -177,10 +176,10 @@ def residual_views(d, campaign, robot, out_dir, tool_m=None):
     written = []
 
     def save(fig, name):
-        save_figure_atomic(fig, out_dir / name, dpi=90)
+        folder.save_figure(name, fig, dpi=90)
         written.append(name)
 
-    q = np.deg2rad(campaign.q_deg)
+    q = robot.joint_rad(campaign.q_deg)
     J = kin.jacobian(robot.dh, q, tool_m)
     tau = np.einsum("nrj,nr->nj", J, campaign.wrench)
     fig, axes = plt.subplots(2, 3, figsize=(12, 6.5), constrained_layout=True)
@@ -248,23 +247,26 @@ def residual_views(d, campaign, robot, out_dir, tool_m=None):
 
 
 def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=None, noise_mm=None):
-    check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--report": report})
-    if plots is not None and os.path.exists(plots) and not os.path.isdir(plots):
-        raise InputError(f"--plots {plots}: is a file, not a folder")
+    check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--report": report},
+                  folders={"--plots": plots})
     if noise_mm is not None and not 0 < noise_mm <= MAX_NOISE_MM:
         raise InputError(f"--noise-mm {noise_mm:g}: the noise of one displacement component must be in "
                          f"(0, {MAX_NOISE_MM:g}] mm")
     robot = load_robot(robot_yaml)
-    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    warnings = Warnings()
     campaign = read_stiffness_campaign(data, robot)
-    w = Warnings()
-    d = diagnose(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=w)
+    tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), warnings)
+    warnings.extend_from(campaign_warnings(campaign))
+    check_angle_units(robot, campaign, tool_m)
+    warnings.extend_from(check_signs(identify(robot, campaign, tool_m=tool_m), campaign))
+    d = diagnose(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=warnings)
     if json_out is not None:
         emit_json(to_dict(d, campaign), json_out)
     if report is not None:
         write_atomic(report, format_report(d, campaign, markdown=True) + "\n")
     if plots is not None:
-        residual_views(d, campaign, robot, plots, tool_m)
+        with RunFolder(plots) as folder:
+            residual_views(d, campaign, robot, folder, tool_m)
     if json_out != "-":
         print(format_report(d, campaign))
     return 0

@@ -1,75 +1,150 @@
-"""``robstiff diagnose-run RUN_DIR``: a machining run as a measurement: find
-the compensated surface error's cause from the run's force history, joint
-angles and scan, add the cause to the compensator (or switch on predictive
-compensation), run again, and report before and after."""
+"""``robstiff diagnose-run RUN_DIR [--noise-mm SIGMA] [--verify CUT_DIR ...]``:
+a machining run as a measurement.  From the run folder's cell files
+(docs/run_files.md) find the compensated surface error's cause, write each
+candidate fix as compensator settings with a verification-cut plan, and,
+given the verification cuts' run folders, decide from their scans."""
 
 from pathlib import Path
 
+import numpy as np
 
-from robstiff_drake.diagrams.run_diagnosis import diagnose_run
-from robstiff_drake.io import emit_json, save_figure_atomic
+from robstiff_drake.identification.run_diagnosis import diagnose_run
+from robstiff_drake.errors import InputError
+from robstiff_drake.identification.run_files import read_settings, settings_text
+from robstiff_drake.identification.run_verification import plan_markdown
+from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model.robot import load_robot
 
 
-def plot(before, after, path, title):
+def plot(rep, extras, title):
+    """The first cut's measured surface error, the traced model's, and each verification cut's."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(10, 4), constrained_layout=True)
-    for res, lab in ((before, "before"), (after, "after")):
-        if res is None:
-            continue
-        line = res.scans[0]
-        s = res.surface_error_mm
-        ax.plot(line.x_m * 1e3, line.error_m * 1e3, label=f"{lab}: mean {s['mean']:+.3f}, max |e| {s['max_abs']:.3f} mm")
+    fig, ax = plt.subplots(figsize=(10, 5.5), constrained_layout=True)
+    scan = extras["scan"]
+    s = rep["surface_error_before_mm"]
+    ax.plot(scan.x_mm, scan.error_mm, ".", ms=2, color="0.5",
+            label=f"first cut (measured): mean {s['mean']:+.3f}, rms {s['rms']:.3f} mm")
+    if rep["causes"]:
+        ax.plot(scan.x_mm[extras["covered"]], extras["model_mm"], "k-", lw=1.2,
+                label="traced: " + ", ".join(c["name"] for c in rep["causes"]))
+    for name, cut in extras["cut_scans"]:
+        e = cut.error_mm
+        ax.plot(cut.x_mm, e, ".", ms=2, label=f"cut with {name}: mean {np.mean(e):+.3f}, "
+                                             f"rms {np.sqrt(np.mean(e**2)):.3f} mm")
     ax.axhline(0, color="k", lw=0.6)
     ax.set_xlabel("x along the pass (mm)")
     ax.set_ylabel("surface error (mm), + = cut more")
-    ax.set_title(title)
-    ax.legend()
-    save_figure_atomic(fig, path, dpi=100)
+    ax.set_title(title, fontsize=10)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
+    return fig
+
+
+def _params(p):
+    return ", ".join(f"{k} = {v:.3g}" for k, v in p.items())
 
 
 def format_report(rep):
-    lines = [f"run {rep['run_dir']}: compensated surface error, held-out RMS as the compensator stands "
-             f"{rep['held_out_rms_before_mm']:.4f} mm"]
-    if rep["selected"]:
-        lines.append("cause traced: " + ", then ".join(
-            f"{n} ({', '.join(f'{k} = {v:.3g}' for k, v in rep['params'][n].items())})" for n in rep["selected"])
-            + f"; held-out RMS with it {rep['held_out_rms_after_mm']:.4f} mm")
+    t = rep["thresholds"]
+    lines = [f"run {rep['run_dir']} ({rep['run_id']}): {rep['n_scan_points']} scan points over "
+             f"{rep['scan_length_mm']:.0f} mm, effective {rep['n_effective']:.1f} independent",
+             f"noise floor {rep['noise_floor_mm']:.4f} mm, {rep['noise_source']}; stated "
+             + (f"{rep['noise_stated_mm']:.4f}" if rep["noise_stated_mm"] is not None else "-")
+             + ", from the scan " + (f"{rep['noise_estimated_mm']:.4f}" if rep["noise_estimated_mm"] is not None
+                                     else "-") + " mm",
+             f"rule: {t['rule']}",
+             f"surface error rms {rep['rms_before_mm']:.4f} mm with the compensator as set"]
+    if rep["causes"]:
+        lines.append("cause traced: " + ", then ".join(f"{c['name']} ({_params(c['params'])}; changes the surface "
+                                                        f"by {c['size_mm']:.4f} mm rms)" for c in rep["causes"]))
         if rep["also_consistent_with"]:
-            lines.append("also consistent with this run (within 10 % of the best): "
-                         + ", ".join(rep["also_consistent_with"]) + " -- a single pass cannot tell them apart")
+            lines.append("as good on this run (their fits differ by less than the noise floor): "
+                         + ", ".join(rep["also_consistent_with"]))
     else:
-        lines.append("no cause explains the residual better than the noise")
-    if len(rep.get("trials", [])) > 1:
-        lines.append("the fix of each consistent cause, tried on a second cut (surface error mm: mean / rms):")
-        for tr in rep["trials"]:
-            s = tr["surface_error_mm"]
-            lines.append(f"  {tr['cause']:22s} {s['mean']:+.3f} / {s['rms']:.3f}   ({tr['fix']})")
-        lines.append(f"the second cut points to: {rep['cause']}")
-    lines.append(f"fix: {rep['fix']}")
-    lines.append("")
-    lines.append("surface error (mm)   mean     rms   max|e|  entry   exit")
-    for key, lab in (("surface_error_before_mm", "before"), ("surface_error_after_mm", "after")):
-        if key in rep:
-            s = rep[key]
-            lines.append(f"  {lab:8s}       {s['mean']:+7.3f}  {s['rms']:6.3f}  {s['max_abs']:6.3f}  "
-                         f"{s['entry_max_abs']:6.3f}  {s['exit_max_abs']:6.3f}")
+        lines.append("no cause named")
+    verdict = "explains the data (the residual is consistent with the noise floor)" if rep["explains_data"] else \
+        f"leaves {rep['unexplained_mm']:.4f} mm unexplained above the noise floor"
+    lines.append(f"residual rms {rep['rms_after_mm']:.4f} mm: the model {verdict}")
+    first = rep["rounds"][0] if rep["rounds"] else []
+    if first:
+        lines.append("candidate (first round)   rms (mm)   size (mm)   F_eff        p    status")
+        for r in first:
+            if r["status"] != "ok":
+                lines.append(f"  {r['name']:24s} {r['status']}")
+                continue
+            st = "named" if r["named"] else r["why_not"]
+            lines.append(f"  {r['name']:24s} {r['rms_mm']:8.4f}   {r['size_mm']:8.4f}  {r['f_stat']:8.3g} "
+                         f"{r['p_value']:8.2g}    {st}")
+    for c in rep.get("candidates", []):
+        what = "; ".join(c["changes"] + c["not_in_compensator"])
+        lines.append(f"candidate fix {c['name']}: {what}" + (f" -> {c['settings']}" if "settings" in c else ""))
+    if "verification" in rep:
+        v = rep["verification"]
+        lines.append("verification cuts (surface error mm: mean / rms / max|e| / edges max|e|):")
+        for row in v["cuts"]:
+            s = row["surface_error_mm"]
+            lines.append(f"  {row['candidate']:28s} {s['mean']:+.4f} / {s['rms']:.4f} / {s['max_abs']:.4f} / "
+                         f"{s['edges_max_abs']:.4f}   ({row['run_dir']})")
+        lines.append(f"decision: {v['reason']}")
+        lines.append(f"rule: {v['rule']}")
+    fix = rep["fix"]
+    if fix is None:
+        lines.append("fix: none (no cause named)")
+    else:
+        lines.append(f"fix: {fix['status']}" + (f": {fix['candidate']}" if fix.get("candidate") else "")
+                     + (f" ({'; '.join(fix['changes'])})" if fix.get("changes") else ""))
     return "\n".join(lines)
 
 
-def run(*, run_dir, json_out=None, out=None):
-    robot = load_robot()
-    rep, before, after = diagnose_run(run_dir, robot)
+def run_robot(run_dir, robot_yaml=None):
+    """The robot of a run: the one its compensator.yaml names (a library
+    name, or a robot file relative to it); --robot must agree with it."""
+    from robstiff_drake.model.robot import same_robot_file
+    from robstiff_drake.paths import library_robots
+
+    settings_path = Path(run_dir) / "compensator.yaml"
+    spec = None
+    if settings_path.is_file():
+        _, settings = read_settings(settings_path)
+        if settings.robot:
+            spec = settings.robot if settings.robot in library_robots() else str(settings_path.parent /
+                                                                                 settings.robot)
+    if robot_yaml is not None and spec is not None and not same_robot_file(spec, robot_yaml):
+        raise InputError(f"--robot {robot_yaml} disagrees with the robot of {settings_path} (robot: {spec}); "
+                         "drop --robot or use the run's own robot")
+    return load_robot(robot_yaml if robot_yaml is not None else spec)
+
+
+def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_yaml=None):
     out = Path(out) if out else Path(run_dir) / "diagnosis"
-    plot(before, after, out / "before_after.png", f"{Path(run_dir).name}: fix = {rep['fix']}")
-    emit_json(rep, out / "diagnosis.json")
+    verify = list(verify or [])
+    check_outputs(inputs=[run_dir, *verify], files={"--json": json_out}, folders={"--out": out})
+    robot = run_robot(run_dir, robot_yaml)
+    rep, extras = diagnose_run(run_dir, robot, noise_mm=noise_mm, verify=verify)
+    warnings = Warnings()
+    warnings.extend_from(rep["warnings"])
+    rep["warnings"] = list(warnings)
+    with RunFolder(out) as folder:
+        note = f"candidate fix written by robstiff diagnose-run {run_dir} (run {rep['run_id']})"
+        for rel, s in extras["settings"].items():
+            folder.write(rel, settings_text(s, folder.run_id, [note]))
+        if extras["plan"]:
+            folder.write("verification_plan.md", plan_markdown(extras["plan"]))
+        title = f"{Path(run_dir).name}: traced " + (", ".join(c["name"] for c in rep["causes"]) or "no cause")
+        if rep.get("verification"):
+            fix = rep["fix"]
+            title += f"; from the verification cuts: {fix['status']}" + (f" ({fix['candidate']})"
+                                                                          if fix.get("candidate") else "")
+        folder.save_figure("diagnosis.png", plot(rep, extras, title), dpi=100)
+        rep["out"] = str(out)
+        folder.write("diagnosis.json", json_text(dict(rep, diagnosis_run_id=folder.run_id)))
     if json_out is not None:
         emit_json(rep, json_out)
     if json_out != "-":
         print(format_report(rep))
-        print(f"wrote {out / 'before_after.png'} and {out / 'diagnosis.json'}")
+        print(f"wrote {out}/: diagnosis.json, diagnosis.png" + (", verification_plan.md, candidates/"
+                                                               if extras["plan"] else ""))
     return 0

@@ -2,16 +2,17 @@
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_vector
-from robstiff_drake.identification.campaign import read_stiffness_campaign
-from robstiff_drake.identification.joint_stiffness import identify
-from robstiff_drake.io import emit_json, save_figure_atomic
+from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
+from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
+from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic
 from robstiff_drake.model.robot import load_robot
 
 
 def fit_to_dict(fit, campaign, robot, tool_m):
     return {
         "data": campaign.path,
+        "robot": robot.name,
         "tool_mm": (np.asarray(tool_m) * 1e3).tolist(),
         "joint_stiffness_Nm_per_rad": fit.stiffness_Nm_per_rad,
         "joint_stiffness_std_Nm_per_rad": [None if np.isnan(v) else float(v) for v in fit.stiffness_std_Nm_per_rad],
@@ -62,9 +63,6 @@ def format_fit(fit, campaign, robot):
     if fit.outlier_rows:
         lines.append("outliers (|residual| > 4 robust sigma) at lines: "
                      + ", ".join(str(campaign.lines[i]) for i in fit.outlier_rows))
-    if fit.non_physical:
-        lines.append("warning: negative identified compliance (non-physical) for joint(s) "
-                     + ", ".join(map(str, fit.non_physical)))
     return "\n".join(lines)
 
 
@@ -109,13 +107,33 @@ def plot_fit(fit, campaign, robot):
     return fig
 
 
+def campaign_warnings(campaign):
+    """Warnings about a campaign file that was read (copies set aside)."""
+    if not campaign.copies:
+        return []
+    shown = ", ".join(f"{a} (= line {b})" for a, b in campaign.copies[:6])
+    more = f" and {len(campaign.copies) - 6} more" if len(campaign.copies) > 6 else ""
+    return [f"{campaign.path}: {len(campaign.copies)} row(s) repeat an earlier row in every measured value and are "
+            f"counted once, as copies, not as new measurements: lines {shown}{more} (real repeats differ by their "
+            "noise; add a seq column if these are repeats at a coarse resolution)"]
+
+
 def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=None):
+    check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--plot": plot})
     robot = load_robot(robot_yaml)
-    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    tool_arg = parse_tool(tool)
+    warnings = Warnings()
     campaign = read_stiffness_campaign(data, robot)
+    tool_m = campaign_tool_m(campaign, robot, tool_arg, warnings)
+    warnings.extend_from(campaign_warnings(campaign))
+    check_angle_units(robot, campaign, tool_m)
     fit = identify(robot, campaign, tool_m=tool_m, robust=robust)
+    warnings.extend_from(check_signs(fit, campaign))
+    if fit.condition_number > 1e4:
+        warnings.add(f"condition number {fit.condition_number:.3g}: the poses and loads barely separate the joints; "
+                     "plan the campaign with `robstiff plan-poses`")
     if json_out is not None:
-        emit_json(fit_to_dict(fit, campaign, robot, tool_m), json_out)
+        emit_json(dict(fit_to_dict(fit, campaign, robot, tool_m), warnings=list(warnings)), json_out)
     if plot is not None:
         save_figure_atomic(plot_fit(fit, campaign, robot), plot, dpi=100)
     if json_out != "-":

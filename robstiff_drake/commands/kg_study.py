@@ -7,7 +7,7 @@ model is from the large-deflection equilibrium of the same joint springs."""
 import numpy as np
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.io import emit_json
+from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model import ik
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.robot import load_robot
@@ -24,7 +24,7 @@ def _directions():
 
 def study(robot, *, grid=5, force_N=500.0, payload_kg=150.0):
     """The study's numbers as a dict (see module docstring)."""
-    tool = robot.payload.tool_point_m
+    tool = robot.tool_point(where="kg-study")
     points, qs = ik.workspace_poses(robot, grid, tool)
     if len(qs) == 0:
         raise InputError("kg-study: no pose of the workspace box is reachable")
@@ -66,6 +66,8 @@ def study(robot, *, grid=5, force_N=500.0, payload_kg=150.0):
         "tool_point_mm": (tool * 1e3).tolist(),
         "joint_stiffness_Nm_per_rad": robot.joint_stiffness_Nm_per_rad.tolist(),
         "cases": results,
+        "warnings": ([f"only {len(qs)} of {grid ** 3} grid points are reachable with the spindle down: the study "
+                      "covers part of the box"] if len(qs) < 0.5 * grid ** 3 else []),
     }
 
 
@@ -97,6 +99,7 @@ def run(*, grid=5, force_N=500.0, payload_kg=150.0, json_out=None, robot_yaml=No
         raise InputError(f"kg-study: --grid must be >= 1, got {grid}")
     if not (force_N > 0 and payload_kg > 0):
         raise InputError("kg-study: --force-N and --payload-kg must be > 0")
+    check_outputs(inputs=[robot_yaml], files={"--json": json_out})
     res = study(load_robot(robot_yaml), grid=grid, force_N=force_N, payload_kg=payload_kg)
     if json_out is not None:
         emit_json(res, json_out)

@@ -6,6 +6,7 @@ status 2 (no traceback).
 """
 
 import argparse
+import signal
 import sys
 
 from robstiff_drake.errors import InputError
@@ -24,8 +25,15 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageError(self.prog, message)
 
 
+# Allowed ranges of the vector options (a tool 5 m from the flange is no
+# robot tool; a stiffness outside 1e3-1e9 N*m/rad is no robot joint).
+VECTOR_RANGES = {"--tool": (-5000.0, 5000.0, "mm"), "--com-mm": (-2000.0, 2000.0, "mm"),
+                 "--mount-rpy": (-360.0, 360.0, "deg"), "--stiffness": (1e3, 1e9, "N*m/rad")}
+
+
 def parse_vector(text, n, what):
-    """'X,Y,Z' -> list of n floats, with an error that names the bad part."""
+    """'X,Y,Z' -> list of n floats, with an error that names the bad part
+    (and its allowed range, for the options in VECTOR_RANGES)."""
     parts = [p.strip() for p in str(text).split(",")]
     if len(parts) != n:
         raise InputError(f"{what}: expected {n} comma-separated numbers, got {text!r}")
@@ -37,16 +45,54 @@ def parse_vector(text, n, what):
             raise InputError(f"{what}: component {i + 1} {p!r} is not a number") from None
         if v != v or v in (float("inf"), float("-inf")):
             raise InputError(f"{what}: component {i + 1} {p!r} is not finite")
+        lo, hi, unit = VECTOR_RANGES.get(what, (-float("inf"), float("inf"), ""))
+        if not lo <= v <= hi:
+            raise InputError(f"{what}: component {i + 1} {p!r} is outside the allowed range [{lo:g}, {hi:g}] {unit}")
         values.append(v)
     return values
 
 
-def _add_robot_option(p):
-    p.add_argument("--robot", metavar="YAML", default=None,
-                   help="robot parameter file (default: models/irb6400.yaml)")
+def _number_in(lo, hi, unit="", integer=False):
+    """An argparse type: a finite number (whole, if ``integer``) in [lo, hi],
+    with an error that gives the range (argparse names the option)."""
+    def parse(text):
+        try:
+            v = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a {'whole number' if integer else 'number'}") from None
+        if v != v or not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{text} is outside the allowed range [{lo:g}, {hi:g}]"
+                                             + (f" {unit}" if unit else ""))
+        return v
+    parse.__name__ = "whole number" if integer else "number"
+    return parse
 
 
-def _add_tool_option(p, default_help):
+# Ranges of the numeric options (wide enough for any real use, narrow enough
+# that a typo cannot start a run of hours or allocate more than the machine has).
+FORCE_N = _number_in(1e-3, 1e5, "N")
+SEED = _number_in(0, 2**32 - 1, integer=True)
+NOISE_MM = _number_in(0.0, 10.0, "mm")
+
+
+def parse_tool(text):
+    """--tool 'X,Y,Z' (mm) -> the tool point in metres (numpy), None when not given."""
+    if text is None:
+        return None
+    import numpy as np
+
+    return np.array(parse_vector(text, 3, "--tool")) / 1000.0
+
+
+ROBOT_HELP = "a library robot (see `robstiff robots`) or a robot file (YAML); default: irb6400"
+TOOL_DEFAULT = "the robot file's payload.tool_point_mm"
+
+
+def _add_robot_option(p, help_text=ROBOT_HELP):
+    p.add_argument("--robot", metavar="NAME|YAML", default=None, help=help_text)
+
+
+def _add_tool_option(p, default_help=f"default: {TOOL_DEFAULT}"):
     p.add_argument("--tool", metavar="X,Y,Z", default=None,
                    help="tool point in the flange frame (DH frame 6), mm; "
                         f"{default_help}. Write negative values as --tool=-10,0,350")
@@ -56,7 +102,8 @@ def _add_campaign_command(sub, name, help_text, json_what):
     """A subcommand that reads a stiffness campaign: DATA.csv, --tool, --json, --robot."""
     p = sub.add_parser(name, help=help_text)
     p.add_argument("data", metavar="DATA.csv")
-    _add_tool_option(p, "default: the origin of DH frame 6")
+    _add_tool_option(p, f"default: the file's '# tool_mm:' line, else {TOOL_DEFAULT}; a --tool that disagrees "
+                        "with the file's line is an error")
     p.add_argument("--json", metavar="OUT", help=f"write the {json_what} as JSON ('-' for stdout)")
     _add_robot_option(p)
     return p
@@ -64,33 +111,48 @@ def _add_campaign_command(sub, name, help_text, json_what):
 
 def build_parser():
     parser = _Parser(prog="robstiff", description="Joint-stiffness models and compensation for machining robots.")
+    from robstiff_drake import __version__
+
+    parser.add_argument("--version", action="version", version=f"robstiff-drake {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
+    p = sub.add_parser("robots", help="the robot library: name, manufacturer, kinematic convention, source")
+    p.add_argument("--json", metavar="OUT", help="write the list as JSON ('-' for stdout)")
+
+    p = sub.add_parser("fk", help="forward kinematics: the flange (or --tool point) for six controller angles")
+    p.add_argument("q", nargs="*", metavar="Q", help="six joint angles in degrees (the robot's controller convention)")
+    _add_tool_option(p, "default: none, the flange itself")
+    p.add_argument("--json", metavar="OUT", help="write a JSON object to OUT ('-' for stdout)")
+    _add_robot_option(p)
+
     p = sub.add_parser("stiffness", help="Cartesian compliance and stiffness at one configuration")
-    p.add_argument("q", nargs="*", metavar="Q", help="six joint angles in degrees (controller convention, Table 1)")
-    _add_tool_option(p, "default: the origin of DH frame 6")
+    p.add_argument("q", nargs="*", metavar="Q", help="six joint angles in degrees (the robot's controller convention)")
+    _add_tool_option(p)
     p.add_argument("--kx", action="store_true",
                    help="also print the 6x6 Cartesian stiffness K_x (an error at a singular pose)")
     p.add_argument("--json", metavar="OUT", help="write a JSON object to OUT ('-' for stdout)")
     _add_robot_option(p)
 
     p = sub.add_parser("stiffness-map", help="PNG map of the deflection under a tool force over the workspace")
-    p.add_argument("--out", default="robstiff-out/stiffness_map.png", help="PNG path (default: %(default)s)")
-    p.add_argument("--force-N", type=float, default=500.0, help="force magnitude at the tool (default: %(default)s N)")
-    p.add_argument("--resolution", type=int, default=41, help="grid points per side (default: %(default)s)")
-    _add_tool_option(p, "default: the spindle's tool point from the robot file")
+    p.add_argument("--out", default="stiffness_map.png", help="PNG path (default: %(default)s)")
+    p.add_argument("--force-N", type=FORCE_N, default=500.0, help="force magnitude at the tool (default: %(default)s N)")
+    p.add_argument("--resolution", type=_number_in(5, 301, integer=True), default=41,
+                   help="grid points per side (default: %(default)s)")
+    _add_tool_option(p)
     _add_robot_option(p)
 
     p = sub.add_parser("kg-study", help="how much the CCT term K_g changes the deflection over machining poses")
-    p.add_argument("--grid", type=int, default=5, help="grid points per axis of the workspace box (default: %(default)s)")
-    p.add_argument("--force-N", type=float, default=500.0, help="tool force magnitude (default: %(default)s N)")
-    p.add_argument("--payload-kg", type=float, default=150.0, help="payload mass (default: %(default)s kg)")
+    p.add_argument("--grid", type=_number_in(1, 20, integer=True), default=5, help="grid points per axis of the workspace box (default: %(default)s)")
+    p.add_argument("--force-N", type=FORCE_N, default=500.0, help="tool force magnitude (default: %(default)s N)")
+    p.add_argument("--payload-kg", type=_number_in(1e-3, 2000.0, "kg"), default=150.0, help="payload mass (default: %(default)s kg)")
     p.add_argument("--json", metavar="OUT", help="write the results as JSON ('-' for stdout)")
     _add_robot_option(p)
 
-    p = sub.add_parser("make-urdf", help="regenerate models/irb6400/ (URDF and package.xml) from the YAML")
-    p.add_argument("--check", action="store_true", help="only check that the files on disk are up to date")
+    p = sub.add_parser("make-urdf", help="write a robot's Drake/ROS description (URDF, package.xml) into a folder")
+    p.add_argument("--out", default="robstiff-out/urdf",
+                   help="folder; the files go to OUT/robstiff_NAME/ (default: %(default)s)")
+    p.add_argument("--check", action="store_true", help="only check that the files in OUT are up to date")
     _add_robot_option(p)
 
     p = _add_campaign_command(sub, "identify", "joint stiffness from a stiffness campaign (least squares, Eq. 8)",
@@ -109,13 +171,14 @@ def build_parser():
     kinds = p.add_subparsers(dest="kind", metavar="KIND", parser_class=_Parser)
     kinds.required = True
     s = kinds.add_parser("stiffness", help="a stiffness campaign (poses, loads, CMM displacements)")
-    s.add_argument("out", metavar="OUT.csv")
-    s.add_argument("--n", type=int, default=120, help="measurements (default: %(default)s)")
-    s.add_argument("--loads-per-pose", type=int, default=4, help="(default: %(default)s)")
-    s.add_argument("--force-N", type=float, default=300.0, help="load magnitude (default: %(default)s N)")
-    s.add_argument("--noise-mm", type=float, default=0.01, help="CMM noise sigma (default: %(default)s mm)")
-    s.add_argument("--seed", type=int, default=0)
-    _add_tool_option(s, "default: the origin of DH frame 6")
+    s.add_argument("out", metavar="OUT.csv", help="the campaign file ('-' for stdout)")
+    s.add_argument("--n", type=_number_in(6, 100000, integer=True), default=120,
+                   help="measurements (default: %(default)s)")
+    s.add_argument("--loads-per-pose", type=_number_in(1, 100, integer=True), default=4, help="(default: %(default)s)")
+    s.add_argument("--force-N", type=FORCE_N, default=300.0, help="load magnitude (default: %(default)s N)")
+    s.add_argument("--noise-mm", type=NOISE_MM, default=0.01, help="CMM noise sigma (default: %(default)s mm)")
+    s.add_argument("--seed", type=SEED, default=0)
+    _add_tool_option(s, f"default: {TOOL_DEFAULT}; written into the file's '# tool_mm:' line")
     s.add_argument("--stiffness", metavar="K1,..,K6", help="true joint stiffness, N*m/rad (default: nominal)")
     s.add_argument("--effect", action="append", metavar="NAME[=RMS_MM]",
                    help="switch on an effect the conventional model lacks, sized so that the part of its "
@@ -123,13 +186,13 @@ def build_parser():
                         "repeatable")
     _add_robot_option(s)
     s = kinds.add_parser("payload", help="a payload (gravity) campaign of wrist-sensor readings")
-    s.add_argument("out", metavar="OUT.csv")
-    s.add_argument("--n", type=int, default=15, help="configurations (default: %(default)s, as the seed)")
-    s.add_argument("--mass-kg", type=float, default=None, help="(default: the robot file's payload)")
+    s.add_argument("out", metavar="OUT.csv", help="the campaign file ('-' for stdout)")
+    s.add_argument("--n", type=_number_in(3, 100000, integer=True), default=15, help="configurations (default: %(default)s, as the seed)")
+    s.add_argument("--mass-kg", type=_number_in(1e-3, 2000.0, "kg"), default=None, help="(default: the robot file's payload)")
     s.add_argument("--com-mm", default=None, metavar="X,Y,Z", help="(default: the robot file's payload)")
-    s.add_argument("--noise-N", type=float, default=1.0, help="(default: %(default)s N)")
-    s.add_argument("--noise-Nm", type=float, default=0.1, help="(default: %(default)s N*m)")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--noise-N", type=_number_in(0.0, 1000.0, "N"), default=1.0, help="(default: %(default)s N)")
+    s.add_argument("--noise-Nm", type=_number_in(0.0, 100.0, "N*m"), default=0.1, help="(default: %(default)s N*m)")
+    s.add_argument("--seed", type=SEED, default=0)
     _add_robot_option(s)
 
     p = _add_campaign_command(sub, "diagnose", "which effect the six-spring model lacks explains a campaign's residual",
@@ -140,18 +203,29 @@ def build_parser():
                    help="1-sigma noise of one displacement component (instrument), mm; without it the floor comes "
                         "from replicate rows (same pose and load), or no verdict is given")
 
-    p = sub.add_parser("diagnose-run", help="trace a machining run's residual surface error to its cause, fix, rerun")
-    p.add_argument("run_dir", metavar="RUN_DIR", help="a folder written by `robstiff simulate ... --out RUN_DIR`")
+    p = sub.add_parser("diagnose-run", help="trace a machining run's residual surface error to its cause; write "
+                                            "each candidate fix and decide from verification cuts")
+    p.add_argument("run_dir", metavar="RUN_DIR", help="a run folder (docs/run_files.md): a cell's logs, or "
+                                                      "`robstiff simulate ... --out RUN_DIR`")
+    p.add_argument("--noise-mm", type=_number_in(1e-6, 10.0, "mm"), metavar="SIGMA",
+                   help="the scan's 1-sigma height noise (mm); default: scan.csv's noise_mm, and the estimate "
+                        "from the scan is reported too")
+    p.add_argument("--verify", nargs="+", metavar="CUT_DIR",
+                   help="run folders of verification cuts (one per candidate fix's compensator.yaml): decide "
+                        "from their scans")
     p.add_argument("--json", metavar="OUT", help="write the report as JSON ('-' for stdout)")
-    p.add_argument("--out", metavar="DIR", help="where to write the plot and JSON (default: RUN_DIR/diagnosis)")
+    p.add_argument("--out", metavar="DIR", help="where to write the report, candidate settings and plot "
+                                                "(default: RUN_DIR/diagnosis)")
+    _add_robot_option(p, "the run's robot (default: the one its compensator.yaml names); must agree with it")
 
     p = sub.add_parser("plan-poses", help="a well-conditioned measurement plan for the identification")
-    p.add_argument("n", type=int, metavar="N", help="number of measurements")
-    p.add_argument("--candidates", type=int, default=120, help="candidate poses (default: %(default)s)")
-    p.add_argument("--force-N", type=float, default=300.0, help="(default: %(default)s N)")
-    p.add_argument("--noise-mm", type=float, default=0.01, help="(default: %(default)s mm)")
-    _add_tool_option(p, "default: the origin of DH frame 6")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("n", type=_number_in(6, 500, integer=True), metavar="N", help="number of measurements (6-500)")
+    p.add_argument("--candidates", type=_number_in(2, 1000, integer=True), default=120,
+                   help="candidate poses (default: %(default)s)")
+    p.add_argument("--force-N", type=FORCE_N, default=300.0, help="(default: %(default)s N)")
+    p.add_argument("--noise-mm", type=_number_in(1e-6, 10.0, "mm"), default=0.01, help="(default: %(default)s mm)")
+    _add_tool_option(p, f"default: {TOOL_DEFAULT}; written into the plan's '# tool_mm:' line")
+    p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("--out", metavar="PLAN.csv", help="write the plan (q1..q6, fx, fy, fz per row)")
     p.add_argument("--json", metavar="OUT", help="write the comparison as JSON ('-' for stdout)")
     _add_robot_option(p)
@@ -166,6 +240,14 @@ def build_parser():
                    help="run with, without, or both (default: %(default)s)")
     p.add_argument("--json", metavar="OUT", help="write the summary as JSON ('-' for stdout)")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
+    p.add_argument("--compensator", metavar="SETTINGS.yaml",
+                   help="run the scenario's machine with this compensator (a compensator.yaml, e.g. a candidate "
+                        "fix of diagnose-run): a verification cut")
+    p.add_argument("--noise-seed", type=SEED, metavar="N",
+                   help="seed of the sensor's and the scanner's noise (default: the scenario's); a repeated cut "
+                        "draws new noise")
+    _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
+                         "scenario's `robot:` when it has one")
 
     p = sub.add_parser("sweep", help="sampling-delay study: closed-loop runs over period, delay, cutoff and mode")
     p.add_argument("scenario", metavar="SCENARIO.yaml")
@@ -175,18 +257,30 @@ def build_parser():
     p.add_argument("--mode", default="plain", help="plain and/or predictive (default: %(default)s)")
     p.add_argument("--json", metavar="OUT", help="write all runs as JSON ('-' for stdout)")
     p.add_argument("--plot", metavar="OUT.png", help="error against period, one curve per cutoff and mode")
-    p.add_argument("--workers", type=int, default=None, help="local processes (default: the number of cores)")
+    p.add_argument("--workers", type=_number_in(1, 64, integer=True), default=None, help="local processes (default: the number of cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://127.0.0.1:8786")
-    p.add_argument("--plant-step-ms", type=float, default=None, help="plant step for every run (default: the scenario's)")
+    p.add_argument("--plant-step-ms", type=_number_in(0.05, 20.0, "ms"), default=None, help="plant step for every run (default: the scenario's)")
     p.add_argument("--no-predict", action="store_true", help="skip the linear loop model's predictions")
     p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
+    _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
+                         "scenario's `robot:` when it has one")
 
     p = sub.add_parser("demo", help="the main job: the seed's block-milling test, without and with compensation")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
+    _add_robot_option(p, "run the block test of this library robot (diagrams/block_milling_NAME.yaml) or of a "
+                         "robot file on the IRB6400's block scenario; default: irb6400")
     return parser
 
 
 def _dispatch(args):
+    if args.command == "robots":
+        from robstiff_drake.commands import robots
+
+        return robots.run(json_out=args.json)
+    if args.command == "fk":
+        from robstiff_drake.commands import fk
+
+        return fk.run(q=args.q, tool=args.tool, json_out=args.json, robot_yaml=args.robot)
     if args.command == "stiffness":
         from robstiff_drake.commands import stiffness
 
@@ -204,7 +298,7 @@ def _dispatch(args):
     if args.command == "make-urdf":
         from robstiff_drake.commands import make_urdf
 
-        return make_urdf.run(check=args.check, robot_yaml=args.robot)
+        return make_urdf.run(check=args.check, out=args.out, robot_yaml=args.robot)
     if args.command == "identify":
         from robstiff_drake.commands import identify
 
@@ -232,7 +326,8 @@ def _dispatch(args):
     if args.command == "diagnose-run":
         from robstiff_drake.commands import diagnose_run
 
-        return diagnose_run.run(run_dir=args.run_dir, json_out=args.json, out=args.out)
+        return diagnose_run.run(run_dir=args.run_dir, json_out=args.json, out=args.out, noise_mm=args.noise_mm,
+                                verify=args.verify, robot_yaml=args.robot)
     if args.command == "plan-poses":
         from robstiff_drake.commands import plan_poses
 
@@ -247,22 +342,36 @@ def _dispatch(args):
         from robstiff_drake.commands import simulate
 
         return simulate.run(scenario=args.scenario, compensation=args.compensation, json_out=args.json,
-                            out=args.out)
+                            out=args.out, compensator=args.compensator, noise_seed=args.noise_seed,
+                            robot_yaml=args.robot)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep
 
         return sweep.run(scenario=args.scenario, periods=args.period_ms, delays=args.delay_steps,
                          cutoffs=args.cutoff_hz, modes=args.mode, json_out=args.json, plot_out=args.plot,
                          workers=args.workers, scheduler=args.scheduler, plant_step_ms=args.plant_step_ms,
-                         predict=not args.no_predict, progress=args.progress)
+                         predict=not args.no_predict, progress=args.progress, robot_yaml=args.robot)
     if args.command == "demo":
         from robstiff_drake.commands import demo
 
-        return demo.run(out=args.out)
+        return demo.run(out=args.out, robot_yaml=args.robot)
     raise AssertionError(args.command)
 
 
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread so that every cleanup runs (a
+    temporary file or folder removed, a worker pool stopped)."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
 def main(argv=None):
+    try:
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (e.g. called from a worker): leave signals alone
+        previous = None
     try:
         args = build_parser().parse_args(argv)
         return _dispatch(args) or 0
@@ -278,6 +387,15 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("robstiff: interrupted", file=sys.stderr)
         return 130
+    except Terminated:
+        print("robstiff: terminated", file=sys.stderr)
+        return 143
+    except MemoryError:
+        print("robstiff: error: out of memory", file=sys.stderr)
+        return 2
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

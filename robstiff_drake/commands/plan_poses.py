@@ -3,19 +3,23 @@ stiffness identification, compared with random poses of the same size."""
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_vector
+from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.identification.campaign import tool_header_line
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.pose_planning import plan_poses
 from robstiff_drake.identification.synth import command_line
-from robstiff_drake.io import emit_json, write_atomic
+from robstiff_drake.io import check_outputs, emit_json, write_atomic
 from robstiff_drake.model.robot import load_robot
 
 
-def plan_csv(plan, *, force_N, noise_mm, tool_m):
+def plan_csv(plan, *, robot, force_N, noise_mm, tool_m):
     lines = [
         "# Measurement plan made by robstiff-drake (robstiff plan-poses; D-optimal over candidate poses x 26 load",
         f"# directions). Made with: {command_line()}",
+        f"# Robot: {robot.name} ({robot.source}); q1..q6 in its controller's convention (deg).",
         f"# Tool point {np.round(np.asarray(tool_m) * 1e3, 3).tolist()} mm in the flange frame; loads {force_N:g} N.",
+        "# The tool point the displacements must be measured at (identify and diagnose read this line):",
+        tool_header_line(tool_m),
         "# Measure dx,dy,dz (mm, base frame, loaded minus unloaded) for each row, add the three columns, and",
         "# run `robstiff identify` on the file.",
         f"# Predicted relative standard error of each joint's stiffness at {noise_mm:g} mm CMM noise: "
@@ -25,7 +29,7 @@ def plan_csv(plan, *, force_N, noise_mm, tool_m):
     ids = {p: i + 1 for i, p in enumerate(dict.fromkeys(plan.pose_index.tolist()))}
     order = np.argsort([ids[p] for p in plan.pose_index], kind="stable")
     for seq, i in enumerate(order, start=1):
-        q = np.rad2deg(plan.q_rad[i])
+        q = robot.controller_deg(plan.q_rad[i])
         f = plan.force_N[i] + 0.0
         lines.append(f"P{ids[plan.pose_index[i]]:03d},{seq}," + ",".join(f"{v:.4f}" for v in q) + ","
                      + ",".join(f"{v:.2f}" for v in f))
@@ -40,18 +44,22 @@ def run(*, n, candidates=120, force_N=300.0, noise_mm=0.01, tool=None, seed=0, o
         raise InputError(f"plan-poses: --candidates must be at least 2, got {candidates}")
     if not (force_N > 0 and noise_mm > 0):
         raise InputError("plan-poses: --force-N and --noise-mm must be > 0")
+    check_outputs(inputs=[robot_yaml], files={"--out": out, "--json": json_out})
     robot = load_robot(robot_yaml)
-    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    tool_m = robot.tool_point(parse_tool(tool), where="plan-poses")
     plan = plan_poses(robot, n, n_candidate_poses=candidates, force_N=force_N, noise_mm=noise_mm, tool_m=tool_m,
                       seed=seed)
     if out is not None:
-        write_atomic(out, plan_csv(plan, force_N=force_N, noise_mm=noise_mm, tool_m=tool_m))
+        write_atomic(out, plan_csv(plan, robot=robot, force_N=force_N, noise_mm=noise_mm, tool_m=tool_m))
     res = {
         "n": n, "n_poses": int(len(set(plan.pose_index.tolist()))), "force_N": force_N, "noise_mm": noise_mm,
         "tool_mm": tool_m * 1e3, "identifiable": plan.identifiable.tolist(),
         "rel_std_planned": [None if np.isnan(v) else float(v) for v in plan.rel_std_planned],
         "rel_std_random_median": [None if np.isnan(v) else float(v) for v in plan.rel_std_random],
         "d_efficiency_gain": float(np.exp((plan.logdet_planned - plan.logdet_random) / plan.identifiable.sum())),
+        "warnings": [f"joint {j + 1} is not identifiable with this tool point (the loads give it no torque); "
+                     "use a tool point off the flange axis or apply moments" for j in range(6)
+                     if not plan.identifiable[j]],
     }
     if json_out is not None:
         emit_json(res, json_out)

@@ -1,6 +1,14 @@
 """``robstiff simulate SCENARIO.yaml``: the closed-loop milling simulation,
 without and/or with compensation; surface-error plot (like the seed's Fig. 7),
-the diagram (Graphviz), CSV time series and a JSON summary."""
+the diagram (Graphviz), CSV time series and a JSON summary.
+
+The run folder (``--out``) holds the compensated cut as a cell records it
+(wrench_log.csv, joint_log.csv, compensator.yaml, scan.csv: the formats of
+docs/run_files.md, written by identification/run_files.py) and the
+simulation's own files, named ``sim_*`` (the scenario with its plant, the
+actual tool path, the true surface): the truth that ``robstiff
+diagnose-run`` never reads.  ``--compensator SETTINGS.yaml`` runs the
+scenario's machine with another compensator (a verification cut)."""
 
 import csv
 import io
@@ -10,12 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
+from robstiff_drake.diagrams.cell_record import cell_files, scenario_with_compensator
 from robstiff_drake.diagrams.experiment import run_cut
-from robstiff_drake.diagrams.scenario import load_scenario
+from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, run_warnings
+from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
 from robstiff_drake.errors import InputError
-from robstiff_drake.io import emit_json, save_figure_atomic, write_atomic
+from robstiff_drake.identification.run_files import SIM_PREFIX, read_settings
+from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.model.robot import load_robot
 
 MODES = {"on": (True,), "off": (False,), "both": (False, True)}
 
@@ -24,7 +34,7 @@ def label(compensation):
     return "compensated" if compensation else "uncompensated"
 
 
-def timeseries_csv(res, robot):
+def timeseries_csv(res, robot, run_id=""):
     """Controller-rate time series: raw and filtered wrench (sensor frame),
     estimated tool wrench, dq, correction, actual and commanded tool point."""
     t, filt = res.logs["filtered_wrench"]
@@ -48,8 +58,9 @@ def timeseries_csv(res, robot):
     q_ref = np.column_stack([np.interp(t, res.cell.q_ref_times, res.cell.q_ref[:, j]) for j in range(6)])
     corr = res.logs["correction"][1][: len(t)] if res.compensation else 0.0
     q_cmd = q_ref + corr
+    q_cmd_deg = robot.controller_deg(q_cmd)  # the controller's convention
     for j in range(6):
-        cols[f"q{j + 1}_deg"] = np.rad2deg(q_cmd[:, j])
+        cols[f"q{j + 1}_deg"] = q_cmd_deg[:, j]
     T = kin.frames(robot.dh, q)[:, 6]
     p = T[:, :3, 3] + T[:, :3, :3] @ res.cell.tool_m
     p_cmd = res.cell.path.positions(t)
@@ -58,6 +69,7 @@ def timeseries_csv(res, robot):
     for j, ax in enumerate("xyz"):
         cols[f"commanded_{ax}_mm"] = p_cmd[:, j] * 1e3
     buf = io.StringIO()
+    buf.write(f"# run_id: {run_id}\n")
     buf.write(f"# robstiff simulate: {res.cell.scenario.source}, {label(res.compensation)}; sampled every controller "
               "period. Wrenches: raw/filtered in the sensor frame (what the payload exerts on the sensor), "
               "tool_wrench = the gravity-free estimate at the tool point in the base frame. q*_deg: the joint "
@@ -92,21 +104,22 @@ def plot_surfaces(results, sc):
     return fig
 
 
-def write_diagram(cell, out):
+def write_diagram(cell, run):
     """diagram.dot always; diagram.svg too when Graphviz's `dot` is installed."""
     dot_text = cell.diagram.GetGraphvizString(max_depth=1)
-    write_atomic(out / "diagram.dot", dot_text)
+    run.write("diagram.dot", dot_text)
     if shutil.which("dot") is None:
         return ["diagram.dot (install Graphviz for diagram.svg)"]
     svg = subprocess.run(["dot", "-Tsvg"], input=dot_text.encode(), capture_output=True, check=False)
     if svg.returncode == 0:
-        write_atomic(out / "diagram.svg", svg.stdout)
+        run.write("diagram.svg", svg.stdout)
         return ["diagram.dot", "diagram.svg"]
     return ["diagram.dot (dot failed to render the SVG)"]
 
 
-def summary(results, sc):
-    out = {"scenario": sc.source, "name": sc.name, "surface_error_mm": {}}
+def summary(results, sc, warnings=()):
+    out = {"scenario": sc.source, "name": sc.name, "robot": results[0].cell.robot.name, "surface_error_mm": {},
+           "warnings": list(warnings)}
     res0 = results[0]
     for res in results:
         out["surface_error_mm"][label(res.compensation)] = res.surface_error_mm
@@ -115,13 +128,19 @@ def summary(results, sc):
     out["realtime_factor"] = out["sim_seconds"] / out["wall_seconds"]
     out["runs"] = [{"compensation": r.compensation, "sim_seconds": r.sim_seconds, "wall_seconds": r.wall_seconds,
                     "realtime_factor": r.realtime_factor,
-                    "rejected_sensor_samples": int(r.logs["rejected"][1][-1, 0])} for r in results]
+                    "rejected_sensor_samples": int(r.logs["rejected"][1][-1, 0]), "spindle": r.spindle}
+                   for r in results]
+    out["spindle_power_W"] = max(r.spindle["power_W_max"] for r in results)
+    out["spindle_rating_W"] = sc.cutter.spindle_rating_W
     cw = res0.logs["cutting_wrench"][1]
     mid = cw[len(cw) // 2]
     out["cutting_wrench_at_mid_pass"] = {"force_N": mid[:3], "moment_Nm": mid[3:]}
     out["natural_frequencies_hz"] = res0.cell.natural_frequencies_hz
     out["plant_time_step_s"] = res0.cell.plant_time_step_s
     out["transport_delay_s"] = res0.cell.transport_delay_s
+    errs = out["surface_error_mm"]
+    out["compensation_made_it_worse"] = (bool(errs["compensated"]["rms"] > WORSE_FACTOR * errs["uncompensated"]["rms"])
+                                         if len(errs) == 2 else None)
     return out
 
 
@@ -131,7 +150,8 @@ def format_table(summ):
     for name, s in summ["surface_error_mm"].items():
         lines.append(f"  {name:14s} {s['mean']:+7.3f}  {s['rms']:7.3f}  {s['max_abs']:7.3f}  {s['pv']:7.3f}")
     f = summ["cutting_wrench_at_mid_pass"]["force_N"]
-    lines.append(f"cutting force at mid-pass (N, base frame): ({f[0]:.0f}, {f[1]:.0f}, {f[2]:.0f})")
+    lines.append(f"cutting force at mid-pass (N, base frame): ({f[0]:.0f}, {f[1]:.0f}, {f[2]:.0f}); spindle power up "
+                 f"to {summ['spindle_power_W'] / 1e3:.2f} kW (rating {summ['spindle_rating_W'] / 1e3:.2f} kW)")
     lines.append("first natural frequencies at the start pose (Hz): "
                  + ", ".join(f"{v:.1f}" for v in summ["natural_frequencies_hz"]))
     lines.append(f"simulated {summ['sim_seconds']:.2f} s in {summ['wall_seconds']:.2f} s wall "
@@ -139,19 +159,44 @@ def format_table(summ):
     return "\n".join(lines)
 
 
-def simulate(*, scenario, compensation="both", robot=None):
-    """Load and run; returns (scenario, results)."""
+def load_for_run(scenario, robot, *, compensator=None, noise_seed=None):
+    """The scenario to simulate: from its file, with the compensator of a
+    settings file (``compensator``) and the sensor's and scanner's noise
+    seeds set to ``noise_seed`` (a repeated cut: new noise) when given."""
+    sc = load_scenario(scenario)
+    if compensator is not None:
+        _, settings = read_settings(compensator)
+        sc = scenario_with_compensator(sc, settings, robot)
+    if noise_seed is not None:
+        sc.sensor.seed = sc.scan.seed = int(noise_seed)
+    return sc
+
+
+def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None, compensator=None,
+             noise_seed=None):
+    """Load and run; returns (scenario, results).  The robot: ``robot`` (a
+    RobotModel), else --robot's ``robot_yaml``, else the scenario's own.
+    Warnings about the settings and the result go to ``warnings`` (an
+    io.Warnings) if given.  ``compensator``, ``noise_seed``: see load_for_run."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
-    sc = load_scenario(scenario)
-    robot = robot or load_robot()
-    return sc, [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
+    robot = robot or scenario_robot(load_scenario(scenario), robot_yaml)
+    sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed)
+    if warnings is not None:
+        warnings.extend_from(scenario_warnings(sc, robot))
+    results = [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
+    if warnings is not None:
+        warnings.extend_from(run_warnings(results, sc))
+    return sc, results
 
 
-def surface_csv(res):
-    """The laser scans of one run: x, y, commanded and machined height, error (mm)."""
+def surface_csv(res, run_id=""):
+    """The true machined surface of one run (the simulation's truth, without
+    the scanner's noise): x, y, commanded and machined height, error (mm)."""
     buf = io.StringIO()
-    buf.write(f"# robstiff simulate: machined surface, {label(res.compensation)}; error = commanded - machined "
+    buf.write(f"# run_id: {run_id}\n")
+    buf.write(f"# robstiff simulate: the true machined surface (simulation only; scan.csv is what the scanner "
+              f"measures), {label(res.compensation)}; error = commanded - machined "
               "(positive: cut more); empty where there is no machined face.\n")
     buf.write("x_mm,y_mm,commanded_mm,machined_mm,error_mm\n")
     for line in res.scans:
@@ -161,48 +206,66 @@ def surface_csv(res):
     return buf.getvalue()
 
 
-def save_scenario(sc, path):
-    """The scenario as run, with its file references made absolute."""
+def scenario_text(sc, run_id=""):
+    """The scenario as run (YAML), with its file references made absolute."""
     import copy
 
     from pydrake.common.yaml import yaml_dump_typed
 
-    from robstiff_drake.diagrams.scenario import Scenario, resolve
+    from robstiff_drake.diagrams.scenario import Scenario, resolve, robot_spec
 
     sc = copy.deepcopy(sc)
     for attr in ("identified_json", "payload_yaml"):
         if getattr(sc.model, attr):
             setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
+    spec = robot_spec(sc)
+    if spec is not None and spec != sc.robot:  # a robot file: make its path absolute
+        sc.robot = str(Path(spec).resolve())
     source, sc.source = sc.source, ""
-    write_atomic(path, f"# the scenario of this run (from {source})\n" + yaml_dump_typed(sc, schema=Scenario))
+    body = "".join(line for line in yaml_dump_typed(sc, schema=Scenario).splitlines(keepends=True)
+                   if not line.startswith("source:"))  # set by the loader, not a key of the file
+    return (f"# run_id: {run_id}\n# the scenario of this run (from {source}), with its plant: the simulation's "
+            "truth, which diagnose-run never reads\n" + body)
 
 
-def write_outputs(sc, results, robot, out):
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+def write_outputs(sc, results, robot, run, warnings=()):
+    """Every file of a run into ``run`` (an io.RunFolder), each stamped with
+    its run id; returns the names written.  The compensated cut's cell files
+    (docs/run_files.md) and the simulation's truth (``sim_*``)."""
     written = []
-    save_scenario(sc, out / "scenario.yaml")
-    written.append("scenario.yaml")
-    save_figure_atomic(plot_surfaces(results, sc), out / "surface_error.png", dpi=110)
-    written.append("surface_error.png")
-    written += write_diagram(results[-1].cell, out)
     for res in results:
-        name = f"timeseries_{label(res.compensation)}.csv"
-        write_atomic(out / name, timeseries_csv(res, robot))
+        if res.compensation:
+            for name, text in cell_files(sc, res, robot, run.run_id).items():
+                run.write(name, text)
+                written.append(name)
+    run.write(f"{SIM_PREFIX}scenario.yaml", scenario_text(sc, run.run_id))
+    written.append(f"{SIM_PREFIX}scenario.yaml")
+    run.save_figure("surface_error.png", plot_surfaces(results, sc), dpi=110)
+    written.append("surface_error.png")
+    written += write_diagram(results[-1].cell, run)
+    for res in results:
+        name = f"{SIM_PREFIX}timeseries_{label(res.compensation)}.csv"
+        run.write(name, timeseries_csv(res, robot, run.run_id))
         written.append(name)
-        name = f"surface_{label(res.compensation)}.csv"
-        write_atomic(out / name, surface_csv(res))
+        name = f"{SIM_PREFIX}surface_{label(res.compensation)}.csv"
+        run.write(name, surface_csv(res, run.run_id))
         written.append(name)
-    emit_json(summary(results, sc), out / "summary.json")
+    run.write("summary.json", json_text(dict(summary(results, sc, warnings), run_id=run.run_id)))
     written.append("summary.json")
     return written
 
 
-def run(*, scenario, compensation="both", json_out=None, out="robstiff-out"):
-    robot = load_robot()
-    sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot)
-    summ = summary(results, sc)
-    written = write_outputs(sc, results, robot, out)
+def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None,
+        robot_yaml=None):
+    check_outputs(inputs=[scenario, compensator], files={"--json": json_out}, folders={"--out": out})
+    robot = scenario_robot(load_scenario(scenario), robot_yaml)
+    warnings = Warnings()
+    sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
+                           compensator=compensator, noise_seed=noise_seed)
+    summ = summary(results, sc, warnings)
+    with RunFolder(out) as run_folder:
+        written = write_outputs(sc, results, robot, run_folder, warnings)
+    summ["run_id"] = run_folder.run_id
     summ["outputs"] = [str(Path(out) / w.split(" ")[0]) for w in written]
     if json_out is not None:
         emit_json(summ, json_out)

@@ -1,26 +1,30 @@
 """``robstiff stiffness Q1..Q6``: tool position, Cartesian translational
-compliance (um/N) and stiffness (N/um) with principal directions."""
+compliance (um/N) and stiffness (N/um) with principal directions.
+
+Q1..Q6 are the controller's angles (deg); the Jacobian and the joint
+stiffness refer to the model's joints (the physical joints of the serial
+chain, whose springs the robot file gives)."""
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_vector
+from robstiff_drake.commands.main import parse_tool
 from robstiff_drake.errors import InputError, SingularPoseError
-from robstiff_drake.io import emit_json
+from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.robot import load_robot
 
 
-def parse_q_deg(values):
+def parse_q_deg(values, what="stiffness"):
     """Six command-line strings -> floats, with errors naming the value."""
     if len(values) != 6:
-        raise InputError(f"stiffness: expected 6 joint angles Q1..Q6 in degrees, got {len(values)}")
+        raise InputError(f"{what}: expected 6 joint angles Q1..Q6 in degrees, got {len(values)}")
     q = []
     for i, v in enumerate(values):
         try:
             q.append(float(v))
         except ValueError:
-            raise InputError(f"stiffness: q{i + 1} = {v!r} is not a number (degrees)") from None
+            raise InputError(f"{what}: q{i + 1} = {v!r} is not a number (degrees)") from None
     return q
 
 
@@ -28,7 +32,7 @@ def pose_report(robot, q_deg, tool_m):
     """Everything the table and the JSON show for one configuration.
 
     ``q_deg`` (controller convention, deg) must already be checked."""
-    q = np.deg2rad(np.asarray(q_deg, dtype=float))
+    q = robot.joint_rad(q_deg)
     k = robot.joint_stiffness_Nm_per_rad
     J = kin.jacobian(robot.dh, q, tool_m)
     C3 = st.translational_compliance(J, k)  # m/N
@@ -38,7 +42,9 @@ def pose_report(robot, q_deg, tool_m):
     K3 = np.linalg.inv(C3) * 1e-6 if w[0] > 1e-15 * max(w[-1], 1e-300) else None
     joints = st.singular_joints(J)
     return {
+        "robot": robot.name,
         "q_deg": list(map(float, q_deg)),
+        "q_model_deg": np.rad2deg(q).tolist(),
         "tool_mm": (np.asarray(tool_m) * 1e3).tolist(),
         "position_mm": (kin.tool_position(robot.dh, q, tool_m) * 1e3).tolist(),
         "jacobian": J.tolist(),
@@ -49,6 +55,8 @@ def pose_report(robot, q_deg, tool_m):
         "stiffness_N_per_um": None if K3 is None else K3.tolist(),
         "stiffness_N_per_um_principal": [None if not np.isfinite(s) else float(s) for s in stiff_eig_N_per_um],
         "singular_joints": list(joints),
+        "warnings": ([f"singular pose ({st.describe_singularity(joints)}): the stiffness along the lost direction "
+                      "is unbounded and K_x does not exist"] if joints else []),
     }
 
 
@@ -90,10 +98,11 @@ def format_report(rep, robot):
 
 
 def run(*, q, tool=None, kx=False, json_out=None, robot_yaml=None):
+    check_outputs(inputs=[robot_yaml], files={"--json": json_out})
     robot = load_robot(robot_yaml)
     q_deg = parse_q_deg(q)
     robot.check_q_deg(q_deg, where="stiffness")
-    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    tool_m = robot.tool_point(parse_tool(tool), where="stiffness")
     rep = pose_report(robot, q_deg, tool_m)
     if kx:
         J = np.asarray(rep["jacobian"])

@@ -6,9 +6,9 @@ and along z (the direction that a face-milling surface error takes)."""
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_vector
+from robstiff_drake.commands.main import parse_tool
 from robstiff_drake.errors import InputError
-from robstiff_drake.io import save_figure_atomic
+from robstiff_drake.io import check_outputs, save_figure_atomic
 from robstiff_drake.model import ik
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
@@ -27,8 +27,7 @@ def deflection_grid(robot, xs_m, ys_m, zs_m, tool_m, force_N):
     for i in range(grid.shape[0]):
         for j in range(grid.shape[1]):
             try:
-                q = ik.solve_ik(robot.dh, ik.tool_down_pose(grid[i, j]), tool_m, q_ref_rad=q_ref,
-                                q_lower_rad=robot.q_lower_rad, q_upper_rad=robot.q_upper_rad)
+                q = ik.solve_for(robot, ik.tool_down_pose(grid[i, j]), tool_m, q_ref_rad=q_ref)
             except ik.IKError:
                 continue
             q_ref = q
@@ -46,9 +45,13 @@ def make_map(robot, *, tool_m, force_N=500.0, resolution=41):
 
     ws = robot.workspace
     z_ref = ws.reference_tool_point_m[2]
-    xs = np.linspace(0.6, 2.7, resolution)
-    ys = np.linspace(-1.6, 1.6, resolution)
-    zs = np.linspace(0.0, 2.2, resolution)
+    # the views span 2.7 m in x (the IRB6400's reach), more for a longer arm
+    dh = robot.dh
+    reach_m = abs(dh.a_m[0]) + abs(dh.a_m[1]) + np.hypot(dh.a_m[2], dh.d_m[3]) + abs(dh.d_m[5])
+    scale = max(1.0, reach_m / 2.7)
+    xs = np.linspace(0.6, 2.7 * scale, resolution)
+    ys = np.linspace(-1.6 * scale, 1.6 * scale, resolution)
+    zs = np.linspace(0.0, 2.2 * scale, resolution)
     top = deflection_grid(robot, xs, ys, [z_ref], tool_m, force_N)
     side = deflection_grid(robot, xs, [0.0], zs, tool_m, force_N)
     finite = np.concatenate([a[np.isfinite(a)] for a in (*top, *side)])
@@ -84,8 +87,9 @@ def run(*, out, force_N=500.0, resolution=41, tool=None, robot_yaml=None):
         raise InputError(f"stiffness-map: --resolution must be between 5 and 301, got {resolution}")
     if not str(out).lower().endswith(".png"):
         raise InputError(f"stiffness-map: --out must name a .png file, got {out!r}")
+    check_outputs(inputs=[robot_yaml], files={"--out": out})
     robot = load_robot(robot_yaml)
-    tool_m = robot.payload.tool_point_m if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    tool_m = robot.tool_point(parse_tool(tool), where="stiffness-map")
     fig, data = make_map(robot, tool_m=tool_m, force_N=force_N, resolution=resolution)
     save_figure_atomic(fig, out, dpi=110)
     worst = np.concatenate([data["top_view"][0].ravel(), data["side_view"][0].ravel()])

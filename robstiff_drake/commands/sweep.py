@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.diagrams.milling_cell import check_plant_step
-from robstiff_drake.diagrams.scenario import load_scenario
+from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 from robstiff_drake.diagrams.sweep import check_combinations, combinations, run_sweep
 from robstiff_drake.errors import InputError
-from robstiff_drake.io import emit_json, save_figure_atomic
-from robstiff_drake.model.robot import load_robot
+from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic
+from robstiff_drake.paths import library_robots
 
 
 def parse_list(text, what, kind=float):
@@ -80,7 +80,8 @@ def _metric(stats, metric):
 
 
 def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=None, plot_out=None, workers=None,
-        scheduler=None, plant_step_ms=None, predict=True, progress=None):
+        scheduler=None, plant_step_ms=None, predict=True, progress=None, robot_yaml=None):
+    check_outputs(inputs=[scenario], files={"--json": json_out, "--plot": plot_out})
     periods_ms = parse_list(periods, "--period-ms")
     delay_steps = parse_list(delays, "--delay-steps", int)
     if any(d < 0 for d in delay_steps):
@@ -95,13 +96,21 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
         raise InputError(f"sweep: --plant-step-ms must be > 0, got {plant_step_ms}")
     sc = load_scenario(scenario)
     if plant_step_ms:
-        sc.plant.time_step_ms = plant_step_ms
+        sc.plant_config.time_step = plant_step_ms / 1e3
     combos = combinations(periods_ms, delay_steps, cutoffs_hz, mode_list)
-    check_combinations(sc, combos)
-    check_plant_step(sc, load_robot())
+    check_combinations(sc, combos, plant_step_ms)
+    robot = scenario_robot(sc, robot_yaml)
+    check_plant_step(sc, robot)
+    spec = None if robot_yaml is None else str(robot_yaml if robot_yaml in library_robots() else
+                                                Path(robot_yaml).resolve())
     rows = run_sweep(Path(scenario), combos, workers=workers, scheduler=scheduler, plant_step_ms=plant_step_ms,
-                     progress=progress, predict=predict)
-    result = {"scenario": str(scenario), "n_runs": len(rows), "complete": True, "runs": rows}
+                     progress=progress, predict=predict, robot_spec=spec)
+    warnings = Warnings()
+    failed = [r for r in rows if "error" in r]
+    if failed:
+        warnings.add(f"{len(failed)} of {len(rows)} runs failed (see their 'error'); the first: {failed[0]['error']}")
+    result = {"scenario": str(scenario), "robot": robot.name, "n_runs": len(rows), "n_failed": len(failed),
+              "complete": not failed, "runs": rows, "warnings": list(warnings)}
     if json_out is not None:
         emit_json(result, json_out)
     if plot_out is not None:

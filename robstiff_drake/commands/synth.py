@@ -1,16 +1,23 @@
 """``robstiff synth stiffness|payload OUT.csv``: virtual measurement
 campaigns from the model (see identification/synth.py)."""
 
+import sys
+
 import numpy as np
 
-from robstiff_drake.commands.main import parse_vector
+from robstiff_drake.commands.main import parse_tool, parse_vector
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification import synth
-from robstiff_drake.io import write_atomic
+from robstiff_drake.io import STDOUT, check_outputs, write_atomic
 from robstiff_drake.model.effects import EFFECTS
 from robstiff_drake.model.robot import load_robot
 
 DEFAULT_EFFECT_RMS_MM = 0.04
+
+
+def _info(out):
+    """Where the one-line summary goes: stderr when the CSV goes to stdout."""
+    return sys.stderr if str(out) == STDOUT else sys.stdout
 
 
 def parse_effects(items):
@@ -36,15 +43,24 @@ def _positive(name, value, integer=False):
         raise InputError(f"synth: {name} must be a positive {'integer' if integer else 'number'}, got {value}")
 
 
+def _write(out, text):
+    if str(out) == STDOUT:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    else:
+        write_atomic(out, text)
+
+
 def run_stiffness(*, out, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01, seed=0, tool=None,
                   effects=None, stiffness=None, robot_yaml=None):
+    check_outputs(inputs=[robot_yaml], files={"OUT.csv": out})
     robot = load_robot(robot_yaml)
     _positive("--n", n, True)
     _positive("--loads-per-pose", loads_per_pose, True)
     _positive("--force-N", force_N)
     if not noise_mm >= 0:
         raise InputError(f"synth: --noise-mm must be >= 0, got {noise_mm}")
-    tool_m = np.zeros(3) if tool is None else np.array(parse_vector(tool, 3, "--tool")) / 1000.0
+    tool_m = robot.tool_point(parse_tool(tool), where="synth stiffness")
     k = None
     if stiffness is not None:
         k = np.array(parse_vector(stiffness, 6, "--stiffness"))
@@ -56,15 +72,16 @@ def run_stiffness(*, out, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01,
                                      true_stiffness_Nm_per_rad=k)
     except ValueError as e:
         raise InputError(f"synth: {e}") from None
-    write_atomic(out, synth.stiffness_csv(c, robot=robot, noise_mm=noise_mm, seed=seed, force_N=force_N,
+    _write(out, synth.stiffness_csv(c, robot=robot, noise_mm=noise_mm, seed=seed, force_N=force_N,
                                           tool_m=tool_m))
     extra = "".join(f", {k_} RMS {raw:.4f} mm ({vis:.4f} mm beyond the six-spring model)"
                     for k_, (raw, vis) in c.effect_rms_mm.items())
-    print(f"wrote {out}: {n} measurements at {len(set(c.pose))} poses{extra}")
+    print(f"wrote {out}: {n} measurements at {len(set(c.pose))} poses{extra}", file=_info(out))
     return 0
 
 
 def run_payload(*, out, n=15, mass_kg=None, com=None, noise_N=1.0, noise_Nm=0.1, seed=0, robot_yaml=None):
+    check_outputs(inputs=[robot_yaml], files={"OUT.csv": out})
     robot = load_robot(robot_yaml)
     _positive("--n", n, True)
     if mass_kg is not None:
@@ -72,6 +89,6 @@ def run_payload(*, out, n=15, mass_kg=None, com=None, noise_N=1.0, noise_Nm=0.1,
     com_m = None if com is None else np.array(parse_vector(com, 3, "--com-mm")) / 1000.0
     c = synth.payload_campaign(robot, n=n, mass_kg=mass_kg, com_m=com_m, noise_N=noise_N, noise_Nm=noise_Nm,
                                seed=seed)
-    write_atomic(out, synth.payload_csv(c, noise_N=noise_N, noise_Nm=noise_Nm, seed=seed))
-    print(f"wrote {out}: {n} configurations, payload {c.mass_kg:g} kg")
+    _write(out, synth.payload_csv(c, noise_N=noise_N, noise_Nm=noise_Nm, seed=seed))
+    print(f"wrote {out}: {n} configurations, payload {c.mass_kg:g} kg", file=_info(out))
     return 0

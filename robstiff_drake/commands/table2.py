@@ -18,10 +18,10 @@ import numpy as np
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.campaign import D_COLS, F_COLS, read_table
 from robstiff_drake.identification.linearity import analyse_group, cartesian_diagnosis, pooled_offset
-from robstiff_drake.io import emit_json, save_figure_atomic
-from robstiff_drake.paths import REPO_ROOT
+from robstiff_drake.io import check_outputs, emit_json, save_figure_atomic
+from robstiff_drake.paths import DATA_DIR
 
-TABLE2_CSV = REPO_ROOT / "data" / "seed_table2.csv"
+TABLE2_CSV = DATA_DIR / "seed_table2.csv"
 GROUPS = {"A": [1, 2, 3, 4, 5, 6, 17], "B": [7, 8, 9, 10, 11, 12], "C": [13, 14], "D": [15, 16]}
 SPLIT_A = {"A1": [1, 2, 3], "A2": [4, 5, 6, 17]}
 
@@ -138,12 +138,13 @@ def plot(results, F, D, rows):
 
 
 def run(*, json_out=None, plot_out=None, data=None):
+    check_outputs(inputs=[data or TABLE2_CSV], files={"--json": json_out, "--plot": plot_out})
     results, F, D, rows = analyse(data or TABLE2_CSV)
     pooled = along_load(results, F, D, rows)
     diag = diagnosis(results, F, D, rows)
     if json_out is not None:
         emit_json({"data": str(data or TABLE2_CSV), "groups": to_dict(results), "offset_along_load": pooled,
-                   "diagnosis": diag}, json_out)
+                   "diagnosis": diag, "warnings": []}, json_out)
     if plot_out is not None:
         save_figure_atomic(plot(results, F, D, rows), plot_out, dpi=100)
     if json_out != "-":

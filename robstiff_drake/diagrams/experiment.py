@@ -8,6 +8,7 @@ import numpy as np
 
 from robstiff_drake.diagrams.milling_cell import build_milling_cell, make_simulator, tool_wrench_log
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.spindle import spindle_power_W, spindle_torque_Nm
 from robstiff_drake.model.surface import envelope_heights, surface_error_stats
 
 # How long after the path ends the simulation goes on (s): lets the last
@@ -20,12 +21,18 @@ class ScanLine:
     y_m: float
     x_m: np.ndarray
     commanded_m: np.ndarray  # NaN where there is no machined face (gaps)
-    machined_m: np.ndarray
+    machined_m: np.ndarray  # the true machined surface (the simulation's truth)
+    measured_m: np.ndarray = None  # what the scanner reads: machined + its noise (scan.noise_mm)
 
     @property
     def error_m(self):
         """Surface error, positive where more was removed than commanded."""
         return self.commanded_m - self.machined_m
+
+    @property
+    def measured_error_m(self):
+        """The surface error as the scan measures it (with the scanner's noise)."""
+        return self.commanded_m - (self.machined_m if self.measured_m is None else self.measured_m)
 
 
 @dataclass
@@ -37,6 +44,7 @@ class RunResult:
     sim_seconds: float
     wall_seconds: float
     cell: object = None
+    spindle: dict = None  # power_W_max, power_W_mean (while cutting), torque_Nm_max
 
     @property
     def realtime_factor(self):
@@ -59,8 +67,17 @@ def scan_lines(cell):
     return sorted({float(np.mean(yr)) for yr in cell.workpiece.y_m})
 
 
+def scanner_noise_m(scan_config, compensation, line_index, n):
+    """The scanner's height noise (m) for ``n`` points of one scan line:
+    Gaussian, 1 sigma ``scan.noise_mm``, from a stream fixed by the scan's
+    seed, the cut (with or without compensation) and the line."""
+    rng = np.random.default_rng([int(scan_config.seed), int(bool(compensation)), int(line_index)])
+    return rng.normal(0.0, scan_config.noise_mm / 1e3, n)
+
+
 def scan_surface(cell, times, q):
-    """Scan lines of the surface the actual and the commanded pass leave."""
+    """Scan lines of the surface the actual and the commanded pass leave,
+    and what the scanner measures of the actual one (with its noise)."""
     sc = cell.scenario
     R = cell.force_model.cutter.radius_m
     T6 = kin.frames(cell.robot.dh, q)[:, 6]
@@ -73,7 +90,7 @@ def scan_surface(cell, times, q):
     x_hi = cell.workpiece.x_m[:, 1].max() - margin
     x = np.arange(x_lo, x_hi + 1e-12, sc.scan.resolution_mm / 1e3)
     lines = []
-    for y in scan_lines(cell):
+    for i, y in enumerate(scan_lines(cell)):
         top = material_top(cell.workpiece, x, np.full_like(x, y))
         # at the box edges in y the scan would see the side: stay inside by the margin
         h_cmd = envelope_heights(x, y, p_cmd, n_cmd, R, np.nan_to_num(top, nan=-np.inf))
@@ -82,7 +99,8 @@ def scan_surface(cell, times, q):
         gap = ~(np.isfinite(top) & (h_cmd < top - 1e-9))
         h_cmd[gap] = np.nan
         h_act[gap] = np.nan
-        lines.append(ScanLine(y, x, h_cmd, h_act))
+        measured = h_act + scanner_noise_m(sc.scan, cell.compensation, i, len(x))
+        lines.append(ScanLine(y, x, h_cmd, h_act, measured))
     return lines
 
 
@@ -137,4 +155,19 @@ def run_cut(sc, robot, *, compensation=True, cell=None):
     err = np.concatenate([s.error_m[np.isfinite(s.error_m)] for s in scans])
     stats = surface_error_stats(err) if err.size else {}
     stats.update(zone_stats(cell, scans))
-    return RunResult(compensation, logs, scans, stats, t_end, wall, cell)
+    return RunResult(compensation, logs, scans, stats, t_end, wall, cell, spindle_load(cell, logs))
+
+
+def spindle_load(cell, logs):
+    """The spindle's torque and power over the run, from the cutting wrench
+    and the tool axis (the flange z axis) at the logged link angles."""
+    t, w = logs["cutting_wrench"]
+    ts, x = logs["state"]
+    i = np.clip(np.searchsorted(ts, t), 0, len(ts) - 1)
+    axis = kin.frames(cell.robot.dh, x[i, :6])[:, 6, :3, 2]
+    torque = spindle_torque_Nm(w, axis)
+    power = spindle_power_W(torque, cell.scenario.cutter.spindle_rpm)
+    cutting = power > 1.0
+    return {"power_W_max": float(power.max()) if power.size else 0.0,
+            "power_W_mean": float(power[cutting].mean()) if np.any(cutting) else 0.0,
+            "torque_Nm_max": float(torque.max()) if torque.size else 0.0}

@@ -3,22 +3,27 @@ sweep combination: what it predicts for stability and surface error, to set
 beside the closed-loop simulation."""
 
 import numpy as np
-from pydrake.multibody.plant import MultibodyPlant
 
 from robstiff_drake.diagrams.experiment import ScanLine, material_top, zone_stats
-from robstiff_drake.diagrams.milling_cell import (
+from robstiff_drake.diagrams.compensator import filter_coefficients
+from robstiff_drake.diagrams.scenario import (
     cutting_setup,
-    filter_coefficients,
-    natural_frequencies,
+    model_stiffness,
+    planned_path,
+    plant_step_s,
+    plant_stiffness,
+)
+from robstiff_drake.diagrams.station import (
+    controller_model,
+    modal_frequencies_hz,
+    servo_parameters,
     stiffness_proportional_beta_s,
 )
-from robstiff_drake.diagrams.scenario import model_stiffness, planned_path, plant_stiffness
 from robstiff_drake.diagrams.sweep import configure
 from robstiff_drake.model import ik
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, process_stiffness
 from robstiff_drake.model.surface import envelope_heights, surface_error_stats
-from robstiff_drake.plant import add_irb6400
 
 KP_EVERY = 25  # recompute the process stiffness every this many sensor samples
 
@@ -43,6 +48,20 @@ def payload_inertial_wrench_map(robot, q):
     return np.vstack([force, skew @ force - R @ pl.inertia_about_com_kg_m2 @ R.T @ J_com[3:]])
 
 
+def gravity_stiffness(plant, context, q, delta_rad=1e-6):
+    """d tau_gravity / dq (6, 6) at q, N*m/rad, by central differences: the
+    arm's weight's own stiffness, which the gears carry along with theirs."""
+    G = np.empty((6, 6))
+    for k in range(6):
+        e = np.zeros(6)
+        e[k] = delta_rad
+        plant.SetPositions(context, q + e)
+        plus = plant.CalcGravityGeneralizedForces(context)
+        plant.SetPositions(context, q - e)
+        G[:, k] = (plus - plant.CalcGravityGeneralizedForces(context)) / (2 * delta_rad)
+    return G
+
+
 def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sensor_feels_inertia=True):
     """Predicted closed-loop poles and surface-error statistics for one sweep
     combination (dict with spectral_radius, stable, surface_error_mm,
@@ -50,23 +69,21 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
     payload's inertia out of the model's sensor (what the model missed
     before it was traced; kept for that comparison)."""
     sc = configure(sc, combo, plant_step_ms)
-    tool = robot.payload.tool_point_m
+    tool = robot.tool_point(where="the loop model")
     cutter, fmodel, workpiece = cutting_setup(sc)
     path = planned_path(sc)
     t_mid = path.dwell_s + 0.5 * path.move_s
     q_mid = ik.solve_ik(robot.dh, ik.tool_down_pose(path.position(t_mid), path.yaw), tool)
-    key = tuple(np.round(q_mid, 9))
+    key = (robot.source, tuple(np.round(q_mid, 9)))
     cache = mass_matrix_cache if mass_matrix_cache is not None else {}
     if key not in cache:
-        plant = MultibodyPlant(0.0)
-        add_irb6400(plant)
-        plant.Finalize()
+        plant = controller_model(robot)
         ctx = plant.CreateDefaultContext()
-        k_plant = plant_stiffness(sc, robot)
-        freqs = natural_frequencies(plant, ctx, q_mid, k_plant)
+        G = gravity_stiffness(plant, ctx, q_mid)
         plant.SetPositions(ctx, q_mid)
-        cache[key] = (plant.CalcMassMatrix(ctx), freqs)
-    M, freqs = cache[key]
+        cache[key] = (plant.CalcMassMatrix(ctx), G)
+    M, G = cache[key]
+    freqs = modal_frequencies_hz(M, plant_stiffness(sc, robot))
     beta = stiffness_proportional_beta_s(freqs, sc.plant.damping_ratio)
     ba = filter_coefficients(sc.controller.filter, sc.sensor.rate_hz, cutter.spindle_rpm)
     T = sc.controller.period_ms / 1e3
@@ -74,7 +91,8 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
     loop = LoopModel(M=M, K=plant_stiffness(sc, robot), beta_s=beta, J=kin.jacobian(robot.dh, q_mid, tool),
                      C_model=1.0 / model_stiffness(sc, robot), filter_ba=ba, rate_hz=sc.sensor.rate_hz, period_s=T,
                      delay_steps=sc.controller.delay_steps, mode=sc.controller.mode, model_scale=scale,
-                     sensor_inertia=payload_inertial_wrench_map(robot, q_mid) if sensor_feels_inertia else None)
+                     sensor_inertia=payload_inertial_wrench_map(robot, q_mid) if sensor_feels_inertia else None,
+                     gravity_stiffness=G, servo=servo_parameters(sc))
 
     h = loop.h
     t = np.arange(0.0, path.duration_s + 0.1, h)
@@ -92,7 +110,8 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
             if np.linalg.norm(kp_now) > np.linalg.norm(kp_max):
                 kp_max = kp_now
         Kp[j] = kp_now
-    lead = (sc.controller.delay_steps + 1.5) * T
+    command_lag = servo_parameters(sc).low_frequency_lag_s + plant_step_s(sc)  # as MillingStation.command_lag_s
+    lead = (sc.controller.delay_steps + 1.5) * T + command_lag
     ff = (scale * np.array([force_at(path.position(tt + lead), tt + lead) for tt in t])
           if sc.controller.mode == "predictive" else np.zeros_like(W))
     dev = loop.simulate(t, W, Kp, ff)
@@ -121,7 +140,8 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
     C = loop.J[:3] @ np.diag(loop.C_model) @ loop.J.T  # 3x6 (m per N / N m)
     dz = (W @ C.T)[:, 2]
     rate = np.gradient(dz, h)
-    lag = first_order_lag_s(ba, sc.sensor.rate_hz, T, sc.controller.delay_steps)
+    lag = first_order_lag_s(ba, sc.sensor.rate_hz, T, sc.controller.delay_steps,
+                            command_lag)
     first = float(np.max(np.abs(rate)) * lag * 1e3) if sc.controller.mode == "plain" else None
     # A pole just outside the unit circle grows slowly: call the loop divergent
     # when the worst-case growth over the cut (the engaged time) exceeds 10x.

@@ -1,6 +1,9 @@
 """Scenario files (diagrams/*.yaml): dataclasses read with Drake's
-``yaml_load_typed``, so an unknown key is an error that names it, then
-checked for values that make no physical sense before anything is built.
+``yaml_load_typed``, after a check of the file against the schema written
+next to each field (range and unit: diagrams/schema.py), so that an unknown,
+duplicated, mistyped or out-of-range key is one line naming the file, line,
+key and allowed range; then checked for what depends on several keys and
+for the size of the run, before anything is built.
 
 Units are in the key names.  Paths to other files (an identification JSON,
 a payload-calibration YAML) are relative to the scenario file.
@@ -13,107 +16,165 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from pydrake.multibody.plant import MultibodyPlantConfig
+from pydrake.systems.analysis import SimulatorConfig
+
+from robstiff_drake.diagrams.schema import check_object, choice, drake_config, num, rows, text, validate, vec
 from robstiff_drake.errors import InputError
+from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.path import PlannedPath
-from robstiff_drake.systems.gravity_removal import PayloadCalibration
+from robstiff_drake.model.payload import PayloadCalibration
+
+# Ranges: what a machining robot's cell can physically be, wide enough for
+# any real set-up, narrow enough that a typo (a unit slip, a missing decimal
+# point) is caught before a long run.  The reasoning is next to each one.
+STIFFNESS_RANGE_NM_PER_RAD = (1e3, 1e9)  # a small cobot's wrist ~1e3; the stiffest large-robot axis ~1e7
+MAX_COORD_MM = 10000.0  # a cell: 10 m from the robot base covers the largest arm on a track
+
+
+def _plant_config():
+    # The arm's joints are the only "contact": SAP's discrete solver treats
+    # the joints' damping implicitly (see add_compliant_arm).
+    return MultibodyPlantConfig(time_step=0.004, discrete_contact_approximation="sap")
 
 
 @dataclass
 class PlantConfig:
-    """The 'true' robot: a discrete MultibodyPlant whose joints are servo
-    springs and dampers between the commanded and the link angle
-    (diagrams/milling_cell.py: add_compliant_irb6400)."""
+    """The 'true' robot: a discrete MultibodyPlant (its step and solver in
+    the scenario's ``plant_config``, Drake's MultibodyPlantConfig) whose
+    joints are gears (springs) between the motor angle the servo holds and
+    the link angle (diagrams/station.py)."""
 
-    time_step_ms: float = 2.0
     # Joint stiffness of the plant (N*m/rad); empty: the robot file's nominal.
-    joint_stiffness_Nm_per_rad: list[float] = field(default_factory=list)
+    joint_stiffness_Nm_per_rad: list[float] = vec([], (0, 6), *STIFFNESS_RANGE_NM_PER_RAD, "N*m/rad")
     # Stiffness-proportional damping D = beta * K, beta = 2 zeta / omega_1:
     # the first mode gets damping ratio zeta, higher modes more.  The step
     # must keep every mode stable: beta >= step / 2 does for any stiffness.
-    damping_ratio: float = 0.05
-    # Joint effects beyond the springs (systems/joint_effects.py): lost motion
-    # per joint (rad, the link lags by b in the load's direction) and the
-    # coupling compliance between joints 2 and 3 (rad/(N*m)).  Empty / 0: none.
-    lost_motion_rad: list[float] = field(default_factory=list)
-    coupling_c23_rad_per_Nm: float = 0.0
+    # ASSUMPTION: 10 % (modal tests of large industrial arms report 5-15 %).
+    damping_ratio: float = num(0.10, 0.0, 1.0, "", hi_open=True)
+    # The gears' lost motion (rad, taken up in the direction of the total
+    # torque the gear carries) and the coupling compliance between joints 2
+    # and 3 (rad/(N*m)): model/transmission.py.  Empty / 0: none.
+    lost_motion_rad: list[float] = vec([], (0, 6), 0.0, 0.01, "rad", why="10 mrad is a worn-out gearbox")
+    coupling_c23_rad_per_Nm: float = num(0.0, -1e-5, 1e-5, "rad/(N*m)", why="at most the softest joint's own "
+                                                                         "compliance (1e-5 rad/(N*m) = 1e5 N*m/rad)")
+
+
+@dataclass
+class ServoConfig:
+    """The robot controller between a joint target and the motor
+    (model/servo.py): the interpolator's dead time, then a position loop
+    around a velocity loop with velocity feed-forward, on the motor side.
+
+    ASSUMPTIONS (ABB publishes none of these for the IRC5):
+    * the dead time from a new joint target to the drives: 12 ms, three 4 ms
+      path cycles; users of ABB's Externally Guided Motion measure 10-50 ms
+      from a sent target to the robot moving, network and EGM's own filter
+      included (ros-industrial/abb_libegm issues 49 and 111);
+    * a velocity-loop bandwidth of 30 Hz and a position gain of 60 1/s: the
+      position loop's closed-loop bandwidth is then about 17 Hz and a
+      correction without velocity feed-forward lags by 1 / Kp = 17 ms, the
+      range of large robots' published servo bandwidths (5-20 Hz);
+    * full velocity feed-forward of the path (the planned path is followed
+      with no steady lag; the interpolator knows the path's velocity)."""
+
+    interpolator_delay_ms: float = num(12.0, 0.0, 200.0, "ms")
+    interpolator_period_ms: float = num(4.0, 0.5, 50.0, "ms")  # the path's cycle in the robot controller
+    position_gain_per_s: float = num(60.0, 1.0, 1000.0, "1/s")
+    velocity_bandwidth_hz: float = num(30.0, 1.0, 500.0, "Hz")
+    velocity_feedforward: float = num(1.0, 0.0, 1.0, "")
 
 
 @dataclass
 class CutterConfig:
-    diameter_mm: float = 75.0
-    n_teeth: int = 6
-    spindle_rpm: float = 3600.0
+    diameter_mm: float = num(75.0, 10.0, 250.0, "mm", why="face mills a robot spindle carries")
+    # The spindle's rated power: every run reports the cutting power it
+    # implies (spindle_power_W) and warns above this.  The paper's spindle:
+    # SETCO 5 HP (3.73 kW), 8000 rpm (its Table 3).
+    spindle_rating_W: float = num(3730.0, 10.0, 200000.0, "W")
+    # Inserts on the cutter; the tooth pitch pi D / n must stay >= MIN_TOOTH_PITCH_MM (checked below).
+    n_teeth: int = num(6, 1, 100, "", integer=True)
+    spindle_rpm: float = num(3600.0, 10.0, 60000.0, "rpm", why="the fastest machining spindles")
 
 
 @dataclass
 class CuttingConfig:
     """Mechanistic force model.  Coefficients: 6082-T6 (Duan et al., Chin. J.
-    Mech. Eng. 2021, Table 5), scaled as the scenario documents."""
+    Mech. Eng. 2021, Table 5), scaled as the scenario documents.  Ranges:
+    cutting coefficients up to 10,000 N/mm^2 cover hardened steel and
+    titanium (2,000-4,000) with margin; edge coefficients up to 1,000 N/mm."""
 
-    mode: str = "averaged"  # "averaged" (over a revolution) or "tooth" (tooth-resolved)
-    samples_per_tooth: int = 20  # tooth mode: force samples per tooth pass
-    Ktc_N_per_mm2: float = 631.0
-    Krc_N_per_mm2: float = 99.0
-    Kac_N_per_mm2: float = 273.0
-    Kte_N_per_mm: float = 13.0
-    Kre_N_per_mm: float = 10.0
-    Kae_N_per_mm: float = 2.8
-    tangential_radial_scale: float = 1.0
-    axial_scale: float = 1.0
-    phase_deg: float = 0.0
+    mode: str = choice("averaged", ("averaged", "tooth"))  # over a revolution, or tooth-resolved
+    samples_per_tooth: int = num(20, 1, 200, "", integer=True)  # tooth mode: force samples per tooth pass
+    Ktc_N_per_mm2: float = num(631.0, 0.0, 1e4, "N/mm^2")
+    Krc_N_per_mm2: float = num(99.0, -1e4, 1e4, "N/mm^2")
+    Kac_N_per_mm2: float = num(273.0, -1e4, 1e4, "N/mm^2")
+    Kte_N_per_mm: float = num(13.0, 0.0, 1e3, "N/mm")
+    Kre_N_per_mm: float = num(10.0, -1e3, 1e3, "N/mm")
+    Kae_N_per_mm: float = num(2.8, -1e3, 1e3, "N/mm")
+    tangential_radial_scale: float = num(1.0, 0.0, 10.0, "", lo_open=True)
+    axial_scale: float = num(1.0, 0.0, 10.0, "", lo_open=True)
+    phase_deg: float = num(0.0, -360.0, 360.0, "deg")
 
 
 @dataclass
 class WorkpieceConfig:
     """Uncut material: boxes [x0, x1, y0, y1, top] in mm, base frame."""
 
-    boxes_mm: list[list[float]] = field(default_factory=list)
+    boxes_mm: list[list[float]] = rows(5, -MAX_COORD_MM, MAX_COORD_MM, "mm", min_rows=1, max_rows=1000,
+                                       names="x0, x1, y0, y1, top")
 
 
 @dataclass
 class PathConfig:
     """Tool point (centre of the cutter's bottom face) through waypoints, mm."""
 
-    waypoints_mm: list[list[float]] = field(default_factory=list)
-    feed_mm_per_s: float = 20.0
-    yaw_deg: float = 0.0
-    dwell_s: float = 0.2  # at the first waypoint before the feed starts
-    ramp_s: float = 0.5  # cosine speed-up from rest to the feed (and slow-down at the end)
-    reference_period_ms: float = 4.0  # IK samples of the joint references
+    waypoints_mm: list[list[float]] = rows(3, -MAX_COORD_MM, MAX_COORD_MM, "mm", min_rows=2, max_rows=100000,
+                                           names="x, y, z")
+    feed_mm_per_s: float = num(20.0, 0.1, 2000.0, "mm/s", why="from a slow finishing pass to a robot's rapid moves")
+    yaw_deg: float = num(0.0, -360.0, 360.0, "deg")
+    dwell_s: float = num(0.2, 0.0, 60.0, "s")  # at the first waypoint before the feed starts
+    ramp_s: float = num(0.5, 0.0, 60.0, "s")  # cosine speed-up from rest to the feed (and slow-down at the end)
+    reference_period_ms: float = num(4.0, 0.1, 100.0, "ms")  # IK samples of the joint references
 
 
 @dataclass
 class SensorConfig:
-    rate_hz: float = 1000.0
-    noise_N: float = 0.5
-    noise_Nm: float = 0.05
-    force_bias_N: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    torque_bias_Nm: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    dropout_probability: float = 0.0
-    spike_probability: float = 0.0
-    spike_N: float = 0.0
-    max_jump_N: float = 1000.0  # the guard rejects a sample that jumps more than this
-    seed: int = 0
+    # ATI's Net F/T streams at up to 7 kHz; 20 kHz leaves margin for any wrist sensor.
+    rate_hz: float = num(1000.0, 1.0, 20000.0, "Hz")
+    noise_N: float = num(0.5, 0.0, 100.0, "N")
+    noise_Nm: float = num(0.05, 0.0, 10.0, "N*m")
+    force_bias_N: list[float] = vec([0.0, 0.0, 0.0], (3,), -5000.0, 5000.0, "N")
+    torque_bias_Nm: list[float] = vec([0.0, 0.0, 0.0], (3,), -500.0, 500.0, "N*m")
+    dropout_probability: float = num(0.0, 0.0, 1.0, "")
+    spike_probability: float = num(0.0, 0.0, 1.0, "")
+    spike_N: float = num(0.0, 0.0, 1e5, "N")
+    max_jump_N: float = num(1000.0, 0.0, 1e5, "N", lo_open=True)  # the guard rejects a sample that jumps more
+    seed: int = num(0, 0, 2**32 - 1, "", integer=True)
 
 
 @dataclass
 class FilterConfig:
-    kind: str = "lowpass"  # "lowpass", "revolution_average" or "none"
-    cutoff_hz: float = 10.0
-    order: int = 2
+    kind: str = choice("lowpass", ("lowpass", "revolution_average", "none"))
+    # 2 Hz: far below the arm's first mode (about 5 Hz), where a faster
+    # filter makes the loop ring (see docs on the sampling-delay study)
+    cutoff_hz: float = num(2.0, 0.0, 10000.0, "Hz", lo_open=True)
+    # Butterworth order: above 8 the group delay and the coefficients' round-off make no sense for force control.
+    order: int = num(2, 1, 8, "", integer=True)
 
 
 @dataclass
 class ControllerConfig:
-    # "plain": the seed's compensator (the measured force, filtered and
+    # "plain": the paper's compensator (the measured force, filtered and
     # delayed); "predictive": the model's force where the correction will act,
     # plus the filtered measured residual (see systems/predictive_wrench.py)
-    mode: str = "plain"
-    period_ms: float = 4.0
-    delay_steps: int = 1
+    mode: str = choice("plain", ("plain", "predictive"))
+    # a robot controller's interpolation/position cycle: 0.1 ms (a fast CNC) to 1 s (useless for compensation)
+    period_ms: float = num(4.0, 0.1, 1000.0, "ms")
+    delay_steps: int = num(1, 0, 100, "periods", integer=True)
     filter: FilterConfig = field(default_factory=FilterConfig)
-    saturation_deg: float = 0.5  # largest correction per joint
-    rate_limit_deg_per_s: float = 5.0
+    saturation_deg: float = num(0.5, 0.0, 10.0, "deg", lo_open=True)  # largest correction per joint
+    rate_limit_deg_per_s: float = num(5.0, 0.0, 1000.0, "deg/s", lo_open=True)
 
 
 @dataclass
@@ -121,38 +182,59 @@ class ModelConfig:
     """What the compensator believes (the plant is the truth)."""
 
     # Joint stiffness (N*m/rad); empty: the robot file's nominal.
-    joint_stiffness_Nm_per_rad: list[float] = field(default_factory=list)
+    joint_stiffness_Nm_per_rad: list[float] = vec([], (0, 6), *STIFFNESS_RANGE_NM_PER_RAD, "N*m/rad")
     # Or the JSON that `robstiff identify --json` wrote (relative to this file).
-    identified_json: str = ""
+    identified_json: str = text("")
     # The YAML that `robstiff calibrate-payload --yaml` wrote; empty: the
     # exact payload and sensor bias (a perfect calibration).
-    payload_yaml: str = ""
+    payload_yaml: str = text("")
     # Predictive mode's cutting-force model: the scenario's coefficients
     # times this factor (1: exact; 1.2: the model over-predicts by 20 %).
-    force_model_scale: float = 1.0
+    force_model_scale: float = num(1.0, 0.0, 10.0, "", lo_open=True)
     # The compensator's own model of the joint effects (see PlantConfig):
     # what `robstiff diagnose-run` adds when it finds them.
-    lost_motion_rad: list[float] = field(default_factory=list)
-    coupling_c23_rad_per_Nm: float = 0.0
+    lost_motion_rad: list[float] = vec([], (0, 6), 0.0, 0.01, "rad")
+    coupling_c23_rad_per_Nm: float = num(0.0, -1e-5, 1e-5, "rad/(N*m)")
 
 
 @dataclass
 class ScanConfig:
     """Laser line scans of the machined surface along x."""
 
-    lines_y_mm: list[float] = field(default_factory=list)  # empty: the centre line of each box
-    resolution_mm: float = 0.5
-    edge_margin_mm: float = 2.0  # left out at each box edge (burrs, scan edge)
+    # empty: the centre line of each box
+    lines_y_mm: list[float] = vec([], range(0, 101), -MAX_COORD_MM, MAX_COORD_MM, "mm")
+    resolution_mm: float = num(0.5, 0.01, 50.0, "mm")
+    edge_margin_mm: float = num(2.0, 0.0, 100.0, "mm")  # left out at each box edge (burrs, scan edge)
     # entry / exit zones of the statistics: this far from each box's leading /
     # trailing edge (0: the cutter radius, where the engagement changes)
-    zone_mm: float = 0.0
+    zone_mm: float = num(0.0, 0.0, 500.0, "mm")
+    # The scanner's height noise, 1 sigma per point, added to the measured
+    # scan (scan.csv; the statistics of the simulation's own summary stay
+    # those of the true surface).  ASSUMPTION, 3 um: a laser line scanner's
+    # own repeatability is about 0.5-2 um (Keyence LJ-X8000, Micro-Epsilon
+    # scanCONTROL 30xx data sheets), a face-milled aluminium surface adds its
+    # roughness (Ra 0.8-1.6 um, sigma about 1.25 Ra) and a scanner carried
+    # over the part adds its vibration: together a few um.
+    noise_mm: float = num(0.003, 0.0, 1.0, "mm", why="1 mm of scan noise is no measurement of a milled face")
+    seed: int = num(0, 0, 2**32 - 1, "", integer=True)  # of the scan noise (each cut and line draws its own)
 
 
 @dataclass
 class Scenario:
-    name: str = ""
-    description: str = ""
+    name: str = text("", max_length=200)
+    description: str = text("")
+    # The robot: a library name (`robstiff robots`) or a robot file (relative
+    # to this file); empty: the IRB6400.
+    robot: str = text("", max_length=4096)
+    # Drake's own configuration of the plant (its step, s, and discrete
+    # solver) and of the simulator, as Drake's hardware_sim embeds them.
+    plant_config: MultibodyPlantConfig = drake_config(
+        _plant_config, ranges={"time_step": (5e-5, 0.02, "s")},
+        choices={"discrete_contact_approximation": ("sap", "lagged", "similar")})
+    simulator_config: SimulatorConfig = drake_config(
+        SimulatorConfig, ranges={"target_realtime_rate": (0.0, 1e6, ""), "start_time": (0.0, 0.0, "s")})
     plant: PlantConfig = field(default_factory=PlantConfig)
+    servo: ServoConfig = field(default_factory=ServoConfig)
     cutter: CutterConfig = field(default_factory=CutterConfig)
     cutting: CuttingConfig = field(default_factory=CuttingConfig)
     workpiece: WorkpieceConfig = field(default_factory=WorkpieceConfig)
@@ -161,110 +243,160 @@ class Scenario:
     controller: ControllerConfig = field(default_factory=ControllerConfig)
     model: ModelConfig = field(default_factory=ModelConfig)
     scan: ScanConfig = field(default_factory=ScanConfig)
-    source: str = ""  # set by the loader
+    source: str = field(default="", metadata={"internal": True})  # set by the loader
+
+
+# Cross-key limits.  A face mill's tooth pitch pi D / n: the densest
+# (extra-close pitch) face mills in insert makers' catalogues have about
+# 8-10 mm; below 6 mm there is no room for an insert and its chip pocket.
+MIN_TOOTH_PITCH_MM = 6.0
+# Sizes a run may take: at about 0.2 ms of wall time per plant step (the
+# averaged block pass), 2e6 steps is about 7 minutes; the logs then hold
+# about 20 floats per step.  Beyond these a typo (a feed of 1e-6 mm/s, a
+# dwell of 1e9 s) would allocate for hours before failing.
+MAX_PLANT_STEPS = 2_000_000
+MAX_SENSOR_SAMPLES = 10_000_000
+MAX_REFERENCE_SAMPLES = 1_000_000
+MAX_TOOTH_SAMPLES_PER_STEP = 2000
+MAX_FILTER_TAPS = 5000
+MAX_SCAN_POINTS = 2_000_000
 
 
 def load_scenario(path):
-    """Read and check a scenario file; InputError on anything wrong."""
+    """Read and check a scenario file; InputError (one line naming the file,
+    line, key and allowed range) on anything wrong, before anything is built."""
     from pydrake.common.yaml import yaml_load_typed
 
     path = Path(path)
     if not path.exists():
         raise InputError(f"{path}: no such scenario file")
+    if not path.is_file():
+        raise InputError(f"{path}: not a file")
     try:
-        yaml.safe_load(path.read_text())
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-        raise InputError(f"{path}: {where}invalid YAML ({getattr(e, 'problem', e)})") from None
+        text_ = path.read_bytes().decode("utf-8-sig")
+    except OSError as e:
+        raise InputError(f"{path}: cannot read ({e.strerror})") from None
+    except UnicodeDecodeError as e:
+        raise InputError(f"{path}: not UTF-8 text (byte {e.start}); save the scenario as UTF-8") from None
+    lines = validate(Scenario, path, text_)
     try:
-        sc = yaml_load_typed(schema=Scenario, filename=str(path))
-    except (RuntimeError, ValueError, TypeError) as e:
+        sc = yaml_load_typed(schema=Scenario, data=text_) if text_.strip() else Scenario()
+    except (RuntimeError, ValueError, TypeError) as e:  # validate() lets nothing through that gets here
         msg = " ".join(str(e).split())
         raise InputError(f"{path}: {msg}") from None
     sc.source = str(path)
+    sc._key_lines = lines
     check_scenario(sc)
     return sc
 
 
+def plant_step_s(sc):
+    """The plant's discrete step (s)."""
+    return float(sc.plant_config.time_step)
+
+
 def _fail(sc, key, what):
-    raise InputError(f"{sc.source or 'scenario'}: {key}: {what}")
+    lines = getattr(sc, "_key_lines", {})
+    line = lines.get(tuple(key.split(".")))
+    where = f"{sc.source or 'scenario'}:{line}" if line else (sc.source or "scenario")
+    raise InputError(f"{where}: {key}: {what}")
 
 
 def check_scenario(sc):
-    """Values that make no sense, refused before any simulation starts."""
-    positive = {
-        "plant.time_step_ms": sc.plant.time_step_ms,
-        "cutter.diameter_mm": sc.cutter.diameter_mm,
-        "cutter.spindle_rpm": sc.cutter.spindle_rpm,
-        "path.feed_mm_per_s": sc.path.feed_mm_per_s,
-        "path.reference_period_ms": sc.path.reference_period_ms,
-        "sensor.rate_hz": sc.sensor.rate_hz,
-        "controller.period_ms": sc.controller.period_ms,
-        "controller.saturation_deg": sc.controller.saturation_deg,
-        "controller.rate_limit_deg_per_s": sc.controller.rate_limit_deg_per_s,
-        "scan.resolution_mm": sc.scan.resolution_mm,
-        "sensor.max_jump_N": sc.sensor.max_jump_N,
-    }
-    for key, v in positive.items():
-        if not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
-            _fail(sc, key, f"must be a positive number, got {v}")
-    if not sc.path.ramp_s >= 0 or not sc.path.dwell_s >= 0:
-        _fail(sc, "path.ramp_s", "ramp_s and dwell_s must be >= 0")
-    if sc.cutter.n_teeth < 1:
-        _fail(sc, "cutter.n_teeth", f"must be >= 1, got {sc.cutter.n_teeth}")
-    if not 10 <= sc.cutter.diameter_mm <= 250:
-        _fail(sc, "cutter.diameter_mm", f"{sc.cutter.diameter_mm} mm is not a sensible face-mill diameter "
-                                        "for a robot (10-250 mm)")
-    if sc.cutting.mode not in ("averaged", "tooth"):
-        _fail(sc, "cutting.mode", f"expected 'averaged' or 'tooth', got {sc.cutting.mode!r}")
-    if sc.cutting.samples_per_tooth < 1:
-        _fail(sc, "cutting.samples_per_tooth", "must be >= 1")
-    if sc.controller.mode not in ("plain", "predictive"):
-        _fail(sc, "controller.mode", f"expected 'plain' or 'predictive', got {sc.controller.mode!r}")
-    if not sc.model.force_model_scale > 0:
-        _fail(sc, "model.force_model_scale", f"must be > 0, got {sc.model.force_model_scale}")
-    if sc.controller.filter.kind not in ("lowpass", "revolution_average", "none"):
-        _fail(sc, "controller.filter.kind",
-              f"expected 'lowpass', 'revolution_average' or 'none', got {sc.controller.filter.kind!r}")
-    if sc.controller.filter.kind == "lowpass" and not 0 < sc.controller.filter.cutoff_hz < 0.5 * sc.sensor.rate_hz:
+    """Every key against its range (the schema), then what depends on
+    several keys; refused before any simulation starts."""
+    check_object(Scenario, sc, sc.source or "scenario", getattr(sc, "_key_lines", {}))
+    c, ctl, sen = sc.cutter, sc.controller, sc.sensor
+    pitch = np.pi * c.diameter_mm / c.n_teeth
+    if pitch < MIN_TOOTH_PITCH_MM:
+        _fail(sc, "cutter.n_teeth", f"{c.n_teeth} teeth on a {c.diameter_mm:g} mm cutter is a tooth pitch of "
+                                    f"{pitch:.1f} mm; at most {int(np.pi * c.diameter_mm / MIN_TOOTH_PITCH_MM)} "
+                                    f"(pitch >= {MIN_TOOTH_PITCH_MM:g} mm)")
+    if ctl.filter.kind == "lowpass" and not ctl.filter.cutoff_hz < 0.5 * sen.rate_hz:
         _fail(sc, "controller.filter.cutoff_hz",
-              f"{sc.controller.filter.cutoff_hz} Hz must be between 0 and half the sensor rate "
-              f"({0.5 * sc.sensor.rate_hz:g} Hz)")
-    if sc.controller.delay_steps < 0:
-        _fail(sc, "controller.delay_steps", f"must be >= 0, got {sc.controller.delay_steps}")
-    if sc.controller.period_ms < sc.plant.time_step_ms - 1e-12:
-        _fail(sc, "controller.period_ms", f"{sc.controller.period_ms} ms is below the plant step "
-                                          f"({sc.plant.time_step_ms} ms)")
-    if not 0 <= sc.plant.damping_ratio < 1:
-        _fail(sc, "plant.damping_ratio", f"must be in [0, 1), got {sc.plant.damping_ratio}")
-    for key, p in (("sensor.dropout_probability", sc.sensor.dropout_probability),
-                   ("sensor.spike_probability", sc.sensor.spike_probability)):
-        if not 0 <= p <= 1:
-            _fail(sc, key, f"must be a probability in [0, 1], got {p}")
-    if not sc.workpiece.boxes_mm:
-        _fail(sc, "workpiece.boxes_mm", "at least one box [x0, x1, y0, y1, top] is needed")
+              f"{ctl.filter.cutoff_hz:g} Hz must be between 0 and half the sensor rate ({0.5 * sen.rate_hz:g} Hz)")
+    if ctl.filter.kind == "revolution_average":
+        taps = sen.rate_hz * 60.0 / c.spindle_rpm
+        if taps > MAX_FILTER_TAPS:
+            _fail(sc, "controller.filter.kind", f"a revolution average at {c.spindle_rpm:g} rpm and "
+                                                f"{sen.rate_hz:g} Hz needs {taps:.0f} taps (at most {MAX_FILTER_TAPS})")
+    step_ms = plant_step_s(sc) * 1e3
+    if ctl.period_ms < step_ms - 1e-9:
+        _fail(sc, "controller.period_ms", f"{ctl.period_ms:g} ms is below the plant step ({step_ms:g} ms)")
     for i, b in enumerate(sc.workpiece.boxes_mm):
-        if len(b) != 5 or not (b[0] < b[1] and b[2] < b[3]):
-            _fail(sc, f"workpiece.boxes_mm[{i}]", f"expected [x0, x1, y0, y1, top] with x0 < x1, y0 < y1, got {b}")
-    if len(sc.path.waypoints_mm) < 2:
-        _fail(sc, "path.waypoints_mm", "at least two waypoints [x, y, z] are needed")
-    for i, w in enumerate(sc.path.waypoints_mm):
-        if len(w) != 3:
-            _fail(sc, f"path.waypoints_mm[{i}]", f"expected [x, y, z], got {w}")
-    for key, v in (("plant.joint_stiffness_Nm_per_rad", sc.plant.joint_stiffness_Nm_per_rad),
-                   ("model.joint_stiffness_Nm_per_rad", sc.model.joint_stiffness_Nm_per_rad)):
-        if v and (len(v) != 6 or min(v) <= 0):
-            _fail(sc, key, "expected six positive stiffnesses (N*m/rad)")
-    for key, v in (("plant.lost_motion_rad", sc.plant.lost_motion_rad), ("model.lost_motion_rad", sc.model.lost_motion_rad)):
-        if v and (len(v) != 6 or min(v) < 0):
-            _fail(sc, key, "expected six lost-motion amplitudes >= 0 (rad)")
+        if not (b[0] < b[1] and b[2] < b[3]):
+            _fail(sc, "workpiece.boxes_mm", f"box {i + 1}: expected [x0, x1, y0, y1, top] with x0 < x1 and "
+                                            f"y0 < y1, got {b}")
     if sc.model.joint_stiffness_Nm_per_rad and sc.model.identified_json:
-        _fail(sc, "model", "give joint_stiffness_Nm_per_rad or identified_json, not both")
+        _fail(sc, "model.identified_json", "give model.joint_stiffness_Nm_per_rad or model.identified_json, not both")
+    _check_sizes(sc)
+    _check_engagement(sc)
+
+
+def _check_engagement(sc):
+    """Refuse an air cut: the commanded cutter (a disc of the cutter's
+    radius at the tool point) must come below the top of some box while
+    over it, or there is no machined surface to measure."""
+    wp = np.asarray(sc.path.waypoints_mm, dtype=float)
+    R = sc.cutter.diameter_mm / 2.0
+    step = max(R / 10.0, 1e-3)
+    for a, b in zip(wp[:-1], wp[1:]):
+        n = int(min(np.ceil(np.linalg.norm(b - a) / step), 100000)) + 1
+        pts = a + np.linspace(0.0, 1.0, n)[:, None] * (b - a)
+        for x0, x1, y0, y1, top in sc.workpiece.boxes_mm:
+            dx = np.maximum(np.maximum(x0 - pts[:, 0], pts[:, 0] - x1), 0.0)
+            dy = np.maximum(np.maximum(y0 - pts[:, 1], pts[:, 1] - y1), 0.0)
+            if np.any((dx * dx + dy * dy < R * R) & (pts[:, 2] < top)):
+                return
+    _fail(sc, "path.waypoints_mm", f"the cutter ({sc.cutter.diameter_mm:g} mm) never comes below the top of a "
+                                   "workpiece box while over it: an air cut leaves no surface to measure")
+
+
+def _check_sizes(sc):
+    """Time and memory a run would take, before anything is allocated."""
+    p = sc.path
+    wp = np.asarray(p.waypoints_mm, dtype=float)
+    seg = np.linalg.norm(np.diff(wp, axis=0), axis=1)
+    if np.any(seg <= 0):
+        i = int(np.argmax(seg <= 0))
+        _fail(sc, "path.waypoints_mm", f"waypoints {i + 1} and {i + 2} are the same point")
+    duration_s = p.dwell_s + seg.sum() / p.feed_mm_per_s + p.ramp_s
+    checks = (
+        ("plant_config.time_step", duration_s / plant_step_s(sc), MAX_PLANT_STEPS, "plant steps"),
+        ("sensor.rate_hz", duration_s * sc.sensor.rate_hz, MAX_SENSOR_SAMPLES, "sensor samples"),
+        ("path.reference_period_ms", duration_s / (p.reference_period_ms / 1e3), MAX_REFERENCE_SAMPLES,
+         "joint-reference (IK) samples"),
+    )
+    for key, n, limit, what in checks:
+        if n > limit:
+            _fail(sc, key, f"the pass takes {duration_s:.4g} s ({seg.sum():.4g} mm at {p.feed_mm_per_s:g} mm/s, "
+                           f"dwell {p.dwell_s:g} s): {n:.3g} {what}, more than the {limit:.0e} a run may take; "
+                           "shorten the path or raise the feed")
+    if sc.cutting.mode == "tooth":
+        per_step = plant_step_s(sc) * sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth * sc.cutting.samples_per_tooth
+        if per_step > MAX_TOOTH_SAMPLES_PER_STEP:
+            _fail(sc, "cutting.samples_per_tooth", f"{per_step:.3g} force samples per plant step (at most "
+                                                   f"{MAX_TOOTH_SAMPLES_PER_STEP}); lower the spindle speed, the "
+                                                   "samples per tooth or the plant step")
+    boxes = np.asarray(sc.workpiece.boxes_mm, dtype=float)
+    n_lines = max(len(sc.scan.lines_y_mm), len(boxes))
+    n_scan = (boxes[:, 1].max() - boxes[:, 0].min()) / sc.scan.resolution_mm * n_lines
+    if n_scan > MAX_SCAN_POINTS:
+        _fail(sc, "scan.resolution_mm", f"{n_scan:.3g} scan points (at most {MAX_SCAN_POINTS:.0e}); "
+                                        "use a coarser resolution")
 
 
 def resolve(sc, relative):
     return (Path(sc.source).parent / relative) if sc.source else Path(relative)
+
+
+def _read_text(sc, key, p):
+    try:
+        return p.read_bytes().decode("utf-8-sig")
+    except OSError as e:
+        _fail(sc, key, f"cannot read {p} ({e.strerror})")
+    except UnicodeDecodeError:
+        _fail(sc, key, f"{p} is not UTF-8 text")
 
 
 def model_stiffness(sc, robot):
@@ -274,12 +406,18 @@ def model_stiffness(sc, robot):
     if sc.model.identified_json:
         p = resolve(sc, sc.model.identified_json)
         try:
-            k = json.loads(p.read_text())["joint_stiffness_Nm_per_rad"]
-        except (OSError, ValueError, KeyError) as e:
-            raise InputError(f"{sc.source}: model.identified_json: cannot read stiffness from {p} ({e})") from None
-        k = np.asarray(k, dtype=float)
-        if k.shape != (6,) or np.any(k <= 0):
-            raise InputError(f"{p}: joint_stiffness_Nm_per_rad must be six positive numbers")
+            k = json.loads(_read_text(sc, "model.identified_json", p))["joint_stiffness_Nm_per_rad"]
+        except (ValueError, KeyError, TypeError) as e:
+            _fail(sc, "model.identified_json", f"cannot read joint_stiffness_Nm_per_rad from {p} "
+                                               f"({type(e).__name__}: {e})")
+        lo, hi = STIFFNESS_RANGE_NM_PER_RAD
+        try:
+            k = np.asarray(k, dtype=float)
+        except (TypeError, ValueError):
+            k = np.full(0, np.nan)
+        if k.shape != (6,) or not np.all(np.isfinite(k)) or np.any((k < lo) | (k > hi)):
+            raise InputError(f"{p}: joint_stiffness_Nm_per_rad: expected six finite stiffnesses in "
+                             f"[{lo:g}, {hi:g}] N*m/rad, got {k.tolist() if k.size else 'something else'}")
         return k
     return robot.joint_stiffness_Nm_per_rad
 
@@ -297,6 +435,19 @@ def planned_path(sc):
                        p.dwell_s, p.ramp_s)
 
 
+def cutting_setup(sc, scale=1.0):
+    """(cutter, force model, workpiece) of the scenario; ``scale`` multiplies
+    every coefficient (a compensator's model that is off by that factor)."""
+    cutter = Cutter(sc.cutter.diameter_mm / 1e3, int(sc.cutter.n_teeth), sc.cutter.spindle_rpm)
+    c = sc.cutting
+    s, sa = c.tangential_radial_scale * scale, c.axial_scale * scale
+    coeffs = CuttingCoefficients(c.Ktc_N_per_mm2 * s, c.Krc_N_per_mm2 * s, c.Kac_N_per_mm2 * sa,
+                                 c.Kte_N_per_mm * s, c.Kre_N_per_mm * s, c.Kae_N_per_mm * sa)
+    model = MillingForceModel(cutter, coeffs, sc.path.feed_mm_per_s / 1e3)
+    workpiece = Workpiece.from_boxes(np.asarray(sc.workpiece.boxes_mm, dtype=float) / 1e3)
+    return cutter, model, workpiece
+
+
 def exact_payload_calibration(sc, robot):
     """The true payload (robot file) and the scenario's sensor bias: a perfect calibration."""
     return PayloadCalibration(mass_kg=robot.payload.mass_kg, com_mm=list(robot.payload.com_m * 1e3),
@@ -304,15 +455,105 @@ def exact_payload_calibration(sc, robot):
                               sensor_mount_rpy_deg=[0.0, 0.0, 0.0])
 
 
+@dataclass
+class PayloadCalibrationSchema:
+    """The block `robstiff calibrate-payload --yaml` writes, with its ranges."""
+
+    # the heaviest robot payloads are about 1.3 t; below 0.1 kg there is no spindle
+    mass_kg: float = num(0.0, 0.1, 2000.0, "kg")
+    com_mm: list[float] = vec([0.0, 0.0, 0.0], (3,), -2000.0, 2000.0, "mm")
+    force_bias_N: list[float] = vec([0.0, 0.0, 0.0], (3,), -5000.0, 5000.0, "N")
+    torque_bias_Nm: list[float] = vec([0.0, 0.0, 0.0], (3,), -500.0, 500.0, "N*m")
+    sensor_mount_rpy_deg: list[float] = vec([0.0, 0.0, 0.0], (3,), -360.0, 360.0, "deg")
+
+
+@dataclass
+class PayloadCalibrationFile:
+    payload_calibration: PayloadCalibrationSchema = field(default_factory=PayloadCalibrationSchema)
+
+
+def read_payload_calibration(path):
+    """A payload-calibration YAML, checked against its ranges (InputError)."""
+    path = Path(path)
+    try:
+        text_ = path.read_bytes().decode("utf-8-sig")
+    except OSError as e:
+        raise InputError(f"{path}: cannot read ({e.strerror})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not UTF-8 text") from None
+    validate(PayloadCalibrationFile, path, text_)
+    doc = yaml.safe_load(text_) or {}
+    if "payload_calibration" not in doc or "mass_kg" not in (doc["payload_calibration"] or {}):
+        raise InputError(f"{path}: payload_calibration.mass_kg: missing (write the file with "
+                         "`robstiff calibrate-payload DATA.csv --yaml OUT.yaml`)")
+    block = doc["payload_calibration"]
+    return PayloadCalibration(**{k: (float(v) if k == "mass_kg" else [float(x) for x in v])
+                                 for k, v in block.items()})
+
+
 def payload_calibration(sc, robot):
     """The gravity-removal parameters: from the scenario's payload_yaml, or
     the exact payload and sensor bias."""
     if sc.model.payload_yaml:
         p = resolve(sc, sc.model.payload_yaml)
-        try:
-            doc = yaml.safe_load(p.read_text())["payload_calibration"]
-            return PayloadCalibration(**doc)
-        except (OSError, yaml.YAMLError, KeyError, TypeError) as e:
-            raise InputError(f"{sc.source}: model.payload_yaml: cannot read payload_calibration from {p} ({e})") \
-                from None
+        if not p.is_file():
+            _fail(sc, "model.payload_yaml", f"no such file {p}")
+        return read_payload_calibration(p)
     return exact_payload_calibration(sc, robot)
+
+
+# How far the compensator's model may stray from the robot file before a
+# run says so: a factor of 2 in a joint stiffness, 25 % in the payload's
+# mass, 50 mm in its centre of mass (a calibration that far off is more
+# likely of another tool or in other units than a real change).
+MODEL_STIFFNESS_FACTOR = 2.0
+PAYLOAD_MASS_REL = 0.25
+PAYLOAD_COM_MM = 50.0
+
+
+def scenario_warnings(sc, robot):
+    """Legal settings whose results are likely implausible (one line each)."""
+    out = []
+    k_model, k_robot = model_stiffness(sc, robot), robot.joint_stiffness_Nm_per_rad
+    ratio = k_model / k_robot
+    for j in np.flatnonzero((ratio > MODEL_STIFFNESS_FACTOR) | (ratio < 1 / MODEL_STIFFNESS_FACTOR)):
+        out.append(f"model: joint {j + 1}'s stiffness {k_model[j]:.3g} N*m/rad is {ratio[j]:.2g} times the robot "
+                   f"file's nominal {k_robot[j]:.3g}")
+    if sc.model.payload_yaml:
+        cal = payload_calibration(sc, robot)
+        m, m0 = cal.mass_kg, robot.payload.mass_kg
+        if abs(m - m0) > PAYLOAD_MASS_REL * m0:
+            out.append(f"model.payload_yaml: calibrated payload {m:.3g} kg is far from the robot file's {m0:.3g} kg "
+                       "(another tool, or forces in other units?)")
+        dc = np.linalg.norm(np.asarray(cal.com_mm or [0, 0, 0]) - robot.payload.com_m * 1e3)
+        if dc > PAYLOAD_COM_MM:
+            out.append(f"model.payload_yaml: calibrated centre of mass is {dc:.0f} mm from the robot file's")
+    if sc.cutting.mode == "tooth":
+        tooth_hz = sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth
+        if sc.sensor.rate_hz < 2.0 * tooth_hz:
+            out.append(f"sensor.rate_hz: {sc.sensor.rate_hz:g} Hz samples below twice the tooth-passing frequency "
+                       f"({tooth_hz:g} Hz) in tooth-resolved mode: the tooth force aliases into the loop")
+    return out
+def robot_spec(sc):
+    """The scenario's ``robot:`` as load_robot takes it (a library name, or
+    its file resolved against the scenario's folder); None when empty."""
+    if not sc.robot:
+        return None
+    from robstiff_drake.paths import library_robots
+
+    if sc.robot in library_robots():
+        return sc.robot
+    return str(resolve(sc, sc.robot))
+
+
+def scenario_robot(sc, override=None):
+    """The RobotModel that runs scenario ``sc``: ``override`` (--robot) or
+    the scenario's ``robot:`` (default: the IRB6400).  InputError, naming
+    both, when the two are given and name different robots."""
+    from robstiff_drake.model.robot import load_robot, same_robot_file
+
+    spec = robot_spec(sc)
+    if override is not None and spec is not None and not same_robot_file(spec, override):
+        raise InputError(f"--robot {override} disagrees with the robot of {sc.source or 'the scenario'} "
+                         f"(robot: {sc.robot}); drop --robot or edit the scenario")
+    return load_robot(override if override is not None else spec)

@@ -9,9 +9,11 @@ import copy
 import itertools
 import math
 import os
+import signal
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
@@ -27,12 +29,13 @@ def combinations(periods_ms, delay_steps, cutoffs_hz, modes):
             for p, d, c, m in itertools.product(periods_ms, delay_steps, cutoffs_hz, modes)]
 
 
-def check_combinations(sc, combos):
+def check_combinations(sc, combos, plant_step_ms=None):
     """Refuse, before anything runs, a combination the scenario cannot take."""
     for c in combos:
-        if c["period_ms"] < sc.plant.time_step_ms - 1e-12:
+        step_ms = plant_step_ms or sc.plant_config.time_step * 1e3
+        if c["period_ms"] < step_ms - 1e-9:
             raise InputError(f"sweep: period {c['period_ms']:g} ms is below the plant step "
-                             f"({sc.plant.time_step_ms:g} ms); pass --plant-step-ms {c['period_ms']:g} or drop it")
+                             f"({step_ms:g} ms); pass --plant-step-ms {c['period_ms']:g} or drop it")
         if not 0 < c["cutoff_hz"] < 0.5 * sc.sensor.rate_hz:
             raise InputError(f"sweep: cutoff {c['cutoff_hz']:g} Hz must be between 0 and half the sensor rate "
                              f"({0.5 * sc.sensor.rate_hz:g} Hz)")
@@ -40,6 +43,11 @@ def check_combinations(sc, combos):
             raise InputError(f"sweep: delay steps must be >= 0, got {c['delay_steps']}")
         if c["mode"] not in ("plain", "predictive"):
             raise InputError(f"sweep: mode must be plain or predictive, got {c['mode']!r}")
+        try:
+            configure(sc, c, plant_step_ms)  # every key of the run within its range, and its size
+        except InputError as e:
+            raise InputError(f"sweep: period {c['period_ms']:g} ms, delay {c['delay_steps']}, cutoff "
+                             f"{c['cutoff_hz']:g} Hz: {e}") from None
 
 
 def configure(sc, combo, plant_step_ms=None):
@@ -50,7 +58,7 @@ def configure(sc, combo, plant_step_ms=None):
     sc.controller.filter.cutoff_hz = combo["cutoff_hz"]
     sc.controller.mode = combo["mode"]
     if plant_step_ms:
-        sc.plant.time_step_ms = plant_step_ms
+        sc.plant_config.time_step = plant_step_ms / 1e3
     from robstiff_drake.diagrams.scenario import check_scenario
 
     check_scenario(sc)
@@ -60,19 +68,18 @@ def configure(sc, combo, plant_step_ms=None):
 _MASS_MATRICES = {}  # per process: the loop model's mass matrix at a pose
 
 
-def run_one(scenario_path, combo, plant_step_ms=None, predict=True):
+def run_one(scenario_path, combo, plant_step_ms=None, predict=True, robot_spec=None):
     """One sweep run (a top-level function: picklable for process pools and
     Dask workers), with the linear loop model's prediction for the same
     combination.  Never raises: a failure is a row with ``error``."""
     from robstiff_drake.diagrams.experiment import run_cut
-    from robstiff_drake.diagrams.scenario import load_scenario
-    from robstiff_drake.model.robot import load_robot
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 
     row = dict(combo)
     t0 = time.perf_counter()
     try:
         base = load_scenario(scenario_path)
-        robot = load_robot()
+        robot = scenario_robot(base, robot_spec)
         if predict:
             from robstiff_drake.diagrams.loop_prediction import predict as loop_predict
 
@@ -121,8 +128,9 @@ class Progress:
 
 
 def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step_ms=None, progress=None,
-              predict=True):
-    """All runs, in the order of ``combos``."""
+              predict=True, robot_spec=None):
+    """All runs, in the order of ``combos`` (``robot_spec``: --robot, or None
+    for the scenario's robot)."""
     bar = Progress(len(combos), progress)
     rows = [None] * len(combos)
     if scheduler:
@@ -135,7 +143,8 @@ def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step
         except (OSError, TimeoutError) as e:
             raise InputError(f"sweep: cannot reach the Dask scheduler at {scheduler} ({type(e).__name__})") from None
         try:
-            futures = [client.submit(run_one, str(scenario_path), c, plant_step_ms, predict, pure=False) for c in combos]
+            futures = [client.submit(run_one, str(scenario_path), c, plant_step_ms, predict, robot_spec, pure=False)
+                       for c in combos]
             index = {f.key: i for i, f in enumerate(futures)}
             from distributed import as_completed as dask_completed
 
@@ -145,15 +154,45 @@ def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step
         finally:
             client.close()
         return rows
-    workers = workers or os.cpu_count() or 1
+    workers = min(workers or os.cpu_count() or 1, len(combos))
     if workers == 1:
         for i, c in enumerate(combos):
-            rows[i] = run_one(str(scenario_path), c, plant_step_ms, predict)
+            rows[i] = run_one(str(scenario_path), c, plant_step_ms, predict, robot_spec)
             bar.step()
         return rows
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(run_one, str(scenario_path), c, plant_step_ms, predict): i for i, c in enumerate(combos)}
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
+    try:
+        futures = {pool.submit(run_one, str(scenario_path), c, plant_step_ms, predict, robot_spec): i
+                   for i, c in enumerate(combos)}
         for f in as_completed(futures):
-            rows[futures[f]] = f.result()
+            i = futures[f]
+            try:
+                rows[i] = f.result()
+            except BrokenProcessPool:  # a worker died (killed, out of memory): its run and the rest fail
+                break
             bar.step()
+    finally:
+        _stop(pool)
+    for i, c in enumerate(combos):
+        if rows[i] is None:
+            rows[i] = dict(c, stable=False, error="the worker process running it died (killed, or out of memory)")
     return rows
+
+
+def _worker_init():
+    """Workers leave Ctrl-C to the parent, which stops them, and die
+    quietly on SIGTERM (the parent's handler is not theirs)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _stop(pool):
+    """Shut a process pool down at once: queued runs cancelled, running
+    workers terminated (an interrupted sweep leaves no process behind)."""
+    procs = list(getattr(pool, "_processes", {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+    for p in procs:
+        p.join(timeout=5)

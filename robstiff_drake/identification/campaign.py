@@ -10,6 +10,10 @@ Stiffness campaigns (one row per loaded measurement):
   pose        optional id shared by rows measured at the same pose
   seq         optional measurement order
 
+A stiffness campaign records its tool point in a comment line before the
+header row, ``# tool_mm: x, y, z`` (mm, flange frame = DH frame 6; see
+read_tool_header); the commands that read the file use it.
+
 Payload campaigns (one row per static configuration):
   q1..q6      deg; fx,fy,fz (N) and mx,my,mz (N*m): the wrench the payload
   exerts on the sensor, in the sensor frame.
@@ -19,6 +23,8 @@ Every error is an InputError naming the file, line and column.
 
 import csv
 import difflib
+import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -44,6 +50,8 @@ class Table:
     text: dict  # name -> list of str (columns not parsed as numbers)
     lines: np.ndarray  # file line number of each row (1-based)
     comments: list = field(default_factory=list)
+    encoding: str = "UTF-8"
+    delimiter: str = "comma"
 
     def __len__(self):
         return len(self.lines)
@@ -56,17 +64,86 @@ class Table:
         return s
 
 
-def read_table(path, *, required, optional=(), text_columns=()):
-    """Read a measurement CSV.  ``required``/``optional`` columns are parsed
-    as finite floats; ``text_columns`` are kept as strings; any other column
-    is kept as text and ignored."""
+# A number as the files write it: ASCII digits, '.' for the decimal point,
+# an optional exponent.  Python's float() also takes '1_000', '١٢' (Arabic-
+# Indic digits) and '１２' (full-width), which no measurement program writes;
+# they are refused rather than read as 1000 or 12.
+NUMBER = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?", re.ASCII)
+NON_FINITE = re.compile(r"[+-]?(nan|inf|infinity)", re.IGNORECASE)
+DELIMITERS = {",": "comma", ";": "semicolon", "\t": "tab"}
+MAX_FILE_BYTES = 200 * 1024 * 1024  # a campaign of a million rows is about 100 MB
+
+
+def decode_text(path):
+    """The text of a measurement file, whatever a spreadsheet saved it as:
+    UTF-8 (with or without Excel's byte-order mark), UTF-16 (with its mark),
+    or a Windows/Latin-1 code page.  Returns (text, encoding)."""
     path = Path(path)
     try:
-        raw = path.read_text()
+        if path.is_dir():
+            raise InputError(f"{path}: is a folder, not a measurement file")
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise InputError(f"{path}: {size / 1e6:.0f} MB is more than a measurement file can be "
+                             f"({MAX_FILE_BYTES / 1e6:.0f} MB)")
+        raw = path.read_bytes()
     except OSError as e:
         raise InputError(f"{path}: cannot read ({e.strerror})") from None
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        try:
+            return raw.decode("utf-16"), "UTF-16"
+        except UnicodeDecodeError:
+            raise InputError(f"{path}: starts like UTF-16 but is not valid UTF-16 text") from None
+    if b"\x00" in raw:
+        raise InputError(f"{path}: not a text file (it holds NUL bytes; save it as CSV, not as a spreadsheet)")
+    if raw.startswith(b"PK\x03\x04"):
+        raise InputError(f"{path}: a zipped file (an .xlsx workbook?); save it as CSV")
+    try:
+        return raw.decode("utf-8-sig"), "UTF-8"
     except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text file") from None
+        return raw.decode("cp1252", errors="replace"), "Windows-1252"
+
+
+def _delimiter(path, header_line, header_text, known):
+    """The delimiter of a header line: the one of ',', ';' and tab that splits
+    it into the most known column names (a spreadsheet in a locale with a
+    decimal comma saves with ';')."""
+    best, best_hits = ",", -1
+    for d in DELIMITERS:
+        names = [h.strip().lower() for h in next(csv.reader([header_text], delimiter=d))]
+        hits = sum(n in known for n in names)
+        if hits > best_hits:
+            best, best_hits = d, hits
+    if best_hits <= 1 and any(d in header_text for d in (";", "\t")) and "," not in header_text:
+        best = ";" if ";" in header_text else "\t"
+    return best
+
+
+def parse_number(v, where):
+    """A cell as a finite float, or InputError naming the cell."""
+    if v == "":
+        raise InputError(f"{where}: empty cell")
+    if NUMBER.fullmatch(v):
+        x = float(v)
+        if math.isfinite(x):
+            return x
+        raise InputError(f"{where}: '{v}' is too large to be a number")
+    if NON_FINITE.fullmatch(v):
+        raise InputError(f"{where}: '{v}' is not a finite number")
+    if re.fullmatch(r"[+-]?\d+,\d+", v):
+        raise InputError(f"{where}: '{v}' has a decimal comma; write the decimal point as '.'")
+    if any(ch.isdigit() for ch in v) and not v.isascii():
+        raise InputError(f"{where}: '{v}' is not a number in ASCII digits")
+    raise InputError(f"{where}: '{v}' is not a number")
+
+
+def read_table(path, *, required, optional=(), text_columns=(), ranges=None):
+    """Read a measurement CSV.  ``required``/``optional`` columns are parsed
+    as finite floats (within ``ranges``: {column: (lo, hi, unit)}, when
+    given); ``text_columns`` are kept as strings; any other column is kept
+    as text and ignored."""
+    path = Path(path)
+    raw, encoding = decode_text(path)
     comments, rows = [], []
     for lineno, line in enumerate(raw.splitlines(), start=1):
         stripped = line.strip()
@@ -79,7 +156,9 @@ def read_table(path, *, required, optional=(), text_columns=()):
     if not rows:
         raise InputError(f"{path}: empty file (no header row and no data)")
     header_line, header_text = rows[0]
-    header = [h.strip().lower() for h in next(csv.reader([header_text]))]
+    known = set(required) | set(optional) | set(text_columns)
+    delim = _delimiter(path, header_line, header_text, known)
+    header = [h.strip().lower() for h in next(csv.reader([header_text], delimiter=delim))]
     seen = {}
     for i, h in enumerate(header):
         if not h:
@@ -89,17 +168,19 @@ def read_table(path, *, required, optional=(), text_columns=()):
         seen[h] = i
     for name in required:
         if name not in seen:
-            unknown = [h for h in header if h not in set(required) | set(optional) | set(text_columns)]
+            unknown = [h for h in header if h not in known]
             close = difflib.get_close_matches(name, unknown, n=1, cutoff=0.5)
             hint = f" (is '{close[0]}' a misspelling?)" if close else ""
+            other = [DELIMITERS[d] for d in DELIMITERS if d != delim and d in header_text]
+            sep = f"; the header is {DELIMITERS[delim]}-separated" + (f" and also holds {other[0]}s" if other else "")
             raise InputError(f"{path}:{header_line}: missing column '{name}'{hint}; "
-                             f"required: {','.join(required)}")
+                             f"required: {','.join(required)}{sep if len(header) < 3 else ''}")
     data = rows[1:]
     if not data:
         raise InputError(f"{path}: no data rows after the header (line {header_line})")
     cells = []
     for lineno, line in data:
-        values = next(csv.reader([line]))
+        values = next(csv.reader([line], delimiter=delim))
         if len(values) != len(header):
             raise InputError(f"{path}:{lineno}: expected {len(header)} cells (as in the header), got {len(values)}")
         cells.append([v.strip() for v in values])
@@ -108,21 +189,17 @@ def read_table(path, *, required, optional=(), text_columns=()):
     for name in numeric_names:
         col = seen[name]
         arr = np.empty(len(cells))
+        lo, hi, unit = (ranges or {}).get(name, (-np.inf, np.inf, ""))
         for r, row in enumerate(cells):
-            v = row[col]
             where = f"{path}:{data[r][0]}, column {col + 1} ({name})"
-            if v == "":
-                raise InputError(f"{where}: empty cell")
-            try:
-                arr[r] = float(v)
-            except ValueError:
-                raise InputError(f"{where}: '{v}' is not a number") from None
-            if not np.isfinite(arr[r]):
-                raise InputError(f"{where}: '{v}' is not a finite number")
+            arr[r] = parse_number(row[col], where)
+            if not lo <= arr[r] <= hi:
+                raise InputError(f"{where}: {row[col]} is outside the plausible range [{lo:g}, {hi:g}] {unit} "
+                                 "(other units?)")
         numeric[name] = arr
     text = {h: [row[seen[h]] for row in cells] for h in header if h not in numeric}
     return Table(str(path), header_line, header, numeric, text,
-                 np.array([ln for ln, _ in data]), comments)
+                 np.array([ln for ln, _ in data]), comments, encoding, DELIMITERS[delim])
 
 
 @dataclass
@@ -140,6 +217,8 @@ class StiffnessCampaign:
     lines: np.ndarray
     comments: list
     has_moments: bool
+    copies: list = field(default_factory=list)  # [(file line, line of the row it repeats)], set aside
+    tool_mm: np.ndarray | None = None  # the file's '# tool_mm:' line (flange frame, mm), None without one
 
     def __len__(self):
         return len(self.lines)
@@ -171,16 +250,53 @@ def check_joint_limits(table, robot):
                              f"[{lo[j]:g}, {hi[j]:g}] deg")
 
 
+# Plausible sizes of a measured value; beyond these the file is in other
+# units or corrupt.  100 kN and 100 kN*m are far beyond any robot's load
+# test; a loaded robot's tool moves by a few mm, so 100 mm is a unit slip;
+# 1 rad of tool rotation is not a small-deflection measurement.
+RANGES = {**{c: (-1e5, 1e5, "N") for c in F_COLS}, **{c: (-1e5, 1e5, "N*m") for c in M_COLS},
+          **{c: (-100.0, 100.0, "mm") for c in D_COLS}, **{c: (-1000.0, 1000.0, "mrad") for c in R_COLS},
+          "seq": (-1e12, 1e12, "")}
+
+
+def _copies(table, names):
+    """Rows that repeat an earlier row in every measured value: [(row, first row)]."""
+    cols = [table.numeric[n] for n in names if n in table.numeric]
+    first, out = {}, []
+    for i, key in enumerate(zip(*cols)):
+        if key in first:
+            out.append((i, first[key]))
+        else:
+            first[key] = i
+    return out
+
+
 def read_stiffness_campaign(path, robot, *, min_rows=6):
     table = read_table(path, required=Q_COLS + F_COLS + D_COLS, optional=M_COLS + R_COLS + ("seq",),
-                       text_columns=("pose",))
+                       text_columns=("pose",), ranges=RANGES)
     check_joint_limits(table, robot)
+    disp_all = np.column_stack([table.numeric[n] for n in D_COLS])
+    if np.all(disp_all == 0):
+        raise InputError(f"{table.path}: all displacements dx,dy,dz are zero: nothing was measured")
+    # a row that repeats another in every measured value is a copy, not a
+    # second measurement (two real measurements differ by their noise)
+    copies = _copies(table, Q_COLS + F_COLS + M_COLS + D_COLS + R_COLS + ("seq",))
+    if copies:
+        drop = {i for i, _ in copies}
+        keep = np.array([i for i in range(len(table)) if i not in drop])
+        table.numeric = {k: v[keep] for k, v in table.numeric.items()}
+        table.text = {k: [v[i] for i in keep] for k, v in table.text.items()}
+        copy_lines = [(int(table.lines[i]), int(table.lines[j])) for i, j in copies]
+        table.lines = table.lines[keep]
+    else:
+        copy_lines = []
     force = np.column_stack([table.numeric[n] for n in F_COLS])
     moments = _optional_block(table, M_COLS, "moment")
     rot = _optional_block(table, R_COLS, "rotation")
     n = len(table)
     if n < min_rows:
-        raise InputError(f"{table.path}: {n} measurement rows, fewer than the {min_rows} unknowns "
+        dup = f" once {len(copy_lines)} copies of other rows are set aside" if copy_lines else ""
+        raise InputError(f"{table.path}: {n} measurement rows{dup}, fewer than the {min_rows} unknowns "
                          f"(one compliance per joint); measure at least {min_rows}")
     load = np.abs(force).sum(axis=1) + (0 if moments is None else np.abs(moments).sum(axis=1))
     if np.all(load == 0):
@@ -198,6 +314,8 @@ def read_stiffness_campaign(path, robot, *, min_rows=6):
         lines=table.lines,
         comments=table.comments,
         has_moments=moments is not None,
+        copies=copy_lines,
+        tool_mm=read_tool_header(path),
     )
 
 
@@ -215,7 +333,7 @@ class PayloadCampaign:
 
 
 def read_payload_campaign(path, robot):
-    table = read_table(path, required=Q_COLS + F_COLS + M_COLS)
+    table = read_table(path, required=Q_COLS + F_COLS + M_COLS, ranges=RANGES)
     check_joint_limits(table, robot)
     force = np.column_stack([table.numeric[n] for n in F_COLS])
     torque = np.column_stack([table.numeric[n] for n in M_COLS])
@@ -223,3 +341,61 @@ def read_payload_campaign(path, robot):
         raise InputError(f"{table.path}: all forces and torques are zero: the sensor saw no payload")
     return PayloadCampaign(table.path, np.column_stack([table.numeric[n] for n in Q_COLS]),
                            force, torque, table.lines, table.comments)
+
+
+TOOL_KEY = "tool_mm"
+
+
+def tool_header_line(tool_m):
+    """The comment line that records a tool point (m) in a measurement file."""
+    return "# " + TOOL_KEY + ": " + ", ".join(f"{v * 1e3:.6g}" for v in np.asarray(tool_m, dtype=float))
+
+
+def read_tool_header(path):
+    """The tool point (mm, flange frame) of a measurement file's
+    ``# tool_mm: x, y, z`` line before its header row, or None without one.
+    InputError (file and line) for a malformed or repeated line."""
+    raw, _ = decode_text(path)
+    found = None
+    for lineno, line in enumerate(raw.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if not stripped.startswith("#"):
+            break  # the header row: comments after it are not the file's header
+        key, sep, value = stripped[1:].partition(":")
+        if key.strip().lower() != TOOL_KEY or not sep:
+            continue
+        if found is not None:
+            raise InputError(f"{path}:{lineno}: a second '# {TOOL_KEY}:' line (the first is line {found[0]})")
+        parts = [v.strip() for v in value.split(",")]
+        try:
+            tool = np.array([float(v) for v in parts])
+        except ValueError:
+            tool = np.array([])
+        if tool.shape != (3,) or not np.all(np.isfinite(tool)) or np.any(np.abs(tool) > 5000.0):
+            raise InputError(f"{path}:{lineno}: '# {TOOL_KEY}:' expects three numbers x, y, z within +-5000 mm (flange frame), "
+                             f"got {value.strip()!r}")
+        found = (lineno, tool)
+    return None if found is None else found[1]
+
+
+def campaign_tool_m(campaign, robot, tool_m=None, warnings=None):
+    """The tool point (m) the measurements of ``campaign`` refer to: the
+    file's ``# tool_mm:`` line; else ``tool_m`` (--tool); else the robot
+    file's tool point (payload.tool_point_mm), with a warning.  A --tool
+    that disagrees with the file's line is an InputError naming both."""
+    fmt = lambda t: ", ".join(f"{v:g}" for v in np.round(np.asarray(t) * 1e3, 6))  # noqa: E731
+    if campaign.tool_mm is not None:
+        file_m = np.asarray(campaign.tool_mm, dtype=float) / 1e3
+        if tool_m is not None and np.max(np.abs(np.asarray(tool_m) - file_m)) > 1e-9:
+            raise InputError(f"--tool {fmt(tool_m)} mm disagrees with the tool point ({fmt(file_m)}) mm that "
+                             f"{campaign.path} records in its '# {TOOL_KEY}:' line; drop --tool or correct the file")
+        return file_m
+    if tool_m is not None:
+        return np.asarray(tool_m, dtype=float)
+    tool = robot.tool_point(where=f"{campaign.path} (it has no '# {TOOL_KEY}:' line and no --tool was given)")
+    if warnings is not None:
+        warnings.add(f"{campaign.path} has no '# {TOOL_KEY}:' line: its measurements are taken to be at the robot "
+                     f"file's tool point ({fmt(tool)}) mm; record the tool point in the file or pass --tool")
+    return tool

@@ -53,11 +53,13 @@ def _tau_max(ctx, j):
 
 
 def _scaled_angle(ctx, j):
-    """q_j scaled to [-1, 1] over the campaign, and its range in degrees."""
+    """The model's angle of joint j scaled to [-1, 1] over the campaign, and
+    the range of the controller's angle q_j in the file (deg)."""
     q = ctx.q[:, j]
     lo, hi = float(q.min()), float(q.max())
     half = 0.5 * (hi - lo)
-    return (q - 0.5 * (lo + hi)) / max(half, 1e-12), np.rad2deg([lo, hi])
+    q_file = np.asarray(ctx.campaign.q_deg)[:, j]
+    return (q - 0.5 * (lo + hi)) / max(half, 1e-12), (float(q_file.min()), float(q_file.max()))
 
 
 def _dq_col(ctx, j, values):

@@ -83,6 +83,49 @@ def check_displacement_units(campaign, predicted_nominal_mm):
         )
 
 
+# A file whose angles all lie within +-pi is tested as radians too: if the
+# six springs fit it this many times better so, the angles are radians.
+RADIANS_FIT_FACTOR = 3.0
+
+
+def _rms_of_linear_fit(robot, q_rad, campaign, tool_m):
+    A_d, _ = regressor(robot.dh, q_rad, campaign.wrench, tool_m)
+    A = (A_d / robot.joint_stiffness_Nm_per_rad).reshape(-1, 6)
+    b = campaign.disp_mm.reshape(-1) * 1e-3
+    x, *_ = np.linalg.lstsq(A, b, rcond=None)
+    return float(np.sqrt(np.mean((b - A @ x) ** 2))) * 1e3
+
+
+def check_angle_units(robot, campaign, tool_m=None):
+    """Refuse joint angles written in radians: when every angle lies within
+    +-pi, fit the six springs to the file read both ways; radians that fit
+    RADIANS_FIT_FACTOR times better are what the file holds."""
+    q = campaign.q_deg
+    if np.max(np.abs(q)) > np.pi + 1e-9 or np.max(np.abs(q)) == 0:
+        return
+    as_deg = _rms_of_linear_fit(robot, np.deg2rad(q), campaign, tool_m)
+    as_rad = _rms_of_linear_fit(robot, q, campaign, tool_m)
+    if as_rad * RADIANS_FIT_FACTOR < as_deg:
+        raise InputError(f"{campaign.path}: joint angles q1..q6 look like radians, not degrees: every angle is within "
+                         f"+-pi, and read as radians the six springs fit with {as_rad:.4f} mm RMS against "
+                         f"{as_deg:.4f} mm as degrees; write the controller's degrees")
+
+
+def check_signs(fit, campaign):
+    """Refuse a fit that needs a negative compliance for every identifiable
+    joint: the displacements are the wrong way round (unloaded minus loaded,
+    or a sign-flipped measurement frame).  Returns warnings (one line each)
+    for some, not all, joints negative."""
+    ident = np.flatnonzero(fit.identifiable)
+    neg = [j for j in ident if fit.compliance_rad_per_Nm[j] <= 0]
+    if ident.size and len(neg) == ident.size:
+        raise InputError(f"{campaign.path}: every identifiable joint needs a negative compliance: the displacements "
+                         "dx,dy,dz look sign-flipped (they must be loaded minus unloaded, in the base frame, in the "
+                         "direction the tool moved)")
+    return [f"joint {j + 1}: negative identified compliance (non-physical); the data or the model are wrong for this "
+            "joint" for j in neg]
+
+
 def _vif(A):
     """Variance inflation factor of each column of A (columns scaled to unit
     norm), from the SVD so that an exactly dependent set gives a huge value
@@ -121,7 +164,7 @@ def identify(robot, campaign, *, tool_m=None, robust=False, use_rotations=True):
     """Identify the six joint stiffnesses from a StiffnessCampaign."""
     k_nom = robot.joint_stiffness_Nm_per_rad
     c_nom = 1.0 / k_nom
-    q = np.deg2rad(campaign.q_deg)
+    q = robot.joint_rad(campaign.q_deg)
     W = campaign.wrench
     A_d, A_r = regressor(robot.dh, q, W, tool_m)
     pred_nom_mm = (A_d @ c_nom) * 1e3

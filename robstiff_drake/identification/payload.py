@@ -67,7 +67,7 @@ def count_directions(g_s):
 def calibrate(robot, campaign, *, mount_rpy_deg=(0.0, 0.0, 0.0)):
     """Mass, centre of mass (sensor frame), force and torque bias."""
     R_mount = kin.rpy_to_rotation(np.deg2rad(mount_rpy_deg))
-    g_s = gravity_in_sensor(robot.dh, np.deg2rad(campaign.q_deg), R_mount)
+    g_s = gravity_in_sensor(robot.dh, robot.joint_rad(campaign.q_deg), R_mount)
     n = len(campaign)
     n_dir = count_directions(g_s)
     if n_dir < MIN_DIRECTIONS:
@@ -120,6 +120,36 @@ def calibrate(robot, campaign, *, mount_rpy_deg=(0.0, 0.0, 0.0)):
 
 def t95(dof):
     return float(stats.t.ppf(0.975, dof))
+
+
+# A calibrated mass this far from the robot file's payload (a factor) means
+# the forces are in other units (kN, daN, lbf, mN) rather than another tool;
+# within it but beyond PAYLOAD_WARN_REL, a warning.  A centre of mass beyond
+# MAX_COM_M from the sensor is not a spindle's.
+UNITS_FACTOR = 20.0
+PAYLOAD_WARN_REL = 0.25
+MAX_COM_M = 1.0
+
+
+def check_payload_fit(fit, robot, path):
+    """InputError when the fit says the forces are in other units; otherwise
+    warnings (one line each) for a result far from the robot file's payload."""
+    m, m0 = fit.mass_kg, robot.payload.mass_kg
+    if not m > 0:
+        raise InputError(f"{path}: the calibrated mass is {m:.4g} kg: the forces do not show a payload's weight "
+                         "(sign-flipped, or not the sensor's reading of its payload)")
+    if m < m0 / UNITS_FACTOR or m > m0 * UNITS_FACTOR:
+        unit = "kN" if m < m0 / UNITS_FACTOR else "mN or another small unit"
+        raise InputError(f"{path}: the calibrated mass {m:.4g} kg is {m / m0:.3g} times the robot file's payload "
+                         f"({m0:g} kg): the forces look like {unit}, not N (fx,fy,fz in N, mx,my,mz in N*m)")
+    out = []
+    if abs(m - m0) > PAYLOAD_WARN_REL * m0:
+        out.append(f"calibrated mass {m:.3g} kg is far from the robot file's payload ({m0:g} kg): another tool?")
+    c = np.linalg.norm(fit.com_m)
+    if c > MAX_COM_M:
+        out.append(f"the centre of mass is {c * 1e3:.0f} mm from the sensor, more than a spindle's "
+                   f"({MAX_COM_M * 1e3:.0f} mm): check the moments' units (N*m)")
+    return out
 
 
 def yaml_block(fit, source):

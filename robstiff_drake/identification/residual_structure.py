@@ -41,7 +41,7 @@ def _scaled(x):
 def variables(ctx, rows):
     """name -> basis (len(rows), k) for the residual's regressions."""
     out = {}
-    q = np.rad2deg(ctx.q[rows])
+    q = np.asarray(ctx.campaign.q_deg)[rows]  # the controller's angles, as in the file
     for j in range(6):
         if np.ptp(q[:, j]) >= MIN_SPAN_DEG:
             x = _scaled(q[:, j])

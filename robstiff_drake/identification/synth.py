@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robstiff_drake.identification.campaign import tool_header_line
 from robstiff_drake.identification.payload import gravity_in_sensor
 from robstiff_drake.model import effects as fx
 from robstiff_drake.model import ik
@@ -52,7 +53,7 @@ def sample_poses(robot, n_poses, rng, tool_m, box=None, max_tilt_deg=25.0, max_y
         T = tilted_down_pose(p, np.deg2rad(rng.uniform(-max_yaw_deg, max_yaw_deg)),
                              np.deg2rad(rng.uniform(0, max_tilt_deg)), rng.uniform(0, 2 * np.pi))
         try:
-            qs.append(ik.solve_ik(robot.dh, T, tool_m, q_lower_rad=robot.q_lower_rad, q_upper_rad=robot.q_upper_rad))
+            qs.append(ik.solve_for(robot, T, tool_m))
         except ik.IKError:
             continue
     return np.array(qs)
@@ -60,7 +61,7 @@ def sample_poses(robot, n_poses, rng, tool_m, box=None, max_tilt_deg=25.0, max_y
 
 @dataclass
 class SynthStiffness:
-    q_deg: np.ndarray
+    q_deg: np.ndarray  # controller convention (as a measurement file holds them)
     force_N: np.ndarray
     disp_mm: np.ndarray
     pose: list
@@ -68,6 +69,7 @@ class SynthStiffness:
     effects: dict  # name -> params (SI)
     effect_rms_mm: dict  # name -> (RMS of the effect, RMS of its part the conventional model cannot absorb), mm
     true_stiffness_Nm_per_rad: np.ndarray
+    tool_m: np.ndarray = None  # the tool point the displacements are measured at (flange frame, m)
 
     def to_campaign(self, path="synthetic"):
         """The campaign as `robstiff identify` reads it from a file."""
@@ -75,7 +77,8 @@ class SynthStiffness:
 
         n = len(self.seq)
         return StiffnessCampaign(path, self.q_deg, self.force_N, np.zeros((n, 3)), self.disp_mm, None,
-                                 list(self.pose), np.asarray(self.seq, dtype=float), np.arange(n) + 1, [], False)
+                                 list(self.pose), np.asarray(self.seq, dtype=float), np.arange(n) + 1, [], False,
+                                 tool_mm=None if self.tool_m is None else np.asarray(self.tool_m) * 1e3)
 
 
 def stiffness_campaign(robot, *, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01, seed=0,
@@ -83,7 +86,9 @@ def stiffness_campaign(robot, *, n=120, loads_per_pose=4, force_N=300.0, noise_m
     """A synthetic stiffness campaign.  ``effects``: {name: rms_mm} of effects
     to switch on (each sized to that RMS displacement); ``effect_params``:
     {name: params (SI, as model/effects.py takes them)} of effects switched
-    on at the given size."""
+    on at the given size.  ``tool_m``: the measured point (flange frame, m;
+    default the flange's origin).  The joint angles come out in the robot's
+    controller convention."""
     rng = np.random.default_rng(seed)
     tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
     k_true = robot.joint_stiffness_Nm_per_rad if true_stiffness_Nm_per_rad is None else np.asarray(
@@ -111,8 +116,8 @@ def stiffness_campaign(robot, *, n=120, loads_per_pose=4, force_N=300.0, noise_m
                        float(np.sqrt(np.mean(fx.unexplained(extra, A) ** 2))) * 1e3)
         disp = disp + extra
     disp_mm = disp * 1e3 + rng.normal(scale=noise_mm, size=(n, 3))
-    return SynthStiffness(np.rad2deg(q), force, disp_mm, [f"P{i + 1:03d}" for i in pose_idx], seq,
-                          applied, sizes, k_true)
+    return SynthStiffness(robot.controller_deg(q), force, disp_mm, [f"P{i + 1:03d}" for i in pose_idx], seq,
+                          applied, sizes, k_true, tool)
 
 
 @dataclass
@@ -133,12 +138,16 @@ def payload_readings(dh, q_rad, mass_kg, com_m, force_bias_N, torque_bias_Nm, R_
 
 
 def payload_campaign(robot, *, n=15, mass_kg=None, com_m=None, noise_N=1.0, noise_Nm=0.1, seed=0):
-    """Static configurations with the wrist turned widely (the seed used 15)."""
+    """Static configurations with the wrist turned widely (the seed used 15):
+    arm joints 2 and 3 at 10 and 20 deg (controller convention; moved just
+    inside the working range where that is outside it), joint 1 within
+    +-29 deg, the wrist joints spread over their ranges."""
     rng = np.random.default_rng(seed)
     m = robot.payload.mass_kg if mass_kg is None else mass_kg
     c = robot.payload.com_m if com_m is None else np.asarray(com_m, dtype=float)
     lo, hi = robot.q_lower_rad, robot.q_upper_rad
-    base = np.deg2rad([0.0, 10.0, 20.0, 0.0, 0.0, 0.0])
+    margin = np.deg2rad(1.0)
+    base = np.clip(np.deg2rad([0.0, 10.0, 20.0, 0.0, 0.0, 0.0]), lo + margin, hi - margin)
     q = np.tile(base, (n, 1))
     q[:, 0] = rng.uniform(-0.5, 0.5, n)
     q[:, 3] = rng.uniform(-np.pi, np.pi, n)
@@ -146,7 +155,7 @@ def payload_campaign(robot, *, n=15, mass_kg=None, com_m=None, noise_N=1.0, nois
     q[:, 5] = rng.uniform(-np.pi, np.pi, n)
     bf = rng.normal(scale=5.0, size=3)
     bm = rng.normal(scale=0.5, size=3)
-    f, t = payload_readings(robot.dh, q, m, c, bf, bm)
+    f, t = payload_readings(robot.dh, robot.joint_map.to_model(q), m, c, bf, bm)
     f = f + rng.normal(scale=noise_N, size=f.shape)
     t = t + rng.normal(scale=noise_Nm, size=t.shape)
     return SynthPayload(np.rad2deg(q), f, t, m, c, bf, bm)
@@ -165,10 +174,11 @@ def stiffness_csv(c, *, robot, noise_mm, seed, force_N, tool_m, how=None):
     lines = [
         "# Synthetic stiffness campaign made by robstiff-drake (robstiff_drake/identification/synth.py).",
         f"# Made with: {how or command_line()}",
-        f"# Robot model: {robot.source} ({robot.name}); true joint stiffness N*m/rad: "
-        + ", ".join(f"{k:.6g}" for k in c.true_stiffness_Nm_per_rad),
-        f"# Poses: tool point {np.round(np.asarray(tool_m) * 1e3, 3).tolist()} mm (flange frame) uniform in the "
-        "machining workspace box, spindle axis tilted up to 25 deg from straight down, yaw within +-90 deg; IK.",
+        f"# Robot model: {robot.source} ({robot.name}; q1..q6 in its controller's convention, deg); true joint "
+        "stiffness N*m/rad: " + ", ".join(f"{k:.6g}" for k in c.true_stiffness_Nm_per_rad),
+        "# Poses: the tool point (the tool_mm line, flange frame) uniform in the machining workspace box, spindle "
+        "axis tilted up to 25 deg from straight down, yaw within +-90 deg; IK.",
+        tool_header_line(tool_m),
         f"# Loads: {force_N:g} N in uniformly random directions, {len(set(c.pose))} poses, rows grouped by 'pose'.",
         f"# Displacements: conventional model dx = Jv diag(1/k) J^T F (mm), plus Gaussian CMM noise "
         f"sigma = {noise_mm:g} mm per component; random seed {seed}.",
@@ -197,7 +207,8 @@ def payload_csv(c, *, noise_N, noise_Nm, seed, how=None):
         "frame (= DH frame 6); gravity (0, 0, -9.81) m/s^2 in the base frame.",
         f"# Sensor bias: force {np.round(c.force_bias_N, 4).tolist()} N, torque {np.round(c.torque_bias_Nm, 4).tolist()} N*m.",
         f"# Noise: Gaussian, {noise_N:g} N per force and {noise_Nm:g} N*m per torque component; random seed {seed}.",
-        "# Configurations: q1 in +-29 deg, q2 = 10, q3 = 20 deg, wrist q4, q6 in +-180 deg and q5 in +-115 deg.",
+        "# Configurations (controller convention): q1 in +-29 deg, q2 = 10, q3 = 20 deg (or just inside the working "
+        "range), wrist q4, q6 in +-180 deg and q5 in +-115 deg.",
         "q1,q2,q3,q4,q5,q6,fx,fy,fz,mx,my,mz",
     ]
     for i in range(len(c.q_deg)):

@@ -68,7 +68,7 @@ class Context:
         self.robot = robot
         self.campaign = campaign
         self.tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
-        self.q = np.deg2rad(campaign.q_deg)
+        self.q = robot.joint_rad(campaign.q_deg)
         self.W = campaign.wrench
         self.n = len(campaign)
         self.J = kin.jacobian(robot.dh, self.q, self.tool)

@@ -1,9 +1,13 @@
 """Forward kinematics, the geometric Jacobian at a tool point, and its
-derivative (the K_g term of the CCT model), for a standard-DH serial arm.
+derivative (the K_g term of the CCT model), for any serial 6R arm given as
+the canonical chain of model/robot.py (an optional fixed base transform,
+then six standard-DH links; a modified-DH table is turned into this form
+when the robot file is read).
 
-Plain numpy.  Every function takes joint angles ``q_rad`` in the controller
-convention (radians; the DH angle is q + home) with shape (6,) or (..., 6):
-leading dimensions are batches.  Lengths are metres.
+Plain numpy.  Every function takes the model's joint angles ``q_rad``
+(radians; the DH angle is q + home; RobotModel.joint_rad turns the
+controller's angles into these) with shape (6,) or (..., 6): leading
+dimensions are batches.  Lengths are metres.
 
 Jacobian convention (used everywhere in the project): J is 6x6, rows 0-2 map
 joint rates to the tool point's linear velocity (m/rad), rows 3-5 to the
@@ -49,12 +53,12 @@ def link_transforms(dh, q_rad):
 def frames(dh, q_rad):
     """Poses of DH frames 0..6 in the base frame, shape (..., 7, 4, 4).
 
-    Frame 0 is the base; frame i (i >= 1) moves with link i; frame 6 is the
-    flange (the wrist sensor frame).  The axis of joint i is the z axis of
-    frame i-1."""
+    Frame 0 is the base (moved by the chain's fixed base transform, if any);
+    frame i (i >= 1) moves with link i; frame 6 is the flange (the wrist
+    sensor frame).  The axis of joint i is the z axis of frame i-1."""
     A = link_transforms(dh, q_rad)
     T = np.empty(A.shape[:-3] + (7, 4, 4))
-    T[..., 0, :, :] = np.eye(4)
+    T[..., 0, :, :] = np.eye(4) if dh.base is None else dh.base
     for i in range(6):
         T[..., i + 1, :, :] = T[..., i, :, :] @ A[..., i, :, :]
     return T

@@ -3,7 +3,13 @@ measures.  Plain numpy/scipy: the caller supplies the arm's mass matrix.
 
 The loop, linearised at one pose and stepped at the sensor rate h:
 
-  arm       M dq'' + D dq' + K dq = J^T W + K c     (ZOH over h; D = beta K)
+  arm       M dq'' + D dq' + (K - G) dq = J^T W + K theta + D theta'
+            (ZOH over h; D = beta K; G = d tau_gravity / dq, the weight's
+            own stiffness, which the gears carry)
+  servo     theta'' = omega_v (Kp (theta_ref - theta) - theta')   (motor side,
+            model/servo.py; the correction has no velocity feed-forward)
+  interpolator  theta_ref = c delayed by the interpolator's dead time
+            (a shift register at h)
   process   W = W_nom(t) + [K_p J_v dq; 0]           (the cut's stiffness: the
                                                      force's change with the
                                                      tool's position, N/m)
@@ -21,6 +27,7 @@ The loop, linearised at one pose and stepped at the sensor rate h:
   predict   P = C_m J^T (Z + W_ff),  W_ff = s W_nom(t + lead) in predictive mode
   delay     n-sample shift register of P
   correct   c <- -(the register's oldest, or P when n = 0)
+  (with ``servo`` None, the motor follows c at once: theta = c)
 
 Over one controller period the homogeneous loop is the linear map
 Phi = (fast step)^(N-1) (tick step); its eigenvalues are the closed-loop
@@ -30,7 +37,7 @@ which the surface error is predicted.  What it leaves out: saturation and
 rate limit, the arm's nonlinearity (one pose), the tool's tilt, noise.
 
 First-order lag error at an engagement change:
-  e ~ C (dF/dx) v (filter group delay + (n + 1.5) T + 2 h)
+  e ~ C (dF/dx) v (filter group delay + (n + 1.5) T + 2 h + servo lag)
 """
 
 from dataclasses import dataclass
@@ -56,25 +63,46 @@ class LoopModel:
     # joint acceleration: -[m J_com; m (r_com - r_tool) x J_com + I J_w].
     # None: a sensor that feels no inertia.
     sensor_inertia: np.ndarray = None
+    # (6, 6) d tau_gravity / dq at the pose (N*m/rad); None: leave it out.
+    gravity_stiffness: np.ndarray = None
+    # model.servo.ServoParameters of the motor side; None: the motor follows
+    # the command at once (the plant before the servo was modelled).
+    servo: object = None
 
     def __post_init__(self):
         self.h = 1.0 / self.rate_hz
         self.N = max(1, int(round(self.period_s * self.rate_hz)))
         Kd = np.diag(self.K)
+        Ke = Kd - (self.gravity_stiffness if self.gravity_stiffness is not None else 0.0)
         Minv = np.linalg.inv(self.M)
-        Ac = np.block([[np.zeros((6, 6)), np.eye(6)], [-Minv @ Kd, -self.beta_s * Minv @ Kd]])
-        Bc = np.vstack([np.zeros((6, 12)), np.hstack([Minv @ self.J.T, Minv @ Kd])])  # inputs: W (6), c (6)
-        E = linalg.expm(np.block([[Ac, Bc], [np.zeros((12, 24))]]) * self.h)
-        self.Ad, self.Bw, self.Bc = E[:12, :12], E[:12, 12:18], E[:12, 18:24]
+        Z = np.zeros((6, 6))
+        if self.servo is None:  # arm (q, q'); inputs W (6), c (6)
+            Ac = np.block([[Z, np.eye(6)], [-Minv @ Ke, -self.beta_s * Minv @ Kd]])
+            Bc = np.vstack([np.zeros((6, 12)), np.hstack([Minv @ self.J.T, Minv @ Kd])])
+            self.n_delay = 0
+        else:  # arm (q, q') and motor (theta, theta'); inputs W (6), theta_ref (6)
+            wv, kp = self.servo.omega_v, self.servo.position_gain_per_s
+            I6 = np.eye(6)
+            Ac = np.block([[Z, I6, Z, Z],
+                           [-Minv @ Ke, -self.beta_s * Minv @ Kd, Minv @ Kd, self.beta_s * Minv @ Kd],
+                           [Z, Z, Z, I6],
+                           [Z, Z, -wv * kp * I6, -wv * I6]])
+            Bc = np.vstack([np.zeros((6, 12)), np.hstack([Minv @ self.J.T, Z]), np.zeros((6, 12)),
+                            np.hstack([Z, wv * kp * I6])])
+            self.n_delay = int(round(self.servo.interpolator_delay_s / self.h))
+        nx = Ac.shape[0]
+        E = linalg.expm(np.block([[Ac, Bc], [np.zeros((12, nx + 12))]]) * self.h)
+        self.Ad, self.Bw, self.Bc = E[:nx, :nx], E[:nx, nx:nx + 6], E[:nx, nx + 6:nx + 12]
         A, B, C, D = signal.tf2ss(*self.filter_ba)
         self.nf = A.shape[0]
         self.Af, self.Bf, self.Cf, self.Df = A, B[:, 0], C[0] if self.nf else np.zeros(0), float(np.squeeze(D))
         self.PJ = self.C_model[:, None] * self.J.T  # dq = C_m J^T W
         # joint acceleration from the arm's state and inputs: dq'' = A_q x + B_w W + B_c c
-        self.acc_x, self.acc_w, self.acc_c = Ac[6:], Bc[6:, :6], Bc[6:, 6:]
+        self.acc_x, self.acc_w, self.acc_c = Ac[6:12], Bc[6:12, :6], Bc[6:12, 6:]
         n = self.delay_steps
         # state layout
-        sizes = {"arm": 12, "S": 6, "G": 6, "X": 6 * self.nf, "Z": 6, "buf": 6 * n, "c": 6, "ff": 6}
+        sizes = {"arm": nx, "S": 6, "G": 6, "X": 6 * self.nf, "Z": 6, "buf": 6 * n, "c": 6, "ff": 6,
+                 "interp": 6 * self.n_delay}
         self.idx, k = {}, 0
         for name, size in sizes.items():
             self.idx[name] = slice(k, k + size)
@@ -90,13 +118,18 @@ class LoopModel:
         x_arm, S, G = z[I["arm"]], z[I["S"]], z[I["G"]]
         X = z[I["X"]].reshape(self.nf, 6) if self.nf else np.zeros((0, 6))
         Z, buf, c, ff = z[I["Z"]], z[I["buf"]].reshape(-1, 6), z[I["c"]], z[I["ff"]]
+        interp = z[I["interp"]].reshape(-1, 6)
         p = self.J[:3] @ x_arm[:6]  # tool displacement (m)
         W = W_nom + np.concatenate([Kp @ p, np.zeros(3)])
         out = np.empty_like(z)
-        out[I["arm"]] = self.Ad @ x_arm + self.Bw @ W + self.Bc @ c
+        u = interp[-1] if len(interp) else c  # what reaches the servo (or the spring) now
+        out[I["arm"]] = self.Ad @ x_arm + self.Bw @ W + self.Bc @ u
+        if len(interp):
+            out[I["interp"]] = np.concatenate([c, interp[:-1].ravel()])
         S_new = W - (self.model_scale * W_nom if self.mode == "predictive" else 0.0)
         if self.sensor_inertia is not None:
-            S_new = S_new + self.sensor_inertia @ (self.acc_x @ x_arm + self.acc_w @ W + self.acc_c @ c)
+            acc_u = self.acc_c @ u if self.servo is None else 0.0  # the servo's input reaches q'' through theta
+            S_new = S_new + self.sensor_inertia @ (self.acc_x @ x_arm + self.acc_w @ W + acc_u)
         out[I["S"]] = S_new
         out[I["G"]] = S
         if self.nf:
@@ -145,10 +178,11 @@ class LoopModel:
         return out
 
 
-def first_order_lag_s(filter_ba, rate_hz, period_s, delay_steps):
-    """Filter group delay + (n + 1.5) T + two sensor samples (s)."""
+def first_order_lag_s(filter_ba, rate_hz, period_s, delay_steps, servo_lag_s=0.0):
+    """Filter group delay + (n + 1.5) T + two sensor samples + the servo's
+    low-frequency lag (interpolator and position loop) (s)."""
     w, gd = signal.group_delay(filter_ba, w=[0.5], fs=rate_hz)
-    return float(gd[0]) / rate_hz + (delay_steps + 1.5) * period_s + 2.0 / rate_hz
+    return float(gd[0]) / rate_hz + (delay_steps + 1.5) * period_s + 2.0 / rate_hz + servo_lag_s
 
 
 def process_stiffness(force_fn, p, delta_m=1e-4):

@@ -103,8 +103,7 @@ class PlannedPath:
         for k, t in enumerate(ts):
             p = self.position(t)
             try:
-                q = ik.solve_ik(robot.dh, ik.tool_down_pose(p, self.yaw), tool_m, q_ref_rad=q_prev,
-                                q_lower_rad=robot.q_lower_rad, q_upper_rad=robot.q_upper_rad)
+                q = ik.solve_for(robot, ik.tool_down_pose(p, self.yaw), tool_m, q_ref_rad=q_prev)
             except ik.IKError as e:
                 raise PathError(f"path point at t = {t:.3f} s, tool point ({p[0] * 1e3:.1f}, {p[1] * 1e3:.1f}, "
                                 f"{p[2] * 1e3:.1f}) mm: {e}") from None

@@ -43,9 +43,12 @@ class DeflectionPredictor:
         self._sa = [math.sin(v) for v in dh.alpha_rad]
         tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
         self._tool = [float(v) for v in tool]
+        base = np.eye(4) if getattr(dh, "base", None) is None else np.asarray(dh.base, dtype=float)
+        self._base = tuple(float(v) for v in base[:3, :3].ravel()) + tuple(float(v) for v in base[:3, 3])
         # The last chains, shared by every predictor of the same arm and tool
         # (the plant's and the compensator's differ only in stiffness).
-        key = (tuple(self._home), tuple(self._d), tuple(self._a), tuple(self._ca), tuple(self._sa), tuple(self._tool))
+        key = (tuple(self._home), tuple(self._d), tuple(self._a), tuple(self._ca), tuple(self._sa), tuple(self._tool),
+               self._base)
         self._memo = _SHARED_CHAINS.setdefault(key, {})
         self.set_joint_stiffness(joint_stiffness_Nm_per_rad)
 
@@ -102,9 +105,9 @@ class DeflectionPredictor:
         return chain
 
     def _chain_uncached(self, q_rad):
-        # Rotation R (rows r0..r8) and position p of the current frame.
-        r0, r1, r2, r3, r4, r5, r6, r7, r8 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
-        px = py = pz = 0.0
+        # Rotation R (rows r0..r8) and position p of the current frame, from
+        # the chain's base transform.
+        r0, r1, r2, r3, r4, r5, r6, r7, r8, px, py, pz = self._base
         axes = []
         home, d, a, ca, sa = self._home, self._d, self._a, self._ca, self._sa
         for i, qi in enumerate(q_rad):

@@ -1,41 +1,26 @@
 """Deflection prediction: dq = C_q J(q)^T W, from the gravity-free wrench
 (moved from the sensor frame to the tool point in the base frame), the
 Jacobian at the measured joint angles and the compensator's stiffness model
-(which may differ from the plant's)."""
+(which may differ from the plant's).  With lost motion or coupling in the
+model, the transmission law of model/transmission.py: the extra twist of
+the gears when the process torque adds to the static (gravity) torque they
+already carry."""
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from robstiff_drake.model.kinematics import rpy_to_rotation
-from robstiff_drake.model.realtime import rotate
-from robstiff_drake.systems.joint_effects import effect_dq
-
-
-def wrench_to_tool_base(R_sensor, r_s, w_sensor):
-    """The scalar core of sensor_to_tool_base (the per-cycle path): R_sensor
-    (base <- sensor) row-major, 9 floats; r_s the tool point in the sensor
-    frame; w_sensor 6 floats.  Returns a list of 6."""
-    fx, fy, fz, mx, my, mz = w_sensor
-    rx, ry, rz = r_s
-    f = rotate(R_sensor, (fx, fy, fz))
-    m = rotate(R_sensor, (mx - (ry * fz - rz * fy), my - (rz * fx - rx * fz), mz - (rx * fy - ry * fx)))
-    return list(f + m)
-
-
-def sensor_to_tool_base(w_sensor, R_flange, tool_m, R_mount=None):
-    """A wrench measured in the sensor frame (about its origin, which is the
-    flange origin) as a wrench (force N, moment N*m about the tool point) in
-    the base frame.  ``tool_m`` is the tool point in the flange frame."""
-    R_mount = np.eye(3) if R_mount is None else np.asarray(R_mount, dtype=float)
-    Rs = np.asarray(R_flange, dtype=float) @ R_mount
-    r_s = R_mount.T @ np.asarray(tool_m, dtype=float)  # tool point in the sensor frame
-    return np.array(wrench_to_tool_base(Rs.ravel().tolist(), r_s.tolist(), np.asarray(w_sensor, dtype=float).tolist()))
+from robstiff_drake.model.wrench_frames import wrench_to_tool_base
+from robstiff_drake.model import transmission
 
 
 class DeflectionPrediction(LeafSystem):
     """Inputs ``process_wrench`` (6, sensor frame) and ``q`` (6, rad).
     Outputs ``dq`` (6, rad): the predicted joint deflection, and
     ``tool_wrench`` (6): the wrench at the tool point, base frame.
+    With lost motion in the model, input ``static_torque`` (6, N*m): the
+    torque the gears carry before the cut (gravity), from the controller's
+    model; the lost motion acts only where the total torque changes sign.
     Each is recomputed only when an input changes (the tool wrench is
     computed by both: two cheap transforms cost less than a shared cache
     entry's extra call into Python)."""
@@ -47,8 +32,9 @@ class DeflectionPrediction(LeafSystem):
         frame's rotation on the flange (deg)."""
         super().__init__()
         self._pred = predictor
-        # the model's joint effects beyond the springs (see systems/joint_effects.py)
-        self._lost = None if not lost_motion_rad else np.asarray(lost_motion_rad, dtype=float)
+        # the model's transmission beyond the springs (model/transmission.py)
+        self._lost = None if not lost_motion_rad or not any(lost_motion_rad) else np.asarray(lost_motion_rad,
+                                                                                               dtype=float)
         self._c23 = float(coupling_c23_rad_per_Nm)
         R_mount = rpy_to_rotation(np.deg2rad(mount_rpy_deg))
         self._R_mount = tuple(R_mount.ravel().tolist())
@@ -57,6 +43,10 @@ class DeflectionPrediction(LeafSystem):
         self._q = self.DeclareVectorInputPort("q", 6)
         self._identity_mount = bool(np.allclose(R_mount, np.eye(3), rtol=0.0, atol=0.0))
         deps = {self._w.ticket(), self._q.ticket()}
+        self._static = None
+        if self._lost is not None:
+            self._static = self.DeclareVectorInputPort("static_torque", 6)
+            deps.add(self._static.ticket())
         self.DeclareVectorOutputPort("dq", 6, self._calc_dq, prerequisites_of_calc=deps)
         self.DeclareVectorOutputPort("tool_wrench", 6, lambda c, o: o.SetFromVector(self._tool_wrench(c)[0]),
                                      prerequisites_of_calc=deps)
@@ -80,8 +70,10 @@ class DeflectionPrediction(LeafSystem):
 
     def _calc_dq(self, context, output):
         w, q = self._tool_wrench(context)
-        dq = [c * t for c, t in zip(self._pred.joint_compliance_list, self._pred.joint_torques(q, w))]
-        if self._lost is not None or self._c23:
-            tau = np.array(dq) / self._pred.joint_compliance
-            dq = np.asarray(dq) + effect_dq(tau, self._lost if self._lost is not None else np.zeros(6), self._c23)
-        output.SetFromVector(dq)
+        tau = self._pred.joint_torques(q, w)
+        if self._lost is None and not self._c23:
+            output.SetFromVector([c * t for c, t in zip(self._pred.joint_compliance_list, tau)])
+            return
+        static = self._static.Eval(context) if self._static is not None else np.zeros(6)
+        output.SetFromVector(transmission.static_deflection(static, tau, self._pred.joint_compliance, self._lost,
+                                                            self._c23))

@@ -1,48 +1,40 @@
 """The milling force source: the cutting wrench on the tool from the actual
-tool position against the workpiece (the process loop)."""
+tool position against the workpiece (the process loop), applied to the
+spindle body as a spatial force, so the flange-spindle weld carries it and
+the wrist sensor feels it as it would on a real cell."""
 
 import numpy as np
+from pydrake.common.value import AbstractValue
+from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.plant import ExternallyAppliedSpatialForce
 from pydrake.systems.framework import LeafSystem
 
-from robstiff_drake.model.realtime import rotate_transposed
-
-
-def to_sensor_frame(R, tool_m, w):
-    """A wrench (force N, moment N*m about the tool point, base frame) as the
-    wrist sensor sees it: (force, moment about the sensor origin) in the
-    sensor frame.  R: flange rotation, row-major 9 floats (base <- DH 6);
-    tool_m: the tool point in the flange frame (3 floats)."""
-    f0, f1, f2 = rotate_transposed(R, w[:3])
-    m0, m1, m2 = rotate_transposed(R, w[3:])
-    tx, ty, tz = tool_m
-    # moment about the sensor origin: m + tool x f
-    return [f0, f1, f2, m0 + ty * f2 - tz * f1, m1 + tz * f0 - tx * f2, m2 + tx * f1 - ty * f0]
+from robstiff_drake.model.wrench_frames import to_sensor_frame
 
 
 class MillingForceSource(LeafSystem):
-    """Samples the robot's joint angles every ``period_s`` and computes the
+    """Samples the robot's link angles every ``period_s`` and computes the
     cutting load at the actual tool point.
 
     Input  ``q`` (6): link angles, rad (controller convention).
-    Output ``generalized_force`` (6): joint torques J^T W of the load held
-      over the period (N*m), for the plant.  The spindle is welded to the
-      flange, so this is exactly the wrench applied to the spindle body.
-      Tooth-resolved mode: W is the mean of the tooth-resolved wrench over the
-      period, sampled ``samples_per_tooth`` times per tooth pass.
+    Output ``spatial_force`` (abstract, a list of one
+      ExternallyAppliedSpatialForce): the load held over the period, on the
+      spindle body at the tool point (for the plant's applied spatial force
+      port).  Tooth-resolved mode: the mean of the tooth-resolved wrench over
+      the period, sampled ``samples_per_tooth`` times per tooth pass.
     Output ``wrench`` (6): the wrench on the tool (force N, moment N*m about
-      the tool point, base frame) at the current time: in tooth-resolved mode
-      the instantaneous tooth forces at the held tool position (what a
-      fast sensor sees), in averaged mode the revolution average.
-    Output ``wrench_sensor`` (6): ``wrench`` as the wrist sensor sees it,
-      (force, moment about the sensor origin) in the sensor frame (DH 6).
+      the tool point, base frame): the held load (averaged mode), or the
+      instantaneous tooth forces at the held tool position (tooth mode).
+    Output ``ripple_sensor`` (6): tooth mode only: the instantaneous wrench
+      minus the held one, as the wrist sensor sees it (the part of the tooth
+      force the plant's step averages away, which a fast sensor still sees).
 
     In averaged mode every output is held state (no computation between
-    updates); in tooth-resolved mode ``wrench`` and ``wrench_sensor`` are
-    computed from the time and the held tool pose.
+    updates).
     """
 
-    def __init__(self, *, force_model, workpiece, path, kinematics, tool_point_m, period_s, mode="averaged",
-                 samples_per_tooth=20, phase_rad=0.0):
+    def __init__(self, *, force_model, workpiece, path, kinematics, tool_point_m, period_s, spindle_body_index,
+                 mode="averaged", samples_per_tooth=20, phase_rad=0.0):
         super().__init__()
         if mode not in ("averaged", "tooth"):
             raise ValueError(f"mode must be 'averaged' or 'tooth', got {mode!r}")
@@ -53,35 +45,43 @@ class MillingForceSource(LeafSystem):
         self._tool = tuple(float(v) for v in tool_point_m)
         self._mode = mode
         self._phase = phase_rad
+        self._body = spindle_body_index
         # tooth-resolved: the period's mean over samples_per_tooth samples per tooth pass
         n_sub = max(1, int(round(period_s * force_model.cutter.tooth_pass_hz * samples_per_tooth)))
         self._sub_t = np.arange(n_sub) * (period_s / n_sub)
         self._q = self.DeclareVectorInputPort("q", 6)
-        # held: flange rotation (9) and tool point (3); joint torques; the
-        # period's wrench (base frame, at the tool point) and as the sensor sees it
+        # held: flange rotation (9) and tool point (3); the period's wrench
+        # (base frame, at the tool point) and the spatial force list
         self._pose = self.DeclareDiscreteState(12)
-        self._tau = self.DeclareDiscreteState(6)
         self._w = self.DeclareDiscreteState(6)
-        self._ws = self.DeclareDiscreteState(6)
-        self.DeclarePeriodicDiscreteUpdateEvent(period_s, 0.0, self._update)
-        self.DeclareStateOutputPort("generalized_force", self._tau)
+        self._force = self.DeclareAbstractState(AbstractValue.Make([self._spatial_force([0.0] * 6)]))
+        self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
+        self.DeclareStateOutputPort("spatial_force", self._force)
         if mode == "averaged":
             self.DeclareStateOutputPort("wrench", self._w)
-            self.DeclareStateOutputPort("wrench_sensor", self._ws)
         else:
             now = {self.discrete_state_ticket(self._pose), self.time_ticket()}
             self.DeclareVectorOutputPort("wrench", 6, lambda c, o: o.SetFromVector(self._tooth_wrench_now(c)),
                                          prerequisites_of_calc=now)
-            self.DeclareVectorOutputPort("wrench_sensor", 6, self._calc_sensor, prerequisites_of_calc=now)
+            self.DeclareVectorOutputPort("ripple_sensor", 6, self._calc_ripple,
+                                         prerequisites_of_calc=now | {self.discrete_state_ticket(self._w)})
+
+    def _spatial_force(self, w):
+        f = ExternallyAppliedSpatialForce()
+        f.body_index = self._body
+        f.p_BoBq_B = np.array(self._tool)  # the spindle's frame is the flange's
+        f.F_Bq_W = SpatialForce(np.array(w[3:]), np.array(w[:3]))
+        return f
 
     def _tooth_wrench_now(self, context):
         p = context.get_discrete_state(self._pose).value()[9:]
         t = context.get_time()
         return self._model.tooth_wrench(t, p, self._path.feed_direction(t), self._workpiece, self._phase)
 
-    def _calc_sensor(self, context, output):
+    def _calc_ripple(self, context, output):
         R = context.get_discrete_state(self._pose).value()[:9].tolist()
-        output.SetFromVector(to_sensor_frame(R, self._tool, self._tooth_wrench_now(context).tolist()))
+        ripple = self._tooth_wrench_now(context) - context.get_discrete_state(self._w).value()
+        output.SetFromVector(to_sensor_frame(R, self._tool, ripple.tolist()))
 
     def step_wrench(self, t, q):
         """(wrench over the period starting at t as a list, pose): the pose is
@@ -95,11 +95,10 @@ class MillingForceSource(LeafSystem):
             w = self._model.average_wrench(p, u, self._workpiece)
         return w.tolist(), pose
 
-    def _update(self, context, discrete_state):
+    def _update(self, context, state):
         q = self._q.Eval(context)
         w, pose = self.step_wrench(context.get_time(), q)
-        # (numpy arrays: set_value converts them faster than lists)
-        discrete_state.set_value(self._pose, np.array(pose))
-        discrete_state.set_value(self._tau, np.array(self._kin.joint_torques(q, w)))
-        discrete_state.set_value(self._w, np.array(w))
-        discrete_state.set_value(self._ws, np.array(to_sensor_frame(pose[:9], self._tool, w)))
+        discrete = state.get_mutable_discrete_state()
+        discrete.set_value(int(self._pose), np.array(pose))
+        discrete.set_value(int(self._w), np.array(w))
+        state.get_mutable_abstract_state(int(self._force)).set_value([self._spatial_force(w)])

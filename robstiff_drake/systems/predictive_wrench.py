@@ -17,7 +17,7 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 from scipy import signal
 
-from robstiff_drake.systems.milling_force import to_sensor_frame
+from robstiff_drake.model.wrench_frames import to_sensor_frame
 
 
 class PredictiveWrench(LeafSystem):

@@ -4,21 +4,27 @@ that keeps bad samples (dropouts, spikes) out of the compensation chain."""
 import math
 
 import numpy as np
+from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
 from pydrake.systems.framework import LeafSystem
-
-NOISE_BLOCK = 4096  # noise samples drawn at once (per-sample draws are slow)
+from pydrake.systems.primitives import RandomSource
 
 
 class WristForceSensor(LeafSystem):
     """Samples the wrench across the flange-spindle weld at ``rate_hz``.
 
     Input  ``reaction_forces``: the plant's reaction forces (abstract); the
-      weld's reaction carries the payload's weight and inertia.
-    Input  ``process_wrench`` (6): the cutting load in the sensor frame (the
-      milling source applies it to the arm as joint torques, so the weld's
-      reaction does not include it; the sensor adds it back).
+      weld's reaction carries the payload's weight and inertia and the
+      cutting load (which the milling source applies to the spindle).
+    Input  ``gaussian`` (6) and ``uniform`` (3): standard normal and uniform
+      [0, 1) samples, one set per sensor sample, from Drake RandomSources
+      (``add_random_inputs``): the randomness lives in the Context, so a
+      simulation's noise is set by the context's random generator, not by
+      this object.
+    Input  ``ripple`` (6), with ``tooth_ripple=True``: the part of the tooth
+      force the plant's step averages away (MillingForceSource), which a
+      sensor faster than the step still sees.
     Output ``wrench`` (6): (force N, torque N*m) that the payload (spindle,
       tool and the cutting load on it) exerts on the sensor, sensor frame
       (= DH frame 6), plus bias and Gaussian noise; NaN during a dropout, and
@@ -27,59 +33,55 @@ class WristForceSensor(LeafSystem):
 
     def __init__(self, *, weld_joint_index, rate_hz, force_bias_N=(0, 0, 0), torque_bias_Nm=(0, 0, 0),
                  noise_N=0.0, noise_Nm=0.0, dropout_probability=0.0, spike_probability=0.0, spike_N=0.0,
-                 seed=0, initial_wrench=None):
+                 initial_wrench=None, tooth_ripple=False):
         super().__init__()
         self._joint = int(weld_joint_index)
-        self._bias = np.concatenate([force_bias_N, torque_bias_Nm]).astype(float)
-        self._noise = np.array([noise_N] * 3 + [noise_Nm] * 3, dtype=float)
+        self._bias = np.concatenate([force_bias_N, torque_bias_Nm]).astype(float).tolist()
+        self._noise = [float(noise_N)] * 3 + [float(noise_Nm)] * 3
         self._p_drop = float(dropout_probability)
         self._p_spike = float(spike_probability)
         self._spike = float(spike_N)
-        self._seed = seed
-        self._restart_noise()
+        self.period_s = 1.0 / rate_hz
         self._reaction = self.DeclareAbstractInputPort("reaction_forces", AbstractValue.Make([SpatialForce()]))
-        self._process = self.DeclareVectorInputPort("process_wrench", 6)
+        self._gauss = self.DeclareVectorInputPort("gaussian", 6)
+        self._uniform = self.DeclareVectorInputPort("uniform", 3)
+        self._ripple = self.DeclareVectorInputPort("ripple", 6) if tooth_ripple else None
         init = np.zeros(6) if initial_wrench is None else np.asarray(initial_wrench, dtype=float)
         self._state = self.DeclareDiscreteState(init)
-        self.DeclarePeriodicDiscreteUpdateEvent(1.0 / rate_hz, 0.0, self._sample)
-        # every simulation starts the noise sequence afresh: the same
-        # scenario gives the same numbers, even when a diagram is reused
-        self.DeclareInitializationDiscreteUpdateEvent(lambda context, discrete_state: self._restart_noise())
+        self.DeclarePeriodicDiscreteUpdateEvent(self.period_s, 0.0, self._sample)
         self.DeclareStateOutputPort("wrench", self._state)
-
-    def _restart_noise(self):
-        self._rng = np.random.default_rng(self._seed)
-        self._block, self._next = None, NOISE_BLOCK
 
     def true_wrench(self, context):
         """The noise-free, bias-free wrench (sensor frame) at this instant, a list."""
         # the weld's reaction on the spindle, from the flange: (torque, force)
         t0, t1, t2, f0, f1, f2 = self._reaction.Eval(context)[self._joint].get_coeffs().tolist()
-        p0, p1, p2, p3, p4, p5 = self._process.Eval(context).tolist()
-        return [p0 - f0, p1 - f1, p2 - f2, p3 - t0, p4 - t1, p5 - t2]
-
-    def _draw(self):
-        """(noise 6, dropout and spike uniforms, spike axis, spike sign) for
-        one sample, from blocks drawn at once and kept as Python lists."""
-        if self._next >= NOISE_BLOCK:
-            r = self._rng
-            self._block = ((r.standard_normal((NOISE_BLOCK, 6)) * self._noise + self._bias).tolist(),
-                           r.random((NOISE_BLOCK, 2)).tolist(), r.integers(0, 3, NOISE_BLOCK).tolist(),
-                           r.choice([-1.0, 1.0], NOISE_BLOCK).tolist())
-            self._next = 0
-        i = self._next
-        self._next += 1
-        return self._block[0][i], self._block[1][i], self._block[2][i], self._block[3][i]
+        w = [-f0, -f1, -f2, -t0, -t1, -t2]
+        if self._ripple is not None:
+            w = [a + b for a, b in zip(w, self._ripple.Eval(context).tolist())]
+        return w
 
     def _sample(self, context, discrete_state):
-        offset, u, axis, sign = self._draw()  # bias + noise
-        w = [a + b for a, b in zip(self.true_wrench(context), offset)]
+        g = self._gauss.Eval(context).tolist()
+        w = [a + b + n * s for a, b, n, s in zip(self.true_wrench(context), self._bias, self._noise, g)]
         if self._p_drop or self._p_spike:
-            if u[0] < self._p_drop:
+            u_drop, u_spike, u_axis = self._uniform.Eval(context).tolist()
+            if u_drop < self._p_drop:
                 w = [math.nan] * 6
-            elif u[1] < self._p_spike:
-                w[axis] += self._spike * sign
+            elif u_spike < self._p_spike:
+                k = min(int(u_axis * 6.0), 5)  # axis (0-2) and sign from one uniform
+                w[k % 3] += self._spike * (1.0 if k < 3 else -1.0)
         discrete_state.set_value(self._state, np.array(w))
+
+
+def add_random_inputs(builder, sensor, name="wrist_sensor"):
+    """RandomSources for the sensor's ``gaussian`` and ``uniform`` inputs,
+    sampled at the sensor's rate; their state is set by the simulation
+    context's random generator (``Diagram.SetRandomContext``)."""
+    gauss = builder.AddNamedSystem(f"{name}_gaussian", RandomSource(RandomDistribution.kGaussian, 6, sensor.period_s))
+    uniform = builder.AddNamedSystem(f"{name}_uniform", RandomSource(RandomDistribution.kUniform, 3, sensor.period_s))
+    builder.Connect(gauss.get_output_port(), sensor.GetInputPort("gaussian"))
+    builder.Connect(uniform.get_output_port(), sensor.GetInputPort("uniform"))
+    return gauss, uniform
 
 
 class WrenchGuard(LeafSystem):

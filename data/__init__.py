@@ -1,0 +1,1 @@
+"""Published tables (CSV), installed as package data: see robstiff_drake/paths.py."""

@@ -1,0 +1,47 @@
+"""``robstiff fk Q1..Q6``: forward kinematics of the robot at six controller
+angles (deg): the flange's (or the --tool point's) position (mm) and
+rotation in the robot's base frame."""
+
+import numpy as np
+
+from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.commands.stiffness import parse_q_deg
+from robstiff_drake.io import check_outputs, emit_json
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.robot import load_robot
+
+
+def fk_report(robot, q_deg, tool_m):
+    """position_mm, rotation (3x3, columns: the tool frame's axes in the base
+    frame) and the angles, for checked controller angles ``q_deg``."""
+    q = robot.joint_rad(q_deg)
+    T = kin.tool_pose(robot.dh, q, tool_m)
+    return {
+        "robot": robot.name,
+        "q_deg": [float(v) for v in q_deg],
+        "q_model_deg": np.rad2deg(q),
+        "tool_mm": np.asarray(tool_m) * 1e3,
+        "position_mm": T[:3, 3] * 1e3,
+        "rotation": T[:3, :3],
+        "rpy_deg": np.rad2deg(kin.rotation_to_rpy(T[:3, :3])),
+    }
+
+
+def run(*, q, tool=None, json_out=None, robot_yaml=None):
+    check_outputs(files={"--json": json_out})
+    robot = load_robot(robot_yaml)
+    q_deg = parse_q_deg(q, what="fk")
+    robot.check_q_deg(q_deg, where="fk")
+    tool_m = np.zeros(3) if tool is None else parse_tool(tool)
+    rep = fk_report(robot, q_deg, tool_m)
+    if json_out is not None:
+        emit_json(rep, json_out)
+    if json_out != "-":
+        p, R = rep["position_mm"], rep["rotation"]
+        what = "flange" if not np.any(tool_m) else f"tool point ({', '.join(f'{v:g}' for v in tool_m * 1e3)}) mm"
+        print(f"{robot.name}: q = [" + ", ".join(f"{v:.3f}" for v in q_deg) + "] deg (controller convention)")
+        print(f"{what} in the base frame: x {p[0]:10.3f}  y {p[1]:10.3f}  z {p[2]:10.3f}  mm")
+        print("rotation (columns: the frame's x, y, z axes):")
+        for row in R:
+            print("  " + "  ".join(f"{v:+.6f}" for v in row))
+    return 0

@@ -1,0 +1,145 @@
+"""A simulated cut as a cell records it, and a compensator's settings as a
+scenario: the simulation side of the run files (identification/run_files.py).
+
+* ``compensator_settings(sc, robot)``: the compensator of a scenario, as the
+  settings file a cell would hold (the model's stiffness resolved from the
+  robot file or the identification JSON, the payload calibration resolved
+  from its YAML or the exact one).
+* ``cell_files(sc, result, robot, run_id)``: the texts of wrench_log.csv,
+  joint_log.csv, compensator.yaml and scan.csv of one compensated cut.
+* ``scenario_with_compensator(sc, settings, robot)``: the same machine
+  (plant, path, workpiece, sensor) with the compensator of a settings file:
+  how a verification cut is simulated on the machine of the first cut.  The
+  simulation reads the machine from the run folder's ``sim_scenario.yaml``;
+  the diagnosis never does.
+
+ASSUMPTION (until the servo model of issue 13): the joint log's angles are
+the angles the controller commands, which in this plant's servo-spring
+joints are the motor side (the spring is between them and the link); a
+cell's motor encoders would report them plus the servo's own tracking error.
+"""
+
+import copy
+from pathlib import Path
+
+import numpy as np
+
+from robstiff_drake.diagrams.scenario import check_scenario, model_stiffness, payload_calibration, robot_spec
+from robstiff_drake.errors import InputError
+from robstiff_drake.identification import run_files as rf
+
+
+def _payload_dict(cal):
+    z = [0.0, 0.0, 0.0]
+    return {"mass_kg": float(cal.mass_kg), "com_mm": [float(v) for v in (cal.com_mm or z)],
+            "force_bias_N": [float(v) for v in (cal.force_bias_N or z)],
+            "torque_bias_Nm": [float(v) for v in (cal.torque_bias_Nm or z)],
+            "sensor_mount_rpy_deg": [float(v) for v in (cal.sensor_mount_rpy_deg or z)]}
+
+
+def compensator_settings(sc, robot):
+    """The compensator of scenario ``sc`` as CompensatorSettings."""
+    c = sc.controller
+    return rf.CompensatorSettings(
+        joint_stiffness_Nm_per_rad=[float(v) for v in model_stiffness(sc, robot)],
+        payload=_payload_dict(payload_calibration(sc, robot)),
+        tool_point_mm=[float(v) for v in np.asarray(robot.payload.tool_point_m) * 1e3],
+        cutter_diameter_mm=float(sc.cutter.diameter_mm), mode=c.mode, period_ms=float(c.period_ms),
+        delay_steps=int(c.delay_steps), filter_kind=c.filter.kind, filter_cutoff_hz=float(c.filter.cutoff_hz),
+        filter_order=int(c.filter.order), sensor_rate_hz=float(sc.sensor.rate_hz),
+        max_jump_N=float(sc.sensor.max_jump_N), spindle_rpm=float(sc.cutter.spindle_rpm),
+        saturation_deg=float(c.saturation_deg), rate_limit_deg_per_s=float(c.rate_limit_deg_per_s),
+        lost_motion_rad=[float(v) for v in (sc.model.lost_motion_rad or np.zeros(6))],
+        coupling_c23_rad_per_Nm=float(sc.model.coupling_c23_rad_per_Nm),
+        force_model_scale=float(sc.model.force_model_scale), robot=_robot_spec_text(sc, robot))
+
+
+def _robot_spec_text(sc, robot):
+    """The run's robot as a settings file names it: a library name, or its
+    robot file's absolute path (the settings may be read elsewhere)."""
+    from robstiff_drake.paths import library_robots
+
+    spec = robot_spec(sc)
+    if spec is not None and spec == sc.robot:
+        return spec  # a library name
+    if spec is None and robot.name in library_robots():
+        return robot.name
+    return str(Path(spec or robot.source).resolve())
+
+
+def scenario_with_compensator(sc, settings, robot):
+    """Scenario ``sc`` (its plant, path, workpiece, cutting and sensor noise)
+    with the compensator of ``settings``.  The tool, cutter and payload
+    calibration are the machine's: settings that differ there are refused
+    (InputError), since the simulation cannot change the hardware."""
+    where = settings.path or "compensator settings"
+    tool = np.asarray(robot.payload.tool_point_m) * 1e3
+    if not np.allclose(settings.tool_point_mm, tool, rtol=0, atol=1e-6):
+        raise InputError(f"{where}: compensator.tool.point_mm {settings.tool_point_mm} is not the simulated "
+                         f"robot's tool point {tool.tolist()} mm (robot file)")
+    for key, got, machine in (("tool.cutter_diameter_mm", settings.cutter_diameter_mm, sc.cutter.diameter_mm),
+                              ("tool.spindle_rpm", settings.spindle_rpm, sc.cutter.spindle_rpm)):
+        if not np.isclose(got, machine, rtol=1e-9, atol=0):
+            raise InputError(f"{where}: compensator.{key} {got:g} is not the scenario's {machine:g} "
+                             "(the simulation takes the machine's own tool)")
+    own = _payload_dict(payload_calibration(sc, robot))
+    if any(not np.allclose(settings.payload[k], own[k], rtol=1e-9, atol=1e-12) for k in own):
+        raise InputError(f"{where}: compensator.payload_calibration differs from the scenario's; a verification "
+                         "cut is simulated with the run's own payload calibration")
+    out = copy.deepcopy(sc)
+    c = out.controller
+    c.mode, c.period_ms, c.delay_steps = settings.mode, settings.period_ms, int(settings.delay_steps)
+    c.filter.kind, c.filter.cutoff_hz, c.filter.order = (settings.filter_kind, settings.filter_cutoff_hz,
+                                                         int(settings.filter_order))
+    c.saturation_deg, c.rate_limit_deg_per_s = settings.saturation_deg, settings.rate_limit_deg_per_s
+    out.sensor.rate_hz, out.sensor.max_jump_N = settings.sensor_rate_hz, settings.max_jump_N
+    m = out.model
+    m.joint_stiffness_Nm_per_rad = [float(v) for v in settings.joint_stiffness_Nm_per_rad]
+    m.identified_json = ""
+    m.lost_motion_rad = [float(v) for v in settings.lost_motion_rad] if any(settings.lost_motion_rad) else []
+    m.coupling_c23_rad_per_Nm = float(settings.coupling_c23_rad_per_Nm)
+    m.force_model_scale = float(settings.force_model_scale)
+    check_scenario(out)
+    return out
+
+
+def cell_logs(result):
+    """(WrenchLog, JointLog, Scan) of a simulated cut, as a cell logs them."""
+    t, w = result.logs["raw_wrench"]
+    # the logged signal is the sensor's reading after the compensator's guard,
+    # which holds it one sensor period: time-stamp it when it was taken
+    dt = 1.0 / result.cell.scenario.sensor.rate_hz
+    keep = t >= dt - 1e-12
+    wrench = rf.WrenchLog(t[keep] - dt, w[keep])
+    tc, corr = result.logs["correction"]
+    cell = result.cell
+    q_ref = np.column_stack([np.interp(tc, cell.q_ref_times, cell.q_ref[:, j]) for j in range(6)])
+    corr = corr if result.compensation else np.zeros_like(corr)
+    robot = cell.robot
+    joints = rf.JointLog(tc, robot.controller_deg(q_ref + corr), robot.controller_delta_deg(corr))
+    xs, ys, nom, h = [], [], [], []
+    for line in result.scans:
+        face = np.isfinite(line.commanded_m)
+        xs.append(line.x_m[face])
+        ys.append(np.full(face.sum(), line.y_m))
+        nom.append(line.commanded_m[face])
+        h.append((line.machined_m if line.measured_m is None else line.measured_m)[face])
+    scan = rf.Scan(*(np.concatenate(a) * 1e3 for a in (xs, ys, nom, h)), noise_mm=cell.scenario.scan.noise_mm)
+    return wrench, joints, scan
+
+
+def cell_files(sc, result, robot, run_id):
+    """{file name: text} of the cell files of one simulated cut."""
+    wrench, joints, scan = cell_logs(result)
+    note = f"simulated by robstiff simulate ({sc.name or sc.source})"
+    sim_wrench = ("In this simulated run: the reading after the compensator's guard (a dropout or a spike is "
+                  "replaced by the last good sample), sensor noise and bias as the scenario's sensor section sets "
+                  "them.")
+    sim_scan = (f"In this simulated run: Gaussian height noise of {sc.scan.noise_mm:g} mm (1 sigma, scan.noise_mm, "
+                f"seed {sc.scan.seed}) on the simulated face; nominal_mm is the envelope of the programmed pass.")
+    return {
+        rf.WRENCH_LOG: rf.wrench_log_text(wrench, run_id, [note, sim_wrench]),
+        rf.JOINT_LOG: rf.joint_log_text(joints, run_id, [note]),
+        rf.SETTINGS: rf.settings_text(compensator_settings(sc, robot), run_id, [note]),
+        rf.SCAN: rf.scan_text(scan, run_id, [note, sim_scan]),
+    }

@@ -1,0 +1,165 @@
+"""The real-time compensator as its own Drake diagram (the paper's Fig. 5),
+built apart from the station and connected to its ports, as a controller is
+to hardware:
+
+    wrench (6, the wrist sensor's raw samples, sensor frame)
+      -> WrenchGuard -> force filter (LinearSystem) -> ZOH(T) -> GravityRemoval
+      -> [PredictiveWrench] -> DeflectionPrediction -> Saturation
+      -> delay (n periods) -> RateLimitedCorrection(T) -> correction (6, rad)
+    position_measured (6, the controller's reported joint angles) -> ZOH(T)
+
+It sees what a controller sees: the joint angles the robot controller
+reports (motor encoders, through its gravity model) and the wrist sensor;
+nothing of the plant's truth.
+
+Sample-and-hold timing (Drake's same-instant semantics: a discrete block
+updated at the same tick as its source sees the source's previous value):
+a change of the true wrench reaches the correction after one sensor sample
+(sensor), one more (guard), the filter's own lag, one controller period
+(ZOH), ``delay_steps`` periods and one more period (the correction's own
+update); ``chain_delay_s`` adds these up.  The station's interpolator and
+servo add their own lag before the motor moves.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.systems.controllers import InverseDynamics
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    DiscreteTimeDelay,
+    Multiplexer,
+    Saturation,
+    ZeroOrderHold,
+)
+
+from robstiff_drake.model.realtime import DeflectionPredictor
+from robstiff_drake.systems.deflection_prediction import DeflectionPrediction
+from robstiff_drake.systems.force_filter import (
+    filter_system,
+    group_delay_s,
+    lowpass_coefficients,
+    revolution_average_coefficients,
+    steady_state,
+)
+from robstiff_drake.systems.gravity_removal import GravityRemoval
+from robstiff_drake.systems.reference_correction import RateLimitedCorrection
+from robstiff_drake.systems.wrist_sensor import WrenchGuard
+
+# The compensator's signals a cell may log, exported by name.
+LOG_PORTS = ("guarded_wrench", "rejected", "filtered_wrench", "process_wrench", "q_sampled", "dq")
+
+
+def filter_coefficients(filter_config, rate_hz, spindle_rpm):
+    """(b, a) of the scenario's force filter at the sensor rate."""
+    fc = filter_config
+    if fc.kind == "lowpass":
+        return lowpass_coefficients(fc.cutoff_hz, rate_hz, fc.order)
+    if fc.kind == "revolution_average":
+        return revolution_average_coefficients(spindle_rpm, rate_hz)
+    return np.array([1.0]), np.array([1.0])
+
+
+def chain_delay_s(rate_hz, filter_ba, period_s, delay_steps):
+    """How long a change of the true wrench takes to reach the correction:
+    sensor sample + guard sample + the filter's group delay + the ZOH's
+    period + the delay block + the correction's own update (upper bound; a
+    change between controller ticks waits less for the ZOH)."""
+    b, a = filter_ba
+    return 2.0 / rate_hz + group_delay_s(b, a, rate_hz) + (2 + delay_steps) * period_s
+
+
+@dataclass
+class Compensator:
+    diagram: object
+    systems: dict
+    filter_ba: tuple
+    chain_delay_s: float
+
+    def set_initial_state(self, root_context, wrench, q):
+        """Settle the chain on a reading at rest: guard, filter and samples."""
+        s = self.systems
+        s["guard"].GetMyMutableContextFromRoot(root_context).get_mutable_discrete_state(0).SetFromVector(wrench)
+        filt = s["filter"]
+        filt.GetMyMutableContextFromRoot(root_context).SetDiscreteState(steady_state(filt, wrench))
+        s["zoh_w"].GetMyMutableContextFromRoot(root_context).SetDiscreteState(wrench)
+        s["zoh_q"].GetMyMutableContextFromRoot(root_context).SetDiscreteState(q)
+
+
+def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, saturation_rad, rate_limit_rad_per_s,
+                     calibration, model_dh, model_stiffness_Nm_per_rad, tool_m, predictive=None,
+                     lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0, controller_plant=None, name="compensator"):
+    """The compensator diagram (see module docstring).  ``calibration``: the
+    payload calibration it believes; ``model_*``: its kinematics and joint
+    stiffness; ``predictive``: a function (kinematics, lead) -> PredictiveWrench
+    for predictive compensation, or None; ``controller_plant``: the
+    controller's model, for the gravity torque the gears carry (needed only
+    when the model has lost motion).  Inputs ``wrench``,
+    ``position_measured``; output ``correction`` and the LOG_PORTS."""
+    T = period_s
+    builder = DiagramBuilder()
+    kin = DeflectionPredictor(model_dh, model_stiffness_Nm_per_rad, tool_m)
+    s = {}
+    s["guard"] = builder.AddNamedSystem("wrench_guard", WrenchGuard(rate_hz=rate_hz, max_jump_N=max_jump_N))
+    s["filter"] = builder.AddNamedSystem("force_filter", filter_system(*filter_ba, rate_hz))
+    builder.Connect(s["guard"].GetOutputPort("wrench"), s["filter"].get_input_port())
+    s["zoh_w"] = builder.AddNamedSystem("sample_wrench", ZeroOrderHold(T, 6))
+    s["zoh_q"] = builder.AddNamedSystem("sample_q", ZeroOrderHold(T, 6))
+    builder.Connect(s["filter"].get_output_port(), s["zoh_w"].get_input_port())
+    s["gravity_removal"] = builder.AddNamedSystem("gravity_removal", GravityRemoval(calibration=calibration,
+                                                                                     kinematics=kin))
+    builder.Connect(s["zoh_w"].get_output_port(), s["gravity_removal"].GetInputPort("wrench"))
+    builder.Connect(s["zoh_q"].get_output_port(), s["gravity_removal"].GetInputPort("q"))
+    lost = lost_motion_rad if lost_motion_rad and any(lost_motion_rad) else None
+    s["prediction"] = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
+        predictor=kin, tool_m=tool_m, mount_rpy_deg=calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0),
+        lost_motion_rad=lost, coupling_c23_rad_per_Nm=coupling_c23_rad_per_Nm))
+    if lost is not None:  # the gravity torque the gears carry, from the controller's model
+        zeros = builder.AddNamedSystem("zero_velocity", ConstantVectorSource(np.zeros(6)))
+        q_state = builder.AddNamedSystem("sampled_q_as_state", Multiplexer([6, 6]))
+        builder.Connect(s["zoh_q"].get_output_port(), q_state.get_input_port(0))
+        builder.Connect(zeros.get_output_port(), q_state.get_input_port(1))
+        s["static_torque"] = builder.AddNamedSystem("static_torque", InverseDynamics(
+            controller_plant, InverseDynamics.InverseDynamicsMode.kGravityCompensation))
+        builder.Connect(q_state.get_output_port(), s["static_torque"].get_input_port_estimated_state())
+        builder.Connect(s["static_torque"].get_output_port(), s["prediction"].GetInputPort("static_torque"))
+    process = s["gravity_removal"].get_output_port()
+    if predictive is not None:
+        s["predictive"] = builder.AddNamedSystem("predictive_wrench", predictive(kin))
+        builder.Connect(process, s["predictive"].GetInputPort("process_wrench"))
+        builder.Connect(s["zoh_q"].get_output_port(), s["predictive"].GetInputPort("q"))
+        process = s["predictive"].GetOutputPort("process_wrench")
+    builder.Connect(process, s["prediction"].GetInputPort("process_wrench"))
+    builder.Connect(s["zoh_q"].get_output_port(), s["prediction"].GetInputPort("q"))
+    sat = saturation_rad * np.ones(6)
+    s["saturation"] = builder.AddNamedSystem("saturation", Saturation(-sat, sat))
+    builder.Connect(s["prediction"].GetOutputPort("dq"), s["saturation"].get_input_port())
+    last = s["saturation"].get_output_port()
+    # n extra controller periods, exactly: a discrete block adds one period by
+    # its own update (same-instant semantics), so n = 1 is a ZeroOrderHold and
+    # n >= 2 a DiscreteTimeDelay of n - 1 samples (tested).
+    if delay_steps == 1:
+        s["delay"] = builder.AddNamedSystem("transport_delay", ZeroOrderHold(T, 6))
+    elif delay_steps >= 2:
+        s["delay"] = builder.AddNamedSystem("transport_delay", DiscreteTimeDelay(T, delay_steps - 1, 6))
+    if "delay" in s:
+        builder.Connect(last, s["delay"].get_input_port())
+        last = s["delay"].get_output_port()
+    s["correction"] = builder.AddNamedSystem("reference_correction", RateLimitedCorrection(
+        period_s=T, rate_limit_rad_per_s=rate_limit_rad_per_s))
+    builder.Connect(last, s["correction"].get_input_port())
+
+    builder.ExportInput(s["guard"].GetInputPort("wrench"), "wrench")
+    builder.ExportInput(s["zoh_q"].get_input_port(), "position_measured")
+    builder.ExportOutput(s["correction"].get_output_port(), "correction")
+    builder.ExportOutput(s["guard"].GetOutputPort("wrench"), "guarded_wrench")
+    builder.ExportOutput(s["guard"].GetOutputPort("rejected"), "rejected")
+    builder.ExportOutput(s["filter"].get_output_port(), "filtered_wrench")
+    builder.ExportOutput(process, "process_wrench")
+    builder.ExportOutput(s["zoh_q"].get_output_port(), "q_sampled")
+    builder.ExportOutput(s["prediction"].GetOutputPort("dq"), "dq")
+    diagram = builder.Build()
+    diagram.set_name(name)
+    s["kinematics"] = kin
+    return Compensator(diagram, s, filter_ba, chain_delay_s(rate_hz, filter_ba, period_s, delay_steps))

@@ -1,0 +1,643 @@
+"""Residual diagnosis of a machining run (``robstiff diagnose-run RUN_DIR``):
+from what a cell records (docs/run_files.md: the wrist sensor's raw log, the
+controller's joint angles and correction, the compensator's settings and
+the scan of the machined face) find what the compensated surface error is,
+trace it to a cause, write each candidate fix as compensator settings with
+a verification-cut plan, and decide from the verification cuts' scans.
+Nothing here reads the simulation's truth (``sim_*`` files) or runs a
+simulation: a cell's own logs are enough.  Plain numpy and scipy; no Drake.
+
+Signals.  The wrench log, gravity removed with the settings' payload
+calibration and moved to the tool point (base frame), gives the process
+load W(t) and the joint torques tau = J^T W at the program's angles (the
+logged angles minus the correction).  The tool's vertical deviation from
+the program is dz = J_z (corr + dq) with dq the joints' deflection; the
+compensator as set predicts dq = C tau (+ its lost motion and coupling).
+Force and correction are smoothed with a zero-phase 10 Hz low-pass
+(SMOOTH_HZ: the arm follows both quasi-statically only below its first
+modes) and resampled every 5 ms.
+
+Causes (each a deviation dz(t) per unit parameter):
+  loop_lag               a * J_z (corr + C tau): the loop's own tracking error
+                         (its lag behind the force, saturation, rate limit),
+                         predicted from the logs; a = 1 is as predicted
+  stiffness_error_jN     r_N J_z,N c_N tau_N   (joint N's compliance off by r_N)
+  lost_motion            sum_N b_N J_z,N tanh(tau_N / 50 N*m), joints 1-3
+  joint_coupling         c23 (J_z,2 tau_3 + J_z,3 tau_2)
+  setup_offset           a constant (tool length, workpiece height)
+The surface at a scan point is the lowest the cutter's face went while it
+covered the point (the envelope), so the error predicted there is
+base(x) - min over covering t of (z_nom(t) + dz(t)).
+
+Statistics (thresholds in the report): the noise floor is the scan noise,
+stated (--noise-mm, or scan.csv's noise_mm) or estimated from the scan
+(identification/scan_statistics.py), both reported.  Forward selection: a
+cause is named when its nested F-test with the effective number of
+independent points gives p < ALPHA, it changes the surface by at least
+SIZE_FACTOR x the floor (RMS over the scan), and it needs no parameter at a
+plausibility bound.  A fit that extends a model starts from that model's
+solution (it is never worse); a parameter that cannot move the surface by
+NO_DATA x the floor over its whole range has no data in this run and is
+dropped.  Causes whose fits differ by less than the floor (mean square) are
+alike: one pass cannot tell them apart, and verification cuts decide
+(identification/run_verification.py: scans and settings only).
+"""
+
+import copy
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import signal
+from scipy.optimize import least_squares
+
+from robstiff_drake.errors import InputError
+from robstiff_drake.identification import run_files as rf
+from robstiff_drake.identification import run_verification as rv
+from robstiff_drake.identification import scan_statistics as ss
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
+from robstiff_drake.model.transmission import TAU_B_NM, twist
+from robstiff_drake.model.wrench_frames import sensor_to_tool_base
+
+SMOOTH_HZ = 10.0  # ASSUMPTION: the arm's first modes are 5-10 Hz (this robot: 4.9, 8.6, 11.2 Hz)
+GRID_HZ = 200.0  # resampling rate after the smoothing (nothing faster is left)
+ALPHA = 1e-3  # per test; about 10 causes are tried per round
+SIZE_FACTOR = 1.0  # a named cause changes the surface by at least this many noise floors (RMS)
+MAX_CAUSES = 2
+MIN_FLOOR_MM = 5e-4  # below half a micrometre a machining question is not decided
+EXPLAIN_ALPHA = 0.01  # the residual is consistent with the floor unless chi2 says otherwise at this level
+NO_DATA = 0.1  # of the floor: what a parameter must move the surface by over its range to be kept
+NOISE_DISAGREE = 2.0  # warn when the stated and the estimated noise differ by more than this factor
+ALIKE = 1.0  # causes whose mean-square residuals differ by less than ALIKE x floor^2 are alike
+
+
+@dataclass
+class RunSignals:
+    """A run's signals on a common time grid (SI units)."""
+
+    t_s: np.ndarray
+    q_nominal_rad: np.ndarray  # (n, 6) the program's angles: logged angles minus the correction
+    correction_rad: np.ndarray  # (n, 6) smoothed
+    tool_wrench: np.ndarray  # (n, 6) process load at the tool point, base frame, smoothed
+    tau_Nm: np.ndarray  # (n, 6)
+    Jz: np.ndarray  # (n, 6) the tool's vertical Jacobian row (m/rad)
+    p_nominal_m: np.ndarray  # (n, 3) the program's tool point
+    compliance: np.ndarray  # (6,) the model's, rad/(N*m)
+    model_dq_rad: np.ndarray  # (n, 6) the deflection the compensator's model predicts
+
+
+def _fill_dropouts(t, w, path):
+    bad = np.isnan(w).any(axis=1)
+    if bad.all():
+        raise InputError(f"{path}: every reading is a dropout")
+    if bad.any():
+        w = w.copy()
+        for j in range(w.shape[1]):
+            w[bad, j] = np.interp(t[bad], t[~bad], w[~bad, j])
+    return w
+
+
+def _lowpass(x, rate_hz):
+    """Zero-phase low-pass at SMOOTH_HZ along axis 0 (as is when too short)."""
+    if SMOOTH_HZ >= 0.5 * rate_hz:
+        return x
+    b, a = signal.butter(2, SMOOTH_HZ, fs=rate_hz)
+    if x.shape[0] <= 3 * max(len(a), len(b)):
+        return x
+    return signal.filtfilt(b, a, x, axis=0)
+
+
+def _resample(t_new, t, x):
+    return np.column_stack([np.interp(t_new, t, x[:, j]) for j in range(x.shape[1])])
+
+
+def run_signals(files, robot):
+    """RunSignals from a run's logs and settings (robot: the DH table)."""
+    s, wl, jl = files.settings, files.wrench, files.joints
+    t_j, q_j, c_j = jl.t_s, robot.joint_rad(jl.q_deg), robot.model_delta_rad(jl.correction_deg)
+    inside = (wl.t_s >= t_j[0]) & (wl.t_s <= t_j[-1])
+    if inside.sum() < 10:
+        raise InputError(f"{wl.path}: fewer than 10 readings within the joint log's time span "
+                         f"({t_j[0]:g}-{t_j[-1]:g} s): the two logs are not of the same cut")
+    t = wl.t_s[inside]
+    w = _fill_dropouts(t, wl.wrench[inside], wl.path)
+    rate = 1.0 / float(np.median(np.diff(t)))
+    q = _resample(t, t_j, q_j)
+    held = np.clip(np.searchsorted(t_j, t, side="right") - 1, 0, len(t_j) - 1)
+    corr = c_j[held]  # the servos get the correction held from one controller tick to the next
+    cal = PayloadCalibration(**s.payload)
+    arrays = cal.arrays()
+    tool = np.asarray(s.tool_point_mm, dtype=float) / 1e3
+    R6 = kin.frames(robot.dh, q)[:, 6, :3, :3]
+    W = np.array([sensor_to_tool_base(wk - payload_wrench(R, cal, arrays), R, tool, arrays[4])
+                  for wk, R in zip(w, R6)])
+    W, corr = _lowpass(W, rate), _lowpass(corr, rate)
+    grid = np.arange(t[0], t[-1], 1.0 / GRID_HZ)
+    W, corr = _resample(grid, t, W), _resample(grid, t, corr)
+    q_nom = _resample(grid, t_j, q_j - c_j)
+    J = kin.jacobian(robot.dh, q_nom, tool)
+    tau = np.einsum("nrj,nr->nj", J, W)
+    c = 1.0 / np.asarray(s.joint_stiffness_Nm_per_rad, dtype=float)
+    # what the compensator predicts: its model's twist under the process load (as DeflectionPrediction)
+    model_dq = twist(tau, c, s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
+    return RunSignals(grid, q_nom, corr, W, tau, J[:, 2, :], kin.tool_position(robot.dh, q_nom, tool), c, model_dq)
+
+
+@dataclass
+class Param:
+    name: str
+    unit: str
+    scale: float  # SI -> unit
+    lo: float  # bounds, SI
+    hi: float
+    lo_is_limit: bool = False  # lo is a physical limit (b >= 0), not a plausibility bound
+
+
+@dataclass
+class Candidate:
+    name: str
+    columns: np.ndarray  # (n, k): dz (m) per unit parameter (SI)
+    params: list
+    what: str
+
+
+def loop_lag_ms(sig):
+    """How far (ms) the correction's vertical effect lags the model's
+    deflection: the shift that best cancels them (0-500 ms)."""
+    corr_z = np.einsum("nj,nj->n", sig.Jz, sig.correction_rad)
+    defl_z = np.einsum("nj,nj->n", sig.Jz, sig.model_dq_rad)
+    if not np.any(defl_z):
+        return 0.0
+    shifts = np.arange(0.0, 0.5, 1.0 / GRID_HZ)
+    cost = [np.sum((corr_z + np.interp(sig.t_s - d, sig.t_s, defl_z)) ** 2) for d in shifts]
+    return float(shifts[int(np.argmin(cost))] * 1e3)
+
+
+def candidates(sig):
+    """The candidate causes' columns and parameters (see the module docstring)."""
+    Jz, tau, c = sig.Jz, sig.tau_Nm, sig.compliance
+    lag = np.einsum("nj,nj->n", Jz, sig.correction_rad + sig.model_dq_rad)
+    # ASSUMPTION: a <= 1.5.  The arm's own response adds some lag to the loop's (fits of the simulated
+    # cases give a = 1.1-1.4); a tracking error that fits only when scaled further is not this one
+    out = [Candidate("loop_lag", lag[:, None], [Param("a", "x predicted", 1.0, 0.0, 1.5, True)],
+                     "the loop's tracking error (its lag behind the force), as the logs predict it")]
+    for j in range(6):
+        # a joint softer (r > 0) or stiffer than the model; ASSUMPTION: -50 %..+100 % of the compliance
+        # bounds what an identified model can be off by
+        out.append(Candidate(f"stiffness_error_j{j + 1}", (Jz[:, j] * c[j] * tau[:, j])[:, None],
+                             [Param(f"r{j + 1}", "%", 100.0, -0.5, 1.0)],
+                             f"joint {j + 1}'s compliance differs from the model's"))
+    # ASSUMPTION: lost motion up to 300 urad (1 arcmin); industrial gears are specified at 10-60 urad
+    out.append(Candidate("lost_motion",
+                         np.column_stack([Jz[:, j] * np.tanh(tau[:, j] / TAU_B_NM) for j in range(3)]),
+                         [Param(f"b{j + 1}", "urad", 1e6, 0.0, 3e-4, True) for j in range(3)],
+                         "lost motion (backlash) in joints 1-3 beyond the model's"))
+    # ASSUMPTION: |c23| <= 0.3 sqrt(c2 c3); a positive-definite compliance needs < 1
+    c23 = 0.3 * np.sqrt(c[1] * c[2])
+    out.append(Candidate("joint_coupling", (Jz[:, 1] * tau[:, 2] + Jz[:, 2] * tau[:, 1])[:, None],
+                         [Param("c23", "rad/(N*m)", 1.0, -c23, c23)], "a joint 2-3 coupling beyond the model's"))
+    out.append(Candidate("setup_offset", -np.ones((len(sig.t_s), 1)), [Param("offset", "mm", 1e3, -1e-3, 1e-3)],
+                         "a constant: tool length or workpiece height (+ = cut more)"))
+    return out
+
+
+class Envelope:
+    """The face a deviation dz(t) leaves along the scan: each point is the
+    lowest the cutter's face (radius R, centred on the program's tool point)
+    went while covering it."""
+
+    def __init__(self, scan, sig, cutter_diameter_mm):
+        x, y = scan.x_mm / 1e3, scan.y_mm / 1e3
+        p = sig.p_nominal_m
+        R = cutter_diameter_mm / 2e3
+        cover = (x[:, None] - p[None, :, 0]) ** 2 + (y[:, None] - p[None, :, 1]) ** 2 <= R * R
+        self.covered = cover.any(axis=1)  # scan points the pass went over
+        cover = cover[self.covered]
+        self.samples = np.flatnonzero(cover.any(axis=0))  # samples that cover a scan point
+        cover = cover[:, self.samples]
+        self.Z = np.where(cover, p[self.samples, 2][None, :], np.inf)
+        self.base = self.Z.min(axis=1)
+
+    def surface(self, dz):
+        """Surface error (m, + = cut more) at the covered scan points."""
+        return self.base - (self.Z + dz[self.samples][None, :]).min(axis=1)
+
+
+@dataclass
+class Fit:
+    causes: list  # Candidate
+    keep: list  # per cause: indices of its parameters kept
+    theta: np.ndarray  # SI, concatenated
+    rss: float
+    residual: np.ndarray  # m
+
+    def columns(self):
+        return np.hstack([c.columns[:, k] for c, k in zip(self.causes, self.keep)]) if self.causes else None
+
+    def params(self):
+        return [p for c, k in zip(self.causes, self.keep) for p in (c.params[i] for i in k)]
+
+    def slices(self):
+        out, i = [], 0
+        for k in self.keep:
+            out.append(slice(i, i + len(k)))
+            i += len(k)
+        return out
+
+
+def _solve(env, cols, params, y, starts):
+    """Bounded least squares of surface(cols @ theta) = y from each start;
+    (theta SI, rss) of the best."""
+    scale = np.maximum(np.abs(cols[env.samples]).max(axis=0), 1e-300)
+    C = cols / scale
+    lo = np.array([p.lo for p in params]) * scale
+    hi = np.array([p.hi for p in params]) * scale
+
+    def resid(th):
+        return env.surface(C @ th) - y
+
+    best = None
+    for start in starts:
+        x0 = np.clip(np.asarray(start, dtype=float) * scale, lo, hi)
+        sol = least_squares(resid, x0, bounds=(lo, hi), method="trf")
+        if best is None or sol.cost < best.cost:
+            best = sol
+    return best.x / scale, float(2.0 * best.cost)
+
+
+def fit_model(env, causes, keep, y, base=None):
+    """Fit the causes (their kept parameters) to y.  ``base``: the fit of
+    the model this one extends (its causes first): its solution, with the
+    new parameters at zero, is the first start, so the extension is never
+    worse; the new parameters also start at a quarter and three quarters of
+    their range."""
+    fit = Fit(list(causes), [list(k) for k in keep], np.zeros(0), float(y @ y), -y)
+    params = fit.params()
+    if not params:
+        return fit
+    n_old = len(base.theta) if base is not None else 0
+    head = base.theta if base is not None else np.zeros(0)
+    new = params[n_old:]
+    starts = [np.r_[head, np.zeros(len(new))]]
+    for frac in (0.25, 0.75):
+        starts.append(np.r_[head, [p.lo + frac * (p.hi - p.lo) for p in new]])
+    fit.theta, fit.rss = _solve(env, fit.columns(), params, y, starts)
+    fit.residual = env.surface(fit.columns() @ fit.theta) - y
+    return fit
+
+
+def _without(fit, i, value=None):
+    """fit.theta with cause i's parameters set to zero (or parameter ``i``, a flat index, to ``value``)."""
+    th = fit.theta.copy()
+    if value is None:
+        th[fit.slices()[i]] = 0.0
+    else:
+        th[i] = value
+    return th
+
+
+def _rms(v):
+    return float(np.sqrt(np.mean(np.square(v)))) if np.size(v) else 0.0
+
+
+def _no_data(env, fit, floor_m, first_new):
+    """Flat indices (>= first_new) of parameters that cannot move the surface
+    by NO_DATA x the floor over their whole range."""
+    cols, params = fit.columns(), fit.params()
+    out = []
+    for i in range(first_new, len(params)):
+        s_lo = env.surface(cols @ _without(fit, i, params[i].lo))
+        s_hi = env.surface(cols @ _without(fit, i, params[i].hi))
+        if _rms(s_hi - s_lo) < NO_DATA * floor_m:
+            out.append(i)
+    return out
+
+
+def _identifiable(env, cols):
+    X = cols[env.samples]
+    norms = np.linalg.norm(X, axis=0)
+    if np.any(norms == 0):
+        return False
+    return np.linalg.matrix_rank(X / norms, tol=1e-8) == X.shape[1]
+
+
+def try_cause(env, base, cand, y, floor_m, stats_ctx):
+    """Extend ``base`` by ``cand``: the fit, its test and whether it is named."""
+    row = {"name": cand.name, "what": cand.what}
+    keep = list(range(len(cand.params)))
+    # a parameter whose column is zero over the covered samples cannot act here
+    norms = np.linalg.norm(cand.columns[env.samples], axis=0)
+    keep = [i for i in keep if norms[i] > 1e-9 * max(norms.max(), 1e-300)]
+    n_old = len(base.theta)
+    while True:
+        if not keep:
+            row["status"] = "no data in this run (the cause cannot change the surface here)"
+            return row, None
+        causes, keeps = base.causes + [cand], base.keep + [keep]
+        trial = Fit(causes, keeps, np.zeros(0), 0.0, None)
+        if not _identifiable(env, trial.columns()):
+            row["status"] = "not identifiable from this run (its deviation is a combination of the model's)"
+            return row, None
+        fit = fit_model(env, causes, keeps, y, base)
+        dropped = _no_data(env, fit, floor_m, n_old)
+        if not dropped:
+            break
+        keep = [k for j, k in enumerate(keep) if n_old + j not in dropped]
+    n = y.size
+    n_eff, tau = ss.effective_points(fit.residual * 1e3, stats_ctx["segs"], stats_ctx["length_mm"],
+                                     stats_ctx["cutter_mm"])
+    F, p = ss.f_test(base.rss, fit.rss, len(keep), len(fit.theta), n, n_eff)
+    size = _rms(env.surface(fit.columns() @ fit.theta) - env.surface(fit.columns() @ _without(fit, len(causes) - 1)))
+    mine = fit.theta[fit.slices()[-1]]
+    ps = [cand.params[i] for i in keep]
+    at_bound = [q.name for q, v in zip(ps, mine)
+                if (abs(v - q.hi) <= 1e-6 * (q.hi - q.lo)) or (not q.lo_is_limit and abs(v - q.lo) <= 1e-6 * (q.hi - q.lo))]
+    row.update(status="ok", rms_mm=_rms(fit.residual) * 1e3, f_stat=F, p_value=p, n_effective=n_eff,
+               size_mm=size * 1e3, params={f"{q.name} ({q.unit})": float(v * q.scale) for q, v in zip(ps, mine)},
+               dropped_no_data=[cand.params[i].name for i in range(len(cand.params)) if i not in keep],
+               at_bound=at_bound)
+    reasons = []
+    if p >= ALPHA:
+        reasons.append(f"p = {p:.2g} >= {ALPHA:g}")
+    if size < SIZE_FACTOR * floor_m:
+        reasons.append(f"changes the surface by {size * 1e3:.4f} mm, below the noise floor")
+    if at_bound:
+        reasons.append(f"needs {', '.join(at_bound)} at its plausibility bound")
+    row["named"] = not reasons
+    row["why_not"] = "; ".join(reasons)
+    return row, fit
+
+
+def noise_floor(scan, segs, stated_mm, warnings):
+    """(floor mm, source, stated mm or None, estimated mm or None)."""
+    estimated = ss.noise_from_scan(scan.error_mm, segs)
+    stated, source = stated_mm, "stated (--noise-mm)"
+    if stated is None and scan.noise_mm is not None:
+        stated, source = scan.noise_mm, f"stated ({rf.SCAN} noise_mm)"
+    if stated is None:
+        if estimated is None:
+            raise InputError(f"{scan.path}: too few neighbouring points to estimate the scan's noise; "
+                             "state it with --noise-mm SIGMA")
+        floor, source = estimated, "estimated from the scan (second differences)"
+    else:
+        floor = stated
+        if estimated is not None and stated > 0 and not 1 / NOISE_DISAGREE <= estimated / stated <= NOISE_DISAGREE:
+            warnings.append(f"the scan's own noise ({estimated:.4f} mm, from its second differences) differs from "
+                            f"the stated {stated:.4f} mm by more than {NOISE_DISAGREE:g}x")
+    if floor < MIN_FLOOR_MM:
+        warnings.append(f"noise floor {floor:.5f} mm raised to {MIN_FLOOR_MM} mm (nothing finer is decided)")
+        floor = MIN_FLOOR_MM
+    return floor, source, stated, estimated
+
+
+def trace(env, cands, y, floor_m, stats_ctx):
+    """Forward selection; returns (rounds, final Fit)."""
+    fit = Fit([], [], np.zeros(0), float(y @ y), -y)
+    rounds = []
+    while len(fit.causes) < MAX_CAUSES:
+        results, fits = [], {}
+        for cand in cands:
+            if any(c.name == cand.name for c in fit.causes):
+                continue
+            row, f = try_cause(env, fit, cand, y, floor_m, stats_ctx)
+            results.append(row)
+            if f is not None:
+                fits[cand.name] = f
+        rounds.append(results)
+        named = [r for r in results if r.get("named")]
+        if not named:
+            break
+        fit = fits[min(named, key=lambda r: fits[r["name"]].rss)["name"]]
+    return rounds, fit
+
+
+def alternatives(env, cands, y, floor_m, stats_ctx, final):
+    """Models as good as the final one with one named cause swapped for
+    another candidate: its fit's mean square within ALIKE x floor^2 of the
+    final's, changing the surface by at least the floor, no parameter at a
+    plausibility bound.  [(row, Fit)], the row naming the cause replaced."""
+    out = []
+    names = [c.name for c in final.causes]
+    for i, c in enumerate(final.causes):
+        rest = Fit([], [], np.zeros(0), float(y @ y), -y)
+        others = [(cc, k) for j, (cc, k) in enumerate(zip(final.causes, final.keep)) if j != i]
+        if others:
+            rest = fit_model(env, [o[0] for o in others], [o[1] for o in others], y)
+        for cand in cands:
+            if cand.name in names:
+                continue
+            row, f = try_cause(env, rest, cand, y, floor_m, stats_ctx)
+            if f is None or row["at_bound"] or row["size_mm"] < SIZE_FACTOR * floor_m * 1e3:
+                continue
+            if (f.rss - final.rss) / y.size <= ALIKE * floor_m**2:
+                row["instead_of"] = c.name
+                out.append((row, f))
+    return out
+
+
+def _cause_params(fit):
+    """{cause name: {param (unit): value}} of a fit."""
+    out = {}
+    for c, k, sl in zip(fit.causes, fit.keep, fit.slices()):
+        out[c.name] = {f"{c.params[i].name} ({c.params[i].unit})": float(v * c.params[i].scale)
+                       for i, v in zip(k, fit.theta[sl])}
+    return out
+
+
+def _si_params(fit):
+    out = {}
+    for c, k, sl in zip(fit.causes, fit.keep, fit.slices()):
+        out[c.name] = {c.params[i].name: float(v) for i, v in zip(k, fit.theta[sl])}
+    return out
+
+
+def fixed_settings(settings, causes):
+    """The settings with the causes ({name: {param: SI value}}) added to the
+    compensator: (settings, [changes in words], [causes with no compensator fix])."""
+    s = copy.deepcopy(settings)
+    s.path = ""
+    changes, none = [], []
+    for name, p in causes.items():
+        if name == "loop_lag":
+            if s.mode == "plain":
+                s.mode = "predictive"
+                changes.append("mode: plain -> predictive (the force model ahead of the measured force: no lag)")
+            else:
+                none.append("loop_lag: the predictive compensator still lags (check its force model scale and "
+                            "its delay)")
+        elif name.startswith("stiffness_error_j"):
+            j = int(name[-1]) - 1
+            k = list(s.joint_stiffness_Nm_per_rad)
+            old = k[j]
+            k[j] = old / (1.0 + p[f"r{j + 1}"])
+            s.joint_stiffness_Nm_per_rad = k
+            changes.append(f"joint {j + 1}'s model stiffness {old:.4g} -> {k[j]:.4g} N*m/rad")
+        elif name == "lost_motion":
+            b = list(s.lost_motion_rad)
+            for j in range(3):
+                b[j] = b[j] + p.get(f"b{j + 1}", 0.0)
+            s.lost_motion_rad = b
+            changes.append("lost motion in the model: " + ", ".join(f"{v * 1e6:.1f}" for v in b[:3])
+                           + " urad (joints 1-3)")
+        elif name == "joint_coupling":
+            s.coupling_c23_rad_per_Nm = s.coupling_c23_rad_per_Nm + p["c23"]
+            changes.append(f"joint 2-3 coupling in the model: {s.coupling_c23_rad_per_Nm:.3g} rad/(N*m)")
+        elif name == "setup_offset":
+            none.append(f"setup_offset: no compensator change; the face sits {p['offset'] * 1e3:+.4f} mm off "
+                        "(+ = cut more): check the tool length and the workpiece height")
+    return s, changes, none
+
+
+def _model_name(fit):
+    return " + ".join(c.name for c in fit.causes)
+
+
+def _where_they_differ(env, scan, fits):
+    """(x mm, y mm, difference mm) where the candidates' predicted surfaces
+    differ most on this pass, or None with one candidate."""
+    if len(fits) < 2:
+        return None
+    preds = np.array([env.surface(f.columns() @ f.theta) for f in fits])
+    spread = preds.max(axis=0) - preds.min(axis=0)
+    i = int(np.argmax(spread))
+    xs, ys = scan.x_mm[env.covered], scan.y_mm[env.covered]
+    return float(xs[i]), float(ys[i]), float(spread[i]) * 1e3
+
+
+def _slug(name):
+    return name.replace(" + ", "+")
+
+
+def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
+    """Trace a run's surface error; with ``verify`` (run folders of
+    verification cuts), decide between the candidate fixes from their scans.
+    Reads only the cell files (identification/run_files.py).  Returns
+    (report dict, extras: candidate settings texts, plan, data for the plot)."""
+    files = rf.load_run_files(run_dir)
+    cuts = [rf.load_run_files(c, names=(rf.SETTINGS, rf.SCAN)) for c in verify]
+    if noise_mm is not None and not (np.isfinite(noise_mm) and noise_mm > 0):
+        raise InputError(f"--noise-mm: must be a positive number (mm), got {noise_mm}")
+    warnings = []
+    settings, scan = files.settings, files.scan
+    D = settings.cutter_diameter_mm
+    sig = run_signals(files, robot)
+    env = Envelope(scan, sig, D)
+    if env.covered.sum() < rf.MIN_ROWS[rf.SCAN]:
+        raise InputError(f"{scan.path}: only {int(env.covered.sum())} scan points lie under the logged pass "
+                         f"(cutter {D:g} mm): the scan and the logs are not of the same cut")
+    if not env.covered.all():
+        warnings.append(f"{int((~env.covered).sum())} scan points lie outside the logged pass and are left out")
+    x_c, y_c = scan.x_mm[env.covered], scan.y_mm[env.covered]
+    segs = ss.segments(x_c, y_c)
+    y = scan.error_mm[env.covered] * 1e-3
+    floor_mm, source, stated, estimated = noise_floor(scan, ss.segments(scan.x_mm, scan.y_mm), noise_mm, warnings)
+    floor = floor_mm * 1e-3
+    ctx = {"segs": segs, "length_mm": ss.scan_length_mm(x_c, segs), "cutter_mm": D}
+    cands = candidates(sig)
+    rounds, final = trace(env, cands, y, floor, ctx)
+    alts = alternatives(env, cands, y, floor, ctx, final) if final.causes else []
+    n_eff, tau = ss.effective_points(final.residual * 1e3, segs, ctx["length_mm"], D)
+    rms_after = _rms(final.residual) * 1e3
+    named = _cause_params(final)
+    sizes = {}
+    for i, c in enumerate(final.causes):
+        sizes[c.name] = _rms(env.surface(final.columns() @ final.theta)
+                             - env.surface(final.columns() @ _without(final, i))) * 1e3
+    report = {
+        "run_dir": str(run_dir), "run_id": files.run_id,
+        "noise_floor_mm": floor_mm, "noise_source": source, "noise_stated_mm": stated,
+        "noise_estimated_mm": estimated,
+        "n_scan_points": int(y.size), "scan_length_mm": ctx["length_mm"], "n_effective": n_eff,
+        "thresholds": {"alpha": ALPHA, "size_factor": SIZE_FACTOR, "no_data_fraction": NO_DATA,
+                       "alike_mean_square_floors": ALIKE, "explains_alpha": EXPLAIN_ALPHA,
+                       "max_causes": MAX_CAUSES, "smooth_hz": SMOOTH_HZ,
+                       "candidates_per_round": len(cands),
+                       "rule": (f"a cause is named when its nested F-test on the effective number of independent "
+                                f"scan points gives p < {ALPHA:g} ({len(cands)} candidates tried in the first "
+                                f"round), it changes the surface by at least {SIZE_FACTOR:g} x the noise floor "
+                                "(RMS) and needs no parameter at its plausibility bound")},
+        "loop_lag_ms": loop_lag_ms(sig),
+        "rms_before_mm": _rms(y) * 1e3, "rms_after_mm": rms_after,
+        "unexplained_mm": float(np.sqrt(max(rms_after**2 - floor_mm**2, 0.0))),
+        "explains_data": ss.consistent_with_floor(final.residual * 1e3, floor_mm, n_eff, EXPLAIN_ALPHA),
+        "causes": [{"name": c.name, "size_mm": sizes[c.name], "params": named[c.name], "what": c.what}
+                   for c in final.causes],
+        "also_consistent_with": [r["name"] for r, _ in alts],
+        "alternatives": [{"name": r["name"], "instead_of": r["instead_of"], "rms_mm": r["rms_mm"],
+                          "size_mm": r["size_mm"], "params": r["params"]} for r, _ in alts],
+        "rounds": rounds, "candidates": [],
+        "surface_error_before_mm": ss.surface_stats(scan.x_mm, scan.error_mm, ss.segments(scan.x_mm, scan.y_mm), D),
+    }
+    extras = {"scan": scan, "covered": env.covered, "model_mm": (env.surface(final.columns() @ final.theta) * 1e3
+                                                                 if final.causes else np.zeros(y.size)),
+              "settings": {}, "plan": None, "cut_scans": []}
+    # candidate fixes: compensator settings each
+    cand_settings, plan_rows, sets = [], [], []
+    if final.causes:
+        for f in [final] + [f for _, f in alts]:
+            name = _model_name(f)
+            s, changes, none = fixed_settings(settings, _si_params(f))
+            entry = {"name": name, "params": _cause_params(f), "changes": changes, "not_in_compensator": none}
+            same = next((n for n, other in cand_settings if s.same_as(other)), None)
+            if same is not None:  # the same compensator change: one cut cannot tell these apart
+                entry["same_settings_as"] = same
+            elif changes:
+                rel = f"candidates/{_slug(name)}/{rf.SETTINGS}"
+                entry["settings"] = rel
+                cand_settings.append((name, s))
+                plan_rows.append((name, rel, "; ".join(changes)))
+                extras["settings"][rel] = s
+                sets.append(f)
+            report["candidates"].append(entry)
+        if plan_rows:
+            differ = _where_they_differ(env, scan, sets) if len(sets) > 1 else None
+            extras["plan"] = rv.verification_plan(plan_rows, scan, differ, floor_mm)
+            report["verification_plan"] = extras["plan"]
+    report["fix"] = _fix(report)
+    if cuts:
+        matched = rv.match_cuts(cand_settings, settings, cuts)
+        verdict = rv.decide(scan, [(n, c.scan) for n, c in matched], floor_mm, D)
+        for row, (_, c) in zip(verdict["cuts"], matched):
+            row["run_dir"] = str(c.folder)
+        report["verification"] = verdict
+        extras["cut_scans"] = [(n, c.scan) for n, c in matched]
+        report["fix"] = _verified_fix(report, verdict)
+    report["warnings"] = warnings
+    return report, extras
+
+
+def _fix(report):
+    """The ``fix`` key before verification."""
+    if not report["causes"]:
+        return None
+    cands = report.get("candidates", [])
+    with_settings = [c for c in cands if "settings" in c]
+    if not with_settings:
+        return {"status": "no compensator change", "candidate": cands[0]["name"] if cands else None,
+                "changes": [], "settings": None, "notes": sum((c["not_in_compensator"] for c in cands), [])}
+    if len(with_settings) == 1:
+        c = with_settings[0]
+        return {"status": "to verify with one cut", "candidate": c["name"], "changes": c["changes"],
+                "settings": c["settings"], "notes": c["not_in_compensator"]}
+    return {"status": "undecided: the run cannot tell the candidates apart; verification cuts decide",
+            "candidate": None, "changes": [], "settings": None,
+            "candidates": [c["name"] for c in with_settings]}
+
+
+def _verified_fix(report, verdict):
+    chosen = verdict["chosen"]
+    cands = {c["name"]: c for c in report.get("candidates", [])}
+    if chosen is None:
+        tied = [verdict["best"]] + verdict["tied_with"]
+        out = {"status": "undecided" if not verdict["decided"] else "no fix better than the first cut",
+               "candidate": None, "changes": [], "settings": None, "reason": verdict["reason"], "tied": tied}
+        if not verdict["decided"] and all(t in cands for t in tied):
+            # the tied cuts share a cause: its fix is verified, the rest is not
+            common = set.intersection(*(set(cands[t]["params"]) for t in tied))
+            if common:
+                out["status"] = "verified in part: " + ", ".join(sorted(common)) + " (the rest undecided)"
+                out["verified_causes"] = sorted(common)
+        return out
+    c = cands[chosen]
+    return {"status": "verified", "candidate": chosen, "changes": c["changes"], "settings": c["settings"],
+            "reason": verdict["reason"]}

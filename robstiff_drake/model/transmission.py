@@ -1,0 +1,73 @@
+"""The joint transmission between motor and link: one law for the plant and
+for every model of it.
+
+A joint's gear twists by ``phi = theta - q`` (motor angle minus link angle,
+rad) under the torque ``tau`` it transmits (N*m): the total torque on the
+link side, gravity, inertia and process load together, which is what a
+gear actually carries.
+
+    phi = c tau + b tanh(tau / TAU_B)          (each joint)
+    phi_2 += c23 tau_3,  phi_3 += c23 tau_2     (the 2-3 coupling)
+
+``c`` is the joint compliance (rad/(N*m)), ``b`` the lost motion (rad: half
+the backlash or the gear's play, taken up in the direction of the load).
+The sign of the load is smoothed over TAU_B: near zero torque the play is
+taken up gradually (friction and the gear's preload), not in a jump that a
+few newton-metres either way would flip.  Where the total torque keeps its
+sign, the lost motion is a constant offset that any static model absorbs;
+it shows only where the total torque changes sign.
+
+Plain numpy; the plant's system and the compensator's model both call it.
+"""
+
+import numpy as np
+
+TAU_B_NM = 50.0  # torque over which the lost motion is taken up (tanh scale), N*m
+
+
+def twist(tau_Nm, compliance_rad_per_Nm, lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0):
+    """Gear twist phi (rad) of joint torques ``tau_Nm`` ((..., 6) N*m)."""
+    tau = np.asarray(tau_Nm, dtype=float)
+    phi = np.asarray(compliance_rad_per_Nm, dtype=float) * tau
+    if lost_motion_rad is not None and np.any(np.asarray(lost_motion_rad) != 0):
+        phi = phi + np.asarray(lost_motion_rad, dtype=float) * np.tanh(tau / TAU_B_NM)
+    if coupling_c23_rad_per_Nm:
+        phi = phi.copy()
+        phi[..., 1] += coupling_c23_rad_per_Nm * tau[..., 2]
+        phi[..., 2] += coupling_c23_rad_per_Nm * tau[..., 1]
+    return phi
+
+
+def torque(phi_rad, compliance_rad_per_Nm, lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0, iterations=30,
+           tol_Nm=1e-9):
+    """The torque (N*m) a gear twisted by ``phi_rad`` (6,) transmits: the
+    inverse of ``twist`` (Newton's method; the law is strictly monotonic, so
+    the answer is unique)."""
+    phi = np.asarray(phi_rad, dtype=float)
+    c = np.asarray(compliance_rad_per_Nm, dtype=float)
+    b = np.zeros(6) if lost_motion_rad is None else np.asarray(lost_motion_rad, dtype=float)
+    c23 = float(coupling_c23_rad_per_Nm)
+    C = np.diag(c)
+    C[1, 2] = C[2, 1] = c23
+    tau = np.linalg.solve(C, phi)  # the linear answer, exact without lost motion
+    if not np.any(b):
+        return tau
+    for _ in range(iterations):
+        r = twist(tau, c, b, c23) - phi
+        th = np.tanh(tau / TAU_B_NM)
+        Jac = C + np.diag(b * (1.0 - th * th) / TAU_B_NM)
+        step = np.linalg.solve(Jac, r)
+        tau = tau - step
+        if np.max(np.abs(step)) < tol_Nm:
+            break
+    return tau
+
+
+def static_deflection(tau_static_Nm, tau_process_Nm, compliance_rad_per_Nm, lost_motion_rad=None,
+                      coupling_c23_rad_per_Nm=0.0):
+    """The link's extra deflection (rad) when the process torque is added to
+    a static load (gravity): twist(static + process) - twist(static).  With
+    a large static torque of one sign the lost motion cancels out."""
+    args = (compliance_rad_per_Nm, lost_motion_rad, coupling_c23_rad_per_Nm)
+    ts = np.asarray(tau_static_Nm, dtype=float)
+    return twist(ts + np.asarray(tau_process_Nm, dtype=float), *args) - twist(ts, *args)

@@ -1,0 +1,434 @@
+"""The reliability contract, one test per class of failure: an input is never
+destroyed, bad input is one line and exit status 2 before any long
+computation, outputs are whole and keep the user's permissions, legal files
+that are not what they claim are refused or warned about, JSON is always
+JSON, and an interrupted command leaves nothing behind."""
+
+import errno
+import hashlib
+import json
+import os
+import signal
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robstiff_drake.commands.main import main
+from robstiff_drake.identification import synth
+from robstiff_drake.io import RUN_ID_FILE, RunFolder, Warnings, emit_json, json_text, write_atomic
+from robstiff_drake.model.robot import load_robot
+
+ROOT = Path(__file__).parents[1]
+SHORT = ROOT / "tests" / "data" / "short_block.yaml"
+ROBOT = load_robot()
+
+
+def cli(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def one_line_error(code, err):
+    assert code == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("robstiff") and "error:" in lines[0], err
+    assert "Traceback" not in err
+
+
+def digest(path):
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+@pytest.fixture
+def campaign(tmp_path):
+    c = synth.stiffness_campaign(ROBOT, n=36, seed=3)
+    p = tmp_path / "v.csv"
+    p.write_text(synth.stiffness_csv(c, robot=ROBOT, noise_mm=0.01, seed=3, force_N=300.0, tool_m=np.zeros(3),
+                                     how="test"))
+    return p
+
+
+@pytest.fixture
+def payload(tmp_path):
+    c = synth.payload_campaign(ROBOT, n=15, seed=0)
+    p = tmp_path / "p.csv"
+    p.write_text(synth.payload_csv(c, noise_N=1.0, noise_Nm=0.1, seed=0, how="test"))
+    return p
+
+
+# ------------------------------------------------------------------ outputs
+
+
+@pytest.mark.parametrize("argv", [
+    ["identify", "{v}", "--json", "{v}"],
+    ["identify", "{v}", "--plot", "{v}"],
+    ["diagnose", "{v}", "--report", "{v}"],
+    ["calibrate-payload", "{p}", "--yaml", "{p}"],
+    ["calibrate-payload", "{p}", "--json", "{p}"],
+    ["simulate", "{s}", "--json", "{s}"],
+    ["simulate", "{s}", "--out", "{sdir}"],
+    ["identify", "{v}", "--json", "{vlink}"],
+])
+def test_an_output_that_is_an_input_is_refused(capsys, tmp_path, campaign, payload, argv):
+    scen = tmp_path / "sd" / "scenario.yaml"
+    scen.parent.mkdir()
+    scen.write_text(SHORT.read_text())
+    link = tmp_path / "link.csv"
+    link.symlink_to(campaign)
+    names = {"v": campaign, "p": payload, "s": scen, "sdir": scen.parent, "vlink": link}
+    before = {k: digest(v) for k, v in names.items() if Path(v).is_file()}
+    code, _, err = cli(capsys, *[a.format(**names) for a in argv])
+    one_line_error(code, err)
+    assert "input" in err
+    assert {k: digest(v) for k, v in names.items() if Path(v).is_file()} == before
+
+
+def test_bad_output_places_are_refused_before_computing(capsys, tmp_path, campaign):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    ro = tmp_path / "ro.json"
+    ro.write_text("{}")
+    ro.chmod(0o444)
+    afile = tmp_path / "a.txt"
+    afile.write_text("x")
+    cases = [
+        (["identify", campaign, "--json", tmp_path], "is a folder"),
+        (["identify", campaign, "--json", "/dev/null"], "is a device"),
+        (["identify", campaign, "--json", fifo], "is a FIFO"),
+        (["identify", campaign, "--json", ro], "read-only"),
+        (["identify", campaign, "--json", afile / "x.json"], "is a file, not a folder"),
+        (["simulate", SHORT, "--out", afile], "is a file, not a folder"),
+        (["synth", "stiffness", "/dev/full"], "is a device"),
+    ]
+    for argv, message in cases:
+        t0 = time.perf_counter()
+        code, _, err = cli(capsys, *argv)
+        one_line_error(code, err)
+        assert message in err, (argv, err)
+        assert time.perf_counter() - t0 < 5.0  # refused up front, not after the simulation
+    assert ro.read_text() == "{}" and afile.read_text() == "x"
+
+
+def test_a_folder_that_is_not_a_run_folder_is_never_replaced(capsys, tmp_path):
+    mine = tmp_path / "thesis"
+    mine.mkdir()
+    (mine / "chapter1.tex").write_text("precious")
+    code, _, err = cli(capsys, "simulate", SHORT, "--out", mine)
+    one_line_error(code, err)
+    assert "not a robstiff run folder" in err
+    assert (mine / "chapter1.tex").read_text() == "precious"
+
+
+def test_writes_go_through_symlinks_and_keep_the_umask_and_modes(tmp_path):
+    old = os.umask(0o022)
+    try:
+        target = tmp_path / "real.json"
+        target.write_text("old")
+        target.chmod(0o640)
+        link = tmp_path / "link.json"
+        link.symlink_to(target)
+        emit_json({"a": 1}, link)
+        assert link.is_symlink() and json.loads(target.read_text()) == {"a": 1}
+        assert stat.S_IMODE(target.stat().st_mode) == 0o640  # an existing file keeps its mode
+        new = tmp_path / "new.csv"
+        write_atomic(new, "x\n")
+        assert stat.S_IMODE(new.stat().st_mode) == 0o644  # a new file gets the umask's
+        with RunFolder(tmp_path / "run") as run:
+            run.write("a.csv", "1\n")
+        assert stat.S_IMODE((tmp_path / "run").stat().st_mode) == 0o755
+        assert stat.S_IMODE((tmp_path / "run" / "a.csv").stat().st_mode) == 0o644
+    finally:
+        os.umask(old)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.json", "new.csv", "real.json", "run"]
+
+
+def test_a_full_disk_is_one_line_and_leaves_no_temporary_file(capsys, tmp_path, campaign, monkeypatch):
+    import robstiff_drake.io as rio
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(rio.os, "fsync", full)
+    out = tmp_path / "out.json"
+    code, _, err = cli(capsys, "identify", campaign, "--json", out)
+    one_line_error(code, err)
+    assert "No space left on device" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v.csv"]
+
+
+def test_a_run_folder_is_written_as_a_whole(capsys, tmp_path):
+    out = tmp_path / "run"
+    assert cli(capsys, "simulate", SHORT, "--out", out)[0] == 0
+    first = (out / RUN_ID_FILE).read_text().strip()
+    assert (out / "sim_timeseries_uncompensated.csv").exists()
+    assert cli(capsys, "simulate", SHORT, "--compensation", "on", "--out", out)[0] == 0
+    second = (out / RUN_ID_FILE).read_text().strip()
+    assert second != first
+    assert not (out / "sim_timeseries_uncompensated.csv").exists()  # nothing of the first run is left beside it
+    for name in ("sim_timeseries_compensated.csv", "sim_surface_compensated.csv", "sim_scenario.yaml",
+                 "wrench_log.csv", "joint_log.csv", "compensator.yaml", "scan.csv"):
+        assert f"# run_id: {second}" in (out / name).read_text().splitlines()[0]
+    assert json.loads((out / "summary.json").read_text())["run_id"] == second
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no temporary folder
+
+
+def test_an_interrupted_run_folder_leaves_the_old_one_and_no_temporary(tmp_path):
+    out = tmp_path / "run"
+    with RunFolder(out) as run:
+        run.write("a.txt", "first")
+    with pytest.raises(KeyboardInterrupt):
+        with RunFolder(out) as run:
+            run.write("a.txt", "second")
+            raise KeyboardInterrupt
+    assert (out / "a.txt").read_text() == "first"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+
+
+# --------------------------------------------------------- legal, but wrong
+
+
+def _rows(path):
+    lines = Path(path).read_text().splitlines()
+    comments = [ln for ln in lines if ln.startswith("#")]
+    body = [ln for ln in lines if ln and not ln.startswith("#")]
+    return comments, body[0], body[1:]
+
+
+def test_copies_of_a_row_are_not_new_measurements(capsys, tmp_path, campaign):
+    comments, header, rows = _rows(campaign)
+    same = tmp_path / "same.csv"
+    same.write_text("\n".join([header] + [rows[0]] * 20) + "\n")
+    code, _, err = cli(capsys, "identify", same)
+    one_line_error(code, err)
+    assert "1 measurement rows once 19 copies of other rows are set aside" in err
+    rep = tmp_path / "rep.csv"
+    rep.write_text("\n".join(comments + [header] + rows + rows[:5]) + "\n")
+    code, out, err = cli(capsys, "identify", rep, "--json", "-")
+    assert code == 0
+    res = json.loads(out)
+    assert res["n_measurements"] == len(rows)
+    assert any("5 row(s) repeat an earlier row" in w for w in res["warnings"])
+    assert "robstiff: warning:" in err
+
+
+def _map_columns(path, out, names, fn):
+    comments, header, rows = _rows(path)
+    cols = header.split(",")
+    new = []
+    for r in rows:
+        v = r.split(",")
+        for n in names:
+            v[cols.index(n)] = fn(v[cols.index(n)])
+        new.append(",".join(v))
+    out.write_text("\n".join(comments + [header] + new) + "\n")
+    return out
+
+
+def test_radians_sign_flips_and_zeros_are_refused(capsys, tmp_path, campaign):
+    rad = _map_columns(campaign, tmp_path / "rad.csv", [f"q{i}" for i in range(1, 7)],
+                       lambda v: repr(float(np.deg2rad(float(v)))))
+    code, _, err = cli(capsys, "identify", rad)
+    one_line_error(code, err)
+    assert "look like radians" in err
+    flip = _map_columns(campaign, tmp_path / "flip.csv", ["dx", "dy", "dz"], lambda v: repr(-float(v)))
+    for cmd in ("identify", "diagnose"):
+        code, _, err = cli(capsys, cmd, flip)
+        one_line_error(code, err)
+        assert "look sign-flipped" in err
+    zero = _map_columns(campaign, tmp_path / "zero.csv", ["dx", "dy", "dz"], lambda v: "0.0")
+    code, _, err = cli(capsys, "diagnose", zero)
+    one_line_error(code, err)
+    assert "all displacements dx,dy,dz are zero" in err
+
+
+def test_payload_in_other_units_and_absurd_cells(capsys, tmp_path, payload):
+    kn = _map_columns(payload, tmp_path / "kn.csv", ["fx", "fy", "fz", "mx", "my", "mz"],
+                      lambda v: repr(float(v) / 1000.0))
+    code, _, err = cli(capsys, "calibrate-payload", kn)
+    one_line_error(code, err)
+    assert "look like kN" in err
+    huge = tmp_path / "huge.csv"
+    comments, header, rows = _rows(payload)
+    huge.write_text("\n".join([header, rows[0].replace(rows[0].split(",")[6], "1e308", 1)] + rows[1:]) + "\n")
+    code, _, err = cli(capsys, "calibrate-payload", huge)
+    one_line_error(code, err)
+    assert "outside the plausible range" in err
+
+
+@pytest.mark.parametrize("variant", ["excel_bom", "tab", "semicolon", "latin1", "utf16", "crlf"])
+def test_spreadsheet_variants_read_the_same(capsys, tmp_path, campaign, variant):
+    code, out, _ = cli(capsys, "identify", campaign, "--json", "-")
+    ref = json.loads(out)["joint_stiffness_Nm_per_rad"]
+    comments, header, rows = _rows(campaign)
+    comments = comments + ["# operator: Jürgen, 20 °C"]
+    lines = comments + [header] + rows
+    if variant in ("tab", "semicolon"):
+        d = "\t" if variant == "tab" else ";"
+        lines = comments + [ln.replace(",", d) for ln in [header] + rows]
+    text = "\n".join(lines) + "\n"
+    raw = {"excel_bom": b"\xef\xbb\xbf" + text.encode("utf-8"), "latin1": text.encode("latin-1"),
+           "utf16": text.encode("utf-16"), "crlf": text.replace("\n", "\r\n").encode()}.get(variant, text.encode())
+    p = tmp_path / f"{variant}.csv"
+    p.write_bytes(raw)
+    code, out, err = cli(capsys, "identify", p, "--json", "-")
+    assert code == 0, err
+    np.testing.assert_allclose(json.loads(out)["joint_stiffness_Nm_per_rad"], ref, rtol=1e-12)
+
+
+@pytest.mark.parametrize("cell, message", [
+    ("١٢", "is not a number in ASCII digits"), ("１２", "is not a number in ASCII digits"),
+    ("1_000", "'1_000' is not a number"), ("0,5", "decimal comma"), ("1e999", "too large"),
+])
+def test_numbers_only_in_ascii(capsys, tmp_path, campaign, cell, message):
+    comments, header, rows = _rows(campaign)
+    cols = header.split(",")
+    v = rows[2].split(",")
+    v[cols.index("fx")] = f'"{cell}"' if "," in cell else cell
+    p = tmp_path / "u.csv"
+    p.write_text("\n".join(comments + [header] + rows[:2] + [",".join(v)] + rows[3:]) + "\n", encoding="utf-8")
+    code, _, err = cli(capsys, "identify", p)
+    one_line_error(code, err)
+    assert message in err and "(fx)" in err
+
+
+def test_an_xlsx_workbook_is_named(capsys, tmp_path):
+    p = tmp_path / "book.csv"
+    p.write_bytes(b"PK\x03\x04" + bytes(range(256)))
+    code, _, err = cli(capsys, "identify", p)
+    one_line_error(code, err)
+    assert "xlsx" in err
+
+
+# ------------------------------------------------------------- scenarios
+
+
+def _scenario(tmp_path, text, name="s.yaml"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_model_files_a_scenario_names_are_checked(capsys, tmp_path):
+    (tmp_path / "ident.json").write_text('{"joint_stiffness_Nm_per_rad": [1.5e6, NaN, 8e5, 3e5, 3e5, 2e5]}')
+    s = _scenario(tmp_path, SHORT.read_text().replace("controller:", "model:\n  identified_json: ident.json\n"
+                                                                      "controller:"))
+    code, _, err = cli(capsys, "simulate", s, "--out", tmp_path / "o")
+    one_line_error(code, err)
+    assert "expected six finite stiffnesses" in err
+    (tmp_path / "pay.yaml").write_text("payload_calibration:\n  mass_kg: -40.0\n  com_mm: [0, 0, 180]\n")
+    s = _scenario(tmp_path, SHORT.read_text().replace("controller:", "model:\n  payload_yaml: pay.yaml\n"
+                                                                      "controller:"))
+    code, _, err = cli(capsys, "simulate", s, "--out", tmp_path / "o")
+    one_line_error(code, err)
+    assert "pay.yaml:2: payload_calibration.mass_kg: -40 is outside the allowed range" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_sensor_the_guard_always_rejects_is_reported(capsys, tmp_path):
+    s = _scenario(tmp_path, SHORT.read_text().replace("  seed: 1", "  seed: 1\n  dropout_probability: 1.0"))
+    code, out, err = cli(capsys, "simulate", s, "--json", "-", "--out", tmp_path / "o")
+    assert code == 0, err
+    res = json.loads(out)
+    assert any("rejected" in w for w in res["warnings"]), res["warnings"]
+    assert any("compensation removed less than 10 %" in w for w in res["warnings"]), res["warnings"]
+    assert "robstiff: warning:" in err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["plan-poses", "1000000000"], "outside the allowed range [6, 500]"),
+    (["kg-study", "--grid", "1000"], "outside the allowed range [1, 20]"),
+    (["synth", "stiffness", "x.csv", "--n", "100000000"], "outside the allowed range [6, 100000]"),
+    (["synth", "stiffness", "x.csv", "--seed", "-1"], "outside the allowed range [0, 4.29497e+09]"),
+    (["synth", "stiffness", "x.csv", "--force-N", "inf"], "outside the allowed range"),
+    (["synth", "stiffness", "x.csv", "--noise-mm", "nan"], "outside the allowed range"),
+    (["stiffness", "0", "0", "0", "0", "30", "0", "--tool", "1e200,0,0"], "outside the allowed range [-5000, 5000]"),
+    (["sweep", str(SHORT), "--period-ms", "1e200"], "outside the allowed range [0.1, 1000] ms"),
+    (["stiffness-map", "--force-N", "1e200"], "outside the allowed range"),
+])
+def test_sizes_and_numbers_that_cannot_finish_are_refused(capsys, tmp_path, monkeypatch, argv, message):
+    monkeypatch.chdir(tmp_path)
+    t0 = time.perf_counter()
+    code, _, err = cli(capsys, *argv)
+    one_line_error(code, err)
+    assert message in err
+    assert time.perf_counter() - t0 < 5.0
+    assert list(tmp_path.iterdir()) == []
+
+
+# ------------------------------------------------------------------- JSON
+
+
+def test_json_is_always_json():
+    text = json_text({"a": float("nan"), "b": [1.0, float("inf")], "c": np.float64("-inf"), "warnings": []})
+
+    def refuse(token):
+        raise ValueError(token)
+
+    data = json.loads(text, parse_constant=refuse)
+    assert data["a"] is None and data["b"] == [1.0, None] and data["c"] is None
+    assert "not finite, written as null: a, b[1], c" in data["warnings"][0]
+
+
+def test_warnings_are_one_line_each(capsys):
+    w = Warnings()
+    w.add("two\nlines")
+    w.add("two\nlines")
+    assert list(w) == ["two lines"]
+    assert capsys.readouterr().err == "robstiff: warning: two lines\n"
+
+
+# ------------------------------------------------------------- processes
+
+
+def test_a_sweep_run_that_fails_makes_the_sweep_incomplete(monkeypatch):
+    from robstiff_drake.diagrams import experiment, sweep
+
+    def no_memory(*a, **k):
+        raise MemoryError()
+
+    monkeypatch.setattr(experiment, "run_cut", no_memory)
+    rows = sweep.run_sweep(SHORT, sweep.combinations([4.0], [1], [2.0], ["plain"]), workers=1, predict=False)
+    assert rows[0]["stable"] is False and "MemoryError" in rows[0]["error"]
+
+
+def test_sigterm_stops_a_sweep_and_its_workers(tmp_path):
+    scen = tmp_path / "sigterm_marker_scenario.yaml"
+    scen.write_text((ROOT / "diagrams" / "cylinder_head.yaml").read_text())
+    out = tmp_path / "sweep.json"
+    proc = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "sweep", str(scen), "--period-ms",
+                             "4,8,12,16,24,32,48,64", "--cutoff-hz", "2,3,4,5", "--workers", "2", "--json", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    time.sleep(6.0)  # the workers are running by now
+    assert proc.poll() is None, "the sweep ended before it could be interrupted"
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert err.strip() == "robstiff: terminated"
+    time.sleep(0.5)
+    left = subprocess.run(["pgrep", "-f", "sigterm_marker_scenario"], capture_output=True, text=True).stdout.split()
+    assert left == [], f"worker processes left behind: {left}"
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [scen.name]
+
+
+def test_ctrl_c_during_a_simulation_leaves_nothing_behind(tmp_path):
+    scen = tmp_path / "slow.yaml"
+    scen.write_text((ROOT / "diagrams" / "block_milling.yaml").read_text().replace("  feed_mm_per_s: 20.0",
+                                                                                 "  feed_mm_per_s: 1.0"))
+    proc = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "simulate", str(scen), "--out",
+                             str(tmp_path / "run"), "--json", str(tmp_path / "s.json")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    time.sleep(4.0)
+    assert proc.poll() is None, "the simulation ended before it could be interrupted"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert err.strip() == "robstiff: interrupted"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["slow.yaml"]
