@@ -84,8 +84,7 @@ def arm_at_rest(sc, robot, q_cmd, *, k=None, force=None, command=None, damping=N
     theta = q_cmd + gravity_holding_torque(ctrl, q_cmd) / k  # the controller's gravity model (calibrated: true k)
     q = static_link_angles(ctrl, theta, 1.0 / k)
     plant.SetPositions(plant.GetMyMutableContextFromRoot(root), q)
-    arm["servo"].GetMyMutableContextFromRoot(root).SetDiscreteState(np.concatenate([theta, np.zeros(6)]))
-    for block in arm["interpolator"]:
+    for block in [arm["servo"]] + arm["interpolator"]:
         ctx = block.GetMyMutableContextFromRoot(root)
         ctx.SetDiscreteState(np.tile(np.concatenate([theta, np.zeros(6)]), ctx.get_discrete_state_vector().size() // 12))
     sim.Initialize()
@@ -187,13 +186,16 @@ def test_plant_step_is_stable_where_the_criterion_says(scenario, robot, zeta, st
         assert not dev < 1e-2
 
 
-def test_the_servo_delays_a_correction_as_its_model_says(scenario, robot):
+@pytest.mark.parametrize("step_s", [0.002, 0.004])  # blocks apart; the dead time inside the servo's system
+def test_the_servo_delays_a_correction_as_its_model_says(scenario, robot, step_s):
     """A 1 mrad step of the joint command without velocity feed-forward (a
     correction): the motor follows the interpolator's dead time, one plant
     step (the servo's own discrete update) and the position loop's
     second-order response, to 1 % of the step, against the continuous
     transfer function (scipy); the station reports that lag."""
     q0 = reference_pose(robot)
+    scenario = copy.deepcopy(scenario)
+    scenario.plant_config.time_step = step_s
     t0, step = 0.1005, np.full(6, 1e-3)  # between ticks: no tie at the step
     sim, arm = arm_at_rest(scenario, robot, q0, command=StepCommand(q0, step, t0))
     servo = servo_parameters(scenario)

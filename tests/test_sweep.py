@@ -195,17 +195,21 @@ def test_payload_inertia_map_is_what_drake_reports_at_the_weld(robot, rng):
 
 
 def test_loop_model_needs_the_payload_inertia_at_a_resonance(robot):
-    """16 ms, 20 Hz: the compensation loop rings (the sensor reads the
-    payload's inertia as cutting load).  The loop model follows it with the
-    inertia in its sensor and misses it by 5x without."""
+    """5 % damping, 2 ms, 20 Hz: the compensation loop rings at the arm's
+    36-37 Hz modes (the sensor reads the payload's inertia as cutting load,
+    and the chain feeds it back); the loop model follows the simulation to
+    50 % with the inertia in its sensor and misses it by more than 10x without."""
     from robstiff_drake.diagrams import loop_prediction
 
-    sc = load_scenario(INTERRUPTED)
-    combo = {"period_ms": 16.0, "delay_steps": 1, "cutoff_hz": 20.0, "mode": "plain"}
-    row = run_one(str(INTERRUPTED), combo, predict=False)
+    path = ROOT / "diagrams" / "interrupted_cut_low_damping.yaml"
+    sc = load_scenario(path)
+    combo = {"period_ms": 2.0, "delay_steps": 1, "cutoff_hz": 20.0, "mode": "plain"}
+    row = run_one(str(path), combo, predict=False)
     sim = max(row["surface_error_mm"]["entry_max_abs"], row["surface_error_mm"]["exit_max_abs"])
+    assert sim > 1.0  # mm: it rings
     p = loop_prediction.predict(sc, robot, combo)
     assert max(p["surface_error_mm"]["entry_max_abs"], p["surface_error_mm"]["exit_max_abs"]) == pytest.approx(
-        sim, rel=0.25)
+        sim, rel=0.5)
+    assert p["spectral_radius"] > 1.0
     blind = loop_prediction.predict(sc, robot, combo, sensor_feels_inertia=False)
-    assert max(blind["surface_error_mm"]["entry_max_abs"], blind["surface_error_mm"]["exit_max_abs"]) < 0.2 * sim
+    assert max(blind["surface_error_mm"]["entry_max_abs"], blind["surface_error_mm"]["exit_max_abs"]) < 0.1 * sim

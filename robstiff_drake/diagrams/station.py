@@ -36,7 +36,6 @@ from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
 from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import (
-    Adder,
     ConstantVectorSource,
     Demultiplexer,
     DiscreteTimeDelay,
@@ -219,9 +218,8 @@ class MillingStation:
                                    self.lost_motion_plant_rad, self.coupling_plant)
             wrench = self.reading_at_rest(q)
         self.plant.SetPositions(self.plant.GetMyMutableContextFromRoot(root_context), q)
-        s["servo"].GetMyMutableContextFromRoot(root_context).SetDiscreteState(np.concatenate([theta, np.zeros(6)]))
-        ref = np.concatenate([theta, np.zeros(6)])
-        for block in s["interpolator"]:
+        ref = np.concatenate([theta, np.zeros(6)])  # every sample of the interpolator and the servo at rest
+        for block in [s["servo"]] + s["interpolator"]:
             ctx = block.GetMyMutableContextFromRoot(root_context)
             ctx.SetDiscreteState(np.tile(ref, ctx.get_discrete_state_vector().size() // 12))
         s["sensor"].GetMyMutableContextFromRoot(root_context).SetDiscreteState(wrench)
@@ -292,14 +290,14 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
         gravity = builder.AddNamedSystem(f"{name}_gravity", InverseDynamics(
             ctrl, InverseDynamics.InverseDynamicsMode.kGravityCompensation))
         builder.Connect(as_state.get_output_port(), gravity.get_input_port_estimated_state())
-        twist = builder.AddNamedSystem(f"{name}_twist", MatrixGain(sign * np.diag(1.0 / k_model)))
-        builder.Connect(gravity.get_output_port(), twist.get_input_port())
-        shift = builder.AddNamedSystem(f"{name}_offset", MatrixGain(sign * np.eye(6)))
-        builder.Connect(offset.get_output_port(), shift.get_input_port())
-        total = builder.AddNamedSystem(name, Adder(3, 6))
-        builder.Connect(angles, total.get_input_port(0))
-        builder.Connect(twist.get_output_port(), total.get_input_port(1))
-        builder.Connect(shift.get_output_port(), total.get_input_port(2))
+        terms = builder.AddNamedSystem(f"{name}_terms", Multiplexer([6, 6, 6]))
+        builder.Connect(angles, terms.get_input_port(0))
+        builder.Connect(gravity.get_output_port(), terms.get_input_port(1))
+        builder.Connect(offset.get_output_port(), terms.get_input_port(2))
+        # angles + sign (C_model g + offset), one gain
+        total = builder.AddNamedSystem(name, MatrixGain(np.hstack([np.eye(6), sign * np.diag(1.0 / k_model),
+                                                                   sign * np.eye(6)])))
+        builder.Connect(terms.get_output_port(), total.get_input_port())
         return total.get_output_port()
 
     theta_ref = gravity_twist(cmd_in.get_output_port(), "motor_reference", 1.0)
@@ -308,6 +306,14 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     builder.Connect(vel_in.get_output_port(), ref.get_input_port(1))
     n_i = int(round(servo.interpolator_delay_s / interpolator_period_s))
     last, interp = ref.get_output_port(), []
+    if abs(interpolator_period_s - h) < 1e-12:
+        # the interpolator runs at the plant's step: its dead time is a shift
+        # register inside the servo's LinearSystem (one discrete update, not three)
+        # (n + 1 samples: the same dead time as a hold and a delay line of n - 1 in front of it)
+        A, B, C, D = servo.discrete_with_delay(h, n_i + 1 if n_i else 0)
+        n_i = 0
+    else:
+        A, B, C, D = servo.discrete(h)
     if n_i >= 1:  # n periods: a hold adds one, a delay line the rest (same-instant semantics)
         interp.append(builder.AddNamedSystem("interpolator_hold", ZeroOrderHold(interpolator_period_s, 12)))
         if n_i >= 2:
@@ -316,7 +322,6 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
         for block in interp:
             builder.Connect(last, block.get_input_port())
             last = block.get_output_port()
-    A, B, C, D = servo.discrete(h)
     servo_sys = builder.AddNamedSystem("joint_servo", LinearSystem(A, B, C, D, h))
     builder.Connect(last, servo_sys.get_input_port())
     motor = servo_sys.get_output_port()  # (theta, theta')

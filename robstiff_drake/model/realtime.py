@@ -104,14 +104,33 @@ class DeflectionPredictor:
             chain = memo[q] = self._chain_uncached(q)
         return chain
 
+    def pose_only(self, q_rad):
+        """``pose`` without the Jacobian (for a caller that needs only the
+        tool's pose: less arithmetic); a memoised chain is used if there is one."""
+        q = tuple(q_rad.tolist() if hasattr(q_rad, "tolist") else q_rad)
+        chain = self._memo.get(q)
+        return chain[1] if chain is not None else self._forward(q, None)
+
     def _chain_uncached(self, q_rad):
+        axes = []
+        pose = self._forward(q_rad, axes)
+        px, py, pz = pose[9:]
+        cols = []  # Jacobian columns: (z x (p - o), z)
+        for zx, zy, zz, ox, oy, oz in axes:
+            ex, ey, ez = px - ox, py - oy, pz - oz
+            cols.append((zy * ez - zz * ey, zz * ex - zx * ez, zx * ey - zy * ex, zx, zy, zz))
+        return axes, pose, tuple(cols)
+
+    def _forward(self, q_rad, axes):
+        """(R row-major 9, tool point 3) of the tool frame; each joint's axis
+        and origin appended to ``axes`` when it is a list."""
         # Rotation R (rows r0..r8) and position p of the current frame, from
         # the chain's base transform.
         r0, r1, r2, r3, r4, r5, r6, r7, r8, px, py, pz = self._base
-        axes = []
         home, d, a, ca, sa = self._home, self._d, self._a, self._ca, self._sa
         for i, qi in enumerate(q_rad):
-            axes.append((r2, r5, r8, px, py, pz))  # z axis and origin of frame i
+            if axes is not None:
+                axes.append((r2, r5, r8, px, py, pz))  # z axis and origin of frame i
             th = qi + home[i]
             ct, st = math.cos(th), math.sin(th)
             c, s = ca[i], sa[i]
@@ -132,11 +151,7 @@ class DeflectionPredictor:
         px += r0 * tx + r1 * ty + r2 * tz
         py += r3 * tx + r4 * ty + r5 * tz
         pz += r6 * tx + r7 * ty + r8 * tz
-        cols = []  # Jacobian columns: (z x (p - o), z)
-        for zx, zy, zz, ox, oy, oz in axes:
-            ex, ey, ez = px - ox, py - oy, pz - oz
-            cols.append((zy * ez - zz * ey, zz * ex - zx * ez, zx * ey - zy * ex, zx, zy, zz))
-        return axes, (r0, r1, r2, r3, r4, r5, r6, r7, r8, px, py, pz), tuple(cols)
+        return (r0, r1, r2, r3, r4, r5, r6, r7, r8, px, py, pz)
 
     def __call__(self, q_rad, wrench):
         """Return (dq, dx) as numpy arrays: joint deflection (rad) and the

@@ -61,6 +61,26 @@ class ServoParameters:
         # reorder the per-joint blocks into (all thetas, all rates)
         return (np.kron(Ad, eye), np.kron(Bd, eye), np.eye(2 * n_joints), np.zeros((2 * n_joints, 2 * n_joints)))
 
+    def discrete_with_delay(self, step_s, n_delay, n_joints=6):
+        """As ``discrete``, with the interpolator's dead time as a shift
+        register of ``n_delay`` steps in front of the servo, in one system
+        (one discrete update per step instead of three): state (the
+        register's n_delay inputs, oldest last, then theta, theta')."""
+        A, B, _, _ = self.discrete(step_s, n_joints)
+        m = 2 * n_joints  # one input sample: (theta_ref, omega_ref)
+        n = m * n_delay
+        Aa = np.zeros((n + m, n + m))
+        Ba = np.zeros((n + m, m))
+        if n_delay == 0:
+            return A, B, np.eye(m), np.zeros((m, m))
+        Ba[:m] = np.eye(m)  # the newest sample enters the register
+        for k in range(1, n_delay):
+            Aa[k * m:(k + 1) * m, (k - 1) * m:k * m] = np.eye(m)  # and moves along it
+        Aa[n:, n - m:n] = B  # the servo sees the oldest
+        Aa[n:, n:] = A
+        C = np.hstack([np.zeros((m, n)), np.eye(m)])
+        return Aa, Ba, C, np.zeros((m, m))
+
     def frequency_response(self, f_hz, velocity_feedforward=True):
         """theta / theta_ref at ``f_hz`` (complex), with or without the
         reference's velocity fed forward; the interpolator's delay included."""

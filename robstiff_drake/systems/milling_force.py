@@ -54,6 +54,9 @@ class MillingForceSource(LeafSystem):
         # (base frame, at the tool point) and the spatial force list
         self._pose = self.DeclareDiscreteState(12)
         self._w = self.DeclareDiscreteState(6)
+        self._applied = ExternallyAppliedSpatialForce()  # reused: only its force changes
+        self._applied.body_index = self._body
+        self._applied.p_BoBq_B = np.array(self._tool)  # the spindle's frame is the flange's
         self._force = self.DeclareAbstractState(AbstractValue.Make([self._spatial_force([0.0] * 6)]))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
         self.DeclareStateOutputPort("spatial_force", self._force)
@@ -67,11 +70,10 @@ class MillingForceSource(LeafSystem):
                                          prerequisites_of_calc=now | {self.discrete_state_ticket(self._w)})
 
     def _spatial_force(self, w):
-        f = ExternallyAppliedSpatialForce()
-        f.body_index = self._body
-        f.p_BoBq_B = np.array(self._tool)  # the spindle's frame is the flange's
-        f.F_Bq_W = SpatialForce(np.array(w[3:]), np.array(w[:3]))
-        return f
+        """The wrench w (list: force, moment about the tool point, base frame)
+        on the spindle at the tool point (the state copies it when set)."""
+        self._applied.F_Bq_W = SpatialForce(np.array(w[3:]), np.array(w[:3]))
+        return self._applied
 
     def _tooth_wrench_now(self, context):
         p = context.get_discrete_state(self._pose).value()[9:]
@@ -86,7 +88,7 @@ class MillingForceSource(LeafSystem):
     def step_wrench(self, t, q):
         """(wrench over the period starting at t as a list, pose): the pose is
         the flange rotation (row-major 9) and the tool point (3), m."""
-        pose = self._kin.pose(q)
+        pose = self._kin.pose_only(q)
         p = pose[9:]
         u = self._path.feed_direction(t)
         if self._mode == "tooth":

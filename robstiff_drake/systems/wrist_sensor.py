@@ -19,11 +19,11 @@ class WristForceSensor(LeafSystem):
     Input  ``reaction_forces``: the plant's reaction forces (abstract); the
       weld's reaction carries the payload's weight and inertia and the
       cutting load (which the milling source applies to the spindle).
-    Input  ``gaussian`` (6) and ``uniform`` (3): standard normal and uniform
-      [0, 1) samples, one set per sensor sample, from Drake RandomSources
-      (``add_random_inputs``): the randomness lives in the Context, so a
-      simulation's noise is set by the context's random generator, not by
-      this object.
+    Input  ``gaussian`` (6; with noise) and ``uniform`` (3; with dropouts or
+      spikes): standard normal and uniform [0, 1) samples, one set per sensor
+      sample, from Drake RandomSources (``add_random_inputs``): the randomness
+      lives in the Context, so a simulation's noise is set by the context's
+      random generator, not by this object.
     Input  ``ripple`` (6), with ``tooth_ripple=True``: the part of the tooth
       force the plant's step averages away (MillingForceSource), which a
       sensor faster than the step still sees.
@@ -45,8 +45,9 @@ class WristForceSensor(LeafSystem):
         self._spike = float(spike_N)
         self.period_s = 1.0 / rate_hz
         self._reaction = self.DeclareAbstractInputPort("reaction_forces", AbstractValue.Make([SpatialForce()]))
-        self._gauss = self.DeclareVectorInputPort("gaussian", 6)
-        self._uniform = self.DeclareVectorInputPort("uniform", 3)
+        # the random inputs exist only where they are used (fewer systems per step)
+        self._gauss = self.DeclareVectorInputPort("gaussian", 6) if any(self._noise) else None
+        self._uniform = self.DeclareVectorInputPort("uniform", 3) if self._p_drop or self._p_spike else None
         self._ripple = self.DeclareVectorInputPort("ripple", 6) if tooth_ripple else None
         init = np.zeros(6) if initial_wrench is None else np.asarray(initial_wrench, dtype=float)
         self._state = self.DeclareDiscreteState(init)
@@ -63,9 +64,12 @@ class WristForceSensor(LeafSystem):
         return w
 
     def _sample(self, context, discrete_state):
-        g = self._gauss.Eval(context).tolist()
-        w = [a + b + n * s for a, b, n, s in zip(self.true_wrench(context), self._bias, self._noise, g)]
-        if self._p_drop or self._p_spike:
+        if self._gauss is not None:
+            g = self._gauss.Eval(context).tolist()
+            w = [a + b + n * s for a, b, n, s in zip(self.true_wrench(context), self._bias, self._noise, g)]
+        else:
+            w = [a + b for a, b in zip(self.true_wrench(context), self._bias)]
+        if self._uniform is not None:
             u_drop, u_spike, u_axis = self._uniform.Eval(context).tolist()
             if u_drop < self._p_drop:
                 w = [math.nan] * 6
@@ -79,11 +83,13 @@ def add_random_inputs(builder, sensor, name="wrist_sensor"):
     """RandomSources for the sensor's ``gaussian`` and ``uniform`` inputs,
     sampled at the sensor's rate; their state is set by the simulation
     context's random generator (``Diagram.SetRandomContext``)."""
-    gauss = builder.AddNamedSystem(f"{name}_gaussian", RandomSource(RandomDistribution.kGaussian, 6, sensor.period_s))
-    uniform = builder.AddNamedSystem(f"{name}_uniform", RandomSource(RandomDistribution.kUniform, 3, sensor.period_s))
-    builder.Connect(gauss.get_output_port(), sensor.GetInputPort("gaussian"))
-    builder.Connect(uniform.get_output_port(), sensor.GetInputPort("uniform"))
-    return gauss, uniform
+    out = []
+    for port, kind, size in (("gaussian", RandomDistribution.kGaussian, 6), ("uniform", RandomDistribution.kUniform, 3)):
+        if sensor.HasInputPort(port):
+            src = builder.AddNamedSystem(f"{name}_{port}", RandomSource(kind, size, sensor.period_s))
+            builder.Connect(src.get_output_port(), sensor.GetInputPort(port))
+            out.append(src)
+    return out
 
 
 class WrenchGuard(LeafSystem):
