@@ -124,11 +124,15 @@ class ControllerLink:
         self.seqno = 0
         self.t0 = time.monotonic()
 
-    def robot_message(self, joints_deg, planned_deg=None, mtype=None):
+    def robot_message(self, joints_deg, planned_deg=None, mtype=None, tm_ms=None):
+        """``tm_ms``: the controller's clock (ms) of the cycle; a hard
+        real-time controller stamps its cycles, not the moment the message
+        leaves (default: the time since the start or the last restart)."""
         m = self.pb2.EgmRobot()
         self.seqno += 1
         m.header.seqno = self.seqno
-        m.header.tm = int((time.monotonic() - self.t0) * 1000) & 0xFFFFFFFF
+        tm = (time.monotonic() - self.t0) * 1000 if tm_ms is None else tm_ms
+        m.header.tm = int(round(tm)) & 0xFFFFFFFF
         m.header.mtype = self.pb2.EgmHeader.MSGTYPE_DATA if mtype is None else mtype
         m.feedBack.joints.joints.extend([float(v) for v in joints_deg])
         if planned_deg is not None:

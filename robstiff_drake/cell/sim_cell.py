@@ -109,6 +109,7 @@ class CellNetwork:
         answered_since_last = True
         restarted = False
         engaged, t_eng = False, 0.0
+        k_clock = 0  # the tick the controller's clock (header.tm) counts from: 0, or the last restart's
         hold = getattr(self.station, "hold", None)
         while True:
             t_tick = t0 + k * T
@@ -151,6 +152,7 @@ class CellNetwork:
                 self.egm.restart()
                 pause_until = t_tick + f.restart_pause_s
                 k = int(math.ceil((pause_until - t0) / T))
+                k_clock = k
                 answered_since_last = True
                 continue
             q_deg = np.degrees(q_meas)
@@ -161,7 +163,10 @@ class CellNetwork:
                                 (f.egm_drop_probability and self.rng.random() < f.egm_drop_probability))
             if not drop:
                 mtype = self.egm.pb2.EgmHeader.MSGTYPE_COMMAND if f.egm_wrong_type else None
-                self.egm.send(self.egm.robot_message(joints, np.degrees(q_cmd), mtype))
+                # stamped with the cycle's own time: an IRC5 runs its 4 ms cycle in hard real time,
+                # only this simulation's ticks jitter (stamping the wall clock made the targets'
+                # spacing, and so the servo's velocity feed-forward, jitter by a millisecond)
+                self.egm.send(self.egm.robot_message(joints, np.degrees(q_cmd), mtype, tm_ms=(k - k_clock) * T * 1e3))
             else:
                 self.egm.seqno += 1
                 answered_since_last = True  # nothing to answer

@@ -267,6 +267,21 @@ def build_parser():
     _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
                          "scenario's `robot:` when it has one")
 
+    p = sub.add_parser("sim-cell", help="the scenario's simulated cell behind EGM and Net F/T (for `compensate`)",
+                       epilog="Example: robstiff sim-cell diagrams/block_milling.yaml --egm-to 127.0.0.1:6510 "
+                              "--netft-port 49152 --reference-out reference.csv")
+    p.add_argument("scenario", metavar="SCENARIO.yaml")
+    p.add_argument("--egm-to", required=True, metavar="HOST:PORT", help="where the compensator listens for EGM")
+    p.add_argument("--netft-port", type=_number_in(1, 65535, integer=True), required=True, metavar="PORT",
+                   help="UDP port of the simulated Net F/T (RDT)")
+    p.add_argument("--wait-s", type=_number_in(0.1, 3600.0, "s"), default=30.0,
+                   help="how long to wait at rest for the compensator's first answer (default: %(default)s)")
+    p.add_argument("--reference-out", metavar="JOINTS.csv",
+                   help="write the path's joint reference, for `compensate --reference`")
+    p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=4.0, help="EGM cycle (default: %(default)s)")
+    p.add_argument("--json", metavar="OUT", help="write the result as JSON ('-' for stdout)")
+    _add_robot_option(p)
+
     p = sub.add_parser("compensate", help="the compensator as a process: ABB EGM and an ATI Net F/T over UDP "
                                           "(docs/real_cell.md)")
     p.add_argument("--egm-port", type=_number_in(1, 65535, integer=True), required=True, metavar="PORT",
@@ -390,6 +405,12 @@ def _dispatch(args):
                          cutoffs=args.cutoff_hz, modes=args.mode, json_out=args.json, plot_out=args.plot,
                          workers=args.workers, scheduler=args.scheduler, plant_step_ms=args.plant_step_ms,
                          predict=not args.no_predict, progress=args.progress, robot_yaml=args.robot)
+    if args.command == "sim-cell":
+        from robstiff_drake.commands import sim_cell
+
+        return sim_cell.run(scenario=args.scenario, egm_to=args.egm_to, netft_port=args.netft_port, wait_s=args.wait_s,
+                            reference_out=args.reference_out, json_out=args.json, robot_yaml=args.robot,
+                            period_ms=args.period_ms)
     if args.command == "compensate":
         from robstiff_drake.commands import compensate
 

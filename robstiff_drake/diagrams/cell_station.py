@@ -1,0 +1,113 @@
+"""The Drake station behind a real cell's protocols: what `robstiff
+sim-cell` steps one EGM cycle at a time (cell/sim_cell.py's station
+interface).
+
+``CellStation(sc, robot)`` builds the scenario's station
+(diagrams/station.py) alone, with its commands fixed per cycle:
+
+* ``hold()``: at rest on the path's first point (the controller has not
+  engaged yet); the clock does not move;
+* ``step(q_cmd_rad)``: the joint target of the cycle (the controller's
+  angles, rad) held for one period, its velocity the difference to the
+  last target; returns what the controller reports (its joint angles, the
+  controller's convention, rad) and every wrench sample the sensor took
+  during the period (k, 6);
+* ``last_info``: (time s, link angles rad): the truth, for the scan after
+  the run;
+* ``done``: the path (and its run-out) is over.
+
+The station's clock starts at the first ``step``: the milling source reads
+the path's feed direction by time, and the compensator streams the path
+from its first answer.
+"""
+
+from types import SimpleNamespace
+
+import numpy as np
+from pydrake.common import RandomGenerator
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import LogVectorOutput
+
+from robstiff_drake.diagrams.experiment import RUN_OUT_S, scan_surface, zone_stats
+from robstiff_drake.diagrams.milling_cell import build_station, planned_path
+from robstiff_drake.diagrams.scenario import cutting_setup
+from robstiff_drake.model.surface import surface_error_stats
+
+
+class CellStation:
+    def __init__(self, sc, robot, *, period_s=0.004):
+        self.sc, self.robot, self.T = sc, robot, float(period_s)
+        tool = robot.tool_point(where="sim-cell")
+        _, self.force_model, self.workpiece = cutting_setup(sc)
+        self.path, self.t_ref, self.q_ref = planned_path(sc, robot, tool)
+        self.station = build_station(sc, robot, q_modes_rad=self.q_ref[0], path=self.path)
+        builder = DiagramBuilder()
+        st = builder.AddSystem(self.station.diagram)
+        self._wrench_log = LogVectorOutput(st.GetOutputPort("wrench_measured"), builder, 1.0 / sc.sensor.rate_hz)
+        self._system = st
+        self.diagram = builder.Build()
+        self.sim = Simulator(self.diagram)
+        root = self.sim.get_mutable_context()
+        self.diagram.SetRandomContext(root, RandomGenerator(int(sc.sensor.seed)))
+        self._rest = self.station.set_initial_state(root, self.q_ref[0])
+        self._ctx = st.GetMyMutableContextFromRoot(root)
+        self._fix(self.q_ref[0], np.zeros(6))
+        self.sim.Initialize()
+        self._last_cmd = self.q_ref[0].copy()
+        self._read = 0
+        self.t_end = self.path.duration_s + RUN_OUT_S
+        self.times, self.q_link = [], []
+        self.last_info = None
+        self.tool_m = tool
+
+    def _fix(self, q_model, v_model):
+        self._system.GetInputPort("position_command").FixValue(self._ctx, q_model)
+        self._system.GetInputPort("velocity_command").FixValue(self._ctx, v_model)
+
+    def _report(self):
+        q = self._system.GetOutputPort("position_measured").Eval(self._ctx)
+        return self.robot.joint_map.to_controller(q)
+
+    @property
+    def done(self):
+        return self.sim.get_context().get_time() >= self.t_end
+
+    def hold(self):
+        return self._report(), np.atleast_2d(self._rest[2])
+
+    def step(self, q_cmd_rad):
+        q = self.robot.joint_map.to_model(np.asarray(q_cmd_rad, dtype=float))
+        self._fix(q, (q - self._last_cmd) / self.T)
+        self._last_cmd = q
+        t = self.sim.get_context().get_time() + self.T
+        self.sim.AdvanceTo(t)
+        log = self._wrench_log.FindLog(self.sim.get_context())
+        data = log.data()
+        samples = data[:, self._read:].T.copy()
+        self._read = data.shape[1]
+        x = self._system.GetOutputPort("plant_state").Eval(self._ctx)
+        self.times.append(t)
+        self.q_link.append(x[:6].copy())
+        self.last_info = (t, x[:6].copy())
+        return self._report(), samples if len(samples) else np.atleast_2d(self._rest[2])
+
+    def surface(self):
+        """(scan lines, surface-error statistics mm) of the cut so far."""
+        cell = SimpleNamespace(scenario=self.sc, force_model=self.force_model, robot=self.robot, tool_m=self.tool_m,
+                               path=self.path, workpiece=self.workpiece, compensation=True)
+        scans = scan_surface(cell, np.asarray(self.times), np.asarray(self.q_link))
+        err = np.concatenate([s.error_m[np.isfinite(s.error_m)] for s in scans])
+        stats = surface_error_stats(err) if err.size else {}
+        stats.update(zone_stats(cell, scans))
+        return scans, stats
+
+    def reference_csv(self):
+        """The joint reference the compensator streams (t_s, q1_deg..q6_deg:
+        the controller's angles), as `robstiff compensate --reference` reads it."""
+        deg = self.robot.controller_deg(self.q_ref)
+        lines = ["# joint reference of the scenario's path, written by robstiff sim-cell (IK every "
+                 f"{self.sc.path.reference_period_ms:g} ms; the controller's angles)",
+                 "t_s," + ",".join(f"q{j}_deg" for j in range(1, 7))]
+        lines += [f"{t:.6f}," + ",".join(f"{v:.9f}" for v in q) for t, q in zip(self.t_ref, deg)]
+        return "\n".join(lines) + "\n"
