@@ -14,6 +14,7 @@ from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 from robstiff_drake.errors import InputError
+from robstiff_drake.progress import info
 from robstiff_drake.paths import DEFAULT_ROBOT_NAME, DIAGRAMS_DIR, library_robots, scenario_file
 
 BLOCK = DIAGRAMS_DIR / "block_milling.yaml"  # the IRB6400's (the paper's) block test
@@ -87,5 +88,5 @@ def run(*, out="robstiff-out", robot_yaml=None):
         written.append("stiffness_map.png")
         run.write("demo.json", json_text(dict(summ, run_id=run.run_id)))
         written.append("demo.json")
-    print(f"\nwrote to {out}/: " + ", ".join(written))
+    info(f"\nwrote to {out}/: " + ", ".join(written))
     return 0

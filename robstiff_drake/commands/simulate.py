@@ -26,6 +26,7 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.identification.run_files import SIM_PREFIX, read_settings
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.progress import info
 
 MODES = {"on": (True,), "off": (False,), "both": (False, True)}
 
@@ -173,18 +174,19 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None):
 
 
 def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None, compensator=None,
-             noise_seed=None):
+             noise_seed=None, progress=False):
     """Load and run; returns (scenario, results).  The robot: ``robot`` (a
     RobotModel), else --robot's ``robot_yaml``, else the scenario's own.
     Warnings about the settings and the result go to ``warnings`` (an
-    io.Warnings) if given.  ``compensator``, ``noise_seed``: see load_for_run."""
+    io.Warnings) if given.  ``compensator``, ``noise_seed``: see load_for_run;
+    ``progress``: a bar over simulated time (experiment.run_cut)."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
     robot = robot or scenario_robot(load_scenario(scenario), robot_yaml)
     sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed)
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot))
-    results = [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
+    results = [run_cut(sc, robot, compensation=c, progress=progress) for c in MODES[compensation]]
     if warnings is not None:
         warnings.extend_from(run_warnings(results, sc))
     return sc, results
@@ -271,5 +273,5 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
         emit_json(summ, json_out)
     if json_out != "-":
         print(format_table(summ))
-        print(f"wrote to {out}/: " + ", ".join(written))
+        info(f"wrote to {out}/: " + ", ".join(written))
     return 0
