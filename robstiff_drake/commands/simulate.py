@@ -24,7 +24,7 @@ from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, run_warnings
 from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.run_files import SIM_PREFIX, read_settings
-from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
+from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text, write_atomic
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.progress import info
 
@@ -258,20 +258,34 @@ def write_outputs(sc, results, robot, run, warnings=()):
 
 
 def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None,
-        robot_yaml=None):
-    check_outputs(inputs=[scenario, compensator], files={"--json": json_out}, folders={"--out": out})
+        robot_yaml=None, replay=None, progress=None):
+    check_outputs(inputs=[scenario, compensator], files={"--json": json_out, "--replay": replay},
+                  folders={"--out": out})
     robot = scenario_robot(load_scenario(scenario), robot_yaml)
+    meshcat = None
+    if replay is not None:  # Meshcat needs its server: refuse before the simulation when it cannot start
+        from robstiff_drake.diagrams import replay as replay_3d
+
+        replay_3d.check_replay_path(replay)
+        meshcat = replay_3d.start_meshcat()
     warnings = Warnings()
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
-                           compensator=compensator, noise_seed=noise_seed)
+                           compensator=compensator, noise_seed=noise_seed, progress=progress)
     summ = summary(results, sc, warnings)
     with RunFolder(out) as run_folder:
         written = write_outputs(sc, results, robot, run_folder, warnings)
     summ["run_id"] = run_folder.run_id
     summ["outputs"] = [str(Path(out) / w.split(" ")[0]) for w in written]
+    if replay is not None:
+        html, shown = replay_3d.replay_html(meshcat, sc, results, robot)
+        write_atomic(replay, html)
+        summ["replay"] = dict(shown, file=str(replay), bytes=len(html.encode()))
     if json_out is not None:
         emit_json(summ, json_out)
     if json_out != "-":
         print(format_table(summ))
         info(f"wrote to {out}/: " + ", ".join(written))
+        if replay is not None:
+            info(f"wrote {replay}: 3D replay, deflection magnified {shown['magnification']:g}x "
+                 f"({summ['replay']['bytes'] / 1e6:.1f} MB; opens in a browser without a server)")
     return 0
