@@ -89,8 +89,7 @@ def plot_surfaces(results, sc):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(len(results), 1, figsize=(10, 3.2 * len(results)), squeeze=False,
-                             constrained_layout=True)
+    fig, axes = plt.subplots(len(results), 1, figsize=(11, 3.2 * len(results)), squeeze=False, layout="constrained")
     for ax, res in zip(axes[:, 0], results):
         for line in res.scans:
             ax.plot(line.x_m * 1e3, line.error_m * 1e3, lw=1, label=f"scan at y = {line.y_m * 1e3:.1f} mm")
@@ -100,7 +99,8 @@ def plot_surfaces(results, sc):
                      f"max |e| {s['max_abs']:.3f}, PV {s['pv']:.3f} mm")
         ax.set_xlabel("x along the pass (mm); gaps: no material")
         ax.set_ylabel("surface error (mm)\n+ = cut more")
-        ax.legend(fontsize=8, loc="lower right")
+    # one key for both runs (the same scan lines), beside the axes: it covers no curve
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside right upper", fontsize=8)
     fig.suptitle(f"{sc.name}: machined surface from the cutter's envelope (laser line scan)")
     return fig
 
