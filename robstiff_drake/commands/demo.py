@@ -73,7 +73,8 @@ def run(*, out="robstiff-out", robot_yaml=None):
     block = block_scenario(robot_yaml)
     robot = scenario_robot(load_scenario(block), None if robot_yaml in library_robots() else robot_yaml)
     warnings = Warnings()
-    sc, results = simulate.simulate(scenario=block, compensation="both", robot=robot, warnings=warnings)
+    sc, results = simulate.simulate(scenario=block, compensation="both", robot=robot, warnings=warnings,
+                                    progress=None)  # a bar over simulated time on a terminal
     summ = simulate.summary(results, sc, warnings)
     expl = cut_more_explanation(results[0], robot)
     print(f"== the paper's block-milling test (Table 3), simulated: {robot.manufacturer} {robot.model} ==")
