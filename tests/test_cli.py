@@ -138,10 +138,11 @@ def test_demo_writes_outputs(capsys, tmp_path):
     rep = json.loads((tmp_path / "demo.json").read_text())
     unc = rep["surface_error_mm"]["uncompensated"]
     comp = rep["surface_error_mm"]["compensated"]
-    # the seed's findings: about 0.4 mm cut more without compensation, < 0.1 mm with it;
-    # the bar for the exact model at 4 ms: mean <= 0.02 mm
-    assert 0.3 <= unc["mean"] <= 0.5
+    # the paper's findings: the robot cuts more without compensation (0.4 mm at its forces; about
+    # half at forces its spindle can drive), and < 0.1 mm with it; the exact model at 4 ms: <= 0.02 mm
+    assert 0.15 <= unc["mean"] <= 0.5
     assert abs(comp["mean"]) <= 0.02
+    assert rep["spindle_power_W"] <= rep["spindle_rating_W"]  # a physical cut for the paper's spindle
     expl = rep["cut_more_explanation"]
     assert expl["dz_from_component_mm"][0] < 0 < expl["dz_from_component_mm"][2]  # feed pulls down, axial pushes up
-    assert expl["dz_total_mm"] < -0.3
+    assert expl["dz_total_mm"] < -0.15

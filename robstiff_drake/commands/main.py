@@ -242,6 +242,8 @@ def build_parser():
                    help="run with, without, or both (default: %(default)s)")
     p.add_argument("--json", metavar="OUT", help="write the summary as JSON ('-' for stdout)")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
+    p.add_argument("--toolpath", metavar="PROGRAM", help="a G-code program as the path, placed by the scenario's "
+                                                        "toolpath.work_offset_mm (docs/toolpaths.md)")
     p.add_argument("--compensator", metavar="SETTINGS.yaml",
                    help="run the scenario's machine with this compensator (a compensator.yaml, e.g. a candidate "
                         "fix of diagnose-run): a verification cut")
@@ -272,6 +274,43 @@ def build_parser():
     _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
                          "scenario's `robot:` when it has one")
 
+    p = sub.add_parser("compensate", help="the compensator as a process: ABB EGM and an ATI Net F/T over UDP "
+                                          "(docs/real_cell.md)")
+    p.add_argument("--egm-port", type=_number_in(1, 65535, integer=True), required=True, metavar="PORT",
+                   help="UDP port the controller's EGM messages come to")
+    p.add_argument("--netft", required=True, metavar="HOST[:PORT]", help="the Net F/T (RDT port default 49152)")
+    _add_robot_option(p)
+    p.add_argument("--model", required=True, metavar="MODEL.json", help="`robstiff identify --json` output")
+    p.add_argument("--payload", required=True, metavar="PAYLOAD.yaml", help="`robstiff calibrate-payload --yaml` output")
+    p.add_argument("--reference", metavar="JOINTS.csv", help="joint reference (t_s, q1_deg..q6_deg) streamed from the "
+                                                             "first EGM message (default: hold the first position)")
+    p.add_argument("--log", metavar="DIR", help="write the run's time series (the formats of a simulate run folder)")
+    p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=4.0, help="controller cycle (default: %(default)s)")
+    p.add_argument("--sensor-rate-hz", type=_number_in(1.0, 20000.0, "Hz"), default=1000.0,
+                   help="the Net F/T's RDT output rate, for the filter (default: %(default)s)")
+    p.add_argument("--filter", dest="filter_kind", choices=["lowpass", "revolution_average", "none"], default="lowpass")
+    p.add_argument("--cutoff-hz", type=_number_in(0.01, 10000.0, "Hz"), default=10.0, help="(default: %(default)s)")
+    p.add_argument("--filter-order", type=_number_in(1, 8, integer=True), default=2)
+    p.add_argument("--spindle-rpm", type=_number_in(10.0, 60000.0, "rpm"), default=3600.0,
+                   help="for --filter revolution_average (default: %(default)s)")
+    p.add_argument("--max-jump-N", type=_number_in(1.0, 1e5, "N"), default=1000.0, help="(default: %(default)s)")
+    p.add_argument("--saturation-deg", type=_number_in(0.001, 10.0, "deg"), default=0.5, help="(default: %(default)s)")
+    p.add_argument("--rate-limit-deg-per-s", type=_number_in(0.001, 1000.0, "deg/s"), default=5.0,
+                   help="(default: %(default)s)")
+    p.add_argument("--delay-steps", type=_number_in(0, 100, integer=True), default=0,
+                   help="extra controller periods of delay (default: %(default)s; the network adds its own)")
+    p.add_argument("--netft-counts", metavar="PER_N,PER_NM", default=None,
+                   help="the sensor's counts per N and per N*m (default: 1000000,1000000)")
+    p.add_argument("--wait-s", type=_number_in(0.1, 3600.0, "s"), default=30.0,
+                   help="how long to wait for the controller's first message (default: %(default)s)")
+    p.add_argument("--duration-s", type=_number_in(0.0, 1e6, "s"), default=0.0, help="end after this long (0: never)")
+    p.add_argument("--idle-exit-s", type=_number_in(0.0, 3600.0, "s"), default=0.0,
+                   help="end when the controller is silent this long (0: never)")
+    p.add_argument("--sensor-timeout-ms", type=_number_in(1.0, 10000.0, "ms"), default=20.0,
+                   help="a sensor silent or invalid this long ramps the correction to zero (default: %(default)s)")
+    p.add_argument("--rt-priority", type=_number_in(0, 99, integer=True), default=0,
+                   help="run the loop under SCHED_FIFO at this priority (Linux, needs the privilege; 0: off)")
+
     p = sub.add_parser("demo", help="the main job: the paper's block-milling test, without and with compensation")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
     _add_robot_option(p, "run the block test of this library robot (diagrams/block_milling_NAME.yaml) or of a "
@@ -301,6 +340,8 @@ EXAMPLES = {
     "plan-poses": "robstiff plan-poses 60 --out plan.csv",
     "table2": "robstiff table2 --plot table2.png",
     "simulate": "robstiff simulate diagrams/block_milling.yaml --out block --replay block.html",
+    "compensate": "robstiff compensate --egm-port 6510 --netft 192.168.1.1:49152 --model model.json "
+                  "--payload payload.yaml --reference joint_reference.csv --log cut1",
     "sweep": "robstiff sweep diagrams/block_milling.yaml --period-ms 4,8,16 --plot sweep.png",
     "demo": "robstiff demo --out robstiff-out",
 }
@@ -420,7 +461,7 @@ def _dispatch(args):
 
         return simulate.run(scenario=args.scenario, compensation=args.compensation, json_out=args.json,
                             out=args.out, compensator=args.compensator, noise_seed=args.noise_seed,
-                            robot_yaml=args.robot, replay=args.replay, progress=args.progress)
+                            robot_yaml=args.robot, toolpath=args.toolpath, replay=args.replay, progress=args.progress)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep
 
@@ -428,6 +469,21 @@ def _dispatch(args):
                          cutoffs=args.cutoff_hz, modes=args.mode, json_out=args.json, plot_out=args.plot,
                          workers=args.workers, scheduler=args.scheduler, plant_step_ms=args.plant_step_ms,
                          predict=not args.no_predict, progress=args.progress, robot_yaml=args.robot)
+    if args.command == "compensate":
+        from robstiff_drake.commands import compensate
+
+        counts = parse_vector(args.netft_counts, 2, "--netft-counts") if args.netft_counts else None
+        if counts and min(counts) <= 0:
+            raise InputError(f"--netft-counts: counts must be > 0, got {args.netft_counts}")
+        return compensate.run(egm_port=args.egm_port, netft=args.netft, robot_yaml=args.robot, model=args.model,
+                              payload=args.payload, reference=args.reference, log=args.log, period_ms=args.period_ms,
+                              sensor_rate_hz=args.sensor_rate_hz, filter_kind=args.filter_kind,
+                              cutoff_hz=args.cutoff_hz, filter_order=args.filter_order, spindle_rpm=args.spindle_rpm,
+                              max_jump_N=args.max_jump_N, saturation_deg=args.saturation_deg,
+                              rate_limit_deg_per_s=args.rate_limit_deg_per_s, delay_steps=args.delay_steps,
+                              netft_counts=counts, wait_s=args.wait_s, duration_s=args.duration_s,
+                              idle_exit_s=args.idle_exit_s, sensor_timeout_ms=args.sensor_timeout_ms,
+                              rt_priority=args.rt_priority)
     if args.command == "demo":
         from robstiff_drake.commands import demo
 

@@ -83,6 +83,18 @@ def timeseries_csv(res, robot, run_id=""):
     return buf.getvalue()
 
 
+def joint_reference_csv(cell, run_id=""):
+    """The path's joint references (IK every path.reference_period_ms):
+    what `robstiff compensate --reference` streams to a robot in EGMRunJoint."""
+    buf = io.StringIO()
+    buf.write(f"# run_id: {run_id}\n# robstiff simulate: the joint references of {cell.scenario.source}'s path "
+              "(controller degrees), for `robstiff compensate --reference`\n")
+    buf.write("t_s," + ",".join(f"q{j}_deg" for j in range(1, 7)) + "\n")
+    for t, q in zip(cell.q_ref_times, np.degrees(cell.q_ref)):
+        buf.write(f"{t:.6f}," + ",".join(f"{v:.9f}" for v in q) + "\n")
+    return buf.getvalue()
+
+
 def plot_surfaces(results, sc):
     import matplotlib
 
@@ -90,14 +102,19 @@ def plot_surfaces(results, sc):
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(len(results), 1, figsize=(11, 3.2 * len(results)), squeeze=False, layout="constrained")
+    along_path = results[0].scans and results[0].scans[0].s_m is not None
     for ax, res in zip(axes[:, 0], results):
         for line in res.scans:
-            ax.plot(line.x_m * 1e3, line.error_m * 1e3, lw=1, label=f"scan at y = {line.y_m * 1e3:.1f} mm")
+            if along_path:
+                ax.plot(line.s_m * 1e3, line.error_m * 1e3, lw=1, label=f"along the path, offset {line.offset_m * 1e3:+.1f} mm")
+            else:
+                ax.plot(line.x_m * 1e3, line.error_m * 1e3, lw=1, label=f"scan at y = {line.y_m * 1e3:.1f} mm")
         s = res.surface_error_mm
         ax.axhline(0, color="k", lw=0.6)
         ax.set_title(f"{label(res.compensation)}: mean {s['mean']:+.3f} mm, rms {s['rms']:.3f}, "
                      f"max |e| {s['max_abs']:.3f}, PV {s['pv']:.3f} mm")
-        ax.set_xlabel("x along the pass (mm); gaps: no material")
+        ax.set_xlabel("arc length along the path (mm); gaps: no material" if along_path
+                      else "x along the pass (mm); gaps: no material")
         ax.set_ylabel("surface error (mm)\n+ = cut more")
     # one key for both runs (the same scan lines), beside the axes: it covers no curve
     fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside right upper", fontsize=8)
@@ -160,11 +177,12 @@ def format_table(summ):
     return "\n".join(lines)
 
 
-def load_for_run(scenario, robot, *, compensator=None, noise_seed=None):
-    """The scenario to simulate: from its file, with the compensator of a
+def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath=None):
+    """The scenario to simulate: from its file (its path replaced by the
+    G-code program ``toolpath`` when given), with the compensator of a
     settings file (``compensator``) and the sensor's and scanner's noise
     seeds set to ``noise_seed`` (a repeated cut: new noise) when given."""
-    sc = load_scenario(scenario)
+    sc = load_scenario(scenario, toolpath=toolpath)
     if compensator is not None:
         _, settings = read_settings(compensator)
         sc = scenario_with_compensator(sc, settings, robot)
@@ -174,16 +192,16 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None):
 
 
 def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None, compensator=None,
-             noise_seed=None, progress=False):
+             noise_seed=None, toolpath=None, progress=False):
     """Load and run; returns (scenario, results).  The robot: ``robot`` (a
     RobotModel), else --robot's ``robot_yaml``, else the scenario's own.
     Warnings about the settings and the result go to ``warnings`` (an
-    io.Warnings) if given.  ``compensator``, ``noise_seed``: see load_for_run;
+    io.Warnings) if given.  ``compensator``, ``noise_seed``, ``toolpath``: see load_for_run;
     ``progress``: a bar over simulated time (experiment.run_cut)."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
-    robot = robot or scenario_robot(load_scenario(scenario), robot_yaml)
-    sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed)
+    robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath), robot_yaml)
+    sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed, toolpath=toolpath)
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot))
     results = [run_cut(sc, robot, compensation=c, progress=progress) for c in MODES[compensation]]
@@ -200,10 +218,11 @@ def surface_csv(res, run_id=""):
     buf.write(f"# robstiff simulate: the true machined surface (simulation only; scan.csv is what the scanner "
               f"measures), {label(res.compensation)}; error = commanded - machined "
               "(positive: cut more); empty where there is no machined face.\n")
-    buf.write("x_mm,y_mm,commanded_mm,machined_mm,error_mm\n")
+    buf.write("x_mm,y_mm,commanded_mm,machined_mm,error_mm,s_mm\n")  # s_mm: arc length along the path (path scans)
     for line in res.scans:
-        for x, c, m, e in zip(line.x_m, line.commanded_m, line.machined_m, line.error_m):
-            vals = [x * 1e3, line.y_m * 1e3, c * 1e3, m * 1e3, e * 1e3]
+        s_mm = line.s_m * 1e3 if line.s_m is not None else np.full(line.x_m.shape, np.nan)
+        for x, y, c, m, e, s in zip(line.x_m, line.y_at, line.commanded_m, line.machined_m, line.error_m, s_mm):
+            vals = [x * 1e3, y * 1e3, c * 1e3, m * 1e3, e * 1e3, s]
             buf.write(",".join("" if not np.isfinite(v) else f"{v:.6f}" for v in vals) + "\n")
     return buf.getvalue()
 
@@ -220,6 +239,8 @@ def scenario_text(sc, run_id=""):
     for attr in ("identified_json", "payload_yaml"):
         if getattr(sc.model, attr):
             setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
+    if sc.toolpath.program:
+        sc.toolpath.program = str(resolve(sc, sc.toolpath.program).resolve())
     spec = robot_spec(sc)
     if spec is not None and spec != sc.robot:  # a robot file: make its path absolute
         sc.robot = str(Path(spec).resolve())
@@ -252,16 +273,18 @@ def write_outputs(sc, results, robot, run, warnings=()):
         name = f"{SIM_PREFIX}surface_{label(res.compensation)}.csv"
         run.write(name, surface_csv(res, run.run_id))
         written.append(name)
+    run.write("joint_reference.csv", joint_reference_csv(results[0].cell, run.run_id))
+    written.append("joint_reference.csv")
     run.write("summary.json", json_text(dict(summary(results, sc, warnings), run_id=run.run_id)))
     written.append("summary.json")
     return written
 
 
 def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None,
-        robot_yaml=None, replay=None, progress=None):
-    check_outputs(inputs=[scenario, compensator], files={"--json": json_out, "--replay": replay},
+        robot_yaml=None, toolpath=None, replay=None, progress=None):
+    check_outputs(inputs=[scenario, compensator, toolpath], files={"--json": json_out, "--replay": replay},
                   folders={"--out": out})
-    robot = scenario_robot(load_scenario(scenario), robot_yaml)
+    robot = scenario_robot(load_scenario(scenario, toolpath=toolpath), robot_yaml)
     meshcat = None
     if replay is not None:  # Meshcat needs its server: refuse before the simulation when it cannot start
         from robstiff_drake.diagrams import replay as replay_3d
@@ -270,7 +293,7 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
         meshcat = replay_3d.start_meshcat()
     warnings = Warnings()
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
-                           compensator=compensator, noise_seed=noise_seed, progress=progress)
+                           compensator=compensator, noise_seed=noise_seed, toolpath=toolpath, progress=progress)
     summ = summary(results, sc, warnings)
     with RunFolder(out) as run_folder:
         written = write_outputs(sc, results, robot, run_folder, warnings)

@@ -121,7 +121,7 @@ def cell_logs(result):
     for line in result.scans:
         face = np.isfinite(line.commanded_m)
         xs.append(line.x_m[face])
-        ys.append(np.full(face.sum(), line.y_m))
+        ys.append(line.y_at[face])  # (a scan along the path has a y per point)
         nom.append(line.commanded_m[face])
         h.append((line.machined_m if line.measured_m is None else line.measured_m)[face])
     scan = rf.Scan(*(np.concatenate(a) * 1e3 for a in (xs, ys, nom, h)), noise_mm=cell.scenario.scan.noise_mm)

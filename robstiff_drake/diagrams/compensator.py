@@ -36,13 +36,8 @@ from pydrake.systems.primitives import (
 
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.systems.deflection_prediction import DeflectionPrediction
-from robstiff_drake.systems.force_filter import (
-    filter_system,
-    group_delay_s,
-    lowpass_coefficients,
-    revolution_average_coefficients,
-    steady_state,
-)
+from robstiff_drake.model.filters import filter_coefficients as model_filter_coefficients
+from robstiff_drake.systems.force_filter import filter_system, group_delay_s, steady_state
 from robstiff_drake.systems.gravity_removal import GravityRemoval
 from robstiff_drake.systems.reference_correction import RateLimitedCorrection
 from robstiff_drake.systems.wrist_sensor import WrenchGuard
@@ -54,11 +49,7 @@ LOG_PORTS = ("guarded_wrench", "rejected", "filtered_wrench", "process_wrench", 
 def filter_coefficients(filter_config, rate_hz, spindle_rpm):
     """(b, a) of the scenario's force filter at the sensor rate."""
     fc = filter_config
-    if fc.kind == "lowpass":
-        return lowpass_coefficients(fc.cutoff_hz, rate_hz, fc.order)
-    if fc.kind == "revolution_average":
-        return revolution_average_coefficients(spindle_rpm, rate_hz)
-    return np.array([1.0]), np.array([1.0])
+    return model_filter_coefficients(fc.kind, fc.cutoff_hz, fc.order, rate_hz, spindle_rpm)  # (model/filters.py)
 
 
 def chain_delay_s(rate_hz, filter_ba, period_s, delay_steps):

@@ -8,8 +8,9 @@ import numpy as np
 
 from robstiff_drake.diagrams.milling_cell import build_milling_cell, make_simulator, tool_wrench_log
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.path import Line
 from robstiff_drake.model.spindle import spindle_power_W, spindle_torque_Nm
-from robstiff_drake.model.surface import envelope_heights, surface_error_stats
+from robstiff_drake.model.surface import envelope_heights, envelope_heights_at, surface_error_stats
 from robstiff_drake.progress import simulation_bar, time_monitor
 
 # How long after the path ends the simulation goes on (s): lets the last
@@ -19,11 +20,18 @@ RUN_OUT_S = 0.1
 
 @dataclass
 class ScanLine:
+    """One scan line: along x at ``y_m``, or (``s_m`` given) along the path's
+    centre line shifted ``offset_m`` to the left of the feed, at points
+    (x_m, y_points_m) that lie s_m along the path."""
+
     y_m: float
     x_m: np.ndarray
     commanded_m: np.ndarray  # NaN where there is no machined face (gaps)
     machined_m: np.ndarray  # the true machined surface (the simulation's truth)
     measured_m: np.ndarray = None  # what the scanner reads: machined + its noise (scan.noise_mm)
+    s_m: np.ndarray = None  # arc length along the path (path scans)
+    y_points_m: np.ndarray = None  # each point's y (path scans)
+    offset_m: float = 0.0
 
     @property
     def error_m(self):
@@ -34,6 +42,11 @@ class ScanLine:
     def measured_error_m(self):
         """The surface error as the scan measures it (with the scanner's noise)."""
         return self.commanded_m - (self.machined_m if self.measured_m is None else self.measured_m)
+
+    @property
+    def y_at(self):
+        """Each point's y (m)."""
+        return self.y_points_m if self.y_points_m is not None else np.full(self.x_m.shape, self.y_m)
 
 
 @dataclass
@@ -76,6 +89,50 @@ def scanner_noise_m(scan_config, compensation, line_index, n):
     return rng.normal(0.0, scan_config.noise_mm / 1e3, n)
 
 
+def scan_along(sc, path):
+    """"x" or "path": how the scenario's surface is scanned (scan.along;
+    "auto": along x when every move runs along x or straight down)."""
+    if sc.scan.along != "auto":
+        return sc.scan.along
+    for e in path.elements:
+        if not isinstance(e, Line) or abs(e.u[1]) > 1e-9 * max(1.0, abs(e.u[0])):
+            return "path"
+    return "x"
+
+
+def inside_margin(workpiece, x, y, margin):
+    """Points at least ``margin`` (m) inside some box's edges."""
+    ok = np.zeros(np.shape(x), dtype=bool)
+    for (x0, x1), (y0, y1) in zip(workpiece.x_m, workpiece.y_m):
+        ok |= (x >= x0 + margin) & (x <= x1 - margin) & (y >= y0 + margin) & (y <= y1 - margin)
+    return ok
+
+
+def scan_along_path(cell, p_cmd, n_cmd, p_act, n_act, R):
+    """Scan lines along the commanded path's centre line (and at the
+    scenario's offsets across it): points every scan.resolution_mm of arc
+    length where the path runs within 60 degrees of horizontal."""
+    sc = cell.scenario
+    s, pts, tg = cell.path.sample_xy(sc.scan.resolution_mm / 1e3)
+    normal = np.column_stack([-tg[:, 1], tg[:, 0]])  # left of the feed
+    lines = []
+    for i, off_mm in enumerate(sc.scan.offsets_mm or [0.0]):
+        off = off_mm / 1e3
+        x = pts[:, 0] + off * normal[:, 0]
+        y = pts[:, 1] + off * normal[:, 1]
+        top = material_top(cell.workpiece, x, y)
+        floor = np.nan_to_num(top, nan=-np.inf)
+        h_cmd = envelope_heights_at(x, y, p_cmd, n_cmd, R, floor)
+        h_act = envelope_heights_at(x, y, p_act, n_act, R, floor)
+        gap = ~(np.isfinite(top) & (h_cmd < top - 1e-9) & inside_margin(cell.workpiece, x, y,
+                                                                        sc.scan.edge_margin_mm / 1e3))
+        h_cmd[gap] = np.nan
+        h_act[gap] = np.nan
+        measured = h_act + scanner_noise_m(sc.scan, cell.compensation, i, len(x))
+        lines.append(ScanLine(np.nan, x, h_cmd, h_act, measured, s_m=s, y_points_m=y, offset_m=off))
+    return lines
+
+
 def scan_surface(cell, times, q):
     """Scan lines of the surface the actual and the commanded pass leave,
     and what the scanner measures of the actual one (with its noise)."""
@@ -86,6 +143,8 @@ def scan_surface(cell, times, q):
     n_act = -T6[:, :3, 2]  # the tool's z axis points down the spindle
     p_cmd = cell.path.positions(times)
     n_cmd = np.tile([0.0, 0.0, 1.0], (len(times), 1))
+    if scan_along(sc, cell.path) == "path":
+        return scan_along_path(cell, p_cmd, n_cmd, p_act, n_act, R)
     margin = sc.scan.edge_margin_mm / 1e3
     x_lo = cell.workpiece.x_m[:, 0].min() + margin
     x_hi = cell.workpiece.x_m[:, 1].max() - margin
@@ -122,13 +181,28 @@ def zone_masks(cell, x):
     return entry, exit_, ~(entry | exit_)
 
 
+def path_zone_masks(cell, line):
+    """Entry / exit / steady masks of a scan along the path: the first and
+    last ``zone`` (m of arc length) of every stretch of machined face."""
+    zone = cell.scenario.scan.zone_mm / 1e3 or cell.force_model.cutter.radius_m
+    face = np.isfinite(line.error_m)
+    entry = np.zeros(face.shape, dtype=bool)
+    exit_ = np.zeros(face.shape, dtype=bool)
+    edges = np.flatnonzero(np.diff(np.r_[0, face.astype(int), 0]))
+    for a, b in zip(edges[::2], edges[1::2]):  # stretches [a, b)
+        s = line.s_m[a:b]
+        entry[a:b] = s - s[0] <= zone
+        exit_[a:b] = s[-1] - s <= zone
+    return entry, exit_, ~(entry | exit_)
+
+
 def zone_stats(cell, scans):
     """Largest |error| (mm) in the entry and exit zones, and the steady part's
     mean and largest |error|."""
     out = {}
     parts = {"entry": [], "exit": [], "steady": []}
     for line in scans:
-        masks = zone_masks(cell, line.x_m)
+        masks = path_zone_masks(cell, line) if getattr(line, "s_m", None) is not None else zone_masks(cell, line.x_m)
         for name, m in zip(("entry", "exit", "steady"), masks):
             e = line.error_m[m]
             parts[name].append(e[np.isfinite(e)])

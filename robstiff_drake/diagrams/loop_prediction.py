@@ -6,6 +6,7 @@ import numpy as np
 
 from robstiff_drake.diagrams.experiment import ScanLine, material_top, zone_stats
 from robstiff_drake.diagrams.compensator import filter_coefficients
+from robstiff_drake.diagrams.milling_cell import planned_path as cell_planned_path
 from robstiff_drake.diagrams.scenario import (
     cutting_setup,
     model_stiffness,
@@ -22,7 +23,7 @@ from robstiff_drake.diagrams.station import (
 from robstiff_drake.diagrams.sweep import configure
 from robstiff_drake.model import ik
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, process_stiffness
+from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, path_terms, process_stiffness
 from robstiff_drake.model.surface import envelope_heights, surface_error_stats
 
 KP_EVERY = 25  # recompute the process stiffness every this many sensor samples
@@ -95,26 +96,34 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
                      gravity_stiffness=G, servo=servo_parameters(sc))
 
     h = loop.h
+    servo = servo_parameters(sc)
     t = np.arange(0.0, path.duration_s + 0.1, h)
-    pos = path.positions(t)
+    # the arm follows the path a fixed time late (the interpolator's dead time
+    # and the servo's own step; the velocity feed-forward leaves no other lag):
+    # deviations are taken from the path where the arm is meant to be then
+    path_delay = servo.interpolator_delay_s + plant_step_s(sc)
+    t_arm = t - path_delay
+    pos = path.positions(t_arm)
 
     def force_at(p, tt):
         return fmodel.average_wrench(p, path.feed_direction(tt), workpiece)
 
-    W = np.array([force_at(p, tt) for p, tt in zip(pos, t)])
+    W = np.array([force_at(p, tt) for p, tt in zip(pos, t_arm)])
     Kp = np.empty((len(t), 3, 3))
     kp_max, kp_now = np.zeros((3, 3)), np.zeros((3, 3))
     for j in range(len(t)):
         if j % KP_EVERY == 0:
-            kp_now = process_stiffness(lambda p, tt=t[j]: force_at(p, tt), pos[j])
+            kp_now = process_stiffness(lambda p, tt=t_arm[j]: force_at(p, tt), pos[j])
             if np.linalg.norm(kp_now) > np.linalg.norm(kp_max):
                 kp_max = kp_now
         Kp[j] = kp_now
-    command_lag = servo_parameters(sc).low_frequency_lag_s + plant_step_s(sc)  # as MillingStation.command_lag_s
+    command_lag = servo.low_frequency_lag_s + plant_step_s(sc)  # as MillingStation.command_lag_s
     lead = (sc.controller.delay_steps + 1.5) * T + command_lag
     ff = (scale * np.array([force_at(path.position(tt + lead), tt + lead) for tt in t])
           if sc.controller.mode == "predictive" else np.zeros_like(W))
-    dev = loop.simulate(t, W, Kp, ff)
+    _, t_ref, q_ref = cell_planned_path(sc, robot, tool)
+    motion = path_terms(t_arm, t_ref, q_ref, servo.velocity_feedforward)
+    dev = loop.simulate(t, W, Kp, ff, motion)
     _, radius = loop.poles(kp_max)
 
     # the surface the predicted tool path leaves, scanned like the simulation's

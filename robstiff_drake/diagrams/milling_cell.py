@@ -74,10 +74,10 @@ def planned_path(sc, robot, tool):
     """(PlannedPath, times, joint references) of the scenario's path; the IK
     is done once per process for a given path, robot file and tool."""
     p = sc.path
-    key = (str(p.waypoints_mm), p.feed_mm_per_s, p.yaw_deg, p.dwell_s, p.ramp_s, p.reference_period_ms, robot.source,
-           tuple(np.round(tool, 12)), robot.q_lower_rad.tobytes(), robot.q_upper_rad.tobytes())
     try:
         path = scenario_path(sc)
+        key = (path.signature(), p.reference_period_ms, robot.source, tuple(np.round(tool, 12)),
+               robot.q_lower_rad.tobytes(), robot.q_upper_rad.tobytes())
         if key not in _REFERENCES:
             _REFERENCES[key] = path.joint_references(robot, tool, p.reference_period_ms / 1e3)
     except PathError as e:

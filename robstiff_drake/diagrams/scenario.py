@@ -10,6 +10,7 @@ a payload-calibration YAML) are relative to the scenario file.
 """
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,7 +23,8 @@ from pydrake.systems.analysis import SimulatorConfig
 from robstiff_drake.diagrams.schema import check_object, choice, drake_config, num, rows, text, validate, vec
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
-from robstiff_drake.model.path import PlannedPath
+from robstiff_drake.model.gcode import read_program_file
+from robstiff_drake.model.path import PathError, PlannedPath, program_elements
 from robstiff_drake.model.payload import PayloadCalibration
 
 # Ranges: what a machining robot's cell can physically be, wide enough for
@@ -127,15 +129,38 @@ class WorkpieceConfig:
 
 @dataclass
 class PathConfig:
-    """Tool point (centre of the cutter's bottom face) through waypoints, mm."""
+    """Tool point (centre of the cutter's bottom face) through waypoints, mm
+    (or along the G-code program of the toolpath section)."""
 
-    waypoints_mm: list[list[float]] = rows(3, -MAX_COORD_MM, MAX_COORD_MM, "mm", min_rows=2, max_rows=100000,
+    waypoints_mm: list[list[float]] = rows(3, -MAX_COORD_MM, MAX_COORD_MM, "mm", min_rows=0, max_rows=100000,
                                            names="x, y, z")
     feed_mm_per_s: float = num(20.0, 0.1, 2000.0, "mm/s", why="from a slow finishing pass to a robot's rapid moves")
+    # Corner zone (model/path.py): a corner is rounded from this far before
+    # it to this far after it, at the programmed speed, as ABB's zone data
+    # z1, z5, z10 ... do (a zone is reduced to half the shorter move).  0: the
+    # sharp corner at full speed, which no controller does (for comparison).
+    zone_mm: float = num(5.0, 0.0, 200.0, "mm", why="ABB's largest standard zone is z200")
     yaw_deg: float = num(0.0, -360.0, 360.0, "deg")
     dwell_s: float = num(0.2, 0.0, 60.0, "s")  # at the first waypoint before the feed starts
     ramp_s: float = num(0.5, 0.0, 60.0, "s")  # cosine speed-up from rest to the feed (and slow-down at the end)
     reference_period_ms: float = num(4.0, 0.1, 100.0, "ms")  # IK samples of the joint references
+
+
+@dataclass
+class ToolpathConfig:
+    """A G-code program (model/gcode.py) as the path, placed on the
+    workpiece: a program point p (mm, work frame) is at
+    work_offset_mm + Rz(work_rotation_deg) p in the robot's base frame (the
+    G54 offset).  F gives the feed and S the spindle speed (they replace
+    path.feed_mm_per_s and cutter.spindle_rpm); G0 moves go at rapid_mm_per_s."""
+
+    program: str = text("")  # relative to this file; empty: path.waypoints_mm
+    work_offset_mm: list[float] = vec([0.0, 0.0, 0.0], (3,), -MAX_COORD_MM, MAX_COORD_MM, "mm")
+    work_rotation_deg: float = num(0.0, -360.0, 360.0, "deg")
+    # ASSUMPTION: 100 mm/s for G0 in a machining cell (robots slow their
+    # rapids near a part; a CNC's rapid traverse of 10-30 m/min is for a
+    # machine tool's guarded axes)
+    rapid_mm_per_s: float = num(100.0, 0.1, 2000.0, "mm/s")
 
 
 @dataclass
@@ -199,10 +224,17 @@ class ModelConfig:
 
 @dataclass
 class ScanConfig:
-    """Laser line scans of the machined surface along x."""
+    """Laser line scans of the machined surface: along x (lines at given
+    y), or along the machined path's centre line (and at offsets across
+    it), with positions as arc length along the path and x, y."""
 
-    # empty: the centre line of each box
+    # "x": lines along x; "path": along the path; "auto": along x for a path
+    # that runs along x only, along the path otherwise
+    along: str = choice("auto", ("auto", "x", "path"))
+    # along x: the lines' y; empty: the centre line of each box
     lines_y_mm: list[float] = vec([], range(0, 101), -MAX_COORD_MM, MAX_COORD_MM, "mm")
+    # along the path: offsets across it (+ to the left of the feed direction); empty: the centre line only
+    offsets_mm: list[float] = vec([], range(0, 101), -1000.0, 1000.0, "mm")
     resolution_mm: float = num(0.5, 0.01, 50.0, "mm")
     edge_margin_mm: float = num(2.0, 0.0, 100.0, "mm")  # left out at each box edge (burrs, scan edge)
     # entry / exit zones of the statistics: this far from each box's leading /
@@ -239,6 +271,7 @@ class Scenario:
     cutting: CuttingConfig = field(default_factory=CuttingConfig)
     workpiece: WorkpieceConfig = field(default_factory=WorkpieceConfig)
     path: PathConfig = field(default_factory=PathConfig)
+    toolpath: ToolpathConfig = field(default_factory=ToolpathConfig)
     sensor: SensorConfig = field(default_factory=SensorConfig)
     controller: ControllerConfig = field(default_factory=ControllerConfig)
     model: ModelConfig = field(default_factory=ModelConfig)
@@ -262,9 +295,11 @@ MAX_FILTER_TAPS = 5000
 MAX_SCAN_POINTS = 2_000_000
 
 
-def load_scenario(path):
+def load_scenario(path, toolpath=None):
     """Read and check a scenario file; InputError (one line naming the file,
-    line, key and allowed range) on anything wrong, before anything is built."""
+    line, key and allowed range) on anything wrong, before anything is built.
+    ``toolpath``: a G-code program that replaces the scenario's path (the
+    command line's --toolpath, relative to the working folder)."""
     from pydrake.common.yaml import yaml_load_typed
 
     path = Path(path)
@@ -286,8 +321,53 @@ def load_scenario(path):
         raise InputError(f"{path}: {msg}") from None
     sc.source = str(path)
     sc._key_lines = lines
+    if toolpath is not None:
+        sc.toolpath.program = str(Path(toolpath).resolve())
+        sc.path.waypoints_mm = []
+    apply_program(sc)
     check_scenario(sc)
     return sc
+
+
+def _program(sc):
+    """The scenario's G-code program (model/gcode.Program), read once."""
+    prog = getattr(sc, "_program", None)
+    p = resolve(sc, sc.toolpath.program)
+    if prog is None or prog.path != str(p):
+        if not p.is_file():
+            _fail(sc, "toolpath.program", f"no such G-code program {p}" if not p.exists() else f"{p} is not a file")
+        prog = sc._program = read_program_file(p)
+    return prog
+
+
+def _dominant(values_by_length):
+    """The value covering the most length: {value: length}."""
+    return max(values_by_length.items(), key=lambda kv: kv[1])[0] if values_by_length else None
+
+
+def apply_program(sc):
+    """With a toolpath program: read it (InputError naming its line and
+    word) and take the cutting feed (F, the one over most of the cutting
+    length) and spindle speed (S) from it for the force model."""
+    if not sc.toolpath.program:
+        return
+    if sc.path.waypoints_mm:
+        _fail(sc, "toolpath.program", "give path.waypoints_mm or toolpath.program, not both")
+    prog = _program(sc)
+    feeds, speeds = {}, {}
+    for m in prog.moves:
+        if m.kind == "rapid":
+            continue
+        length = math.dist(m.start_mm, m.end_mm) if m.kind == "line" else abs(m.sweep_rad()) * m.radius_mm
+        feeds[m.feed_mm_per_min] = feeds.get(m.feed_mm_per_min, 0.0) + length
+        if m.spindle_rpm is not None:
+            speeds[m.spindle_rpm] = speeds.get(m.spindle_rpm, 0.0) + length
+    if feeds:
+        sc.path.feed_mm_per_s = _dominant(feeds) / 60.0
+    if speeds:
+        sc.cutter.spindle_rpm = float(_dominant(speeds))
+    sc._program_feeds = sorted(feeds)
+    sc._program_speeds = sorted(speeds)
 
 
 def plant_step_s(sc):
@@ -327,40 +407,52 @@ def check_scenario(sc):
         if not (b[0] < b[1] and b[2] < b[3]):
             _fail(sc, "workpiece.boxes_mm", f"box {i + 1}: expected [x0, x1, y0, y1, top] with x0 < x1 and "
                                             f"y0 < y1, got {b}")
+    if not sc.toolpath.program and len(sc.path.waypoints_mm) < 2:
+        _fail(sc, "path.waypoints_mm", f"expected at least 2 waypoints (or a toolpath.program), got "
+                                       f"{len(sc.path.waypoints_mm)}")
     if sc.model.joint_stiffness_Nm_per_rad and sc.model.identified_json:
         _fail(sc, "model.identified_json", "give model.joint_stiffness_Nm_per_rad or model.identified_json, not both")
-    _check_sizes(sc)
-    _check_engagement(sc)
+    path = _check_sizes(sc)
+    _check_engagement(sc, path)
 
 
-def _check_engagement(sc):
+def _path_key(sc):
+    return "toolpath.program" if sc.toolpath.program else "path.waypoints_mm"
+
+
+def _check_engagement(sc, path):
     """Refuse an air cut: the commanded cutter (a disc of the cutter's
     radius at the tool point) must come below the top of some box while
     over it, or there is no machined surface to measure."""
-    wp = np.asarray(sc.path.waypoints_mm, dtype=float)
     R = sc.cutter.diameter_mm / 2.0
-    step = max(R / 10.0, 1e-3)
-    for a, b in zip(wp[:-1], wp[1:]):
-        n = int(min(np.ceil(np.linalg.norm(b - a) / step), 100000)) + 1
-        pts = a + np.linspace(0.0, 1.0, n)[:, None] * (b - a)
-        for x0, x1, y0, y1, top in sc.workpiece.boxes_mm:
-            dx = np.maximum(np.maximum(x0 - pts[:, 0], pts[:, 0] - x1), 0.0)
-            dy = np.maximum(np.maximum(y0 - pts[:, 1], pts[:, 1] - y1), 0.0)
-            if np.any((dx * dx + dy * dy < R * R) & (pts[:, 2] < top)):
-                return
-    _fail(sc, "path.waypoints_mm", f"the cutter ({sc.cutter.diameter_mm:g} mm) never comes below the top of a "
-                                   "workpiece box while over it: an air cut leaves no surface to measure")
+    step = max(R / 10.0, 1e-3) / 1e3
+    n = int(min(np.ceil(path.total_length / step), 1_000_000)) + 1
+    pts = np.array([path.point_at(x) for x in np.linspace(0.0, path.total_length, n)]) * 1e3
+    for x0, x1, y0, y1, top in sc.workpiece.boxes_mm:
+        dx = np.maximum(np.maximum(x0 - pts[:, 0], pts[:, 0] - x1), 0.0)
+        dy = np.maximum(np.maximum(y0 - pts[:, 1], pts[:, 1] - y1), 0.0)
+        if np.any((dx * dx + dy * dy < R * R) & (pts[:, 2] < top)):
+            return
+    _fail(sc, _path_key(sc), f"the cutter ({sc.cutter.diameter_mm:g} mm) never comes below the top of a "
+                             "workpiece box while over it: an air cut leaves no surface to measure")
 
 
 def _check_sizes(sc):
-    """Time and memory a run would take, before anything is allocated."""
+    """Time and memory a run would take, before anything is allocated; the
+    path itself (built here: cheap) checked too.  Returns the path."""
     p = sc.path
-    wp = np.asarray(p.waypoints_mm, dtype=float)
-    seg = np.linalg.norm(np.diff(wp, axis=0), axis=1)
-    if np.any(seg <= 0):
-        i = int(np.argmax(seg <= 0))
-        _fail(sc, "path.waypoints_mm", f"waypoints {i + 1} and {i + 2} are the same point")
-    duration_s = p.dwell_s + seg.sum() / p.feed_mm_per_s + p.ramp_s
+    if not sc.toolpath.program:
+        wp = np.asarray(p.waypoints_mm, dtype=float)
+        seg = np.linalg.norm(np.diff(wp, axis=0), axis=1)
+        if np.any(seg <= 0):
+            i = int(np.argmax(seg <= 0))
+            _fail(sc, "path.waypoints_mm", f"waypoints {i + 1} and {i + 2} are the same point")
+    try:
+        path = planned_path(sc)
+    except PathError as e:
+        _fail(sc, _path_key(sc), str(e))
+    duration_s = path.duration_s
+    length_mm = path.total_length * 1e3
     checks = (
         ("plant_config.time_step", duration_s / plant_step_s(sc), MAX_PLANT_STEPS, "plant steps"),
         ("sensor.rate_hz", duration_s * sc.sensor.rate_hz, MAX_SENSOR_SAMPLES, "sensor samples"),
@@ -369,9 +461,9 @@ def _check_sizes(sc):
     )
     for key, n, limit, what in checks:
         if n > limit:
-            _fail(sc, key, f"the pass takes {duration_s:.4g} s ({seg.sum():.4g} mm at {p.feed_mm_per_s:g} mm/s, "
-                           f"dwell {p.dwell_s:g} s): {n:.3g} {what}, more than the {limit:.0e} a run may take; "
-                           "shorten the path or raise the feed")
+            _fail(sc, key, f"the pass takes {duration_s:.4g} s ({length_mm:.4g} mm, dwell {p.dwell_s:g} s): "
+                           f"{n:.3g} {what}, more than the {limit:.0e} a run may take; shorten the path or raise "
+                           "the feed")
     if sc.cutting.mode == "tooth":
         per_step = plant_step_s(sc) * sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth * sc.cutting.samples_per_tooth
         if per_step > MAX_TOOTH_SAMPLES_PER_STEP:
@@ -384,6 +476,11 @@ def _check_sizes(sc):
     if n_scan > MAX_SCAN_POINTS:
         _fail(sc, "scan.resolution_mm", f"{n_scan:.3g} scan points (at most {MAX_SCAN_POINTS:.0e}); "
                                         "use a coarser resolution")
+    n_path_scan = path.total_length * 1e3 / sc.scan.resolution_mm * max(1, len(sc.scan.offsets_mm))
+    if n_path_scan > MAX_SCAN_POINTS:
+        _fail(sc, "scan.resolution_mm", f"{n_path_scan:.3g} scan points along the path (at most "
+                                        f"{MAX_SCAN_POINTS:.0e}); use a coarser resolution")
+    return path
 
 
 def resolve(sc, relative):
@@ -428,11 +525,30 @@ def plant_stiffness(sc, robot):
     return robot.joint_stiffness_Nm_per_rad
 
 
+def work_transform(tp):
+    """program point (mm, work frame) -> base frame (m): the work offset
+    and a rotation about z (toolpath section ``tp``)."""
+    c, s = math.cos(math.radians(tp.work_rotation_deg)), math.sin(math.radians(tp.work_rotation_deg))
+    ox, oy, oz = tp.work_offset_mm
+
+    def transform(p_mm):
+        x, y, z = p_mm
+        return np.array([ox + c * x - s * y, oy + s * x + c * y, oz + z]) / 1e3
+
+    return transform
+
+
 def planned_path(sc):
-    """The scenario's tool path (PlannedPath, SI units); PathError if it is malformed."""
+    """The scenario's tool path (PlannedPath, SI units): through its
+    waypoints, or along its G-code program; PathError if it is malformed."""
     p = sc.path
+    if sc.toolpath.program:
+        tp = sc.toolpath
+        elements, speeds = program_elements(_program(sc).moves, tp.rapid_mm_per_s / 1e3, work_transform(tp))
+        return PlannedPath.from_elements(elements, speeds, np.deg2rad(p.yaw_deg), p.dwell_s, p.ramp_s,
+                                         p.zone_mm / 1e3)
     return PlannedPath(np.asarray(p.waypoints_mm, dtype=float) / 1e3, p.feed_mm_per_s / 1e3, np.deg2rad(p.yaw_deg),
-                       p.dwell_s, p.ramp_s)
+                       p.dwell_s, p.ramp_s, p.zone_mm / 1e3)
 
 
 def cutting_setup(sc, scale=1.0):
@@ -528,6 +644,15 @@ def scenario_warnings(sc, robot):
         dc = np.linalg.norm(np.asarray(cal.com_mm or [0, 0, 0]) - robot.payload.com_m * 1e3)
         if dc > PAYLOAD_COM_MM:
             out.append(f"model.payload_yaml: calibrated centre of mass is {dc:.0f} mm from the robot file's")
+    feeds = getattr(sc, "_program_feeds", [])
+    if len(feeds) > 1:
+        out.append(f"toolpath.program: {len(feeds)} cutting feeds ({', '.join(f'F{f:g}' for f in feeds)} mm/min); the "
+                   f"force model takes the one over most of the cut ({sc.path.feed_mm_per_s * 60:g} mm/min) for the "
+                   "chip thickness everywhere")
+    speeds = getattr(sc, "_program_speeds", [])
+    if len(speeds) > 1:
+        out.append(f"toolpath.program: {len(speeds)} spindle speeds; the force model takes "
+                   f"S{sc.cutter.spindle_rpm:g} everywhere")
     if sc.cutting.mode == "tooth":
         tooth_hz = sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth
         if sc.sensor.rate_hz < 2.0 * tooth_hz:

@@ -181,6 +181,8 @@ class _Checker:
 
     def check(self, schema_cls, doc, path=()):
         if doc is None:
+            if path:  # "plant:" with nothing under it (Drake's loader takes no null section)
+                self.fail(path, "an empty section: give its keys or remove the line")
             return
         if not isinstance(doc, dict):
             self.fail(path, f"expected a section of keys, got {type(doc).__name__} {doc!r}")
@@ -207,7 +209,7 @@ class _Checker:
 
     def _drake(self, p, value, m, struct):
         if value is None:
-            return
+            self.fail(p, "an empty section: give its keys or remove the line")
         if not isinstance(value, dict):
             self.fail(p, f"expected a section of {struct.__name__} keys, got {value!r}")
         types = {f.name: f.type for f in struct.__fields__}

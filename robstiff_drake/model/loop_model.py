@@ -89,16 +89,23 @@ class LoopModel:
                            [Z, Z, -wv * kp * I6, -wv * I6]])
             Bc = np.vstack([np.zeros((6, 12)), np.hstack([Minv @ self.J.T, Z]), np.zeros((6, 12)),
                             np.hstack([Z, wv * kp * I6])])
+            # the path's own motion, in coordinates relative to the path where
+            # the arm is meant to be, q_ref(t): inputs (the servo's position
+            # reference beyond it, (f_v - 1) q_ref'(t), q_ref''(t))
+            Br = np.vstack([np.zeros((6, 18)), np.hstack([Z, Z, -I6]), np.zeros((6, 18)),
+                            np.hstack([wv * kp * I6, wv * I6, -I6])])
+            Bc = np.hstack([Bc, Br])
             self.n_delay = int(round(self.servo.interpolator_delay_s / self.h))
-        nx = Ac.shape[0]
-        E = linalg.expm(np.block([[Ac, Bc], [np.zeros((12, nx + 12))]]) * self.h)
+        nx, nu = Ac.shape[0], Bc.shape[1]
+        E = linalg.expm(np.block([[Ac, Bc], [np.zeros((nu, nx + nu))]]) * self.h)
         self.Ad, self.Bw, self.Bc = E[:nx, :nx], E[:nx, nx:nx + 6], E[:nx, nx + 6:nx + 12]
+        self.Br = E[:nx, nx + 12:] if nu > 12 else None
         A, B, C, D = signal.tf2ss(*self.filter_ba)
         self.nf = A.shape[0]
         self.Af, self.Bf, self.Cf, self.Df = A, B[:, 0], C[0] if self.nf else np.zeros(0), float(np.squeeze(D))
         self.PJ = self.C_model[:, None] * self.J.T  # dq = C_m J^T W
         # joint acceleration from the arm's state and inputs: dq'' = A_q x + B_w W + B_c c
-        self.acc_x, self.acc_w, self.acc_c = Ac[6:12], Bc[6:12, :6], Bc[6:12, 6:]
+        self.acc_x, self.acc_w, self.acc_c = Ac[6:12], Bc[6:12, :6], Bc[6:12, 6:12]
         n = self.delay_steps
         # state layout
         sizes = {"arm": nx, "S": 6, "G": 6, "X": 6 * self.nf, "Z": 6, "buf": 6 * n, "c": 6, "ff": 6,
@@ -110,10 +117,12 @@ class LoopModel:
         self.size = k
 
     # -- one step of the hybrid loop (affine in z) ------------------------------------------------------------------
-    def step(self, z, W_nom, Kp, tick, ff_next):
+    def step(self, z, W_nom, Kp, tick, ff_next, path=None):
         """z at t_j -> z at t_j + h.  W_nom (6) the nominal wrench at t_j, Kp
         (3x3) the process stiffness, ``tick`` whether t_j is a controller
-        tick, ``ff_next`` the feed-forward wrench the tick stores (predictive)."""
+        tick, ``ff_next`` the feed-forward wrench the tick stores (predictive),
+        ``path`` (18, with the servo): the path's motion terms at t_j (see
+        ``path_terms``): the arm's own dynamics along the path (motion error)."""
         I = self.idx
         x_arm, S, G = z[I["arm"]], z[I["S"]], z[I["G"]]
         X = z[I["X"]].reshape(self.nf, 6) if self.nf else np.zeros((0, 6))
@@ -124,11 +133,15 @@ class LoopModel:
         out = np.empty_like(z)
         u = interp[-1] if len(interp) else c  # what reaches the servo (or the spring) now
         out[I["arm"]] = self.Ad @ x_arm + self.Bw @ W + self.Bc @ u
+        if path is not None and self.Br is not None:
+            out[I["arm"]] += self.Br @ path
         if len(interp):
             out[I["interp"]] = np.concatenate([c, interp[:-1].ravel()])
         S_new = W - (self.model_scale * W_nom if self.mode == "predictive" else 0.0)
         if self.sensor_inertia is not None:
             acc_u = self.acc_c @ u if self.servo is None else 0.0  # the servo's input reaches q'' through theta
+            # the arm's whole acceleration q'' = e'' + q_ref'': in the path's
+            # coordinates the path's q_ref'' cancels, what is left is this
             S_new = S_new + self.sensor_inertia @ (self.acc_x @ x_arm + self.acc_w @ W + acc_u)
         out[I["S"]] = S_new
         out[I["G"]] = S
@@ -166,16 +179,33 @@ class LoopModel:
         lam = np.linalg.eigvals(self.period_map(Kp))
         return lam, float(np.max(np.abs(lam)))
 
-    def simulate(self, t, W_nom, Kp, ff):
+    def simulate(self, t, W_nom, Kp, ff, path=None):
         """Tool deviation p (N, 3) in m over times t (every h from 0), given the
-        nominal wrench (N, 6), process stiffness (N, 3, 3) and the feed-forward
-        wrench for each tick (N, 6: used at ticks only)."""
+        nominal wrench (N, 6), process stiffness (N, 3, 3), the feed-forward
+        wrench for each tick (N, 6: used at ticks only) and, with the servo,
+        the path's motion terms (N, 18; see ``step``; None: the arm holds
+        still but for the cut)."""
         z = np.zeros(self.size)
         out = np.empty((len(t), 3))
         for j in range(len(t)):
             out[j] = self.J[:3] @ z[self.idx["arm"]][:6]
-            z = self.step(z, W_nom[j], Kp[j], j % self.N == 0, ff[j])
+            z = self.step(z, W_nom[j], Kp[j], j % self.N == 0, ff[j], None if path is None else path[j])
         return out
+
+
+def path_terms(t, t_ref, q_ref, velocity_feedforward):
+    """The path's motion terms of LoopModel.step on times t (N, 18), in
+    coordinates relative to the path at t: (0 (the servo's reference is the
+    path itself), (f_v - 1) q_ref'(t), q_ref''(t)); from the joint
+    references q_ref (M, 6) at times t_ref."""
+    dt = float(np.median(np.diff(t_ref)))
+    v_ref = np.gradient(q_ref, dt, axis=0)
+    a_ref = np.gradient(v_ref, dt, axis=0)
+
+    def at(values):
+        return np.column_stack([np.interp(t, t_ref, values[:, j]) for j in range(values.shape[1])])
+
+    return np.hstack([np.zeros((len(t), q_ref.shape[1])), (velocity_feedforward - 1.0) * at(v_ref), at(a_ref)])
 
 
 def first_order_lag_s(filter_ba, rate_hz, period_s, delay_steps, servo_lag_s=0.0):

@@ -1,6 +1,32 @@
-"""The planned tool path: straight segments between waypoints at a constant
-feed, the spindle axis straight down, and the joint references that IK
-gives along it.  Plain numpy; no Drake."""
+"""The planned tool path: lines and arcs (waypoints or a G-code program),
+corners blended within a zone as a robot controller does, a smooth speed
+profile, the spindle axis straight down, and the joint references that IK
+gives along it.  Plain numpy; no Drake.
+
+Corners (zones).  A robot controller does not stop at a programmed corner
+it may fly by: within a zone of radius r around the corner (ABB's zone data
+z1, z5, z10 ...: r = 1, 5, 10 mm) it leaves the programmed path and joins
+the next move on a rounded corner path, at the programmed speed.  Here the
+corner path is the cubic Bezier curve from the point r before the corner to
+the point r after it with both inner control points at the corner: it is
+tangent to both moves and, for two lines, has zero curvature where it
+joins them (curvature-continuous), so the tool's acceleration has no step
+there; its closest approach to the corner is a quarter of the way from the
+corner to the chord's midpoint.  As the controller does, a zone is reduced
+to half the shorter of the two moves.  A reversal (a turn of more than
+``MAX_BLEND_TURN_DEG``) cannot be flown by: the path stops there.  Zone 0
+keeps the sharp corner at full speed (the path this module planned before
+blending existed, for comparison: no controller moves like that).
+
+Speed.  Every move has its programmed speed (G1 / G2 / G3: F; G0: the
+rapid speed; a blend: the slower of its two moves).  A change of speed is a
+cosine ramp of ``ramp_s`` (speed (1 - cos(pi tau / ramp_s)) / 2 between
+the two), placed in the faster move: a deceleration ends where the slower
+move starts, an acceleration starts where the faster one starts; the
+path starts and ends at rest.  A move too short to hold its ramps at its
+speed gets a lower speed (as a controller's look-ahead does).  The speed
+is continuous and its derivative too: nothing steps.
+"""
 
 import bisect
 import math
@@ -14,83 +40,383 @@ from robstiff_drake.model.stiffness import describe_singularity, singular_joints
 # Closest a path may come to a singularity: smallest over largest singular
 # value of the Jacobian (a pose this close would need huge joint rates).
 MIN_JACOBIAN_CONDITION = 1e-3
+# A corner turning more than this is a reversal: the path stops there.
+MAX_BLEND_TURN_DEG = 170.0
+# Tangent directions closer than this (rad) are one smooth path: no blend.
+TANGENT_TOLERANCE_RAD = 1e-4
+_BEZIER_TABLE = 257  # arc-length samples of a corner curve
 
 
 class PathError(ValueError):
     """The path cannot be followed (reach, joint limits, singularity)."""
 
 
+# ---------------------------------------------------------------- elements
+
+
+class Line:
+    def __init__(self, p0, p1):
+        self.p0 = np.asarray(p0, dtype=float)
+        self.p1 = np.asarray(p1, dtype=float)
+        d = self.p1 - self.p0
+        self.length = float(np.linalg.norm(d))
+        self.u = d / self.length
+
+    def point(self, s):
+        return self.p0 + self.u * s
+
+    def tangent(self, s):
+        return self.u
+
+    def trimmed(self, s0, s1):
+        return Line(self.point(s0), self.point(s1))
+
+
+class Arc:
+    """An arc about a vertical axis (a helix when z changes): centre (x, y),
+    radius, start angle and signed sweep (rad, counter-clockwise +)."""
+
+    def __init__(self, center_xy, radius, angle0, sweep, z0, z1):
+        self.c = (float(center_xy[0]), float(center_xy[1]))
+        self.r = float(radius)
+        self.a0 = float(angle0)
+        self.sweep = float(sweep)
+        self.z0, self.z1 = float(z0), float(z1)
+        self.length = math.hypot(self.r * self.sweep, self.z1 - self.z0)
+
+    def point(self, s):
+        f = s / self.length
+        a = self.a0 + self.sweep * f
+        return np.array([self.c[0] + self.r * math.cos(a), self.c[1] + self.r * math.sin(a),
+                         self.z0 + (self.z1 - self.z0) * f])
+
+    def tangent(self, s):
+        a = self.a0 + self.sweep * s / self.length
+        k = self.r * self.sweep / self.length
+        return np.array([-k * math.sin(a), k * math.cos(a), (self.z1 - self.z0) / self.length])
+
+    def trimmed(self, s0, s1):
+        f0, f1 = s0 / self.length, s1 / self.length
+        dz = self.z1 - self.z0
+        return Arc(self.c, self.r, self.a0 + self.sweep * f0, self.sweep * (f1 - f0), self.z0 + dz * f0,
+                   self.z0 + dz * f1)
+
+
+class Corner:
+    """The zone's corner path: a cubic Bezier curve P0 -> P3 with control
+    points P1, P2, evaluated at arc length through a table."""
+
+    def __init__(self, p0, p1, p2, p3):
+        self.P = np.array([p0, p1, p2, p3], dtype=float)
+        u = np.linspace(0.0, 1.0, _BEZIER_TABLE)
+        pts = self._at(u)
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        self._s = np.r_[0.0, np.cumsum(seg)]
+        self._u = u
+        self.length = float(self._s[-1])
+
+    def _at(self, u):
+        u = np.asarray(u, dtype=float)[..., None]
+        a, b, c, d = self.P
+        return (1 - u) ** 3 * a + 3 * (1 - u) ** 2 * u * b + 3 * (1 - u) * u * u * c + u ** 3 * d
+
+    def _param(self, s):
+        return float(np.interp(s, self._s, self._u))
+
+    def point(self, s):
+        return self._at(self._param(s))
+
+    def tangent(self, s):
+        u = self._param(s)
+        a, b, c, d = self.P
+        t = 3 * (1 - u) ** 2 * (b - a) + 6 * (1 - u) * u * (c - b) + 3 * u * u * (d - c)
+        n = np.linalg.norm(t)
+        return t / n if n > 0 else (d - a) / np.linalg.norm(d - a)
+
+
+def _turn_rad(t_in, t_out):
+    c = float(np.clip(np.dot(t_in, t_out), -1.0, 1.0))
+    return math.acos(c)
+
+
+def blend_corners(elements, speeds, zone_m):
+    """Insert a corner path at every corner between consecutive elements.
+
+    Returns (elements, speeds, stop_after): ``stop_after[i]`` is True where
+    the path must stop after element i (a reversal, or a sharp corner at
+    zone 0 ... which keeps full speed, as before blending: False)."""
+    n = len(elements)
+    stops = [False] * n
+    if n < 2 or zone_m < 0:
+        return list(elements), list(speeds), stops
+    # zone of each corner: at most half of each neighbour's length
+    zones = []
+    for i in range(n - 1):
+        a, b = elements[i], elements[i + 1]
+        turn = _turn_rad(a.tangent(a.length), b.tangent(0.0))
+        if turn < TANGENT_TOLERANCE_RAD or zone_m == 0:
+            zones.append(0.0)
+        elif turn > math.radians(MAX_BLEND_TURN_DEG):
+            zones.append(0.0)
+            stops[i] = True
+        else:
+            zones.append(min(zone_m, 0.5 * a.length, 0.5 * b.length))
+    out, out_speeds, out_stops = [], [], []
+    for i, e in enumerate(elements):
+        s0 = zones[i - 1] if i > 0 else 0.0
+        s1 = e.length - (zones[i] if i < n - 1 else 0.0)
+        if s1 - s0 > 1e-12:  # (an element between two full zones vanishes)
+            out.append(e.trimmed(s0, s1) if (s0 > 0 or s1 < e.length) else e)
+            out_speeds.append(speeds[i])
+            out_stops.append(stops[i])
+        if i < n - 1 and zones[i] > 0:
+            b = elements[i + 1]
+            r = zones[i]
+            p0, p3 = e.point(e.length - r), b.point(r)
+            # control points where the tangents at p0 and p3 meet the corner
+            # (for two lines: the corner itself)
+            c1 = p0 + e.tangent(e.length - r) * r
+            c2 = p3 - b.tangent(r) * r
+            out.append(Corner(p0, c1, c2, p3))
+            out_speeds.append(min(speeds[i], speeds[i + 1]))
+            out_stops.append(False)
+    return out, out_speeds, out_stops
+
+
+# ---------------------------------------------------------------- speed profile
+
+
+def _ramp_distance(va, vb, w):
+    """Distance (m) of a cosine ramp from va to vb over w seconds."""
+    return 0.5 * (va + vb) * w
+
+
+def plan_speeds(lengths, speeds, stops, ramp_s):
+    """Speeds of blocks of constant commanded speed, lowered where a block
+    cannot hold its ramps.  ``stops[i]``: the path stops after block i.
+    Returns the block speeds (m/s)."""
+    v = [float(x) for x in speeds]
+    n = len(v)
+    if ramp_s <= 0:
+        return v
+
+    def need(i, V):
+        vp = 0.0 if i == 0 or stops[i - 1] else v[i - 1]
+        vn = 0.0 if i == n - 1 or stops[i] else v[i + 1]
+        return (_ramp_distance(vp, V, ramp_s) if V > vp else 0.0) + (_ramp_distance(V, vn, ramp_s) if V > vn else 0.0)
+
+    for _ in range(10 * n + 10):  # lowering one block can lower its neighbours' needs only
+        changed = False
+        for i in range(n):
+            if need(i, v[i]) <= lengths[i] * (1 + 1e-12):
+                continue
+            lo, hi = 0.0, v[i]  # need() does not decrease with V: the largest V that fits
+            for _ in range(80):
+                mid = 0.5 * (lo + hi)
+                lo, hi = (mid, hi) if need(i, mid) <= lengths[i] else (lo, mid)
+            v[i] = lo
+            changed = True
+        if not changed:
+            break
+    return v
+
+
+class SpeedProfile:
+    """Arc length s(t) (m) of blocks of given lengths and planned speeds,
+    with cosine ramps of ``ramp_s`` in the faster block at every change."""
+
+    def __init__(self, lengths, speeds, stops, ramp_s):
+        self.ramp_s = float(ramp_s)
+        v = plan_speeds(lengths, speeds, stops, ramp_s)
+        phases = []  # (t0, s0, va, vb, duration): ramp if va != vb else cruise
+        t = s = 0.0
+        n = len(v)
+        w = self.ramp_s
+        for i in range(n):
+            vp = 0.0 if i == 0 or stops[i - 1] else v[i - 1]
+            vn = 0.0 if i == n - 1 or stops[i] else v[i + 1]
+            d_in = _ramp_distance(vp, v[i], w) if v[i] > vp and w > 0 else 0.0
+            d_out = _ramp_distance(v[i], vn, w) if v[i] > vn and w > 0 else 0.0
+            if d_in > 0:
+                phases.append((t, s, vp, v[i], w))
+                t, s = t + w, s + d_in
+            cruise = lengths[i] - d_in - d_out
+            if cruise > 0 and v[i] > 0:
+                phases.append((t, s, v[i], v[i], cruise / v[i]))
+                t, s = t + cruise / v[i], s + cruise
+            if d_out > 0:
+                phases.append((t, s, v[i], vn, w))
+                t, s = t + w, s + d_out
+        self.phases = phases
+        self.duration_s = t
+        self.length = float(sum(lengths))
+        self._t0 = [p[0] for p in phases]
+        self.block_speeds = v
+
+    def arc_length(self, tau):
+        """Distance along the path tau seconds after the motion starts."""
+        if tau <= 0 or not self.phases:
+            return 0.0
+        if tau >= self.duration_s:
+            return self.length
+        k = bisect.bisect_right(self._t0, tau) - 1
+        t0, s0, va, vb, dur = self.phases[k]
+        x = tau - t0
+        if va == vb:
+            return s0 + va * x
+        # cosine ramp: v = va + (vb - va) (1 - cos(pi x / w)) / 2
+        return s0 + va * x + 0.5 * (vb - va) * (x - dur / math.pi * math.sin(math.pi * x / dur))
+
+    def speed(self, tau):
+        if tau <= 0 or tau >= self.duration_s or not self.phases:
+            return 0.0
+        k = bisect.bisect_right(self._t0, tau) - 1
+        t0, _, va, vb, dur = self.phases[k]
+        return va + (vb - va) * 0.5 * (1.0 - math.cos(math.pi * (tau - t0) / dur)) if va != vb else va
+
+
+# ---------------------------------------------------------------- the path
+
+
 class PlannedPath:
-    """Tool point (m, base frame) along waypoints at ``feed_m_per_s``.
+    """Tool point (m, base frame) along waypoints at ``feed_m_per_s``, or
+    along the elements of a program (``from_elements``).
 
-    The motion starts after ``dwell_s`` at rest and speeds up (and, at the
-    end, slows down) with a cosine velocity ramp of ``ramp_s``: a step in the
-    commanded velocity would ring the arm's first mode, which no real path
-    planner does.  The feed is constant between the ramps."""
+    The motion starts after ``dwell_s`` at rest, speeds up (and, at the end,
+    slows down) with a cosine velocity ramp of ``ramp_s``; corners are
+    blended within ``zone_m`` (see the module docstring).  For a straight
+    path this is the constant feed between two ramps that the project has
+    always used."""
 
-    def __init__(self, waypoints_m, feed_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0):
-        self.waypoints = np.asarray(waypoints_m, dtype=float).reshape(-1, 3)
-        if len(self.waypoints) < 2:
+    def __init__(self, waypoints_m, feed_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0, zone_m=0.0):
+        wp = np.asarray(waypoints_m, dtype=float).reshape(-1, 3)
+        if len(wp) < 2:
             raise PathError("a path needs at least two waypoints")
         if not feed_m_per_s > 0:
             raise PathError(f"feed must be > 0, got {feed_m_per_s}")
-        seg = np.diff(self.waypoints, axis=0)
-        self.lengths = np.linalg.norm(seg, axis=1)
-        if np.any(self.lengths <= 0):
+        seg = np.linalg.norm(np.diff(wp, axis=0), axis=1)
+        if np.any(seg <= 0):
             raise PathError("two consecutive waypoints are the same point")
-        self.directions = seg / self.lengths[:, None]
-        self.feed = float(feed_m_per_s)
+        elements = [Line(a, b) for a, b in zip(wp[:-1], wp[1:])]
+        self._setup(elements, [float(feed_m_per_s)] * len(elements), wp, yaw_rad, dwell_s, ramp_s, zone_m)
+
+    @classmethod
+    def from_elements(cls, elements, speeds_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0, zone_m=0.0):
+        """A path through Line / Arc elements, each at its own speed (m/s)."""
+        if not elements:
+            raise PathError("a path needs at least one move")
+        if any(not v > 0 for v in speeds_m_per_s):
+            raise PathError("every move needs a speed > 0")
+        self = cls.__new__(cls)
+        wp = np.array([elements[0].point(0.0)] + [e.point(e.length) for e in elements])
+        self._setup(list(elements), [float(v) for v in speeds_m_per_s], wp, yaw_rad, dwell_s, ramp_s, zone_m)
+        return self
+
+    def _setup(self, elements, speeds, waypoints, yaw_rad, dwell_s, ramp_s, zone_m):
+        self.waypoints = waypoints
+        self.directions = np.array([e.tangent(0.0) for e in elements])
         self.yaw = float(yaw_rad)
         self.dwell_s = float(dwell_s)
+        self.zone_m = float(zone_m)
+        self.feed = float(max(speeds))
+        self.elements, self.speeds, stops = blend_corners(elements, speeds, self.zone_m)
+        self.lengths = np.array([e.length for e in self.elements])
         self.total_length = float(self.lengths.sum())
-        self.ramp_s = min(float(ramp_s), self.total_length / self.feed)  # a short path has no cruise phase
         self._s_knots = np.r_[0.0, np.cumsum(self.lengths)].tolist()
-        d = self.directions[:, :2]
-        n = np.linalg.norm(d, axis=1, keepdims=True)
-        dirs = np.where(n > 1e-12, d / np.where(n > 1e-12, n, 1.0), [1.0, 0.0])
-        self._feed_dirs = [tuple(u) for u in dirs.tolist()]
-        self.move_s = self.total_length / self.feed + self.ramp_s
+        # blocks of constant commanded speed (consecutive elements at one speed, no stop between)
+        blocks, bspeeds, bstops = [], [], []
+        for i, (L, v) in enumerate(zip(self.lengths, self.speeds)):
+            if blocks and bspeeds[-1] == v and not bstops[-1]:
+                blocks[-1] += L
+                bstops[-1] = stops[i]
+            else:
+                blocks.append(float(L))
+                bspeeds.append(v)
+                bstops.append(stops[i])
+        # a short path has no cruise phase: as before, the ramps shrink to fit
+        # a single block rather than slowing it down
+        if len(blocks) == 1:
+            ramp_s = min(float(ramp_s), blocks[0] / bspeeds[0])
+        self.ramp_s = float(ramp_s)
+        self.profile = SpeedProfile(blocks, bspeeds, bstops, self.ramp_s)
+        self.move_s = self.profile.duration_s
+        # horizontal feed direction per element (the previous one's where an element is vertical)
+        dirs, last = [], (1.0, 0.0)
+        for e in self.elements:
+            t = e.tangent(0.5 * e.length)
+            n = math.hypot(t[0], t[1])
+            if n > 1e-6:
+                last = (t[0] / n, t[1] / n)
+            dirs.append(last)
+        self._elem_dirs = dirs
 
     @property
     def duration_s(self):
         return self.dwell_s + self.move_s
 
-    def _ramp_distance(self, tau):
-        """Distance covered tau seconds into a cosine speed-up from rest."""
-        tr = self.ramp_s
-        return 0.5 * self.feed * (tau - tr / math.pi * math.sin(math.pi * tau / tr))
+    def signature(self):
+        """A key that changes with the path's geometry or timing (for caches)."""
+        parts = [self.dwell_s, self.ramp_s, self.zone_m, self.yaw]
+        for e, v in zip(self.elements, self.speeds):
+            parts.append(v)
+            parts.extend(np.round(e.point(0.0), 12).tolist())
+            parts.extend(np.round(e.point(e.length), 12).tolist())
+            parts.append(round(e.length, 12))
+        return tuple(parts)
 
     def arc_length(self, t):
         """Distance along the path at time t (m)."""
-        tau = min(max(t - self.dwell_s, 0.0), self.move_s)
-        tr = self.ramp_s
-        if tr <= 0:
-            return self.feed * tau
-        if tau < tr:
-            return self._ramp_distance(tau)
-        if tau <= self.move_s - tr:
-            return 0.5 * self.feed * tr + self.feed * (tau - tr)
-        return self.total_length - self._ramp_distance(self.move_s - tau)
+        return self.profile.arc_length(t - self.dwell_s)
 
-    def _segment(self, s):
+    def speed(self, t):
+        """Path speed at time t (m/s)."""
+        return self.profile.speed(t - self.dwell_s)
+
+    def _element(self, s):
         i = bisect.bisect_right(self._s_knots, s) - 1
-        return min(max(i, 0), len(self.lengths) - 1)
+        return min(max(i, 0), len(self.elements) - 1)
+
+    def point_at(self, s):
+        """Tool point (m) at arc length s."""
+        i = self._element(s)
+        e = self.elements[i]
+        return e.point(min(max(s - self._s_knots[i], 0.0), e.length))
+
+    def tangent_at(self, s):
+        i = self._element(s)
+        e = self.elements[i]
+        return e.tangent(min(max(s - self._s_knots[i], 0.0), e.length))
 
     def position(self, t):
-        s = self.arc_length(t)
-        i = self._segment(s)
-        return self.waypoints[i] + self.directions[i] * (s - self._s_knots[i])
+        return self.point_at(self.arc_length(t))
 
     def positions(self, ts):
-        return np.array([self.position(t) for t in np.atleast_1d(ts)])
+        return np.array([self.position(t) for t in np.atleast_1d(ts)]).reshape(-1, 3)
 
     def feed_direction(self, t):
         """Horizontal unit feed direction (u_x, u_y) at time t (the
-        cutting-force model's u); the first segment's before the start, the
-        last's after."""
-        if len(self._feed_dirs) == 1:
-            return self._feed_dirs[0]
-        return self._feed_dirs[self._segment(self.arc_length(t))]
+        cutting-force model's u); the first element's before the start, the
+        last's after; along a vertical move, the last horizontal one's."""
+        if len(self._elem_dirs) == 1:
+            return self._elem_dirs[0]
+        s = self.arc_length(t)
+        i = self._element(s)
+        e = self.elements[i]
+        if isinstance(e, Line):
+            return self._elem_dirs[i]
+        tg = e.tangent(min(max(s - self._s_knots[i], 0.0), e.length))
+        n = math.hypot(tg[0], tg[1])
+        return (tg[0] / n, tg[1] / n) if n > 1e-6 else self._elem_dirs[i]
+
+    def sample_xy(self, spacing_m):
+        """(s (N,), points (N, 3), horizontal unit tangents (N, 2)) every
+        ``spacing_m`` along the path, leaving out the (near-)vertical parts."""
+        s = np.arange(0.0, self.total_length + 1e-12, spacing_m)
+        pts = np.array([self.point_at(x) for x in s]).reshape(-1, 3)
+        tg = np.array([self.tangent_at(x) for x in s]).reshape(-1, 3)
+        n = np.hypot(tg[:, 0], tg[:, 1])
+        keep = n > 0.5  # less than 60 degrees from horizontal
+        return s[keep], pts[keep], tg[keep, :2] / n[keep, None]
 
     def joint_references(self, robot, tool_m, dt_s, q_start=None):
         """(times, q (N, 6) rad) along the path every dt_s, by IK with each
@@ -116,3 +442,29 @@ class PlannedPath:
             qs[k] = q
             q_prev = q
         return ts, qs
+
+
+# ---------------------------------------------------------------- programs
+
+
+def program_elements(moves, rapid_m_per_s, transform):
+    """Elements (m, base frame) and speeds (m/s) of G-code moves
+    (model/gcode.py Move, mm in the work frame).  ``transform(p_mm)`` maps
+    a work-frame point (mm) to the base frame (m), a rotation about z and a
+    shift; ``rapid_m_per_s``: the speed of G0 moves."""
+    elements, speeds = [], []
+    for m in moves:
+        p0, p1 = transform(m.start_mm), transform(m.end_mm)
+        if elements:  # (an arc may end up to gcode.ARC_END_TOLERANCE_MM off its programmed end point)
+            p0 = elements[-1].point(elements[-1].length)
+        if math.dist(p0, p1) < 1e-9 and m.kind != "arc":
+            continue
+        if m.kind == "arc":
+            c = transform((m.center_mm[0], m.center_mm[1], m.start_mm[2]))
+            a0 = math.atan2(p0[1] - c[1], p0[0] - c[0])
+            r = math.hypot(p0[0] - c[0], p0[1] - c[1])
+            elements.append(Arc((c[0], c[1]), r, a0, m.sweep_rad(), p0[2], p1[2]))
+        else:
+            elements.append(Line(p0, p1))
+        speeds.append(rapid_m_per_s if m.kind == "rapid" else m.feed_mm_per_min / 60e3)
+    return elements, speeds

@@ -9,9 +9,7 @@ already carry."""
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from robstiff_drake.model.kinematics import rpy_to_rotation
-from robstiff_drake.model.wrench_frames import wrench_to_tool_base
-from robstiff_drake.model import transmission
+from robstiff_drake.model.compensator import DeflectionModel
 
 
 class DeflectionPrediction(LeafSystem):
@@ -31,17 +29,11 @@ class DeflectionPrediction(LeafSystem):
         the tool point in the flange frame (m); ``mount_rpy_deg``: the sensor
         frame's rotation on the flange (deg)."""
         super().__init__()
-        self._pred = predictor
-        # the model's transmission beyond the springs (model/transmission.py)
-        self._lost = None if not lost_motion_rad or not any(lost_motion_rad) else np.asarray(lost_motion_rad,
-                                                                                               dtype=float)
-        self._c23 = float(coupling_c23_rad_per_Nm)
-        R_mount = rpy_to_rotation(np.deg2rad(mount_rpy_deg))
-        self._R_mount = tuple(R_mount.ravel().tolist())
-        self._r_s = tuple((R_mount.T @ np.asarray(tool_m, dtype=float)).tolist())  # tool point, sensor frame
+        # the arithmetic: model/compensator.DeflectionModel (shared with the compensator process)
+        self._model = DeflectionModel(predictor, tool_m, mount_rpy_deg, lost_motion_rad, coupling_c23_rad_per_Nm)
+        self._lost = self._model.lost
         self._w = self.DeclareVectorInputPort("process_wrench", 6)
         self._q = self.DeclareVectorInputPort("q", 6)
-        self._identity_mount = bool(np.allclose(R_mount, np.eye(3), rtol=0.0, atol=0.0))
         deps = {self._w.ticket(), self._q.ticket()}
         self._static = None
         if self._lost is not None:
@@ -58,22 +50,10 @@ class DeflectionPrediction(LeafSystem):
 
     def tool_wrench_of(self, process_wrench, q):
         """The wrench at the tool point (base frame, list of 6) for a process
-        wrench in the sensor frame at joint angles q (rad): what
-        sensor_to_tool_base computes, in scalar arithmetic (the per-cycle
-        path)."""
-        R = self._pred.pose(q)
-        if not self._identity_mount:
-            M = self._R_mount
-            R = [R[3 * i] * M[j] + R[3 * i + 1] * M[3 + j] + R[3 * i + 2] * M[6 + j] for i in range(3) for j in range(3)]
-        w = process_wrench.tolist() if hasattr(process_wrench, "tolist") else process_wrench
-        return wrench_to_tool_base(R, self._r_s, w)
+        wrench in the sensor frame at joint angles q (rad)
+        (model/compensator.DeflectionModel)."""
+        return self._model.tool_wrench(process_wrench, q)
 
     def _calc_dq(self, context, output):
-        w, q = self._tool_wrench(context)
-        tau = self._pred.joint_torques(q, w)
-        if self._lost is None and not self._c23:
-            output.SetFromVector([c * t for c, t in zip(self._pred.joint_compliance_list, tau)])
-            return
-        static = self._static.Eval(context) if self._static is not None else np.zeros(6)
-        output.SetFromVector(transmission.static_deflection(static, tau, self._pred.joint_compliance, self._lost,
-                                                            self._c23))
+        static = self._static.Eval(context) if self._static is not None else None
+        output.SetFromVector(np.asarray(self._model.dq(self._w.Eval(context), self._q.Eval(context), static)))

@@ -1,25 +1,15 @@
 """The force filter: a discrete low-pass (Butterworth, designed with
 scipy.signal) or a spindle-revolution moving average, on all six channels,
-as a Drake LinearSystem running at the sensor rate."""
+as a Drake LinearSystem running at the sensor rate.  The design is
+model/filters.py's (shared with the compensator process)."""
 
 import numpy as np
 from pydrake.systems.primitives import LinearSystem
 from scipy import signal
 
+from robstiff_drake.model.filters import group_delay_s, lowpass_coefficients, revolution_average_coefficients
 
-def lowpass_coefficients(cutoff_hz, rate_hz, order=2):
-    """(b, a) of a discrete Butterworth low-pass (bilinear, prewarped)."""
-    if not 0 < cutoff_hz < 0.5 * rate_hz:
-        raise ValueError(f"cutoff {cutoff_hz} Hz must be between 0 and the Nyquist rate {0.5 * rate_hz} Hz")
-    return signal.butter(order, cutoff_hz, btype="low", fs=rate_hz)
-
-
-def revolution_average_coefficients(spindle_rpm, rate_hz):
-    """(b, a) of a moving average over one spindle revolution (rounded to
-    whole samples, at least 1): a notch at the spindle and tooth-pass
-    frequencies and their harmonics."""
-    n = max(1, int(round(rate_hz * 60.0 / spindle_rpm)))
-    return np.ones(n) / n, np.r_[1.0, np.zeros(n - 1)]
+__all__ = ["filter_system", "group_delay_s", "lowpass_coefficients", "revolution_average_coefficients", "steady_state"]
 
 
 def filter_system(b, a, rate_hz, channels=6):
@@ -40,10 +30,3 @@ def steady_state(system, u0):
     if A.shape[0] == 0:
         return np.zeros(0)
     return np.linalg.solve(np.eye(A.shape[0]) - A, B @ np.asarray(u0, dtype=float))
-
-
-def group_delay_s(b, a, rate_hz, f_hz=0.5):
-    """Low-frequency group delay of the filter (s), the lag it adds to a
-    slowly changing force."""
-    w, gd = signal.group_delay((b, a), w=[f_hz], fs=rate_hz)
-    return float(gd[0]) / rate_hz

@@ -8,6 +8,8 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
+from robstiff_drake.model.compensator import rate_limited_step
+
 
 class RateLimitedCorrection(LeafSystem):
     """Input ``dq`` (6, rad): predicted deflection (already delayed and
@@ -29,4 +31,4 @@ class RateLimitedCorrection(LeafSystem):
         if not math.isfinite(sum(dq)):
             return
         held = discrete_state.get_mutable_vector(int(self._state)).get_mutable_value()  # the current correction
-        held[:] = [x + min(s, max(-s, -d - x)) for x, d, s in zip(held.tolist(), dq, self._step)]
+        held[:] = rate_limited_step(held.tolist(), dq, self._step)  # (model/compensator.py)

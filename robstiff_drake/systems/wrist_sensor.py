@@ -10,6 +10,8 @@ from pydrake.multibody.math import SpatialForce
 from pydrake.systems.framework import LeafSystem
 from pydrake.systems.primitives import RandomSource
 
+from robstiff_drake.model.compensator import guard_accepts
+
 
 class WristForceSensor(LeafSystem):
     """Samples the wrench across the flange-spindle weld at ``rate_hz``.
@@ -107,11 +109,7 @@ class WrenchGuard(LeafSystem):
         # place when the sample is good, count it when it is not
         w = self._in.Eval(context)
         held = discrete_state.get_mutable_vector(int(self._state)).get_mutable_value()
-        x, y, z, a, b, c = w.tolist()
-        lx, ly, lz = held[:3].tolist()
-        # NaN fails every comparison, so a dropout is rejected here too
-        good = abs(x - lx) <= self._max_jump and abs(y - ly) <= self._max_jump and abs(z - lz) <= self._max_jump
-        if good and math.isfinite(a + b + c):
+        if guard_accepts(w.tolist(), held[:3].tolist(), self._max_jump):  # (model/compensator.py)
             held[:] = w
         else:
             discrete_state.get_mutable_vector(int(self._count)).get_mutable_value()[0] += 1.0

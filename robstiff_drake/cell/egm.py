@@ -1,0 +1,169 @@
+"""ABB Externally Guided Motion (EGM): UDP, protobuf messages
+(``abb.egm.EgmRobot`` from the controller at its cycle, 4 ms on an IRC5;
+``abb.egm.EgmSensor`` back with joint targets in degrees, EGMRunJoint).
+
+The message definitions are those of ABB's egm.proto as the package
+abb-robot-client ships them compiled (abb_robot_client._egm_protobuf,
+Apache-2.0); nothing is copied here.  The PC side sends through
+abb-robot-client's ``EGM`` class; it receives and checks the messages
+itself (abb-robot-client's receive neither checks the message type nor
+survives a datagram that is not protobuf), and the controller's side
+(``ControllerLink``: the simulated cell and the tests' fake controller) is
+written here: no package implements it.
+"""
+
+import math
+import socket
+import time
+
+from robstiff_drake.errors import InputError
+
+EGM_JOINTS = 6
+
+
+def _egm_pb2():
+    try:
+        from abb_robot_client._egm_protobuf import egm_pb2
+    except ImportError:
+        raise InputError("EGM needs the package abb-robot-client: pip install 'robstiff-drake[cell]'") from None
+    return egm_pb2
+
+
+class EgmMessageError(ValueError):
+    """A datagram that is not a usable EgmRobot message."""
+
+
+def parse_robot_message(data, pb2=None):
+    """(seqno, tm ms, joints deg (list), planned deg (list or None)) of an
+    EgmRobot datagram; EgmMessageError saying what is wrong."""
+    pb2 = pb2 or _egm_pb2()
+    msg = pb2.EgmRobot()
+    try:
+        msg.ParseFromString(data)
+    except Exception:
+        raise EgmMessageError(f"not an EGM protobuf message ({len(data)} bytes)") from None
+    mtype = msg.header.mtype if msg.HasField("header") else 0
+    if mtype != pb2.EgmHeader.MSGTYPE_DATA:
+        name = pb2.EgmHeader.MessageType.Name(mtype) if mtype in pb2.EgmHeader.MessageType.values() else str(mtype)
+        raise EgmMessageError(f"message type {name}, expected MSGTYPE_DATA (an EgmRobot from the controller)")
+    if not msg.HasField("feedBack") or not msg.feedBack.HasField("joints"):
+        raise EgmMessageError("an EgmRobot without joint feedback (feedBack.joints)")
+    joints = list(msg.feedBack.joints.joints)
+    if len(joints) != EGM_JOINTS:
+        raise EgmMessageError(f"{len(joints)} joints in the feedback, expected {EGM_JOINTS}")
+    planned = list(msg.planned.joints.joints) if msg.HasField("planned") and msg.planned.HasField("joints") else None
+    return msg.header.seqno, msg.header.tm, joints, planned
+
+
+class SensorLink:
+    """The PC's side: receives EgmRobot on ``port`` and answers the
+    controller with joint targets (deg) through abb-robot-client."""
+
+    def __init__(self, port):
+        try:
+            from abb_robot_client.egm import EGM
+        except ImportError:
+            raise InputError("EGM needs the package abb-robot-client: pip install 'robstiff-drake[cell]'") from None
+        self.pb2 = _egm_pb2()
+        try:
+            self._egm = EGM(port=port)
+        except OSError as e:
+            raise InputError(f"--egm-port {port}: cannot listen on UDP port {port} ({e.strerror}; is another "
+                             "compensator running?)") from None
+        self.sock = self._egm.socket
+        self.port = port
+        self.skipped = 0
+
+    def receive(self, timeout_s):
+        """(datagram, arrival time s on time.monotonic) of the newest message,
+        or None after ``timeout_s``.  Older messages waiting behind it (the
+        PC fell behind, or the controller sent before the loop started) are
+        dropped and counted in ``skipped``: answering them would be late."""
+        self.sock.settimeout(timeout_s)
+        try:
+            data, addr = self.sock.recvfrom(65536)
+        except (socket.timeout, BlockingIOError):
+            return None
+        except OSError:
+            return None
+        t = time.monotonic()
+        self.sock.setblocking(False)
+        while True:
+            try:
+                data, addr = self.sock.recvfrom(65536)
+                t = time.monotonic()
+                self.skipped += 1
+            except (BlockingIOError, InterruptedError, OSError):
+                break
+        self._egm.egm_addr = addr
+        return data, t
+
+    def send_joints(self, joints_deg):
+        return self._egm.send_to_robot(joints_deg)
+
+    def close(self):
+        self.sock.close()
+
+
+class ControllerLink:
+    """The controller's side (a simulated IRC5): sends EgmRobot to the
+    sensor (the compensator) at ``host:port`` and receives its EgmSensor
+    joint targets."""
+
+    def __init__(self, host, port):
+        self.pb2 = _egm_pb2()
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1" if host in ("127.0.0.1", "localhost") else "", 0))
+        self.sock.setblocking(False)
+        self.addr = (host, port)
+        self.seqno = 0
+        self.t0 = time.monotonic()
+
+    def restart(self):
+        """A controller restart: the sequence number and clock start again."""
+        self.seqno = 0
+        self.t0 = time.monotonic()
+
+    def robot_message(self, joints_deg, planned_deg=None, mtype=None):
+        m = self.pb2.EgmRobot()
+        self.seqno += 1
+        m.header.seqno = self.seqno
+        m.header.tm = int((time.monotonic() - self.t0) * 1000) & 0xFFFFFFFF
+        m.header.mtype = self.pb2.EgmHeader.MSGTYPE_DATA if mtype is None else mtype
+        m.feedBack.joints.joints.extend([float(v) for v in joints_deg])
+        if planned_deg is not None:
+            m.planned.joints.joints.extend([float(v) for v in planned_deg])
+        m.motorState.state = self.pb2.EgmMotorState.MOTORS_ON
+        m.rapidExecState.state = self.pb2.EgmRapidCtrlExecState.RAPID_RUNNING
+        return m.SerializeToString()
+
+    def send(self, data):
+        try:
+            self.sock.sendto(data, self.addr)
+            return True
+        except OSError:
+            return False
+
+    def receive_targets(self):
+        """The joint targets (deg, list) of the newest EgmSensor waiting, or None."""
+        latest = None
+        while True:
+            try:
+                data, _ = self.sock.recvfrom(65536)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                break
+            m = self.pb2.EgmSensor()
+            try:
+                m.ParseFromString(data)
+            except Exception:
+                continue
+            if m.HasField("planned") and len(m.planned.joints.joints) == EGM_JOINTS:
+                j = list(m.planned.joints.joints)
+                if all(math.isfinite(v) for v in j):
+                    latest = j
+        return latest
+
+    def close(self):
+        self.sock.close()

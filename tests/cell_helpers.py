@@ -1,0 +1,146 @@
+"""Helpers of the cell tests: the inputs `robstiff compensate` reads (a
+model JSON as `robstiff identify` writes it, a payload YAML as `robstiff
+calibrate-payload` writes it, a joint reference CSV), free UDP ports on
+127.0.0.1, and a simulated cell (cell/sim_cell.py with its stand-in arm)
+running in a thread."""
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import threading
+
+import numpy as np
+
+from robstiff_drake.cell.sim_cell import CellNetwork, Faults, ServoArmStandIn
+from robstiff_drake.model import ik
+from robstiff_drake.model.payload import PayloadCalibration
+from robstiff_drake.model.robot import load_robot
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# Where the tool works: the block test's start point (mm, base frame), spindle down
+START_MM = (1600.0, 0.0, 700.0)
+# The payload calibration's sensor bias (N, N*m): made up for the tests
+FORCE_BIAS_N = (3.0, -2.0, 5.0)
+TORQUE_BIAS_NM = (0.2, -0.1, 0.05)
+
+
+def free_udp_port():
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def calibration(robot):
+    return PayloadCalibration(mass_kg=robot.payload.mass_kg, com_mm=list(robot.payload.com_m * 1e3),
+                              force_bias_N=list(FORCE_BIAS_N), torque_bias_Nm=list(TORQUE_BIAS_NM),
+                              sensor_mount_rpy_deg=[0.0, 0.0, 0.0])
+
+
+def write_inputs(folder, robot, *, feed_mm_per_s=20.0, duration_s=3.0, robot_name=None, nominal=None):
+    """model.json, payload.yaml and reference.csv in ``folder``; returns
+    their paths and the reference as a function of time (rad)."""
+    model = os.path.join(folder, "model.json")
+    with open(model, "w") as f:
+        json.dump({"robot": robot_name or robot.name,
+                   "joint_stiffness_Nm_per_rad": robot.joint_stiffness_Nm_per_rad.tolist(),
+                   "joint_stiffness_nominal_Nm_per_rad": (nominal if nominal is not None
+                                                          else robot.joint_stiffness_Nm_per_rad).tolist()}, f)
+    cal = calibration(robot)
+    payload = os.path.join(folder, "payload.yaml")
+    with open(payload, "w") as f:
+        f.write("# test payload calibration: the robot file's payload and a made-up bias\npayload_calibration:\n"
+                f"  mass_kg: {float(cal.mass_kg)}\n  com_mm: {[float(v) for v in cal.com_mm]}\n"
+                f"  force_bias_N: {[float(v) for v in cal.force_bias_N]}\n"
+                f"  torque_bias_Nm: {[float(v) for v in cal.torque_bias_Nm]}\n  sensor_mount_rpy_deg: [0.0, 0.0, 0.0]\n")
+    # a straight pass along x at the feed for 3 s (60 mm), then at rest; by IK every 4 ms
+    ts = np.arange(0.0, min(duration_s, 3.5) + 1e-9, 0.004)
+    q_prev, qs = None, []
+    for t in ts:
+        p = np.array(START_MM) / 1e3 + [feed_mm_per_s * min(t, 3.0) / 1e3, 0.0, 0.0]
+        q_prev = ik.solve_ik(robot.dh, ik.tool_down_pose(p, 0.0), robot.payload.tool_point_m, q_ref_rad=q_prev,
+                             q_lower_rad=robot.q_lower_rad, q_upper_rad=robot.q_upper_rad)
+        qs.append(q_prev)
+    qs = np.array(qs)
+    ref = os.path.join(folder, "reference.csv")
+    with open(ref, "w") as f:
+        f.write("# test joint reference: a straight pass along +x from (1600, 0, 700) mm for 3 s, IK every 4 ms\n")
+        f.write("t_s," + ",".join(f"q{j}_deg" for j in range(1, 7)) + "\n")
+        for t, q in zip(ts, np.degrees(qs)):
+            f.write(f"{t:.4f}," + ",".join(f"{v:.9f}" for v in q) + "\n")
+
+    def reference(t):
+        return np.array([np.interp(t, ts, qs[:, j]) for j in range(6)])
+
+    return model, payload, ref, reference
+
+
+def cutting_wrench(t0=0.8, ramp_s=0.3, force_N=(-300.0, 260.0, 50.0)):
+    """A process wrench on the tool (base frame) that ramps in from t0 over
+    ramp_s (about the block test's forces)."""
+    F = np.array(force_N)
+
+    def W(t):
+        a = min(max((t - t0) / ramp_s, 0.0), 1.0)
+        s = 0.5 - 0.5 * np.cos(np.pi * a)
+        return np.r_[F * s, 0.0, 0.0, 0.0]
+
+    return W
+
+
+def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=None, wrench=None, rt_priority=0):
+    """A simulated cell (stand-in arm) in a thread; returns (thread, network).
+    ``rt_priority``: run the thread under SCHED_FIFO (a controller is hard
+    real-time; the benchmark's option)."""
+    station = ServoArmStandIn(robot=robot, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
+                              calibration=calibration(robot), process_wrench=wrench or cutting_wrench(),
+                              reference=reference, q_start_rad=reference(0.0), seed=3)
+    net = CellNetwork(station, egm_to=("127.0.0.1", egm_port), netft_port=netft_port, faults=faults or Faults())
+    def run():
+        if rt_priority:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
+        net.run(duration_s, reference(0.0))
+
+    th = threading.Thread(target=run, daemon=True)
+    th.start()
+    return th, net
+
+
+def compensate_cmd(model, payload, reference, *, egm_port, netft_port, log=None, extra=()):
+    cmd = [sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
+           "--netft", f"127.0.0.1:{netft_port}", "--model", model, "--payload", payload,
+           "--wait-s", "20", "--idle-exit-s", "0.5", "--cutoff-hz", "10", "--sensor-rate-hz", "1000"]
+    if reference:
+        cmd += ["--reference", reference]
+    if log:
+        cmd += ["--log", log]
+    return cmd + list(extra)
+
+
+def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), wrench=None, stream_reference=False,
+                                cell_rt_priority=0):
+    """Start `robstiff compensate` as a separate process and the simulated
+    cell; returns (completed process, network stats, log folder).  Without
+    ``stream_reference`` the compensator holds the start pose (no
+    --reference) and the stand-in measures its error against that pose."""
+    robot = load_robot()
+    model, payload, ref, ref_fn = write_inputs(str(tmp), robot, duration_s=duration_s + 1.0)
+    q0 = ref_fn(0.0)
+    reference = ref_fn if stream_reference else (lambda t: q0)
+    egm_port, netft_port = free_udp_port(), free_udp_port()
+    log = os.path.join(str(tmp), "log")
+    # the cell first, standing still (its sensor streaming, its controller
+    # sending EGM messages) until the compensator answers, as a real one
+    th, net = start_cell(robot, reference, egm_port=egm_port, netft_port=netft_port, duration_s=duration_s + 15.0,
+                         faults=faults, wrench=wrench, rt_priority=cell_rt_priority)
+    proc = subprocess.Popen(compensate_cmd(model, payload, ref if stream_reference else None, egm_port=egm_port, netft_port=netft_port, log=log,
+                                           extra=list(extra) + ["--duration-s", str(duration_s)]), cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out, err = proc.communicate(timeout=duration_s + 60)
+    net.stop = True
+    th.join(30)
+    net.close()
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err), net.stats, log

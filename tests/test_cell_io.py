@@ -1,0 +1,283 @@
+"""The compensator as a process (issue 14): `robstiff compensate` against a
+simulated cell on 127.0.0.1 (the controller's EGM side and the Net F/T's
+RDT side of cell/sim_cell.py, with a stand-in arm), fault injection, bad
+input, and the protocol encodings checked against the packages that read
+them (abb-robot-client's EGM receiver, pynetft's RDT client)."""
+
+import csv
+import json
+import math
+import os
+import socket
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pynetft", reason="the cell tests need pynetft (pip install '.[test]')")
+pytest.importorskip("abb_robot_client", reason="the cell tests need abb-robot-client (pip install '.[test]')")
+
+sys.path.insert(0, os.path.dirname(__file__))
+import cell_helpers as h  # noqa: E402
+
+from robstiff_drake.cell.egm import ControllerLink, parse_robot_message  # noqa: E402
+from robstiff_drake.cell.rdt import NetFTReader, RDTServer  # noqa: E402
+from robstiff_drake.cell.sim_cell import Faults  # noqa: E402
+from robstiff_drake.model import kinematics as kin  # noqa: E402
+from robstiff_drake.model.robot import load_robot  # noqa: E402
+
+RATE_LIMIT_RAD_PER_S = math.radians(5.0)  # compensate's default
+PERIOD_S = 0.004
+
+
+def read_csv(path):
+    with open(path) as f:
+        rows = [r for r in csv.reader(line for line in f if not line.startswith("#"))]
+    header, data = rows[0], rows[1:]
+    return {k: np.array([float(r[i]) if r[i] else np.nan for r in data]) for i, k in enumerate(header)}
+
+
+def tool_errors(stats):
+    ex = [x for x in stats.extra if x is not None]
+    return np.array([x[0] for x in ex]), np.array([x[1:] for x in ex])
+
+
+def correction_steps(log):
+    ts = read_csv(os.path.join(log, "timeseries_compensated.csv"))
+    c = np.column_stack([ts[f"correction_q{j}_rad"] for j in range(1, 7)])
+    return ts["t_s"], c, np.abs(np.diff(c, axis=0)).max(axis=1)
+
+
+def uncompensated_deflection_m(robot, q, W):
+    """J dq with dq = C J^T W: an independent computation (kinematics.jacobian)."""
+    J = kin.jacobian(robot.dh, q, robot.payload.tool_point_m)
+    dq = (J.T @ W) / robot.joint_stiffness_Nm_per_rad
+    return (J @ dq)[:3]
+
+
+def test_compensate_cancels_the_deflection_over_the_protocols(tmp_path):
+    cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=2.5)
+    assert cp.returncode == 0, cp.stderr
+    robot = load_robot()
+    t, e = tool_errors(stats)
+    W = h.cutting_wrench()(10.0)
+    q0 = h.write_inputs(str(tmp_path), robot, duration_s=0.1)[3](0.0)
+    d = uncompensated_deflection_m(robot, q0, W)
+    assert np.linalg.norm(d) > 0.2e-3  # the load deflects the tool by a few tenths of a mm
+    settled = t > 2.0  # the force has ramped in by 1.1 s
+    assert settled.sum() > 50
+    resid = np.linalg.norm(e[settled], axis=1)
+    # the compensated tool stays within 5 % of the uncompensated deflection
+    assert resid.max() < 0.05 * np.linalg.norm(d), (resid.max(), d)
+    # before the load, nothing moves
+    assert np.linalg.norm(e[t < 0.7], axis=1).max() < 5e-6
+    # the log: the run folder's files, the correction never faster than the rate limit
+    for name in ("timeseries_compensated.csv", "wrench_log.csv", "joint_log.csv", "cycles.csv", "summary.json",
+                 "RUN_ID"):
+        assert os.path.isfile(os.path.join(log, name)), name
+    _, c, steps = correction_steps(log)
+    assert steps.max() <= RATE_LIMIT_RAD_PER_S * 2 * PERIOD_S * (1 + 1e-6)
+    summary = json.load(open(os.path.join(log, "summary.json")))
+    # most cycles answered (the simulated controller is a Python thread on a shared machine: under load it
+    # leaves ticks out; benchmarks/bench_compensate.py measures the timing)
+    assert summary["cycles"]["messages"] > 0.4 * 2.5 / PERIOD_S
+    assert summary["cycles"]["faults"] == []
+
+
+def test_compensate_streams_the_reference(tmp_path):
+    cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=2.0, stream_reference=True,
+                                                   wrench=lambda t: np.zeros(6))
+    assert cp.returncode == 0, cp.stderr
+    t, e = tool_errors(stats)
+    moving = (t > 0.5) & (t < 1.9)  # (the compensator runs 2 s)
+    # the tool follows the 20 mm/s pass along x: across it within 10 um,
+    # along it within the servo's lag and a cycle or two (40 ms: 0.8 mm)
+    assert np.abs(e[moving, 1:]).max() < 0.01e-3
+    assert abs(np.median(e[moving, 0])) < 0.8e-3
+    assert np.ptp(e[moving, 0]) < 0.8e-3
+
+
+def test_faults_ramp_the_correction_down_and_are_logged(tmp_path):
+    """Packet loss throughout, a silent sensor, a burst of invalid records
+    (the Net F/T's way of saying NaN) and a controller restart, in one run."""
+    faults = Faults(egm_drop_every=25, sensor_silent=(1.6, 1.9), sensor_invalid=(2.6, 2.7), restart_at=3.6,
+                    restart_pause_s=0.15)
+    cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=4.5, faults=faults)
+    assert cp.returncode == 0, cp.stderr
+    err = cp.stderr
+    assert "sensor: no record for 20 ms; the correction ramps to zero" in err
+    assert "sensor: invalid records (status flags or NaN)" in err
+    assert "EGM: the controller restarted" in err
+    assert "valid records again" in err
+    t, c, steps = correction_steps(log)
+    # never a jump beyond the rate limit, lost messages or not
+    assert steps.max() <= RATE_LIMIT_RAD_PER_S * 2 * PERIOD_S * (1 + 1e-6)
+    # during the silence the correction ramps to zero at the rate limit: it
+    # shrinks from the fault's log line on, and is zero once the ramp has had
+    # time to finish, until the sensor is back (times from the run's events)
+    summary = json.load(open(os.path.join(log, "summary.json")))
+    events = summary["cycles"]["faults"]
+    # (the injected silence starts at 1.6 s; a loaded machine may stall the simulated sensor briefly before)
+    t_on = next(e["t_s"] for e in events if "sensor: no record" in e["event"] and e["t_s"] > 1.58)
+    t_off = next(e["t_s"] for e in events if "valid records again" in e["event"] and e["t_s"] > t_on)
+    assert 0.25 < t_off - t_on < 1.5  # the 0.3 s silence (+ pynetft's reconnection, with its back-off)
+    size = np.abs(c).max(axis=1)
+    before = size[(t > t_on - 0.1) & (t < t_on - 0.03)].mean()
+    assert before > 1e-4
+    fault = (t > t_on + 0.01) & (t < t_off - 0.01)
+    assert np.all(np.diff(size[fault]) <= 1e-7)  # (the log keeps 6 digits)
+    done = t_on + before / RATE_LIMIT_RAD_PER_S + 0.06  # (+ a margin for the two clocks of the log)
+    assert size[(t > done) & (t < t_off - 0.01)].max() == 0.0
+    # and it comes back afterwards
+    assert size[(t > t_off + 0.05) & (t < t_off + 0.15)].mean() > 0.8 * before
+    # the lost messages are seen (every 25th: gaps of two periods)
+    assert summary["cycles"]["controller_gaps"] >= 0.5 * stats.cycles / 25
+
+
+def test_nan_joint_feedback_is_a_fault(tmp_path):
+    cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=2.0, faults=Faults(egm_nan=(1.4, 1.6)))
+    assert cp.returncode == 0, cp.stderr
+    assert "EGM: joint feedback not finite for 20 ms" in cp.stderr
+    assert "finite joint feedback again" in cp.stderr
+    _, _, steps = correction_steps(log)
+    assert steps.max() <= RATE_LIMIT_RAD_PER_S * 2 * PERIOD_S * (1 + 1e-6)
+
+
+# ------------------------------------------------------------ bad input: one line, exit 2
+
+
+def _inputs(tmp_path, **kw):
+    robot = load_robot()
+    return h.write_inputs(str(tmp_path), robot, duration_s=0.2, **kw)
+
+
+def _compensate(args, timeout=60):
+    return subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate"] + args, cwd=h.ROOT,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def _one_line_error(cp, *words):
+    assert cp.returncode == 2, (cp.returncode, cp.stderr)
+    lines = [ln for ln in cp.stderr.splitlines() if ln.startswith("robstiff")]
+    err = [ln for ln in lines if "error:" in ln]
+    assert len(err) == 1 and "Traceback" not in cp.stderr, cp.stderr
+    for w in words:
+        assert w in err[0], err[0]
+
+
+def test_unreachable_sensor_is_refused(tmp_path):
+    model, payload, _, _ = _inputs(tmp_path)
+    port = h.free_udp_port()
+    cp = _compensate(["--egm-port", str(h.free_udp_port()), "--netft", f"127.0.0.1:{port}", "--model", model,
+                      "--payload", payload])
+    _one_line_error(cp, "--netft", "no RDT record")
+
+
+def test_sensor_with_a_wrong_header_is_refused(tmp_path):
+    model, payload, _, _ = _inputs(tmp_path)
+    server = RDTServer(0)
+    proc = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port",
+                             str(h.free_udp_port()), "--netft", f"127.0.0.1:{server.port}", "--model", model,
+                             "--payload", payload], cwd=h.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    t_end = time.monotonic() + 30
+    while proc.poll() is None and time.monotonic() < t_end:
+        server.poll()
+        server.send([0.0] * 6, raw=b"\x12\x34 this is not an RDT record")
+        time.sleep(0.002)
+    out, err = proc.communicate(timeout=30)
+    server.close()
+    _one_line_error(subprocess.CompletedProcess(proc.args, proc.returncode, out, err), "--netft", "not with RDT")
+
+
+def test_port_in_use_is_refused(tmp_path):
+    model, payload, _, _ = _inputs(tmp_path)
+    busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    busy.bind(("", 0))
+    cp = _compensate(["--egm-port", str(busy.getsockname()[1]), "--netft", "127.0.0.1:1", "--model", model,
+                      "--payload", payload])
+    busy.close()
+    _one_line_error(cp, "--egm-port", "cannot listen")
+
+
+def test_model_for_another_robot_is_refused(tmp_path):
+    robot = load_robot()
+    model, payload, _, _ = h.write_inputs(str(tmp_path), robot, duration_s=0.2,
+                                          nominal=robot.joint_stiffness_Nm_per_rad * 1.5)
+    cp = _compensate(["--egm-port", str(h.free_udp_port()), "--netft", "127.0.0.1:1", "--model", model,
+                      "--payload", payload])
+    _one_line_error(cp, "--model", "another robot file")
+    model2, _, _, _ = h.write_inputs(str(tmp_path), robot, duration_s=0.2, robot_name="kr240_r2900")
+    cp = _compensate(["--egm-port", str(h.free_udp_port()), "--netft", "127.0.0.1:1", "--model", model2,
+                      "--payload", payload])
+    _one_line_error(cp, "--model", "kr240_r2900")
+
+
+@pytest.mark.parametrize("fault, words", [(Faults(egm_wrong_type=True), ("MSGTYPE_COMMAND",)),
+                                          (Faults(egm_joints=7), ("7 joints",))])
+def test_wrong_first_egm_message_is_refused(tmp_path, fault, words):
+    cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=1.0, faults=fault)
+    _one_line_error(cp, "--egm-port", *words)
+    assert not os.path.exists(log)
+
+
+# ------------------------------------------------------------ encodings against the packages that read them
+
+
+def test_rdt_records_read_by_pynetft():
+    server = RDTServer(0)
+    reader = NetFTReader("127.0.0.1", server.port)
+    wrench = [12.5, -7.25, 300.0, 1.5, -0.125, 0.0625]
+    import threading
+
+    stop = threading.Event()
+
+    def serve():
+        while not stop.is_set():
+            server.poll()
+            server.send(wrench)
+            time.sleep(0.001)
+
+    th = threading.Thread(target=serve, daemon=True)
+    th.start()
+    try:
+        reader.open(timeout_s=3.0)
+        time.sleep(0.05)
+        got = reader.drain()
+    finally:
+        reader.close()
+        stop.set()
+        th.join(5)
+        server.close()
+    assert got
+    for w, _, status in got:
+        assert status == 0
+        np.testing.assert_allclose(w, wrench, atol=1e-6)
+
+
+def test_egm_robot_message_read_by_abb_robot_client():
+    from abb_robot_client.egm import EGM
+
+    port = h.free_udp_port()
+    egm = EGM(port=port)
+    link = ControllerLink("127.0.0.1", port)
+    joints = [10.0, -20.5, 30.25, 0.0, 45.0, -90.0]
+    link.send(link.robot_message(joints, planned_deg=[1, 2, 3, 4, 5, 6]))
+    ok, state = egm.receive_from_robot(timeout=2.0)
+    assert ok
+    np.testing.assert_array_equal(state.joint_angles, joints)
+    np.testing.assert_array_equal(state.joint_angles_planned, [1, 2, 3, 4, 5, 6])
+    assert state.motors_on and state.rapid_running
+    # and the answer abb-robot-client sends is what the controller side reads
+    assert egm.send_to_robot(np.array([1.0, 2.0, 3.0, 4.0, 5.0, 6.5]))
+    t_end = time.monotonic() + 2
+    got = None
+    while got is None and time.monotonic() < t_end:
+        got = link.receive_targets()
+    assert got == [1.0, 2.0, 3.0, 4.0, 5.0, 6.5]
+    egm.socket.close()
+    link.close()
+    seq, tm, j, planned = parse_robot_message(link.robot_message(joints))
+    assert j == joints and seq == 2
