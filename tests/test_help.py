@@ -124,7 +124,9 @@ def test_bar_is_on_when_asked_off_when_quiet(monkeypatch):
 def short_scenario(tmp_path_factory):
     """The block test's pass ending 20 mm into the block, no dwell (a 2 s run)."""
     text = (DIAGRAMS_DIR / "block_milling.yaml").read_text()
-    text = text.replace("    - [1717.5, 0.0, 700.0]", "    - [1540.0, 0.0, 700.0]").replace("dwell_s: 0.2", "dwell_s: 0.0")
+    assert "    - [1717.5, 0.0, 700.0]" in text and "dwell_s: 0.2" in text  # the block test's pass
+    text = text.replace("    - [1717.5, 0.0, 700.0]", "    - [1540.0, 0.0, 700.0]").replace("dwell_s: 0.2",
+                                                                                        "dwell_s: 0.0")
     path = tmp_path_factory.mktemp("short") / "short_block.yaml"
     path.write_text(text)
     return path

@@ -47,7 +47,9 @@ def replay_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("replay")
     # a short cut: the block test's pass ends 40 mm into the block, no dwell
     text = BLOCK.read_text()
-    text = text.replace("    - [1717.5, 0.0, 700.0]", "    - [1560.0, 0.0, 700.0]").replace("dwell_s: 0.2", "dwell_s: 0.0")
+    assert "    - [1717.5, 0.0, 700.0]" in text and "dwell_s: 0.2" in text  # the block test's pass
+    text = text.replace("    - [1717.5, 0.0, 700.0]", "    - [1560.0, 0.0, 700.0]").replace("dwell_s: 0.2",
+                                                                                        "dwell_s: 0.0")
     scenario = tmp / "short_block.yaml"
     scenario.write_text(text)
     html = tmp / "replay.html"
