@@ -35,7 +35,7 @@ from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import DIAGRAMS_DIR
 
-REPEATS = 3
+REPEATS = 5
 DECLARATIONS = ("DeclareVectorOutputPort", "DeclareAbstractOutputPort", "DeclarePeriodicDiscreteUpdateEvent",
                 "DeclarePeriodicUnrestrictedUpdateEvent", "DeclarePeriodicPublishEvent",
                 "DeclarePerStepPublishEvent", "DeclareForcedPublishEvent")
