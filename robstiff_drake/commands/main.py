@@ -200,6 +200,9 @@ def build_parser():
                               "diagnosis")
     p.add_argument("--report", metavar="OUT.md", help="write a Markdown report")
     p.add_argument("--plots", metavar="DIR", help="write the residual views (one PNG per view)")
+    p.add_argument("--noise-mm", type=float, default=None, metavar="SIGMA",
+                   help="1-sigma noise of one displacement component (instrument), mm; without it the floor comes "
+                        "from replicate rows (same pose and load), or no verdict is given")
 
     p = sub.add_parser("diagnose-run", help="trace a machining run's residual surface error to its cause; write "
                                             "each candidate fix and decide from verification cuts")
@@ -440,7 +443,7 @@ def _dispatch(args):
         from robstiff_drake.commands import diagnose
 
         return diagnose.run(data=args.data, tool=args.tool, json_out=args.json, report=args.report,
-                            plots=args.plots, robot_yaml=args.robot)
+                            plots=args.plots, robot_yaml=args.robot, noise_mm=args.noise_mm)
     if args.command == "diagnose-run":
         from robstiff_drake.commands import diagnose_run
 

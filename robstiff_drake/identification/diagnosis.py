@@ -1,417 +1,300 @@
-"""Residual diagnosis of a stiffness campaign: which effect that the six-spring
-model lacks explains what it gets wrong.  Plain numpy + scipy; no Drake.
+"""Residual diagnosis of a stiffness campaign: what the six-spring model lacks,
+traced to a physical effect, with an honest verdict.  Plain numpy + scipy;
+no Drake.
 
-The base model is the identification's (joint compliances, linear).  Each
-candidate in CANDIDATES adds parametric columns to the regressor: linear in
-its parameters, or linearised at the base fit where it multiplies the
-compliance.  For each candidate:
-
-  * held-out error: k-fold cross-validation, grouped by pose when the file
-    has a ``pose`` column (a pose's rows are never split between fitting and
-    testing), RMS of all displacement components (mm);
-  * a nested F-test against the current model (all data), and the change in
-    BIC.
-
-Forward selection adds the best candidate only when it is significant
-(p < ALPHA, a strict level because ten candidates are tried each round) and
-lowers the held-out RMS by at least MIN_GAIN; it repeats until nothing
-qualifies.  A candidate whose columns the data cannot separate from the
-model's (rank) is reported as not identifiable and never selected; one with
-more parameters than the data support is skipped, with the reason.
+1. Gross errors (robust_fit.py): a Tukey fit of the six springs on whole
+   rows names the outlier rows; they are left out of everything below, and
+   the stiffness with and without them is reported.
+2. The noise floor (noise_floor.py): stated, or estimated from replicate rows.
+3. Selection (selection.py): forward steps over the named library
+   (candidates.py) and the open dictionary (dictionary.py), on pose-grouped
+   folds with every nonlinear parameter refitted inside each fold, then a
+   backward check.
+4. A second outlier screen with the final model (rows a structured effect
+   had hidden, or rows wrongly flagged at first); if the set changes, steps
+   2-3 run again once.
+5. The verdict: the final model's held-out RMS against the floor
+   (lack-of-fit test).  ``explains_data`` is true only when that test passes,
+   every kept term is a named effect of physical size and the identified
+   compliances are positive; false when the error is significantly above the
+   floor, or when it reaches the floor only with terms found by searching
+   the dictionary (hypotheses for a confirming campaign, not a verdict);
+   null when there is no floor or the stiffness is non-physical.
+6. Where the remaining residual lives (residual_structure.py).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
 
-from robstiff_drake.identification.joint_stiffness import identify, regressor
-from robstiff_drake.model import kinematics as kin
+from robstiff_drake.identification import noise_floor as nf
+from robstiff_drake.identification import robust_fit, selection
+from robstiff_drake.identification.candidates import CANDIDATES
+from robstiff_drake.identification.cross_validation import (FOLD_SEED, K_FOLDS, MIN_POSES, pose_groups, rows_to_eq,
+                                                            splits, test_groups)
+from robstiff_drake.identification.dictionary import DICTIONARY
+from robstiff_drake.identification.joint_stiffness import identify
+from robstiff_drake.identification.residual_structure import residual_structure
+from robstiff_drake.identification.terms import GRID, Context, fit_model, term_columns
+from robstiff_drake.io import Warnings
 
-ALPHA = 1e-4
-MIN_GAIN = 0.10  # held-out RMS must fall by at least 10 % of the current value
-K_FOLDS = 5
-MAX_EFFECTS = 3
-TAU_REF_NM = 1000.0
-
-
-@dataclass
-class Columns:
-    """A candidate's regressor columns (3N, p), in metres per parameter, with
-    the parameters' names and units for the report."""
-
-    name: str
-    X: np.ndarray
-    params: list  # [(name, unit, scale to the unit)]
-
-
-@dataclass
-class CandidateResult:
-    name: str
-    status: str  # "ok", "not identifiable", "skipped"
-    reason: str = ""
-    rms_mm: float = float("nan")  # held out, with the candidate added to the current model
-    f_stat: float = float("nan")
-    p_value: float = float("nan")
-    delta_bic: float = float("nan")
-    params: dict = field(default_factory=dict)
+# kept for callers of the earlier interface
+ALPHA = selection.ALPHA_ROUND
+MIN_GAIN = selection.MIN_GAIN["library"]
+MAX_EFFECTS = selection.MAX_LIBRARY
 
 
 @dataclass
 class Diagnosis:
-    rms_before_mm: float
-    rms_after_mm: float
+    rms_before_mm: float  # held out, six springs (outliers left out)
+    rms_after_mm: float  # held out, final model
     rms_fit_before_mm: float
-    selected: list
+    selected: list  # named effects kept, in the order added
     rounds: list  # per round, the list of CandidateResult
-    joint_stiffness_Nm_per_rad: np.ndarray
+    joint_stiffness_Nm_per_rad: np.ndarray  # final model, nominal where not identifiable
     identifiable: np.ndarray
-    final_params: dict
-    residual_before_mm: np.ndarray  # (N, 3) base model, all data
-    residual_after_mm: np.ndarray
-    columns: dict  # name -> Columns (for the residual views)
-    base_X: np.ndarray = None  # the six-spring model's columns (free joints), (3N, p)
+    final_params: dict  # named effect -> {"param (unit)": value}
+    residual_before_mm: np.ndarray  # (N, 3) six springs fitted to the rows kept, all rows
+    residual_after_mm: np.ndarray  # (N, 3) final model, all rows
+    columns: dict  # named effect -> (3N, p) columns at the six-spring fit (for the residual views)
+    base_X: np.ndarray  # the six springs' columns (free joints), (3N, p)
+    floor: nf.Floor = None
+    lack_of_fit: nf.LackOfFit = None
+    explains_data: bool | None = None
+    verdict: str = ""
+    unexplained_mm: float | None = None
+    outliers: list = field(default_factory=list)  # [{line, pose, residual_mm}]
+    stiffness_with_outliers_Nm_per_rad: np.ndarray = None
+    terms: list = field(default_factory=list)  # every kept term: {name, source, description, params, ...}
+    discovered: list = field(default_factory=list)  # the kept dictionary terms
+    dropped: list = field(default_factory=list)
+    residual_structure: list = field(default_factory=list)
+    n_hypotheses: int = 0
+    rows_used: np.ndarray = None
+    non_physical: list = field(default_factory=list)
+    warnings: list = field(default_factory=list)
+    thresholds: dict = field(default_factory=dict)
 
 
-class CampaignContext:
-    """What the candidates need, computed once."""
-
-    def __init__(self, robot, campaign, tool_m, base_fit, compliance=None):
-        self.robot = robot
-        self.campaign = campaign
-        self.tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
-        self.q = robot.joint_rad(campaign.q_deg)
-        self.W = campaign.wrench
-        self.J = kin.jacobian(robot.dh, self.q, self.tool)
-        self.Jv = self.J[:, :3, :]
-        self.tau = np.einsum("nrj,nr->nj", self.J, self.W)
-        # the base fit's compliances (nominal where not identifiable), unless given
-        self.c = base_fit.compliance_rad_per_Nm if compliance is None else compliance
-        self.n = len(campaign)
-
-    def disp_of_wrench(self, W, tool=None, c=None):
-        """Conventional-model displacement (N, 3) in m of wrenches W (N, 6)."""
-        J = self.J if tool is None else kin.jacobian(self.robot.dh, self.q, tool)
-        tau = np.einsum("nrj,nr->nj", J, W)
-        return np.einsum("nrj,nj->nr", J[:, :3, :], tau * (self.c if c is None else c))
-
-    def from_dq(self, dq):
-        return np.einsum("nrj,nj->nr", self.Jv, dq)
+def subset(campaign, rows):
+    """The campaign restricted to ``rows``."""
+    rows = np.asarray(rows)
+    return replace(campaign, q_deg=campaign.q_deg[rows], force_N=campaign.force_N[rows],
+                   moment_Nm=campaign.moment_Nm[rows], disp_mm=campaign.disp_mm[rows],
+                   rot_mrad=None if campaign.rot_mrad is None else campaign.rot_mrad[rows],
+                   pose=None if campaign.pose is None else [campaign.pose[i] for i in rows],
+                   seq=None if campaign.seq is None else campaign.seq[rows], lines=campaign.lines[rows])
 
 
-def _stack(cols):
-    """List of (N, 3) arrays -> (3N, p)."""
-    return np.column_stack([c.reshape(-1) for c in cols])
+def thresholds():
+    return {
+        "k_folds": K_FOLDS, "fold_seed": FOLD_SEED,
+        "alpha_per_round": selection.ALPHA_ROUND,
+        "per_candidate_level": "alpha_per_round / candidates tried in the round (Bonferroni)",
+        "min_gain_library": selection.MIN_GAIN["library"], "min_gain_dictionary": selection.MIN_GAIN["dictionary"],
+        "named_preference": selection.NAMED_PREFERENCE, "min_keep_gain": selection.MIN_KEEP_GAIN,
+        "alpha_lack_of_fit": nf.ALPHA_LACK_OF_FIT, "alpha_outlier": robust_fit.ALPHA_OUTLIER,
+    }
 
 
-def _lost_motion(ctx):
-    cols = [ctx.from_dq(np.eye(6)[j] * np.sign(ctx.tau)) for j in range(3)]
-    return Columns("lost_motion", _stack(cols), [(f"b{j + 1}", "urad", 1e6) for j in range(3)])
+def _cluster_ci(ctx, fit, rows, units):
+    """95 % intervals of all coefficients, pose-clustered sandwich covariance."""
+    eq = rows_to_eq(rows)
+    X = fit.X[eq]
+    r = ctx.b[eq] - fit.predict(rows)
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    bread = np.linalg.pinv(Xs.T @ Xs)
+    g = np.repeat(np.asarray(units)[rows], 3)
+    uniq = np.unique(g)
+    meat = np.zeros((X.shape[1], X.shape[1]))
+    for k in uniq:
+        u = Xs[g == k].T @ r[g == k]
+        meat += np.outer(u, u)
+    G = len(uniq)
+    cov = bread @ meat @ bread * (G / max(G - 1, 1))
+    std = np.sqrt(np.maximum(np.diag(cov), 0)) / scale
+    return stats.t.ppf(0.975, max(G - 1, 1)) * std
 
 
-def _joint_coupling(ctx):
-    dq = np.zeros_like(ctx.tau)
-    dq[:, 1], dq[:, 2] = ctx.tau[:, 2], ctx.tau[:, 1]
-    return Columns("joint_coupling", _stack([ctx.from_dq(dq)]), [("c23", "rad/(N*m)", 1.0)])
+def _plausible(t, v, half_width, info):
+    """The term's plausibility at its estimate; a size beyond the physical
+    range whose 95 % interval still reaches the range (each parameter moved
+    toward zero by its half-width) is not called implausible."""
+    if t.plausible is None:
+        return True, ""
+    ok, why = t.plausible(v, info)
+    if ok:
+        return ok, why
+    smallest = np.sign(v) * np.maximum(np.abs(v) - half_width, 0.0)
+    if t.plausible(smallest, info)[0]:
+        return True, why + ", but its 95 % interval reaches the physical range"
+    return False, why
 
 
-def _load_dependent(ctx):
-    cols = []
-    for j in range(3):
-        dq = np.zeros_like(ctx.tau)
-        dq[:, j] = np.abs(ctx.tau[:, j]) * ctx.tau[:, j] / TAU_REF_NM
-        cols.append(ctx.from_dq(dq))
-    return Columns("load_dependent_stiffness", _stack(cols),
-                   [(f"dc{j + 1}_per_kNm", "rad/(N*m) per kN*m", 1.0) for j in range(3)])
-
-
-def _posture_dependent(ctx):
-    dq = np.zeros_like(ctx.tau)
-    dq[:, 1] = (ctx.q[:, 1] - ctx.q[:, 1].mean()) * ctx.tau[:, 1]
-    return Columns("posture_dependent_stiffness", _stack([ctx.from_dq(dq)]),
-                   [("dc2_per_rad_q2", "rad/(N*m) per rad of q2", 1.0)])
-
-
-def _geometric(ctx):
-    Kg = kin.geometric_stiffness(ctx.robot.dh, ctx.q, ctx.W, ctx.tool)
-    # (K - lambda Kg)^-1 tau ~ C tau + lambda C Kg C tau
-    ctau = ctx.tau * ctx.c
-    dq = ctx.c * np.einsum("nij,nj->ni", Kg, ctau)
-    return Columns("geometric_stiffness", _stack([ctx.from_dq(dq)]), [("lambda", "-", 1.0)])
-
-
-def _link(ctx):
-    u = kin.frames(ctx.robot.dh, ctx.q)[:, 3, :3, 2]
-    F = ctx.W[:, :3]
-    F_perp = F - np.sum(F * u, axis=1, keepdims=True) * u
-    return Columns("link_compliance", _stack([F_perp]), [("c_link", "um/N", 1e6)])
-
-
-def _frame_rotation(ctx):
-    cols = []
-    for k in range(3):
-        e = np.eye(3)[k]
-        extra = np.hstack([np.cross(e, ctx.W[:, :3]), np.cross(e, ctx.W[:, 3:])])
-        cols.append(ctx.disp_of_wrench(extra))
-    return Columns("force_frame_rotation", _stack(cols), [(f"phi_{a}", "mrad", 1e3) for a in "xyz"])
-
-
-def _force_bias(ctx):
-    cols = []
-    for k in range(3):
-        extra = np.zeros_like(ctx.W)
-        extra[:, k] = 1.0
-        cols.append(ctx.disp_of_wrench(extra))
-    return Columns("force_bias", _stack(cols), [(f"b_f{a}", "N", 1.0) for a in "xyz"])
-
-
-def _tool_offset(ctx, h=1e-3):
-    cols = []
-    for k in range(3):
-        e = np.eye(3)[k] * h
-        cols.append((ctx.disp_of_wrench(ctx.W, ctx.tool + e) - ctx.disp_of_wrench(ctx.W, ctx.tool - e)) / (2 * h))
-    return Columns("tool_offset", _stack(cols), [(f"d_{a}", "mm", 1e3) for a in "xyz"])
-
-
-def _drift(ctx):
-    seq = ctx.campaign.seq
-    cols = []
-    for k in range(3):
-        c = np.zeros((ctx.n, 3))
-        c[:, k] = seq  # offset = v * seq: zero at the start of the campaign
-        cols.append(c)
-    return Columns("drift", _stack(cols), [(f"v_{a}", "um per measurement", 1e6) for a in "xyz"])
-
-
-CANDIDATES = {
-    "lost_motion": _lost_motion,
-    "joint_coupling": _joint_coupling,
-    "load_dependent_stiffness": _load_dependent,
-    "posture_dependent_stiffness": _posture_dependent,
-    "geometric_stiffness": _geometric,
-    "link_compliance": _link,
-    "force_frame_rotation": _frame_rotation,
-    "force_bias": _force_bias,
-    "tool_offset": _tool_offset,
-    "drift": _drift,
-}
-
-
-def folds(campaign, k=K_FOLDS, seed=0):
-    """Row indices of k test folds; a pose's rows stay together."""
-    groups = np.asarray(campaign.pose) if campaign.pose is not None else np.arange(len(campaign)).astype(str)
-    uniq = np.unique(groups)
-    rng = np.random.default_rng(seed)
-    order = rng.permutation(len(uniq))
-    k = min(k, len(uniq))
+def _term_reports(ctx, result, rows, units):
+    fit = result.state.full
+    half = _cluster_ci(ctx, fit, rows, units)
     out = []
-    for f in range(k):
-        members = set(uniq[order[f::k]])
-        out.append(np.flatnonzero([g in members for g in groups]))
+    for t in result.state.terms:
+        v = fit.values[t.name]
+        info = {"ctx": ctx, "c": fit.c, "g": fit.grid.get(t.name)}
+        sl = fit.slices[t.name]
+        hw = half[sl]
+        ok, why = _plausible(t, v, hw, info)
+        params = {f"{n} ({u})": float(x * s) for (n, u, s), x in zip(t.params, v)}
+        ci = {f"{n} ({u})": [float((x - h) * s), float((x + h) * s)] for (n, u, s), x, h in zip(t.params, v, hw)}
+        if t.kind == GRID:
+            n, u, s = t.grid_param
+            params[f"{n} ({u})"] = float(info["g"] * s)
+        out.append({"name": t.name, "source": t.source, "description": t.describe(v, info), "params": params,
+                    "ci95": ci, "rms_gain_mm": float(result.rms_without_mm.get(t.name, np.nan) - result.state.rms_mm),
+                    "plausible": bool(ok), "plausibility": why})
     return out
 
 
-class Design:
-    """The base regressor (free joints, nominal-scaled) and the target."""
-
-    def __init__(self, robot, campaign, tool_m, base_fit):
-        A_d, _ = regressor(robot.dh, robot.joint_rad(campaign.q_deg), campaign.wrench, tool_m)
-        c_nom = 1.0 / robot.joint_stiffness_Nm_per_rad
-        A = (A_d * c_nom).reshape(-1, 6)
-        self.free = np.flatnonzero(base_fit.identifiable)
-        fixed = np.flatnonzero(~base_fit.identifiable)
-        self.b = campaign.disp_mm.reshape(-1) * 1e-3 - A[:, fixed].sum(axis=1)  # fixed joints at nominal
-        self.A = A[:, self.free]
-        self.c_nom = c_nom
-        self.n_rows = len(campaign)
-
-    def rows_to_eq(self, rows):
-        return (3 * rows[:, None] + np.arange(3)).ravel()
+def _run(robot, campaign, tool_m, rows, groups, noise_mm, terms_by_name):
+    base = identify(robot, subset(campaign, rows), tool_m=tool_m)
+    ctx = Context(robot, campaign, tool_m, base.identifiable)
+    floor = nf.estimate_floor(campaign, groups, rows, noise_mm)
+    units, by_pose = test_groups(groups, rows)
+    fold_rows = splits(rows, units)
+    result = selection.search(ctx, rows, fold_rows, terms_by_name, units)
+    return base, ctx, floor, fold_rows, result, units, by_pose
 
 
-def _lstsq(X, y):
-    scale = np.linalg.norm(X, axis=0)
-    scale[scale == 0] = 1.0
-    theta, *_ = np.linalg.lstsq(X / scale, y, rcond=None)
-    return theta / scale
+def _verdict(d, floor, lof, non_physical, discovered, implausible, structure, n_hyp):
+    if non_physical:
+        return None, (f"no verdict: the identified compliance of joint(s) {', '.join(map(str, non_physical))} is "
+                      "negative (non-physical); check the signs and units of the displacements and forces")
+    if floor.sigma_mm is None:
+        return None, ("no verdict: no noise floor is known (state it with --noise-mm, or measure replicate rows: "
+                      "the same pose and load); whether the model explains the data cannot be said")
+    where = ", ".join(f"{s['variable']} ({100 * s['strength']:.0f} %)" for s in structure[:3] if s["strength"] > 0.02)
+    above = lof.p_value < nf.ALPHA_LACK_OF_FIT
+    text = (f"held-out RMS {d['rms_after']:.4f} mm against a floor of {floor.sigma_mm:.4f} mm ({floor.source}); "
+            f"lack-of-fit p = {lof.p_value:.2g}")
+    if above:
+        return False, (f"the final model does NOT explain the data: {text}; {d['unexplained']:.4f} mm unexplained"
+                       + (f", strongest with: {where}" if where else ""))
+    if discovered:
+        return False, (f"not established: {text}, reached only with terms found by searching {n_hyp} hypotheses "
+                       f"({', '.join(discovered)}); confirm them on a new campaign before trusting them")
+    if implausible:
+        return False, (f"not established: {text}, but only with effect(s) of implausible size "
+                       f"({', '.join(implausible)}): the data carry something else that looks like them")
+    return True, f"the final model explains the data as far as the noise allows: {text}"
 
 
-def _rank_ok(X_base, X_new, tol=1e-8):
-    """Do X_new's columns add rank to X_base's (nominal-scaled, unit columns)?"""
-    Xb = X_base / np.maximum(np.linalg.norm(X_base, axis=0), 1e-300)
-    Xn = X_new / np.maximum(np.linalg.norm(X_new, axis=0), 1e-300)
-    s_b = np.linalg.svd(Xb, compute_uv=False)
-    s = np.linalg.svd(np.hstack([Xb, Xn]), compute_uv=False)
-    rank_b = int(np.sum(s_b > tol * s_b[0]))
-    rank = int(np.sum(s > tol * s[0]))
-    return rank - rank_b == Xn.shape[1], rank - rank_b
+def _outlier_report(campaign, flagged, resid_mm, k, k_with, free, w):
+    """[{line, pose, residual_mm}] of the rows left out, and the warning
+    saying how far they would move the stiffness."""
+    outliers = [{"line": int(campaign.lines[i]), "pose": None if campaign.pose is None else campaign.pose[i],
+                 "residual_mm": float(np.linalg.norm(resid_mm[i]))} for i in flagged]
+    if outliers:
+        shift = [f"joint {j + 1} {100 * (k_with[j] / k[j] - 1):+.1f} %" for j in free
+                 if abs(k_with[j] / k[j] - 1) > 0.005]
+        w.add(f"{len(outliers)} gross outlier row(s) left out (file lines "
+              f"{', '.join(str(o['line']) for o in outliers)}); with them the stiffness would change: "
+              + (", ".join(shift) if shift else "by less than 0.5 %"))
+    return outliers
 
 
-def _relinearise_tool(robot, campaign, ctx, base, X_selected, tool_m, iterations=6):
-    """Gauss-Newton on the tool offset: rebuild the base columns and the
-    offset's own at the offset found so far, until it stops moving.  Returns
-    (X, target, design, Columns with ``total`` = the whole offset)."""
-    tool0 = ctx.tool.copy()
-    tool = tool0.copy()
-    c = ctx.c.copy()
-    for _ in range(iterations):
-        d = Design(robot, campaign, tool, base)
-        cx = CampaignContext(robot, campaign, tool, base, compliance=c)
-        C = _tool_offset(cx)
-        X = np.hstack([d.A, X_selected, C.X])
-        theta = _lstsq(X, d.b)
-        c = c.copy()
-        c[d.free] = theta[: len(d.free)] * d.c_nom[d.free]
-        step = theta[-3:]
-        tool = tool + step
-        if np.max(np.abs(step)) < 1e-7:
-            break
-    d = Design(robot, campaign, tool, base)
-    C = _tool_offset(CampaignContext(robot, campaign, tool, base, compliance=c))
-    C.total = tool - tool0
-    return np.hstack([d.A, X_selected, C.X]), d.b, d, C
-
-
-def _relinearise_geometric(ctx, design, X, iterations=8):
-    """Gauss-Newton on lambda of the CCT term: e(lambda) = J [(K - lambda K_g)^-1 - C] tau
-    is nonlinear in lambda; linearise it where the fit lands.  Returns (X,
-    target with e(lambda) taken out, design with that target, Columns with
-    ``total`` = lambda)."""
-    import copy
-
-    Kg = kin.geometric_stiffness(ctx.robot.dh, ctx.q, ctx.W, ctx.tool)
-    K = np.array([np.diag(1.0 / ctx.c)] * ctx.n)
-    lam = 0.0
-
-    def effect_and_slope(lam):
-        Minv = np.linalg.inv(K - lam * Kg)
-        dq = np.einsum("nij,nj->ni", Minv, ctx.tau)
-        e = ctx.from_dq(dq - ctx.c * ctx.tau).reshape(-1)
-        g = ctx.from_dq(np.einsum("nij,njk,nk->ni", Minv, Kg, dq)).reshape(-1)
-        return e, g
-
-    for _ in range(iterations):
-        e, g = effect_and_slope(lam)
-        theta = _lstsq(np.column_stack([X, g]), design.b - e + lam * g)
-        step = theta[-1] - lam
-        lam = theta[-1]
-        if abs(step) < 1e-9 * max(1.0, abs(lam)):
-            break
-    e, g = effect_and_slope(lam)
-    d = copy.copy(design)
-    d.b = design.b - e  # the effect at lambda taken out; g's coefficient is what is left of lambda
-    C = Columns("geometric_stiffness", g[:, None], [("lambda", "-", 1.0)])
-    C.total = np.array([lam])
-    return np.column_stack([X, g]), d.b, d, C
-
-
-def held_out_rms_mm(design, X, fold_rows):
-    """Held-out RMS (mm) of all components for regressor X (3N, p)."""
-    sq, count = 0.0, 0
-    all_rows = np.arange(design.n_rows)
-    for test in fold_rows:
-        train = np.setdiff1d(all_rows, test)
-        tr, te = design.rows_to_eq(train), design.rows_to_eq(test)
-        theta = _lstsq(X[tr], design.b[tr])
-        r = design.b[te] - X[te] @ theta
-        sq += float(r @ r)
-        count += len(te)
-    return float(np.sqrt(sq / count)) * 1e3
-
-
-def _fit_stats(X, y):
-    theta = _lstsq(X, y)
-    r = y - X @ theta
-    return theta, float(r @ r), r
-
-
-def diagnose(robot, campaign, *, tool_m=None, candidates=None):
-    """Forward selection of effects that explain the residual (see module docstring)."""
-    base = identify(robot, campaign, tool_m=tool_m)
-    ctx = CampaignContext(robot, campaign, tool_m, base)
-    design = Design(robot, campaign, tool_m, base)
-    fold_rows = folds(campaign)
-    n_eq = 3 * len(campaign)
-    names = list(candidates or CANDIDATES)
-    cols = {}
-    unavailable = {}
+def _named_columns(ctx, names, c):
+    """Each named candidate's columns at compliances c (for the residual views)."""
+    columns = {}
     for name in names:
-        if name == "drift" and campaign.seq is None:
-            unavailable[name] = ("skipped", "the file has no seq column (measurement order)")
+        t = CANDIDATES[name]
+        if t.needs and t.needs(ctx):
             continue
-        cols[name] = CANDIDATES[name](ctx)
+        grid = t.grid(ctx)[0] if t.kind == GRID else None
+        columns[name] = term_columns(ctx, t, c, None, grid)[0]
+    return columns
 
-    X = design.A
-    current_rms = held_out_rms_mm(design, X, fold_rows)
-    rms_before = current_rms
-    _, rss, r0 = _fit_stats(X, design.b)
-    residual_before = r0.reshape(-1, 3) * 1e3
-    selected, rounds, chosen = [], [], {}
-    while len(selected) < MAX_EFFECTS:
-        results = []
-        p0 = X.shape[1]
-        for name in names:
-            if name in selected:
-                continue
-            if name in unavailable:
-                results.append(CandidateResult(name, *unavailable[name]))
-                continue
-            C = cols[name]
-            p_e = C.X.shape[1]
-            if n_eq - p0 - p_e < 3 * (p0 + p_e):
-                results.append(CandidateResult(name, "skipped", f"{p_e} more parameters need more than the "
-                                               f"{len(campaign)} measurements (3 equations each)"))
-                continue
-            ok, added = _rank_ok(X, C.X)
-            if not ok:
-                results.append(CandidateResult(name, "not identifiable",
-                                               f"its {p_e} columns add only {added} independent direction(s) "
-                                               "to the model's: the campaign cannot separate it"))
-                continue
-            X1, target, cand_design = np.hstack([X, C.X]), design.b, design
-            if name == "tool_offset":  # nonlinear in the offset: re-linearise where it lands
-                X1, target, cand_design, C = _relinearise_tool(robot, campaign, ctx, base, X[:, len(design.free):],
-                                                               tool_m)
-            elif name == "geometric_stiffness":  # (K - lambda K_g)^-1 is nonlinear in lambda
-                X1, target, cand_design, C = _relinearise_geometric(ctx, design, X)
-            theta, rss1, _ = _fit_stats(X1, target)
-            df2 = n_eq - X1.shape[1]
-            F = ((rss - rss1) / p_e) / (rss1 / df2) if rss1 > 0 else np.inf
-            p = float(stats.f.sf(F, p_e, df2)) if np.isfinite(F) else 0.0
-            dbic = n_eq * np.log(rss1 / rss) + p_e * np.log(n_eq)
-            values = C.total if name in ("tool_offset", "geometric_stiffness") else theta[p0:]
-            params = {f"{pn} ({unit})": float(v * s) for (pn, unit, s), v in zip(C.params, values)}
-            res = CandidateResult(name, "ok", "", held_out_rms_mm(cand_design, X1, fold_rows), float(F), p,
-                                  float(dbic), params)
-            res.model = (X1, cand_design, values)  # what selecting it makes the current model
-            results.append(res)
-        rounds.append(results)
-        qualified = [r for r in results if r.status == "ok" and r.p_value < ALPHA
-                     and r.rms_mm <= (1 - MIN_GAIN) * current_rms]
-        if not qualified:
+
+def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None):
+    """Diagnose a campaign (see the module docstring).  ``noise_mm``: the
+    stated 1-sigma noise of one displacement component; ``candidates``: names
+    from the named library (default all); ``dictionary``: search the open
+    dictionary too."""
+    w = warnings if warnings is not None else Warnings(quiet=True)
+    tool_m = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
+    names = list(candidates or CANDIDATES)
+    terms_by_name = {n: CANDIDATES[n] for n in names}
+    if dictionary:
+        terms_by_name.update(DICTIONARY)
+    groups = pose_groups(campaign)
+    all_rows = np.arange(len(campaign))
+    base_all = identify(robot, campaign, tool_m=tool_m)
+    ctx0 = Context(robot, campaign, tool_m, base_all.identifiable)
+    floor_m = None if noise_mm is None else noise_mm * 1e-3
+    flagged, _ = robust_fit.screen_rows(robust_fit.tukey_springs(ctx0, all_rows, floor_m), all_rows, floor_m,
+                                        robust_fit.PRE_SCREEN_SIGMAS)
+    for attempt in range(2):
+        rows = np.setdiff1d(all_rows, flagged)
+        base, ctx, floor, fold_rows, result, units, by_pose = _run(robot, campaign, tool_m, rows, groups, noise_mm,
+                                                                   terms_by_name)
+        resid_all = (ctx.b - result.state.full.predict()).reshape(-1, 3)
+        f_m = None if floor.sigma_mm is None else floor.sigma_mm * 1e-3
+        flagged2, _ = robust_fit.screen_rows(resid_all, rows, f_m, robust_fit.POST_SCREEN_SIGMAS)
+        if attempt == 1 or set(flagged2.tolist()) == set(flagged.tolist()):
             break
-        best = min(qualified, key=lambda r: r.rms_mm)
-        selected.append(best.name)
-        chosen[best.name] = best.model
-        X, design, _ = best.model
-        current_rms = best.rms_mm
-        _, rss, _ = _fit_stats(X, design.b)
-
-    theta, _, r1 = _fit_stats(X, design.b)
+        flagged = flagged2
+    state = result.state
+    fit = state.full
     k = np.array(robot.joint_stiffness_Nm_per_rad, dtype=float)
-    x_free = theta[: len(design.free)]
-    k[design.free] = 1.0 / (x_free * design.c_nom[design.free])
-    final_params, i = {}, len(design.free)
-    for name in selected:
-        C = cols[name]
-        values = theta[i:i + len(C.params)]
-        if name in ("tool_offset", "geometric_stiffness"):  # the re-linearisation point plus what is left at it
-            values = np.asarray(chosen[name][2]) + values
-        for (pn, unit, s), v in zip(C.params, values):
-            final_params.setdefault(name, {})[f"{pn} ({unit})"] = float(v * s)
-        i += len(C.params)
-    return Diagnosis(rms_before_mm=rms_before, rms_after_mm=current_rms,
-                     rms_fit_before_mm=float(np.sqrt(np.mean(r0**2))) * 1e3, selected=selected, rounds=rounds,
-                     joint_stiffness_Nm_per_rad=k, identifiable=base.identifiable, final_params=final_params,
-                     residual_before_mm=residual_before, residual_after_mm=r1.reshape(-1, 3) * 1e3, columns=cols,
-                     base_X=Design(robot, campaign, tool_m, base).A)
+    k[ctx.free] = 1.0 / fit.c[ctx.free]
+    non_physical = [int(j) + 1 for j in ctx.free if fit.c[j] <= 0]
+    if base.non_physical and not non_physical:
+        w.add(f"the six springs alone give joint(s) {', '.join(map(str, base.non_physical))} a negative compliance; "
+              "the final model does not")
+
+    # six springs alone on the rows kept (the "before" residual)
+    springs = fit_model(ctx, [], rows)
+    residual_before = (ctx.b - springs.predict()).reshape(-1, 3) * 1e3
+    rms_fit_before = float(np.sqrt(np.mean(residual_before[rows] ** 2)))
+
+    if not by_pose:
+        w.add(f"the rows used span fewer than {MIN_POSES} poses: the held-out tests use single rows as units, which "
+              "share their pose's unloaded reading, so the held-out error is optimistic")
+    reports = _term_reports(ctx, result, rows, units)
+    discovered = [r for r in reports if r["source"] == "dictionary"]
+    implausible = [r["name"] for r in reports if not r["plausible"]]
+    for r in reports:
+        if not r["plausible"]:
+            w.add(f"{r['name']} fits the residual but needs an implausible size: {r['plausibility']}")
+    lof = None
+    if floor.sigma_mm is not None:
+        lof = nf.lack_of_fit(state.resid, fit.X, fold_rows, rows, units, floor)
+    if floor.stated_mm is not None and floor.replicate_mm is not None and \
+            not 0.5 <= floor.replicate_mm / floor.stated_mm <= 2.0:
+        w.add(f"the replicate rows scatter by {floor.replicate_mm:.4f} mm, the stated noise is "
+              f"{floor.stated_mm:.4f} mm: check the statement")
+    structure = residual_structure(ctx, state.resid.reshape(-1, 3), rows)
+    unexplained = nf.unexplained_mm(state.rms_mm, floor.sigma_mm)
+    explains, verdict = _verdict({"rms_after": state.rms_mm, "unexplained": unexplained or 0.0}, floor, lof,
+                                 non_physical, [r["name"] for r in discovered], implausible, structure,
+                                 result.n_hypotheses)
+    if non_physical:
+        w.add(verdict)
+
+    resid_final_mm = (ctx.b - fit.predict()).reshape(-1, 3) * 1e3
+    k_with = base_all.stiffness_Nm_per_rad
+    outliers = _outlier_report(campaign, flagged, resid_final_mm, k, k_with, ctx.free, w)
+    library = [t.name for t in state.terms if t.source == "library"]
+    final_params = {r["name"]: r["params"] for r in reports if r["source"] == "library"}
+    columns = _named_columns(ctx, names, springs.c)
+    return Diagnosis(
+        rms_before_mm=result.rms_before_mm, rms_after_mm=state.rms_mm, rms_fit_before_mm=rms_fit_before,
+        selected=library, rounds=result.rounds, joint_stiffness_Nm_per_rad=k, identifiable=ctx.identifiable,
+        final_params=final_params, residual_before_mm=residual_before, residual_after_mm=resid_final_mm,
+        columns=columns, base_X=ctx.A, floor=floor, lack_of_fit=lof, explains_data=explains, verdict=verdict,
+        unexplained_mm=unexplained, outliers=outliers, stiffness_with_outliers_Nm_per_rad=k_with, terms=reports,
+        discovered=discovered, dropped=result.dropped, residual_structure=structure,
+        n_hypotheses=result.n_hypotheses, rows_used=rows, non_physical=non_physical, warnings=list(w),
+        thresholds=thresholds())
+
+
+__all__ = ["diagnose", "Diagnosis", "CANDIDATES", "DICTIONARY"]

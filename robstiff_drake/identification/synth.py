@@ -82,11 +82,13 @@ class SynthStiffness:
 
 
 def stiffness_campaign(robot, *, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01, seed=0,
-                       tool_m=None, effects=None, true_stiffness_Nm_per_rad=None):
+                       tool_m=None, effects=None, true_stiffness_Nm_per_rad=None, effect_params=None):
     """A synthetic stiffness campaign.  ``effects``: {name: rms_mm} of effects
-    to switch on (each sized to that RMS displacement).  ``tool_m``: the
-    measured point (flange frame, m; default the flange's origin).  The
-    joint angles come out in the robot's controller convention."""
+    to switch on (each sized to that RMS displacement); ``effect_params``:
+    {name: params (SI, as model/effects.py takes them)} of effects switched
+    on at the given size.  ``tool_m``: the measured point (flange frame, m;
+    default the flange's origin).  The joint angles come out in the robot's
+    controller convention."""
     rng = np.random.default_rng(seed)
     tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
     k_true = robot.joint_stiffness_Nm_per_rad if true_stiffness_Nm_per_rad is None else np.asarray(
@@ -105,6 +107,13 @@ def stiffness_campaign(robot, *, n=120, loads_per_pose=4, force_N=300.0, noise_m
         params, extra, (raw, visible) = fx.sized_effect(name, ctx, rms_mm * 1e-3, rng)
         applied[name] = params
         sizes[name] = (raw * 1e3, visible * 1e3)
+        disp = disp + extra
+    A = fx.base_regressor(ctx)
+    for name, params in (effect_params or {}).items():
+        extra = fx.EFFECTS[name](ctx, params)
+        applied[name] = params
+        sizes[name] = (float(np.sqrt(np.mean(extra**2))) * 1e3,
+                       float(np.sqrt(np.mean(fx.unexplained(extra, A) ** 2))) * 1e3)
         disp = disp + extra
     disp_mm = disp * 1e3 + rng.normal(scale=noise_mm, size=(n, 3))
     return SynthStiffness(robot.controller_deg(q), force, disp_mm, [f"P{i + 1:03d}" for i in pose_idx], seq,

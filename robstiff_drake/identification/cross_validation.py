@@ -1,0 +1,93 @@
+"""Grouped cross-validation for the residual diagnosis.  Plain numpy + scipy.
+
+The rows measured at one pose share one unloaded reference reading (the
+displacement is loaded minus unloaded), so their errors are not independent:
+every test here treats a pose as one unit.
+
+  * ``pose_groups``: the pose of each row (the ``pose`` column, or, without
+    it, rows with identical joint angles);
+  * ``folds``: K test folds, a pose's rows never split between fitting and
+    testing; the permutation has a fixed seed, so a run is reproducible;
+  * ``clustered_wald``: are some coefficients of a least-squares fit zero?
+    A Wald test with the pose-clustered (sandwich) covariance, referred to
+    F(q, G - 1): valid whatever the correlation of a pose's rows;
+"""
+
+import numpy as np
+from scipy import special
+
+K_FOLDS = 5
+FOLD_SEED = 0  # fixed: the same file always gets the same folds
+MIN_POSES = 3  # fewer poses: the tests fall back to rows as units (and say so)
+Q_MATCH_DEG = 1e-6  # rows whose six angles agree to this are one pose when the file has no pose column
+
+
+def pose_groups(campaign):
+    """(N,) int group index of each row: its pose."""
+    if campaign.pose is not None:
+        _, idx = np.unique(np.asarray(campaign.pose, dtype=str), return_inverse=True)
+        return idx
+    key = np.round(np.asarray(campaign.q_deg) / Q_MATCH_DEG).astype(np.int64)
+    _, idx = np.unique(key, axis=0, return_inverse=True)
+    return idx.ravel()
+
+
+def test_groups(groups, rows):
+    """The units of the grouped tests: the poses, or the rows when the rows
+    used span fewer than MIN_POSES poses.  Returns (groups, poses are units)."""
+    if len(np.unique(np.asarray(groups)[rows])) >= MIN_POSES:
+        return np.asarray(groups), True
+    return np.arange(len(groups)), False
+
+
+def folds(groups, k=K_FOLDS, seed=FOLD_SEED):
+    """Row indices of k test folds; a group's rows stay together."""
+    groups = np.asarray(groups)
+    uniq = np.unique(groups)
+    order = np.random.default_rng(seed).permutation(len(uniq))
+    k = min(k, len(uniq))
+    out = []
+    for f in range(k):
+        members = uniq[order[f::k]]
+        out.append(np.flatnonzero(np.isin(groups, members)))
+    return out
+
+
+def splits(rows, groups, k=K_FOLDS, seed=FOLD_SEED):
+    """[(train rows, test rows)] of the k pose-grouped folds over ``rows``."""
+    rows = np.asarray(rows)
+    out = []
+    for f in folds(np.asarray(groups)[rows], k, seed):
+        test = rows[f]
+        out.append((np.setdiff1d(rows, test), test))
+    return out
+
+
+def rows_to_eq(rows):
+    """Row indices -> equation indices (three displacement components per row)."""
+    rows = np.asarray(rows)
+    return (3 * rows[:, None] + np.arange(3)).ravel()
+
+
+def clustered_wald(X, y, groups_eq, cols):
+    """Least squares of y (n,) on X (n, p), and the p-value of the Wald test
+    that the coefficients ``cols`` (a slice) are zero, with the covariance
+    clustered by ``groups_eq`` (n,) (CR1 factor G / (G - 1)) and referred to
+    F(q, G - 1).  Returns (p, coefficients, residual)."""
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    coef_s, *_ = np.linalg.lstsq(Xs, y, rcond=None)
+    r = y - Xs @ coef_s
+    U = np.zeros((int(groups_eq.max()) + 1, X.shape[1]))
+    np.add.at(U, groups_eq, Xs * r[:, None])
+    U = U[np.bincount(groups_eq) > 0]
+    G = len(U)
+    if G < 3:
+        return 1.0, coef_s / scale, r
+    bread = np.linalg.pinv(Xs.T @ Xs)
+    V = bread @ (U.T @ U) @ bread * (G / (G - 1))
+    b = coef_s[cols]
+    q = len(b)
+    W = float(b @ np.linalg.pinv(V[cols, cols]) @ b)
+    return float(special.fdtrc(q, G - 1, W / q)), coef_s / scale, r

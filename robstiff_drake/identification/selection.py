@@ -1,0 +1,267 @@
+"""Sparse selection of terms by grouped cross-validation: forward steps that
+add the candidate which earns its place on held-out poses, then a backward
+check that drops any that no longer does.  Plain numpy + scipy.
+
+Each round tries every candidate not yet in the model (the named library and
+the dictionary together) and measures, on the same pose-grouped folds:
+
+  * its held-out RMS (all displacement components; every nonlinear parameter
+    refitted inside each fold, see identification/terms.py);
+  * a grouped test of its parameters: a Wald test on all rows with the
+    covariance clustered by pose (cross_validation.clustered_wald), valid
+    whatever the correlation of a pose's rows;
+  * for reference, a nested F-test on all rows and the change in BIC (these
+    treat rows as independent; the decision does not use them).
+
+A candidate qualifies when its grouped test passes at ALPHA_ROUND divided
+by the number of candidates tried in the round (Bonferroni) and it lowers
+the held-out RMS by MIN_GAIN of the current value (10 % for a named effect,
+5 % for a dictionary term).  The best qualifying named effect is preferred
+unless a dictionary term beats its held-out RMS by more than
+NAMED_PREFERENCE.  A candidate whose columns the campaign cannot separate
+from the model's (rank) is "not identifiable" and never selected; one that
+needs a column the file lacks, or more parameters than the data support, is
+skipped, with the reason.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import special
+
+from robstiff_drake.identification.cross_validation import clustered_wald, rows_to_eq
+from robstiff_drake.identification.terms import GAUSS_NEWTON, GRID, fit_model, held_out, rms_mm, term_columns
+
+ALPHA_ROUND = 0.01
+MIN_GAIN = {"library": 0.10, "dictionary": 0.05}
+NAMED_PREFERENCE = 0.05
+MIN_KEEP_GAIN = 0.02  # backward check: a kept term must still lower the held-out RMS by this much
+MAX_LIBRARY = 3
+MAX_TERMS = 5
+RANK_TOL = 1e-6
+GN_CANDIDATE_ITER = 3  # Gauss-Newton steps for a candidate (the selected model is iterated to convergence)
+
+
+@dataclass
+class CandidateResult:
+    name: str
+    source: str
+    status: str  # "ok", "not identifiable", "skipped"
+    reason: str = ""
+    rms_mm: float = float("nan")  # held out, added to the current model
+    f_stat: float = float("nan")
+    p_value: float = float("nan")
+    delta_bic: float = float("nan")
+    p_grouped: float = float("nan")  # pose-clustered Wald test of its parameters, all rows
+    params: dict = field(default_factory=dict)  # "name (unit)" -> value, fitted on all rows
+    values: np.ndarray = None  # SI
+    grid: float = None
+
+
+class Projection:
+    """The current model's least-squares fit on some equations, kept so that
+    a candidate's columns are added at the cost of a projection (the
+    Frisch-Waugh-Lovell form of the joint fit: exact)."""
+
+    def __init__(self, X, target, eq_fit, eq_pred=None):
+        Xf = X[eq_fit]
+        self.scale = np.linalg.norm(Xf, axis=0)
+        self.scale[self.scale == 0] = 1.0
+        self.Q, self.R = np.linalg.qr(Xf / self.scale)
+        y = target[eq_fit]
+        self.coef_s = np.linalg.solve(self.R, self.Q.T @ y)
+        self.r = y - self.Q @ (self.Q.T @ y)
+        self.eq_fit, self.eq_pred = eq_fit, eq_pred
+        if eq_pred is not None:
+            self.Xp = X[eq_pred] / self.scale
+            self.pred0 = self.Xp @ self.coef_s
+
+    def add(self, Z):
+        """(term coefficients (SI), prediction on eq_pred (without the offset), SSE on eq_fit)."""
+        Zf = Z[self.eq_fit]
+        zn = np.linalg.norm(Zf, axis=0)
+        zn[zn == 0] = 1.0
+        Zs = Zf / zn
+        QtZ = self.Q.T @ Zs
+        Zperp = Zs - self.Q @ QtZ
+        g, *_ = np.linalg.lstsq(Zperp, self.r, rcond=None)
+        res = self.r - Zperp @ g
+        pred = None
+        if self.eq_pred is not None:
+            pred = self.pred0 + (Z[self.eq_pred] / zn) @ g - self.Xp @ np.linalg.solve(self.R, QtZ @ g)
+        return g / zn, pred, float(res @ res)
+
+    def rank_added(self, Z):
+        """How many independent directions Z's columns add to the fit's."""
+        Zf = Z[self.eq_fit]
+        zn = np.linalg.norm(Zf, axis=0)
+        if np.any(zn == 0):
+            return 0
+        Zs = Zf / zn
+        Zperp = Zs - self.Q @ (self.Q.T @ Zs)
+        return int(np.sum(np.linalg.svd(Zperp, compute_uv=False) > RANK_TOL))
+
+
+@dataclass
+class State:
+    """The current model: its held-out residual, fold fits and full fit."""
+
+    terms: list
+    resid: np.ndarray  # (3N,) held out, zero outside the rows
+    rms_mm: float
+    fold_fits: list
+    full: object  # ModelFit on all rows
+    rss: float
+    folds_proj: list  # Projection per fold (fit on its training rows, predict its test rows)
+    full_proj: Projection  # on all rows
+
+
+def model_state(ctx, terms, rows, folds, gidx):
+    resid, fits = held_out(ctx, terms, folds)
+    full = fit_model(ctx, terms, rows)
+    eq = rows_to_eq(rows)
+    full_proj = Projection(full.X, ctx.b - full.offset, eq)
+    folds_proj = [Projection(f.X, ctx.b - f.offset, rows_to_eq(train), rows_to_eq(test))
+                  for f, (train, test) in zip(fits, folds)]
+    return State(list(terms), resid, rms_mm(resid[eq]), fits, full, float(full_proj.r @ full_proj.r), folds_proj,
+                 full_proj)
+
+
+def _label(t):
+    return [f"{n} ({u})" for n, u, _ in t.params]
+
+
+def evaluate(ctx, rows, folds, gidx, state, t, gain_needed):
+    """One candidate added to the current model (see module docstring).  The
+    pose-clustered Wald test is computed only when the held-out RMS falls to
+    ``gain_needed`` (mm) or below (otherwise the candidate cannot qualify)."""
+    reason = t.needs(ctx) if t.needs else None
+    if reason:
+        return CandidateResult(t.name, t.source, "skipped", reason)
+    eq = rows_to_eq(rows)
+    p0, pe, n_eq = state.full.X.shape[1], len(t.params), len(eq)
+    if n_eq - p0 - pe < 3 * (p0 + pe):
+        return CandidateResult(t.name, t.source, "skipped", f"{pe} more parameters need more than the {len(rows)} "
+                               "measurements (3 equations each)")
+    grid = t.grid(ctx) if t.kind == GRID else [None]
+    added = state.full_proj.rank_added(term_columns(ctx, t, state.full.c, None, grid[0])[0])
+    if added < pe:
+        return CandidateResult(t.name, t.source, "not identifiable",
+                               f"its {pe} column(s) add only {added} independent direction(s) to the model's: "
+                               "the campaign cannot separate it")
+    resid = np.zeros(3 * ctx.n)
+    for (train, test), fk, pk in zip(folds, state.fold_fits, state.folds_proj):
+        te = rows_to_eq(test)
+        if t.kind == GAUSS_NEWTON:
+            pred = fit_model(ctx, state.terms + [t], train, grid=fk.grid, max_iter=GN_CANDIDATE_ITER).predict(test)
+        else:
+            best = None
+            for g in grid:
+                _, pred_g, sse = pk.add(term_columns(ctx, t, fk.c, None, g)[0])
+                if best is None or sse < best[0]:
+                    best = (sse, pred_g)
+            pred = best[1] + fk.offset[te]
+        resid[te] = ctx.b[te] - pred
+    rms = rms_mm(resid[eq])
+    # all rows: parameters, F-test, BIC and (if it can qualify) the pose-clustered Wald test
+    geq = np.repeat(gidx, 3)
+    if t.kind == GAUSS_NEWTON:
+        f = fit_model(ctx, state.terms + [t], rows, max_iter=GN_CANDIDATE_ITER)
+        r = ctx.b[eq] - f.predict(rows)
+        rss1, values, g_best, Zf = float(r @ r), f.values[t.name], None, None
+    else:
+        best = None
+        for g in grid:
+            Zf = term_columns(ctx, t, state.full.c, None, g)[0]
+            coef, _, sse = state.full_proj.add(Zf)
+            if best is None or sse < best[0]:
+                best = (sse, coef, g, Zf)
+        rss1, values, g_best, Zf = best
+    p_grouped = float("nan")
+    if rms <= gain_needed:
+        if t.kind == GAUSS_NEWTON:
+            p_grouped, _, _ = clustered_wald(f.X[eq], ctx.b[eq] - f.offset[eq], geq, f.slices[t.name])
+        else:
+            X = np.hstack([state.full.X, Zf])
+            p_grouped, _, _ = clustered_wald(X[eq], ctx.b[eq] - state.full.offset[eq], geq, slice(p0, p0 + pe))
+    df2 = n_eq - p0 - pe
+    F = ((state.rss - rss1) / pe) / (rss1 / df2) if rss1 > 0 else np.inf
+    p = float(special.fdtrc(pe, df2, F)) if np.isfinite(F) else 0.0
+    dbic = n_eq * np.log(rss1 / state.rss) + pe * np.log(n_eq) if state.rss > 0 and rss1 > 0 else float("nan")
+    params = {lab: float(v * s) for lab, (_, _, s), v in zip(_label(t), t.params, values)}
+    return CandidateResult(t.name, t.source, "ok", "", rms, float(F), p, float(dbic), p_grouped, params,
+                           np.asarray(values), g_best)
+
+
+def _qualifies(r, current_rms, m):
+    return (r.status == "ok" and r.rms_mm <= (1 - MIN_GAIN[r.source]) * current_rms
+            and r.p_grouped < ALPHA_ROUND / max(m, 1))
+
+
+def _choose(qualified):
+    lib = [r for r in qualified if r.source == "library"]
+    dic = [r for r in qualified if r.source == "dictionary"]
+    best_lib = min(lib, key=lambda r: r.rms_mm) if lib else None
+    best_dic = min(dic, key=lambda r: r.rms_mm) if dic else None
+    if best_lib and (best_dic is None or best_lib.rms_mm <= (1 + NAMED_PREFERENCE) * best_dic.rms_mm):
+        return best_lib
+    return best_dic
+
+
+@dataclass
+class SearchResult:
+    state: State
+    rms_before_mm: float
+    rounds: list  # per round, the list of CandidateResult
+    n_hypotheses: int  # candidates tested (status ok) over all rounds
+    added: list  # [(name, held-out RMS before, after)]
+    dropped: list  # names dropped by the backward check
+    rms_without_mm: dict  # kept term -> held-out RMS of the final model without it
+
+
+def search(ctx, rows, folds, terms_by_name, groups):
+    """Forward selection over ``terms_by_name`` (library and dictionary), then
+    the backward check; ``groups`` (N,): the units of the clustered tests."""
+    gidx = np.unique(np.asarray(groups)[rows], return_inverse=True)[1]
+    state = model_state(ctx, [], rows, folds, gidx)
+    rms_before = state.rms_mm
+    rounds, added, dropped, n_tried = [], [], [], 0
+    while len(state.terms) < MAX_TERMS:
+        names = {t.name for t in state.terms}
+        n_lib = sum(t.source == "library" for t in state.terms)
+        pool = [t for t in terms_by_name.values() if t.name not in names
+                and (t.source != "library" or n_lib < MAX_LIBRARY)]
+        if not pool:
+            break
+        need = (1 - min(MIN_GAIN.values())) * state.rms_mm
+        results = [evaluate(ctx, rows, folds, gidx, state, t, need) for t in pool]
+        rounds.append(results)
+        m = sum(r.status == "ok" for r in results)
+        n_tried += m
+        best = _choose([r for r in results if _qualifies(r, state.rms_mm, m)])
+        if best is None:
+            break
+        new = model_state(ctx, state.terms + [terms_by_name[best.name]], rows, folds, gidx)
+        added.append((best.name, state.rms_mm, new.rms_mm))
+        state = new
+    without = {}
+    while len(state.terms) > 1:
+        trial = {}
+        geq = np.repeat(gidx, 3)
+        eq = rows_to_eq(rows)
+        for t in state.terms:
+            s = model_state(ctx, [u for u in state.terms if u is not t], rows, folds, gidx)
+            p, _, _ = clustered_wald(state.full.X[eq], ctx.b[eq] - state.full.offset[eq], geq,
+                                     state.full.slices[t.name])
+            trial[t.name] = (s, p, 1 - state.rms_mm / s.rms_mm)
+        weak = [(gain, name) for name, (s, p, gain) in trial.items()
+                if p > ALPHA_ROUND / len(state.terms) or gain < MIN_KEEP_GAIN]
+        if not weak:
+            without = {name: s.rms_mm for name, (s, _, _) in trial.items()}
+            break
+        name = min(weak)[1]
+        dropped.append(name)
+        state = trial[name][0]
+    if len(state.terms) == 1:
+        without = {state.terms[0].name: rms_before}
+    return SearchResult(state, rms_before, rounds, n_tried, added, dropped, without)
