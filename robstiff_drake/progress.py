@@ -44,8 +44,9 @@ def progress(total, enabled=None, desc="", unit="it", **kwargs):
     ``with progress(n, enabled, "runs") as bar: ... bar.update(1)``."""
     from tqdm import tqdm
 
+    kwargs.setdefault("leave", True)
     return tqdm(total=total, desc=desc or None, unit=unit, disable=not bar_enabled(enabled), file=sys.stderr,
-                dynamic_ncols=True, leave=True, **kwargs)
+                dynamic_ncols=True, **kwargs)
 
 
 def simulation_bar(t_end_s, enabled=None, desc="simulating"):

@@ -150,3 +150,14 @@ def test_sweep_progress_bar_and_one_period_plot(capsys, tmp_path, short_scenario
     assert code == 0, err
     assert "sweep: 100%" in err and "2/2" in err
     assert (tmp_path / "sweep.png").stat().st_size > 10_000
+
+
+def test_diagnosis_search_bar_on_a_terminal(capsys, tmp_path, monkeypatch):
+    """The dictionary search shows a bar per round on a terminal, none with --quiet."""
+    data = tmp_path / "campaign.csv"
+    assert run(capsys, "synth", "stiffness", data, "--n", "36", "--quiet")[0] == 0
+    monkeypatch.setattr("sys.stderr.isatty", lambda: True, raising=False)
+    code, out, err = run(capsys, "diagnose", data)
+    assert code == 0 and "diagnosis, round 1" in err and "term" in err
+    code, out, err = run(capsys, "diagnose", data, "--quiet")
+    assert code == 0 and "diagnosis, round" not in err and out
