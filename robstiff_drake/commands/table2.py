@@ -125,7 +125,7 @@ def plot(results, F, D, rows):
         ax.set_xlim(0, None)
         ax.set_xlabel("load |F| (N)")
         ax.set_ylabel("displacement (mm)")
-        ax.set_title(f"seed Table 2, group {g.name} (rows {','.join(map(str, g.rows))})")
+        ax.set_title(f"the paper's Table 2, group {g.name} (rows {','.join(map(str, g.rows))})")
         ax.legend(fontsize=7)
     return fig
 
