@@ -14,6 +14,7 @@ from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 from robstiff_drake.errors import InputError
+from robstiff_drake.progress import info
 from robstiff_drake.paths import DEFAULT_ROBOT_NAME, DIAGRAMS_DIR, library_robots, scenario_file
 
 BLOCK = DIAGRAMS_DIR / "block_milling.yaml"  # the IRB6400's (the paper's) block test
@@ -72,7 +73,8 @@ def run(*, out="robstiff-out", robot_yaml=None):
     block = block_scenario(robot_yaml)
     robot = scenario_robot(load_scenario(block), None if robot_yaml in library_robots() else robot_yaml)
     warnings = Warnings()
-    sc, results = simulate.simulate(scenario=block, compensation="both", robot=robot, warnings=warnings)
+    sc, results = simulate.simulate(scenario=block, compensation="both", robot=robot, warnings=warnings,
+                                    progress=None)  # a bar over simulated time on a terminal
     summ = simulate.summary(results, sc, warnings)
     expl = cut_more_explanation(results[0], robot)
     print(f"== the paper's block-milling test (Table 3), simulated: {robot.manufacturer} {robot.model} ==")
@@ -87,5 +89,5 @@ def run(*, out="robstiff-out", robot_yaml=None):
         written.append("stiffness_map.png")
         run.write("demo.json", json_text(dict(summ, run_id=run.run_id)))
         written.append("demo.json")
-    print(f"\nwrote to {out}/: " + ", ".join(written))
+    info(f"\nwrote to {out}/: " + ", ".join(written))
     return 0

@@ -238,7 +238,7 @@ def residual_views(d, campaign, robot, folder, tool_m=None):
         ax.plot(pred, y, ".", alpha=0.5)
         lim = max(np.abs(y).max(), 1e-6)
         ax.plot([-lim, lim], [-lim, lim], "k-", lw=0.6)
-        ax.set_xlabel(f"{name}: its fit to the residual, beyond the springs (mm)")
+        ax.set_xlabel(f"{name}: its fit to the residual,\nbeyond the springs (mm)")
         ax.set_ylabel("residual of the six-spring model (mm)")
         tag = " (selected)" if name in d.selected else ""
         ax.set_title(f"{name}{tag}")

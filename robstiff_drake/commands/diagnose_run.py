@@ -14,6 +14,7 @@ from robstiff_drake.identification.run_files import read_settings, settings_text
 from robstiff_drake.identification.run_verification import plan_markdown
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model.robot import load_robot
+from robstiff_drake.progress import info
 
 
 def plot(rep, extras, title):
@@ -145,6 +146,6 @@ def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_y
         emit_json(rep, json_out)
     if json_out != "-":
         print(format_report(rep))
-        print(f"wrote {out}/: diagnosis.json, diagnosis.png" + (", verification_plan.md, candidates/"
+        info(f"wrote {out}/: diagnosis.json, diagnosis.png" + (", verification_plan.md, candidates/"
                                                                if extras["plan"] else ""))
     return 0

@@ -6,6 +6,7 @@ status 2 (no traceback).
 """
 
 import argparse
+import re
 import signal
 import sys
 
@@ -95,7 +96,7 @@ def _add_robot_option(p, help_text=ROBOT_HELP):
 def _add_tool_option(p, default_help=f"default: {TOOL_DEFAULT}"):
     p.add_argument("--tool", metavar="X,Y,Z", default=None,
                    help="tool point in the flange frame (DH frame 6), mm; "
-                        f"{default_help}. Write negative values as --tool=-10,0,350")
+                        f"{default_help}; a negative first value works as --tool -10,0,350 or --tool=-10,0,350")
 
 
 def _add_campaign_command(sub, name, help_text, json_what):
@@ -187,7 +188,7 @@ def build_parser():
     _add_robot_option(s)
     s = kinds.add_parser("payload", help="a payload (gravity) campaign of wrist-sensor readings")
     s.add_argument("out", metavar="OUT.csv", help="the campaign file ('-' for stdout)")
-    s.add_argument("--n", type=_number_in(3, 100000, integer=True), default=15, help="configurations (default: %(default)s, as the seed)")
+    s.add_argument("--n", type=_number_in(3, 100000, integer=True), default=15, help="configurations (default: %(default)s, as in the paper)")
     s.add_argument("--mass-kg", type=_number_in(1e-3, 2000.0, "kg"), default=None, help="(default: the robot file's payload)")
     s.add_argument("--com-mm", default=None, metavar="X,Y,Z", help="(default: the robot file's payload)")
     s.add_argument("--noise-N", type=_number_in(0.0, 1000.0, "N"), default=1.0, help="(default: %(default)s N)")
@@ -230,7 +231,11 @@ def build_parser():
     p.add_argument("--json", metavar="OUT", help="write the comparison as JSON ('-' for stdout)")
     _add_robot_option(p)
 
-    p = sub.add_parser("table2", help="the seed's Table 2: linearity in load, offsets, repeatability")
+    from robstiff_drake.identification.table2_grouping import GROUPING
+
+    p = sub.add_parser("table2", help="the paper's Table 2: linearity in load, offsets, repeatability",
+                       description="The paper's Table 2 (data/seed_table2.csv) analysed per pose group: linearity "
+                                   "in load, offset at zero load, repeatability.\n\n" + GROUPING)
     p.add_argument("--json", metavar="OUT", help="('-' for stdout)")
     p.add_argument("--plot", metavar="OUT.png")
 
@@ -248,6 +253,11 @@ def build_parser():
     p.add_argument("--noise-seed", type=SEED, metavar="N",
                    help="seed of the sensor's and the scanner's noise (default: the scenario's); a repeated cut "
                         "draws new noise")
+    p.add_argument("--replay", metavar="OUT.html",
+                   help="a 3D replay of the run (robot, spindle, workpiece, tool path, the deflection magnified) "
+                        "as one HTML file that opens in a browser without a server")
+    p.add_argument("--progress", action="store_true", default=None,
+                   help="show the progress bar (simulated time) even off a terminal")
     _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
                          "scenario's `robot:` when it has one")
 
@@ -267,9 +277,7 @@ def build_parser():
     _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
                          "scenario's `robot:` when it has one")
 
-    p = sub.add_parser("sim-cell", help="the scenario's simulated cell behind EGM and Net F/T (for `compensate`)",
-                       epilog="Example: robstiff sim-cell diagrams/block_milling.yaml --egm-to 127.0.0.1:6510 "
-                              "--netft-port 49152 --reference-out reference.csv")
+    p = sub.add_parser("sim-cell", help="the scenario's simulated cell behind EGM and Net F/T (for `compensate`)")
     p.add_argument("scenario", metavar="SCENARIO.yaml")
     p.add_argument("--egm-to", required=True, metavar="HOST:PORT", help="where the compensator listens for EGM")
     p.add_argument("--netft-port", type=_number_in(1, 65535, integer=True), required=True, metavar="PORT",
@@ -319,11 +327,85 @@ def build_parser():
     p.add_argument("--rt-priority", type=_number_in(0, 99, integer=True), default=0,
                    help="run the loop under SCHED_FIFO at this priority (Linux, needs the privilege; 0: off)")
 
-    p = sub.add_parser("demo", help="the main job: the seed's block-milling test, without and with compensation")
+    p = sub.add_parser("demo", help="the main job: the paper's block-milling test, without and with compensation")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
     _add_robot_option(p, "run the block test of this library robot (diagrams/block_milling_NAME.yaml) or of a "
                          "robot file on the IRB6400's block scenario; default: irb6400")
+    _finish(parser)
     return parser
+
+
+# One example per subcommand, shown at the end of its --help (tests/test_help.py
+# parses each one, so they stay valid).
+EXAMPLES = {
+    "robots": "robstiff robots",
+    "fk": "robstiff fk 0 30 20 0 40 0 --robot kr240_r2900",
+    "stiffness": "robstiff stiffness 0 30 20 0 40 0 --tool -10,0,350 --kx",
+    "stiffness-map": "robstiff stiffness-map --robot kr240_r2900 --out kr240_map.png",
+    "kg-study": "robstiff kg-study --grid 3 --json kg.json",
+    "make-urdf": "robstiff make-urdf --robot irb6640 --out urdf",
+    "identify": "robstiff synth stiffness campaign.csv && robstiff identify campaign.csv --plot fit.png",
+    "calibrate-payload": "robstiff synth payload payload.csv && robstiff calibrate-payload payload.csv "
+                         "--yaml payload.yaml",
+    "synth": "robstiff synth stiffness campaign.csv --n 60 --effect lost_motion=0.05",
+    "synth stiffness": "robstiff synth stiffness campaign.csv --n 60 --effect lost_motion=0.05",
+    "synth payload": "robstiff synth payload payload.csv --mass-kg 120 --com-mm -10,0,250",
+    "diagnose": "robstiff synth stiffness campaign.csv --effect lost_motion && robstiff diagnose campaign.csv "
+                "--plots views",
+    "diagnose-run": "robstiff simulate diagrams/block_milling.yaml --out cut1 && robstiff diagnose-run cut1",
+    "plan-poses": "robstiff plan-poses 60 --out plan.csv",
+    "table2": "robstiff table2 --plot table2.png",
+    "simulate": "robstiff simulate diagrams/block_milling.yaml --out block --replay block.html",
+    "compensate": "robstiff compensate --egm-port 6510 --netft 192.168.1.1:49152 --model model.json "
+                  "--payload payload.yaml --reference joint_reference.csv --log cut1",
+    "sim-cell": "robstiff sim-cell diagrams/block_milling.yaml --egm-to 127.0.0.1:6510 --netft-port 49152 "
+                "--reference-out joint_reference.csv",
+    "sweep": "robstiff sweep diagrams/block_milling.yaml --period-ms 4,8,16 --plot sweep.png",
+    "demo": "robstiff demo --out robstiff-out",
+}
+
+QUIET_HELP = ("no progress bars and no informational lines (what was written where); results, warnings and errors "
+              "still print")
+
+
+def _subcommands(parser, prefix=""):
+    """(name, parser) of every subcommand, nested ones as 'synth stiffness'."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, p in action.choices.items():
+                yield prefix + name, p
+                yield from _subcommands(p, prefix + name + " ")
+
+
+def _finish(parser):
+    """Every subcommand: its example at the end of --help, and --quiet."""
+    parser.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help=QUIET_HELP)
+    for name, p in _subcommands(parser):
+        p.formatter_class = argparse.RawDescriptionHelpFormatter
+        p.epilog = f"Example: {EXAMPLES[name]}"
+        p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help=QUIET_HELP)
+
+
+def vector_values_kept(argv):
+    """argv with a negative vector value joined to its option
+    (``--tool -10,0,350`` -> ``--tool=-10,0,350``): argparse takes a value
+    that starts with '-' and is not a plain number for an option."""
+    out, i = [], 0
+    argv = list(argv)
+    while i < len(argv):
+        a = argv[i]
+        if a == "--":
+            return out + argv[i:]
+        if a in VECTOR_RANGES and i + 1 < len(argv) and _NEGATIVE_LIST.match(argv[i + 1]):
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
+_NEGATIVE_LIST = re.compile(r"^-\s*(\d|\.\d|inf|nan)", re.IGNORECASE)
 
 
 def _dispatch(args):
@@ -397,7 +479,7 @@ def _dispatch(args):
 
         return simulate.run(scenario=args.scenario, compensation=args.compensation, json_out=args.json,
                             out=args.out, compensator=args.compensator, noise_seed=args.noise_seed,
-                            robot_yaml=args.robot, toolpath=args.toolpath)
+                            robot_yaml=args.robot, toolpath=args.toolpath, replay=args.replay, progress=args.progress)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep
 
@@ -447,8 +529,12 @@ def main(argv=None):
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     except ValueError:  # not the main thread (e.g. called from a worker): leave signals alone
         previous = None
+    from robstiff_drake.progress import set_quiet
+
+    was_quiet = None
     try:
-        args = build_parser().parse_args(argv)
+        args = build_parser().parse_args(vector_values_kept(sys.argv[1:] if argv is None else argv))
+        was_quiet = set_quiet(getattr(args, "quiet", False))
         return _dispatch(args) or 0
     except InputError as e:
         prog = getattr(e, "prog", "robstiff")
@@ -469,6 +555,8 @@ def main(argv=None):
         print("robstiff: error: out of memory", file=sys.stderr)
         return 2
     finally:
+        if was_quiet is not None:
+            set_quiet(was_quiet)
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
 

@@ -11,6 +11,7 @@ from robstiff_drake.io import check_outputs, write_atomic
 from robstiff_drake.model.description import make_package_xml, make_urdf, package_name
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import DATA_DIR, DIAGRAMS_DIR, MODELS_DIR
+from robstiff_drake.progress import info
 
 
 def wanted_files(robot, out):
@@ -37,5 +38,5 @@ def run(*, check=False, out="robstiff-out/urdf", robot_yaml=None):
     check_outputs(inputs=[robot.source], files={f"--out ({p.name})": p for p in wanted})
     for path, text in wanted.items():
         write_atomic(path, text)
-        print(f"wrote {path}")
+        info(f"wrote {path}")
     return 0

@@ -24,8 +24,9 @@ from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, run_warnings
 from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.run_files import SIM_PREFIX, read_settings
-from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
+from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text, write_atomic
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.progress import info
 
 MODES = {"on": (True,), "off": (False,), "both": (False, True)}
 
@@ -100,8 +101,7 @@ def plot_surfaces(results, sc):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(len(results), 1, figsize=(10, 3.2 * len(results)), squeeze=False,
-                             constrained_layout=True)
+    fig, axes = plt.subplots(len(results), 1, figsize=(11, 3.2 * len(results)), squeeze=False, layout="constrained")
     along_path = results[0].scans and results[0].scans[0].s_m is not None
     for ax, res in zip(axes[:, 0], results):
         for line in res.scans:
@@ -116,7 +116,8 @@ def plot_surfaces(results, sc):
         ax.set_xlabel("arc length along the path (mm); gaps: no material" if along_path
                       else "x along the pass (mm); gaps: no material")
         ax.set_ylabel("surface error (mm)\n+ = cut more")
-        ax.legend(fontsize=8, loc="lower right")
+    # one key for both runs (the same scan lines), beside the axes: it covers no curve
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside right upper", fontsize=8)
     fig.suptitle(f"{sc.name}: machined surface from the cutter's envelope (laser line scan)")
     return fig
 
@@ -191,18 +192,19 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
 
 
 def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None, compensator=None,
-             noise_seed=None, toolpath=None):
+             noise_seed=None, toolpath=None, progress=False):
     """Load and run; returns (scenario, results).  The robot: ``robot`` (a
     RobotModel), else --robot's ``robot_yaml``, else the scenario's own.
     Warnings about the settings and the result go to ``warnings`` (an
-    io.Warnings) if given.  ``compensator``, ``noise_seed``, ``toolpath``: see load_for_run."""
+    io.Warnings) if given.  ``compensator``, ``noise_seed``, ``toolpath``: see load_for_run;
+    ``progress``: a bar over simulated time (experiment.run_cut)."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
     robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath), robot_yaml)
     sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed, toolpath=toolpath)
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot))
-    results = [run_cut(sc, robot, compensation=c) for c in MODES[compensation]]
+    results = [run_cut(sc, robot, compensation=c, progress=progress) for c in MODES[compensation]]
     if warnings is not None:
         warnings.extend_from(run_warnings(results, sc))
     return sc, results
@@ -279,20 +281,34 @@ def write_outputs(sc, results, robot, run, warnings=()):
 
 
 def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None,
-        robot_yaml=None, toolpath=None):
-    check_outputs(inputs=[scenario, compensator, toolpath], files={"--json": json_out}, folders={"--out": out})
+        robot_yaml=None, toolpath=None, replay=None, progress=None):
+    check_outputs(inputs=[scenario, compensator, toolpath], files={"--json": json_out, "--replay": replay},
+                  folders={"--out": out})
     robot = scenario_robot(load_scenario(scenario, toolpath=toolpath), robot_yaml)
+    meshcat = None
+    if replay is not None:  # Meshcat needs its server: refuse before the simulation when it cannot start
+        from robstiff_drake.diagrams import replay as replay_3d
+
+        replay_3d.check_replay_path(replay)
+        meshcat = replay_3d.start_meshcat()
     warnings = Warnings()
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
-                           compensator=compensator, noise_seed=noise_seed, toolpath=toolpath)
+                           compensator=compensator, noise_seed=noise_seed, toolpath=toolpath, progress=progress)
     summ = summary(results, sc, warnings)
     with RunFolder(out) as run_folder:
         written = write_outputs(sc, results, robot, run_folder, warnings)
     summ["run_id"] = run_folder.run_id
     summ["outputs"] = [str(Path(out) / w.split(" ")[0]) for w in written]
+    if replay is not None:
+        html, shown = replay_3d.replay_html(meshcat, sc, results, robot)
+        write_atomic(replay, html)
+        summ["replay"] = dict(shown, file=str(replay), bytes=len(html.encode()))
     if json_out is not None:
         emit_json(summ, json_out)
     if json_out != "-":
         print(format_table(summ))
-        print(f"wrote to {out}/: " + ", ".join(written))
+        info(f"wrote to {out}/: " + ", ".join(written))
+        if replay is not None:
+            info(f"wrote {replay}: 3D replay, deflection magnified {shown['magnification']:g}x "
+                 f"({summ['replay']['bytes'] / 1e6:.1f} MB; opens in a browser without a server)")
     return 0

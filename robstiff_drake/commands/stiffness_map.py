@@ -4,6 +4,8 @@ deflection under a force at the tool (conventional model), over a top view
 the workspace, with the spindle axis pointing down; in the softest direction
 and along z (the direction that a face-milling surface error takes)."""
 
+import textwrap
+
 import numpy as np
 
 from robstiff_drake.commands.main import parse_tool
@@ -55,9 +57,16 @@ def make_map(robot, *, tool_m, force_N=500.0, resolution=41):
     top = deflection_grid(robot, xs, ys, [z_ref], tool_m, force_N)
     side = deflection_grid(robot, xs, [0.0], zs, tool_m, force_N)
     finite = np.concatenate([a[np.isfinite(a)] for a in (*top, *side)])
+    # the colour scale stops at the 99th percentile (a few points near a
+    # singular pose would squeeze the rest into one colour); points above
+    # it get the over colour and the colour bar an arrow that says how far
+    # the map goes
     vmax = float(np.percentile(finite, 99)) if finite.size else 1.0
+    top_mm = float(finite.max()) if finite.size else vmax
+    over = top_mm > vmax * (1 + 1e-9)
+    cmap = plt.get_cmap("viridis").with_extremes(over=OVER_COLOR)
 
-    fig, axes = plt.subplots(2, 2, figsize=(12, 9), constrained_layout=True)
+    fig, axes = plt.subplots(2, 2, figsize=(12, 9.6), layout="constrained")
     titles = ("softest direction", "along z (face-milling surface error)")
     views = (  # row, grids, vertical axis, workspace range on it, view title
         (0, top, ys, "y", ws.y_m, f"top view, tool point at z = {z_ref * 1e3:.0f} mm"),
@@ -66,18 +75,39 @@ def make_map(robot, *, tool_m, force_N=500.0, resolution=41):
     for row, grids, vs, vname, vrange, view in views:
         for col, (data, title) in enumerate(zip(grids, titles)):
             ax = axes[row, col]
-            im = ax.pcolormesh(xs * 1e3, vs * 1e3, data.T, vmin=0, vmax=vmax, cmap="viridis", shading="auto")
-            ax.set_title(f"{view}: {title}")
+            im = ax.pcolormesh(xs * 1e3, vs * 1e3, data.T, vmin=0, vmax=vmax, cmap=cmap, shading="auto")
+            ax.set_title(f"{view}:\n{title}", fontsize=10)
             ax.set_xlabel("x (mm)")
             ax.set_ylabel(f"{vname} (mm)")
             ax.add_patch(plt.Rectangle((ws.x_m[0] * 1e3, vrange[0] * 1e3), (ws.x_m[1] - ws.x_m[0]) * 1e3,
                                        (vrange[1] - vrange[0]) * 1e3, fill=False, ec="w", ls="--"))
             ax.plot(0, 0, "r^", ms=10)
             ax.set_aspect("equal")
-    fig.colorbar(im, ax=axes, label=f"tool-point deflection under {force_N:g} N (mm)", shrink=0.8)
-    fig.suptitle(f"{robot.name} stiffness map (conventional model, spindle axis down; white box: machining "
-                 "workspace; red: robot base; blank: out of reach or joint limits)")
+    label = f"tool-point deflection under {force_N:g} N (mm)"
+    if over:
+        label += f"\nabove {vmax:.2f} mm (99th percentile): {OVER_NAME}, up to {top_mm:.2f} mm"
+    fig.colorbar(im, ax=axes, label=label, shrink=0.8, extend="max" if over else "neither")
+    fig.legend(handles=_key_handles(over), loc="outside lower center", ncol=4, fontsize=9, facecolor="0.8",
+               framealpha=1.0)
+    name = " ".join(v for v in (robot.manufacturer, robot.model) if v and v != "-") or robot.name
+    fig.suptitle("\n".join(textwrap.wrap(f"{name}: stiffness map (conventional model, spindle axis down)", 90)))
     return fig, {"top_view": top, "side_view": side, "xs_m": xs, "ys_m": ys, "zs_m": zs}
+
+
+OVER_COLOR, OVER_NAME = "#ff00ff", "magenta"
+
+
+def _key_handles(over):
+    """The map's key: workspace box, robot base, blank cells (and the over colour)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles = [Patch(fill=False, ec="w", ls="--", label="machining workspace"),
+               Line2D([], [], color="r", marker="^", ls="", ms=8, label="robot base"),
+               Patch(fc="w", ec="0.4", label="blank: out of reach or joint limits")]
+    if over:
+        handles.append(Patch(fc=OVER_COLOR, label="above the colour scale"))
+    return handles
 
 
 def run(*, out, force_N=500.0, resolution=41, tool=None, robot_yaml=None):

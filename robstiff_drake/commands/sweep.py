@@ -35,40 +35,83 @@ def parse_list(text, what, kind=float):
 
 
 def plot(rows, out):
+    """Surface error against the controller period, one column per delay:
+    simulated (o) and the loop model's prediction (x), one colour per cutoff
+    and mode; unstable runs marked along the bottom edge.  With one period
+    the x axis lists the cutoff/mode combinations instead."""
+    save_figure_atomic(plot_figure(rows), out, dpi=100)
+
+
+UNSTABLE_STYLE = {"marker": "X", "color": "k", "mec": "w", "ms": 10, "ls": ""}
+UNSTABLE_STRIP = 0.1  # share of the axes' height below the data where unstable runs are marked
+
+
+def plot_figure(rows):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+    from matplotlib.transforms import blended_transform_factory
 
     delays = sorted({r["delay_steps"] for r in rows})
-    fig, axes = plt.subplots(2, len(delays), figsize=(6.5 * len(delays), 8), squeeze=False, constrained_layout=True)
+    periods = sorted({r["period_ms"] for r in rows})
     keys = sorted({(r["cutoff_hz"], r["mode"]) for r in rows})
     colors = {k: f"C{i % 10}" for i, k in enumerate(keys)}
+    one_period = len(periods) == 1
+    fig, axes = plt.subplots(2, len(delays), figsize=(5.5 * len(delays) + 2.5, 8), squeeze=False,
+                             layout="constrained")
+    strip_axes = set()
     for col, d in enumerate(delays):
-        for (cut, mode) in keys:
+        for ki, (cut, mode) in enumerate(keys):
             sel = sorted((r for r in rows if r["delay_steps"] == d and r["cutoff_hz"] == cut and r["mode"] == mode),
                          key=lambda r: r["period_ms"])
             if not sel:
                 continue
-            T = [r["period_ms"] for r in sel]
+            x = [ki] * len(sel) if one_period else [r["period_ms"] for r in sel]
             for row, metric in enumerate(("zone", "mean")):
+                ax = axes[row, col]
                 sim = [_metric(r.get("surface_error_mm"), metric) if r.get("stable") else np.nan for r in sel]
                 pred = [_metric(r.get("predicted", {}).get("surface_error_mm"), metric) for r in sel]
-                ls = "-" if mode == "plain" else "--"
-                axes[row, col].plot(T, sim, ls, marker="o", color=colors[(cut, mode)], label=f"{mode}, {cut:g} Hz")
-                axes[row, col].plot(T, pred, ":", marker="x", color=colors[(cut, mode)], alpha=0.7)
-                unstable = [t for t, r in zip(T, sel) if not r.get("stable")]
-                if unstable:
-                    axes[row, col].plot(unstable, [0.0] * len(unstable), "rX", ms=10)
+                ls = "" if one_period else ("-" if mode == "plain" else "--")
+                ax.plot(x, sim, ls, marker="o", color=colors[(cut, mode)])
+                ax.plot(x, pred, "" if one_period else ":", marker="x", color=colors[(cut, mode)], alpha=0.7)
+                unstable = [xi for xi, r in zip(x, sel) if not r.get("stable")]
+                if unstable:  # in a strip along the bottom: an unstable run has no surface error to show
+                    strip_axes.add(ax)
+                    ax.plot(unstable, [UNSTABLE_STRIP / 2] * len(unstable),
+                            transform=blended_transform_factory(ax.transData, ax.transAxes), **UNSTABLE_STYLE)
         for row, label in enumerate(("entry/exit max |error| (mm)", "mean error (mm)")):
             ax = axes[row, col]
-            ax.set_xscale("log")
-            ax.set_xlabel("controller period (ms)")
+            if one_period:
+                ax.set_xticks(range(len(keys)), [f"{m}\n{c:g} Hz" for c, m in keys])
+                ax.set_xlim(-0.5, len(keys) - 0.5)
+                ax.set_xlabel(f"filter cutoff and mode (controller period {periods[0]:g} ms)")
+            else:
+                if periods[-1] / periods[0] >= 10:
+                    ax.set_xscale("log")
+                    ax.set_xticks(periods, [f"{p:g}" for p in periods])
+                    ax.minorticks_off()
+                ax.set_xlabel("controller period (ms)")
             ax.set_ylabel(label)
-            ax.set_title(f"delay {d} period(s): simulated (o), loop model (x); red X: unstable")
+            if ax in strip_axes:  # room for the strip below the data
+                lo, hi = ax.dataLim.intervaly
+                pad = 0.05 * (hi - lo) if hi > lo else 0.05
+                ax.set_ylim(lo - (UNSTABLE_STRIP * (hi - lo + 2 * pad)) / (1 - UNSTABLE_STRIP) - pad, hi + pad)
+                ax.add_patch(plt.Rectangle((0, 0), 1, UNSTABLE_STRIP, transform=ax.transAxes, fc="0.9", ec="none",
+                                           zorder=0))
+            ax.set_title(f"transport delay {d} period{'s' if d != 1 else ''}")
             ax.grid(True, which="both", alpha=0.3)
-        axes[0, col].legend(fontsize=7)
-    save_figure_atomic(fig, out, dpi=100)
+    handles = [Line2D([], [], color=colors[k], marker="o", ls="" if one_period else ("-" if k[1] == "plain" else "--"),
+                      label=f"{k[1]}, {k[0]:g} Hz") for k in keys]
+    handles += [Line2D([], [], color="0.3", marker="o", ls="", label="simulated"),
+                Line2D([], [], color="0.3", marker="x", ls="", label="loop model")]
+    if strip_axes:
+        handles.append(Line2D([], [], label="unstable run", **UNSTABLE_STYLE))
+    fig.legend(handles=handles, loc="outside right upper", fontsize=8)
+    fig.suptitle("surface error against the controller period" if not one_period else
+                 "surface error by filter cutoff and mode")
+    return fig
 
 
 def _metric(stats, metric):

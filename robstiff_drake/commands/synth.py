@@ -11,6 +11,7 @@ from robstiff_drake.identification import synth
 from robstiff_drake.io import STDOUT, check_outputs, write_atomic
 from robstiff_drake.model.effects import EFFECTS
 from robstiff_drake.model.robot import load_robot
+from robstiff_drake.progress import info
 
 DEFAULT_EFFECT_RMS_MM = 0.04
 
@@ -76,7 +77,7 @@ def run_stiffness(*, out, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01,
                                           tool_m=tool_m))
     extra = "".join(f", {k_} RMS {raw:.4f} mm ({vis:.4f} mm beyond the six-spring model)"
                     for k_, (raw, vis) in c.effect_rms_mm.items())
-    print(f"wrote {out}: {n} measurements at {len(set(c.pose))} poses{extra}", file=_info(out))
+    info(f"wrote {out}: {n} measurements at {len(set(c.pose))} poses{extra}", file=_info(out))
     return 0
 
 
@@ -90,5 +91,5 @@ def run_payload(*, out, n=15, mass_kg=None, com=None, noise_N=1.0, noise_Nm=0.1,
     c = synth.payload_campaign(robot, n=n, mass_kg=mass_kg, com_m=com_m, noise_N=noise_N, noise_Nm=noise_Nm,
                                seed=seed)
     _write(out, synth.payload_csv(c, noise_N=noise_N, noise_Nm=noise_Nm, seed=seed))
-    print(f"wrote {out}: {n} configurations, payload {c.mass_kg:g} kg", file=_info(out))
+    info(f"wrote {out}: {n} configurations, payload {c.mass_kg:g} kg", file=_info(out))
     return 0

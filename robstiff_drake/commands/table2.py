@@ -1,16 +1,10 @@
-"""``robstiff table2``: the seed's Table 2 (data/seed_table2.csv) analysed as
+"""``robstiff table2``: the paper's Table 2 (data/seed_table2.csv) analysed as
 the measured evidence it is: linearity in load, the offset at zero load and
 repeatability, per assumed pose group.  The table and plot in the README come
 from ``robstiff table2 --plot docs/table2.png``.
 
-Grouping (an assumption: the paper does not say which rows share a pose):
-  A: rows 1-6 and 17 (-x loads; dx about -2.6 um/N, dy positive, dz small)
-  B: rows 7-12 (-x loads; dx about -4 um/N, dz about -2.3 um/N)
-  C: rows 13-14 (the same (0, -275, 25) N load twice)
-  D: rows 15-16 (the same (-40, -295, 10) N load twice)
-Row 17 joins A because its response (-0.934, 0.276, -0.299) mm at 360 N
-matches A's other 360 N rows, not B's (-1.43, 0.02, -0.80).  As a check of
-that assumption, A is also split into A1 (rows 1-3) and A2 (4-6, 17).
+The grouping of the rows by pose is an assumption: see
+identification/table2_grouping.py (printed by ``robstiff table2 --help``).
 """
 
 import numpy as np
@@ -18,12 +12,11 @@ import numpy as np
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.campaign import D_COLS, F_COLS, read_table
 from robstiff_drake.identification.linearity import analyse_group, cartesian_diagnosis, pooled_offset
+from robstiff_drake.identification.table2_grouping import GROUPS, SPLIT_A
 from robstiff_drake.io import check_outputs, emit_json, save_figure_atomic
 from robstiff_drake.paths import DATA_DIR
 
 TABLE2_CSV = DATA_DIR / "seed_table2.csv"
-GROUPS = {"A": [1, 2, 3, 4, 5, 6, 17], "B": [7, 8, 9, 10, 11, 12], "C": [13, 14], "D": [15, 16]}
-SPLIT_A = {"A1": [1, 2, 3], "A2": [4, 5, 6, 17]}
 
 
 def analyse(path=TABLE2_CSV, groups=None):
@@ -132,7 +125,7 @@ def plot(results, F, D, rows):
         ax.set_xlim(0, None)
         ax.set_xlabel("load |F| (N)")
         ax.set_ylabel("displacement (mm)")
-        ax.set_title(f"seed Table 2, group {g.name} (rows {','.join(map(str, g.rows))})")
+        ax.set_title(f"the paper's Table 2, group {g.name} (rows {','.join(map(str, g.rows))})")
         ax.legend(fontsize=7)
     return fig
 
@@ -148,7 +141,8 @@ def run(*, json_out=None, plot_out=None, data=None):
     if plot_out is not None:
         save_figure_atomic(plot(results, F, D, rows), plot_out, dpi=100)
     if json_out != "-":
-        print("seed Table 2: linearity in load, offset at zero load, repeatability (grouping: see --help)")
+        print("the paper's Table 2: linearity in load, offset at zero load, repeatability (grouping of the rows by pose: "
+              "see `robstiff table2 --help`)")
         print(markdown(results))
         print()
         print("offset at zero load along the load direction (positive: the tool moved further along the load "

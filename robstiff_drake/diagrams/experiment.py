@@ -11,6 +11,7 @@ from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.path import Line
 from robstiff_drake.model.spindle import spindle_power_W, spindle_torque_Nm
 from robstiff_drake.model.surface import envelope_heights, envelope_heights_at, surface_error_stats
+from robstiff_drake.progress import simulation_bar, time_monitor
 
 # How long after the path ends the simulation goes on (s): lets the last
 # correction settle; the scan only covers the material anyway.
@@ -213,14 +214,20 @@ def zone_stats(cell, scans):
     return out
 
 
-def run_cut(sc, robot, *, compensation=True, cell=None):
-    """Simulate scenario ``sc`` once; return logs, scans and statistics."""
+def run_cut(sc, robot, *, compensation=True, cell=None, progress=False):
+    """Simulate scenario ``sc`` once; return logs, scans and statistics.
+    ``progress``: a bar over simulated time on stderr (False: off; None: on
+    a terminal; True: forced; see robstiff_drake/progress.py)."""
     cell = cell or build_milling_cell(sc, robot, compensation=compensation)
     sim = make_simulator(cell)
     t_end = cell.path.duration_s + RUN_OUT_S
-    t0 = time.perf_counter()
-    sim.AdvanceTo(t_end)
-    wall = time.perf_counter() - t0
+    with simulation_bar(t_end, progress, "compensated" if compensation else "uncompensated") as bar:
+        monitor = time_monitor(bar, t_end)
+        if monitor is not None:
+            sim.set_monitor(monitor)
+        t0 = time.perf_counter()
+        sim.AdvanceTo(t_end)
+        wall = time.perf_counter() - t0
     root = sim.get_context()
     logs = {name: signal.read(root) for name, signal in cell.loggers.items()}
     logs["tool_wrench"] = tool_wrench_log(cell, logs)

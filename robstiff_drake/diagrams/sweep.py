@@ -10,7 +10,6 @@ import itertools
 import math
 import os
 import signal
-import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -18,6 +17,7 @@ from concurrent.futures.process import BrokenProcessPool
 import numpy as np
 
 from robstiff_drake.errors import InputError
+from robstiff_drake.progress import progress as progress_bar
 
 # A run counts as diverged past these (the loop blew up or saturated for good).
 DIVERGED_SURFACE_MM = 3.0
@@ -105,33 +105,16 @@ def run_one(scenario_path, combo, plant_step_ms=None, predict=True, robot_spec=N
     return row
 
 
-class Progress:
-    """A one-line progress bar on stderr (only on a terminal unless forced)."""
-
-    def __init__(self, total, enabled=None):
-        self.total, self.done, self.t0 = total, 0, time.perf_counter()
-        self.enabled = sys.stderr.isatty() if enabled is None else enabled
-
-    def step(self):
-        self.done += 1
-        if not self.enabled:
-            return
-        width = 30
-        filled = int(width * self.done / self.total)
-        elapsed = time.perf_counter() - self.t0
-        eta = elapsed / self.done * (self.total - self.done)
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} runs, "
-                         f"{elapsed:.0f} s, about {eta:.0f} s left ")
-        if self.done == self.total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
-
-
 def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step_ms=None, progress=None,
               predict=True, robot_spec=None):
     """All runs, in the order of ``combos`` (``robot_spec``: --robot, or None
     for the scenario's robot)."""
-    bar = Progress(len(combos), progress)
+    with progress_bar(len(combos), progress, "sweep", unit="run") as bar:
+        return _run_all(scenario_path, combos, bar, workers=workers, scheduler=scheduler,
+                        plant_step_ms=plant_step_ms, predict=predict, robot_spec=robot_spec)
+
+
+def _run_all(scenario_path, combos, bar, *, workers, scheduler, plant_step_ms, predict, robot_spec):
     rows = [None] * len(combos)
     if scheduler:
         try:
@@ -150,7 +133,7 @@ def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step
 
             for f in dask_completed(futures):
                 rows[index[f.key]] = f.result()
-                bar.step()
+                bar.update(1)
         finally:
             client.close()
         return rows
@@ -158,7 +141,7 @@ def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step
     if workers == 1:
         for i, c in enumerate(combos):
             rows[i] = run_one(str(scenario_path), c, plant_step_ms, predict, robot_spec)
-            bar.step()
+            bar.update(1)
         return rows
     pool = ProcessPoolExecutor(max_workers=workers, initializer=_worker_init)
     try:
@@ -170,7 +153,7 @@ def run_sweep(scenario_path, combos, *, workers=None, scheduler=None, plant_step
                 rows[i] = f.result()
             except BrokenProcessPool:  # a worker died (killed, out of memory): its run and the rest fail
                 break
-            bar.step()
+            bar.update(1)
     finally:
         _stop(pool)
     for i, c in enumerate(combos):

@@ -31,6 +31,7 @@ from scipy import special
 
 from robstiff_drake.identification.cross_validation import clustered_wald, rows_to_eq
 from robstiff_drake.identification.terms import GAUSS_NEWTON, GRID, fit_model, held_out, rms_mm, term_columns
+from robstiff_drake.progress import progress
 
 ALPHA_ROUND = 0.01
 MIN_GAIN = {"library": 0.10, "dictionary": 0.05}
@@ -234,7 +235,12 @@ def search(ctx, rows, folds, terms_by_name, groups):
         if not pool:
             break
         need = (1 - min(MIN_GAIN.values())) * state.rms_mm
-        results = [evaluate(ctx, rows, folds, gidx, state, t, need) for t in pool]
+        # a bar on a terminal (off elsewhere and with --quiet): a round tries every term of the pool
+        with progress(len(pool), None, f"diagnosis, round {len(rounds) + 1}", unit="term", leave=False) as bar:
+            results = []
+            for t in pool:
+                results.append(evaluate(ctx, rows, folds, gidx, state, t, need))
+                bar.update(1)
         rounds.append(results)
         m = sum(r.status == "ok" for r in results)
         n_tried += m

@@ -1,0 +1,84 @@
+"""Progress bars and informational lines, and the global ``--quiet``.
+
+``progress(total, enabled, desc)`` is a tqdm bar on stderr: shown when
+stderr is a terminal (``enabled=None``), forced on with ``enabled=True``
+(a command's ``--progress``) or off with ``enabled=False``; ``--quiet``
+(``set_quiet(True)``) turns every bar off, forced or not.  ``info(text)``
+prints an informational line (what was written where) unless quiet.
+Warnings (``robstiff: warning: ...``) and errors are never silenced, and
+neither is a command's result.
+"""
+
+import sys
+
+_QUIET = False
+
+
+def set_quiet(quiet):
+    """Set the global ``--quiet``; returns the previous setting."""
+    global _QUIET
+    previous, _QUIET = _QUIET, bool(quiet)
+    return previous
+
+
+def quiet():
+    return _QUIET
+
+
+def bar_enabled(enabled=None):
+    """Whether a bar shows: never when quiet; else ``enabled`` when given,
+    else only when stderr is a terminal."""
+    if _QUIET:
+        return False
+    if enabled is not None:
+        return bool(enabled)
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):  # replaced or closed stderr
+        return False
+
+
+def progress(total, enabled=None, desc="", unit="it", **kwargs):
+    """A tqdm progress bar on stderr over ``total`` steps (see the module
+    docstring for when it shows); a no-op bar when it does not.  Use as
+    ``with progress(n, enabled, "runs") as bar: ... bar.update(1)``."""
+    from tqdm import tqdm
+
+    kwargs.setdefault("leave", True)
+    return tqdm(total=total, desc=desc or None, unit=unit, disable=not bar_enabled(enabled), file=sys.stderr,
+                dynamic_ncols=True, **kwargs)
+
+
+def simulation_bar(t_end_s, enabled=None, desc="simulating"):
+    """A ``progress`` bar over simulated time, 0 to ``t_end_s`` (s)."""
+    return progress(round(float(t_end_s), 3), enabled, desc, unit="s",
+                    bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s simulated "
+                               "[{elapsed}<{remaining}]")
+
+
+def time_monitor(bar, t_end_s, steps=200):
+    """A Drake Simulator monitor that moves ``bar`` (a ``simulation_bar``)
+    with the simulated time, in ``steps`` increments up to ``t_end_s`` (s);
+    None when the bar is disabled (no Python call per simulator step then)."""
+    if bar.disable:
+        return None
+    from pydrake.systems.framework import EventStatus
+
+    t_end_s = float(t_end_s)
+    quantum = t_end_s / steps
+    state = {"shown": 0.0}
+
+    def monitor(context):
+        t = min(context.get_time(), t_end_s)
+        if t - state["shown"] >= quantum or (t >= t_end_s and t > state["shown"]):
+            bar.update(round(t, 3) - round(state["shown"], 3))
+            state["shown"] = t
+        return EventStatus.Succeeded()
+
+    return monitor
+
+
+def info(text, file=None):
+    """Print an informational line (stdout unless ``file``), unless quiet."""
+    if not _QUIET:
+        print(text, file=file or sys.stdout)
