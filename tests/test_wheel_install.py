@@ -13,6 +13,7 @@ interpreter's packages instead), which does not run the editable install's
 import hook, so ``robstiff_drake`` can only come from the wheel.
 """
 
+import json
 import os
 import shutil
 import site
@@ -66,7 +67,12 @@ def test_a_built_wheel_runs_the_demo_from_a_clean_folder(tmp_path):
     assert run([robstiff, "--version"], clean, env).strip() == "robstiff-drake 0.1.0"
     assert "r2000ic_165f" in run([robstiff, "robots"], clean, env)
     out = run([robstiff, "demo", "--out", "demo"], clean, env)
-    assert "uncompensated   +0.476" in out and "compensated     +0.007" in out, out
+    rep = json.loads((clean / "demo" / "demo.json").read_text())
+    unc, comp = rep["surface_error_mm"]["uncompensated"], rep["surface_error_mm"]["compensated"]
+    # the installed package found its scenario, robot and cutting data: the
+    # block test's result (as test_cli's demo test bounds it)
+    assert 0.15 <= unc["mean"] <= 0.5 and abs(comp["mean"]) <= 0.02, out
+    assert f"{unc['mean']:+.3f}" in out and f"{comp['mean']:+.3f}" in out, out
     assert (clean / "demo" / "demo.json").is_file() and (clean / "demo" / "surface_error.png").is_file()
     assert sorted(p.name for p in clean.iterdir()) == ["demo"]  # nothing else written in the working folder
     assert list((tmp_path / "cache").glob("irb6400-*.urdf"))  # the URDF went to the cache
