@@ -1,5 +1,5 @@
 """``robstiff kg-study``: is the CCT term K_g negligible for the IRB6400, as
-the seed claims?  For a grid of machining poses (tool point in the workspace
+the paper claims?  For a grid of machining poses (tool point in the workspace
 box of the robot file, spindle axis down) and two loads, the relative change
 that K_g makes to the predicted tool-point deflection, and how far each linear
 model is from the large-deflection equilibrium of the same joint springs."""
