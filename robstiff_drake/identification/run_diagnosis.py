@@ -51,16 +51,24 @@ from scipy import signal
 from scipy.optimize import least_squares
 
 from robstiff_drake.errors import InputError
+from robstiff_drake.identification import arm_response
 from robstiff_drake.identification import run_files as rf
 from robstiff_drake.identification import run_verification as rv
 from robstiff_drake.identification import scan_statistics as ss
+from robstiff_drake.identification.arm_response import SEGMENT_S, STEP_S, delayed
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
-from robstiff_drake.model.transmission import TAU_B_NM, twist
+from robstiff_drake.model.servo import ServoParameters
+from robstiff_drake.model.transmission import static_deflection, twist
 from robstiff_drake.model.wrench_frames import sensor_to_tool_base
 
 SMOOTH_HZ = 10.0  # ASSUMPTION: the arm's first modes are 5-10 Hz (this robot: 4.9, 8.6, 11.2 Hz)
-GRID_HZ = 200.0  # resampling rate after the smoothing (nothing faster is left)
+GRID_EVERY = 5  # the fit's grid: every 5th step of the arm's response (200 Hz; nothing faster is left)
+GRID_HZ = 1.0 / (GRID_EVERY * STEP_S)
+# ASSUMPTION: the arm's first mode has 10 % of critical damping (modal tests of large industrial arms
+# report 5-15 %); a settings file does not state it.  It sets how long the arm rings after the path
+# accelerates (the arm's own motion error), not the size of the ringing's first swing.
+DAMPING_RATIO = 0.10
 ALPHA = 1e-3  # per test; about 10 causes are tried per round
 SIZE_FACTOR = 1.0  # a named cause changes the surface by at least this many noise floors (RMS)
 MAX_CAUSES = 2
@@ -73,17 +81,26 @@ ALIKE = 1.0  # causes whose mean-square residuals differ by less than ALIKE x fl
 
 @dataclass
 class RunSignals:
-    """A run's signals on a common time grid (SI units)."""
+    """A run's signals on a common time grid, the arm's time: at t the arm is
+    meant to be at the program's angles of t - the interpolator's dead time
+    (SI units)."""
 
     t_s: np.ndarray
-    q_nominal_rad: np.ndarray  # (n, 6) the program's angles: logged angles minus the correction
-    correction_rad: np.ndarray  # (n, 6) smoothed
+    q_nominal_rad: np.ndarray  # (n, 6) where the arm is meant to be: the program's angles, delayed
+    correction_rad: np.ndarray  # (n, 6) the logged correction, smoothed (as the compensator sent it)
     tool_wrench: np.ndarray  # (n, 6) process load at the tool point, base frame, smoothed
-    tau_Nm: np.ndarray  # (n, 6)
+    tau_Nm: np.ndarray  # (n, 6) J^T W: the process load's generalized force
+    tau_static_Nm: np.ndarray  # (n, 6) the arm's weight on the gears (the controller's gravity model)
+    tau_inertia_Nm: np.ndarray  # (n, 6) M q'' + c(q, q') along the program
+    tau_touch_off_Nm: np.ndarray  # (6,) the weight on the gears at the first path point (touch-off)
     Jz: np.ndarray  # (n, 6) the tool's vertical Jacobian row (m/rad)
     p_nominal_m: np.ndarray  # (n, 3) the program's tool point
     compliance: np.ndarray  # (6,) the model's, rad/(N*m)
-    model_dq_rad: np.ndarray  # (n, 6) the deflection the compensator's model predicts
+    model_dq_rad: np.ndarray  # (n, 6) the deflection the compensator's model predicts (its own law)
+    dz_motion_m: np.ndarray  # (n,) the arm's own motion error along the program (known, not a cause)
+    dz_loop_m: np.ndarray  # (n,) the loop's tracking error the logs predict (the plant taken as the model)
+    servo: ServoParameters
+    damping_ratio: float
 
 
 def _fill_dropouts(t, w, path):
@@ -111,10 +128,25 @@ def _resample(t_new, t, x):
     return np.column_stack([np.interp(t_new, t, x[:, j]) for j in range(x.shape[1])])
 
 
-def run_signals(files, robot):
-    """RunSignals from a run's logs and settings (robot: the DH table)."""
+def servo_of(settings):
+    """The robot controller's servo of a settings file (InputError when the
+    file does not state it)."""
+    if settings.servo is None:
+        raise InputError(f"{settings.path}: compensator: no 'servo' section; diagnose-run needs the robot "
+                         "controller's servo settings (" + ", ".join(rf.SERVO_KEYS) + ") to know when a "
+                         "correction reaches the motor (docs/run_files.md)")
+    v = settings.servo
+    return ServoParameters(position_gain_per_s=v["position_gain_per_s"],
+                           velocity_bandwidth_hz=v["velocity_bandwidth_hz"],
+                           velocity_feedforward=v["velocity_feedforward"],
+                           interpolator_delay_s=v["interpolator_delay_ms"] / 1e3)
+
+
+def _process_wrench(files, robot):
+    """(t (s), process wrench at the tool point, base frame, smoothed) over
+    the joint log's span."""
     s, wl, jl = files.settings, files.wrench, files.joints
-    t_j, q_j, c_j = jl.t_s, robot.joint_rad(jl.q_deg), robot.model_delta_rad(jl.correction_deg)
+    t_j = jl.t_s
     inside = (wl.t_s >= t_j[0]) & (wl.t_s <= t_j[-1])
     if inside.sum() < 10:
         raise InputError(f"{wl.path}: fewer than 10 readings within the joint log's time span "
@@ -122,25 +154,99 @@ def run_signals(files, robot):
     t = wl.t_s[inside]
     w = _fill_dropouts(t, wl.wrench[inside], wl.path)
     rate = 1.0 / float(np.median(np.diff(t)))
-    q = _resample(t, t_j, q_j)
-    held = np.clip(np.searchsorted(t_j, t, side="right") - 1, 0, len(t_j) - 1)
-    corr = c_j[held]  # the servos get the correction held from one controller tick to the next
+    q = _resample(t, t_j, robot.joint_rad(jl.q_deg))  # the sensor turns with the arm
     cal = PayloadCalibration(**s.payload)
     arrays = cal.arrays()
     tool = np.asarray(s.tool_point_mm, dtype=float) / 1e3
     R6 = kin.frames(robot.dh, q)[:, 6, :3, :3]
     W = np.array([sensor_to_tool_base(wk - payload_wrench(R, cal, arrays), R, tool, arrays[4])
                   for wk, R in zip(w, R6)])
-    W, corr = _lowpass(W, rate), _lowpass(corr, rate)
-    grid = np.arange(t[0], t[-1], 1.0 / GRID_HZ)
-    W, corr = _resample(grid, t, W), _resample(grid, t, corr)
-    q_nom = _resample(grid, t_j, q_j - c_j)
-    J = kin.jacobian(robot.dh, q_nom, tool)
-    tau = np.einsum("nrj,nr->nj", J, W)
+    return t, _lowpass(W, rate), rate
+
+
+def _segments(n, step_s):
+    """(segment index of each of n steps, first step of each segment)."""
+    per = max(1, int(round(SEGMENT_S / step_s)))
+    seg = np.arange(n) // per
+    return seg, np.arange(0, n, per)
+
+
+def run_signals(files, robot, arm):
+    """RunSignals from a run's logs and settings.  ``robot``: the DH table;
+    ``arm``: the controller's model of the arm (diagrams/run_arm.ArmModel:
+    gravity and inertia torques, mass matrix at a pose)."""
+    s, jl = files.settings, files.joints
+    servo = servo_of(s)
+    t_j, q_j, c_j = jl.t_s, robot.joint_rad(jl.q_deg), robot.model_delta_rad(jl.correction_deg)
+    t, W, rate = _process_wrench(files, robot)
     c = 1.0 / np.asarray(s.joint_stiffness_Nm_per_rad, dtype=float)
-    # what the compensator predicts: its model's twist under the process load (as DeflectionPrediction)
-    model_dq = twist(tau, c, s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
-    return RunSignals(grid, q_nom, corr, W, tau, J[:, 2, :], kin.tool_position(robot.dh, q_nom, tool), c, model_dq)
+    tool = np.asarray(s.tool_point_mm, dtype=float) / 1e3
+    # the fine grid of the arm's response
+    h = STEP_S
+    tf = np.arange(t_j[0], t_j[-1], h)
+    lag = int(round(servo.interpolator_delay_s / h))
+    q_prog = _resample(tf, t_j, q_j - c_j)
+    q_arm = delayed(q_prog, lag)  # where the arm is meant to be
+    held = np.clip(np.searchsorted(t_j, tf, side="right") - 1, 0, len(t_j) - 1)
+    corr_servo = delayed(c_j[held], lag)  # the correction as the servo gets it
+    J = kin.jacobian(robot.dh, q_arm, tool)
+    W_f = _resample(tf, t, W)
+    tau_f = np.einsum("nrj,nr->nj", J, W_f)
+    # the controller's gravity model's twist along the program (its rate gets no feed-forward)
+    g_f = delayed(_resample(tf, t_j, arm.gravity_torques(q_j - c_j)), lag)
+    g_rate = np.gradient(g_f, h, axis=0)
+    path = arm_response.path_terms(q_arm, h, servo.velocity_feedforward, g_f * c)
+    # the fitting grid: every GRID_EVERY-th step
+    k = np.arange(0, len(tf), GRID_EVERY)
+    grid, q_nom, Jg = tf[k], q_arm[k], J[k]
+    v_f = np.gradient(q_arm, h, axis=0)
+    v, a = v_f[k], np.gradient(v_f, h, axis=0)[k]
+    tau = tau_f[k]
+    g = arm.gravity_torques(q_nom)
+    g0 = arm.gravity_torques(q_j[:1] - c_j[:1])[0]
+    tau_i = arm.inertia_torques(q_nom, v, a)
+    velocity_terms = _resample(tf, grid, arm.inertia_torques(q_nom, v, np.zeros_like(a)))
+    seg, firsts = _segments(len(tf), h)
+    per = firsts[1] - firsts[0] if len(firsts) > 1 else len(tf)
+    full, bare, betas, inertia_maps = [], [], np.empty(len(tf)), []
+    for n0 in firsts:
+        i = min(n0 + per // 2, len(tf) - 1)
+        M, G, beta, _, L = arm.dynamics_at(q_arm[i], 1.0 / c, DAMPING_RATIO)
+        full.append(arm_response.arm_matrices(M, 1.0 / c, beta, G, servo, h))
+        # the sensor's reading holds the payload's inertia: the load it measures drives the arm without it
+        bare.append(arm_response.arm_matrices(M + J[i].T @ L, 1.0 / c, beta, G, servo, h))
+        betas[n0:n0 + per] = beta
+        inertia_maps.append(L)
+    motion_torque = betas[:, None] * g_rate - velocity_terms
+    motion = arm_response.responses(full, seg, [(motion_torque, None, path)])[..., 0]
+    acc = np.gradient(np.gradient(q_arm + motion, h, axis=0), h, axis=0)
+    W_cut = W_f - np.einsum("nrj,nj->nr", np.array(inertia_maps)[seg], acc)
+    tau_cut = np.einsum("nrj,nr->nj", J, W_cut)
+    dev = arm_response.responses(bare, seg, [(tau_cut, None, None), (None, corr_servo, None)])
+    dz = np.einsum("nj,njk->nk", J[:, 2, :], np.concatenate([dev, motion[..., None]], axis=2))
+    corr = _resample(grid, t_j, _lowpass(c_j, 1.0 / float(np.median(np.diff(t_j)))))
+    # what the compensator predicts: its model's law under the process load (model/compensator.DeflectionModel)
+    model_dq = static_deflection(g, tau, c, s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
+    # the loop's tracking error with the plant as the model believes it: its stiffness (dynamic), and its
+    # lost motion and coupling (quasi-static, the law of the total torque)
+    believed = gear_law_deviation(g, g0, tau_i, tau, s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
+    dz_loop = dz[k, 0] + dz[k, 1] + np.einsum("nj,nj->n", Jg[:, 2, :], believed)
+    return RunSignals(grid, q_nom, corr, W_f[k], tau, g, tau_i, g0, Jg[:, 2, :],
+                      kin.tool_position(robot.dh, q_nom, tool), c, model_dq, dz[k, 2], dz_loop, servo,
+                      DAMPING_RATIO)
+
+
+def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost_motion_rad, coupling_c23):
+    """(n, 6) rad: how far the links move beyond the linear gears' deflection
+    (the controller's gravity model and the compensator's stiffness cover
+    that) from the gears' lost motion and 2-3 coupling (model/transmission.py),
+    of the total torque the gears carry: the weight (its change from the
+    touch-off, where the work offset was set), the inertia and the process
+    load (a generalized force on the links: the gears carry minus it)."""
+    carried = tau_static + tau_inertia - tau_process
+    zero = np.zeros(6)
+    return -(twist(carried, zero, lost_motion_rad, coupling_c23) - twist(tau_touch_off, zero, lost_motion_rad,
+                                                                          coupling_c23))
 
 
 @dataclass
