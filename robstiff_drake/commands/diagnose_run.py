@@ -123,7 +123,9 @@ def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_y
     verify = list(verify or [])
     check_outputs(inputs=[run_dir, *verify], files={"--json": json_out}, folders={"--out": out})
     robot = run_robot(run_dir, robot_yaml)
-    rep, extras = diagnose_run(run_dir, robot, noise_mm=noise_mm, verify=verify)
+    from robstiff_drake.diagrams.run_arm import ArmModel
+
+    rep, extras = diagnose_run(run_dir, robot, ArmModel, noise_mm=noise_mm, verify=verify)
     warnings = Warnings()
     warnings.extend_from(rep["warnings"])
     rep["warnings"] = list(warnings)

@@ -26,7 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.diagrams.scenario import check_scenario, model_stiffness, payload_calibration, robot_spec
+from robstiff_drake.diagrams.scenario import (
+    check_scenario,
+    model_stiffness,
+    payload_calibration,
+    plant_step_s,
+    robot_spec,
+)
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification import run_files as rf
 
@@ -59,8 +65,16 @@ def compensator_settings(sc, robot):
 
 def servo_settings(sc):
     """The robot controller's servo of scenario ``sc`` as compensator.yaml's
-    ``servo`` section (run_files.SERVO_KEYS)."""
-    return {k: float(getattr(sc.servo, k)) for k in rf.SERVO_KEYS}
+    ``servo`` section (run_files.SERVO_KEYS).  ``interpolator_delay_ms`` is
+    the dead time from a joint target the compensator sends at a controller
+    tick to the servo acting on it, as the simulated station has it: the
+    interpolator's hold takes the target at its next period (a discrete
+    input changed at the same instant is seen one period later), its delay
+    line holds it ``servo.interpolator_delay_ms``, and the servo's discrete
+    update adds one plant step."""
+    out = {k: float(getattr(sc.servo, k)) for k in rf.SERVO_KEYS}
+    out["interpolator_delay_ms"] += float(sc.servo.interpolator_period_ms) + plant_step_s(sc) * 1e3
+    return out
 
 
 def _robot_spec_text(sc, robot):
@@ -129,6 +143,11 @@ def cell_logs(result):
     wrench = rf.WrenchLog(t[keep] - dt, w[keep])
     tc, corr = result.logs["correction"]
     cell = result.cell
+    # a logger sees the state before the discrete updates at its own instant: the correction it records
+    # at t was computed one controller period earlier, and sent to the robot controller then
+    tc = tc - cell.scenario.controller.period_ms / 1e3
+    keep = tc >= -1e-12
+    tc, corr = np.maximum(tc[keep], 0.0), corr[keep]
     q_ref = np.column_stack([np.interp(tc, cell.q_ref_times, cell.q_ref[:, j]) for j in range(6)])
     corr = corr if result.compensation else np.zeros_like(corr)
     robot = cell.robot

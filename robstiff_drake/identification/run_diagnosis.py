@@ -62,7 +62,15 @@ from robstiff_drake.model.servo import ServoParameters
 from robstiff_drake.model.transmission import static_deflection, twist
 from robstiff_drake.model.wrench_frames import sensor_to_tool_base
 
-SMOOTH_HZ = 10.0  # ASSUMPTION: the arm's first modes are 5-10 Hz (this robot: 4.9, 8.6, 11.2 Hz)
+# ASSUMPTION: the sensor's reading is smoothed (zero phase) before it drives the arm's model, over the
+# time the cutter takes to move SMOOTH_MM at the program's feed (60 mm/s: 10 Hz; 20 mm/s: 3.3 Hz; within
+# SMOOTH_HZ): what the cut puts on the arm changes with the cutter's engagement, over millimetres of travel
+# (the steepest change, as the cutter leaves a face, over a few), while the sensor's noise, driven through
+# the model's lightly damped first mode, would leave dips of a few micrometres that the face's envelope
+# (the lowest the cutter went over its whole diameter) turns into a bias.  The correction is used as
+# logged: it moved the arm.
+SMOOTH_MM = 6.0
+SMOOTH_HZ = (2.0, 10.0)
 GRID_EVERY = 5  # the fit's grid: every 5th step of the arm's response (200 Hz; nothing faster is left)
 GRID_HZ = 1.0 / (GRID_EVERY * STEP_S)
 # ASSUMPTION: the arm's first mode has 10 % of critical damping (modal tests of large industrial arms
@@ -101,6 +109,7 @@ class RunSignals:
     dz_loop_m: np.ndarray  # (n,) the loop's tracking error the logs predict (the plant taken as the model)
     servo: ServoParameters
     damping_ratio: float
+    smooth_hz: float  # the load's smoothing
 
 
 def _fill_dropouts(t, w, path):
@@ -114,11 +123,11 @@ def _fill_dropouts(t, w, path):
     return w
 
 
-def _lowpass(x, rate_hz):
-    """Zero-phase low-pass at SMOOTH_HZ along axis 0 (as is when too short)."""
-    if SMOOTH_HZ >= 0.5 * rate_hz:
+def _lowpass(x, rate_hz, cutoff_hz):
+    """Zero-phase low-pass at ``cutoff_hz`` along axis 0 (as is when too short)."""
+    if cutoff_hz >= 0.5 * rate_hz:
         return x
-    b, a = signal.butter(2, SMOOTH_HZ, fs=rate_hz)
+    b, a = signal.butter(2, cutoff_hz, fs=rate_hz)
     if x.shape[0] <= 3 * max(len(a), len(b)):
         return x
     return signal.filtfilt(b, a, x, axis=0)
@@ -142,9 +151,19 @@ def servo_of(settings):
                            interpolator_delay_s=v["interpolator_delay_ms"] / 1e3)
 
 
-def _process_wrench(files, robot):
-    """(t (s), process wrench at the tool point, base frame, smoothed) over
-    the joint log's span."""
+def smoothing_hz(files, robot):
+    """The cutoff (Hz) of the load's smoothing: the program's feed (its
+    tool point's speed, 90th percentile) over SMOOTH_MM, within SMOOTH_HZ."""
+    jl = files.joints
+    tool = np.asarray(files.settings.tool_point_mm, dtype=float) / 1e3
+    p = kin.tool_position(robot.dh, robot.joint_rad(jl.q_deg) - robot.model_delta_rad(jl.correction_deg), tool)
+    speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / np.diff(jl.t_s)
+    return float(np.clip(np.percentile(speed, 90) * 1e3 / SMOOTH_MM, *SMOOTH_HZ))
+
+
+def _process_wrench(files, robot, cutoff_hz):
+    """(t (s), process wrench at the tool point, base frame, smoothed at
+    ``cutoff_hz``) over the joint log's span."""
     s, wl, jl = files.settings, files.wrench, files.joints
     t_j = jl.t_s
     inside = (wl.t_s >= t_j[0]) & (wl.t_s <= t_j[-1])
@@ -161,7 +180,7 @@ def _process_wrench(files, robot):
     R6 = kin.frames(robot.dh, q)[:, 6, :3, :3]
     W = np.array([sensor_to_tool_base(wk - payload_wrench(R, cal, arrays), R, tool, arrays[4])
                   for wk, R in zip(w, R6)])
-    return t, _lowpass(W, rate), rate
+    return t, _lowpass(W, rate, cutoff_hz), rate
 
 
 def _segments(n, step_s):
@@ -178,7 +197,8 @@ def run_signals(files, robot, arm):
     s, jl = files.settings, files.joints
     servo = servo_of(s)
     t_j, q_j, c_j = jl.t_s, robot.joint_rad(jl.q_deg), robot.model_delta_rad(jl.correction_deg)
-    t, W, rate = _process_wrench(files, robot)
+    cutoff = smoothing_hz(files, robot)
+    t, W, rate = _process_wrench(files, robot, cutoff)
     c = 1.0 / np.asarray(s.joint_stiffness_Nm_per_rad, dtype=float)
     tool = np.asarray(s.tool_point_mm, dtype=float) / 1e3
     # the fine grid of the arm's response
@@ -224,7 +244,7 @@ def run_signals(files, robot, arm):
     tau_cut = np.einsum("nrj,nr->nj", J, W_cut)
     dev = arm_response.responses(bare, seg, [(tau_cut, None, None), (None, corr_servo, None)])
     dz = np.einsum("nj,njk->nk", J[:, 2, :], np.concatenate([dev, motion[..., None]], axis=2))
-    corr = _resample(grid, t_j, _lowpass(c_j, 1.0 / float(np.median(np.diff(t_j)))))
+    corr = _resample(grid, t_j, _lowpass(c_j, 1.0 / float(np.median(np.diff(t_j))), cutoff))
     # what the compensator predicts: its model's law under the process load (model/compensator.DeflectionModel)
     model_dq = static_deflection(g, tau, c, s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
     # the loop's tracking error with the plant as the model believes it: its stiffness (dynamic), and its
@@ -233,7 +253,7 @@ def run_signals(files, robot, arm):
     dz_loop = dz[k, 0] + dz[k, 1] + np.einsum("nj,nj->n", Jg[:, 2, :], believed)
     return RunSignals(grid, q_nom, corr, W_f[k], tau, g, tau_i, g0, Jg[:, 2, :],
                       kin.tool_position(robot.dh, q_nom, tool), c, model_dq, dz[k, 2], dz_loop, servo,
-                      DAMPING_RATIO)
+                      DAMPING_RATIO, cutoff)
 
 
 def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost_motion_rad, coupling_c23):
@@ -268,40 +288,57 @@ class Candidate:
 
 
 def loop_lag_ms(sig):
-    """How far (ms) the correction's vertical effect lags the model's
-    deflection: the shift that best cancels them (0-500 ms)."""
+    """How far (ms) the correction lags the model's deflection where it acts,
+    at the motor: the compensator's own lag (the shift, 0-500 ms, that best
+    cancels the correction's vertical effect and the deflection's) plus the
+    servo's (the interpolator's dead time and the position loop's 1 / Kp)."""
     corr_z = np.einsum("nj,nj->n", sig.Jz, sig.correction_rad)
     defl_z = np.einsum("nj,nj->n", sig.Jz, sig.model_dq_rad)
     if not np.any(defl_z):
-        return 0.0
+        return sig.servo.low_frequency_lag_s * 1e3
     shifts = np.arange(0.0, 0.5, 1.0 / GRID_HZ)
     cost = [np.sum((corr_z + np.interp(sig.t_s - d, sig.t_s, defl_z)) ** 2) for d in shifts]
-    return float(shifts[int(np.argmin(cost))] * 1e3)
+    return float((shifts[int(np.argmin(cost))] + sig.servo.low_frequency_lag_s) * 1e3)
+
+
+def _along(sig, dq):
+    """The tool's vertical deviation (m, (n,)) of joint deviations dq (n, 6) rad."""
+    return np.einsum("nj,nj->n", sig.Jz, dq)
 
 
 def candidates(sig):
     """The candidate causes' columns and parameters (see the module docstring)."""
-    Jz, tau, c = sig.Jz, sig.tau_Nm, sig.compliance
-    lag = np.einsum("nj,nj->n", Jz, sig.correction_rad + sig.model_dq_rad)
-    # ASSUMPTION: a <= 1.5.  The arm's own response adds some lag to the loop's (fits of the simulated
-    # cases give a = 1.1-1.4); a tracking error that fits only when scaled further is not this one
-    out = [Candidate("loop_lag", lag[:, None], [Param("a", "x predicted", 1.0, 0.0, 1.5, True)],
-                     "the loop's tracking error (its lag behind the force), as the logs predict it")]
+    Jz, c = sig.Jz, sig.compliance
+    # ASSUMPTION: a <= 1.5.  The prediction has the servo and the arm's modes; a tracking error that fits
+    # only when scaled beyond 1.5 is not this one
+    out = [Candidate("loop_lag", sig.dz_loop_m[:, None], [Param("a", "x predicted", 1.0, 0.0, 1.5, True)],
+                     "the loop's tracking error (the correction's lag behind the load, through the compensator, "
+                     "the interpolator and the servo), as the logs predict it")]
+    # what a joint's gear carries beyond the weight: the process load (a generalized force on the links,
+    # which the gear holds back) and the arm's inertia.  ASSUMPTION (as diagrams/station.py): the
+    # controller's gravity model is calibrated on the arm, so a stiffness error leaves the weight's part
+    # to it; lost motion and coupling are not in it (the touch-off takes their static part at the first
+    # path point only)
+    moved = sig.tau_Nm - sig.tau_inertia_Nm
     for j in range(6):
         # a joint softer (r > 0) or stiffer than the model; ASSUMPTION: -50 %..+100 % of the compliance
         # bounds what an identified model can be off by
-        out.append(Candidate(f"stiffness_error_j{j + 1}", (Jz[:, j] * c[j] * tau[:, j])[:, None],
+        out.append(Candidate(f"stiffness_error_j{j + 1}", (Jz[:, j] * c[j] * moved[:, j])[:, None],
                              [Param(f"r{j + 1}", "%", 100.0, -0.5, 1.0)],
                              f"joint {j + 1}'s compliance differs from the model's"))
+    law = (sig.tau_static_Nm, sig.tau_touch_off_Nm, sig.tau_inertia_Nm, sig.tau_Nm)
+    unit = np.eye(6)
     # ASSUMPTION: lost motion up to 300 urad (1 arcmin); industrial gears are specified at 10-60 urad
     out.append(Candidate("lost_motion",
-                         np.column_stack([Jz[:, j] * np.tanh(tau[:, j] / TAU_B_NM) for j in range(3)]),
-                         [Param(f"b{j + 1}", "urad", 1e6, 0.0, 3e-4, True) for j in range(3)],
-                         "lost motion (backlash) in joints 1-3 beyond the model's"))
+                         np.column_stack([_along(sig, gear_law_deviation(*law, unit[j], 0.0)) for j in range(6)]),
+                         [Param(f"b{j + 1}", "urad", 1e6, 0.0, 3e-4, True) for j in range(6)],
+                         "lost motion (backlash) in the gears beyond the model's, taken up where the total torque "
+                         "a gear carries (weight, inertia and cut) changes sign"))
     # ASSUMPTION: |c23| <= 0.3 sqrt(c2 c3); a positive-definite compliance needs < 1
     c23 = 0.3 * np.sqrt(c[1] * c[2])
-    out.append(Candidate("joint_coupling", (Jz[:, 1] * tau[:, 2] + Jz[:, 2] * tau[:, 1])[:, None],
-                         [Param("c23", "rad/(N*m)", 1.0, -c23, c23)], "a joint 2-3 coupling beyond the model's"))
+    out.append(Candidate("joint_coupling", _along(sig, gear_law_deviation(*law, None, 1.0))[:, None],
+                         [Param("c23", "rad/(N*m)", 1.0, -c23, c23)],
+                         "a joint 2-3 coupling beyond the model's (of the total torque)"))
     out.append(Candidate("setup_offset", -np.ones((len(sig.t_s), 1)), [Param("offset", "mm", 1e3, -1e-3, 1e-3)],
                          "a constant: tool length or workpiece height (+ = cut more)"))
     return out
@@ -309,8 +346,9 @@ def candidates(sig):
 
 class Envelope:
     """The face a deviation dz(t) leaves along the scan: each point is the
-    lowest the cutter's face (radius R, centred on the program's tool point)
-    went while covering it."""
+    lowest the cutter's face (radius R, centred on the program's tool point,
+    moved by the arm's own motion error ``sig.dz_motion_m``) went while
+    covering it."""
 
     def __init__(self, scan, sig, cutter_diameter_mm):
         x, y = scan.x_mm / 1e3, scan.y_mm / 1e3
@@ -321,8 +359,9 @@ class Envelope:
         cover = cover[self.covered]
         self.samples = np.flatnonzero(cover.any(axis=0))  # samples that cover a scan point
         cover = cover[:, self.samples]
-        self.Z = np.where(cover, p[self.samples, 2][None, :], np.inf)
-        self.base = self.Z.min(axis=1)
+        z = p[self.samples, 2][None, :]
+        self.base = np.where(cover, z, np.inf).min(axis=1)  # the programmed face
+        self.Z = np.where(cover, z + sig.dz_motion_m[self.samples][None, :], np.inf)
 
     def surface(self, dz):
         """Surface error (m, + = cut more) at the covered scan points."""
@@ -353,22 +392,22 @@ class Fit:
 
 def _solve(env, cols, params, y, starts):
     """Bounded least squares of surface(cols @ theta) = y from each start;
-    (theta SI, rss) of the best."""
-    scale = np.maximum(np.abs(cols[env.samples]).max(axis=0), 1e-300)
-    C = cols / scale
-    lo = np.array([p.lo for p in params]) * scale
-    hi = np.array([p.hi for p in params]) * scale
+    (theta SI, rss m^2) of the best.  Solved for each parameter's fraction
+    of its range and residuals in mm, so that the solver's tolerances (made
+    for numbers of order one) stop it at the optimum, not at the start."""
+    lo = np.array([p.lo for p in params])
+    span = np.array([p.hi for p in params]) - lo
 
-    def resid(th):
-        return env.surface(C @ th) - y
+    def resid(u):
+        return (env.surface(cols @ (lo + span * u)) - y) * 1e3
 
     best = None
     for start in starts:
-        x0 = np.clip(np.asarray(start, dtype=float) * scale, lo, hi)
-        sol = least_squares(resid, x0, bounds=(lo, hi), method="trf")
+        u0 = np.clip((np.asarray(start, dtype=float) - lo) / span, 0.0, 1.0)
+        sol = least_squares(resid, u0, bounds=(0.0, 1.0), method="trf", x_scale="jac")
         if best is None or sol.cost < best.cost:
             best = sol
-    return best.x / scale, float(2.0 * best.cost)
+    return lo + span * best.x, float(2.0 * best.cost) * 1e-6
 
 
 def fit_model(env, causes, keep, y, base=None):
@@ -580,11 +619,11 @@ def fixed_settings(settings, causes):
             changes.append(f"joint {j + 1}'s model stiffness {old:.4g} -> {k[j]:.4g} N*m/rad")
         elif name == "lost_motion":
             b = list(s.lost_motion_rad)
-            for j in range(3):
+            for j in range(6):
                 b[j] = b[j] + p.get(f"b{j + 1}", 0.0)
             s.lost_motion_rad = b
-            changes.append("lost motion in the model: " + ", ".join(f"{v * 1e6:.1f}" for v in b[:3])
-                           + " urad (joints 1-3)")
+            changes.append("lost motion in the model: " + ", ".join(f"{v * 1e6:.1f}" for v in b)
+                           + " urad (joints 1-6)")
         elif name == "joint_coupling":
             s.coupling_c23_rad_per_Nm = s.coupling_c23_rad_per_Nm + p["c23"]
             changes.append(f"joint 2-3 coupling in the model: {s.coupling_c23_rad_per_Nm:.3g} rad/(N*m)")
@@ -614,11 +653,13 @@ def _slug(name):
     return name.replace(" + ", "+")
 
 
-def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
+def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
     """Trace a run's surface error; with ``verify`` (run folders of
     verification cuts), decide between the candidate fixes from their scans.
-    Reads only the cell files (identification/run_files.py).  Returns
-    (report dict, extras: candidate settings texts, plan, data for the plot)."""
+    Reads only the cell files (identification/run_files.py); ``robot``: the
+    run's robot, ``arm``: the controller's model of it (a callable of the
+    robot: diagrams/run_arm.ArmModel).  Returns (report dict, extras:
+    candidate settings texts, plan, data for the plot)."""
     files = rf.load_run_files(run_dir)
     cuts = [rf.load_run_files(c, names=(rf.SETTINGS, rf.SCAN)) for c in verify]
     if noise_mm is not None and not (np.isfinite(noise_mm) and noise_mm > 0):
@@ -626,7 +667,8 @@ def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
     warnings = []
     settings, scan = files.settings, files.scan
     D = settings.cutter_diameter_mm
-    sig = run_signals(files, robot)
+    servo_of(settings)  # refused before any computation when the file does not state it
+    sig = run_signals(files, robot, arm(robot))
     env = Envelope(scan, sig, D)
     if env.covered.sum() < rf.MIN_ROWS[rf.SCAN]:
         raise InputError(f"{scan.path}: only {int(env.covered.sum())} scan points lie under the logged pass "
@@ -656,7 +698,7 @@ def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
         "n_scan_points": int(y.size), "scan_length_mm": ctx["length_mm"], "n_effective": n_eff,
         "thresholds": {"alpha": ALPHA, "size_factor": SIZE_FACTOR, "no_data_fraction": NO_DATA,
                        "alike_mean_square_floors": ALIKE, "explains_alpha": EXPLAIN_ALPHA,
-                       "max_causes": MAX_CAUSES, "smooth_hz": SMOOTH_HZ,
+                       "max_causes": MAX_CAUSES, "smooth_hz": sig.smooth_hz,
                        "candidates_per_round": len(cands),
                        "rule": (f"a cause is named when its nested F-test on the effective number of independent "
                                 f"scan points gives p < {ALPHA:g} ({len(cands)} candidates tried in the first "
