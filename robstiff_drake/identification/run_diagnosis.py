@@ -83,6 +83,7 @@ MAX_CAUSES = 2
 MIN_FLOOR_MM = 5e-4  # below half a micrometre a machining question is not decided
 EXPLAIN_ALPHA = 0.01  # the residual is consistent with the floor unless chi2 says otherwise at this level
 NO_DATA = 0.1  # of the floor: what a parameter must move the surface by over its range to be kept
+LOOP = "loop_lag"  # the loop's tracking error: always in the model, its fix offered when it matters
 NOISE_DISAGREE = 2.0  # warn when the stated and the estimated noise differ by more than this factor
 ALIKE = 1.0  # causes whose mean-square residuals differ by less than ALIKE x floor^2 are alike
 
@@ -277,6 +278,7 @@ class Param:
     lo: float  # bounds, SI
     hi: float
     lo_is_limit: bool = False  # lo is a physical limit (b >= 0), not a plausibility bound
+    nominal: float = 0.0  # SI: the value with nothing amiss (the loop's a: 1, as predicted)
 
 
 @dataclass
@@ -311,7 +313,7 @@ def candidates(sig):
     Jz, c = sig.Jz, sig.compliance
     # ASSUMPTION: a <= 1.5.  The prediction has the servo and the arm's modes; a tracking error that fits
     # only when scaled beyond 1.5 is not this one
-    out = [Candidate("loop_lag", sig.dz_loop_m[:, None], [Param("a", "x predicted", 1.0, 0.0, 1.5, True)],
+    out = [Candidate(LOOP, sig.dz_loop_m[:, None], [Param("a", "x predicted", 1.0, 0.0, 1.5, True, 1.0)],
                      "the loop's tracking error (the correction's lag behind the load, through the compensator, "
                      "the interpolator and the servo), as the logs predict it")]
     # what a joint's gear carries beyond the weight: the process load (a generalized force on the links,
@@ -415,7 +417,10 @@ def fit_model(env, causes, keep, y, base=None):
     the model this one extends (its causes first): its solution, with the
     new parameters at zero, is the first start, so the extension is never
     worse; the new parameters also start at a quarter and three quarters of
-    their range."""
+    their range, and each of these once more with the old parameters at
+    their nominal values (a fit through the face's envelope has local
+    minima: an old parameter that absorbed what the new one explains may
+    not come back from where the smaller model left it)."""
     fit = Fit(list(causes), [list(k) for k in keep], np.zeros(0), float(y @ y), -y)
     params = fit.params()
     if not params:
@@ -423,9 +428,12 @@ def fit_model(env, causes, keep, y, base=None):
     n_old = len(base.theta) if base is not None else 0
     head = base.theta if base is not None else np.zeros(0)
     new = params[n_old:]
-    starts = [np.r_[head, np.zeros(len(new))]]
-    for frac in (0.25, 0.75):
-        starts.append(np.r_[head, [p.lo + frac * (p.hi - p.lo) for p in new]])
+    heads = [head] + ([np.array([p.nominal for p in params[:n_old]])] if n_old else [])
+    starts = []
+    for h in heads:
+        starts.append(np.r_[h, [p.nominal for p in new]])
+        for frac in (0.25, 0.75):
+            starts.append(np.r_[h, [p.lo + frac * (p.hi - p.lo) for p in new]])
     fit.theta, fit.rss = _solve(env, fit.columns(), params, y, starts)
     fit.residual = env.surface(fit.columns() @ fit.theta) - y
     return fit
@@ -492,7 +500,11 @@ def try_cause(env, base, cand, y, floor_m, stats_ctx):
     n_eff, tau = ss.effective_points(fit.residual * 1e3, stats_ctx["segs"], stats_ctx["length_mm"],
                                      stats_ctx["cutter_mm"])
     F, p = ss.f_test(base.rss, fit.rss, len(keep), len(fit.theta), n, n_eff)
-    size = _rms(env.surface(fit.columns() @ fit.theta) - env.surface(fit.columns() @ _without(fit, len(causes) - 1)))
+    # what the cause adds: how far the face it fits moves from the smaller model's own fit (a cause that
+    # only trades places with one already in the model, as an offset and a stiffness error on a steady
+    # cut, moves it little however large its parameter)
+    before = env.surface(base.columns() @ base.theta) if base.causes else np.zeros(n)
+    size = _rms(env.surface(fit.columns() @ fit.theta) - before)
     mine = fit.theta[fit.slices()[-1]]
     ps = [cand.params[i] for i in keep]
     at_bound = [q.name for q, v in zip(ps, mine)
@@ -535,11 +547,12 @@ def noise_floor(scan, segs, stated_mm, warnings):
     return floor, source, stated, estimated
 
 
-def trace(env, cands, y, floor_m, stats_ctx):
-    """Forward selection; returns (rounds, final Fit)."""
-    fit = Fit([], [], np.zeros(0), float(y @ y), -y)
+def trace(env, cands, y, floor_m, stats_ctx, base):
+    """Forward selection of causes on top of ``base`` (the loop's tracking
+    error: always in the model); returns (rounds, final Fit)."""
+    fit = base
     rounds = []
-    while len(fit.causes) < MAX_CAUSES:
+    while len(fit.causes) - len(base.causes) < MAX_CAUSES:
         results, fits = [], {}
         for cand in cands:
             if any(c.name == cand.name for c in fit.causes):
@@ -564,6 +577,8 @@ def alternatives(env, cands, y, floor_m, stats_ctx, final):
     out = []
     names = [c.name for c in final.causes]
     for i, c in enumerate(final.causes):
+        if c.name == LOOP:
+            continue  # always in the model
         rest = Fit([], [], np.zeros(0), float(y @ y), -y)
         others = [(cc, k) for j, (cc, k) in enumerate(zip(final.causes, final.keep)) if j != i]
         if others:
@@ -633,8 +648,14 @@ def fixed_settings(settings, causes):
     return s, changes, none
 
 
-def _model_name(fit):
-    return " + ".join(c.name for c in fit.causes)
+def _fix_causes(fit, loop_fix):
+    """The causes of a fit whose fixes a candidate carries: its named causes,
+    and the loop's lag when its fix (predictive mode) is offered."""
+    return [c.name for c in fit.causes if c.name != LOOP] + ([LOOP] if loop_fix else [])
+
+
+def _model_name(fit, loop_fix):
+    return " + ".join(_fix_causes(fit, loop_fix))
 
 
 def _where_they_differ(env, scan, fits):
@@ -680,10 +701,13 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
     y = scan.error_mm[env.covered] * 1e-3
     floor_mm, source, stated, estimated = noise_floor(scan, ss.segments(scan.x_mm, scan.y_mm), noise_mm, warnings)
     floor = floor_mm * 1e-3
-    ctx = {"segs": segs, "length_mm": ss.scan_length_mm(x_c, segs), "cutter_mm": D}
-    cands = candidates(sig)
-    rounds, final = trace(env, cands, y, floor, ctx)
-    alts = alternatives(env, cands, y, floor, ctx, final) if final.causes else []
+    ctx = {"segs": segs, "length_mm": ss.scan_length_mm(x_c, y_c, segs), "cutter_mm": D}
+    loop, *cands = candidates(sig)
+    empty = Fit([], [], np.zeros(0), float(y @ y), -y)
+    loop_row, loop_fit = try_cause(env, empty, loop, y, floor, ctx)
+    rounds, final = trace(env, cands, y, floor, ctx, loop_fit if loop_fit is not None else empty)
+    model = [c for c in final.causes if c.name != LOOP]
+    alts = alternatives(env, cands, y, floor, ctx, final) if model else []
     n_eff, tau = ss.effective_points(final.residual * 1e3, segs, ctx["length_mm"], D)
     rms_after = _rms(final.residual) * 1e3
     named = _cause_params(final)
@@ -691,6 +715,7 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
     for i, c in enumerate(final.causes):
         sizes[c.name] = _rms(env.surface(final.columns() @ final.theta)
                              - env.surface(final.columns() @ _without(final, i))) * 1e3
+    loop_fix = bool(loop_row.get("named")) and settings.mode == "plain"
     report = {
         "run_dir": str(run_dir), "run_id": files.run_id,
         "noise_floor_mm": floor_mm, "noise_source": source, "noise_stated_mm": stated,
@@ -698,34 +723,41 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
         "n_scan_points": int(y.size), "scan_length_mm": ctx["length_mm"], "n_effective": n_eff,
         "thresholds": {"alpha": ALPHA, "size_factor": SIZE_FACTOR, "no_data_fraction": NO_DATA,
                        "alike_mean_square_floors": ALIKE, "explains_alpha": EXPLAIN_ALPHA,
-                       "max_causes": MAX_CAUSES, "smooth_hz": sig.smooth_hz,
+                       "max_causes": MAX_CAUSES, "smooth_hz": sig.smooth_hz, "damping_ratio": sig.damping_ratio,
                        "candidates_per_round": len(cands),
                        "rule": (f"a cause is named when its nested F-test on the effective number of independent "
                                 f"scan points gives p < {ALPHA:g} ({len(cands)} candidates tried in the first "
                                 f"round), it changes the surface by at least {SIZE_FACTOR:g} x the noise floor "
-                                "(RMS) and needs no parameter at its plausibility bound")},
+                                "(RMS) and needs no parameter at its plausibility bound; the arm's own motion "
+                                "error and the loop's tracking error, both predicted from the logs, are in the "
+                                "model before any cause")},
         "loop_lag_ms": loop_lag_ms(sig),
+        "motion_error_mm": _rms(env.surface(np.zeros_like(sig.t_s))) * 1e3,
+        "loop_lag": _loop_report(loop_row, named.get(LOOP), sizes.get(LOOP), settings.mode, loop_fix),
         "rms_before_mm": _rms(y) * 1e3, "rms_after_mm": rms_after,
         "unexplained_mm": float(np.sqrt(max(rms_after**2 - floor_mm**2, 0.0))),
         "explains_data": ss.consistent_with_floor(final.residual * 1e3, floor_mm, n_eff, EXPLAIN_ALPHA),
         "causes": [{"name": c.name, "size_mm": sizes[c.name], "params": named[c.name], "what": c.what}
-                   for c in final.causes],
+                   for c in model],
         "also_consistent_with": [r["name"] for r, _ in alts],
         "alternatives": [{"name": r["name"], "instead_of": r["instead_of"], "rms_mm": r["rms_mm"],
                           "size_mm": r["size_mm"], "params": r["params"]} for r, _ in alts],
         "rounds": rounds, "candidates": [],
-        "surface_error_before_mm": ss.surface_stats(scan.x_mm, scan.error_mm, ss.segments(scan.x_mm, scan.y_mm), D),
+        "surface_error_before_mm": ss.surface_stats(scan.x_mm, scan.y_mm, scan.error_mm,
+                                                    ss.segments(scan.x_mm, scan.y_mm), D),
     }
-    extras = {"scan": scan, "covered": env.covered, "model_mm": (env.surface(final.columns() @ final.theta) * 1e3
-                                                                 if final.causes else np.zeros(y.size)),
+    extras = {"scan": scan, "covered": env.covered, "model_mm": env.surface(final.columns() @ final.theta) * 1e3
+              if final.causes else env.surface(np.zeros_like(sig.t_s)) * 1e3,
               "settings": {}, "plan": None, "cut_scans": []}
     # candidate fixes: compensator settings each
     cand_settings, plan_rows, sets = [], [], []
-    if final.causes:
+    if model or loop_fix:
         for f in [final] + [f for _, f in alts]:
-            name = _model_name(f)
-            s, changes, none = fixed_settings(settings, _si_params(f))
-            entry = {"name": name, "params": _cause_params(f), "changes": changes, "not_in_compensator": none}
+            name = _model_name(f, loop_fix)
+            si = {k: v for k, v in _si_params(f).items() if k != LOOP or loop_fix}
+            s, changes, none = fixed_settings(settings, si)
+            params = {k: v for k, v in _cause_params(f).items() if k != LOOP or loop_fix}
+            entry = {"name": name, "params": params, "changes": changes, "not_in_compensator": none}
             same = next((n for n, other in cand_settings if s.same_as(other)), None)
             if same is not None:  # the same compensator change: one cut cannot tell these apart
                 entry["same_settings_as"] = same
@@ -754,9 +786,27 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
     return report, extras
 
 
+def _loop_report(row, params, size_mm, mode, fix):
+    """The ``loop_lag`` key: the loop's tracking error (predicted from the
+    logs, scaled by a), tested alone against the noise, and its fix."""
+    out = {"what": row["what"], "status": row["status"]}
+    if row["status"] != "ok":
+        return out
+    out.update(params=params or row["params"], size_mm=size_mm if size_mm is not None else row["size_mm"],
+               size_alone_mm=row["size_mm"], p_value=row["p_value"], f_stat=row["f_stat"],
+               significant=bool(row["named"]), why_not=row["why_not"])
+    if fix:
+        out["fix"] = "mode: plain -> predictive"
+    elif row["named"]:
+        out["fix"] = None
+        out["note"] = ("the predictive loop's own tracking error: no settings change removes it (check the force "
+                       "model's scale and the controller's dead time)")
+    return out
+
+
 def _fix(report):
     """The ``fix`` key before verification."""
-    if not report["causes"]:
+    if not report["candidates"]:
         return None
     cands = report.get("candidates", [])
     with_settings = [c for c in cands if "settings" in c]
