@@ -715,6 +715,9 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
     for i, c in enumerate(final.causes):
         sizes[c.name] = _rms(env.surface(final.columns() @ final.theta)
                              - env.surface(final.columns() @ _without(final, i))) * 1e3
+    if model and loop_fit is not None:  # the loop's test given the causes named with it
+        rest = fit_model(env, model, [k for c, k in zip(final.causes, final.keep) if c.name != LOOP], y)
+        loop_row, _ = try_cause(env, rest, loop, y, floor, ctx)
     loop_fix = bool(loop_row.get("named")) and settings.mode == "plain"
     report = {
         "run_dir": str(run_dir), "run_id": files.run_id,
@@ -788,12 +791,14 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
 
 def _loop_report(row, params, size_mm, mode, fix):
     """The ``loop_lag`` key: the loop's tracking error (predicted from the
-    logs, scaled by a), tested alone against the noise, and its fix."""
+    logs, scaled by a): its size in the final model, its test against the
+    model of the named causes without it (``gain_mm``: how far it moves that
+    model's face; p), and its fix."""
     out = {"what": row["what"], "status": row["status"]}
     if row["status"] != "ok":
         return out
     out.update(params=params or row["params"], size_mm=size_mm if size_mm is not None else row["size_mm"],
-               size_alone_mm=row["size_mm"], p_value=row["p_value"], f_stat=row["f_stat"],
+               gain_mm=row["size_mm"], p_value=row["p_value"], f_stat=row["f_stat"],
                significant=bool(row["named"]), why_not=row["why_not"])
     if fix:
         out["fix"] = "mode: plain -> predictive"
