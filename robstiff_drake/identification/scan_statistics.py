@@ -49,8 +49,10 @@ def segments(x_mm, y_mm):
     dx, dy = np.diff(x), np.diff(y)
     d = np.hypot(dx, dy)
     step = np.median(d[d > 0]) if np.any(d > 0) else 1.0
-    cut = d > GAP_FACTOR * step
-    cut[1:] |= (dx[1:] * dx[:-1] + dy[1:] * dy[:-1]) < 0  # turns back
+    gap = d > GAP_FACTOR * step
+    cut = gap.copy()
+    # a step that turns back against the one before it (neither of them a gap) starts a new piece
+    cut[1:] |= ((dx[1:] * dx[:-1] + dy[1:] * dy[:-1]) < 0) & ~gap[1:] & ~gap[:-1]
     return np.split(np.arange(x.size), np.flatnonzero(cut) + 1)
 
 
