@@ -1,29 +1,49 @@
 """Residual diagnosis of a machining run (``robstiff diagnose-run RUN_DIR``):
 from what a cell records (docs/run_files.md: the wrist sensor's raw log, the
-controller's joint angles and correction, the compensator's settings and
-the scan of the machined face) find what the compensated surface error is,
-trace it to a cause, write each candidate fix as compensator settings with
-a verification-cut plan, and decide from the verification cuts' scans.
-Nothing here reads the simulation's truth (``sim_*`` files) or runs a
-simulation: a cell's own logs are enough.  Plain numpy and scipy; no Drake.
+controller's joint angles and correction, the compensator's and the servo's
+settings and the scan of the machined face) find what the compensated
+surface error is, trace it to a cause, write each candidate fix as
+compensator settings with a verification-cut plan, and decide from the
+verification cuts' scans.  Nothing here reads the simulation's truth
+(``sim_*`` files) or runs a simulation: a cell's own logs and the robot's
+model are enough.  Plain numpy and scipy; the robot controller's model of
+the arm (its weight, inertia and modes: diagrams/run_arm.ArmModel, Drake)
+comes in as an object.
 
-Signals.  The wrench log, gravity removed with the settings' payload
-calibration and moved to the tool point (base frame), gives the process
-load W(t) and the joint torques tau = J^T W at the program's angles (the
-logged angles minus the correction).  The tool's vertical deviation from
-the program is dz = J_z (corr + dq) with dq the joints' deflection; the
-compensator as set predicts dq = C tau (+ its lost motion and coupling).
-Force and correction are smoothed with a zero-phase 10 Hz low-pass
-(SMOOTH_HZ: the arm follows both quasi-statically only below its first
-modes) and resampled every 5 ms.
+The joint (diagrams/station.py): the gear between the motor and the link
+carries the total torque, weight + inertia + cut; the controller's gravity
+model and a touch-off at the first path point put the tool where commanded
+at rest; the correction reaches the motor after the servo's dead time
+(``servo.interpolator_delay_ms``) through the position loop.
 
-Causes (each a deviation dz(t) per unit parameter):
-  loop_lag               a * J_z (corr + C tau): the loop's own tracking error
-                         (its lag behind the force, saturation, rate limit),
-                         predicted from the logs; a = 1 is as predicted
-  stiffness_error_jN     r_N J_z,N c_N tau_N   (joint N's compliance off by r_N)
-  lost_motion            sum_N b_N J_z,N tanh(tau_N / 50 N*m), joints 1-3
-  joint_coupling         c23 (J_z,2 tau_3 + J_z,3 tau_2)
+Signals (identification/arm_response.py).  The wrench log, gravity removed
+with the settings' payload calibration and moved to the tool point (base
+frame), is the process load W(t) (smoothed over SMOOTH_MM of feed); the
+arm's time is the program's delayed by the dead time.  A linear model of
+the joints (gears at the model's stiffness, the weight's stiffness, assumed
+DAMPING_RATIO, the motor-side servo), linearised every SEGMENT_S, gives:
+  the arm's own motion error (the path's acceleration through the soft
+    gears and the servo, the gravity model's twist rate that gets no
+    feed-forward): known, not a cause;
+  the loop's tracking error: the logged correction through the servo plus
+    the measured load through the gears (the payload's inertia taken out of
+    the sensor's reading), the model's lost motion and coupling added.
+The tool's vertical deviation is the sum of these and the causes' columns.
+
+The loop's tracking error, scaled by a (1: as predicted, 0-1.5), is always
+in the model; it is reported apart (``loop_lag``), with its fix (plain ->
+predictive) offered when it moves the face by at least the floor.  Causes
+(each a deviation dz(t) per unit parameter, beyond the model as set):
+  stiffness_error_jN     r_N J_z,N c_N (tau_N - tau_inertia_N): joint N's
+                         compliance off by r_N (the controller's gravity
+                         model is calibrated on the arm: the weight's part
+                         is not this cause's)
+  lost_motion            sum_N b_N J_z,N (tanh(T0_N / 50) - tanh(T_N / 50)),
+                         T the total torque the gear carries (weight +
+                         inertia - J^T W), T0 at the touch-off: joints 1-6
+                         (where T keeps its sign, or the joint cannot move
+                         the tool vertically, there is no data)
+  joint_coupling         c23 of the total torque's change since the touch-off
   setup_offset           a constant (tool length, workpiece height)
 The surface at a scan point is the lowest the cutter's face went while it
 covered the point (the envelope), so the error predicted there is
@@ -31,16 +51,17 @@ base(x) - min over covering t of (z_nom(t) + dz(t)).
 
 Statistics (thresholds in the report): the noise floor is the scan noise,
 stated (--noise-mm, or scan.csv's noise_mm) or estimated from the scan
-(identification/scan_statistics.py), both reported.  Forward selection: a
-cause is named when its nested F-test with the effective number of
-independent points gives p < ALPHA, it changes the surface by at least
-SIZE_FACTOR x the floor (RMS over the scan), and it needs no parameter at a
-plausibility bound.  A fit that extends a model starts from that model's
-solution (it is never worse); a parameter that cannot move the surface by
-NO_DATA x the floor over its whole range has no data in this run and is
-dropped.  Causes whose fits differ by less than the floor (mean square) are
-alike: one pass cannot tell them apart, and verification cuts decide
-(identification/run_verification.py: scans and settings only).
+(identification/scan_statistics.py), both reported.  Forward selection on
+top of the loop: a cause is named when its nested F-test with the effective
+number of independent points gives p < ALPHA, it moves the fitted face by
+at least SIZE_FACTOR x the floor (RMS over the scan) from the smaller
+model's, and it needs no parameter at a plausibility bound.  A fit that
+extends a model starts from that model's solution (it is never worse); a
+parameter that cannot move the surface by NO_DATA x the floor over its
+whole range has no data in this run and is dropped.  Causes whose fits
+differ by less than the floor (mean square) are alike: one pass cannot tell
+them apart, and verification cuts decide (identification/run_verification.py:
+scans and settings only).
 """
 
 import copy
@@ -361,13 +382,17 @@ class Envelope:
         cover = cover[self.covered]
         self.samples = np.flatnonzero(cover.any(axis=0))  # samples that cover a scan point
         cover = cover[:, self.samples]
-        z = p[self.samples, 2][None, :]
-        self.base = np.where(cover, z, np.inf).min(axis=1)  # the programmed face
-        self.Z = np.where(cover, z + sig.dz_motion_m[self.samples][None, :], np.inf)
+        # the covering (point, sample) pairs, point by point: the envelope is a minimum over each point's run
+        rows, cols = np.nonzero(cover)
+        self._pair_samples = self.samples[cols]
+        self._starts = np.flatnonzero(np.r_[True, np.diff(rows) > 0])
+        z = p[self._pair_samples, 2]
+        self.base = np.minimum.reduceat(z, self._starts)  # the programmed face
+        self._Z = z + sig.dz_motion_m[self._pair_samples]
 
     def surface(self, dz):
         """Surface error (m, + = cut more) at the covered scan points."""
-        return self.base - (self.Z + dz[self.samples][None, :]).min(axis=1)
+        return self.base - np.minimum.reduceat(self._Z + dz[self._pair_samples], self._starts)
 
 
 @dataclass
@@ -417,10 +442,10 @@ def fit_model(env, causes, keep, y, base=None):
     the model this one extends (its causes first): its solution, with the
     new parameters at zero, is the first start, so the extension is never
     worse; the new parameters also start at a quarter and three quarters of
-    their range, and each of these once more with the old parameters at
-    their nominal values (a fit through the face's envelope has local
-    minima: an old parameter that absorbed what the new one explains may
-    not come back from where the smaller model left it)."""
+    their range, and all parameters start once more at their nominal
+    values (a fit through the face's envelope has local minima: an old
+    parameter that absorbed what the new one explains may not come back
+    from where the smaller model left it)."""
     fit = Fit(list(causes), [list(k) for k in keep], np.zeros(0), float(y @ y), -y)
     params = fit.params()
     if not params:
@@ -428,12 +453,11 @@ def fit_model(env, causes, keep, y, base=None):
     n_old = len(base.theta) if base is not None else 0
     head = base.theta if base is not None else np.zeros(0)
     new = params[n_old:]
-    heads = [head] + ([np.array([p.nominal for p in params[:n_old]])] if n_old else [])
-    starts = []
-    for h in heads:
-        starts.append(np.r_[h, [p.nominal for p in new]])
-        for frac in (0.25, 0.75):
-            starts.append(np.r_[h, [p.lo + frac * (p.hi - p.lo) for p in new]])
+    starts = [np.r_[head, [p.nominal for p in new]]]
+    for frac in (0.25, 0.75):
+        starts.append(np.r_[head, [p.lo + frac * (p.hi - p.lo) for p in new]])
+    if n_old:
+        starts.append(np.array([p.nominal for p in params]))
     fit.theta, fit.rss = _solve(env, fit.columns(), params, y, starts)
     fit.residual = env.surface(fit.columns() @ fit.theta) - y
     return fit
