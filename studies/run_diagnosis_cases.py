@@ -160,7 +160,8 @@ def main():
     out = Path(args.out or tempfile.mkdtemp(prefix="robstiff-run-diagnosis-"))
     out.mkdir(parents=True, exist_ok=True)
     print("| case (what the plant has) | traced from the first cut (fitted) | decided from the verification cuts' "
-          "scans | verification cuts: rms (mm) | before: mean / rms / max abs (mm) | after: mean / rms / max abs (mm) |")
+          "scans | verification cuts: rms (mm) | before: mean / rms / max abs (mm) | "
+          "after: mean / rms / max abs (mm) |")
     print("|---|---|---|---|---|---|")
     seconds = []
     for name, text in CASES.items():

@@ -66,7 +66,8 @@ def drake_tool_z(sc, robot, *, correction=None, force=None, t_end=1.5):
     held.GetMyMutableContextFromRoot(root).SetDiscreteState(Q0)
     for block in arm["interpolator"]:
         ctx = block.GetMyMutableContextFromRoot(root)
-        ctx.SetDiscreteState(np.tile(np.concatenate([theta, np.zeros(6)]), ctx.get_discrete_state_vector().size() // 12))
+        ctx.SetDiscreteState(np.tile(np.concatenate([theta, np.zeros(6)]),
+                                     ctx.get_discrete_state_vector().size() // 12))
     sim.Initialize()
     tool = robot.payload.tool_point_m
     z0 = kin.tool_position(robot.dh, Q0, tool)[2]
