@@ -85,7 +85,8 @@ def main():
     for fz in (-300.0, 300.0):
         q, _ = settle(sc, robot, q0, [0.0, 0.0, fz])
         tau = J.T @ np.r_[0.0, 0.0, fz, 0.0, 0.0, 0.0]
-        station = -(transmission.twist(weight - tau, c, LOST_MOTION_RAD) - transmission.twist(weight, c, LOST_MOTION_RAD))
+        station = -(transmission.twist(weight - tau, c, LOST_MOTION_RAD)
+                    - transmission.twist(weight, c, LOST_MOTION_RAD))
         model = transmission.static_deflection(weight, tau, c, LOST_MOTION_RAD)
         print(f"| {fz:+.0f} | {tau[1]:+.1f} | {(q - q_rest)[1] * 1e6:+.1f} | {station[1] * 1e6:+.1f} | "
               f"{model[1] * 1e6:+.1f} |")
