@@ -4,7 +4,7 @@ simulated), beside the bare arm (the station's compliant arm and drives:
 gears, servo, interpolator and the controller's gravity model, no Python
 systems) measured in the same run at the same step.
 
-Targets (issue 4): >= 20x real time revolution-averaged, >= 1x tooth-resolved.
+Targets: >= 20x real time revolution-averaged, >= 1x tooth-resolved.
 Each case runs ``REPEATS`` times; the machine is shared and its speed
 varies from run to run, so the best run is the figure judged (as timeit
 does) and the median is printed beside it.  Prints each figure, the ratio to

@@ -8,7 +8,7 @@ answered, or answered after the next one had arrived), beside the in-process rea
 run (benchmarks/bench_realtime_path.py's DeflectionPredictor call) and the
 in-process cost of the whole chain per message (model/compensator.py).
 
-Targets (issue 14): p99 of the computation per message below 1 ms and no
+Targets: p99 of the computation per message below 1 ms and no
 missed cycle over 60 s.  Exit status 1 when a target is missed.
 
     python benchmarks/bench_compensate.py            # 60 s

@@ -10,7 +10,7 @@ offset (a Gauss-Newton term, the slowest of the named library); and the
 Drake-made out-of-library campaign with the most search rounds (the play of
 joint 1, tests/open_world.py).
 
-Target (issue 11): at most 2 s per diagnosis.  Prints the median of
+Target: at most 2 s per diagnosis.  Prints the median of
 ``--repeats`` runs per campaign, the identification's median, their ratio
 and PASS/FAIL (exit status 1 on FAIL).  Run: python3 benchmarks/bench_diagnosis.py
 """

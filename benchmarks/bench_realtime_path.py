@@ -4,7 +4,7 @@ dx = J dq) for one configuration per call, beside Drake's own
 MultibodyPlant.CalcJacobianSpatialVelocity (Jacobian only) measured in the
 same run on the same configurations.
 
-Target (issue 2): median <= 25 us per call on the project's 2-core machine.
+Target: median <= 25 us per call on the project's 2-core machine.
 Prints the medians, the ratio to Drake, and PASS/FAIL against the target
 (exit status 1 on FAIL).  Run: python3 benchmarks/bench_realtime_path.py
 """

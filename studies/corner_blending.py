@@ -1,4 +1,4 @@
-"""Corners before and after blending (issue 13 item 5, issue 14 item 1):
+"""Corners before and after blending:
 the L-shaped contour (diagrams/l_contour.yaml) and the G-code example
 (diagrams/contour_with_arcs.yaml + .nc), each run without and with
 compensation, with the corner zone at 0 (sharp corners at full speed: the

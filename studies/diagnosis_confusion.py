@@ -55,7 +55,7 @@ def physical_params(name, rng, robot):
     """Parameters (SI, as model/effects.py takes them) drawn in the effect's
     physical range; the comment gives the range's source or reasoning."""
     c = 1.0 / robot.joint_stiffness_Nm_per_rad
-    if name == "lost_motion":  # 10-60 urad per main axis (issue 11; RV reducers <= 1 arc-min)
+    if name == "lost_motion":  # 10-60 urad per main axis (RV reducers <= 1 arc-min)
         return {"b_rad": np.r_[rng.uniform(10e-6, 60e-6, 3), 0, 0, 0]}
     if name == "joint_coupling":  # 5-30 % of sqrt(c2 c3) (ASSUMPTION, see identification/plausibility.py)
         return {"c23_rad_per_Nm": rng.uniform(0.05, 0.3) * np.sqrt(c[1] * c[2]) * rng.choice([-1, 1])}

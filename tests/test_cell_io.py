@@ -1,4 +1,4 @@
-"""The compensator as a process (issue 14): `robstiff compensate` against a
+"""The compensator as a process: `robstiff compensate` against a
 simulated cell on 127.0.0.1 (the controller's EGM side and the Net F/T's
 RDT side of cell/sim_cell.py, with a stand-in arm), fault injection, bad
 input, and the protocol encodings checked against the packages that read

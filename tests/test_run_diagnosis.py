@@ -4,7 +4,7 @@ from the cell's files with 3 um of scan noise, each candidate fix is cut
 again on the same simulated machine, and the decision reads only the
 cuts' settings and scans (every ``sim_*`` truth file is deleted first).
 Runs whose compensator is the plant name no cause.  The bulk of the
-no-cause runs is studies/run_diagnosis_no_cause.py (15 runs)."""
+no-cause runs is studies/run_diagnosis_no_cause.py (18 runs)."""
 
 import json
 import shutil
@@ -13,15 +13,24 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from robstiff_drake.commands.diagnose_run import run_robot
 from robstiff_drake.commands.main import main
+from robstiff_drake.diagrams.run_arm import ArmModel
 from robstiff_drake.identification import run_files as rf
 from robstiff_drake.identification import run_verification as rv
 from robstiff_drake.identification import scan_statistics as ss
+from robstiff_drake.identification.run_diagnosis import run_signals
 
 ROOT = Path(__file__).parents[1]
 SHORT = (ROOT / "tests" / "data" / "short_block.yaml").read_text()  # plain compensation: its loop lags
 PREDICTIVE = SHORT.replace("controller:\n", "controller:\n  mode: predictive\n", 1)  # the lag predicted away
-MODEL_CAUSES = ("stiffness_error", "lost_motion", "joint_coupling", "setup_offset")
+# along y where joint 2 carries almost none of the arm's weight (tests/data/balanced_y_pass.yaml)
+BALANCED = (ROOT / "tests" / "data" / "balanced_y_pass.yaml").read_text().replace(
+    "controller:\n", "controller:\n  mode: predictive\n", 1)
+
+
+def with_plant(text, line):
+    return text.replace("plant:\n", f"plant:\n  {line}\n", 1)
 
 
 def simulate(folder, text, name, *extra):
@@ -66,73 +75,124 @@ def after(verified):
     return next(r["surface_error_mm"] for r in v["cuts"] if r["candidate"] == v["best"])
 
 
+def round_of(rep, name, i=0):
+    return next(r for r in rep["rounds"][i] if r["name"] == name)
+
+
 def test_a_softer_joint_is_traced_and_its_fix_verified(tmp_path, capsys):
-    k = "1.5e6, 1.1e6, 6.4e5, 3.0e5, 3.0e5, 2.0e5"  # joint 3 is 20 % stiffer in the model than in the plant
-    run_dir = simulate(tmp_path, PREDICTIVE.replace("plant:\n", f"plant:\n  joint_stiffness_Nm_per_rad: [{k}]\n", 1),
-                       "soft_j3")
+    # joint 3 is 20 % stiffer in the model than in the plant
+    run_dir = simulate(tmp_path, with_plant(PREDICTIVE, "joint_stiffness_Nm_per_rad: [1.5e6, 1.1e6, 6.4e5, 3.0e5, "
+                                                        "3.0e5, 2.0e5]"), "soft_j3")
     rep = diagnose(run_dir, capsys)
     first = rep["causes"][0]
     assert first["name"] == "stiffness_error_j3"
     assert 18 < first["params"]["r3 (%)"] < 32  # the truth: compliance 25 % higher
     assert rep["noise_floor_mm"] == pytest.approx(0.003)
     # a fit that extends a model starts from its solution: never worse than it
-    for prev, rnd in zip(rep["rounds"], rep["rounds"][1:]):
-        chosen = min((r for r in prev if r.get("named")), key=lambda r: r["rms_mm"])
+    chosen = min((r for r in rep["rounds"][0] if r.get("named")), key=lambda r: r["rms_mm"])
+    for rnd in rep["rounds"][1:]:
         assert all(r["rms_mm"] <= chosen["rms_mm"] * (1 + 1e-9) for r in rnd if r["status"] == "ok")
+    # the loop's own tracking error, predicted from the logs, is in the model at its predicted size
+    assert 0.8 < rep["loop_lag"]["params"]["a (x predicted)"] < 1.25
     verified = verify(tmp_path, run_dir, rep, capsys)
     fix = verified["fix"]
     assert fix["status"].startswith("verified")
     assert "stiffness_error_j3" in verified_causes(fix)
     b, a = verified["surface_error_before_mm"], after(verified)
-    assert b["mean"] > 0.1
-    assert abs(a["mean"]) < 0.1 * b["mean"] and a["rms"] < 0.15 * b["rms"]
+    assert b["mean"] > 0.04
+    assert abs(a["mean"]) < 0.5 * b["mean"] and a["rms"] < 0.5 * b["rms"]
     assert (run_dir / "diagnosis" / "diagnosis.png").exists()
 
 
-def test_lost_motion_is_traced_and_the_cuts_decide(tmp_path, capsys):
-    run_dir = simulate(tmp_path, PREDICTIVE.replace(
-        "plant:\n", "plant:\n  lost_motion_rad: [4.0e-5, 4.0e-5, 4.0e-5, 0.0, 0.0, 0.0]\n", 1), "backlash")
+def test_lost_motion_is_traced_where_the_total_torque_changes_sign(tmp_path, capsys):
+    """40 urad of lost motion in joints 1-3 on a pass where joint 2's gear
+    carries almost none of the arm's weight: the cut's torque takes its play
+    up, and the run traces it to joint 2 alone.  Joint 1's play moves the
+    tool sideways (its axis is vertical) and joint 3's gear never leaves its
+    loaded flank (about -1860 N*m of weight): both are dropped for lack of
+    data, not fitted."""
+    run_dir = simulate(tmp_path, with_plant(BALANCED, "lost_motion_rad: [4.0e-5, 4.0e-5, 4.0e-5, 0.0, 0.0, 0.0]"),
+                       "backlash")
+    # the physics the test relies on, from the controller's model and the logs (independent of the diagnosis)
+    files = rf.load_run_files(run_dir)
+    robot = run_robot(run_dir)
+    sig = run_signals(files, robot, ArmModel(robot))
+    total = sig.tau_static_Nm + sig.tau_inertia_Nm - sig.tau_Nm  # what the gears carry
+    assert total[:, 1].min() < -20.0 and total[:, 1].max() > 0.0  # joint 2's changes sign
+    assert total[:, 2].max() < -1500.0  # joint 3's keeps it
     rep = diagnose(run_dir, capsys)
-    assert "lost_motion" in {rep["causes"][0]["name"], *rep["also_consistent_with"]}
-    row = next(r for r in rep["rounds"][0] if r["name"] == "lost_motion")
-    # joint 1 turns about the vertical: its backlash cannot move the face, and is dropped, not left at a start
-    assert "b1" in row["dropped_no_data"] and not any(k.startswith("b1") for k in row["params"])
-    assert next(r for r in rep["rounds"][0] if r["name"] == "stiffness_error_j4")["status"].startswith("no data")
+    assert "lost_motion" in {c["name"] for c in rep["causes"]} | set(rep["also_consistent_with"])
+    row = round_of(rep, "lost_motion")
+    assert set(row["dropped_no_data"]) >= {"b1", "b3"} and list(row["params"]) == ["b2 (urad)"]
+    assert 25 < row["params"]["b2 (urad)"] < 70  # the truth: 40
     verified = verify(tmp_path, run_dir, rep, capsys)
     fix = verified["fix"]
     assert fix["status"].startswith("verified") and "lost_motion" in verified_causes(fix)
-    assert after(verified)["rms"] < 0.3 * verified["surface_error_before_mm"]["rms"]
+    assert after(verified)["rms"] < verified["surface_error_before_mm"]["rms"]
+
+
+def test_lost_motion_in_gears_that_carry_the_weight_is_not_named(tmp_path, capsys):
+    """Joints 2 and 3 carry kN*m of the arm's weight at the block test's pose:
+    40 urad of play in them is never taken up by a few hundred N*m of cut,
+    leaves the face as it was, and is not named (no data in this run)."""
+    rep = diagnose(simulate(tmp_path, with_plant(PREDICTIVE, "lost_motion_rad: [0.0, 4.0e-5, 4.0e-5, 0.0, 0.0, 0.0]"),
+                            "loaded"), capsys)
+    assert rep["causes"] == []
+    assert round_of(rep, "lost_motion")["status"].startswith("no data")
 
 
 def test_the_loops_lag_is_traced_to_predictive_compensation(tmp_path, capsys):
     run_dir = simulate(tmp_path, SHORT, "lag")  # plain compensation: a 2 Hz filter at 60 mm/s
     rep = diagnose(run_dir, capsys)
-    assert [c["name"] for c in rep["causes"]] == ["loop_lag"]
-    assert 0.8 < rep["causes"][0]["params"]["a (x predicted)"] < 1.5
-    assert 50 < rep["loop_lag_ms"] < 300
+    assert rep["causes"] == []
+    lag = rep["loop_lag"]
+    assert lag["significant"] and 0.8 < lag["params"]["a (x predicted)"] < 1.3
+    assert lag["fix"] == "mode: plain -> predictive"
+    assert 80 < rep["loop_lag_ms"] < 300  # the 2 Hz filter's lag and the servo's
     verified = verify(tmp_path, run_dir, rep, capsys)
     assert verified["fix"]["status"] == "verified"
     assert verified["fix"]["changes"][0].startswith("mode: plain -> predictive")
     b, a = verified["surface_error_before_mm"], after(verified)
-    assert a["edges_max_abs"] < 0.2 * b["edges_max_abs"]
+    assert a["rms"] < 0.75 * b["rms"]
 
 
-@pytest.mark.parametrize("mode, seed, noise_mm", [("predictive", 1, 0.003), ("predictive", 2, 0.001),
-                                                  ("predictive", 3, 0.010), ("plain", 4, 0.003)])
-def test_no_cause_when_the_compensator_is_the_plant(tmp_path, capsys, mode, seed, noise_mm):
-    text = (PREDICTIVE if mode == "predictive" else SHORT).replace("scan:\n", f"scan:\n  noise_mm: {noise_mm}\n", 1)
+@pytest.mark.parametrize("text, mode, seed, noise_mm", [
+    (PREDICTIVE, "predictive", 1, 0.003), (PREDICTIVE, "predictive", 2, 0.001), (PREDICTIVE, "predictive", 3, 0.010),
+    (SHORT, "plain", 4, 0.003), (BALANCED, "predictive", 5, 0.003)])
+def test_no_cause_when_the_compensator_is_the_plant(tmp_path, capsys, text, mode, seed, noise_mm):
+    text = text.replace("scan:\n", f"scan:\n  noise_mm: {noise_mm}\n", 1)
     rep = diagnose(simulate(tmp_path, text, "exact", "--noise-seed", str(seed)), capsys)
-    named = [c["name"] for c in rep["causes"]]
-    assert not any(n.startswith(MODEL_CAUSES) for n in named), rep["causes"]
-    # the plain loop's own lag is real (tens of um at 60 mm/s): the only cause it may name
-    assert named == ([] if mode == "predictive" else ["loop_lag"])
+    assert rep["causes"] == [], rep["causes"]
+    # the loop's own tracking error is real and known: only the plain loop gets a fix for it
+    assert rep["loop_lag"].get("fix") == ("mode: plain -> predictive" if mode == "plain" else None)
+    assert [c["name"] for c in rep["candidates"]] == ([] if mode == "predictive" else ["loop_lag"])
     assert rep["noise_estimated_mm"] == pytest.approx(noise_mm, rel=0.3)
+    assert rep["explains_data"] or rep["unexplained_mm"] < noise_mm
 
 
 @pytest.fixture(scope="module")
 def exact_run(tmp_path_factory):
     """A compensated cut whose compensator is the plant (predictive loop)."""
     return simulate(tmp_path_factory.mktemp("exact"), PREDICTIVE, "run")
+
+
+def test_the_known_part_is_what_the_machine_did(exact_run):
+    """The arm's motion error and the loop's tracking error that diagnose-run
+    predicts from the logs (the controller's model of the arm, the servo's
+    settings, the logged corrections and loads) against the tool path of
+    the simulated machine (Drake's plant with its gears, servo and
+    interpolator; a file diagnose-run never reads)."""
+    robot = run_robot(exact_run)
+    sig = run_signals(rf.load_run_files(exact_run), robot, ArmModel(robot))
+    lines = [ln for ln in (exact_run / "sim_timeseries_compensated.csv").read_text().splitlines()
+             if not ln.startswith("#")]
+    cols = lines[0].split(",")
+    data = np.array([[float(v) for v in ln.split(",")] for ln in lines[1:]])
+    t, dz = data[:, cols.index("t_s")], data[:, cols.index("tool_z_mm")] - data[:, cols.index("commanded_z_mm")]
+    truth = np.interp(sig.t_s, t, dz)
+    predicted = (sig.dz_motion_m + sig.dz_loop_m) * 1e3
+    assert np.abs(truth).max() > 0.1  # the ramps' motion error: a tenth of a millimetre
+    assert np.sqrt(np.mean((predicted - truth) ** 2)) < 0.1 * np.sqrt(np.mean(truth**2))
 
 
 def test_only_the_cell_files_are_read(exact_run, tmp_path, capsys):
@@ -142,8 +202,22 @@ def test_only_the_cell_files_are_read(exact_run, tmp_path, capsys):
         shutil.copy(exact_run / name, bare / name)
     a, b = diagnose(exact_run, capsys), diagnose(bare, capsys)
     assert a["rms_after_mm"] == b["rms_after_mm"] and a["causes"] == b["causes"] == []
-    assert a["explains_data"] is False  # what the quasi-static model lacks (the arm's dynamics) stays unexplained
-    assert a["unexplained_mm"] > a["noise_floor_mm"]
+    # what the logs predict (the arm's motion error, the loop's tracking error) explains the face to the noise
+    assert a["rms_before_mm"] > 4 * a["noise_floor_mm"] and a["explains_data"] is True
+
+
+def test_settings_without_the_servo_are_refused(exact_run, tmp_path, capsys):
+    old = tmp_path / "old"
+    shutil.copytree(exact_run, old)
+    s = old / rf.SETTINGS
+    text = s.read_text()
+    s.write_text(text[:text.index("  # the robot controller's joint servo")])
+    _, settings = rf.read_settings(s)  # a file written before the servo section is still read
+    assert settings.servo is None
+    err = _error_line(capsys, "diagnose-run", str(old))
+    assert "compensator.yaml: compensator: no 'servo' section" in err and "interpolator_delay_ms" in err
+    s.write_text(text.replace("    velocity_feedforward: 1.0", "    velocity_feedforward: 1.5"))
+    assert "velocity_feedforward: expected a number from 0 to 1" in _error_line(capsys, "diagnose-run", str(old))
 
 
 def _error_line(capsys, *args):
@@ -221,7 +295,9 @@ def test_the_writers_and_readers_round_trip(tmp_path):
         [1.5e6, 1.1e6, 8e5, 3e5, 3e5, 2e5], {"mass_kg": 40.0, "com_mm": [0.0, 0.0, 180.0],
                                              "force_bias_N": [3.0, -2.0, 5.0], "torque_bias_Nm": [0.2, -0.1, 0.05],
                                              "sensor_mount_rpy_deg": [0.0, 0.0, 1e-5]}, [0.0, 0.0, 350.0], 75.0,
-        mode="predictive", delay_steps=2, lost_motion_rad=[1e-5, 0, 0, 0, 0, 0], coupling_c23_rad_per_Nm=-3e-8)
+        mode="predictive", delay_steps=2, lost_motion_rad=[1e-5, 0, 0, 0, 0, 0], coupling_c23_rad_per_Nm=-3e-8,
+        servo={"interpolator_delay_ms": 18.0, "position_gain_per_s": 60.0, "velocity_bandwidth_hz": 30.0,
+               "velocity_feedforward": 1.0})
     scan = rf.Scan(np.arange(30.0), np.full(30, 15.0), np.full(30, 700.0), 700.0 + rng.normal(size=30) * 3e-3, 0.003)
     files = {rf.WRENCH_LOG: rf.wrench_log_text(rf.WrenchLog(t, w), "r1"),
              rf.JOINT_LOG: rf.joint_log_text(rf.JointLog(t, rng.normal(size=(50, 6)), rng.normal(size=(50, 6))), "r1"),
@@ -231,12 +307,38 @@ def test_the_writers_and_readers_round_trip(tmp_path):
     (tmp_path / "RUN_ID").write_text("r1\n")
     got = rf.load_run_files(tmp_path)
     assert got.run_id == "r1" and got.settings.same_as(settings) and got.settings.delay_steps == 2
+    assert got.settings.servo["interpolator_delay_ms"] == 18.0
+    settings.servo = None  # a file without the servo section reads back without it, and is not the same
+    assert not got.settings.same_as(settings) and rf.read_settings(_written(tmp_path, settings))[1].servo is None
     assert np.isnan(got.wrench.wrench[7]).all() and np.allclose(got.wrench.wrench[8], w[8], rtol=1e-6)
     assert got.scan.noise_mm == 0.003 and np.allclose(got.scan.height_mm, scan.height_mm, atol=1e-6)
     # times must increase: the error names the row
     (tmp_path / rf.JOINT_LOG).write_text(files[rf.JOINT_LOG].replace("\n0.002,", "\n0.0005,", 1))
     with pytest.raises(rf.InputError, match=r"joint_log.csv, line \d+, column 1: t_s 0.0005 is not after"):
         rf.load_run_files(tmp_path)
+
+
+def _written(folder, settings):
+    p = folder / "settings_only.yaml"
+    p.write_text(rf.settings_text(settings, "r1"))
+    return p
+
+
+def test_scan_lines_along_y_and_along_a_path():
+    """Pieces of a scan in any direction: a line along y, the same line
+    scanned back, and a gap; lengths and the edges measured along them."""
+    rng = np.random.default_rng(4)
+    y = np.arange(-60.0, 60.0, 0.5)
+    x = np.full_like(y, 1109.5)
+    xs, ys = np.r_[x, x + 5.0, x], np.r_[y, y[::-1], y + 200.0]  # along y, back, then after a gap
+    segs = ss.segments(xs, ys)
+    assert [len(g) for g in segs] == [y.size] * 3
+    assert ss.scan_length_mm(xs, ys, segs) == pytest.approx(3 * np.ptp(y))
+    e = rng.normal(0, 0.003, xs.size)
+    assert ss.noise_from_scan(e, segs) == pytest.approx(0.003, rel=0.15)
+    e[:3] = 0.1  # a dip at the start of the first line: an edge along y
+    st = ss.surface_stats(xs, ys, e, segs, 75.0)
+    assert st["edges_max_abs"] == pytest.approx(0.1) and st["steady_max_abs"] < 0.02
 
 
 def test_the_noise_floor_and_the_effective_points_of_a_scan():

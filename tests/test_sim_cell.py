@@ -32,6 +32,12 @@ def short():
     return sc, robot, run_cut(sc, robot, compensation=False).surface_error_mm
 
 
+@pytest.fixture(scope="module")
+def short_compensated(short):
+    sc, robot, _ = short
+    return run_cut(sc, robot, compensation=True)
+
+
 def test_stepped_station_cuts_what_the_diagram_cuts(short):
     sc, robot, diagram = short
     st = CellStation(sc, robot, period_s=sc.controller.period_ms / 1e3)
@@ -49,42 +55,69 @@ def test_stepped_station_cuts_what_the_diagram_cuts(short):
     assert abs(adapter["pv"] - diagram["pv"]) < 0.15 * diagram["pv"] + 0.005, (adapter, diagram)
 
 
-def _sim_cell(tmp_path, *, egm_port, netft_port):
+def _sim_cell(tmp_path, *, egm_port, netft_port, lockstep):
     ref = tmp_path / "cell_reference.csv"
     out = tmp_path / "cell.json"
     cell = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "sim-cell", SHORT,
                              "--egm-to", f"127.0.0.1:{egm_port}", "--netft-port", str(netft_port),
-                             "--reference-out", str(ref), "--json", str(out), "--wait-s", "40"],
+                             "--reference-out", str(ref), "--json", str(out), "--wait-s", "40"]
+                            + (["--lockstep"] if lockstep else []),
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     return cell, ref, out
 
 
-def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short):
+def _read_log(path):
+    lines = [line for line in open(path) if not line.startswith("#")]
+    names = lines[0].strip().split(",")
+    data = np.array([[float(v) if v else np.nan for v in line.strip().split(",")] for line in lines[1:]])
+    return {n: data[:, i] for i, n in enumerate(names)}
+
+
+@pytest.mark.parametrize("lockstep", [True, False], ids=["lockstep", "real-time"])
+def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short, short_compensated, lockstep):
     sc, robot, plain = short
     model, payload, _, _ = write_inputs(str(tmp_path), robot)
     # the payload calibration's bias is the scenario's sensor bias
     assert np.allclose(sc.sensor.force_bias_N, FORCE_BIAS_N) and np.allclose(sc.sensor.torque_bias_Nm, TORQUE_BIAS_NM)
     egm_port, netft_port = free_udp_port(), free_udp_port()
-    cell, ref, out = _sim_cell(tmp_path, egm_port=egm_port, netft_port=netft_port)
+    cell, ref, out = _sim_cell(tmp_path, egm_port=egm_port, netft_port=netft_port, lockstep=lockstep)
     comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
                            "--netft", f"127.0.0.1:{netft_port}", "--model", model, "--payload", payload,
                            "--reference", str(_wait_for(ref)), "--wait-s", "40", "--idle-exit-s", "1.0",
-                           "--cutoff-hz", "2", "--sensor-rate-hz", "1000", "--delay-steps", "1"],
+                           "--cutoff-hz", "2", "--sensor-rate-hz", "1000", "--delay-steps", "1",
+                           "--log", str(tmp_path / "log")],
                           cwd=ROOT, capture_output=True, text=True, timeout=120)
     _, cerr = cell.communicate(timeout=120)
     assert cell.returncode == 0, (cerr, comp.stderr)
     assert comp.returncode == 0, comp.stderr
     res = json.loads(out.read_text())
-    surf = res["surface_error_mm"]
-    print("uncompensated (diagram)", plain, "\ncompensated over EGM/RDT", surf, "\nlate cycles", res["late_ticks"],
-          "of", res["cycles"])
-    assert plain["mean"] > 0.1, plain
-    # Most of the deflection removed.  In the diagram the same settings
-    # leave about 0.025 mm; over the network on a shared machine some
-    # cycles are late (the target is held, then jumps), which costs part
-    # of the gain: hence the loose bound.
-    assert abs(surf["mean"]) < 0.6 * plain["mean"], (plain, surf)
-    print(res)
+    surf, diagram = res["surface_error_mm"], short_compensated.surface_error_mm
+    print("uncompensated (diagram)", plain["mean"], "compensated: diagram", diagram["mean"], "over EGM/RDT",
+          surf["mean"], "late cycles", res["late_ticks"], "of", res["cycles"])
+    # The same chain: over the steady part of the cut (t = 1.5-2.5 s, the
+    # force constant) the six joint corrections the compensator sent agree
+    # with the diagram compensator's within 3 % of the largest one.
+    log = _read_log(tmp_path / "log" / "timeseries_compensated.csv")
+    tc, c = short_compensated.logs["correction"]
+    m_net = (log["t_s"] > 1.5) & (log["t_s"] < 2.5)
+    m_dia = (tc > 1.5) & (tc < 2.5)
+    net = np.array([np.mean(log[f"correction_q{j}_rad"][m_net]) for j in range(1, 7)])
+    dia = c[m_dia].mean(axis=0)
+    print("steady corrections (urad): diagram", np.round(dia * 1e6, 1), "over EGM/RDT", np.round(net * 1e6, 1))
+    assert np.max(np.abs(dia)) > 50e-6, dia  # a correction worth comparing
+    assert np.max(np.abs(net - dia)) < 0.03 * np.max(np.abs(dia)), (net, dia)
+    assert plain["mean"] > 0.1 and abs(diagram["mean"]) < 0.2 * plain["mean"], (plain, diagram)
+    if lockstep:
+        # Each answer before the next step: the diagram's loop, its surface
+        # to a few micrometres (the network's timing of the sensor records
+        # against the EGM messages differs from the diagram's by a sample).
+        assert abs(surf["mean"] - diagram["mean"]) < 0.005, (surf, diagram)
+        assert res["unanswered"] == 0, res
+    # In real time nothing is asserted of the surface: on a shared machine
+    # some cycles of the simulated controller (a Python thread) come late;
+    # it then steps through the missed ones and the target jumps, the servo's
+    # velocity feed-forward jerks the arm by tens of micrometres and the face
+    # mill keeps the deepest dip over a cutter's width (docs/real_cell.md).
 
 
 def _wait_for(path, timeout_s=60.0):

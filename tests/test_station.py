@@ -56,7 +56,8 @@ class StepCommand(LeafSystem):
         self.DeclareVectorOutputPort("q", 6, lambda c, o: o.SetFromVector(q0 + (c.get_time() >= t0) * step))
 
 
-def arm_at_rest(sc, robot, q_cmd, *, k=None, force=None, command=None, damping=None, check_stability=True):
+def arm_at_rest(sc, robot, q_cmd, *, k=None, force=None, command=None, damping=None, check_stability=True,
+                lost_motion_rad=None):
     """(simulator, arm dict) of the compliant arm commanded to ``q_cmd`` (or
     by ``command``, a system), motors and links at rest on it, optionally a
     constant spatial force on the spindle at the tool point (base frame)."""
@@ -65,7 +66,8 @@ def arm_at_rest(sc, robot, q_cmd, *, k=None, force=None, command=None, damping=N
     arm = add_compliant_arm(builder, robot=robot, plant_config=sc.plant_config, joint_stiffness_Nm_per_rad=k,
                             damping_ratio=sc.plant.damping_ratio if damping is None else damping, q_modes_rad=q_cmd,
                             servo=servo_parameters(sc), interpolator_period_s=sc.servo.interpolator_period_ms / 1e3,
-                            check_stability=check_stability)
+                            check_stability=check_stability,
+                            lost_motion_rad=None if lost_motion_rad is None else list(lost_motion_rad))
     plant = arm["plant"]
     src = builder.AddSystem(command or ConstantVectorSource(q_cmd))
     vel = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
@@ -82,7 +84,7 @@ def arm_at_rest(sc, robot, q_cmd, *, k=None, force=None, command=None, damping=N
     root = sim.get_mutable_context()
     ctrl = arm["controller_plant"]
     theta = q_cmd + gravity_holding_torque(ctrl, q_cmd) / k  # the controller's gravity model (calibrated: true k)
-    q = static_link_angles(ctrl, theta, 1.0 / k)
+    q = static_link_angles(ctrl, theta, 1.0 / k, lost_motion_rad)
     plant.SetPositions(plant.GetMyMutableContextFromRoot(root), q)
     for block in [arm["servo"]] + arm["interpolator"]:
         ctx = block.GetMyMutableContextFromRoot(root)
@@ -257,6 +259,38 @@ def test_the_sensor_feels_the_cut_through_the_weld(scenario, robot):
     np.testing.assert_allclose(reading, weight + np.array(load), atol=1e-6)
 
 
+def test_the_compensators_lost_motion_law_is_the_gears(scenario, robot):
+    """With lost motion (40 urad) in joint 2 at a pose where its gear holds
+    about +155 N*m of the arm's weight, a tool force of -300 N and +300 N
+    along z moves joint 2 by different amounts (the play is taken up one way
+    only); the compensator's model (model/compensator.DeflectionModel's law,
+    transmission.static_deflection with the gravity-holding torque) predicts
+    what Drake's plant does, to 2 %."""
+    b = np.array([0.0, 4e-5, 0.0, 0.0, 0.0, 0.0])
+    sc = copy.deepcopy(scenario)
+    sc.plant.lost_motion_rad = list(b)
+    tool = robot.payload.tool_point_m
+    q0 = ik.solve_ik(robot.dh, ik.tool_down_pose(np.array([1.075, 0.0, 0.7]), 0.0), tool)
+    J = kin.jacobian(robot.dh, q0, tool)
+    c = 1.0 / robot.joint_stiffness_Nm_per_rad
+    moved = {}
+    for fz in (0.0, -300.0, 300.0):
+        sim, arm = arm_at_rest(sc, robot, q0, force=[0.0, 0.0, fz], damping=0.5, lost_motion_rad=b)
+        sim.AdvanceTo(4.0)
+        plant = arm["plant"]
+        moved[fz] = plant.GetPositions(plant.GetMyContextFromRoot(sim.get_context()))
+    hold = gravity_holding_torque(arm["controller_plant"], q0)
+    assert 100.0 < hold[1] < 250.0, hold
+    for fz in (-300.0, 300.0):
+        tau = J.T @ np.r_[0.0, 0.0, fz, 0.0, 0.0, 0.0]
+        station = (moved[fz] - moved[0.0])[1]
+        model = transmission.static_deflection(hold, tau, c, b)[1]
+        assert abs(model - station) < 0.02 * abs(station), (fz, station, model)
+    # the play shows: the two directions differ by about 2 b
+    up, down = (moved[-300.0] - moved[0.0])[1], (moved[300.0] - moved[0.0])[1]
+    assert abs(up + down) > b[1]
+
+
 def test_lost_motion_acts_only_where_the_total_torque_changes_sign(scenario, robot):
     """Lost motion of 40 urad in joints 2 and 3, whose gears carry the arm's
     weight (kN*m of one sign against a few hundred N*m of cut: they never
@@ -280,7 +314,7 @@ def test_lost_motion_acts_only_where_the_total_torque_changes_sign(scenario, rob
     q = x[np.clip(np.searchsorted(ts, t), 0, len(ts) - 1), :6]
     tau_cut = np.einsum("nrj,nr->nj", kin.jacobian(robot.dh, q, robot.payload.tool_point_m), w)
     hold = np.array([gravity_holding_torque(base.cell.station.controller_plant, qi) for qi in q[::25]])
-    total = hold + tau_cut[::25]
+    total = hold - tau_cut[::25]  # the gear balances gravity and holds back the cut
     for j in (1, 2):
         assert np.all(np.sign(total[:, j]) == np.sign(total[0, j])) and np.abs(total[:, j]).min() > 500.0
     # joint 1: no weight, so the cut's torque takes up the play

@@ -20,7 +20,7 @@ def cli(capsys, *argv):
 
 
 def test_synth_writes_the_tool_point_and_identify_reads_it(capsys, tmp_path):
-    """The issue's case: synth --tool 0,0,350, then identify without --tool."""
+    """A campaign written with its tool point (synth --tool 0,0,350), identified without --tool."""
     robot = load_robot()
     data = tmp_path / "c.csv"
     assert cli(capsys, "synth", "stiffness", data, "--n", 120, "--seed", 5, "--tool", "0,0,350")[0] == 0

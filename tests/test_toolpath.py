@@ -1,4 +1,4 @@
-"""G-code programs and corner blending (issue 14 item 1, issue 13 item 5):
+"""G-code programs and corner blending:
 the reader's subset and its one-line errors, the corner path's geometry
 (tangent, curvature-continuous for lines, inside the zone), the speed
 profile (kept along a blend, smooth, no step), the unchanged straight path,

@@ -13,6 +13,7 @@ written here: no package implements it.
 """
 
 import math
+import select
 import socket
 import time
 
@@ -148,9 +149,12 @@ class ControllerLink:
         except OSError:
             return False
 
-    def receive_targets(self):
-        """The joint targets (deg, list) of the newest EgmSensor waiting, or None."""
+    def receive_targets(self, timeout_s=0.0):
+        """The joint targets (deg, list) of the newest EgmSensor waiting, or
+        None; with ``timeout_s`` > 0, wait that long (s) for one first."""
         latest = None
+        if timeout_s > 0.0:
+            select.select([self.sock], [], [], timeout_s)
         while True:
             try:
                 data, _ = self.sock.recvfrom(65536)

@@ -61,7 +61,7 @@ class NetworkStats:
     answered: int = 0  # EGM messages followed by an answer before the next one
     unanswered: int = 0
     late_ticks: int = 0  # ticks sent more than half a period late
-    skipped_ticks: int = 0  # ticks left out because the loop was more than a period late
+    skipped_ticks: int = 0  # periods the schedule slipped because the loop was more than a period late
     tick_error_s: list = field(default_factory=list)
     t: list = field(default_factory=list)
     q_cmd: list = field(default_factory=list)  # rad
@@ -70,8 +70,22 @@ class NetworkStats:
 
 
 class CellNetwork:
-    def __init__(self, station, *, egm_to, netft_port, period_s=0.004, faults=None, netft_host="127.0.0.1"):
+    """The cell's network side: every period an EgmRobot to the compensator
+    and the sensor's records as RDT, the station stepped with the newest
+    joint targets.
+
+    ``lockstep``: once engaged, step only when the answer to the last
+    message has come (waiting up to ``answer_timeout_s``; none by then ends
+    the run), not on the wall clock: the loop's physics without this
+    machine's scheduling (a Python thread on shared cores is no hard
+    real-time controller).  The controller's clock (header.tm) still
+    advances by one period per message."""
+
+    def __init__(self, station, *, egm_to, netft_port, period_s=0.004, faults=None, netft_host="127.0.0.1",
+                 lockstep=False, answer_timeout_s=1.0):
         self.station = station
+        self.lockstep = bool(lockstep)
+        self.answer_timeout_s = float(answer_timeout_s)
         self.period_s = float(period_s)
         self.faults = faults or Faults()
         self.egm = ControllerLink(*egm_to)
@@ -116,23 +130,28 @@ class CellNetwork:
             now = time.monotonic()
             if self.stop or now - t0 >= duration_s:
                 break
-            if t_tick - now > SPIN_S:
+            stepped = self.lockstep and engaged
+            if not stepped and t_tick - now > SPIN_S:
                 time.sleep(t_tick - now - SPIN_S)
-            while time.monotonic() < t_tick:
+            while not stepped and time.monotonic() < t_tick:
                 pass
-            t = time.monotonic() - t0
+            t = k * T if stepped else time.monotonic() - t0
             self.stats.tick_error_s.append(t - k * T)
             if t - k * T > 0.5 * T:
                 self.stats.late_ticks += 1
-                if t - k * T > T:  # a controller does not send a burst to catch up: the missed messages are gone,
-                    n_skip = int((t - k * T) / T)  # but the arm moved on: the station steps through them
+                if t - k * T > T:
+                    # more than a period behind: the schedule slips (no burst to catch up, and no
+                    # cycles stepped through unannounced).  A real controller is never late; this
+                    # simulated one only stretches its time, and its messages' clock (header.tm)
+                    # still advances by one period per message, as the station does.
+                    n_skip = int((t - k * T) / T)
                     self.stats.skipped_ticks += n_skip
-                    for _ in range(n_skip if engaged else 0):
-                        _, w_skip = self.station.step(q_cmd)
-                        self._send_wrench(w_skip, t - t_eng)
-                    k += n_skip
+                    t0 += n_skip * T
+                    t -= n_skip * T
             self.rdt.poll()
-            targets = self.egm.receive_targets()
+            targets = self.egm.receive_targets(self.answer_timeout_s if stepped else 0.0)
+            if stepped and targets is None and not answered_since_last:
+                break  # the compensator stopped answering
             if targets is not None:
                 q_cmd = np.radians(targets)
                 answered_since_last = True

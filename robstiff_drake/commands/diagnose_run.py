@@ -12,6 +12,7 @@ from robstiff_drake.identification.run_diagnosis import diagnose_run
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.run_files import read_settings, settings_text
 from robstiff_drake.identification.run_verification import plan_markdown
+from robstiff_drake.identification.scan_statistics import along_mm, segments
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import info
@@ -26,18 +27,23 @@ def plot(rep, extras, title):
 
     fig, ax = plt.subplots(figsize=(10, 5.5), constrained_layout=True)
     scan = extras["scan"]
+    along_x = all(np.ptp(scan.y_mm[g]) < 1e-9 for g in segments(scan.x_mm, scan.y_mm))
+
+    def position(sc):  # x for lines along x, else the distance along the scan
+        return sc.x_mm if along_x else along_mm(sc.x_mm, sc.y_mm)
+
     s = rep["surface_error_before_mm"]
-    ax.plot(scan.x_mm, scan.error_mm, ".", ms=2, color="0.5",
+    ax.plot(position(scan), scan.error_mm, ".", ms=2, color="0.5",
             label=f"first cut (measured): mean {s['mean']:+.3f}, rms {s['rms']:.3f} mm")
-    if rep["causes"]:
-        ax.plot(scan.x_mm[extras["covered"]], extras["model_mm"], "k-", lw=1.2,
-                label="traced: " + ", ".join(c["name"] for c in rep["causes"]))
+    known = "the arm's motion error and the loop's tracking error (predicted from the logs)"
+    ax.plot(position(scan)[extras["covered"]], extras["model_mm"], "k-", lw=1.2,
+            label="traced: " + ", ".join([known] + [c["name"] for c in rep["causes"]]))
     for name, cut in extras["cut_scans"]:
         e = cut.error_mm
-        ax.plot(cut.x_mm, e, ".", ms=2, label=f"cut with {name}: mean {np.mean(e):+.3f}, "
-                                             f"rms {np.sqrt(np.mean(e**2)):.3f} mm")
+        ax.plot(position(cut), e, ".", ms=2, label=f"cut with {name}: mean {np.mean(e):+.3f}, "
+                                                   f"rms {np.sqrt(np.mean(e**2)):.3f} mm")
     ax.axhline(0, color="k", lw=0.6)
-    ax.set_xlabel("x along the pass (mm)")
+    ax.set_xlabel("x along the pass (mm)" if along_x else "distance along the scan (mm)")
     ax.set_ylabel("surface error (mm), + = cut more")
     ax.set_title(title, fontsize=10)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
@@ -57,7 +63,16 @@ def format_report(rep):
              + ", from the scan " + (f"{rep['noise_estimated_mm']:.4f}" if rep["noise_estimated_mm"] is not None
                                      else "-") + " mm",
              f"rule: {t['rule']}",
-             f"surface error rms {rep['rms_before_mm']:.4f} mm with the compensator as set"]
+             f"surface error rms {rep['rms_before_mm']:.4f} mm with the compensator as set",
+             f"known from the logs: the arm's own motion error leaves {rep['motion_error_mm']:.4f} mm rms on the face"]
+    lag = rep["loop_lag"]
+    if lag["status"] == "ok":
+        verdict = ("significant" if lag["significant"] else f"not significant: {lag['why_not']}")
+        fix = (f"; fix: {lag['fix']}" if lag.get("fix") else f"; {lag['note']}" if lag.get("note") else "")
+        lines.append(f"the loop's tracking error ({_params(lag['params'])}; lag {rep['loop_lag_ms']:.0f} ms) moves "
+                     f"the face by {lag['size_mm']:.4f} mm rms (p = {lag['p_value']:.2g}, {verdict}){fix}")
+    else:
+        lines.append(f"the loop's tracking error: {lag['status']}")
     if rep["causes"]:
         lines.append("cause traced: " + ", then ".join(f"{c['name']} ({_params(c['params'])}; changes the surface "
                                                         f"by {c['size_mm']:.4f} mm rms)" for c in rep["causes"]))
@@ -124,7 +139,9 @@ def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_y
     verify = list(verify or [])
     check_outputs(inputs=[run_dir, *verify], files={"--json": json_out}, folders={"--out": out})
     robot = run_robot(run_dir, robot_yaml)
-    rep, extras = diagnose_run(run_dir, robot, noise_mm=noise_mm, verify=verify)
+    from robstiff_drake.diagrams.run_arm import ArmModel
+
+    rep, extras = diagnose_run(run_dir, robot, ArmModel, noise_mm=noise_mm, verify=verify)
     warnings = Warnings()
     warnings.extend_from(rep["warnings"])
     rep["warnings"] = list(warnings)

@@ -286,6 +286,9 @@ def build_parser():
                    help="how long to wait at rest for the compensator's first answer (default: %(default)s)")
     p.add_argument("--reference-out", metavar="JOINTS.csv",
                    help="write the path's joint reference, for `compensate --reference`")
+    p.add_argument("--lockstep", action="store_true",
+                   help="step the station only when the compensator has answered the last message (the loop's "
+                        "physics without this PC's scheduling; default: real time, as a controller runs)")
     p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=4.0, help="EGM cycle (default: %(default)s)")
     p.add_argument("--json", metavar="OUT", help="write the result as JSON ('-' for stdout)")
     _add_robot_option(p)
@@ -492,7 +495,7 @@ def _dispatch(args):
 
         return sim_cell.run(scenario=args.scenario, egm_to=args.egm_to, netft_port=args.netft_port, wait_s=args.wait_s,
                             reference_out=args.reference_out, json_out=args.json, robot_yaml=args.robot,
-                            period_ms=args.period_ms)
+                            period_ms=args.period_ms, lockstep=args.lockstep)
     if args.command == "compensate":
         from robstiff_drake.commands import compensate
 

@@ -19,7 +19,7 @@ from robstiff_drake.io import Warnings, check_outputs, emit_json, write_atomic
 
 
 def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_out=None, robot_yaml=None,
-        period_ms=4.0):
+        period_ms=4.0, lockstep=False):
     check_outputs(inputs=[scenario, robot_yaml], files={"--reference-out": reference_out, "--json": json_out})
     if ":" not in str(egm_to):
         raise InputError(f"--egm-to {egm_to!r}: expected HOST:PORT (the compensator's --egm-port)")
@@ -29,11 +29,14 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
     station = CellStation(sc, robot, period_s=period_ms / 1e3)
     if reference_out is not None:
         write_atomic(reference_out, station.reference_csv())
-    net = CellNetwork(station, egm_to=(host, port), netft_port=netft_port, period_s=period_ms / 1e3)
+    net = CellNetwork(station, egm_to=(host, port), netft_port=netft_port, period_s=period_ms / 1e3,
+                      lockstep=lockstep)
+    # in lockstep the pass may run slower than real time: allow ten times it
+    run_s = wait_s + station.t_end * (10.0 if lockstep else 1.0) + 5.0
     warnings = Warnings()
     try:
         th = threading.Thread(target=net.run, daemon=True,
-                              args=(wait_s + station.t_end + 5.0, robot.joint_map.to_controller(station.q_ref[0])))
+                              args=(run_s, robot.joint_map.to_controller(station.q_ref[0])))
         th.start()
         t0 = time.monotonic()
         while th.is_alive():
@@ -49,14 +52,14 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
         warnings.add(f"the compensator stopped answering after {station.times[-1]:.2f} s of the "
                      f"{station.t_end:.2f} s pass: the surface is of the part cut so far")
     stats = net.stats
-    if stats.late_ticks:
+    if stats.late_ticks and not lockstep:
         warnings.add(f"{stats.late_ticks} of {stats.cycles} cycles were more than half a period late (this machine "
                      "is busy: the simulated controller is not hard real-time)")
     _, surface = station.surface()
     res = {"scenario": str(Path(scenario)), "robot": robot.name, "surface_error_mm": surface,
            "cycles": stats.cycles, "answered": stats.answered, "unanswered": stats.unanswered,
            "late_ticks": stats.late_ticks, "skipped_ticks": stats.skipped_ticks,
-           "sim_seconds": station.times[-1], "warnings": list(warnings)}
+           "sim_seconds": station.times[-1], "lockstep": bool(lockstep), "warnings": list(warnings)}
     if json_out is not None:
         emit_json(res, json_out)
     if json_out != "-":

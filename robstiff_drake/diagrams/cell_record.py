@@ -13,10 +13,12 @@ scenario: the simulation side of the run files (identification/run_files.py).
   simulation reads the machine from the run folder's ``sim_scenario.yaml``;
   the diagnosis never does.
 
-ASSUMPTION (until the servo model of issue 13): the joint log's angles are
-the angles the controller commands, which in this plant's servo-spring
-joints are the motor side (the spring is between them and the link); a
-cell's motor encoders would report them plus the servo's own tracking error.
+The joint log's angles are the angles the compensator hands the robot
+controller (the program plus the correction); the controller adds its
+gravity model and the servo drives the motors after its interpolator's dead
+time (diagrams/station.py).  compensator.yaml's ``servo`` section carries
+the controller's servo settings (the scenario's ``servo``), which
+``diagnose-run`` needs to know when a correction reaches the motor.
 """
 
 import copy
@@ -24,7 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.diagrams.scenario import check_scenario, model_stiffness, payload_calibration, robot_spec
+from robstiff_drake.diagrams.scenario import (
+    check_scenario,
+    model_stiffness,
+    payload_calibration,
+    plant_step_s,
+    robot_spec,
+)
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification import run_files as rf
 
@@ -51,7 +59,22 @@ def compensator_settings(sc, robot):
         saturation_deg=float(c.saturation_deg), rate_limit_deg_per_s=float(c.rate_limit_deg_per_s),
         lost_motion_rad=[float(v) for v in (sc.model.lost_motion_rad or np.zeros(6))],
         coupling_c23_rad_per_Nm=float(sc.model.coupling_c23_rad_per_Nm),
-        force_model_scale=float(sc.model.force_model_scale), robot=_robot_spec_text(sc, robot))
+        force_model_scale=float(sc.model.force_model_scale), robot=_robot_spec_text(sc, robot),
+        servo=servo_settings(sc))
+
+
+def servo_settings(sc):
+    """The robot controller's servo of scenario ``sc`` as compensator.yaml's
+    ``servo`` section (run_files.SERVO_KEYS).  ``interpolator_delay_ms`` is
+    the dead time from a joint target the compensator sends at a controller
+    tick to the servo acting on it, as the simulated station has it: the
+    interpolator's hold takes the target at its next period (a discrete
+    input changed at the same instant is seen one period later), its delay
+    line holds it ``servo.interpolator_delay_ms``, and the servo's discrete
+    update adds one plant step."""
+    out = {k: float(getattr(sc.servo, k)) for k in rf.SERVO_KEYS}
+    out["interpolator_delay_ms"] += float(sc.servo.interpolator_period_ms) + plant_step_s(sc) * 1e3
+    return out
 
 
 def _robot_spec_text(sc, robot):
@@ -82,6 +105,13 @@ def scenario_with_compensator(sc, settings, robot):
         if not np.isclose(got, machine, rtol=1e-9, atol=0):
             raise InputError(f"{where}: compensator.{key} {got:g} is not the scenario's {machine:g} "
                              "(the simulation takes the machine's own tool)")
+    if settings.servo is not None:
+        own_servo = servo_settings(sc)
+        for k, v in settings.servo.items():
+            if not np.isclose(v, own_servo[k], rtol=1e-9, atol=0):
+                raise InputError(f"{where}: compensator.servo.{k} {v:g} is not the scenario's servo.{k} "
+                                 f"{own_servo[k]:g} (the robot controller's servo is the machine's, not the "
+                                 "compensator's)")
     own = _payload_dict(payload_calibration(sc, robot))
     if any(not np.allclose(settings.payload[k], own[k], rtol=1e-9, atol=1e-12) for k in own):
         raise InputError(f"{where}: compensator.payload_calibration differs from the scenario's; a verification "
@@ -113,6 +143,11 @@ def cell_logs(result):
     wrench = rf.WrenchLog(t[keep] - dt, w[keep])
     tc, corr = result.logs["correction"]
     cell = result.cell
+    # a logger sees the state before the discrete updates at its own instant: the correction it records
+    # at t was computed one controller period earlier, and sent to the robot controller then
+    tc = tc - cell.scenario.controller.period_ms / 1e3
+    keep = tc >= -1e-12
+    tc, corr = np.maximum(tc[keep], 0.0), corr[keep]
     q_ref = np.column_stack([np.interp(tc, cell.q_ref_times, cell.q_ref[:, j]) for j in range(6)])
     corr = corr if result.compensation else np.zeros_like(corr)
     robot = cell.robot

@@ -1,4 +1,4 @@
-"""Joint-stiffness identification by least squares (seed Section 3, Eq. 8).
+"""Joint-stiffness identification by least squares (the paper's Section 3, Eq. 8).
 
 The conventional model is linear in the joint compliances c = 1/k:
     d_i = J_v(q_i) diag(c) J(q_i)^T W_i        (tool-point displacement)

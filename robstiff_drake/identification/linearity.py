@@ -1,6 +1,6 @@
 """What repeated measurements at paired loads say without joint angles:
 linearity in load, the offset at zero load that a line through the origin
-misses, and repeatability.  Used on the seed's Table 2.  Plain numpy + scipy.
+misses, and repeatability.  Used on the paper's Table 2.  Plain numpy + scipy.
 
 Per pose group (rows that share a pose and a load direction), for each
 displacement component d against the load magnitude |F|:

@@ -1,4 +1,4 @@
-"""Gravity calibration of the wrist sensor's payload (seed Section 4: mass
+"""Gravity calibration of the wrist sensor's payload (the paper's Section 4: mass
 and centre of mass from readings at 15 configurations; here also the
 sensor's force and torque bias).  Plain numpy + scipy; no Drake.
 

@@ -1,29 +1,49 @@
 """Residual diagnosis of a machining run (``robstiff diagnose-run RUN_DIR``):
 from what a cell records (docs/run_files.md: the wrist sensor's raw log, the
-controller's joint angles and correction, the compensator's settings and
-the scan of the machined face) find what the compensated surface error is,
-trace it to a cause, write each candidate fix as compensator settings with
-a verification-cut plan, and decide from the verification cuts' scans.
-Nothing here reads the simulation's truth (``sim_*`` files) or runs a
-simulation: a cell's own logs are enough.  Plain numpy and scipy; no Drake.
+controller's joint angles and correction, the compensator's and the servo's
+settings and the scan of the machined face) find what the compensated
+surface error is, trace it to a cause, write each candidate fix as
+compensator settings with a verification-cut plan, and decide from the
+verification cuts' scans.  Nothing here reads the simulation's truth
+(``sim_*`` files) or runs a simulation: a cell's own logs and the robot's
+model are enough.  Plain numpy and scipy; the robot controller's model of
+the arm (its weight, inertia and modes: diagrams/run_arm.ArmModel, Drake)
+comes in as an object.
 
-Signals.  The wrench log, gravity removed with the settings' payload
-calibration and moved to the tool point (base frame), gives the process
-load W(t) and the joint torques tau = J^T W at the program's angles (the
-logged angles minus the correction).  The tool's vertical deviation from
-the program is dz = J_z (corr + dq) with dq the joints' deflection; the
-compensator as set predicts dq = C tau (+ its lost motion and coupling).
-Force and correction are smoothed with a zero-phase 10 Hz low-pass
-(SMOOTH_HZ: the arm follows both quasi-statically only below its first
-modes) and resampled every 5 ms.
+The joint (diagrams/station.py): the gear between the motor and the link
+carries the total torque, weight + inertia + cut; the controller's gravity
+model and a touch-off at the first path point put the tool where commanded
+at rest; the correction reaches the motor after the servo's dead time
+(``servo.interpolator_delay_ms``) through the position loop.
 
-Causes (each a deviation dz(t) per unit parameter):
-  loop_lag               a * J_z (corr + C tau): the loop's own tracking error
-                         (its lag behind the force, saturation, rate limit),
-                         predicted from the logs; a = 1 is as predicted
-  stiffness_error_jN     r_N J_z,N c_N tau_N   (joint N's compliance off by r_N)
-  lost_motion            sum_N b_N J_z,N tanh(tau_N / 50 N*m), joints 1-3
-  joint_coupling         c23 (J_z,2 tau_3 + J_z,3 tau_2)
+Signals (identification/arm_response.py).  The wrench log, gravity removed
+with the settings' payload calibration and moved to the tool point (base
+frame), is the process load W(t) (smoothed over SMOOTH_MM of feed); the
+arm's time is the program's delayed by the dead time.  A linear model of
+the joints (gears at the model's stiffness, the weight's stiffness, assumed
+DAMPING_RATIO, the motor-side servo), linearised every SEGMENT_S, gives:
+  the arm's own motion error (the path's acceleration through the soft
+    gears and the servo, the gravity model's twist rate that gets no
+    feed-forward): known, not a cause;
+  the loop's tracking error: the logged correction through the servo plus
+    the measured load through the gears (the payload's inertia taken out of
+    the sensor's reading), the model's lost motion and coupling added.
+The tool's vertical deviation is the sum of these and the causes' columns.
+
+The loop's tracking error, scaled by a (1: as predicted, 0-1.5), is always
+in the model; it is reported apart (``loop_lag``), with its fix (plain ->
+predictive) offered when it moves the face by at least the floor.  Causes
+(each a deviation dz(t) per unit parameter, beyond the model as set):
+  stiffness_error_jN     r_N J_z,N c_N (tau_N - tau_inertia_N): joint N's
+                         compliance off by r_N (the controller's gravity
+                         model is calibrated on the arm: the weight's part
+                         is not this cause's)
+  lost_motion            sum_N b_N J_z,N (tanh(T0_N / 50) - tanh(T_N / 50)),
+                         T the total torque the gear carries (weight +
+                         inertia - J^T W), T0 at the touch-off: joints 1-6
+                         (where T keeps its sign, or the joint cannot move
+                         the tool vertically, there is no data)
+  joint_coupling         c23 of the total torque's change since the touch-off
   setup_offset           a constant (tool length, workpiece height)
 The surface at a scan point is the lowest the cutter's face went while it
 covered the point (the envelope), so the error predicted there is
@@ -31,16 +51,17 @@ base(x) - min over covering t of (z_nom(t) + dz(t)).
 
 Statistics (thresholds in the report): the noise floor is the scan noise,
 stated (--noise-mm, or scan.csv's noise_mm) or estimated from the scan
-(identification/scan_statistics.py), both reported.  Forward selection: a
-cause is named when its nested F-test with the effective number of
-independent points gives p < ALPHA, it changes the surface by at least
-SIZE_FACTOR x the floor (RMS over the scan), and it needs no parameter at a
-plausibility bound.  A fit that extends a model starts from that model's
-solution (it is never worse); a parameter that cannot move the surface by
-NO_DATA x the floor over its whole range has no data in this run and is
-dropped.  Causes whose fits differ by less than the floor (mean square) are
-alike: one pass cannot tell them apart, and verification cuts decide
-(identification/run_verification.py: scans and settings only).
+(identification/scan_statistics.py), both reported.  Forward selection on
+top of the loop: a cause is named when its nested F-test with the effective
+number of independent points gives p < ALPHA, it moves the fitted face by
+at least SIZE_FACTOR x the floor (RMS over the scan) from the smaller
+model's, and it needs no parameter at a plausibility bound.  A fit that
+extends a model starts from that model's solution (it is never worse); a
+parameter that cannot move the surface by NO_DATA x the floor over its
+whole range has no data in this run and is dropped.  Causes whose fits
+differ by less than the floor (mean square) are alike: one pass cannot tell
+them apart, and verification cuts decide (identification/run_verification.py:
+scans and settings only).
 """
 
 import copy
@@ -51,39 +72,66 @@ from scipy import signal
 from scipy.optimize import least_squares
 
 from robstiff_drake.errors import InputError
+from robstiff_drake.identification import arm_response
 from robstiff_drake.identification import run_files as rf
 from robstiff_drake.identification import run_verification as rv
 from robstiff_drake.identification import scan_statistics as ss
+from robstiff_drake.identification.arm_response import SEGMENT_S, STEP_S, delayed
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
-from robstiff_drake.model.transmission import TAU_B_NM, twist
+from robstiff_drake.model.servo import ServoParameters
+from robstiff_drake.model.transmission import static_deflection, twist
 from robstiff_drake.model.wrench_frames import sensor_to_tool_base
 
-SMOOTH_HZ = 10.0  # ASSUMPTION: the arm's first modes are 5-10 Hz (this robot: 4.9, 8.6, 11.2 Hz)
-GRID_HZ = 200.0  # resampling rate after the smoothing (nothing faster is left)
+# ASSUMPTION: the sensor's reading is smoothed (zero phase) before it drives the arm's model, over the
+# time the cutter takes to move SMOOTH_MM at the program's feed (60 mm/s: 10 Hz; 20 mm/s: 3.3 Hz; within
+# SMOOTH_HZ): what the cut puts on the arm changes with the cutter's engagement, over millimetres of travel
+# (the steepest change, as the cutter leaves a face, over a few), while the sensor's noise, driven through
+# the model's lightly damped first mode, would leave dips of a few micrometres that the face's envelope
+# (the lowest the cutter went over its whole diameter) turns into a bias.  The correction is used as
+# logged: it moved the arm.
+SMOOTH_MM = 6.0
+SMOOTH_HZ = (2.0, 10.0)
+GRID_EVERY = 5  # the fit's grid: every 5th step of the arm's response (200 Hz; nothing faster is left)
+GRID_HZ = 1.0 / (GRID_EVERY * STEP_S)
+# ASSUMPTION: the arm's first mode has 10 % of critical damping (modal tests of large industrial arms
+# report 5-15 %); a settings file does not state it.  It sets how long the arm rings after the path
+# accelerates (the arm's own motion error), not the size of the ringing's first swing.
+DAMPING_RATIO = 0.10
 ALPHA = 1e-3  # per test; about 10 causes are tried per round
 SIZE_FACTOR = 1.0  # a named cause changes the surface by at least this many noise floors (RMS)
 MAX_CAUSES = 2
 MIN_FLOOR_MM = 5e-4  # below half a micrometre a machining question is not decided
 EXPLAIN_ALPHA = 0.01  # the residual is consistent with the floor unless chi2 says otherwise at this level
 NO_DATA = 0.1  # of the floor: what a parameter must move the surface by over its range to be kept
+LOOP = "loop_lag"  # the loop's tracking error: always in the model, its fix offered when it matters
 NOISE_DISAGREE = 2.0  # warn when the stated and the estimated noise differ by more than this factor
 ALIKE = 1.0  # causes whose mean-square residuals differ by less than ALIKE x floor^2 are alike
 
 
 @dataclass
 class RunSignals:
-    """A run's signals on a common time grid (SI units)."""
+    """A run's signals on a common time grid, the arm's time: at t the arm is
+    meant to be at the program's angles of t - the interpolator's dead time
+    (SI units)."""
 
     t_s: np.ndarray
-    q_nominal_rad: np.ndarray  # (n, 6) the program's angles: logged angles minus the correction
-    correction_rad: np.ndarray  # (n, 6) smoothed
+    q_nominal_rad: np.ndarray  # (n, 6) where the arm is meant to be: the program's angles, delayed
+    correction_rad: np.ndarray  # (n, 6) the logged correction, smoothed (as the compensator sent it)
     tool_wrench: np.ndarray  # (n, 6) process load at the tool point, base frame, smoothed
-    tau_Nm: np.ndarray  # (n, 6)
+    tau_Nm: np.ndarray  # (n, 6) J^T W: the process load's generalized force
+    tau_static_Nm: np.ndarray  # (n, 6) the arm's weight on the gears (the controller's gravity model)
+    tau_inertia_Nm: np.ndarray  # (n, 6) M q'' + c(q, q') along the program
+    tau_touch_off_Nm: np.ndarray  # (6,) the weight on the gears at the first path point (touch-off)
     Jz: np.ndarray  # (n, 6) the tool's vertical Jacobian row (m/rad)
     p_nominal_m: np.ndarray  # (n, 3) the program's tool point
     compliance: np.ndarray  # (6,) the model's, rad/(N*m)
-    model_dq_rad: np.ndarray  # (n, 6) the deflection the compensator's model predicts
+    model_dq_rad: np.ndarray  # (n, 6) the deflection the compensator's model predicts (its own law)
+    dz_motion_m: np.ndarray  # (n,) the arm's own motion error along the program (known, not a cause)
+    dz_loop_m: np.ndarray  # (n,) the loop's tracking error the logs predict (the plant taken as the model)
+    servo: ServoParameters
+    damping_ratio: float
+    smooth_hz: float  # the load's smoothing
 
 
 def _fill_dropouts(t, w, path):
@@ -97,11 +145,11 @@ def _fill_dropouts(t, w, path):
     return w
 
 
-def _lowpass(x, rate_hz):
-    """Zero-phase low-pass at SMOOTH_HZ along axis 0 (as is when too short)."""
-    if SMOOTH_HZ >= 0.5 * rate_hz:
+def _lowpass(x, rate_hz, cutoff_hz):
+    """Zero-phase low-pass at ``cutoff_hz`` along axis 0 (as is when too short)."""
+    if cutoff_hz >= 0.5 * rate_hz:
         return x
-    b, a = signal.butter(2, SMOOTH_HZ, fs=rate_hz)
+    b, a = signal.butter(2, cutoff_hz, fs=rate_hz)
     if x.shape[0] <= 3 * max(len(a), len(b)):
         return x
     return signal.filtfilt(b, a, x, axis=0)
@@ -111,10 +159,35 @@ def _resample(t_new, t, x):
     return np.column_stack([np.interp(t_new, t, x[:, j]) for j in range(x.shape[1])])
 
 
-def run_signals(files, robot):
-    """RunSignals from a run's logs and settings (robot: the DH table)."""
+def servo_of(settings):
+    """The robot controller's servo of a settings file (InputError when the
+    file does not state it)."""
+    if settings.servo is None:
+        raise InputError(f"{settings.path}: compensator: no 'servo' section; diagnose-run needs the robot "
+                         "controller's servo settings (" + ", ".join(rf.SERVO_KEYS) + ") to know when a "
+                         "correction reaches the motor (docs/run_files.md)")
+    v = settings.servo
+    return ServoParameters(position_gain_per_s=v["position_gain_per_s"],
+                           velocity_bandwidth_hz=v["velocity_bandwidth_hz"],
+                           velocity_feedforward=v["velocity_feedforward"],
+                           interpolator_delay_s=v["interpolator_delay_ms"] / 1e3)
+
+
+def smoothing_hz(files, robot):
+    """The cutoff (Hz) of the load's smoothing: the program's feed (its
+    tool point's speed, 90th percentile) over SMOOTH_MM, within SMOOTH_HZ."""
+    jl = files.joints
+    tool = np.asarray(files.settings.tool_point_mm, dtype=float) / 1e3
+    p = kin.tool_position(robot.dh, robot.joint_rad(jl.q_deg) - robot.model_delta_rad(jl.correction_deg), tool)
+    speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / np.diff(jl.t_s)
+    return float(np.clip(np.percentile(speed, 90) * 1e3 / SMOOTH_MM, *SMOOTH_HZ))
+
+
+def _process_wrench(files, robot, cutoff_hz):
+    """(t (s), process wrench at the tool point, base frame, smoothed at
+    ``cutoff_hz``) over the joint log's span."""
     s, wl, jl = files.settings, files.wrench, files.joints
-    t_j, q_j, c_j = jl.t_s, robot.joint_rad(jl.q_deg), robot.model_delta_rad(jl.correction_deg)
+    t_j = jl.t_s
     inside = (wl.t_s >= t_j[0]) & (wl.t_s <= t_j[-1])
     if inside.sum() < 10:
         raise InputError(f"{wl.path}: fewer than 10 readings within the joint log's time span "
@@ -122,25 +195,100 @@ def run_signals(files, robot):
     t = wl.t_s[inside]
     w = _fill_dropouts(t, wl.wrench[inside], wl.path)
     rate = 1.0 / float(np.median(np.diff(t)))
-    q = _resample(t, t_j, q_j)
-    held = np.clip(np.searchsorted(t_j, t, side="right") - 1, 0, len(t_j) - 1)
-    corr = c_j[held]  # the servos get the correction held from one controller tick to the next
+    q = _resample(t, t_j, robot.joint_rad(jl.q_deg))  # the sensor turns with the arm
     cal = PayloadCalibration(**s.payload)
     arrays = cal.arrays()
     tool = np.asarray(s.tool_point_mm, dtype=float) / 1e3
     R6 = kin.frames(robot.dh, q)[:, 6, :3, :3]
     W = np.array([sensor_to_tool_base(wk - payload_wrench(R, cal, arrays), R, tool, arrays[4])
                   for wk, R in zip(w, R6)])
-    W, corr = _lowpass(W, rate), _lowpass(corr, rate)
-    grid = np.arange(t[0], t[-1], 1.0 / GRID_HZ)
-    W, corr = _resample(grid, t, W), _resample(grid, t, corr)
-    q_nom = _resample(grid, t_j, q_j - c_j)
-    J = kin.jacobian(robot.dh, q_nom, tool)
-    tau = np.einsum("nrj,nr->nj", J, W)
+    return t, _lowpass(W, rate, cutoff_hz), rate
+
+
+def _segments(n, step_s):
+    """(segment index of each of n steps, first step of each segment)."""
+    per = max(1, int(round(SEGMENT_S / step_s)))
+    seg = np.arange(n) // per
+    return seg, np.arange(0, n, per)
+
+
+def run_signals(files, robot, arm):
+    """RunSignals from a run's logs and settings.  ``robot``: the DH table;
+    ``arm``: the controller's model of the arm (diagrams/run_arm.ArmModel:
+    gravity and inertia torques, mass matrix at a pose)."""
+    s, jl = files.settings, files.joints
+    servo = servo_of(s)
+    t_j, q_j, c_j = jl.t_s, robot.joint_rad(jl.q_deg), robot.model_delta_rad(jl.correction_deg)
+    cutoff = smoothing_hz(files, robot)
+    t, W, rate = _process_wrench(files, robot, cutoff)
     c = 1.0 / np.asarray(s.joint_stiffness_Nm_per_rad, dtype=float)
-    # what the compensator predicts: its model's twist under the process load (as DeflectionPrediction)
-    model_dq = twist(tau, c, s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
-    return RunSignals(grid, q_nom, corr, W, tau, J[:, 2, :], kin.tool_position(robot.dh, q_nom, tool), c, model_dq)
+    tool = np.asarray(s.tool_point_mm, dtype=float) / 1e3
+    # the fine grid of the arm's response
+    h = STEP_S
+    tf = np.arange(t_j[0], t_j[-1], h)
+    lag = int(round(servo.interpolator_delay_s / h))
+    q_prog = _resample(tf, t_j, q_j - c_j)
+    q_arm = delayed(q_prog, lag)  # where the arm is meant to be
+    held = np.clip(np.searchsorted(t_j, tf, side="right") - 1, 0, len(t_j) - 1)
+    corr_servo = delayed(c_j[held], lag)  # the correction as the servo gets it
+    J = kin.jacobian(robot.dh, q_arm, tool)
+    W_f = _resample(tf, t, W)
+    tau_f = np.einsum("nrj,nr->nj", J, W_f)
+    # the controller's gravity model's twist along the program (its rate gets no feed-forward)
+    g_f = delayed(_resample(tf, t_j, arm.gravity_torques(q_j - c_j)), lag)
+    g_rate = np.gradient(g_f, h, axis=0)
+    path = arm_response.path_terms(q_arm, h, servo.velocity_feedforward, g_f * c)
+    # the fitting grid: every GRID_EVERY-th step
+    k = np.arange(0, len(tf), GRID_EVERY)
+    grid, q_nom, Jg = tf[k], q_arm[k], J[k]
+    v_f = np.gradient(q_arm, h, axis=0)
+    v, a = v_f[k], np.gradient(v_f, h, axis=0)[k]
+    tau = tau_f[k]
+    g = arm.gravity_torques(q_nom)
+    g0 = arm.gravity_torques(q_j[:1] - c_j[:1])[0]
+    tau_i = arm.inertia_torques(q_nom, v, a)
+    velocity_terms = _resample(tf, grid, arm.inertia_torques(q_nom, v, np.zeros_like(a)))
+    seg, firsts = _segments(len(tf), h)
+    per = firsts[1] - firsts[0] if len(firsts) > 1 else len(tf)
+    full, bare, betas, inertia_maps = [], [], np.empty(len(tf)), []
+    for n0 in firsts:
+        i = min(n0 + per // 2, len(tf) - 1)
+        M, G, beta, _, L = arm.dynamics_at(q_arm[i], 1.0 / c, DAMPING_RATIO)
+        full.append(arm_response.arm_matrices(M, 1.0 / c, beta, G, servo, h))
+        # the sensor's reading holds the payload's inertia: the load it measures drives the arm without it
+        bare.append(arm_response.arm_matrices(M + J[i].T @ L, 1.0 / c, beta, G, servo, h))
+        betas[n0:n0 + per] = beta
+        inertia_maps.append(L)
+    motion_torque = betas[:, None] * g_rate - velocity_terms
+    motion = arm_response.responses(full, seg, [(motion_torque, None, path)])[..., 0]
+    acc = np.gradient(np.gradient(q_arm + motion, h, axis=0), h, axis=0)
+    W_cut = W_f - np.einsum("nrj,nj->nr", np.array(inertia_maps)[seg], acc)
+    tau_cut = np.einsum("nrj,nr->nj", J, W_cut)
+    dev = arm_response.responses(bare, seg, [(tau_cut, None, None), (None, corr_servo, None)])
+    dz = np.einsum("nj,njk->nk", J[:, 2, :], np.concatenate([dev, motion[..., None]], axis=2))
+    corr = _resample(grid, t_j, _lowpass(c_j, 1.0 / float(np.median(np.diff(t_j))), cutoff))
+    # what the compensator predicts: its model's law under the process load (model/compensator.DeflectionModel)
+    model_dq = static_deflection(g, tau, c, s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
+    # the loop's tracking error with the plant as the model believes it: its stiffness (dynamic), and its
+    # lost motion and coupling (quasi-static, the law of the total torque)
+    believed = gear_law_deviation(g, g0, tau_i, tau, s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
+    dz_loop = dz[k, 0] + dz[k, 1] + np.einsum("nj,nj->n", Jg[:, 2, :], believed)
+    return RunSignals(grid, q_nom, corr, W_f[k], tau, g, tau_i, g0, Jg[:, 2, :],
+                      kin.tool_position(robot.dh, q_nom, tool), c, model_dq, dz[k, 2], dz_loop, servo,
+                      DAMPING_RATIO, cutoff)
+
+
+def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost_motion_rad, coupling_c23):
+    """(n, 6) rad: how far the links move beyond the linear gears' deflection
+    (the controller's gravity model and the compensator's stiffness cover
+    that) from the gears' lost motion and 2-3 coupling (model/transmission.py),
+    of the total torque the gears carry: the weight (its change from the
+    touch-off, where the work offset was set), the inertia and the process
+    load (a generalized force on the links: the gears carry minus it)."""
+    carried = tau_static + tau_inertia - tau_process
+    zero = np.zeros(6)
+    return -(twist(carried, zero, lost_motion_rad, coupling_c23) - twist(tau_touch_off, zero, lost_motion_rad,
+                                                                          coupling_c23))
 
 
 @dataclass
@@ -151,6 +299,7 @@ class Param:
     lo: float  # bounds, SI
     hi: float
     lo_is_limit: bool = False  # lo is a physical limit (b >= 0), not a plausibility bound
+    nominal: float = 0.0  # SI: the value with nothing amiss (the loop's a: 1, as predicted)
 
 
 @dataclass
@@ -162,40 +311,57 @@ class Candidate:
 
 
 def loop_lag_ms(sig):
-    """How far (ms) the correction's vertical effect lags the model's
-    deflection: the shift that best cancels them (0-500 ms)."""
+    """How far (ms) the correction lags the model's deflection where it acts,
+    at the motor: the compensator's own lag (the shift, 0-500 ms, that best
+    cancels the correction's vertical effect and the deflection's) plus the
+    servo's (the interpolator's dead time and the position loop's 1 / Kp)."""
     corr_z = np.einsum("nj,nj->n", sig.Jz, sig.correction_rad)
     defl_z = np.einsum("nj,nj->n", sig.Jz, sig.model_dq_rad)
     if not np.any(defl_z):
-        return 0.0
+        return sig.servo.low_frequency_lag_s * 1e3
     shifts = np.arange(0.0, 0.5, 1.0 / GRID_HZ)
     cost = [np.sum((corr_z + np.interp(sig.t_s - d, sig.t_s, defl_z)) ** 2) for d in shifts]
-    return float(shifts[int(np.argmin(cost))] * 1e3)
+    return float((shifts[int(np.argmin(cost))] + sig.servo.low_frequency_lag_s) * 1e3)
+
+
+def _along(sig, dq):
+    """The tool's vertical deviation (m, (n,)) of joint deviations dq (n, 6) rad."""
+    return np.einsum("nj,nj->n", sig.Jz, dq)
 
 
 def candidates(sig):
     """The candidate causes' columns and parameters (see the module docstring)."""
-    Jz, tau, c = sig.Jz, sig.tau_Nm, sig.compliance
-    lag = np.einsum("nj,nj->n", Jz, sig.correction_rad + sig.model_dq_rad)
-    # ASSUMPTION: a <= 1.5.  The arm's own response adds some lag to the loop's (fits of the simulated
-    # cases give a = 1.1-1.4); a tracking error that fits only when scaled further is not this one
-    out = [Candidate("loop_lag", lag[:, None], [Param("a", "x predicted", 1.0, 0.0, 1.5, True)],
-                     "the loop's tracking error (its lag behind the force), as the logs predict it")]
+    Jz, c = sig.Jz, sig.compliance
+    # ASSUMPTION: a <= 1.5.  The prediction has the servo and the arm's modes; a tracking error that fits
+    # only when scaled beyond 1.5 is not this one
+    out = [Candidate(LOOP, sig.dz_loop_m[:, None], [Param("a", "x predicted", 1.0, 0.0, 1.5, True, 1.0)],
+                     "the loop's tracking error (the correction's lag behind the load, through the compensator, "
+                     "the interpolator and the servo), as the logs predict it")]
+    # what a joint's gear carries beyond the weight: the process load (a generalized force on the links,
+    # which the gear holds back) and the arm's inertia.  ASSUMPTION (as diagrams/station.py): the
+    # controller's gravity model is calibrated on the arm, so a stiffness error leaves the weight's part
+    # to it; lost motion and coupling are not in it (the touch-off takes their static part at the first
+    # path point only)
+    moved = sig.tau_Nm - sig.tau_inertia_Nm
     for j in range(6):
         # a joint softer (r > 0) or stiffer than the model; ASSUMPTION: -50 %..+100 % of the compliance
         # bounds what an identified model can be off by
-        out.append(Candidate(f"stiffness_error_j{j + 1}", (Jz[:, j] * c[j] * tau[:, j])[:, None],
+        out.append(Candidate(f"stiffness_error_j{j + 1}", (Jz[:, j] * c[j] * moved[:, j])[:, None],
                              [Param(f"r{j + 1}", "%", 100.0, -0.5, 1.0)],
                              f"joint {j + 1}'s compliance differs from the model's"))
+    law = (sig.tau_static_Nm, sig.tau_touch_off_Nm, sig.tau_inertia_Nm, sig.tau_Nm)
+    unit = np.eye(6)
     # ASSUMPTION: lost motion up to 300 urad (1 arcmin); industrial gears are specified at 10-60 urad
     out.append(Candidate("lost_motion",
-                         np.column_stack([Jz[:, j] * np.tanh(tau[:, j] / TAU_B_NM) for j in range(3)]),
-                         [Param(f"b{j + 1}", "urad", 1e6, 0.0, 3e-4, True) for j in range(3)],
-                         "lost motion (backlash) in joints 1-3 beyond the model's"))
+                         np.column_stack([_along(sig, gear_law_deviation(*law, unit[j], 0.0)) for j in range(6)]),
+                         [Param(f"b{j + 1}", "urad", 1e6, 0.0, 3e-4, True) for j in range(6)],
+                         "lost motion (backlash) in the gears beyond the model's, taken up where the total torque "
+                         "a gear carries (weight, inertia and cut) changes sign"))
     # ASSUMPTION: |c23| <= 0.3 sqrt(c2 c3); a positive-definite compliance needs < 1
     c23 = 0.3 * np.sqrt(c[1] * c[2])
-    out.append(Candidate("joint_coupling", (Jz[:, 1] * tau[:, 2] + Jz[:, 2] * tau[:, 1])[:, None],
-                         [Param("c23", "rad/(N*m)", 1.0, -c23, c23)], "a joint 2-3 coupling beyond the model's"))
+    out.append(Candidate("joint_coupling", _along(sig, gear_law_deviation(*law, None, 1.0))[:, None],
+                         [Param("c23", "rad/(N*m)", 1.0, -c23, c23)],
+                         "a joint 2-3 coupling beyond the model's (of the total torque)"))
     out.append(Candidate("setup_offset", -np.ones((len(sig.t_s), 1)), [Param("offset", "mm", 1e3, -1e-3, 1e-3)],
                          "a constant: tool length or workpiece height (+ = cut more)"))
     return out
@@ -203,8 +369,9 @@ def candidates(sig):
 
 class Envelope:
     """The face a deviation dz(t) leaves along the scan: each point is the
-    lowest the cutter's face (radius R, centred on the program's tool point)
-    went while covering it."""
+    lowest the cutter's face (radius R, centred on the program's tool point,
+    moved by the arm's own motion error ``sig.dz_motion_m``) went while
+    covering it."""
 
     def __init__(self, scan, sig, cutter_diameter_mm):
         x, y = scan.x_mm / 1e3, scan.y_mm / 1e3
@@ -215,12 +382,17 @@ class Envelope:
         cover = cover[self.covered]
         self.samples = np.flatnonzero(cover.any(axis=0))  # samples that cover a scan point
         cover = cover[:, self.samples]
-        self.Z = np.where(cover, p[self.samples, 2][None, :], np.inf)
-        self.base = self.Z.min(axis=1)
+        # the covering (point, sample) pairs, point by point: the envelope is a minimum over each point's run
+        rows, cols = np.nonzero(cover)
+        self._pair_samples = self.samples[cols]
+        self._starts = np.flatnonzero(np.r_[True, np.diff(rows) > 0])
+        z = p[self._pair_samples, 2]
+        self.base = np.minimum.reduceat(z, self._starts)  # the programmed face
+        self._Z = z + sig.dz_motion_m[self._pair_samples]
 
     def surface(self, dz):
         """Surface error (m, + = cut more) at the covered scan points."""
-        return self.base - (self.Z + dz[self.samples][None, :]).min(axis=1)
+        return self.base - np.minimum.reduceat(self._Z + dz[self._pair_samples], self._starts)
 
 
 @dataclass
@@ -247,22 +419,22 @@ class Fit:
 
 def _solve(env, cols, params, y, starts):
     """Bounded least squares of surface(cols @ theta) = y from each start;
-    (theta SI, rss) of the best."""
-    scale = np.maximum(np.abs(cols[env.samples]).max(axis=0), 1e-300)
-    C = cols / scale
-    lo = np.array([p.lo for p in params]) * scale
-    hi = np.array([p.hi for p in params]) * scale
+    (theta SI, rss m^2) of the best.  Solved for each parameter's fraction
+    of its range and residuals in mm, so that the solver's tolerances (made
+    for numbers of order one) stop it at the optimum, not at the start."""
+    lo = np.array([p.lo for p in params])
+    span = np.array([p.hi for p in params]) - lo
 
-    def resid(th):
-        return env.surface(C @ th) - y
+    def resid(u):
+        return (env.surface(cols @ (lo + span * u)) - y) * 1e3
 
     best = None
     for start in starts:
-        x0 = np.clip(np.asarray(start, dtype=float) * scale, lo, hi)
-        sol = least_squares(resid, x0, bounds=(lo, hi), method="trf")
+        u0 = np.clip((np.asarray(start, dtype=float) - lo) / span, 0.0, 1.0)
+        sol = least_squares(resid, u0, bounds=(0.0, 1.0), method="trf", x_scale="jac")
         if best is None or sol.cost < best.cost:
             best = sol
-    return best.x / scale, float(2.0 * best.cost)
+    return lo + span * best.x, float(2.0 * best.cost) * 1e-6
 
 
 def fit_model(env, causes, keep, y, base=None):
@@ -270,7 +442,10 @@ def fit_model(env, causes, keep, y, base=None):
     the model this one extends (its causes first): its solution, with the
     new parameters at zero, is the first start, so the extension is never
     worse; the new parameters also start at a quarter and three quarters of
-    their range."""
+    their range, and all parameters start once more at their nominal
+    values (a fit through the face's envelope has local minima: an old
+    parameter that absorbed what the new one explains may not come back
+    from where the smaller model left it)."""
     fit = Fit(list(causes), [list(k) for k in keep], np.zeros(0), float(y @ y), -y)
     params = fit.params()
     if not params:
@@ -278,9 +453,11 @@ def fit_model(env, causes, keep, y, base=None):
     n_old = len(base.theta) if base is not None else 0
     head = base.theta if base is not None else np.zeros(0)
     new = params[n_old:]
-    starts = [np.r_[head, np.zeros(len(new))]]
+    starts = [np.r_[head, [p.nominal for p in new]]]
     for frac in (0.25, 0.75):
         starts.append(np.r_[head, [p.lo + frac * (p.hi - p.lo) for p in new]])
+    if n_old:
+        starts.append(np.array([p.nominal for p in params]))
     fit.theta, fit.rss = _solve(env, fit.columns(), params, y, starts)
     fit.residual = env.surface(fit.columns() @ fit.theta) - y
     return fit
@@ -347,7 +524,11 @@ def try_cause(env, base, cand, y, floor_m, stats_ctx):
     n_eff, tau = ss.effective_points(fit.residual * 1e3, stats_ctx["segs"], stats_ctx["length_mm"],
                                      stats_ctx["cutter_mm"])
     F, p = ss.f_test(base.rss, fit.rss, len(keep), len(fit.theta), n, n_eff)
-    size = _rms(env.surface(fit.columns() @ fit.theta) - env.surface(fit.columns() @ _without(fit, len(causes) - 1)))
+    # what the cause adds: how far the face it fits moves from the smaller model's own fit (a cause that
+    # only trades places with one already in the model, as an offset and a stiffness error on a steady
+    # cut, moves it little however large its parameter)
+    before = env.surface(base.columns() @ base.theta) if base.causes else np.zeros(n)
+    size = _rms(env.surface(fit.columns() @ fit.theta) - before)
     mine = fit.theta[fit.slices()[-1]]
     ps = [cand.params[i] for i in keep]
     at_bound = [q.name for q, v in zip(ps, mine)
@@ -390,11 +571,12 @@ def noise_floor(scan, segs, stated_mm, warnings):
     return floor, source, stated, estimated
 
 
-def trace(env, cands, y, floor_m, stats_ctx):
-    """Forward selection; returns (rounds, final Fit)."""
-    fit = Fit([], [], np.zeros(0), float(y @ y), -y)
+def trace(env, cands, y, floor_m, stats_ctx, base):
+    """Forward selection of causes on top of ``base`` (the loop's tracking
+    error: always in the model); returns (rounds, final Fit)."""
+    fit = base
     rounds = []
-    while len(fit.causes) < MAX_CAUSES:
+    while len(fit.causes) - len(base.causes) < MAX_CAUSES:
         results, fits = [], {}
         for cand in cands:
             if any(c.name == cand.name for c in fit.causes):
@@ -419,6 +601,8 @@ def alternatives(env, cands, y, floor_m, stats_ctx, final):
     out = []
     names = [c.name for c in final.causes]
     for i, c in enumerate(final.causes):
+        if c.name == LOOP:
+            continue  # always in the model
         rest = Fit([], [], np.zeros(0), float(y @ y), -y)
         others = [(cc, k) for j, (cc, k) in enumerate(zip(final.causes, final.keep)) if j != i]
         if others:
@@ -474,11 +658,11 @@ def fixed_settings(settings, causes):
             changes.append(f"joint {j + 1}'s model stiffness {old:.4g} -> {k[j]:.4g} N*m/rad")
         elif name == "lost_motion":
             b = list(s.lost_motion_rad)
-            for j in range(3):
+            for j in range(6):
                 b[j] = b[j] + p.get(f"b{j + 1}", 0.0)
             s.lost_motion_rad = b
-            changes.append("lost motion in the model: " + ", ".join(f"{v * 1e6:.1f}" for v in b[:3])
-                           + " urad (joints 1-3)")
+            changes.append("lost motion in the model: " + ", ".join(f"{v * 1e6:.1f}" for v in b)
+                           + " urad (joints 1-6)")
         elif name == "joint_coupling":
             s.coupling_c23_rad_per_Nm = s.coupling_c23_rad_per_Nm + p["c23"]
             changes.append(f"joint 2-3 coupling in the model: {s.coupling_c23_rad_per_Nm:.3g} rad/(N*m)")
@@ -488,8 +672,14 @@ def fixed_settings(settings, causes):
     return s, changes, none
 
 
-def _model_name(fit):
-    return " + ".join(c.name for c in fit.causes)
+def _fix_causes(fit, loop_fix):
+    """The causes of a fit whose fixes a candidate carries: its named causes,
+    and the loop's lag when its fix (predictive mode) is offered."""
+    return [c.name for c in fit.causes if c.name != LOOP] + ([LOOP] if loop_fix else [])
+
+
+def _model_name(fit, loop_fix):
+    return " + ".join(_fix_causes(fit, loop_fix))
 
 
 def _where_they_differ(env, scan, fits):
@@ -508,11 +698,13 @@ def _slug(name):
     return name.replace(" + ", "+")
 
 
-def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
+def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
     """Trace a run's surface error; with ``verify`` (run folders of
     verification cuts), decide between the candidate fixes from their scans.
-    Reads only the cell files (identification/run_files.py).  Returns
-    (report dict, extras: candidate settings texts, plan, data for the plot)."""
+    Reads only the cell files (identification/run_files.py); ``robot``: the
+    run's robot, ``arm``: the controller's model of it (a callable of the
+    robot: diagrams/run_arm.ArmModel).  Returns (report dict, extras:
+    candidate settings texts, plan, data for the plot)."""
     files = rf.load_run_files(run_dir)
     cuts = [rf.load_run_files(c, names=(rf.SETTINGS, rf.SCAN)) for c in verify]
     if noise_mm is not None and not (np.isfinite(noise_mm) and noise_mm > 0):
@@ -520,7 +712,8 @@ def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
     warnings = []
     settings, scan = files.settings, files.scan
     D = settings.cutter_diameter_mm
-    sig = run_signals(files, robot)
+    servo_of(settings)  # refused before any computation when the file does not state it
+    sig = run_signals(files, robot, arm(robot))
     env = Envelope(scan, sig, D)
     if env.covered.sum() < rf.MIN_ROWS[rf.SCAN]:
         raise InputError(f"{scan.path}: only {int(env.covered.sum())} scan points lie under the logged pass "
@@ -532,10 +725,13 @@ def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
     y = scan.error_mm[env.covered] * 1e-3
     floor_mm, source, stated, estimated = noise_floor(scan, ss.segments(scan.x_mm, scan.y_mm), noise_mm, warnings)
     floor = floor_mm * 1e-3
-    ctx = {"segs": segs, "length_mm": ss.scan_length_mm(x_c, segs), "cutter_mm": D}
-    cands = candidates(sig)
-    rounds, final = trace(env, cands, y, floor, ctx)
-    alts = alternatives(env, cands, y, floor, ctx, final) if final.causes else []
+    ctx = {"segs": segs, "length_mm": ss.scan_length_mm(x_c, y_c, segs), "cutter_mm": D}
+    loop, *cands = candidates(sig)
+    empty = Fit([], [], np.zeros(0), float(y @ y), -y)
+    loop_row, loop_fit = try_cause(env, empty, loop, y, floor, ctx)
+    rounds, final = trace(env, cands, y, floor, ctx, loop_fit if loop_fit is not None else empty)
+    model = [c for c in final.causes if c.name != LOOP]
+    alts = alternatives(env, cands, y, floor, ctx, final) if model else []
     n_eff, tau = ss.effective_points(final.residual * 1e3, segs, ctx["length_mm"], D)
     rms_after = _rms(final.residual) * 1e3
     named = _cause_params(final)
@@ -543,6 +739,10 @@ def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
     for i, c in enumerate(final.causes):
         sizes[c.name] = _rms(env.surface(final.columns() @ final.theta)
                              - env.surface(final.columns() @ _without(final, i))) * 1e3
+    if model and loop_fit is not None:  # the loop's test given the causes named with it
+        rest = fit_model(env, model, [k for c, k in zip(final.causes, final.keep) if c.name != LOOP], y)
+        loop_row, _ = try_cause(env, rest, loop, y, floor, ctx)
+    loop_fix = bool(loop_row.get("named")) and settings.mode == "plain"
     report = {
         "run_dir": str(run_dir), "run_id": files.run_id,
         "noise_floor_mm": floor_mm, "noise_source": source, "noise_stated_mm": stated,
@@ -550,34 +750,41 @@ def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
         "n_scan_points": int(y.size), "scan_length_mm": ctx["length_mm"], "n_effective": n_eff,
         "thresholds": {"alpha": ALPHA, "size_factor": SIZE_FACTOR, "no_data_fraction": NO_DATA,
                        "alike_mean_square_floors": ALIKE, "explains_alpha": EXPLAIN_ALPHA,
-                       "max_causes": MAX_CAUSES, "smooth_hz": SMOOTH_HZ,
+                       "max_causes": MAX_CAUSES, "smooth_hz": sig.smooth_hz, "damping_ratio": sig.damping_ratio,
                        "candidates_per_round": len(cands),
                        "rule": (f"a cause is named when its nested F-test on the effective number of independent "
                                 f"scan points gives p < {ALPHA:g} ({len(cands)} candidates tried in the first "
                                 f"round), it changes the surface by at least {SIZE_FACTOR:g} x the noise floor "
-                                "(RMS) and needs no parameter at its plausibility bound")},
+                                "(RMS) and needs no parameter at its plausibility bound; the arm's own motion "
+                                "error and the loop's tracking error, both predicted from the logs, are in the "
+                                "model before any cause")},
         "loop_lag_ms": loop_lag_ms(sig),
+        "motion_error_mm": _rms(env.surface(np.zeros_like(sig.t_s))) * 1e3,
+        "loop_lag": _loop_report(loop_row, named.get(LOOP), sizes.get(LOOP), settings.mode, loop_fix),
         "rms_before_mm": _rms(y) * 1e3, "rms_after_mm": rms_after,
         "unexplained_mm": float(np.sqrt(max(rms_after**2 - floor_mm**2, 0.0))),
         "explains_data": ss.consistent_with_floor(final.residual * 1e3, floor_mm, n_eff, EXPLAIN_ALPHA),
         "causes": [{"name": c.name, "size_mm": sizes[c.name], "params": named[c.name], "what": c.what}
-                   for c in final.causes],
+                   for c in model],
         "also_consistent_with": [r["name"] for r, _ in alts],
         "alternatives": [{"name": r["name"], "instead_of": r["instead_of"], "rms_mm": r["rms_mm"],
                           "size_mm": r["size_mm"], "params": r["params"]} for r, _ in alts],
         "rounds": rounds, "candidates": [],
-        "surface_error_before_mm": ss.surface_stats(scan.x_mm, scan.error_mm, ss.segments(scan.x_mm, scan.y_mm), D),
+        "surface_error_before_mm": ss.surface_stats(scan.x_mm, scan.y_mm, scan.error_mm,
+                                                    ss.segments(scan.x_mm, scan.y_mm), D),
     }
-    extras = {"scan": scan, "covered": env.covered, "model_mm": (env.surface(final.columns() @ final.theta) * 1e3
-                                                                 if final.causes else np.zeros(y.size)),
+    extras = {"scan": scan, "covered": env.covered, "model_mm": env.surface(final.columns() @ final.theta) * 1e3
+              if final.causes else env.surface(np.zeros_like(sig.t_s)) * 1e3,
               "settings": {}, "plan": None, "cut_scans": []}
     # candidate fixes: compensator settings each
     cand_settings, plan_rows, sets = [], [], []
-    if final.causes:
+    if model or loop_fix:
         for f in [final] + [f for _, f in alts]:
-            name = _model_name(f)
-            s, changes, none = fixed_settings(settings, _si_params(f))
-            entry = {"name": name, "params": _cause_params(f), "changes": changes, "not_in_compensator": none}
+            name = _model_name(f, loop_fix)
+            si = {k: v for k, v in _si_params(f).items() if k != LOOP or loop_fix}
+            s, changes, none = fixed_settings(settings, si)
+            params = {k: v for k, v in _cause_params(f).items() if k != LOOP or loop_fix}
+            entry = {"name": name, "params": params, "changes": changes, "not_in_compensator": none}
             same = next((n for n, other in cand_settings if s.same_as(other)), None)
             if same is not None:  # the same compensator change: one cut cannot tell these apart
                 entry["same_settings_as"] = same
@@ -606,9 +813,29 @@ def diagnose_run(run_dir, robot, *, noise_mm=None, verify=()):
     return report, extras
 
 
+def _loop_report(row, params, size_mm, mode, fix):
+    """The ``loop_lag`` key: the loop's tracking error (predicted from the
+    logs, scaled by a): its size in the final model, its test against the
+    model of the named causes without it (``gain_mm``: how far it moves that
+    model's face; p), and its fix."""
+    out = {"what": row["what"], "status": row["status"]}
+    if row["status"] != "ok":
+        return out
+    out.update(params=params or row["params"], size_mm=size_mm if size_mm is not None else row["size_mm"],
+               gain_mm=row["size_mm"], p_value=row["p_value"], f_stat=row["f_stat"],
+               significant=bool(row["named"]), why_not=row["why_not"])
+    if fix:
+        out["fix"] = "mode: plain -> predictive"
+    elif row["named"]:
+        out["fix"] = None
+        out["note"] = ("the predictive loop's own tracking error: no settings change removes it (check the force "
+                       "model's scale and the controller's dead time)")
+    return out
+
+
 def _fix(report):
     """The ``fix`` key before verification."""
-    if not report["causes"]:
+    if not report["candidates"]:
         return None
     cands = report.get("candidates", [])
     with_settings = [c for c in cands if "settings" in c]

@@ -118,6 +118,12 @@ class CompensatorSettings:
     # the robot the model belongs to: a library name (`robstiff robots`) or a
     # robot file (relative to this settings file); empty: the IRB6400
     robot: str = ""
+    # the robot controller's servo (its `servo:` section, SERVO_KEYS): the
+    # interpolator's dead time (ms), the position loop's gain (1/s), the
+    # velocity loop's bandwidth (Hz) and the path's velocity feed-forward
+    # (0-1).  None: not stated (a file written before issue 13); what a
+    # correction takes to reach the motor is then unknown.
+    servo: dict = None
     path: str = ""
 
     def values(self):
@@ -129,7 +135,10 @@ class CompensatorSettings:
         a, b = self.values(), other.values()
         for k, va in a.items():
             vb = b[k]
-            if isinstance(va, dict):
+            if va is None or vb is None:
+                if (va is None) != (vb is None):
+                    return False
+            elif isinstance(va, dict):
                 if va.keys() != vb.keys() or not all(np.allclose(va[n], vb[n], rtol=rtol, atol=0) for n in va):
                     return False
             elif isinstance(va, str):
@@ -389,8 +398,14 @@ _SETTINGS_LAYOUT = {
     "tool": {"point_mm": ("tool_point_mm", ("vector", 3, "any")),
              "cutter_diameter_mm": ("cutter_diameter_mm", "positive"),
              "spindle_rpm": ("spindle_rpm", "positive")},
+    "servo": {"interpolator_delay_ms": ("servo.interpolator_delay_ms", "nonneg"),
+              "position_gain_per_s": ("servo.position_gain_per_s", "positive"),
+              "velocity_bandwidth_hz": ("servo.velocity_bandwidth_hz", "positive"),
+              "velocity_feedforward": ("servo.velocity_feedforward", ("range", 0.0, 1.0))},
 }
+SERVO_KEYS = tuple(_SETTINGS_LAYOUT["servo"])
 _OPTIONAL = {"lost_motion_rad", "coupling_c23_rad_per_Nm", "force_model_scale", "robot"}
+_OPTIONAL_SECTIONS = {"servo"}  # a file without it is read (servo None); diagnose-run refuses it
 _KEY_NOTES = {
     "robot": "the robot the model belongs to: a library name or a robot file (relative to this file)",
     "mode": "plain: the measured force, filtered and delayed; predictive: the force model ahead plus the "
@@ -406,6 +421,9 @@ _KEY_NOTES = {
              "coupling, and the predictive mode's cutting-force model scale (1: as set up)",
     "payload_calibration": "gravity removal (what `robstiff calibrate-payload` writes)",
     "tool": "the tool point in the flange frame, the cutter's diameter and the spindle speed",
+    "servo": "the robot controller's joint servo (not the compensator's, and not changed by a fix): the "
+             "interpolator's dead time, the position loop's gain, the velocity loop's bandwidth and the path's "
+             "velocity feed-forward (1: full); a correction gets no feed-forward",
 }
 
 
@@ -413,9 +431,9 @@ def _settings_source(s):
     """{attribute path: value} of the settings."""
     out = {}
     for f in fields(s):
-        if f.name == "payload":
-            for k, v in s.payload.items():
-                out[f"payload.{k}"] = v
+        if f.name in ("payload", "servo"):
+            for k, v in (getattr(s, f.name) or {}).items():
+                out[f"{f.name}.{k}"] = v
         elif f.name != "path":
             out[f.name] = getattr(s, f.name)
     return out
@@ -444,6 +462,8 @@ def settings_text(settings, run_id, notes=()):
     lines = [_meta_lines(run_id, ["The compensator's settings: what it believes and how its loop runs. Nothing "
                                   "of the plant (the robot's true joints) is here.", *notes]), "compensator:\n"]
     for key, spec in _SETTINGS_LAYOUT.items():
+        if key in _OPTIONAL_SECTIONS and getattr(settings, key) is None:
+            continue
         if key in _KEY_NOTES:
             lines.append(f"  # {_KEY_NOTES[key]}\n")
         if isinstance(spec, dict):
@@ -482,6 +502,12 @@ def _check_value(path, loader, node, key, kind):
         if v not in kind[1]:
             raise InputError(f"{where}: {key}: expected one of {', '.join(kind[1])}, got {v!r}")
         return v
+    if isinstance(kind, tuple) and kind[0] == "range":
+        x = _as_number(_scalar(loader, node))
+        if x is None or not kind[1] <= x <= kind[2]:
+            raise InputError(f"{where}: {key}: expected a number from {kind[1]:g} to {kind[2]:g}, "
+                             f"got {_scalar(loader, node)!r}")
+        return x
     if isinstance(kind, tuple) and kind[0] == "vector":
         _, n, each = kind
         v = _scalar(loader, node)
@@ -558,6 +584,8 @@ def read_settings(path):
         for k, spec in layout.items():
             key = f"{prefix}.{k}"
             if k not in items:
+                if k in _OPTIONAL_SECTIONS and prefix == "compensator":
+                    continue
                 if isinstance(spec, dict) or spec[0] not in _OPTIONAL:
                     raise InputError(f"{_where(path, node)}: {prefix}: missing key {k!r}")
                 continue
@@ -569,8 +597,9 @@ def read_settings(path):
 
     walk(top["compensator"][1], _SETTINGS_LAYOUT, "compensator")
     payload = {k.split(".", 1)[1]: v for k, v in values.items() if k.startswith("payload.")}
-    rest = {k: v for k, v in values.items() if not k.startswith("payload.")}
-    settings = CompensatorSettings(payload=payload, path=str(path), **rest)
+    servo = {k.split(".", 1)[1]: v for k, v in values.items() if k.startswith("servo.")} or None
+    rest = {k: v for k, v in values.items() if not k.startswith(("payload.", "servo."))}
+    settings = CompensatorSettings(payload=payload, servo=servo, path=str(path), **rest)
     if settings.filter_kind == "lowpass" and not settings.filter_cutoff_hz < 0.5 * settings.sensor_rate_hz:
         _fail(path, what=f"compensator.filter.cutoff_hz: {settings.filter_cutoff_hz:g} Hz must be below half the "
                          f"sensor rate ({0.5 * settings.sensor_rate_hz:g} Hz)")

@@ -13,6 +13,8 @@ also beat the first cut (the compensator as it was) by the same rule, or
 no fix is chosen.
 """
 
+import numpy as np
+
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification import scan_statistics as ss
 
@@ -54,7 +56,8 @@ def decide(before, cuts, floor_mm, cutter_diameter_mm):
     for name, scan in cuts:
         segs = ss.segments(scan.x_mm, scan.y_mm)
         rows.append({"candidate": name, "scan": scan.path,
-                     "surface_error_mm": ss.surface_stats(scan.x_mm, scan.error_mm, segs, cutter_diameter_mm)})
+                     "surface_error_mm": ss.surface_stats(scan.x_mm, scan.y_mm, scan.error_mm, segs,
+                                                                       cutter_diameter_mm)})
     order = sorted(range(len(cuts)), key=lambda i: rows[i]["surface_error_mm"]["rms"])
     best = order[0]
     e_best = cuts[best][1].error_mm
@@ -92,7 +95,13 @@ def verification_plan(candidates, run_scan, differ, floor_mm):
     file (relative), change in words)], ``run_scan`` the first cut's Scan,
     ``differ`` (x mm, y mm, difference mm) where the candidates' predictions
     on this pass differ most (or None)."""
-    lines_y = sorted({round(float(v), 3) for v in run_scan.y_mm})
+    segs = ss.segments(run_scan.x_mm, run_scan.y_mm)
+    if all(np.ptp(run_scan.y_mm[g]) < 1e-9 for g in segs):
+        where_scan = "the same scan line(s), y = " + ", ".join(f"{v:g}" for v in sorted(
+            {round(float(v), 3) for v in run_scan.y_mm})) + " mm"
+    else:
+        where_scan = (f"the same scan line(s), point for point ({len(segs)} piece(s), from x, y = "
+                      f"{run_scan.x_mm[0]:.1f}, {run_scan.y_mm[0]:.1f} mm)")
     if len(candidates) == 1:
         where = ("one candidate: its cut shows whether the fix removes the error (it must beat the first cut); "
                  "a repeat of the first cut's settings (compensator.yaml of the run) is a useful reference")
@@ -106,8 +115,7 @@ def verification_plan(candidates, run_scan, differ, floor_mm):
     return {
         "cut": "the same pass (same program, depth and material: a fresh face, or the same part after a skim "
                "cut), once per candidate, with that candidate's compensator.yaml loaded unchanged",
-        "scan": f"the same scan line(s), y = {', '.join(f'{v:g}' for v in lines_y)} mm, at the same resolution, "
-                "written as scan.csv (docs/run_files.md)",
+        "scan": f"{where_scan}, at the same resolution, written as scan.csv (docs/run_files.md)",
         "candidates": [{"name": n, "settings": f, "change": c} for n, f, c in candidates],
         "where": where,
         "decides": f"the cut with the lowest mean-square surface error, when it beats the others and the first cut "

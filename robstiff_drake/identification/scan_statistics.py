@@ -2,6 +2,9 @@
 noise floor, its effective number of independent points, and its
 surface-error figures.  Plain numpy; no Drake.
 
+Scan lines run along x, along y or along the machined path; positions
+along them are distances from point to point (``along_mm``).
+
 * Noise floor.  The scanner's noise is independent from point to point,
   while the face a 75 mm cutter leaves changes over tens of millimetres: the
   second difference of neighbouring points (0.5 mm apart) holds the noise
@@ -27,22 +30,36 @@ MAD_TO_SIGMA = 1.4826
 GAP_FACTOR = 3.0  # a step in x over 3x the scan's spacing starts a new segment
 
 
+def along_mm(x_mm, y_mm):
+    """Distance (mm) along the scan from its first point, point to point in
+    the file's order."""
+    x, y = np.asarray(x_mm, dtype=float), np.asarray(y_mm, dtype=float)
+    return np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(x), np.diff(y)))]) if x.size else np.zeros(0)
+
+
 def segments(x_mm, y_mm):
-    """Index arrays of the scan's contiguous pieces: one scan line (constant
-    y) without gaps (no material, a missing reading), in the file's order."""
+    """Index arrays of the scan's contiguous pieces, in the file's order: a
+    new piece starts where the step to the next point is over GAP_FACTOR x
+    the scan's spacing (a gap: no material, a missing reading, the next
+    line) or turns back (a line scanned the other way).  Lines along x, along
+    y or along a path alike."""
     x, y = np.asarray(x_mm, dtype=float), np.asarray(y_mm, dtype=float)
     if x.size < 2:
         return [np.arange(x.size)]
-    dx = np.abs(np.diff(x))
-    step = np.median(dx[dx > 0]) if np.any(dx > 0) else 1.0
-    cut = (np.abs(np.diff(y)) > 1e-9) | (dx > GAP_FACTOR * step)
+    dx, dy = np.diff(x), np.diff(y)
+    d = np.hypot(dx, dy)
+    step = np.median(d[d > 0]) if np.any(d > 0) else 1.0
+    gap = d > GAP_FACTOR * step
+    cut = gap.copy()
+    # a step that turns back against the one before it (neither of them a gap) starts a new piece
+    cut[1:] |= ((dx[1:] * dx[:-1] + dy[1:] * dy[:-1]) < 0) & ~gap[1:] & ~gap[:-1]
     return np.split(np.arange(x.size), np.flatnonzero(cut) + 1)
 
 
-def scan_length_mm(x_mm, segs):
-    """The scan's length (mm): the sum of its segments' extents."""
-    x = np.asarray(x_mm, dtype=float)
-    return float(sum(np.ptp(x[s]) for s in segs if s.size > 1))
+def scan_length_mm(x_mm, y_mm, segs):
+    """The scan's length (mm): the sum of its segments' lengths."""
+    s = along_mm(x_mm, y_mm)
+    return float(sum(np.ptp(s[g]) for g in segs if g.size > 1))
 
 
 def noise_from_scan(error_mm, segs):
@@ -105,19 +122,20 @@ def consistent_with_floor(residual_mm, floor_mm, n_eff, alpha=0.01):
     return bool(ms <= floor_mm**2 * stats.chi2.ppf(1.0 - alpha, n_eff) / n_eff)
 
 
-def surface_stats(x_mm, error_mm, segs, cutter_diameter_mm):
+def surface_stats(x_mm, y_mm, error_mm, segs, cutter_diameter_mm):
     """mean, rms, max_abs, pv (mm) of a measured surface error, and the
     largest |error| near the ends of each segment (``edges_max_abs``:
     within the cutter's radius, at most a third of the segment, of either
-    end: where the engagement changes) and in between (``steady_max_abs``)."""
-    x, e = np.asarray(x_mm, dtype=float), np.asarray(error_mm, dtype=float)
+    end, measured along it: where the engagement changes) and in between
+    (``steady_max_abs``)."""
+    s, e = along_mm(x_mm, y_mm), np.asarray(error_mm, dtype=float)
     edge = np.zeros(e.size, dtype=bool)
-    for s in segs:
-        if s.size == 0:
+    for g in segs:
+        if g.size == 0:
             continue
-        xs = x[s]
-        zone = min(cutter_diameter_mm / 2.0, np.ptp(xs) / 3.0)
-        edge[s] = (xs - xs.min() <= zone) | (xs.max() - xs <= zone)
+        sg = s[g]
+        zone = min(cutter_diameter_mm / 2.0, np.ptp(sg) / 3.0)
+        edge[g] = (sg - sg.min() <= zone) | (sg.max() - sg <= zone)
     out = {"mean": float(e.mean()), "rms": float(np.sqrt(np.mean(e**2))), "max_abs": float(np.max(np.abs(e))),
            "pv": float(np.ptp(e)), "n_points": int(e.size)}
     out["edges_max_abs"] = float(np.max(np.abs(e[edge]))) if edge.any() else 0.0

@@ -138,7 +138,7 @@ def payload_readings(dh, q_rad, mass_kg, com_m, force_bias_N, torque_bias_Nm, R_
 
 
 def payload_campaign(robot, *, n=15, mass_kg=None, com_m=None, noise_N=1.0, noise_Nm=0.1, seed=0):
-    """Static configurations with the wrist turned widely (the seed used 15):
+    """Static configurations with the wrist turned widely (the paper used 15):
     arm joints 2 and 3 at 10 and 20 deg (controller convention; moved just
     inside the working range where that is outside it), joint 1 within
     +-29 deg, the wrist joints spread over their ranges."""

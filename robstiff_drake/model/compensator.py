@@ -95,8 +95,8 @@ class DeflectionModel:
 
     def dq(self, process_wrench, q, static_torque=None):
         """The predicted joint deflection (rad, list or array); with lost
-        motion, ``static_torque`` (6, N*m) is what the gears carry before the
-        cut (gravity)."""
+        motion, ``static_torque`` (6, N*m) is the torque the gears hold the
+        arm with before the cut (gravity compensation's)."""
         tau = self._pred.joint_torques(q, self.tool_wrench(process_wrench, q))
         if self.lost is None and not self.c23:
             return [c * t for c, t in zip(self._pred.joint_compliance_list, tau)]

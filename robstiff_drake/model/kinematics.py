@@ -116,7 +116,7 @@ def jacobian_derivative(dh, q_rad, tool_m=None):
 
 
 def geometric_stiffness(dh, q_rad, wrench, tool_m=None):
-    """K_g of the CCT model (seed Eq. 7): K_g = d(J^T F)/dq at constant F,
+    """K_g of the CCT model (the paper's Eq. 7): K_g = d(J^T F)/dq at constant F,
     shape (..., 6, 6), N*m/rad.  ``wrench`` = (force N, moment N*m) at the
     tool point in the base frame, the external load on the robot."""
     D = jacobian_derivative(dh, q_rad, tool_m)

@@ -1,10 +1,10 @@
-"""The two stiffness models of the seed, in plain numpy.
+"""The two stiffness models of the paper, in plain numpy.
 
-Conventional model, seed Eq. (1):  K_x = J^-T K_q J^-1, used here mostly in
+Conventional model, the paper's Eq. (1):  K_x = J^-T K_q J^-1, used here mostly in
 compliance form  C_x = J C_q J^T  (C_q = K_q^-1), which needs no inversion
 and stays valid at singular poses.
 
-CCT model (conservative congruence transformation, Chen & Kao), seed
+CCT model (conservative congruence transformation, Chen & Kao), the paper's
 Eqs. (6)-(7):  K_x = J^-T (K_q - K_g) J^-1,  K_g = d(J^T F)/dq.
 
 Units: wrench = (force N, moment N*m about the tool point, base frame);
@@ -136,7 +136,7 @@ def kg_effect(dh, q_rad, joint_stiffness_Nm_per_rad, wrench, tool_m=None):
     Returns a dict (lengths in m):
       dp_conventional, dp_cct, dp_exact: tool-point displacement (3,) by the
         conventional model, the CCT model and the large-deflection equilibrium;
-      relative_change: |dp_cct - dp_conv| / |dp_conv|, the seed's question;
+      relative_change: |dp_cct - dp_conv| / |dp_conv|, the paper's question;
       conventional_error, cct_error: |dp_model - dp_exact| / |dp_exact|.
     """
     J = kin.jacobian(dh, q_rad, tool_m)

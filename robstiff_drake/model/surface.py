@@ -1,4 +1,4 @@
-"""The machined surface as a laser line scan sees it (seed Fig. 6): the
+"""The machined surface as a laser line scan sees it (the paper's Fig. 6): the
 envelope of the cutter's bottom face over the pass.  Plain numpy; no Drake.
 
 The cutter's bottom face is a disc of radius R around the tool point p with
@@ -8,7 +8,7 @@ The surface left behind is the lowest face height that ever covered the
 point, or the material's original top where the cutter never went below it.
 
 Surface error = commanded height - machined height, positive where more
-material was removed than commanded ("cut more", the seed's sign).  The
+material was removed than commanded ("cut more", the paper's sign).  The
 commanded height is the same envelope of the reference (undeflected) path.
 """
 

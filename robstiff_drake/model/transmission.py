@@ -63,11 +63,15 @@ def torque(phi_rad, compliance_rad_per_Nm, lost_motion_rad=None, coupling_c23_ra
     return tau
 
 
-def static_deflection(tau_static_Nm, tau_process_Nm, compliance_rad_per_Nm, lost_motion_rad=None,
+def static_deflection(tau_hold_Nm, tau_process_Nm, compliance_rad_per_Nm, lost_motion_rad=None,
                       coupling_c23_rad_per_Nm=0.0):
-    """The link's extra deflection (rad) when the process torque is added to
-    a static load (gravity): twist(static + process) - twist(static).  With
-    a large static torque of one sign the lost motion cancels out."""
+    """The link's deflection (rad) under a process load ``tau_process_Nm``
+    (J^T W, N*m) when the gears already hold the arm with ``tau_hold_Nm``
+    (the gravity-holding torque, as InverseDynamics' gravity compensation
+    gives it, N*m): the gear then carries tau_hold - tau_process and the link
+    moves by -(twist(tau_hold - tau_process) - twist(tau_hold)).  Linear:
+    C tau_process.  With a large holding torque of one sign the lost motion
+    cancels out."""
     args = (compliance_rad_per_Nm, lost_motion_rad, coupling_c23_rad_per_Nm)
-    ts = np.asarray(tau_static_Nm, dtype=float)
-    return twist(ts + np.asarray(tau_process_Nm, dtype=float), *args) - twist(ts, *args)
+    th = np.asarray(tau_hold_Nm, dtype=float)
+    return twist(th, *args) - twist(th - np.asarray(tau_process_Nm, dtype=float), *args)

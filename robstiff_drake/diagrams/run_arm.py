@@ -1,0 +1,71 @@
+"""The robot controller's model of the arm, as ``robstiff diagnose-run`` needs
+it to read a run: the torques the gears carry along the logged path (the
+arm's weight from the controller's gravity model, and its inertia) and the
+arm's mass matrix, the weight's own stiffness and its modes at a pose.
+
+Everything here comes from the robot file (masses, inertias, payload: the
+Drake plant of robstiff_drake/plant.py, through diagrams/station.py's
+``controller_model``), never from a run's plant: a cell's controller knows
+its arm's model, not its gears' truth.  The diagnosis itself
+(identification/run_diagnosis.py) is plain numpy and calls this through the
+three methods of ``ArmModel``.
+"""
+
+import numpy as np
+from pydrake.multibody.tree import MultibodyForces
+
+from robstiff_drake.diagrams.loop_prediction import gravity_stiffness, payload_inertial_wrench_map
+from robstiff_drake.diagrams.station import (
+    controller_model,
+    modal_frequencies_hz,
+    stiffness_proportional_beta_s,
+)
+
+
+class ArmModel:
+    """The controller's model of ``robot`` (a continuous MultibodyPlant)."""
+
+    def __init__(self, robot):
+        self.robot = robot
+        self.plant = controller_model(robot)
+        self._ctx = self.plant.CreateDefaultContext()
+        self._no_forces = MultibodyForces(self.plant)
+
+    def gravity_torques(self, q_rad):
+        """(n, 6) N*m: the torques that hold the arm and payload still at
+        each row of q (n, 6) rad: what the gears carry at rest."""
+        plant, ctx = self.plant, self._ctx
+        plant.SetVelocities(ctx, np.zeros(6))
+        out = []
+        for q in np.atleast_2d(q_rad):
+            plant.SetPositions(ctx, q)
+            out.append(-plant.CalcGravityGeneralizedForces(ctx))  # as station.gravity_holding_torque
+        return np.array(out)
+
+    def inertia_torques(self, q_rad, v_rad_per_s, a_rad_per_s2):
+        """(n, 6) N*m: M(q) q'' + c(q, q') along a path (n, 6 each): the
+        torques the gears carry to move the arm, beyond its weight."""
+        plant, ctx = self.plant, self._ctx
+        out = np.empty((len(q_rad), 6))
+        for i, (q, v, a) in enumerate(zip(q_rad, v_rad_per_s, a_rad_per_s2)):
+            plant.SetPositions(ctx, q)
+            plant.SetVelocities(ctx, v)
+            out[i] = plant.CalcInverseDynamics(ctx, a, self._no_forces)  # M a + c v (force elements left out)
+        return out
+
+    def dynamics_at(self, q_rad, joint_stiffness_Nm_per_rad, damping_ratio):
+        """(M (6, 6) kg m^2, G (6, 6) N*m/rad: d tau_gravity / dq, beta (s):
+        the stiffness-proportional damping that gives the first mode
+        ``damping_ratio``, first natural frequency (Hz), L (6, 6): the
+        payload's inertial wrench at the tool point (base frame) per joint
+        acceleration, which the wrist sensor feels) at q."""
+        plant, ctx = self.plant, self._ctx
+        q = np.asarray(q_rad, dtype=float)
+        G = gravity_stiffness(plant, ctx, q)
+        plant.SetPositions(ctx, q)
+        plant.SetVelocities(ctx, np.zeros(6))
+        M = plant.CalcMassMatrix(ctx)
+        freqs = modal_frequencies_hz(M, joint_stiffness_Nm_per_rad)
+        L = payload_inertial_wrench_map(self.robot, q)
+        return M, G, stiffness_proportional_beta_s(freqs, damping_ratio), float(freqs[0]), L
+
