@@ -1,4 +1,4 @@
-"""Aliasing: the 360 Hz tooth-pass force of the seed's cutter, sampled at a
+"""Aliasing: the 360 Hz tooth-pass force of the paper's cutter, sampled at a
 slow controller rate, folds down towards the arm's modes unless it is
 filtered at the sensor's rate first.
 
@@ -13,7 +13,7 @@ one period of delay, a 5 Hz low-pass:
       3.3 Hz, inside the 5 Hz filter's pass band), where no filter after the
       sampling can tell them from the cutting force's real changes.
 Prints the ripple of the force estimate and of the correction, their main
-frequency, and the surface error (mm).  The README's figures come from
+frequency, and the surface error (mm).  docs/results.md quotes
 `python3 studies/aliasing.py`.
 """
 

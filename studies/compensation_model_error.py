@@ -1,12 +1,12 @@
-"""How much the compensator's stiffness model matters on the seed's block
+"""How much the compensator's stiffness model matters on the paper's block
 test: the plant's true joint stiffness is off the nominal values (by
 -15, +10, -10, +20, -20, 0 %), and the compensator holds either the exact
 model, the nominal one, or one identified by `robstiff identify` from a
 noisy synthetic campaign of that plant (120 measurements, 0.01 mm noise,
 tool point at the spindle's (0, 0, 350) mm).
 
-Prints a table of the surface error (mm) for each case; the README's
-figures come from `python3 studies/compensation_model_error.py`.
+Prints a table of the surface error (mm) for each case; docs/results.md
+quotes `python3 studies/compensation_model_error.py`.
 """
 
 import copy

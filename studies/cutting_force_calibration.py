@@ -34,7 +34,7 @@ def main():
     w1 = scaled.average_wrench(p, [1.0, 0.0], wp)
     print(f"\nscenario placement (centre line +15 mm): 6082-T6 coefficients give ({w0[0]:.0f}, {w0[1]:.0f}, "
           f"{w0[2]:.0f}) N; scaled by {scale_tr:g} (tangential, radial) and {scale_a:g} (axial): "
-          f"({w1[0]:.0f}, {w1[1]:.0f}, {w1[2]:.0f}) N, against the seed's about 300 / 300 / 50 N")
+          f"({w1[0]:.0f}, {w1[1]:.0f}, {w1[2]:.0f}) N, against the paper's measured about 300 / 300 / 50 N")
 
 
 if __name__ == "__main__":

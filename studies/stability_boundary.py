@@ -6,13 +6,17 @@ compensation, each run simulated and predicted.
 A run counts as divergent in simulation when it went unstable (non-finite,
 saturated for good, surface error above 3 mm) or oscillated beyond 1 mm; in
 the model when its worst pole would grow more than 10x over the engaged
-time.  Prints the confusion and the disagreements.
+time.  Prints the confusion and the disagreements; without --from-json it
+writes the runs to docs/sweep_low_damping_boundary.json, with --plot it draws
+them as `robstiff sweep --plot` does.
 Run: python3 studies/stability_boundary.py [--from-json docs/sweep_low_damping_boundary.json]
+     [--plot docs/sweep_low_damping_boundary.png]
 """
 
 import argparse
 import json
 
+from robstiff_drake.commands.sweep import plot
 from robstiff_drake.diagrams.sweep import combinations, run_sweep
 from robstiff_drake.io import emit_json
 from robstiff_drake.paths import DIAGRAMS_DIR, REPO_ROOT
@@ -21,6 +25,7 @@ from robstiff_drake.paths import DIAGRAMS_DIR, REPO_ROOT
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--from-json", help="read the runs from a sweep JSON instead of running them")
+    ap.add_argument("--plot", metavar="OUT.png", help="draw the runs (error against period, simulated and model)")
     args = ap.parse_args()
     if args.from_json:
         rows = json.loads(open(args.from_json).read())["runs"]
@@ -29,6 +34,8 @@ def main():
         rows = run_sweep(DIAGRAMS_DIR / "interrupted_cut_low_damping.yaml", combos)
         emit_json({"scenario": "diagrams/interrupted_cut_low_damping.yaml", "n_runs": len(rows), "complete": True,
                    "runs": rows}, REPO_ROOT / "docs" / "sweep_low_damping_boundary.json")
+    if args.plot:
+        plot(rows, args.plot)
     table = {}
     for r in rows:
         sim = (not r["stable"]) or r["surface_error_mm"]["max_abs"] > 1.0

@@ -1,17 +1,17 @@
 """Is the block test converged in the plant's time step and the sensor's
-rate?  The seed's block pass (diagrams/block_milling.yaml) and the
+rate?  The paper's block pass (diagrams/block_milling.yaml) and the
 cylinder-head pass (diagrams/cylinder_head.yaml), without and with
 compensation, for plant steps of 1, 2 and 4 ms and the sensor read at 1 kHz
 or once per 4 ms controller cycle (250 Hz).  Prints the surface error (mean,
 PV, um) of each run.
 
-Then the two ringing cases of the sampling-delay study
-(diagrams/interrupted_cut.yaml, plain compensation, one period of delay:
-2 ms period with a 5 Hz filter, and 16 ms with 20 Hz, a resonance) at plant
-steps of 2, 1 and 0.5 ms: the worst entry/exit error (mm).
+Then two cases of the sampling-delay study (diagrams/interrupted_cut.yaml,
+plain compensation, one period of delay: 2 ms period with a 5 Hz filter, and
+16 ms with 20 Hz) at plant steps of 2, 1 and 0.5 ms: the worst entry/exit
+error (mm).
 
-The scenarios use 4 ms and 250 Hz; the README's convergence figures come
-from `python3 studies/time_step_convergence.py`.
+The scenarios use 4 ms and 250 Hz; docs/results.md quotes
+`python3 studies/time_step_convergence.py`.
 """
 
 import copy

@@ -126,6 +126,12 @@ def test_kg_study_json(capsys):
     # the seed's claim: K_g changes the deflection by well under 1 %
     assert 0 < force["max_relative_change"] < 0.01
     assert payload["max_relative_change"] > force["max_relative_change"]
+    for case in (force, payload):  # each percentage and its micrometres describe one case
+        assert case["change_at_max_relative_um"] == pytest.approx(
+            case["max_relative_change"] * case["deflection_at_max_mm"] * 1e3, rel=1e-9)
+        assert case["max_abs_change_um"] == pytest.approx(
+            case["relative_change_at_max_abs"] * case["deflection_at_max_abs_mm"] * 1e3, rel=1e-9)
+        assert case["max_abs_change_um"] >= case["change_at_max_relative_um"]
 
 
 def test_demo_writes_outputs(capsys, tmp_path):

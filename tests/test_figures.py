@@ -212,9 +212,9 @@ def test_diagnose_run_plot():
 
     x = np.arange(1525.0, 1675.0, 0.5)
     rng = np.random.default_rng(7)
-    scan = SimpleNamespace(x_mm=x, error_mm=0.02 + 0.0002 * (x - 1525) + rng.normal(0, 0.003, len(x)))
+    scan = SimpleNamespace(x_mm=x, y_mm=np.full_like(x, 15.0), error_mm=0.02 + 0.0002 * (x - 1525) + rng.normal(0, 0.003, len(x)))
     covered = np.ones_like(x, dtype=bool)
-    cut = SimpleNamespace(x_mm=x, error_mm=rng.normal(0, 0.003, len(x)))
+    cut = SimpleNamespace(x_mm=x, y_mm=np.full_like(x, 15.0), error_mm=rng.normal(0, 0.003, len(x)))
     rep = {"surface_error_before_mm": {"mean": float(scan.error_mm.mean()), "rms": 0.03},
            "causes": [{"name": "loop_lag"}]}
     extras = {"scan": scan, "covered": covered, "model_mm": 0.02 + 0.0002 * (x - 1525),

@@ -1,4 +1,4 @@
-"""Predictive compensation (beyond the seed): the compensator knows the
+"""Predictive compensation (beyond the paper): the compensator knows the
 planned path, the workpiece and a cutting-force model, so it corrects for the
 load it *will* meet when the correction takes effect, and uses the measured
 wrench only to correct the model's error (a Smith-predictor structure):
