@@ -19,7 +19,7 @@ def dh_matrix(theta, d, a, alpha):
     ]
 
 
-# Table 1 of the seed, typed in again here (mm, degrees).
+# Table 1 of the paper, typed in again here (mm, degrees).
 TABLE1 = [  # d, a, alpha, home
     (900.0, 188.0, -90.0, 0.0),
     (0.0, 950.0, 0.0, -90.0),

@@ -123,7 +123,7 @@ def test_kg_study_json(capsys):
     assert res["n_poses"] == 8
     force, payload = res["cases"]
     assert force["n_cases"] == 8 * 14 and payload["n_cases"] == 8
-    # the seed's claim: K_g changes the deflection by well under 1 %
+    # the paper's claim: K_g changes the deflection by well under 1 %
     assert 0 < force["max_relative_change"] < 0.01
     assert payload["max_relative_change"] > force["max_relative_change"]
     for case in (force, payload):  # each percentage and its micrometres describe one case

@@ -38,6 +38,21 @@ def test_every_subcommand_has_an_example_that_parses(capsys):
                 (name, "synth stiffness", "synth payload", "simulate")
 
 
+# the examples that run in about a second (the others simulate, identify
+# or wait for a network peer)
+QUICK_EXAMPLES = ["robots", "fk", "stiffness", "synth", "synth stiffness", "synth payload", "identify",
+                  "calibrate-payload", "plan-poses", "table2"]
+
+
+@pytest.mark.parametrize("name", QUICK_EXAMPLES)
+def test_quick_examples_run(capsys, tmp_path, monkeypatch, name):
+    """What a reader copies from --help works as written (in an empty folder)."""
+    monkeypatch.chdir(tmp_path)
+    for command in EXAMPLES[name].split("&&"):
+        code, out, err = run(capsys, *vector_values_kept(shlex.split(command)[1:]))
+        assert code == 0, (command, err)
+
+
 def test_table2_help_gives_the_grouping(capsys):
     from robstiff_drake.identification.table2_grouping import GROUPS
 

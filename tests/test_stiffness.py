@@ -28,7 +28,7 @@ def test_stiffness_form_inverts_compliance_form(robot, rng):
 
 
 def test_deflection_obeys_virtual_work(robot, rng):
-    # F^T dx = tau^T dq (seed Eq. 5) and dx = J dq (Eq. 4)
+    # F^T dx = tau^T dq (the paper's Eq. 5) and dx = J dq (Eq. 4)
     q = random_q(robot, rng)
     F = rng.normal(size=6) * 200
     J = kin.jacobian(robot.dh, q)

@@ -1,4 +1,4 @@
-"""``robstiff demo``: the project's main job, the seed's block-milling test
+"""``robstiff demo``: the project's main job, the paper's block-milling test
 (Table 3, Fig. 7) in simulation, without and with real-time compensation.
 
 Prints the surface-error table and why the uncompensated robot cuts more

@@ -342,7 +342,7 @@ def build_parser():
 # parses each one, so they stay valid).
 EXAMPLES = {
     "robots": "robstiff robots",
-    "fk": "robstiff fk 0 30 20 0 40 0 --robot kr240_r2900",
+    "fk": "robstiff fk 0 -90 90 0 45 0 --robot kr240_r2900",
     "stiffness": "robstiff stiffness 0 30 20 0 40 0 --tool -10,0,350 --kx",
     "stiffness-map": "robstiff stiffness-map --robot kr240_r2900 --out kr240_map.png",
     "kg-study": "robstiff kg-study --grid 3 --json kg.json",

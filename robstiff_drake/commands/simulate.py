@@ -1,5 +1,5 @@
 """``robstiff simulate SCENARIO.yaml``: the closed-loop milling simulation,
-without and/or with compensation; surface-error plot (like the seed's Fig. 7),
+without and/or with compensation; surface-error plot (like the paper's Fig. 7),
 the diagram (Graphviz), CSV time series and a JSON summary.
 
 The run folder (``--out``) holds the compensated cut as a cell records it
