@@ -16,3 +16,9 @@ class SingularPoseError(ValueError):
     def __init__(self, message, joints):
         super().__init__(message)
         self.joints = tuple(joints)
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread so that every cleanup runs (a
+    temporary file or folder removed, a worker pool stopped); a long-running
+    command (compensate) ends its run on it as on Ctrl-C."""

@@ -86,6 +86,40 @@ def test_compensate_cancels_the_deflection_over_the_protocols(tmp_path):
     assert summary["cycles"]["faults"] == []
 
 
+def test_sigterm_ends_the_run_and_writes_its_log(tmp_path):
+    """A service manager stops the compensator with SIGTERM: the run ends as
+    on Ctrl-C, with its log written whole (a run's log is the user's data)."""
+    import signal
+    import subprocess
+    import time
+
+    robot = load_robot()
+    model, payload, _, ref_fn = h.write_inputs(str(tmp_path), robot, duration_s=1.0)
+    egm_port, netft_port = h.free_udp_port(), h.free_udp_port()
+    th, net = h.start_cell(robot, lambda t: ref_fn(0.0), egm_port=egm_port, netft_port=netft_port, duration_s=30.0)
+    log = tmp_path / "log"
+    proc = subprocess.Popen(h.compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port,
+                                             log=str(log)), cwd=h.ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        t0 = time.monotonic()
+        while net.stats.answered < 200 and time.monotonic() - t0 < 30.0:  # running: answering the controller
+            time.sleep(0.05)
+        assert net.stats.answered >= 200
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+        net.stop = True
+        th.join(30)
+        net.close()
+    assert proc.returncode == 0, err
+    assert "terminated: the run ends" in err
+    for name in ("timeseries_compensated.csv", "joint_log.csv", "cycles.csv", "summary.json", "RUN_ID"):
+        assert (log / name).is_file(), name
+    assert json.loads((log / "summary.json").read_text())["cycles"]["messages"] >= 200
+
+
 def test_compensate_streams_the_reference(tmp_path):
     cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=2.0, stream_reference=True,
                                                    wrench=lambda t: np.zeros(6))

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robstiff_drake.cell.egm import EgmMessageError, parse_robot_message
-from robstiff_drake.errors import InputError
+from robstiff_drake.errors import InputError, Terminated
 
 # The correction may move by at most this many controller periods' worth
 # of its rate limit in one answer, whatever the time since the last one.
@@ -305,6 +305,8 @@ class CompensatorLoop:
                 self.cycle(data, t_arr)
         except KeyboardInterrupt:
             self.event("interrupted: the run ends")
+        except Terminated:  # a service manager's stop: end the run and write its log, as on Ctrl-C
+            self.event("terminated: the run ends")
         self.log.skipped = getattr(self.link, "skipped", 0)
         return self.log
 

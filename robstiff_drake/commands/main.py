@@ -10,7 +10,7 @@ import re
 import signal
 import sys
 
-from robstiff_drake.errors import InputError
+from robstiff_drake.errors import InputError, Terminated
 
 
 class _UsageError(InputError):
@@ -516,11 +516,6 @@ def _dispatch(args):
 
         return demo.run(out=args.out, robot_yaml=args.robot)
     raise AssertionError(args.command)
-
-
-class Terminated(BaseException):
-    """SIGTERM, raised in the main thread so that every cleanup runs (a
-    temporary file or folder removed, a worker pool stopped)."""
 
 
 def _on_sigterm(signum, frame):
