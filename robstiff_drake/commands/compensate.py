@@ -24,7 +24,7 @@ from robstiff_drake.cell.compensate import CompensatorLoop, LoopLog, LoopSetting
 from robstiff_drake.cell.egm import SensorLink
 from robstiff_drake.cell.rdt import NetFTReader, parse_host_port
 from robstiff_drake.cell.run_log import write_log
-from robstiff_drake.diagrams.scenario import STIFFNESS_RANGE_NM_PER_RAD, read_payload_calibration
+from robstiff_drake.diagrams.scenario import checked_joint_stiffness, read_payload_calibration
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import RunFolder, check_outputs
 from robstiff_drake.model.compensator import Compensator
@@ -64,15 +64,7 @@ def read_model(path, robot):
             raise InputError(f"--model {path}: identified against another robot file (its nominal stiffness "
                              f"{np.round(nom, 0).tolist()} is not {robot.name}'s "
                              f"{np.round(robot.joint_stiffness_Nm_per_rad, 0).tolist()} N*m/rad)")
-    lo, hi = STIFFNESS_RANGE_NM_PER_RAD
-    try:
-        k = np.asarray(doc["joint_stiffness_Nm_per_rad"], dtype=float)
-    except (TypeError, ValueError):
-        k = np.full(0, np.nan)
-    if k.shape != (6,) or not np.all(np.isfinite(k)) or np.any((k < lo) | (k > hi)):
-        raise InputError(f"--model {path}: joint_stiffness_Nm_per_rad: expected six finite stiffnesses in "
-                         f"[{lo:g}, {hi:g}] N*m/rad")
-    return k
+    return checked_joint_stiffness(doc["joint_stiffness_Nm_per_rad"], where=f"--model {path}")
 
 
 def read_reference(path, robot):

@@ -507,16 +507,22 @@ def model_stiffness(sc, robot):
         except (ValueError, KeyError, TypeError) as e:
             _fail(sc, "model.identified_json", f"cannot read joint_stiffness_Nm_per_rad from {p} "
                                                f"({type(e).__name__}: {e})")
-        lo, hi = STIFFNESS_RANGE_NM_PER_RAD
-        try:
-            k = np.asarray(k, dtype=float)
-        except (TypeError, ValueError):
-            k = np.full(0, np.nan)
-        if k.shape != (6,) or not np.all(np.isfinite(k)) or np.any((k < lo) | (k > hi)):
-            raise InputError(f"{p}: joint_stiffness_Nm_per_rad: expected six finite stiffnesses in "
-                             f"[{lo:g}, {hi:g}] N*m/rad, got {k.tolist() if k.size else 'something else'}")
-        return k
+        return checked_joint_stiffness(k, where=str(p))
     return robot.joint_stiffness_Nm_per_rad
+
+
+def checked_joint_stiffness(value, *, where):
+    """``value`` as six finite joint stiffnesses (N*m/rad) within
+    STIFFNESS_RANGE_NM_PER_RAD, or an InputError that names ``where``."""
+    lo, hi = STIFFNESS_RANGE_NM_PER_RAD
+    try:
+        k = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        k = np.full(0, np.nan)
+    if k.shape != (6,) or not np.all(np.isfinite(k)) or np.any((k < lo) | (k > hi)):
+        raise InputError(f"{where}: joint_stiffness_Nm_per_rad: expected six finite stiffnesses in "
+                         f"[{lo:g}, {hi:g}] N*m/rad, got {k.tolist() if k.size else 'something else'}")
+    return k
 
 
 def plant_stiffness(sc, robot):
