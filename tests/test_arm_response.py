@@ -6,17 +6,24 @@ a correction step and a force step at the tool, each on the arm at rest."""
 
 import numpy as np
 import pytest
-from pydrake.common.value import AbstractValue
-from pydrake.multibody.math import SpatialForce
-from pydrake.multibody.plant import ExternallyAppliedSpatialForce_
+from arm_helpers import add_constant_tool_force
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource, TrajectorySource, ZeroOrderHold
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    TrajectorySource,
+    ZeroOrderHold,
+)
 from pydrake.trajectories import PiecewisePolynomial
 
 from robstiff_drake.diagrams.run_arm import ArmModel
 from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
-from robstiff_drake.diagrams.station import add_compliant_arm, gravity_holding_torque, servo_parameters
+from robstiff_drake.diagrams.station import (
+    add_compliant_arm,
+    gravity_holding_torque,
+    servo_parameters,
+    set_drives_at_rest,
+)
 from robstiff_drake.identification import arm_response as ar
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.paths import REPO_ROOT
@@ -52,22 +59,13 @@ def drake_tool_z(sc, robot, *, correction=None, force=None, t_end=1.5):
     builder.Connect(held.get_output_port(), arm["position_command"])
     builder.Connect(builder.AddSystem(ConstantVectorSource(np.zeros(6))).get_output_port(), arm["velocity_command"])
     if force is not None:
-        f = ExternallyAppliedSpatialForce_[float]()
-        f.body_index = plant.GetBodyByName("spindle").index()
-        f.p_BoBq_B = robot.payload.tool_point_m
-        f.F_Bq_W = SpatialForce(np.zeros(3), np.asarray(force, dtype=float))
-        fsrc = builder.AddSystem(ConstantValueSource(AbstractValue.Make([f])))
-        builder.Connect(fsrc.get_output_port(), plant.get_applied_spatial_force_input_port())
+        add_constant_tool_force(builder, plant, robot, force)
     sim = Simulator(builder.Build())
     root = sim.get_mutable_context()
     theta = Q0 + gravity_holding_torque(arm["controller_plant"], Q0) / k
     plant.SetPositions(plant.GetMyMutableContextFromRoot(root), Q0)
-    arm["servo"].GetMyMutableContextFromRoot(root).SetDiscreteState(np.concatenate([theta, np.zeros(6)]))
+    set_drives_at_rest(arm, root, theta)
     held.GetMyMutableContextFromRoot(root).SetDiscreteState(Q0)
-    for block in arm["interpolator"]:
-        ctx = block.GetMyMutableContextFromRoot(root)
-        ctx.SetDiscreteState(np.tile(np.concatenate([theta, np.zeros(6)]),
-                                     ctx.get_discrete_state_vector().size() // 12))
     sim.Initialize()
     tool = robot.payload.tool_point_m
     z0 = kin.tool_position(robot.dh, Q0, tool)[2]

@@ -9,12 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from pydrake.common.value import AbstractValue
-from pydrake.multibody.math import SpatialForce
-from pydrake.multibody.plant import ExternallyAppliedSpatialForce_
+from arm_helpers import add_constant_tool_force
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
+from pydrake.systems.primitives import ConstantVectorSource
 from scipy import signal
 
 from robstiff_drake.diagrams.experiment import run_cut
@@ -25,12 +23,12 @@ from robstiff_drake.diagrams.station import (
     add_compliant_arm,
     gravity_holding_torque,
     servo_parameters,
+    set_drives_at_rest,
     spring_step_is_stable,
     static_link_angles,
 )
-from robstiff_drake.model import ik
+from robstiff_drake.model import ik, transmission
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.model import transmission
 from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
 from robstiff_drake.model.wrench_frames import to_sensor_frame
 from robstiff_drake.systems.wrist_sensor import WristForceSensor, add_random_inputs
@@ -74,21 +72,14 @@ def arm_at_rest(sc, robot, q_cmd, *, k=None, force=None, command=None, damping=N
     builder.Connect(src.get_output_port(), arm["position_command"])
     builder.Connect(vel.get_output_port(), arm["velocity_command"])
     if force is not None:
-        f = ExternallyAppliedSpatialForce_[float]()
-        f.body_index = plant.GetBodyByName("spindle").index()
-        f.p_BoBq_B = robot.payload.tool_point_m
-        f.F_Bq_W = SpatialForce(np.zeros(3), np.asarray(force, dtype=float))
-        fsrc = builder.AddSystem(ConstantValueSource(AbstractValue.Make([f])))
-        builder.Connect(fsrc.get_output_port(), plant.get_applied_spatial_force_input_port())
+        add_constant_tool_force(builder, plant, robot, force)
     sim = Simulator(builder.Build())
     root = sim.get_mutable_context()
     ctrl = arm["controller_plant"]
     theta = q_cmd + gravity_holding_torque(ctrl, q_cmd) / k  # the controller's gravity model (calibrated: true k)
     q = static_link_angles(ctrl, theta, 1.0 / k, lost_motion_rad)
     plant.SetPositions(plant.GetMyMutableContextFromRoot(root), q)
-    for block in [arm["servo"]] + arm["interpolator"]:
-        ctx = block.GetMyMutableContextFromRoot(root)
-        ctx.SetDiscreteState(np.tile(np.concatenate([theta, np.zeros(6)]), ctx.get_discrete_state_vector().size() // 12))
+    set_drives_at_rest(arm, root, theta)
     sim.Initialize()
     return sim, arm
 
@@ -237,12 +228,7 @@ def test_the_sensor_feels_the_cut_through_the_weld(scenario, robot):
     plant = arm["plant"]
     for port, value in ((arm["position_command"], q0), (arm["velocity_command"], np.zeros(6))):
         builder.Connect(builder.AddSystem(ConstantVectorSource(value)).get_output_port(), port)
-    f = ExternallyAppliedSpatialForce_[float]()
-    f.body_index = plant.GetBodyByName("spindle").index()
-    f.p_BoBq_B = robot.payload.tool_point_m
-    f.F_Bq_W = SpatialForce(np.zeros(3), F)
-    builder.Connect(builder.AddSystem(ConstantValueSource(AbstractValue.Make([f]))).get_output_port(),
-                    plant.get_applied_spatial_force_input_port())
+    add_constant_tool_force(builder, plant, robot, F)
     sensor = builder.AddSystem(WristForceSensor(weld_joint_index=plant.GetJointByName("sensor_weld").index(),
                                                 rate_hz=250.0))
     builder.Connect(plant.get_reaction_forces_output_port(), sensor.GetInputPort("reaction_forces"))

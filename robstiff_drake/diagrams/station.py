@@ -218,12 +218,19 @@ class MillingStation:
                                    self.lost_motion_plant_rad, self.coupling_plant)
             wrench = self.reading_at_rest(q)
         self.plant.SetPositions(self.plant.GetMyMutableContextFromRoot(root_context), q)
-        ref = np.concatenate([theta, np.zeros(6)])  # every sample of the interpolator and the servo at rest
-        for block in [s["servo"]] + s["interpolator"]:
-            ctx = block.GetMyMutableContextFromRoot(root_context)
-            ctx.SetDiscreteState(np.tile(ref, ctx.get_discrete_state_vector().size() // 12))
+        set_drives_at_rest(s, root_context, theta)
         s["sensor"].GetMyMutableContextFromRoot(root_context).SetDiscreteState(wrench)
         return theta, q, wrench
+
+
+def set_drives_at_rest(arm, root_context, theta):
+    """Every sample of ``arm``'s interpolator and servo (the systems
+    add_compliant_arm returns under "interpolator" and "servo") at rest at
+    the motor angles ``theta`` (rad)."""
+    ref = np.concatenate([theta, np.zeros(6)])
+    for block in [arm["servo"]] + list(arm["interpolator"]):
+        ctx = block.GetMyMutableContextFromRoot(root_context)
+        ctx.SetDiscreteState(np.tile(ref, ctx.get_discrete_state_vector().size() // 12))
 
 
 def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_rad, damping_ratio, q_modes_rad,
