@@ -83,6 +83,14 @@ def test_the_run_folder_holds_the_controllers_angles(fanuc_run):
     # the same numbers read as if they were the model's angles would be far off (J3 is coupled, J3..J6 flipped)
     wrong = kin.tool_position(robot.dh, np.deg2rad(log.q_deg - log.correction_deg), robot.payload.tool_point_m)
     assert np.max(np.abs(wrong - cmd)) > 0.1
+    # the joint reference `compensate --reference` streams is in the controller's degrees too: read as
+    # compensate reads it, it puts the tool on the commanded path
+    from robstiff_drake.commands.compensate import read_reference
+
+    t_ref, q_ref = read_reference(out / "joint_reference.csv", robot)
+    p_ref = kin.tool_position(robot.dh, robot.joint_map.to_model(q_ref), robot.payload.tool_point_m)
+    cmd_ref = np.column_stack([np.interp(t_ref, rows["t_s"], rows[f"commanded_{a}_mm"]) for a in "xyz"]) / 1e3
+    assert np.max(np.abs(p_ref - cmd_ref)) < 5e-5
 
 
 def test_diagnose_run_takes_the_runs_robot_and_refuses_another(capsys, fanuc_run):

@@ -23,7 +23,7 @@ from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, run_warnings
 from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.run_files import SIM_PREFIX, read_settings
+from robstiff_drake.identification.run_files import SIM_PREFIX, joint_reference_text, read_settings
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text, write_atomic
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.progress import info
@@ -80,18 +80,6 @@ def timeseries_csv(res, robot, run_id=""):
     w.writerow(cols.keys())
     for row in zip(*cols.values()):
         w.writerow([f"{v:.6g}" for v in row])
-    return buf.getvalue()
-
-
-def joint_reference_csv(cell, run_id=""):
-    """The path's joint references (IK every path.reference_period_ms):
-    what `robstiff compensate --reference` streams to a robot in EGMRunJoint."""
-    buf = io.StringIO()
-    buf.write(f"# run_id: {run_id}\n# robstiff simulate: the joint references of {cell.scenario.source}'s path "
-              "(controller degrees), for `robstiff compensate --reference`\n")
-    buf.write("t_s," + ",".join(f"q{j}_deg" for j in range(1, 7)) + "\n")
-    for t, q in zip(cell.q_ref_times, np.degrees(cell.q_ref)):
-        buf.write(f"{t:.6f}," + ",".join(f"{v:.9f}" for v in q) + "\n")
     return buf.getvalue()
 
 
@@ -273,7 +261,11 @@ def write_outputs(sc, results, robot, run, warnings=()):
         name = f"{SIM_PREFIX}surface_{label(res.compensation)}.csv"
         run.write(name, surface_csv(res, run.run_id))
         written.append(name)
-    run.write("joint_reference.csv", joint_reference_csv(results[0].cell, run.run_id))
+    cell = results[0].cell
+    run.write("joint_reference.csv", joint_reference_text(
+        cell.robot, cell.q_ref_times, cell.q_ref, run.run_id,
+        [f"robstiff simulate: the joint references of {cell.scenario.source}'s path (IK every "
+         f"{cell.scenario.path.reference_period_ms:g} ms; controller degrees), for `robstiff compensate --reference`"]))
     written.append("joint_reference.csv")
     run.write("summary.json", json_text(dict(summary(results, sc, warnings), run_id=run.run_id)))
     written.append("summary.json")

@@ -32,6 +32,7 @@ from pydrake.systems.primitives import LogVectorOutput
 from robstiff_drake.diagrams.experiment import RUN_OUT_S, scan_surface, zone_stats
 from robstiff_drake.diagrams.milling_cell import build_station, planned_path
 from robstiff_drake.diagrams.scenario import cutting_setup
+from robstiff_drake.identification.run_files import joint_reference_text
 from robstiff_drake.model.surface import surface_error_stats
 
 
@@ -105,9 +106,6 @@ class CellStation:
     def reference_csv(self):
         """The joint reference the compensator streams (t_s, q1_deg..q6_deg:
         the controller's angles), as `robstiff compensate --reference` reads it."""
-        deg = self.robot.controller_deg(self.q_ref)
-        lines = ["# joint reference of the scenario's path, written by robstiff sim-cell (IK every "
-                 f"{self.sc.path.reference_period_ms:g} ms; the controller's angles)",
-                 "t_s," + ",".join(f"q{j}_deg" for j in range(1, 7))]
-        lines += [f"{t:.6f}," + ",".join(f"{v:.9f}" for v in q) for t, q in zip(self.t_ref, deg)]
-        return "\n".join(lines) + "\n"
+        return joint_reference_text(self.robot, self.t_ref, self.q_ref, notes=[
+            f"joint reference of the scenario's path, written by robstiff sim-cell (IK every "
+            f"{self.sc.path.reference_period_ms:g} ms; the controller's angles)"])

@@ -39,6 +39,7 @@ SIM_PREFIX = "sim_"  # the simulation's truth: never read by the diagnosis
 WRENCH_COLUMNS = ("t_s", "fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")
 JOINT_COLUMNS = ("t_s",) + tuple(f"q{j}_deg" for j in range(1, 7)) + tuple(f"corr{j}_deg" for j in range(1, 7))
 SCAN_COLUMNS = ("x_mm", "y_mm", "nominal_mm", "height_mm")
+REFERENCE_COLUMNS = ("t_s",) + tuple(f"q{j}_deg" for j in range(1, 7))
 MIN_ROWS = {WRENCH_LOG: 10, JOINT_LOG: 10, SCAN: 20}
 
 
@@ -269,7 +270,7 @@ def _number_text(v):
 
 
 def _meta_lines(run_id, notes):
-    out = [f"# run_id: {run_id}"]
+    out = [] if run_id is None else [f"# run_id: {run_id}"]
     for note in notes:
         out.extend(f"# {ln}" if ln else "#" for ln in note.splitlines())
     return "\n".join(out) + "\n"
@@ -329,6 +330,18 @@ def joint_log_text(log, run_id, notes=()):
              *notes]
     return _table_text(run_id, notes, JOINT_COLUMNS, np.column_stack([log.t_s, log.q_deg, log.correction_deg]),
                        ".10g")
+
+
+# ---------------------------------------------------------------- joint reference
+
+
+def joint_reference_text(robot, t_s, q_rad, run_id=None, notes=()):
+    """joint_reference.csv, what `robstiff compensate --reference` streams:
+    time (s) and the path's joint references in the controller's degrees
+    (``q_rad``: the model's joint angles, (N, 6) rad, mapped through the
+    robot file's joint map).  ``run_id`` None: a file outside a run folder."""
+    q_deg = robot.controller_deg(np.asarray(q_rad, dtype=float))
+    return _table_text(run_id, notes, REFERENCE_COLUMNS, np.column_stack([t_s, q_deg]), ".12g")
 
 
 # ---------------------------------------------------------------- scan
