@@ -29,11 +29,10 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import LogVectorOutput
 
-from robstiff_drake.diagrams.experiment import RUN_OUT_S, scan_surface, zone_stats
+from robstiff_drake.diagrams.experiment import RUN_OUT_S, scanned_surface
 from robstiff_drake.diagrams.milling_cell import build_station, planned_path
 from robstiff_drake.diagrams.scenario import cutting_setup
 from robstiff_drake.identification.run_files import joint_reference_text
-from robstiff_drake.model.surface import surface_error_stats
 
 
 class CellStation:
@@ -97,11 +96,7 @@ class CellStation:
         """(scan lines, surface-error statistics mm) of the cut so far."""
         cell = SimpleNamespace(scenario=self.sc, force_model=self.force_model, robot=self.robot, tool_m=self.tool_m,
                                path=self.path, workpiece=self.workpiece, compensation=True)
-        scans = scan_surface(cell, np.asarray(self.times), np.asarray(self.q_link))
-        err = np.concatenate([s.error_m[np.isfinite(s.error_m)] for s in scans])
-        stats = surface_error_stats(err) if err.size else {}
-        stats.update(zone_stats(cell, scans))
-        return scans, stats
+        return scanned_surface(cell, np.asarray(self.times), np.asarray(self.q_link))
 
     def reference_csv(self):
         """The joint reference the compensator streams (t_s, q1_deg..q6_deg:

@@ -214,6 +214,16 @@ def zone_stats(cell, scans):
     return out
 
 
+def scanned_surface(cell, times, q):
+    """(scan lines, surface-error statistics mm incl. the entry/exit zones)
+    of the cut made by link angles ``q`` (N, 6 rad) at ``times`` (s)."""
+    scans = scan_surface(cell, times, q)
+    err = np.concatenate([s.error_m[np.isfinite(s.error_m)] for s in scans])
+    stats = surface_error_stats(err) if err.size else {}
+    stats.update(zone_stats(cell, scans))
+    return scans, stats
+
+
 def run_cut(sc, robot, *, compensation=True, cell=None, progress=False):
     """Simulate scenario ``sc`` once; return logs, scans and statistics.
     ``progress``: a bar over simulated time on stderr (False: off; None: on
@@ -232,10 +242,7 @@ def run_cut(sc, robot, *, compensation=True, cell=None, progress=False):
     logs = {name: signal.read(root) for name, signal in cell.loggers.items()}
     logs["tool_wrench"] = tool_wrench_log(cell, logs)
     t, x = logs["state"]
-    scans = scan_surface(cell, t, x[:, :6])
-    err = np.concatenate([s.error_m[np.isfinite(s.error_m)] for s in scans])
-    stats = surface_error_stats(err) if err.size else {}
-    stats.update(zone_stats(cell, scans))
+    scans, stats = scanned_surface(cell, t, x[:, :6])
     return RunResult(compensation, logs, scans, stats, t_end, wall, cell, spindle_load(cell, logs))
 
 
