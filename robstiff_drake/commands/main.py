@@ -10,7 +10,7 @@ import re
 import signal
 import sys
 
-from robstiff_drake.errors import InputError, Terminated
+from robstiff_drake.errors import InputError, Terminated, one_line
 
 
 class _UsageError(InputError):
@@ -518,6 +518,16 @@ def _dispatch(args):
     raise AssertionError(args.command)
 
 
+# An error is one line of at most this many characters (a message that
+# quotes a file name or a value is escaped and shortened, whatever they hold).
+MAX_ERROR_CHARS = 1000
+
+
+def _error_text(e):
+    text = one_line(e)
+    return text if len(text) <= MAX_ERROR_CHARS else text[:MAX_ERROR_CHARS - 3] + "..."
+
+
 def _on_sigterm(signum, frame):
     raise Terminated()
 
@@ -533,10 +543,13 @@ def main(argv=None):
     try:
         args = build_parser().parse_args(vector_values_kept(sys.argv[1:] if argv is None else argv))
         was_quiet = set_quiet(getattr(args, "quiet", False))
-        return _dispatch(args) or 0
+        from robstiff_drake.io import command_scope
+
+        with command_scope():
+            return _dispatch(args) or 0
     except InputError as e:
         prog = getattr(e, "prog", "robstiff")
-        print(f"{prog}: error: {e}", file=sys.stderr)
+        print(f"{prog}: error: {_error_text(e)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. `robstiff demo | head`
         import os
