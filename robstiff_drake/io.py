@@ -94,7 +94,7 @@ def _conflict(input_path, output, is_folder):
     if not os.path.lexists(input_path):
         return False
     if is_folder:
-        return _inside(input_path, output)
+        return inside(input_path, output)
     return _same(input_path, output) if os.path.exists(output) else \
         os.path.realpath(input_path) == os.path.realpath(output)
 
@@ -184,7 +184,9 @@ def _same(a, b):
         return os.path.realpath(a) == os.path.realpath(b)
 
 
-def _inside(path, folder):
+def inside(path, folder):
+    """Whether ``path`` resolves (through every symbolic link) to ``folder``
+    or somewhere inside it."""
     p, f = os.path.realpath(path), os.path.realpath(folder)
     return p == f or p.startswith(f.rstrip(os.sep) + os.sep)
 

@@ -69,7 +69,7 @@ def read_user_text(path, what="file", *, named_by=None, max_bytes=MAX_USER_FILE_
     path = Path(path)
     note_input(path, named_by)
     st = check_regular_file(path, what)
-    if st.st_size > max_bytes:
+    if max_bytes is not None and st.st_size > max_bytes:
         raise UserFileError(f"{path}: {st.st_size / 1e6:.1f} MB is more than a {what} can be "
                             f"({max_bytes / 1e6:.0f} MB)")
     try:
