@@ -148,6 +148,7 @@ def build_parser():
     p.add_argument("--force-N", type=FORCE_N, default=500.0, help="tool force magnitude (default: %(default)s N)")
     p.add_argument("--payload-kg", type=_number_in(1e-3, 2000.0, "kg"), default=150.0, help="payload mass (default: %(default)s kg)")
     p.add_argument("--json", metavar="OUT", help="write the results as JSON ('-' for stdout)")
+    p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
     _add_robot_option(p)
 
     p = sub.add_parser("make-urdf", help="write a robot's Drake/ROS description (URDF, package.xml) into a folder")
@@ -433,7 +434,7 @@ def _dispatch(args):
         from robstiff_drake.commands import kg_study
 
         return kg_study.run(grid=args.grid, force_N=args.force_N, payload_kg=args.payload_kg,
-                            json_out=args.json, robot_yaml=args.robot)
+                            json_out=args.json, robot_yaml=args.robot, show_progress=args.progress)
     if args.command == "make-urdf":
         from robstiff_drake.commands import make_urdf
 
