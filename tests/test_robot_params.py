@@ -40,7 +40,8 @@ def _write(tmp_path, mutate):
         (lambda d: d["dh"].update(d_mm=[1, 2, 3]), "key 'dh.d_mm': expected 6 numbers, got 3"),
         (lambda d: d.update(joint_stiffness_Nm_per_rad=[1e6, 1e6, 0, 1e5, 1e5, 1e5]),
          "key 'joint_stiffness_Nm_per_rad': joint 3: 0 is outside the allowed range [1000, 1e+09] N*m/rad"),
-        (lambda d: d["links"][2].update(mass_kg=-1), "key 'links[2].mass_kg': must be > 0"),
+        (lambda d: d["links"][2].update(mass_kg=-1),
+         "key 'links[2].mass_kg': -1 is outside the allowed range [0.01, 20000] kg"),
         (lambda d: d["joint_limits"].update(lower_deg=[0, 80, 0, 0, 0, 0]), "joint 2: lower 80.0 >= upper 70.0"),
     ],
 )

@@ -194,7 +194,10 @@ def plausibility(robot):
                          f"{robot.joint_stiffness_Nm_per_rad[j]:g} N*m/rad lets the arm sag "
                          f"{np.rad2deg(sag[j]):.3g} deg under its own weight {where}: no arm holds itself so "
                          "softly; are the stiffnesses in kN*m/rad? (write N*m/rad)")
-    f1 = float(first_modes_hz(robot, q)[0])
+    try:
+        f1 = float(first_modes_hz(robot, q)[0])
+    except np.linalg.LinAlgError:  # a mass matrix that cannot be inverted: no inertia on some joint
+        f1 = 0.0
     lo, hi = FIRST_MODE_RANGE_HZ
     if not lo <= f1 <= hi:
         out.append(f"{robot.source}: the first natural frequency {where} is {f1:.3g} Hz (joint springs, motors "
