@@ -6,6 +6,10 @@ class InputError(Exception):
     """Bad input from the user. The message says what is wrong and where."""
 
 
+class OutputError(InputError):
+    """An output that cannot be written (one line, exit status 2)."""
+
+
 class SingularPoseError(ValueError):
     """A stiffness-form quantity was asked for where J is not invertible.
 

@@ -1,20 +1,17 @@
 """The output layer shared by every command.
 
-* ``check_outputs(...)``: refuse, before any computation, an output that is
-  an input, a folder where a file is wanted (or the reverse), a special file
-  (device, FIFO, socket), a read-only file, a path longer than the system
-  takes, or a place that cannot be written (InputError: one line, exit
-  status 2).
-* One rule for every file a command reads: ``command_scope()`` (entered by
-  ``robstiff``'s main for each command) collects the command's inputs, both
-  those on its command line and those named inside other files (a
-  scenario's program, robot, identification JSON and payload YAML; a
-  compensator.yaml's robot; a run folder's files): every reader calls
-  ``note_input(path, named_by)``.  No output may be, contain, or replace
-  an input: ``check_outputs`` refuses such an output against the inputs
-  noted so far, ``note_input`` refuses an input read later that an output
-  declared earlier would overwrite or contain, and every write checks once
-  more before it renames anything into place.
+* ``check_outputs(...)`` (robstiff_drake/output_checks.py): refuse, before
+  any computation, an output that is an input, a folder where a file is
+  wanted (or the reverse), a special file (device, FIFO, socket), a
+  read-only file, a path longer than the system takes, or a place that
+  cannot be written (InputError: one line, exit status 2).
+* One rule for every file a command reads (robstiff_drake/command.py: the
+  command's inputs, noted by every reader, wherever the file was named): no
+  output may be, contain, or replace an input.  ``check_outputs`` refuses
+  such an output against the inputs noted so far and declares the outputs
+  (``command.note_input`` then refuses an input read later that one of
+  them would overwrite or contain), and every write checks once more
+  before it renames anything into place.
 * ``staged_outputs()``: the files a command writes inside it appear
   together when it ends without an error (nothing half-written: a full
   disk while writing the second file leaves neither).
@@ -27,9 +24,9 @@
   renamed into place when every file is written), stamped with a run id.
 * ``Warnings``: implausible results, one line each, printed to stderr as
   ``robstiff: warning: ...`` and listed under ``warnings`` in the JSON.
-  ``input_warning(message)``: a warning about an input file (a robot file
-  whose first mode is implausible, say) found by a reader: printed at once
-  and added to every Warnings and every JSON object the command writes.
+  A new Warnings, and every JSON object the command writes, carries the
+  command's input warnings (``command.input_warning``: a robot file whose
+  first mode is implausible, say, found by its reader).
 * JSON is always valid JSON: NaN and infinities become null, with a warning.
 """
 
@@ -46,100 +43,11 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.errors import InputError, one_line
-
-STDOUT = "-"
-RUN_ID_FILE = "RUN_ID"
-
-
-class OutputError(InputError):
-    """An output that cannot be written (one line, exit status 2)."""
-
-
-# ---------------------------------------------------------------- the command
-
-
-class _Command:
-    """What one command reads and writes (see the module docstring)."""
-
-    def __init__(self):
-        self.inputs = {}  # path as given -> what named it ("" for the command line)
-        self.outputs = []  # (option, path, is_folder)
-        self.input_warnings = []
-        self.staged = None  # [(temporary file, target)] inside staged_outputs()
-
-
-_COMMAND = None
-
-
-@contextmanager
-def command_scope():
-    """One command's inputs, outputs and input warnings (main enters it
-    around each command; outside it, only the explicit checks apply)."""
-    global _COMMAND
-    previous, _COMMAND = _COMMAND, _Command()
-    try:
-        yield _COMMAND
-    finally:
-        _COMMAND = previous
-
-
-def _label(path, named_by):
-    return f"{path}, {named_by}" if named_by else str(path)
-
-
-def _conflict(input_path, output, is_folder):
-    """Whether writing ``output`` (a file, or a folder replaced as a whole)
-    would overwrite, replace or remove ``input_path``."""
-    if not os.path.lexists(input_path):
-        return False
-    if is_folder:
-        return inside(input_path, output)
-    return _same(input_path, output) if os.path.exists(output) else \
-        os.path.realpath(input_path) == os.path.realpath(output)
-
-
-def note_input(path, named_by=None):
-    """Record ``path`` as an input of the running command (``named_by``: the
-    file and key that name it, e.g. "toolpath.program of s.yaml"), and
-    refuse it (OutputError) when an output already declared would be it,
-    replace it or contain it."""
-    if _COMMAND is None or path is None or str(path) in ("", STDOUT):
-        return
-    text = os.fspath(path)
-    _COMMAND.inputs.setdefault(text, named_by or "")
-    for key, out, is_folder in _COMMAND.outputs:
-        if _conflict(text, out, is_folder):
-            what = "holds" if is_folder else "is"
-            raise OutputError(f"{key} {out}: {what} an input of the command ({_label(text, named_by)}); choose "
-                              "another output, inputs are never overwritten")
-
-
-def command_inputs():
-    """The inputs noted so far: [(path, what named it)]."""
-    return [] if _COMMAND is None else list(_COMMAND.inputs.items())
-
-
-def _check_not_an_input(path, is_folder=False):
-    """The last check before a write renames anything into place."""
-    for src, named_by in command_inputs():
-        if _conflict(src, os.fspath(path), is_folder):
-            raise OutputError(f"cannot write {path}: {'it holds' if is_folder else 'it is'} an input of the command "
-                              f"({_label(src, named_by)}); inputs are never overwritten")
-
+from robstiff_drake.command import STDOUT, check_not_an_input, current
+from robstiff_drake.errors import OutputError, one_line
+from robstiff_drake.output_checks import RUN_ID_FILE, check_outputs  # noqa: F401 (the commands import them from io)
 
 # ---------------------------------------------------------------- warnings
-
-
-def input_warning(message):
-    """A warning about an input file, found while reading it: printed once,
-    at once, and carried into the command's Warnings and JSON.  Outside a
-    command (library use) it is only returned."""
-    message = one_line(" ".join(str(message).split()))
-    if _COMMAND is not None and message not in _COMMAND.input_warnings:
-        _COMMAND.input_warnings.append(message)
-        print(f"robstiff: warning: {message}", file=sys.stderr)
-    return message
 
 
 class Warnings(list):
@@ -152,8 +60,8 @@ class Warnings(list):
     def __init__(self, *, quiet=False):
         super().__init__()
         self.quiet = quiet
-        if _COMMAND is not None:
-            self.extend(_COMMAND.input_warnings)
+        if current() is not None:
+            self.extend(current().input_warnings)
 
     def add(self, message):
         message = one_line(" ".join(str(message).split()))
@@ -175,161 +83,6 @@ def _umask():
     mask = os.umask(0)
     os.umask(mask)
     return mask
-
-
-def _same(a, b):
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return os.path.realpath(a) == os.path.realpath(b)
-
-
-def inside(path, folder):
-    """Whether ``path`` resolves (through every symbolic link) to ``folder``
-    or somewhere inside it."""
-    p, f = os.path.realpath(path), os.path.realpath(folder)
-    return p == f or p.startswith(f.rstrip(os.sep) + os.sep)
-
-
-def _existing_ancestor(path):
-    """The nearest ancestor of ``path`` that exists (Path), and the part below it."""
-    p = Path(os.path.abspath(path)).parent
-    while not p.exists():
-        if p.is_symlink():  # a dangling symlink on the way
-            return p, True
-        p = p.parent
-    return p, False
-
-
-def _check_parent(path, key):
-    anc, dangling = _existing_ancestor(path)
-    if dangling:
-        raise OutputError(f"{key} {shown_path(path)}: {shown_path(anc)} is a broken symbolic link")
-    if not anc.is_dir():
-        raise OutputError(f"{key} {shown_path(path)}: {shown_path(anc)} is a file, not a folder")
-    if not os.access(anc, os.W_OK | os.X_OK):
-        raise OutputError(f"{key} {shown_path(path)}: cannot write in {shown_path(anc)} (permission denied)")
-
-
-# The longest path and file name the system takes (Linux: 4096 and 255 bytes).
-try:
-    PATH_MAX = os.pathconf("/", "PC_PATH_MAX")
-    NAME_MAX = os.pathconf("/", "PC_NAME_MAX")
-except (AttributeError, OSError, ValueError):
-    PATH_MAX, NAME_MAX = 4096, 255
-
-
-def shown_path(text, limit=160):
-    """A path as an error shows it: one line, and a very long one shortened
-    in the middle."""
-    text = one_line(text)
-    return text if len(text) <= limit else f"{text[:limit // 2 - 2]}...{text[-(limit // 2 - 2):]}"
-
-
-def _check_length(text, key):
-    full = os.fsencode(os.path.abspath(text))
-    if len(full) >= PATH_MAX:
-        raise OutputError(f"{key} {shown_path(text)}: the path is {len(full)} bytes long, more than the system takes "
-                          f"({PATH_MAX - 1})")
-    for part in Path(text).parts:
-        if len(os.fsencode(part)) > NAME_MAX:
-            raise OutputError(f"{key} {shown_path(text)}: a name in it is {len(os.fsencode(part))} bytes long, more "
-                              f"than a file system takes ({NAME_MAX})")
-
-
-def _check_file_output(path, key, inputs):
-    text = str(path)
-    if text == STDOUT:
-        return
-    if text == "" or text.endswith(os.sep):
-        raise OutputError(f"{key} {text!r}: expected a file name")
-    _check_length(text, key)
-    target = os.path.realpath(text)
-    for src, named_by in inputs:
-        if _conflict(src, text, False):
-            raise OutputError(f"{key} {shown_path(text)}: this is an input of the command "
-                              f"({shown_path(_label(src, named_by))}); choose another output file, inputs are never "
-                              "overwritten")
-    if os.path.lexists(text) and not os.path.exists(text):
-        raise OutputError(f"{key} {shown_path(text)}: a symbolic link to {shown_path(os.readlink(text))}, which does "
-                          "not exist")
-    if os.path.exists(target):
-        st = os.stat(target)
-        if stat.S_ISDIR(st.st_mode):
-            raise OutputError(f"{key} {shown_path(text)}: is a folder; give a file name")
-        if not stat.S_ISREG(st.st_mode):
-            kind = ("a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else
-                    "a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
-                    else "not a regular file")
-            raise OutputError(f"{key} {shown_path(text)}: is {kind}; outputs go to regular files "
-                              f"(use '{STDOUT}' for standard output where the option takes it)")
-        if not st.st_mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH) or not os.access(target, os.W_OK):
-            raise OutputError(f"{key} {shown_path(text)}: the file is read-only; it is not replaced")
-    _check_parent(target, key)
-
-
-def _is_run_folder(path):
-    return (Path(path) / RUN_ID_FILE).is_file()
-
-
-def _check_folder_output(path, key, inputs):
-    text = str(path)
-    if text in ("", STDOUT):
-        raise OutputError(f"{key} {text!r}: expected a folder name")
-    _check_length(text, key)
-    if os.path.lexists(text) and not os.path.exists(text):
-        raise OutputError(f"{key} {shown_path(text)}: a symbolic link to {shown_path(os.readlink(text))}, which does "
-                          "not exist")
-    real = os.path.realpath(text)
-    for src, named_by in inputs:
-        if _conflict(src, real, True):
-            raise OutputError(f"{key} {shown_path(text)}: the folder holds an input of the command "
-                              f"({shown_path(_label(src, named_by))}), and a run folder is replaced as a whole; "
-                              "choose another output folder")
-    if os.path.exists(real):
-        if not os.path.isdir(real):
-            raise OutputError(f"{key} {shown_path(text)}: is a file, not a folder")
-        if any(Path(real).iterdir()) and not _is_run_folder(real):
-            raise OutputError(f"{key} {shown_path(text)}: the folder exists and is not a robstiff run folder (no "
-                              f"{RUN_ID_FILE} file); choose a new folder or empty it, it would be replaced as a whole")
-        if os.path.ismount(real) or real == os.path.realpath(os.getcwd()):
-            raise OutputError(f"{key} {shown_path(text)}: cannot replace this folder as a whole; choose a sub-folder")
-    _check_parent(real, key)
-
-
-def check_outputs(*, inputs=(), files=None, folders=None):
-    """Refuse bad outputs before anything is computed.
-
-    ``inputs``: paths the command reads (files or folders), besides those
-    its readers note (``note_input``).  ``files`` and ``folders``: ``{option
-    name: path or None}`` of the outputs (None: not asked for).  Raises
-    OutputError (one line naming the option and path)."""
-    for p in inputs:
-        note_input(p)
-    given = [(os.fspath(p), "") for p in inputs if p is not None and str(p) not in ("", STDOUT)]
-    inputs = given + [i for i in command_inputs() if i[0] not in {g for g, _ in given}]
-    seen = {}
-    declared = []
-    try:
-        for key, path in (files or {}).items():
-            if path is None:
-                continue
-            _check_file_output(os.fspath(path), key, inputs)
-            if str(path) != STDOUT:
-                real = os.path.realpath(path)
-                if real in seen:
-                    raise OutputError(f"{key} {shown_path(path)}: the same file as {seen[real]}")
-                seen[real] = key
-                declared.append((key, os.fspath(path), False))
-        for key, path in (folders or {}).items():
-            if path is None:
-                continue
-            _check_folder_output(os.fspath(path), key, inputs)
-            declared.append((key, os.fspath(path), True))
-    except OSError as e:  # a path the system refuses to look at (too long, a loop of symlinks, ...)
-        raise OutputError(f"{key} {shown_path(path)}: {e.strerror or e}") from None
-    if _COMMAND is not None:
-        _COMMAND.outputs.extend(declared)
 
 
 # ---------------------------------------------------------------- writing
@@ -354,7 +107,7 @@ def _replace_atomic(path, write):
     """Write through ``write(tmp_path)`` into a temporary file next to the
     target, then rename it over the target (inside ``staged_outputs``: when
     the block ends)."""
-    _check_not_an_input(path)
+    check_not_an_input(path)
     target = _target(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -366,8 +119,8 @@ def _replace_atomic(path, write):
         os.close(fd)
         write(tmp)
         os.chmod(tmp, mode)
-        if _COMMAND is not None and _COMMAND.staged is not None:
-            _COMMAND.staged.append((tmp, target, path))
+        if current() is not None and current().staged is not None:
+            current().staged.append((tmp, target, path))
         else:
             os.replace(tmp, target)
     except OSError as e:
@@ -385,10 +138,11 @@ def staged_outputs():
     that are renamed into place together when the block ends without an
     error; on an error (a full disk at the second file) every temporary file
     is removed and no output appears or changes."""
-    if _COMMAND is None or _COMMAND.staged is not None:
+    command = current()
+    if command is None or command.staged is not None:
         yield
         return
-    _COMMAND.staged = staged = []
+    command.staged = staged = []
     try:
         yield
         for tmp, target, path in staged:
@@ -397,7 +151,7 @@ def staged_outputs():
             except OSError as e:
                 raise _write_error(path, e) from None
     finally:
-        _COMMAND.staged = None
+        command.staged = None
         for tmp, _, _ in staged:
             Path(tmp).unlink(missing_ok=True)
 
@@ -453,10 +207,10 @@ def json_text(obj):
     gets the command's input warnings (``input_warning``) in that list."""
     bad = []
     data = _to_jsonable(obj, "", bad)
-    if isinstance(data, dict) and _COMMAND is not None and _COMMAND.input_warnings:
+    if isinstance(data, dict) and current() is not None and current().input_warnings:
         listed = data.setdefault("warnings", [])
         if isinstance(listed, list):
-            listed[:0] = [w for w in _COMMAND.input_warnings if w not in listed]
+            listed[:0] = [w for w in current().input_warnings if w not in listed]
     if bad and isinstance(data, dict):
         shown = ", ".join(bad[:5]) + (f" and {len(bad) - 5} more" if len(bad) > 5 else "")
         data.setdefault("warnings", [])
@@ -544,7 +298,7 @@ class RunFolder:
         target = _target(self.path)
         old = None
         try:
-            _check_not_an_input(self.path, is_folder=True)
+            check_not_an_input(self.path, is_folder=True)
         except BaseException:
             shutil.rmtree(self._tmp, ignore_errors=True)
             raise

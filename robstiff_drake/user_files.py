@@ -31,7 +31,7 @@ import numpy as np
 import yaml
 
 from robstiff_drake.errors import InputError, excerpt
-from robstiff_drake.io import note_input
+from robstiff_drake.command import note_input
 
 # The largest YAML or JSON file a user gives: a scenario with 100,000
 # waypoints is about 4 MB; 32 MB leaves room and stays far below what a

@@ -156,17 +156,25 @@ def mutated_scenario(draw, edits=st.integers(1, 2), wild=True):
             new = _scaled(value.strip(), draw(st.sampled_from([0.0, 0.5, 0.9, 1.1, 2.0, 10.0, -1.0])))
             if new is not None:
                 lines[i] = f"{key}: {new}"
-        elif kind == "value":
-            lines[i] = f"{key}: {draw(st.sampled_from(YAML_VALUES))}"
-        elif kind == "drop":
-            lines[i] = "# dropped"
-        elif kind == "dup":
-            lines.insert(i, lines[i])
-        elif kind == "unknown":
-            lines.insert(i, f"{key}x: 1")
-        elif kind == "indent":
-            lines[i] = " " + lines[i]
+        else:
+            _edit_line(draw, lines, i, kind)
     return "\n".join(lines) + "\n"
+
+
+def _edit_line(draw, lines, i, kind):
+    """A hand edit of a YAML file's keyed line ``i``: another value, the line
+    dropped, duplicated, indented, or a misspelt key before it."""
+    key = lines[i].partition(":")[0]
+    if kind == "value":
+        lines[i] = f"{key}: {draw(st.sampled_from(YAML_VALUES))}"
+    elif kind == "drop":
+        lines[i] = "# dropped"
+    elif kind == "dup":
+        lines.insert(i, lines[i])
+    elif kind == "unknown":
+        lines.insert(i, f"{key}x: 1")
+    elif kind == "indent":
+        lines[i] = " " + lines[i]
 
 
 @fuzz(400)
@@ -413,16 +421,8 @@ def mutated_robot(draw):
             except ValueError:
                 continue
             lines[i] = f"{key}: [{', '.join(new)}]" if "[" in value else f"{key}: {new[0]}"
-        elif kind == "value":
-            lines[i] = f"{key}: {draw(st.sampled_from(YAML_VALUES))}"
-        elif kind == "drop":
-            lines[i] = "# dropped"
-        elif kind == "dup":
-            lines.insert(i, lines[i])
-        elif kind == "unknown":
-            lines.insert(i, f"{key}x: 1")
         else:
-            lines[i] = " " + lines[i]
+            _edit_line(draw, lines, i, kind)
     return "\n".join(lines) + "\n"
 
 
@@ -441,14 +441,6 @@ def test_fuzz_robot_files(capsys, tmp_path_factory, text):
         assert not out.exists()
 
 
-@pytest.fixture(scope="module")
-def fuzz_run(tmp_path_factory):
-    d = tmp_path_factory.mktemp("run")
-    (d / "s.yaml").write_text(_SCENARIO)
-    assert main(["simulate", str(d / "s.yaml"), "--compensation", "on", "--out", str(d / "cut"), "--quiet"]) == 0
-    return d / "cut"
-
-
 CELL = ["compensator.yaml", "scan.csv", "wrench_log.csv", "joint_log.csv", "RUN_ID"]
 
 
@@ -458,10 +450,10 @@ CELL = ["compensator.yaml", "scan.csv", "wrench_log.csv", "joint_log.csv", "RUN_
 @given(kind=st.sampled_from(["symlink_out", "symlink_in", "robot", "robot_file", "wrench_units", "missing"]),
        name=st.sampled_from(CELL), robot=st.sampled_from(["irb6640", "kr240_r2900", "r2000ic_165f", "irb6400"]),
        scale=st.sampled_from([1e-3, 1e3]))
-def test_fuzz_run_folders(capsys, tmp_path_factory, fuzz_run, kind, name, robot, scale):
+def test_fuzz_run_folders(capsys, tmp_path_factory, short_run_folder, kind, name, robot, scale):
     d = tmp_path_factory.mktemp("fz")
     run = d / "run"
-    shutil.copytree(fuzz_run, run)
+    shutil.copytree(short_run_folder, run)
     secret = d / "secret.txt"
     secret.write_text("TOP-SECRET,line\n")
     settings = run / "compensator.yaml"

@@ -138,19 +138,10 @@ def test_a_compensator_files_robot_is_an_input_too(capsys, run_copy, tmp_path):
 # ------------------------------------------------------------ run folders
 
 
-@pytest.fixture(scope="module")
-def run_folder(tmp_path_factory):
-    d = tmp_path_factory.mktemp("run")
-    s = d / "s.yaml"
-    s.write_text(SHORT)
-    assert main(["simulate", str(s), "--compensation", "on", "--out", str(d / "cut"), "--quiet"]) == 0
-    return d / "cut"
-
-
 @pytest.fixture
-def run_copy(run_folder, tmp_path):
+def run_copy(short_run_folder, tmp_path):
     d = tmp_path / "run"
-    shutil.copytree(run_folder, d)
+    shutil.copytree(short_run_folder, d)
     return d
 
 

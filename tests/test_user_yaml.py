@@ -79,15 +79,8 @@ def run_limited(cases, cwd):
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-@pytest.fixture(scope="module")
-def run_folder(tmp_path_factory):
-    d = tmp_path_factory.mktemp("run")
-    (d / "s.yaml").write_text(SHORT)
-    assert main(["simulate", str(d / "s.yaml"), "--compensation", "on", "--out", str(d / "cut"), "--quiet"]) == 0
-    return d / "cut"
-
-
-def test_alias_bombs_are_refused_in_every_user_file_under_a_memory_limit(tmp_path, run_folder):
+def test_alias_bombs_are_refused_in_every_user_file_under_a_memory_limit(tmp_path, short_run_folder):
+    run_folder = short_run_folder
     b = bomb()
     assert len(b) < 2000  # 9**9 = 387 million leaves when expanded
     cases, files = [], []

@@ -544,7 +544,7 @@ def main(argv=None):
     try:
         args = build_parser().parse_args(vector_values_kept(sys.argv[1:] if argv is None else argv))
         was_quiet = set_quiet(getattr(args, "quiet", False))
-        from robstiff_drake.io import command_scope
+        from robstiff_drake.command import command_scope
 
         with command_scope():
             return _dispatch(args) or 0

@@ -23,7 +23,7 @@ from pydrake.systems.analysis import SimulatorConfig
 
 from robstiff_drake.diagrams.schema import check_object, choice, drake_config, num, rows, text, validate, vec
 from robstiff_drake.errors import InputError, excerpt
-from robstiff_drake.io import note_input
+from robstiff_drake.command import note_input
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.gcode import read_program_file
 from robstiff_drake.model.path import PathError, PlannedPath, program_elements

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.errors import InputError, excerpt
-from robstiff_drake.io import note_input
+from robstiff_drake.command import note_input
 
 Q_COLS = tuple(f"q{i}" for i in range(1, 7))
 F_COLS = ("fx", "fy", "fz")

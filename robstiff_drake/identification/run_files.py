@@ -28,7 +28,8 @@ import numpy as np
 import yaml
 
 from robstiff_drake.errors import InputError, excerpt
-from robstiff_drake.io import RUN_ID_FILE, inside
+from robstiff_drake.command import inside
+from robstiff_drake.io import RUN_ID_FILE
 from robstiff_drake.user_files import UserYamlLoader, read_user_text
 
 WRENCH_LOG = "wrench_log.csv"

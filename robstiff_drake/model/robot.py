@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.errors import InputError, excerpt
-from robstiff_drake.io import input_warning
+from robstiff_drake.command import input_warning
 from robstiff_drake.model.robot_checks import plausibility, shape_inertia
-from robstiff_drake.model.robot_file import CONVENTIONS, N_JOINTS, check_units, read_robot_values
+from robstiff_drake.model.robot_file import N_JOINTS, check_units, read_robot_values
 from robstiff_drake.paths import DEFAULT_ROBOT_NAME, library_robots, robot_file
 from robstiff_drake.user_files import load_yaml, read_user_text
 
