@@ -62,22 +62,29 @@ def _check_length(text, key):
                               f"than a file system takes ({NAME_MAX})")
 
 
+def _check_place(text, key, inputs, is_folder):
+    """What a file and a folder output share: a length the system takes, no
+    input it would be or hold, no dangling symbolic link."""
+    _check_length(text, key)
+    for src, named_by in inputs:
+        if conflict(src, os.path.realpath(text) if is_folder else text, is_folder):
+            what = ("the folder holds an input of the command", "and a run folder is replaced as a whole; choose "
+                    "another output folder") if is_folder else ("this is an input of the command", "choose another "
+                                                                "output file, inputs are never overwritten")
+            raise OutputError(f"{key} {shown_path(text)}: {what[0]} ({shown_path(label(src, named_by))}), {what[1]}")
+    if os.path.lexists(text) and not os.path.exists(text):
+        raise OutputError(f"{key} {shown_path(text)}: a symbolic link to {shown_path(os.readlink(text))}, which does "
+                          "not exist")
+
+
 def _check_file_output(path, key, inputs):
     text = str(path)
     if text == STDOUT:
         return
     if text == "" or text.endswith(os.sep):
         raise OutputError(f"{key} {text!r}: expected a file name")
-    _check_length(text, key)
+    _check_place(text, key, inputs, False)
     target = os.path.realpath(text)
-    for src, named_by in inputs:
-        if conflict(src, text, False):
-            raise OutputError(f"{key} {shown_path(text)}: this is an input of the command "
-                              f"({shown_path(label(src, named_by))}); choose another output file, inputs are never "
-                              "overwritten")
-    if os.path.lexists(text) and not os.path.exists(text):
-        raise OutputError(f"{key} {shown_path(text)}: a symbolic link to {shown_path(os.readlink(text))}, which does "
-                          "not exist")
     if os.path.exists(target):
         st = os.stat(target)
         if stat.S_ISDIR(st.st_mode):
@@ -101,16 +108,8 @@ def _check_folder_output(path, key, inputs):
     text = str(path)
     if text in ("", STDOUT):
         raise OutputError(f"{key} {text!r}: expected a folder name")
-    _check_length(text, key)
-    if os.path.lexists(text) and not os.path.exists(text):
-        raise OutputError(f"{key} {shown_path(text)}: a symbolic link to {shown_path(os.readlink(text))}, which does "
-                          "not exist")
+    _check_place(text, key, inputs, True)
     real = os.path.realpath(text)
-    for src, named_by in inputs:
-        if conflict(src, real, True):
-            raise OutputError(f"{key} {shown_path(text)}: the folder holds an input of the command "
-                              f"({shown_path(label(src, named_by))}), and a run folder is replaced as a whole; "
-                              "choose another output folder")
     if os.path.exists(real):
         if not os.path.isdir(real):
             raise OutputError(f"{key} {shown_path(text)}: is a file, not a folder")
