@@ -118,7 +118,9 @@ def decode_program(raw, path):
     except UnicodeDecodeError:
         text = raw.decode("latin-1")
     if "\x00" in text:
-        raise InputError(f"{path}: not a text file (NUL bytes)")
+        before = text[:text.index("\x00")]
+        line, col = before.count("\n") + 1, len(before) - before.rfind("\n")
+        raise InputError(f"{path}:{line}:{col}: control character U+0000 (NUL): not a text file")
     return text
 
 

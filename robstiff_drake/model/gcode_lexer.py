@@ -157,12 +157,15 @@ def _word(b, text, i):
         j += 1
     m = _NUMBER.match(text, j)
     if m is None:
+        k = j
+        while k < len(text) and text[k] in "+-.":
+            k += 1
+        if k < len(text) and not text[k].isascii():
+            raise LexError(k + 1, f"non-ASCII character {describe(text[k])} in the word {letter}: G-code numbers "
+                                  "are ASCII digits")
         if j < len(text) and text[j] in "#[":
             raise LexError(j + 1, f"{letter}{text[j]}: macro variables and expressions are not supported; post the "
                                   "program expanded")
-        if j < len(text) and not text[j].isascii():
-            raise LexError(j + 1, f"non-ASCII character {describe(text[j])} in the word {letter}: G-code "
-                                  "numbers are ASCII digits")
         raise LexError(col, f"{letter} without a number")
     end = m.end()
     if _EXPONENT.match(text, end):
