@@ -11,7 +11,7 @@ from dataclasses import replace
 
 from robstiff_drake.errors import InputError
 from robstiff_drake.model import gcode_words as W
-from robstiff_drake.model.gcode_moves import ARC_END_TOLERANCE_MM, MAX_MOVES, MM_PER_INCH, PLANES, Move
+from robstiff_drake.model.gcode_moves import MAX_MOVES, MM_PER_INCH, Move, arc_center
 
 # Ranges a value of a program may take (the file:line:column of the word
 # is named when it is outside; the scenario's own ranges, for the values
@@ -27,7 +27,6 @@ _TOOL_COMMENTS = (re.compile(r"^\s*T\s*([0-9]+)\b.*?\bD\s*=\s*" + _NUM, re.IGNOR
                   re.compile(r"^\s*TOOL\s*-\s*([0-9]+)\b.*\bDIA\.\s*-\s*" + _NUM + r"\s*$", re.IGNORECASE))
 _AXIS = {"X": 0, "Y": 1, "Z": 2, "I": 0, "J": 1, "K": 2}
 _PLANE_OF = {"G17": "XY", "G18": "ZX", "G19": "YZ"}
-_PLANE_WORD = {"XY": "G17", "ZX": "G18", "YZ": "G19"}
 
 
 class ProgramState:
@@ -362,57 +361,13 @@ class ProgramState:
             if math.dist(start, end_t) > 1e-9:
                 self.add_move(Move("rapid" if g == 0 else "line", start, end_t, feed, **common))
         else:
-            center = self.arc_center(line, g, g_word, start, end_t, arc)
+            center = arc_center(self.plane, g, start, end_t, arc, self.arc_absolute,
+                                lambda what, w=None: self.fail(line, what, w if w is not None else g_word))
             self.add_move(Move("arc", start, end_t, feed, center_mm=center, clockwise=g == 2, plane=self.plane,
                                **common))
         if g != 0 and self.first_cut_line is None:
             self.first_cut_line = line
         self.pos = end
-
-    def arc_center(self, line, g, g_word, start, end, arc):
-        word = f"G{g}"
-        a, b, _ = PLANES[self.plane]
-        names = {i: "XYZ"[i] for i in (a, b)}
-        offsets = {"IJK"[a], "IJK"[b]}
-        for letter, (_, w) in arc.items():
-            if letter != "R" and letter not in offsets:
-                self.fail(line, f"{w}: {letter} (an arc centre along {'XYZ'['IJK'.index(letter)]}) in the "
-                                f"{self.plane} plane ({_PLANE_WORD[self.plane]}), whose centre words are "
-                                f"{'/'.join(sorted(offsets))}", w)
-        sa, sb, ea, eb = start[a], start[b], end[a], end[b]
-        chord = math.hypot(ea - sa, eb - sb)
-        if "R" in arc:
-            if len(arc) > 1:
-                self.fail(line, f"{word}: give the centre or R, not both", g_word)
-            r, rw = arc["R"]
-            if chord < 1e-9:
-                self.fail(line, f"{word}: a full circle needs its centre ({'/'.join(sorted(offsets))}), not R", rw)
-            if abs(r) < chord / 2 - ARC_END_TOLERANCE_MM:
-                self.fail(line, f"{rw}: radius shorter than half the chord ({chord / 2:.4f} mm)", rw)
-            h = math.sqrt(max(r * r - chord * chord / 4, 0.0))
-            ma, mb = (sa + ea) / 2, (sb + eb) / 2
-            ua, ub = (ea - sa) / chord, (eb - sb) / chord
-            # centre to the left of the chord for a counter-clockwise arc of at most 180 degrees
-            side = 1.0 if (g == 3) == (r > 0) else -1.0
-            return (ma - side * h * ub, mb + side * h * ua)
-        if not arc:
-            self.fail(line, f"{word}: an arc needs its centre ({'/'.join(sorted(offsets))}) or R (radius)", g_word)
-        la, lb = "IJK"[a], "IJK"[b]
-        if self.arc_absolute:
-            if la not in arc or lb not in arc:
-                self.fail(line, f"{word}: with G90.1 (absolute centres) give both {la} and {lb}", g_word)
-            c = (arc[la][0], arc[lb][0])
-        else:
-            c = (sa + arc.get(la, (0.0,))[0], sb + arc.get(lb, (0.0,))[0])
-        r0 = math.hypot(sa - c[0], sb - c[1])
-        r1 = math.hypot(ea - c[0], eb - c[1])
-        if r0 < 1e-6:
-            self.fail(line, f"{word}: the centre is the start point", g_word)
-        if abs(r1 - r0) > ARC_END_TOLERANCE_MM:
-            self.fail(line, f"{word}: the end point is not on the arc (radius {r0:.4f} mm at the start, {r1:.4f} mm "
-                            f"at the end, about ({names[a]}, {names[b]}) = ({c[0]:.4f}, {c[1]:.4f}) mm; tolerance "
-                            f"{ARC_END_TOLERANCE_MM:g} mm)", g_word)
-        return c
 
     # ------------------------------------------------------------ the end
 
