@@ -124,6 +124,24 @@ class ProgramState:
         if body:
             self.left_out.append((line_no, text.strip()))
 
+    def coded(self, line, w, groups):
+        """The table key of a G or M word, checked against the table and
+        against the words of its group already on the line (``groups``)."""
+        key = W.canonical_g(w.value) if w.letter == "G" else W.canonical_m(w.value)
+        entry = (W.G_CODES if w.letter == "G" else W.M_CODES).get(key)
+        if entry is None:
+            self.fail(line, f"{w}: unsupported {w.letter}-code (docs/toolpaths.md lists the words this reader takes)",
+                      w)
+        status, group, note = entry
+        if status == W.REFUSED:
+            self.fail(line, f"{w}: {note}", w)
+        if group in groups:
+            o = groups[group]
+            self.fail(line, f"{w}: a second {group} {w.letter}-code on the line (with {o} at column {o.column}); a "
+                            "controller would keep one of them silently, or stop", w)
+        groups[group] = w
+        return key
+
     def classify(self, b):
         """The block's G and M words (checked against the table and for
         repeats) and its other words by letter."""
@@ -132,36 +150,11 @@ class ProgramState:
         g_groups, m_groups = {}, {}
         for w in b.words:
             if w.letter == "G":
-                key = W.canonical_g(w.value)
-                entry = W.G_CODES.get(key)
-                if entry is None:
-                    self.fail(line, f"{w}: unsupported G-code (docs/toolpaths.md lists the words this reader takes)",
-                              w)
-                status, group, note = entry
-                if status == W.REFUSED:
-                    self.fail(line, f"{w}: {note}", w)
-                if group in g_groups:
-                    o = g_groups[group]
-                    self.fail(line, f"{w}: a second {group} G-code on the line (with {o} at column {o.column}); a "
-                                    "controller would keep one of them silently", w)
-                g_groups[group] = w
-                g_words.append((key, w))
+                g_words.append((self.coded(line, w, g_groups), w))
             elif w.letter == "M":
-                key = W.canonical_m(w.value)
-                entry = W.M_CODES.get(key)
-                if entry is None:
-                    self.fail(line, f"{w}: unsupported M-code (docs/toolpaths.md lists the words this reader takes)",
-                              w)
-                status, group, note = entry
-                if status == W.REFUSED:
-                    self.fail(line, f"{w}: {note}", w)
-                if group in m_groups:
-                    o = m_groups[group]
-                    self.fail(line, f"{w}: a second {group} M-code on the line (with {o} at column {o.column})", w)
                 if len(m_words) == W.MAX_M_PER_BLOCK:
                     self.fail(line, f"{w}: more than {W.MAX_M_PER_BLOCK} M-codes on the line", w)
-                m_groups[group] = w
-                m_words.append((key, w))
+                m_words.append((self.coded(line, w, m_groups), w))
             else:
                 if w.letter in others:
                     o = others[w.letter]
