@@ -74,7 +74,7 @@ def test_reads_a_post_output():
     ("G1 X1 Q", 7, ["Q without a number"]),
     ("G44 H1 Z5", 1, ["G44", "tool length"]),
     ("M4", 1, ["M4", "counter-clockwise"]),
-    ("G1 X1 M31", 7, ["M31", "unsupported M-code"]),
+    ("G1 X1 M32", 7, ["M32", "unsupported M-code"]),
     ("G12 X1", 1, ["G12", "unsupported G-code"]),
 ])
 def test_unsupported_words_name_the_file_line_column_and_word(line, col, words):
