@@ -29,7 +29,8 @@ class _Parser(argparse.ArgumentParser):
 # Allowed ranges of the vector options (a tool 5 m from the flange is no
 # robot tool; a stiffness outside 1e3-1e9 N*m/rad is no robot joint).
 VECTOR_RANGES = {"--tool": (-5000.0, 5000.0, "mm"), "--com-mm": (-2000.0, 2000.0, "mm"),
-                 "--mount-rpy": (-360.0, 360.0, "deg"), "--stiffness": (1e3, 1e9, "N*m/rad")}
+                 "--mount-rpy": (-360.0, 360.0, "deg"), "--stiffness": (1e3, 1e9, "N*m/rad"),
+                 "--work-offset": (-10000.0, 10000.0, "mm")}
 
 
 def parse_vector(text, n, what):
@@ -248,6 +249,9 @@ def build_parser():
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
     p.add_argument("--toolpath", metavar="PROGRAM", help="a G-code program as the path, placed by the scenario's "
                                                         "toolpath.work_offset_mm (docs/toolpaths.md)")
+    p.add_argument("--work-offset", metavar="X,Y,Z[,ROT_DEG]",
+                   help="where the program's zero is in the robot's base frame (mm), and its turn about the base z "
+                        "axis (deg): replaces toolpath.work_offset_mm (and work_rotation_deg)")
     p.add_argument("--compensator", metavar="SETTINGS.yaml",
                    help="run the scenario's machine with this compensator (a compensator.yaml, e.g. a candidate "
                         "fix of diagnose-run): a verification cut")
@@ -483,7 +487,8 @@ def _dispatch(args):
 
         return simulate.run(scenario=args.scenario, compensation=args.compensation, json_out=args.json,
                             out=args.out, compensator=args.compensator, noise_seed=args.noise_seed,
-                            robot_yaml=args.robot, toolpath=args.toolpath, replay=args.replay, progress=args.progress)
+                            robot_yaml=args.robot, toolpath=args.toolpath, work_offset=args.work_offset,
+                            replay=args.replay, progress=args.progress)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep
 

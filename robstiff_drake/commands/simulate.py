@@ -165,12 +165,13 @@ def format_table(summ):
     return "\n".join(lines)
 
 
-def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath=None):
+def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath=None, work_offset=None):
     """The scenario to simulate: from its file (its path replaced by the
-    G-code program ``toolpath`` when given), with the compensator of a
-    settings file (``compensator``) and the sensor's and scanner's noise
-    seeds set to ``noise_seed`` (a repeated cut: new noise) when given."""
-    sc = load_scenario(scenario, toolpath=toolpath)
+    G-code program ``toolpath`` when given, placed by ``work_offset``,
+    "X,Y,Z[,ROT_DEG]"), with the compensator of a settings file
+    (``compensator``) and the sensor's and scanner's noise seeds set to
+    ``noise_seed`` (a repeated cut: new noise) when given."""
+    sc = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset)
     if compensator is not None:
         _, settings = read_settings(compensator)
         sc = scenario_with_compensator(sc, settings, robot)
@@ -180,16 +181,17 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
 
 
 def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None, compensator=None,
-             noise_seed=None, toolpath=None, progress=False):
+             noise_seed=None, toolpath=None, work_offset=None, progress=False):
     """Load and run; returns (scenario, results).  The robot: ``robot`` (a
     RobotModel), else --robot's ``robot_yaml``, else the scenario's own.
     Warnings about the settings and the result go to ``warnings`` (an
-    io.Warnings) if given.  ``compensator``, ``noise_seed``, ``toolpath``: see load_for_run;
+    io.Warnings) if given.  ``compensator``, ``noise_seed``, ``toolpath``, ``work_offset``: see load_for_run;
     ``progress``: a bar over simulated time (experiment.run_cut)."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
-    robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath), robot_yaml)
-    sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed, toolpath=toolpath)
+    robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset), robot_yaml)
+    sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed, toolpath=toolpath,
+                      work_offset=work_offset)
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot))
     results = [run_cut(sc, robot, compensation=c, progress=progress) for c in MODES[compensation]]
@@ -273,10 +275,10 @@ def write_outputs(sc, results, robot, run, warnings=()):
 
 
 def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None,
-        robot_yaml=None, toolpath=None, replay=None, progress=None):
+        robot_yaml=None, toolpath=None, work_offset=None, replay=None, progress=None):
     check_outputs(inputs=[scenario, compensator, toolpath], files={"--json": json_out, "--replay": replay},
                   folders={"--out": out})
-    robot = scenario_robot(load_scenario(scenario, toolpath=toolpath), robot_yaml)
+    robot = scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset), robot_yaml)
     meshcat = None
     if replay is not None:  # Meshcat needs its server: refuse before the simulation when it cannot start
         from robstiff_drake.diagrams import replay as replay_3d
@@ -285,7 +287,8 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
         meshcat = replay_3d.start_meshcat()
     warnings = Warnings()
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
-                           compensator=compensator, noise_seed=noise_seed, toolpath=toolpath, progress=progress)
+                           compensator=compensator, noise_seed=noise_seed, toolpath=toolpath, work_offset=work_offset,
+                           progress=progress)
     summ = summary(results, sc, warnings)
     with RunFolder(out) as run_folder:
         written = write_outputs(sc, results, robot, run_folder, warnings)

@@ -12,7 +12,6 @@ loaded (io.note_input: no output may overwrite or contain it), and read
 through user_files (bounded, no YAML aliases).
 """
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,8 +24,9 @@ from robstiff_drake.diagrams.schema import check_object, choice, drake_config, n
 from robstiff_drake.errors import InputError, excerpt
 from robstiff_drake.command import note_input
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
-from robstiff_drake.model.gcode import read_program_file
-from robstiff_drake.model.path import PathError, PlannedPath, program_elements
+from robstiff_drake.diagrams import toolpath as program_setup
+from robstiff_drake.model.path import PathError, PlannedPath
+from robstiff_drake.model.program_path import program_pieces
 from robstiff_drake.model.payload import PayloadCalibration
 from robstiff_drake.model.robot_file import STIFFNESS_RANGE_NM_PER_RAD
 from robstiff_drake.user_files import load_json, load_yaml, read_user_text
@@ -154,8 +154,9 @@ class ToolpathConfig:
     """A G-code program (model/gcode.py) as the path, placed on the
     workpiece: a program point p (mm, work frame) is at
     work_offset_mm + Rz(work_rotation_deg) p in the robot's base frame (the
-    G54 offset).  F gives the feed and S the spindle speed (they replace
-    path.feed_mm_per_s and cutter.spindle_rpm); G0 moves go at rapid_mm_per_s."""
+    G54 offset; ``simulate --work-offset`` sets both).  F gives the feed
+    and S the spindle speed (they replace path.feed_mm_per_s and
+    cutter.spindle_rpm); G0 moves go at rapid_mm_per_s."""
 
     program: str = text("")  # relative to this file; empty: path.waypoints_mm
     work_offset_mm: list[float] = vec([0.0, 0.0, 0.0], (3,), -MAX_COORD_MM, MAX_COORD_MM, "mm")
@@ -164,6 +165,15 @@ class ToolpathConfig:
     # rapids near a part; a CNC's rapid traverse of 10-30 m/min is for a
     # machine tool's guarded axes)
     rapid_mm_per_s: float = num(100.0, 0.1, 2000.0, "mm/s")
+    # A number without a decimal point (X10): "calculator" reads 10 mm (10 in
+    # under G20), as LinuxCNC and a Fanuc with calculator-type input do;
+    # "increment": 10 least input increments, 0.010 mm (0.0010 in), as a
+    # Fanuc reads it by default (IS-B).  CAM posts write every coordinate
+    # with a point (X10.), so only hand-written programs differ.
+    decimal_point: str = choice("calculator", ("calculator", "increment"))
+    # Blocks that start with '/': "skip" them (the controller's block-delete
+    # switch on) or "run" them.
+    block_delete: str = choice("skip", ("skip", "run"))
 
 
 @dataclass
@@ -298,11 +308,13 @@ MAX_FILTER_TAPS = 5000
 MAX_SCAN_POINTS = 2_000_000
 
 
-def load_scenario(path, toolpath=None):
+def load_scenario(path, toolpath=None, work_offset=None):
     """Read and check a scenario file; InputError (one line naming the file,
     line, key and allowed range) on anything wrong, before anything is built.
     ``toolpath``: a G-code program that replaces the scenario's path (the
-    command line's --toolpath, relative to the working folder)."""
+    command line's --toolpath, relative to the working folder);
+    ``work_offset``: the command line's --work-offset "X,Y,Z[,ROT_DEG]"
+    (mm, deg), replacing toolpath.work_offset_mm (and work_rotation_deg)."""
     from pydrake.common.yaml import yaml_load_typed
 
     path = Path(path)
@@ -318,7 +330,13 @@ def load_scenario(path, toolpath=None):
     if toolpath is not None:
         note_input(toolpath, "--toolpath")
         sc.toolpath.program = str(Path(toolpath).resolve())
+        sc._program_label = str(toolpath)  # (its messages name it as given)
         sc.path.waypoints_mm = []
+    if work_offset is not None:
+        offset, rotation = program_setup.parse_work_offset(work_offset, ToolpathConfig)
+        sc.toolpath.work_offset_mm = offset
+        if rotation is not None:
+            sc.toolpath.work_rotation_deg = rotation
     for key, named in named_files(sc).items():
         note_input(named, f"{key} of {path}")
     apply_program(sc)
@@ -342,13 +360,10 @@ def named_files(sc):
 
 def _program(sc):
     """The scenario's G-code program (model/gcode.Program), read once."""
-    prog = getattr(sc, "_program", None)
     p = resolve(sc, sc.toolpath.program)
-    if prog is None or prog.path != str(p):
-        if not p.is_file():
-            _fail(sc, "toolpath.program", f"no such G-code program {p}" if not p.exists() else f"{p} is not a file")
-        prog = sc._program = read_program_file(p)
-    return prog
+    if not p.is_file():
+        _fail(sc, "toolpath.program", f"no such G-code program {p}" if not p.exists() else f"{p} is not a file")
+    return program_setup.read_program(sc, p)
 
 
 def _dominant(values_by_length):
@@ -364,21 +379,11 @@ def apply_program(sc):
         return
     if sc.path.waypoints_mm:
         _fail(sc, "toolpath.program", "give path.waypoints_mm or toolpath.program, not both")
-    prog = _program(sc)
-    feeds, speeds = {}, {}
-    for m in prog.moves:
-        if m.kind == "rapid":
-            continue
-        length = math.dist(m.start_mm, m.end_mm) if m.kind == "line" else abs(m.sweep_rad()) * m.radius_mm
-        feeds[m.feed_mm_per_min] = feeds.get(m.feed_mm_per_min, 0.0) + length
-        if m.spindle_rpm is not None:
-            speeds[m.spindle_rpm] = speeds.get(m.spindle_rpm, 0.0) + length
+    feeds, speeds = program_setup.feeds_and_speeds(_program(sc))
     if feeds:
         sc.path.feed_mm_per_s = _dominant(feeds) / 60.0
     if speeds:
         sc.cutter.spindle_rpm = float(_dominant(speeds))
-    sc._program_feeds = sorted(feeds)
-    sc._program_speeds = sorted(speeds)
 
 
 def plant_step_s(sc):
@@ -423,8 +428,12 @@ def check_scenario(sc):
                                        f"{len(sc.path.waypoints_mm)}")
     if sc.model.joint_stiffness_Nm_per_rad and sc.model.identified_json:
         _fail(sc, "model.identified_json", "give model.joint_stiffness_Nm_per_rad or model.identified_json, not both")
+    if sc.toolpath.program:
+        program_setup.check_tool(sc, _program(sc), lambda key, what: _fail(sc, key, what))
     path = _check_sizes(sc)
     _check_engagement(sc, path)
+    if sc.toolpath.program:
+        program_setup.check_stock(sc, _program(sc))
 
 
 def _path_key(sc):
@@ -444,6 +453,8 @@ def _check_engagement(sc, path):
         dy = np.maximum(np.maximum(y0 - pts[:, 1], pts[:, 1] - y1), 0.0)
         if np.any((dx * dx + dy * dy < R * R) & (pts[:, 2] < top)):
             return
+    if sc.toolpath.program:
+        raise InputError(program_setup.placement_message(sc, _program(sc)))
     _fail(sc, _path_key(sc), f"the cutter ({sc.cutter.diameter_mm:g} mm) never comes below the top of a "
                              "workpiece box while over it: an air cut leaves no surface to measure")
 
@@ -539,28 +550,18 @@ def plant_stiffness(sc, robot):
     return robot.joint_stiffness_Nm_per_rad
 
 
-def work_transform(tp):
-    """program point (mm, work frame) -> base frame (m): the work offset
-    and a rotation about z (toolpath section ``tp``)."""
-    c, s = math.cos(math.radians(tp.work_rotation_deg)), math.sin(math.radians(tp.work_rotation_deg))
-    ox, oy, oz = tp.work_offset_mm
-
-    def transform(p_mm):
-        x, y, z = p_mm
-        return np.array([ox + c * x - s * y, oy + s * x + c * y, oz + z]) / 1e3
-
-    return transform
-
-
 def planned_path(sc):
     """The scenario's tool path (PlannedPath, SI units): through its
     waypoints, or along its G-code program; PathError if it is malformed."""
     p = sc.path
     if sc.toolpath.program:
         tp = sc.toolpath
-        elements, speeds = program_elements(_program(sc).moves, tp.rapid_mm_per_s / 1e3, work_transform(tp))
-        return PlannedPath.from_elements(elements, speeds, np.deg2rad(p.yaw_deg), p.dwell_s, p.ramp_s,
-                                         p.zone_mm / 1e3)
+        prog = _program(sc)
+        elements, speeds, stops, dwells, moves = program_pieces(prog.moves, tp.rapid_mm_per_s / 1e3,
+                                                                program_setup.work_transform(tp))
+        return PlannedPath.from_elements(elements, speeds, np.deg2rad(p.yaw_deg), p.dwell_s + prog.dwell_before_s,
+                                         p.ramp_s, p.zone_mm / 1e3, stops=stops, dwells_s=dwells,
+                                         tags=[f"{prog.path}:{m.line}" for m in moves])
     return PlannedPath(np.asarray(p.waypoints_mm, dtype=float) / 1e3, p.feed_mm_per_s / 1e3, np.deg2rad(p.yaw_deg),
                        p.dwell_s, p.ramp_s, p.zone_mm / 1e3)
 
@@ -654,15 +655,7 @@ def scenario_warnings(sc, robot):
         dc = np.linalg.norm(np.asarray(cal.com_mm or [0, 0, 0]) - robot.payload.com_m * 1e3)
         if dc > PAYLOAD_COM_MM:
             out.append(f"model.payload_yaml: calibrated centre of mass is {dc:.0f} mm from the robot file's")
-    feeds = getattr(sc, "_program_feeds", [])
-    if len(feeds) > 1:
-        out.append(f"toolpath.program: {len(feeds)} cutting feeds ({', '.join(f'F{f:g}' for f in feeds)} mm/min); the "
-                   f"force model takes the one over most of the cut ({sc.path.feed_mm_per_s * 60:g} mm/min) for the "
-                   "chip thickness everywhere")
-    speeds = getattr(sc, "_program_speeds", [])
-    if len(speeds) > 1:
-        out.append(f"toolpath.program: {len(speeds)} spindle speeds; the force model takes "
-                   f"S{sc.cutter.spindle_rpm:g} everywhere")
+    out += program_setup.program_warnings(sc)
     if sc.cutting.mode == "tooth":
         tooth_hz = sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth
         if sc.sensor.rate_hz < 2.0 * tooth_hz:
