@@ -10,7 +10,7 @@ import re
 import signal
 import sys
 
-from robstiff_drake.errors import InputError, Terminated
+from robstiff_drake.errors import InputError, Terminated, one_line
 
 
 class _UsageError(InputError):
@@ -149,6 +149,7 @@ def build_parser():
     p.add_argument("--force-N", type=FORCE_N, default=500.0, help="tool force magnitude (default: %(default)s N)")
     p.add_argument("--payload-kg", type=_number_in(1e-3, 2000.0, "kg"), default=150.0, help="payload mass (default: %(default)s kg)")
     p.add_argument("--json", metavar="OUT", help="write the results as JSON ('-' for stdout)")
+    p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
     _add_robot_option(p)
 
     p = sub.add_parser("make-urdf", help="write a robot's Drake/ROS description (URDF, package.xml) into a folder")
@@ -437,7 +438,7 @@ def _dispatch(args):
         from robstiff_drake.commands import kg_study
 
         return kg_study.run(grid=args.grid, force_N=args.force_N, payload_kg=args.payload_kg,
-                            json_out=args.json, robot_yaml=args.robot)
+                            json_out=args.json, robot_yaml=args.robot, show_progress=args.progress)
     if args.command == "make-urdf":
         from robstiff_drake.commands import make_urdf
 
@@ -523,6 +524,16 @@ def _dispatch(args):
     raise AssertionError(args.command)
 
 
+# An error is one line of at most this many characters (a message that
+# quotes a file name or a value is escaped and shortened, whatever they hold).
+MAX_ERROR_CHARS = 1000
+
+
+def _error_text(e):
+    text = one_line(e)
+    return text if len(text) <= MAX_ERROR_CHARS else text[:MAX_ERROR_CHARS - 3] + "..."
+
+
 def _on_sigterm(signum, frame):
     raise Terminated()
 
@@ -538,10 +549,13 @@ def main(argv=None):
     try:
         args = build_parser().parse_args(vector_values_kept(sys.argv[1:] if argv is None else argv))
         was_quiet = set_quiet(getattr(args, "quiet", False))
-        return _dispatch(args) or 0
+        from robstiff_drake.command import command_scope
+
+        with command_scope():
+            return _dispatch(args) or 0
     except InputError as e:
         prog = getattr(e, "prog", "robstiff")
-        print(f"{prog}: error: {e}", file=sys.stderr)
+        print(f"{prog}: error: {_error_text(e)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. `robstiff demo | head`
         import os

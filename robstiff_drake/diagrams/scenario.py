@@ -6,31 +6,34 @@ key and allowed range; then checked for what depends on several keys and
 for the size of the run, before anything is built.
 
 Units are in the key names.  Paths to other files (an identification JSON,
-a payload-calibration YAML) are relative to the scenario file.
+a payload-calibration YAML) are relative to the scenario file.  Every file
+the scenario names is noted as an input of the command when the scenario is
+loaded (io.note_input: no output may overwrite or contain it), and read
+through user_files (bounded, no YAML aliases).
 """
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
 
 from robstiff_drake.diagrams.schema import check_object, choice, drake_config, num, rows, text, validate, vec
-from robstiff_drake.errors import InputError
+from robstiff_drake.errors import InputError, excerpt
+from robstiff_drake.command import note_input
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.diagrams import toolpath as program_setup
 from robstiff_drake.model.path import PathError, PlannedPath
 from robstiff_drake.model.program_path import program_pieces
 from robstiff_drake.model.payload import PayloadCalibration
+from robstiff_drake.model.robot_file import STIFFNESS_RANGE_NM_PER_RAD
+from robstiff_drake.user_files import load_json, load_yaml, read_user_text
 
 # Ranges: what a machining robot's cell can physically be, wide enough for
 # any real set-up, narrow enough that a typo (a unit slip, a missing decimal
 # point) is caught before a long run.  The reasoning is next to each one.
-STIFFNESS_RANGE_NM_PER_RAD = (1e3, 1e9)  # a small cobot's wrist ~1e3; the stiffest large-robot axis ~1e7
 MAX_COORD_MM = 10000.0  # a cell: 10 m from the robot base covers the largest arm on a track
 
 
@@ -315,16 +318,7 @@ def load_scenario(path, toolpath=None, work_offset=None):
     from pydrake.common.yaml import yaml_load_typed
 
     path = Path(path)
-    if not path.exists():
-        raise InputError(f"{path}: no such scenario file")
-    if not path.is_file():
-        raise InputError(f"{path}: not a file")
-    try:
-        text_ = path.read_bytes().decode("utf-8-sig")
-    except OSError as e:
-        raise InputError(f"{path}: cannot read ({e.strerror})") from None
-    except UnicodeDecodeError as e:
-        raise InputError(f"{path}: not UTF-8 text (byte {e.start}); save the scenario as UTF-8") from None
+    text_ = read_user_text(path, "scenario file")
     lines = validate(Scenario, path, text_)
     try:
         sc = yaml_load_typed(schema=Scenario, data=text_) if text_.strip() else Scenario()
@@ -334,6 +328,7 @@ def load_scenario(path, toolpath=None, work_offset=None):
     sc.source = str(path)
     sc._key_lines = lines
     if toolpath is not None:
+        note_input(toolpath, "--toolpath")
         sc.toolpath.program = str(Path(toolpath).resolve())
         sc._program_label = str(toolpath)  # (its messages name it as given)
         sc.path.waypoints_mm = []
@@ -342,9 +337,25 @@ def load_scenario(path, toolpath=None, work_offset=None):
         sc.toolpath.work_offset_mm = offset
         if rotation is not None:
             sc.toolpath.work_rotation_deg = rotation
+    for key, named in named_files(sc).items():
+        note_input(named, f"{key} of {path}")
     apply_program(sc)
     check_scenario(sc)
     return sc
+
+
+def named_files(sc):
+    """{key: path} of the files the scenario names (its program, robot file,
+    identification JSON, payload calibration), resolved against its folder."""
+    out = {}
+    for key, value in (("toolpath.program", sc.toolpath.program), ("model.identified_json", sc.model.identified_json),
+                       ("model.payload_yaml", sc.model.payload_yaml)):
+        if value:
+            out[key] = resolve(sc, value)
+    spec = robot_spec(sc)
+    if spec is not None and spec == str(resolve(sc, sc.robot)):
+        out["robot"] = Path(spec)
+    return out
 
 
 def _program(sc):
@@ -498,27 +509,18 @@ def resolve(sc, relative):
     return (Path(sc.source).parent / relative) if sc.source else Path(relative)
 
 
-def _read_text(sc, key, p):
-    try:
-        return p.read_bytes().decode("utf-8-sig")
-    except OSError as e:
-        _fail(sc, key, f"cannot read {p} ({e.strerror})")
-    except UnicodeDecodeError:
-        _fail(sc, key, f"{p} is not UTF-8 text")
-
-
 def model_stiffness(sc, robot):
     """The compensator's joint stiffness (N*m/rad)."""
     if sc.model.joint_stiffness_Nm_per_rad:
         return np.asarray(sc.model.joint_stiffness_Nm_per_rad, dtype=float)
     if sc.model.identified_json:
         p = resolve(sc, sc.model.identified_json)
-        try:
-            k = json.loads(_read_text(sc, "model.identified_json", p))["joint_stiffness_Nm_per_rad"]
-        except (ValueError, KeyError, TypeError) as e:
-            _fail(sc, "model.identified_json", f"cannot read joint_stiffness_Nm_per_rad from {p} "
-                                               f"({type(e).__name__}: {e})")
-        return checked_joint_stiffness(k, where=str(p))
+        named_by = f"model.identified_json of {sc.source or 'the scenario'}"
+        doc = load_json(read_user_text(p, "JSON file", named_by=named_by), p)
+        if not isinstance(doc, dict) or "joint_stiffness_Nm_per_rad" not in doc:
+            _fail(sc, "model.identified_json", f"{p} has no joint_stiffness_Nm_per_rad (write it with `robstiff "
+                                               "identify DATA.csv --json OUT`)")
+        return checked_joint_stiffness(doc["joint_stiffness_Nm_per_rad"], where=str(p))
     return robot.joint_stiffness_Nm_per_rad
 
 
@@ -526,14 +528,20 @@ def checked_joint_stiffness(value, *, where):
     """``value`` as six finite joint stiffnesses (N*m/rad) within
     STIFFNESS_RANGE_NM_PER_RAD, or an InputError that names ``where``."""
     lo, hi = STIFFNESS_RANGE_NM_PER_RAD
-    try:
-        k = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        k = np.full(0, np.nan)
-    if k.shape != (6,) or not np.all(np.isfinite(k)) or np.any((k < lo) | (k > hi)):
+    k = numbers(value)
+    if k is None or k.shape != (6,) or not np.all(np.isfinite(k)) or np.any((k < lo) | (k > hi)):
         raise InputError(f"{where}: joint_stiffness_Nm_per_rad: expected six finite stiffnesses in "
-                         f"[{lo:g}, {hi:g}] N*m/rad, got {k.tolist() if k.size else 'something else'}")
+                         f"[{lo:g}, {hi:g}] N*m/rad, got {excerpt(value)}")
     return k
+
+
+def numbers(value):
+    """``value`` as a flat float array when it is a list of plain numbers
+    (no text, bool, list or dict in it), else None."""
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                        for v in value):
+        return None
+    return np.asarray(value, dtype=float)
 
 
 def plant_stiffness(sc, robot):
@@ -595,17 +603,13 @@ class PayloadCalibrationFile:
     payload_calibration: PayloadCalibrationSchema = field(default_factory=PayloadCalibrationSchema)
 
 
-def read_payload_calibration(path):
-    """A payload-calibration YAML, checked against its ranges (InputError)."""
+def read_payload_calibration(path, named_by=None):
+    """A payload-calibration YAML, checked against its ranges (InputError);
+    ``named_by``: the file and key that name it (for the output check)."""
     path = Path(path)
-    try:
-        text_ = path.read_bytes().decode("utf-8-sig")
-    except OSError as e:
-        raise InputError(f"{path}: cannot read ({e.strerror})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not UTF-8 text") from None
+    text_ = read_user_text(path, "payload calibration", named_by=named_by)
     validate(PayloadCalibrationFile, path, text_)
-    doc = yaml.safe_load(text_) or {}
+    doc = load_yaml(text_, path)[0] or {}
     if "payload_calibration" not in doc or "mass_kg" not in (doc["payload_calibration"] or {}):
         raise InputError(f"{path}: payload_calibration.mass_kg: missing (write the file with "
                          "`robstiff calibrate-payload DATA.csv --yaml OUT.yaml`)")
@@ -621,7 +625,7 @@ def payload_calibration(sc, robot):
         p = resolve(sc, sc.model.payload_yaml)
         if not p.is_file():
             _fail(sc, "model.payload_yaml", f"no such file {p}")
-        return read_payload_calibration(p)
+        return read_payload_calibration(p, f"model.payload_yaml of {sc.source or 'the scenario'}")
     return exact_payload_calibration(sc, robot)
 
 
