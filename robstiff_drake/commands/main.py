@@ -229,6 +229,13 @@ def build_parser():
     p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("--out", metavar="PLAN.csv", help="write the plan (q1..q6, fx, fy, fz per row)")
     p.add_argument("--json", metavar="OUT", help="write the comparison as JSON ('-' for stdout)")
+    p.add_argument("--separate", metavar="EFFECT_A,EFFECT_B",
+                   help="plan the rows that best separate two confounded effects (stiffness_jN, a named effect or "
+                        "a dictionary term, as `robstiff diagnose` names them): poses and load directions with the "
+                        "predicted 95 %% interval half-widths")
+    p.add_argument("--campaign", metavar="DATA.csv",
+                   help="with --separate: the stiffness campaign the plan adds to (its rows count, its identified "
+                        "compliances and '# tool_mm:' line are used)")
     _add_robot_option(p)
 
     from robstiff_drake.identification.table2_grouping import GROUPING
@@ -472,7 +479,7 @@ def _dispatch(args):
 
         return plan_poses.run(n=args.n, candidates=args.candidates, force_N=args.force_N, noise_mm=args.noise_mm,
                               tool=args.tool, seed=args.seed, out=args.out, json_out=args.json,
-                              robot_yaml=args.robot)
+                              robot_yaml=args.robot, separate=args.separate, campaign=args.campaign)
     if args.command == "table2":
         from robstiff_drake.commands import table2
 

@@ -205,7 +205,10 @@ def _coupling(j, k):
         return stack([ctx.from_dq(dq * np.sqrt(ctx.c_nom[j] * ctx.c_nom[k]))])
 
     def rho(v, info):
-        return float(v[0]) * np.sqrt(info["ctx"].c_nom[j] * info["ctx"].c_nom[k] / (info["c"][j] * info["c"][k]))
+        prod = info["c"][j] * info["c"][k]
+        if prod <= 0:
+            return float("inf")
+        return float(v[0]) * np.sqrt(info["ctx"].c_nom[j] * info["ctx"].c_nom[k] / prod)
 
     def describe(v, info):
         c = float(v[0]) * np.sqrt(info["ctx"].c_nom[j] * info["ctx"].c_nom[k])

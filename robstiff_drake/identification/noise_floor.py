@@ -117,6 +117,7 @@ class LackOfFit:
     statistic: float  # Q / E: 1 when the held-out error is at the floor
     dof: float  # Satterthwaite degrees of freedom
     test: str
+    p_below: float = 1.0  # lower tail: the held-out error significantly BELOW the floor (an overstated floor)
 
 
 def lack_of_fit(resid_eq_m, X, folds, rows, groups, floor):
@@ -126,7 +127,7 @@ def lack_of_fit(resid_eq_m, X, folds, rows, groups, floor):
     M = cv_map(X, folds, rows)
     g_rows = np.asarray(groups)[rows]
     rhos = [0.0] + ([SHARED_REFERENCE_CORRELATION] if len(np.unique(g_rows)) < len(g_rows) else [])
-    best = None
+    best, p_below = None, 0.0
     sigma2 = (floor.sigma_mm * 1e-3) ** 2
     for rho in rhos:
         E, V = _moments(M, g_rows, rho)
@@ -134,12 +135,16 @@ def lack_of_fit(resid_eq_m, X, folds, rows, groups, floor):
         if floor.source == "replicates":
             F = (Q / (g * h)) / sigma2
             p = float(stats.f.sf(F, h, 3 * floor.replicate_dof))
+            low = float(stats.f.cdf(F, h, 3 * floor.replicate_dof))
             res = LackOfFit(p, Q / (E * sigma2), h, f"F({h:.0f}, {3 * floor.replicate_dof}) against the replicates")
         else:
             p = float(stats.chi2.sf(Q / sigma2 / g, h))
+            low = float(stats.chi2.cdf(Q / sigma2 / g, h))
             res = LackOfFit(p, Q / (E * sigma2), h, f"scaled chi-square, {h:.0f} degrees of freedom")
+        p_below = max(p_below, low)
         if best is None or res.p_value > best.p_value:
             best = res
+    best.p_below = p_below
     return best
 
 
