@@ -112,13 +112,11 @@ def _cluster_ci(ctx, fit, rows, units):
     scale[scale == 0] = 1.0
     Xs = X / scale
     bread = np.linalg.pinv(Xs.T @ Xs)
-    g = np.repeat(np.asarray(units)[rows], 3)
-    uniq = np.unique(g)
-    meat = np.zeros((X.shape[1], X.shape[1]))
-    for k in uniq:
-        u = Xs[g == k].T @ r[g == k]
-        meat += np.outer(u, u)
-    G = len(uniq)
+    _, g = np.unique(np.repeat(np.asarray(units)[rows], 3), return_inverse=True)
+    U = np.zeros((g.max() + 1, X.shape[1]))
+    np.add.at(U, g, Xs * r[:, None])  # each pose's score (linear in the rows)
+    meat = U.T @ U
+    G = len(U)
     cov = bread @ meat @ bread * (G / max(G - 1, 1))
     std = np.sqrt(np.maximum(np.diag(cov), 0)) / scale
     return stats.t.ppf(0.975, max(G - 1, 1)) * std

@@ -29,7 +29,8 @@ def _as_tool(tool_m):
 
 
 def link_transforms(dh, q_rad):
-    """The six DH link transforms A_i(q_i), shape (..., 6, 4, 4)."""
+    """The six DH link transforms A_i(q_i), shape (..., 6, 4, 4)
+    (Rz(theta) Tz(d) Tx(a) Rx(alpha), then Ry(beta) when the chain has it)."""
     q = np.asarray(q_rad, dtype=float)
     theta = q + dh.home_rad
     ct, st = np.cos(theta), np.sin(theta)
@@ -47,6 +48,12 @@ def link_transforms(dh, q_rad):
     A[..., 2, 2] = ca
     A[..., 2, 3] = dh.d_m
     A[..., 3, 3] = 1.0
+    beta = getattr(dh, "beta_rad", None)
+    if beta is not None:  # Hayati's Ry(beta) after Rx(alpha): the rotation's columns mix, the origin stays
+        cb, sb = np.cos(beta), np.sin(beta)
+        x, z = A[..., :3, 0].copy(), A[..., :3, 2].copy()
+        A[..., :3, 0] = x * cb[:, None] - z * sb[:, None]
+        A[..., :3, 2] = x * sb[:, None] + z * cb[:, None]
     return A
 
 

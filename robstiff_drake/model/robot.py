@@ -35,6 +35,7 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.paths import DEFAULT_ROBOT_NAME, library_robots, robot_file
 
 N_JOINTS = 6
+MAX_BETA_DEG = 5.0  # dh.beta_deg: Hayati's tilt between nearly parallel axes, a small correction
 GRAVITY_BASE_M_PER_S2 = np.array([0.0, 0.0, -9.81])  # in the robot base frame
 CONVENTIONS = ("standard_dh", "modified_dh")
 NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*")  # robot and link names (file names, URDF names)
@@ -46,13 +47,17 @@ TOP_KEYS = {"name", "manufacturer", "model", "source", "convention", "dh", "cont
 class DH:
     """The canonical chain: a fixed base transform (4x4, m; None: identity)
     then six standard-DH links, link i = Rz(theta_i) Tz(d_i) Tx(a_i)
-    Rx(alpha_i) with theta_i = q_i + home_i (q: the model's joint angles)."""
+    Rx(alpha_i) [Ry(beta_i)] with theta_i = q_i + home_i (q: the model's
+    joint angles)."""
 
     d_m: np.ndarray
     a_m: np.ndarray
     alpha_rad: np.ndarray
     home_rad: np.ndarray
     base: np.ndarray | None = None
+    # Hayati's tilt: link i = Rz Tz Tx Rx(alpha_i) Ry(beta_i), for nearly
+    # parallel consecutive axes (a calibrated arm); None: all zero
+    beta_rad: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -281,6 +286,11 @@ def _rot_x(a):
     return np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]])
 
 
+def _rot_y(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1.0, 0], [-s, 0, c]])
+
+
 class _Reader:
     """Walks the parsed YAML with error messages that name file and key."""
 
@@ -341,24 +351,37 @@ class _Reader:
 def _read_dh(r, doc, convention):
     """The canonical chain (DH) of the file's kinematic table."""
     dh_doc = r.mapping(doc, "dh")
-    r.only_keys(dh_doc, {"d_mm", "a_mm", "alpha_deg", "home_deg"}, "dh.")
+    r.only_keys(dh_doc, {"d_mm", "a_mm", "alpha_deg", "home_deg", "beta_deg"}, "dh.")
     d = r.vector(dh_doc, "d_mm", N_JOINTS, "dh.") / 1000.0
     a = r.vector(dh_doc, "a_mm", N_JOINTS, "dh.") / 1000.0
     alpha = np.deg2rad(r.vector(dh_doc, "alpha_deg", N_JOINTS, "dh."))
     home = np.deg2rad(r.vector(dh_doc, "home_deg", N_JOINTS, "dh."))
+    # optional: Hayati's tilt about y after each row's x-twist (a calibrated
+    # arm's nearly parallel axes; `robstiff diagnose --write-robot` writes it)
+    beta = None
+    if "beta_deg" in dh_doc:
+        beta_deg = r.vector(dh_doc, "beta_deg", N_JOINTS, "dh.")
+        if np.any(np.abs(beta_deg) > MAX_BETA_DEG):
+            r.fail("dh.beta_deg", f"each tilt must be within +-{MAX_BETA_DEG:g} deg (a small correction between "
+                                  f"nearly parallel axes; larger angles belong in alpha_deg), got {beta_deg.tolist()}")
+        beta = np.deg2rad(beta_deg) if np.any(beta_deg) else None
     if convention == "standard_dh":
-        return DH(d_m=d, a_m=a, alpha_rad=alpha, home_rad=home)
+        return DH(d_m=d, a_m=a, alpha_rad=alpha, home_rad=home, beta_rad=beta)
     # Modified (Craig) DH: link i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i),
     # rows i = 1..6 list (alpha_{i-1}, a_{i-1}, d_i, theta offset_i).  Regrouped,
     # the chain is Rx(alpha_0) Tx(a_0) (a fixed base transform), then standard
     # links i = 1..5 with (d_i, a_i, alpha_i) taken from rows i and i+1, and a
-    # last link with d_6 only (Tx and Rx commute: both act along x).
+    # last link with d_6 only (Tx and Rx commute: both act along x).  A row's
+    # beta_deg is Ry(beta_i) after its Rx(alpha_{i-1}) Tx(a_{i-1}), before Rz:
+    # row 1's joins the base transform, row i+1's ends standard link i.
     base = None
-    if a[0] != 0.0 or alpha[0] != 0.0:
+    b = np.zeros(N_JOINTS) if beta is None else beta
+    if a[0] != 0.0 or alpha[0] != 0.0 or b[0] != 0.0:
         base = np.eye(4)
-        base[:3, :3] = _rot_x(alpha[0])
+        base[:3, :3] = _rot_x(alpha[0]) @ _rot_y(b[0])
         base[0, 3] = a[0]
-    return DH(d_m=d, a_m=np.r_[a[1:], 0.0], alpha_rad=np.r_[alpha[1:], 0.0], home_rad=home, base=base)
+    return DH(d_m=d, a_m=np.r_[a[1:], 0.0], alpha_rad=np.r_[alpha[1:], 0.0], home_rad=home, base=base,
+              beta_rad=None if not np.any(b[1:]) else np.r_[b[1:], 0.0])
 
 
 def _read_joint_map(r, doc):
