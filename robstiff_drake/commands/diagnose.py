@@ -259,14 +259,27 @@ def residual_views(d, campaign, robot, folder, tool_m=None):
     return written
 
 
-def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=None, noise_mm=None):
-    check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--report": report},
+def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=None, noise_mm=None, validate=None,
+        write_robot=None):
+    from robstiff_drake.commands import diagnose_tracker
+    from robstiff_drake.identification.tracker_campaign import is_tracker_file
+
+    check_outputs(inputs=[data, robot_yaml, validate], files={"--json": json_out, "--report": report,
+                                                              "--write-robot": write_robot},
                   folders={"--plots": plots})
     if noise_mm is not None and not 0 < noise_mm <= MAX_NOISE_MM:
         raise InputError(f"--noise-mm {noise_mm:g}: the noise of one displacement component must be in "
                          f"(0, {MAX_NOISE_MM:g}] mm")
+    tracker = is_tracker_file(data)
+    diagnose_tracker.check_tracker_options(tracker, validate, write_robot)
     robot = load_robot(robot_yaml)
+    if write_robot is not None:
+        check_outputs(inputs=[robot.source], files={"--write-robot": write_robot})
     warnings = Warnings()
+    if tracker:
+        return diagnose_tracker.run(data=data, tool_m=parse_tool(tool), noise_mm=noise_mm, robot=robot,
+                                    json_out=json_out, report=report, plots_dir=plots, validate=validate,
+                                    write_robot=write_robot, warnings=warnings)
     campaign = read_stiffness_campaign(data, robot)
     tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), warnings)
     warnings.extend_from(campaign_warnings(campaign))

@@ -203,6 +203,11 @@ def build_parser():
     p.add_argument("--noise-mm", type=float, default=None, metavar="SIGMA",
                    help="1-sigma noise of one displacement component (instrument), mm; without it the floor comes "
                         "from replicate rows (same pose and load), or no verdict is given")
+    p.add_argument("--validate", metavar="FILE.csv",
+                   help="absolute-position campaigns: a second campaign of the same arm to test the fitted model on")
+    p.add_argument("--write-robot", metavar="OUT.yaml",
+                   help="absolute-position campaigns: write the robot file with the corrections kept (kinematics, "
+                        "tool point, stiffness) and their provenance")
 
     p = sub.add_parser("diagnose-run", help="trace a machining run's residual surface error to its cause; write "
                                             "each candidate fix and decide from verification cuts")
@@ -468,7 +473,8 @@ def _dispatch(args):
         from robstiff_drake.commands import diagnose
 
         return diagnose.run(data=args.data, tool=args.tool, json_out=args.json, report=args.report,
-                            plots=args.plots, robot_yaml=args.robot, noise_mm=args.noise_mm)
+                            plots=args.plots, robot_yaml=args.robot, noise_mm=args.noise_mm,
+                            validate=args.validate, write_robot=args.write_robot)
     if args.command == "diagnose-run":
         from robstiff_drake.commands import diagnose_run
 

@@ -95,8 +95,9 @@ def wald_p(coef, cov, cols, G):
     from G clusters, referred to F(q, G - 1); 1 without a covariance."""
     if cov is None:
         return 1.0
-    b = coef[cols]
-    Vb = cov[cols, cols]
+    idx = np.arange(len(coef))[cols]
+    b = coef[idx]
+    Vb = cov[np.ix_(idx, idx)]
     s = np.sqrt(np.maximum(np.diag(Vb), 1e-300))
     q = len(b)
     W = float((b / s) @ np.linalg.pinv(Vb / np.outer(s, s)) @ (b / s))

