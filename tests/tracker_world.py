@@ -135,9 +135,12 @@ def _poses(robot, rng, n, frac=0.7):
 
 
 def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=False, base_tilt=False, drift=True,
-                          extra_columns=False):
+                          extra_columns=False, pose_seed=None, clock=True):
     """A tracker campaign of ``robot`` (the robot file the user has) as
-    Drake's perturbed plant measures it; see the module docstring."""
+    Drake's perturbed plant measures it; see the module docstring.  The arm,
+    tracker and target follow from ``seed``; ``pose_seed`` (when given)
+    draws other poses, noise and drift: a second campaign of the same arm
+    in the same session.  ``clock``: write the t_s column."""
     rng = np.random.default_rng(seed)
     dh_true, true = _perturb(robot, rng)
     k_true = robot.joint_stiffness_Nm_per_rad * rng.uniform(0.7, 1.4, 6)
@@ -154,6 +157,9 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
     v_drift = rng.normal(size=3)  # the tracker's frame moves 0.05-0.3 mm over the campaign, linearly in time
     v_drift *= rng.uniform(0.05e-3, 0.3e-3) / np.linalg.norm(v_drift) if drift else 0.0
     G = robot.joint_map.G
+    guess = target * 1e3 + rng.normal(size=3) / np.sqrt(3) * rng.uniform(1, 5)
+    if pose_seed is not None:
+        rng = np.random.default_rng([seed, pose_seed])
     rows, q_ctrl_all, pts, times = 0, [], [], []
     t = 0.0
     while rows < n:
@@ -176,13 +182,12 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
         rows += 1
     q_ctrl_all, times = np.array(q_ctrl_all), np.array(times)
     pts = np.array(pts) + np.outer(times / times[-1], v_drift) * 1e3
-    guess = target * 1e3 + rng.normal(size=3) / np.sqrt(3) * rng.uniform(1, 5)
     true.update(k_Nm_per_rad=k_true, tool_mm=target * 1e3, tool_guess_mm=guess, X_WB=X_WB.GetAsMatrix4(),
                 transmission_rad=te_amp, drift_mm=v_drift * 1e3, base_k=base_k, noise_mm=noise_mm,
                 effects=["joint_offsets", "link_lengths", "link_twists", "joint_compliance"]
                 + [f"transmission_error_j{j + 1}" for j in range(6) if te_amp[j] > 0]
                 + (["base_tilt"] if base_tilt else []) + (["time_drift"] if drift else []))
-    head = ["q1", "q2", "q3", "q4", "q5", "q6", "x", "y", "z", "t_s"]
+    head = ["q1", "q2", "q3", "q4", "q5", "q6", "x", "y", "z"] + (["t_s"] if clock else [])
     lines = [f"# Tracker campaign made by tests/tracker_world.py (Drake plant of a perturbed {robot.name}); seed {seed}",
              "# tool_mm: " + ", ".join(f"{v:.3f}" for v in guess)]
     if extra_columns:  # what a tracker's export adds: units in the header, a point id, an uncertainty, a timestamp
@@ -197,7 +202,7 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
         lines.append(",".join(head))
         for i in range(n):
             lines.append(",".join([f"{v:.6f}" for v in q_ctrl_all[i]] + [f"{v:.5f}" for v in pts[i]]
-                                  + [f"{times[i]:.1f}"]))
+                                  + ([f"{times[i]:.1f}"] if clock else [])))
     return TrackerWorld("\n".join(lines) + "\n", true, robot_true, n)
 
 

@@ -61,14 +61,20 @@ class Problem:
         self.q_ctrl = np.deg2rad(np.asarray(q_deg, dtype=float))
         self.G = robot.joint_map.G
         self.c_nom = 1.0 / np.asarray(robot.joint_stiffness_Nm_per_rad, dtype=float)
-        T0 = kin.frames(robot.dh, self.q)
+        self.T0 = kin.frames(robot.dh, self.q)
         self.force, self.tool_guess = force_N, tool_guess_m
-        self.tau, self.moment = gravity(robot, T0, self.q, force_N, tool_guess_m)
+        self.sag = True  # the robot file's masses and stiffness are part of the declared model
+        self.set_gravity(None)
         self.t_h = None if t_s is None else (np.asarray(t_s) - np.mean(t_s)) / 3600.0
         self.dtemp = None if temp_c is None else np.asarray(temp_c) - np.mean(temp_c)
         self.seq = None if seq is None else (np.asarray(seq, float) - np.mean(seq)) / 1000.0
         self.order = (np.arange(self.n) - (self.n - 1) / 2.0) / 1000.0
         self.geo_free = []
+
+    def set_gravity(self, g_base):
+        """Gravity in the base frame (None: the base's -z); the weight's torques at the nominal chain."""
+        self.g_base = g_base
+        self.tau, self.moment = gravity(self.robot, self.T0, self.q, self.force, self.tool_guess, g_base)
 
     def evaluate(self, fit, rows):
         """The Eval of rows ``rows`` at the fit's geometry and measured point,
@@ -78,14 +84,15 @@ class Problem:
         q = self.q[rows]
         tau, moment = self.tau[rows], self.moment[rows]
         sag = next((b for b in fit.blocks if b.frame == "joint"), None)
+        x = np.ones(6)  # the declared model sags with the robot file's compliances
         if sag is not None:
-            x = np.zeros(6)
             x[sag.joints] = fit.coef[sag.name]
+        if self.sag:
             dq = tau * (x * self.c_nom)
             for _ in range(SAG_ITER):
                 T = kin.frames(dh, q + dq)
                 tau, moment = gravity(self.robot, T, q + dq, None if self.force is None else self.force[rows],
-                                      self.tool_guess)
+                                      self.tool_guess, self.g_base)
                 dq = tau * (x * self.c_nom)
             q = q + dq
         T = kin.frames(dh, q)
@@ -162,7 +169,7 @@ class Problem:
                 for (k, kind), x in zip(b.geo, d):
                     new.geo[k, GEOM.index(kind)] += x
             else:
-                new.coef[b.name] = new.coef.get(b.name, np.zeros(len(b.params))) + d
+                new.coef[b.name] = new.coef.get(b.name, np.full(len(b.params), b.start)) + d
         new.blocks = list(blocks)
         return new
 
@@ -175,7 +182,8 @@ class Problem:
             for j, kind in enumerate(GEOM):
                 if (k, kind) not in keep_geo:
                     fit.geo[k, j] = 0.0
-        fit.coef = {b.name: fit.coef.get(b.name, np.zeros(len(b.params))) for b in blocks if b.frame != "geometry"}
+        fit.coef = {b.name: fit.coef.get(b.name, np.full(len(b.params), b.start)) for b in blocks
+                    if b.frame != "geometry"}
         fit.blocks = list(blocks)
         for _ in range(iterations):
             X, slices, ev = self.columns(fit, blocks, rows)

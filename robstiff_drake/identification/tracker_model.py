@@ -17,9 +17,13 @@ Derivatives are analytic: a joint angle turns the tool point about z_i
 through o_i, d moves it along z_i, a along the link's x axis before its
 twist (u_i), alpha turns it about u_i and beta about y_{i+1}, both through
 o_{i+1}; R by small rotations, t and u linearly.  Gravity torques come from
-the robot file's masses (links and payload) at the nominal chain, with
-gravity along the base frame's -z (ASSUMPTION: the robot stands on the
-floor; a wall- or ceiling-mounted arm needs its base frame turned).
+the robot file's masses (links and payload), with gravity along the
+instrument's -z seen in the base frame when the registration says the two
+vertical axes are within LEVEL_DEG (ASSUMPTION: a tracker is levelled to
+gravity, as its users do; a base set 0.3 deg off level turns a 3 mm sag's
+gravity by 0.5 %, 15 um), else along the base frame's -z (ASSUMPTION: the
+robot stands on the floor; a wall- or ceiling-mounted arm needs its base
+frame turned).
 """
 
 from dataclasses import replace
@@ -32,7 +36,18 @@ from robstiff_drake.model.robot import GRAVITY_BASE_M_PER_S2
 GEOM = ("theta", "d", "a", "alpha", "beta")
 GEOM_UNITS = {"theta": ("deg", np.rad2deg(1.0)), "d": ("mm", 1e3), "a": ("mm", 1e3),
               "alpha": ("deg", np.rad2deg(1.0)), "beta": ("deg", np.rad2deg(1.0))}
-PARALLEL_SIN = np.sin(np.deg2rad(10.0))  # consecutive axes this close to parallel get Hayati's beta
+PARALLEL_SIN = np.sin(np.deg2rad(10.0))
+LEVEL_DEG = 5.0
+
+
+def gravity_in_base(R):
+    """Gravity (m/s^2) in the base frame of a registration R (base to
+    instrument): the instrument's -z when it is within LEVEL_DEG of the
+    base's (a levelled tracker), else the base's -z."""
+    down = R.T @ np.array([0.0, 0.0, -1.0])
+    if np.degrees(np.arccos(np.clip(-down[2], -1.0, 1.0))) <= LEVEL_DEG:
+        return down * np.linalg.norm(GRAVITY_BASE_M_PER_S2)
+    return np.array(GRAVITY_BASE_M_PER_S2, dtype=float)  # consecutive axes this close to parallel get Hayati's beta
 
 
 def geometry_params(robot):
@@ -92,13 +107,14 @@ def geometry_jacobian(T, p, dh):
     return out
 
 
-def gravity(robot, T, q, applied_force_N=None, tool_m=None):
+def gravity(robot, T, q, applied_force_N=None, tool_m=None, g_base=None):
     """Joint torques (N, 6) N*m of the arm's own weight (links and payload,
     robot file) on the model's joints, as generalized forces (the load's
     torque, dq = C tau), and the moment (N, 3) N*m of that weight about the
     base origin; with ``applied_force_N`` (N, 3) at ``tool_m`` (flange), its
-    torques and moment are added."""
-    g = GRAVITY_BASE_M_PER_S2
+    torques and moment are added.  ``g_base``: gravity in the base frame
+    (m/s^2; default straight down the base's -z)."""
+    g = GRAVITY_BASE_M_PER_S2 if g_base is None else np.asarray(g_base, dtype=float)
     theta = q + robot.dh.home_rad
     bodies_c, bodies_m = [], []
     for i in range(1, 7):

@@ -9,11 +9,14 @@ Jacobian):
   link_lengths    d_i, a_i
   link_twists     alpha_i, and Hayati's beta_i between nearly parallel axes
 Displacements of the arm (base frame):
-  joint_compliance        sag under the arm's own weight (and applied loads):
+  joint_compliance        sag under the arm's own weight (and applied loads), which the
+                          declared model has with the robot file's compliances (x = 1):
                           dq_j = x_j c_j tau_j(q + dq), c_j the robot file's compliance,
                           tau_j the robot file's masses' torque (tracker_model.gravity)
                           at the sagged pose (a fixed point, applied in the kinematics:
-                          a large arm sags by 1-4 mrad, whose square is not negligible)
+                          a large arm sags by 1-4 mrad, whose square is not negligible);
+                          x_j a parameter for the joints that carry SAG_TORQUE_SHARE of
+                          the largest torque, 1 (the file's compliance) for the others
   transmission_error_jJ   the reducer's error periodic in joint J's angle:
                           dJ = sum_h a_h cos(h J) + b_h sin(h J), h = 1, 2
   base_tilt               the base tilts on its foundation under the weight's
@@ -101,6 +104,7 @@ class Block:
     kind: str = "cause"  # "cause", or "trend" (reported as unexplained, never as a cause)
     geo: list = field(default_factory=list)  # geometry blocks: [(link, kind)]
     joints: list = field(default_factory=list)  # "joint" blocks: the joints whose compliance is a parameter
+    start: float = 0.0  # the parameters' value in the declared model (the sag's: 1, the robot file's compliance)
 
 
 def _fmt(values, params):
@@ -129,9 +133,18 @@ def geometry_block(name, kinds, free, text):
                  needs=(lambda ev: None if geo else "no parameter of this kind is identifiable"), geo=geo)
 
 
+# The sag's compliances are parameters only for joints whose weight torque
+# is at least this share of the most loaded joint's (RMS over the campaign):
+# below it (joint 1 of an arm whose base is a fraction of a degree off level)
+# the torque is too small to tell the joint's compliance from the others'.
+SAG_TORQUE_SHARE = 0.02
+
+
 def _torque_joints(ev):
+    rms = np.sqrt(np.mean(ev.tau**2, axis=0))
     tmax = np.max(np.abs(ev.tau), axis=0)
-    return np.flatnonzero(tmax > TORQUE_REL_MIN * max(float(tmax.max()), 1e-300))
+    keep = (tmax > TORQUE_REL_MIN * max(float(tmax.max()), 1e-300)) & (rms >= SAG_TORQUE_SHARE * rms.max())
+    return np.flatnonzero(keep)
 
 
 def joint_compliance_block(ev):
@@ -154,7 +167,8 @@ def joint_compliance_block(ev):
         return True, f"compliances {np.round(v, 3).tolist()} x the robot file's (within 0-{COMPLIANCE_FACTOR_MAX:g}x)"
 
     return Block("joint_compliance", "joint", params, columns, describe, plausible,
-                 needs=lambda e: None if len(joints) else "no joint carries a torque", joints=list(joints)), joints
+                 needs=lambda e: None if len(joints) else "no joint carries a torque", joints=list(joints),
+                 start=1.0), joints
 
 
 def transmission_block(J):
