@@ -52,30 +52,20 @@ class Floor:
 
 def replicate_sets(campaign, groups, rows):
     """Lists of row indices (within ``rows``) measured at the same pose under
-    the same load.  Linear in the rows (plus the square of a pose's own
-    rows): the rows are sorted by pose once."""
+    the same load: the rows sorted by pose and load, a set being a run of
+    consecutive rows whose load is within LOAD_MATCH_REL of the previous
+    one's (vectorised: linear in the rows after the sort)."""
     W = campaign.wrench
     rows = np.asarray(rows)
     g = np.asarray(groups)[rows]
-    order = np.argsort(g, kind="stable")
-    bounds = np.flatnonzero(np.diff(g[order])) + 1
-    sets = []
-    for block in np.split(rows[order], bounds):
-        members = list(block)
-        if len(members) < 2:
-            continue
-        used = set()
-        for i, r in enumerate(members):
-            if r in used:
-                continue
-            scale = max(np.linalg.norm(W[r]), 1e-9)
-            others = np.array(members[i:])
-            close = others[np.linalg.norm(W[others] - W[r], axis=1) <= LOAD_MATCH_REL * scale]
-            same = [s for s in close.tolist() if s not in used]
-            used.update(same)
-            if len(same) > 1:
-                sets.append(same)
-    return sets
+    Wr = W[rows]
+    order = np.lexsort(tuple(Wr[:, k] for k in range(Wr.shape[1] - 1, -1, -1)) + (g,))
+    rs, gs, Ws = rows[order], g[order], Wr[order]
+    scale = np.maximum(np.linalg.norm(Ws, axis=1), 1e-9)
+    same = np.r_[False, (gs[1:] == gs[:-1]) & (np.linalg.norm(Ws[1:] - Ws[:-1], axis=1) <= LOAD_MATCH_REL * scale[:-1])]
+    starts = np.flatnonzero(~same)
+    sets = [list(block) for block in np.split(rs, starts[1:]) if len(block) > 1]
+    return [sorted(int(r) for r in s) for s in sets]
 
 
 def estimate_floor(campaign, groups, rows, stated_mm=None):
