@@ -9,6 +9,7 @@ Stiffness campaigns (one row per loaded measurement):
   rx,ry,rz    optional measured tool rotation (small-angle vector), mrad, base frame
   pose        optional id shared by rows measured at the same pose
   seq         optional measurement order
+  t_s         optional time of the measurement, s
 
 A stiffness campaign records its tool point in a comment line before the
 header row, ``# tool_mm: x, y, z`` (mm, flange frame = DH frame 6; see
@@ -248,6 +249,7 @@ class StiffnessCampaign:
     has_moments: bool
     copies: list = field(default_factory=list)  # [(file line, line of the row it repeats)], set aside
     tool_mm: np.ndarray | None = None  # the file's '# tool_mm:' line (flange frame, mm), None without one
+    t_s: np.ndarray | None = None  # optional time of each measurement (s)
 
     def __len__(self):
         return len(self.lines)
@@ -285,7 +287,7 @@ def check_joint_limits(table, robot):
 # 1 rad of tool rotation is not a small-deflection measurement.
 RANGES = {**{c: (-1e5, 1e5, "N") for c in F_COLS}, **{c: (-1e5, 1e5, "N*m") for c in M_COLS},
           **{c: (-100.0, 100.0, "mm") for c in D_COLS}, **{c: (-1000.0, 1000.0, "mrad") for c in R_COLS},
-          "seq": (-1e12, 1e12, "")}
+          "seq": (-1e12, 1e12, ""), "t_s": (-1e12, 1e12, "s")}
 
 
 def _copies(table, names):
@@ -301,7 +303,7 @@ def _copies(table, names):
 
 
 def read_stiffness_campaign(path, robot, *, min_rows=6):
-    table = read_table(path, required=Q_COLS + F_COLS + D_COLS, optional=M_COLS + R_COLS + ("seq",),
+    table = read_table(path, required=Q_COLS + F_COLS + D_COLS, optional=M_COLS + R_COLS + ("seq", "t_s"),
                        text_columns=("pose",), ranges=RANGES)
     check_joint_limits(table, robot)
     disp_all = np.column_stack([table.numeric[n] for n in D_COLS])
@@ -309,7 +311,7 @@ def read_stiffness_campaign(path, robot, *, min_rows=6):
         raise InputError(f"{table.path}: all displacements dx,dy,dz are zero: nothing was measured")
     # a row that repeats another in every measured value is a copy, not a
     # second measurement (two real measurements differ by their noise)
-    copies = _copies(table, Q_COLS + F_COLS + M_COLS + D_COLS + R_COLS + ("seq",))
+    copies = _copies(table, Q_COLS + F_COLS + M_COLS + D_COLS + R_COLS + ("seq", "t_s"))
     if copies:
         drop = {i for i, _ in copies}
         keep = np.array([i for i in range(len(table)) if i not in drop])
@@ -345,6 +347,7 @@ def read_stiffness_campaign(path, robot, *, min_rows=6):
         has_moments=moments is not None,
         copies=copy_lines,
         tool_mm=read_tool_header(path),
+        t_s=table.numeric.get("t_s"),
     )
 
 

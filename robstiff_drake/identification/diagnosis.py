@@ -90,7 +90,8 @@ def subset(campaign, rows):
                    moment_Nm=campaign.moment_Nm[rows], disp_mm=campaign.disp_mm[rows],
                    rot_mrad=None if campaign.rot_mrad is None else campaign.rot_mrad[rows],
                    pose=None if campaign.pose is None else [campaign.pose[i] for i in rows],
-                   seq=None if campaign.seq is None else campaign.seq[rows], lines=campaign.lines[rows])
+                   seq=None if campaign.seq is None else campaign.seq[rows], lines=campaign.lines[rows],
+                   t_s=None if getattr(campaign, "t_s", None) is None else campaign.t_s[rows])
 
 
 def thresholds():
@@ -190,8 +191,20 @@ def _verdict(d, floor, lof, non_physical, discovered, implausible, structure, n_
                 lead += (f"; it is confounded with {other} (correlation of the estimates "
                          f"{conf[0]['correlation']:+.2f}): the campaign cannot separate them (robstiff plan-poses "
                          f"--separate {best['name']},{other})")
+        trend = (f"; {', '.join(d['trends'])}: a trend along the file's order was taken out, not as a cause (the "
+                 "file has neither seq nor t_s)" if d.get("trends") else "")
         return False, (f"the final model does NOT explain the data: {text}; {d['unexplained']:.4f} mm unexplained"
-                       + (f", strongest with: {where}" if where else "") + lead)
+                       + (f", strongest with: {where}" if where else "") + lead + trend)
+    if d.get("rivals"):
+        chosen, r = d["rivals"][0]
+        return False, (f"not established: {text}, but a trend along the file's order ({r.name}, held-out "
+                       f"{r.rms_mm:.4f} mm when {chosen} was added) fits the same residual about as well as {chosen}: "
+                       "the file has neither seq nor t_s, so a drift during the measurements cannot be told from it; "
+                       "add the measurement order or time and diagnose again")
+    if d.get("trends"):
+        return False, (f"not established: {text}, reached only with {', '.join(d['trends'])}: a trend along the "
+                       "file's order, which is not known to be the order of measurement (the file has neither seq nor "
+                       "t_s); add the measurement order or time and diagnose again")
     better = [r for r in leads if r["rms_mm"] < (1 - selection.MIN_GAIN["dictionary"]) * d["rms_after"]]
     if better:
         r = better[0]
@@ -358,8 +371,14 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
     leads, lead_results = _lead_reports(result)
     for r in leads:
         w.add(f"{r['name']} fits the residual (held-out {r['rms_mm']:.4f} mm) but was not added: {r['reason']}")
-    confounded = _confounded(ctx, fit, rows, lead_results, terms_by_name)
-    explains, verdict = _verdict({"rms_after": state.rms_mm, "unexplained": unexplained or 0.0}, floor, lof,
+    confounded = _confounded(ctx, fit, rows, lead_results + [r for _, r in result.rival_trends], terms_by_name)
+    for chosen, r in result.rival_trends:
+        w.add(f"{chosen} and {r.name} (a trend along the file's order) fit the same residual about as well; the file "
+              "has no seq or t_s column to tell a drift from it")
+    trends = [t.name for t in state.terms if t.trend]
+    explains, verdict = _verdict({"rms_after": state.rms_mm, "unexplained": unexplained or 0.0, "trends": trends,
+                                  "rivals": result.rival_trends},
+                                 floor, lof,
                                  non_physical, [r["name"] for r in discovered], implausible, structure,
                                  result.n_hypotheses, leads, confounded)
     if non_physical:

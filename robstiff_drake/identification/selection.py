@@ -305,9 +305,10 @@ class SearchResult:
     dropped: list  # names dropped by the backward check
     rms_without_mm: dict  # kept term -> held-out RMS of the final model without it
     leads: list = field(default_factory=list)  # [(round index, CandidateResult)]: fits, but not physical/plausible
+    rival_trends: list = field(default_factory=list)  # [(term chosen, trend CandidateResult fitting as well)]
 
 
-def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found):
+def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found, rivals):
     """Forward steps from ``state`` until no candidate qualifies; returns the
     state and the number of hypotheses tested."""
     n_tried = 0
@@ -329,9 +330,14 @@ def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added
         m = sum(r.status == "ok" for r in results)
         n_tried += m
         found += [(len(rounds) - 1, r) for r in results if leads(r, state.rms_mm, m)]
-        best = _choose([r for r in results if _qualifies(r, state.rms_mm, m)])
+        qualified = [r for r in results if _qualifies(r, state.rms_mm, m)]
+        best = _choose(qualified)
         if best is None:
             break
+        # a trend along the file's order that fits about as well as the cause chosen: the data cannot tell them
+        # apart (the file has no measurement order); said with the verdict
+        rivals += [(best.name, r) for r in qualified if terms_by_name[r.name].trend and r.name != best.name
+                   and r.rms_mm <= (1 + NAMED_PREFERENCE) * best.rms_mm]
         new = model_state(ctx, state.terms + [terms_by_name[best.name]], rows, folds, gidx)
         added.append((best.name, state.rms_mm, new.rms_mm))
         state = new
@@ -378,9 +384,9 @@ def search(ctx, rows, folds, terms_by_name, groups):
     gidx = np.unique(np.asarray(groups)[rows], return_inverse=True)[1]
     state = model_state(ctx, [], rows, folds, gidx)
     rms_before = state.rms_mm
-    rounds, added, dropped, found, banned, n_tried = [], [], [], [], set(), 0
+    rounds, added, dropped, found, banned, n_tried, rivals = [], [], [], [], set(), 0, []
     for _ in range(MAX_RESTARTS + 1):
-        state, n = _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found)
+        state, n = _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found, rivals)
         n_tried += n
         state, without, gone = _backward(ctx, rows, folds, gidx, state, rounds, dropped, found)
         if not gone:
@@ -391,4 +397,5 @@ def search(ctx, rows, folds, terms_by_name, groups):
     kept = {t.name for t in state.terms}
     dropped = [n for n in dict.fromkeys(dropped) if n not in kept]
     return SearchResult(state, rms_before, rounds, n_tried, added, dropped, without,
-                        [(i, r) for i, r in found if r.name not in kept])
+                        [(i, r) for i, r in found if r.name not in kept],
+                        [(c, r) for c, r in rivals if c in kept and r.name not in kept])
