@@ -71,7 +71,9 @@ def test_too_few_measurements_skip_candidates(robot):
     c = synth.stiffness_campaign(robot, n=9, loads_per_pose=3, seed=6)
     d = diagnose(robot, c.to_campaign())
     skipped = [r for r in d.rounds[0] if r.status == "skipped"]
-    assert skipped and all("measurements" in r.reason for r in skipped)
+    # skipped for the parameters the 9 rows cannot carry, or for what the term needs (seq, different load sizes)
+    assert skipped and any("measurements" in r.reason for r in skipped)
+    assert all(any(w in r.reason for w in ("measurements", "measurement times", "load", "seq")) for r in skipped)
     assert d.selected == []
 
 
