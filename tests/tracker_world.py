@@ -135,12 +135,16 @@ def _poses(robot, rng, n, frac=0.7):
 
 
 def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=False, base_tilt=False, drift=True,
-                          extra_columns=False, pose_seed=None, clock=True):
+                          extra_columns=False, pose_seed=None, clock=True, unnamed=0.0):
     """A tracker campaign of ``robot`` (the robot file the user has) as
     Drake's perturbed plant measures it; see the module docstring.  The arm,
     tracker and target follow from ``seed``; ``pose_seed`` (when given)
     draws other poses, noise and drift: a second campaign of the same arm
-    in the same session.  ``clock``: write the t_s column."""
+    in the same session.  ``clock``: write the t_s column.  ``unnamed``
+    (rad): an error no named effect holds, joints 2 and 3 off by
+    unnamed * (sin(3 J + phi3) + sin(4 J + phi4)) (reducer errors at the 3rd
+    and 4th harmonic of the joint's turn: the named transmission error has
+    the 1st and 2nd; what a non-parametric map can learn)."""
     rng = np.random.default_rng(seed)
     dh_true, true = _perturb(robot, rng)
     k_true = robot.joint_stiffness_Nm_per_rad * rng.uniform(0.7, 1.4, 6)
@@ -172,6 +176,8 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
         if p_nom[2] - base[2] < 0.2 or np.hypot(*(p_nom - base)[:2]) < 0.5:
             continue
         te_ctrl = te_amp * np.sin(q_ctrl + te_phase)  # the reducers' error, on the controller's joints
+        if unnamed:
+            te_ctrl[1:3] += unnamed * (np.sin(3 * q_ctrl[1:3] + te_phase[:2]) + np.sin(4 * q_ctrl[1:3] + te_phase[2:4]))
         q_link = q_model + G @ te_ctrl
         q = arm.equilibrium(q_link)
         t += rng.uniform(3.0, 8.0)  # s between measurements (an automated campaign)

@@ -307,10 +307,14 @@ def _residual_map(problem, fits, folds, e_after):
     e_map = e_after.copy()
     per_fold = []
     for f, (train, test) in zip(fits, folds):
-        r_train = (problem.m[train] - problem.predict(f, train)) @ f.R  # base frame
-        width, ridge = rmap.choose(problem.q[train], r_train)
-        mp = rmap.ResidualMap(width, ridge).fit(problem.q[train], r_train)
-        e_map[test] = e_after[test] - mp.predict(problem.q[test]) @ f.R.T
+        train = train[rmap.subsample(len(train), rmap.MAX_ROWS)]
+        ev_tr, _ = problem.evaluate(f, train)
+        r_train = (problem.m[train] - problem.predict(f, train, ev_tr)) @ f.R  # base frame
+        pick = rmap.subsample(len(train), rmap.CHOOSE_ROWS)
+        H, ridge = rmap.choose(problem.q_ctrl[train][pick], ev_tr.Jv[pick], r_train[pick])
+        mp = rmap.ResidualMap(H, ridge).fit(problem.q_ctrl[train], ev_tr.Jv, r_train)
+        ev_te, _ = problem.evaluate(f, test)
+        e_map[test] = e_after[test] - mp.predict(problem.q_ctrl[test], ev_te.Jv) @ f.R.T
         per_fold.append((float(np.mean(np.linalg.norm(e_after[test], axis=1))),
                          float(np.mean(np.linalg.norm(e_map[test], axis=1)))))
     return e_map, per_fold
