@@ -232,3 +232,18 @@ def test_a_drift_without_clock_is_a_trend_not_a_cause(capsys, tmp_path):
     if trend:
         assert rep["explains_data"] is not True and "order" in rep["verdict"]
     assert "time_drift" not in rep["selected_effects"]
+
+
+def test_the_residual_map_only_when_it_generalises(capsys, tmp_path):
+    # a reducer error at the 3rd and 4th harmonic of joints 2 and 3: no named effect holds it, the map does
+    robot = load_robot(str(UR10))
+    world = tw.make_tracker_campaign(robot, 61, n=1500, noise_mm=NOISE, unnamed=1e-4)
+    rep = _diagnose(capsys, [_write(tmp_path, world), "--robot", UR10, "--noise-mm", NOISE])
+    e = rep["error_3d_mm"]
+    assert rep["residual_map"]["kept"] is True, rep["residual_map"]
+    assert e["after_with_residual_map"]["mean"] < 0.75 * e["after"]["mean"], e
+    assert "non-parametric" in rep["verdict"] and rep["explains_data"] is False
+    # without it, the map is tried and not kept
+    world = tw.make_tracker_campaign(robot, 62, n=1500, noise_mm=NOISE)
+    rep = _diagnose(capsys, [_write(tmp_path, world, "b.csv"), "--robot", UR10, "--noise-mm", NOISE])
+    assert rep["residual_map"]["kept"] is False and rep["explains_data"] is True, rep["verdict"]
