@@ -50,3 +50,16 @@ def fanuc_campaign_csv(out_path):
     out_path = Path(out_path)
     out_path.write_text("\n".join(lines) + "\n")
     return out_path
+
+
+if __name__ == "__main__":  # python3 tests/realdata.py fanuc OUT.csv: the FANUC campaign in this project's format
+    import sys
+
+    if len(sys.argv) != 3 or sys.argv[1] != "fanuc":
+        sys.exit("usage: python3 tests/realdata.py fanuc OUT.csv")
+    reason = missing(FANUC)
+    if reason:
+        sys.exit(reason)
+    if Path(sys.argv[2]).exists():
+        sys.exit(f"{sys.argv[2]}: exists; not overwritten")
+    print(f"wrote {fanuc_campaign_csv(sys.argv[2])}")
