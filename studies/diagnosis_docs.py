@@ -3,13 +3,15 @@ show: each block between ``<!-- generated: NAME -->`` and ``<!-- end NAME
 -->`` is replaced by the output of the commands written above it (run here
 in a temporary folder, so the paths printed are the ones a user types), and
 docs/diagnosis_example/ (the worked example's campaign, report and plots)
-is written again.  With ``--confusion`` it also runs
-studies/diagnosis_confusion.py (30 campaigns per row, about half an hour)
-and replaces the ``confusion`` block.  The FANUC example needs the real data
+is written again.  With ``--studies`` it also runs
+studies/diagnosis_confusion.py (30 campaigns per row, about half an hour),
+studies/tracker_campaigns.py and the two benchmarks, and replaces the
+``confusion``, ``tracker_study`` and ``speed`` blocks (``--confusion FILE``
+takes the confusion study's output from a file instead of running it).  The FANUC example needs the real data
 (tests/realdata.py; ROBSTIFF_REALDATA): without it that block is left as it
 was and the script says so.
 
-Run: python3 studies/diagnosis_docs.py [--confusion]
+Run: python3 studies/diagnosis_docs.py [--studies [--confusion FILE]]
 """
 
 import argparse
@@ -61,7 +63,8 @@ def worked_example(tmp):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--confusion", action="store_true", help="also run studies/diagnosis_confusion.py (slow)")
+    ap.add_argument("--studies", action="store_true", help="also run the studies and benchmarks (slow)")
+    ap.add_argument("--confusion", metavar="FILE", help="with --studies: diagnosis_confusion.py's output, already run")
     args = ap.parse_args()
     text = DOC.read_text(encoding="utf-8")
     env = dict(os.environ, PYTHONPATH=str(ROOT / "tests") + os.pathsep + os.environ.get("PYTHONPATH", ""))
@@ -97,9 +100,16 @@ def main():
                       "--noise-mm 0.03", tmp)
             out += "\n".join(plan.splitlines()[:12]) + "\n  ..."
             text = replace(text, "fanuc", block(out, "fanuc"))
-    if args.confusion:
-        out = sh(f"python3 {ROOT}/studies/diagnosis_confusion.py 2>/dev/null", ROOT)
+    if args.studies:
+        out = Path(args.confusion).read_text() if args.confusion else \
+            sh(f"python3 {ROOT}/studies/diagnosis_confusion.py 2>/dev/null", ROOT)
         text = replace(text, "confusion", "<!-- generated: confusion -->\n" + out.strip() + "\n<!-- end confusion -->")
+        out = sh(f"python3 {ROOT}/studies/tracker_campaigns.py --rows 2000 --seeds 2 2>/dev/null", ROOT)
+        text = replace(text, "tracker_study", "<!-- generated: tracker_study -->\n" + out.strip()
+                       + "\n<!-- end tracker_study -->")
+        out = "$ python3 benchmarks/bench_diagnosis.py\n" + sh(f"python3 {ROOT}/benchmarks/bench_diagnosis.py || true", ROOT)
+        out += "\n$ python3 benchmarks/bench_tracker.py\n" + sh(f"python3 {ROOT}/benchmarks/bench_tracker.py || true", ROOT)
+        text = replace(text, "speed", block(out, "speed"))
     DOC.write_text(text, encoding="utf-8")
     print(f"wrote {DOC} and {EXAMPLE}")
 
