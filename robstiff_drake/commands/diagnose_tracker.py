@@ -25,10 +25,10 @@ def format_report(rep, markdown=False):
                                                           if rep["outliers"] else "")
              + f"; 3D error held out ({e['held_out']}):",
              "                                       mean        rms        max   (mm)"]
-    rows = [("registration + nominal arm", e["before"]), ("final model (the effects below)", e["after"])]
+    rows = [("declared (the robot file's arm)", e["before"]), ("final model (the effects below)", e["after"])]
     if e["after_with_residual_map"] is not None:
         kept = rep["residual_map"]["kept"]
-        rows.append(("+ joint-space residual map" + ("" if kept else " (not kept)"), e["after_with_residual_map"]))
+        rows.append(("+ joint-space map" + ("" if kept else " (not kept)"), e["after_with_residual_map"]))
     for name, s in rows:
         lines.append(f"  {name:34s} {s['mean']:9.4f}  {s['rms']:9.4f}  {s['max']:9.4f}")
     f = rep["noise_floor_mm"]
@@ -70,7 +70,7 @@ def format_report(rep, markdown=False):
     if v is not None:
         ve, vr = v["error_3d_mm"], v["error_3d_mm_reregistered"]
         lines += ["", f"validation on {v['data']} ({v['n_measurements']} poses), 3D error mean / rms / max (mm):",
-                  f"  nominal arm, same registration       {ve['before']['mean']:.4f} / {ve['before']['rms']:.4f} / "
+                  f"  robot file's arm, same registration  {ve['before']['mean']:.4f} / {ve['before']['rms']:.4f} / "
                   f"{ve['before']['max']:.4f}",
                   f"  fitted model, same registration      {ve['after']['mean']:.4f} / {ve['after']['rms']:.4f} / "
                   f"{ve['after']['max']:.4f}",

@@ -39,7 +39,8 @@ from robstiff_drake.identification.dictionary import DICTIONARY
 from robstiff_drake.identification.joint_stiffness import identify
 from robstiff_drake.identification.residual_structure import residual_structure
 from robstiff_drake.identification.threads import single_blas_thread
-from robstiff_drake.identification.terms import GAUSS_NEWTON, GRID, Context, fit_model, gauss_newton_columns, term_columns
+from robstiff_drake.identification.terms import (GAUSS_NEWTON, GRID, Context, fit_model, gauss_newton_columns,
+                                                 term_columns)
 from robstiff_drake.io import Warnings
 
 # kept for callers of the earlier interface

@@ -113,7 +113,8 @@ def _load_history(j):
         c = info["c"][j]
         return (f"joint {j + 1} remembers the previous load: {100 * v[0] / c:+.3g} % of its compliance times the "
                 f"previous load's torque at the pose, a lag of {v[1] * 1e6:+.3g} urad from the side the torque came "
-                f"from, the pose's unloaded reading {100 * v[2] / c:+.3g} % of it times the last load's before the pose")
+                f"from, the pose's unloaded reading {100 * v[2] / c:+.3g} % of it times the last load's before the "
+                "pose")
 
     def needs(ctx):
         if _clock(ctx)[0] is None:

@@ -114,10 +114,12 @@ def provenance_lines(data, robot, report, corrections):
     e = report["error_3d_mm"]
     lines = [f"Corrected by `robstiff diagnose {data} --write-robot` on {date.today().isoformat()} from the robot file "
              f"{robot.source} and the tracker campaign {data} ({report['n_used']} rows).",
-             f"Held-out 3D error ({e['held_out']}): mean {e['before']['mean']:.4f} mm, rms {e['before']['rms']:.4f} mm, "
+             f"Held-out 3D error ({e['held_out']}): mean {e['before']['mean']:.4f} mm, "
+             f"rms {e['before']['rms']:.4f} mm, "
              f"max {e['before']['max']:.4f} mm with the nominal arm; mean {e['after']['mean']:.4f} mm, rms "
              f"{e['after']['rms']:.4f} mm, max {e['after']['max']:.4f} mm with these corrections.",
-             "Kept: " + (", ".join(report["selected_effects"]) or "nothing") + "; written here: " + ", ".join(corrections)
+             "Kept: " + (", ".join(report["selected_effects"]) or "nothing") + "; written here: "
+             + ", ".join(corrections)
              + ". Effects of the instrument or the session (drift, thermal) are in the diagnosis's report, not here.",
              "tool_point_mm is the measured point (the tracker's target) on the flange."]
     return lines

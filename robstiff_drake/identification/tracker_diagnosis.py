@@ -7,8 +7,10 @@ Plain numpy + scipy; no Drake.
    the arm's reach (tracker_campaign.position_scale); points on one line,
    fewer than 4 poses, or a registration that leaves more than
    MAX_REGISTRATION_MM (another arm, other angles) are refused.
-2. The declared model: the nominal arm, the instrument's registration
-   (closed form, then Gauss-Newton) and the measured point on the flange.
+2. The declared model: the robot file's arm (its kinematics, and its sag
+   under the file's masses through the file's compliances), the
+   instrument's registration (closed form, then Gauss-Newton) and the
+   measured point on the flange.
 3. Identifiability: of the chain's parameters (theta, d, a, alpha; beta
    between nearly parallel axes), those whose columns of the identification
    Jacobian add rank to the registration's, the measured point's and the
@@ -25,7 +27,7 @@ Plain numpy + scipy; no Drake.
 5. The final model by Gauss-Newton on all rows (a gross-error screen, then
    once more without the flagged rows); held-out errors by Gauss-Newton in
    each fold from its training rows only, before (registration and measured
-   point on the nominal arm) and after.
+   point on the robot file's arm) and after.
 6. What is left: a non-parametric joint-space map (residual_map.py), kept
    only if it generalises (held out, nested).
 7. The verdict against the noise floor (stated, or from repeated poses),
@@ -37,37 +39,28 @@ Plain numpy + scipy; no Drake.
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
 
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification import noise_floor as nf
 from robstiff_drake.identification import residual_map as rmap
-from robstiff_drake.identification.confounding import CONFOUNDED_MIN, confounded_pairs
-from robstiff_drake.identification.cross_validation import FOLD_SEED, K_FOLDS, pose_groups, splits, wald_p
+from robstiff_drake.identification.confounding import CONFOUNDED_MIN
+from robstiff_drake.identification.cross_validation import FOLD_SEED, K_FOLDS, pose_groups, splits
 from robstiff_drake.identification.registration import check_geometry, register
 from robstiff_drake.identification.threads import single_blas_thread
 from robstiff_drake.identification.tracker_campaign import position_scale
 from robstiff_drake.identification.tracker_fit import Fit, LinearCV, Problem, independent_columns, rows_to_eq
 from robstiff_drake.identification.tracker_model import GEOM, geometry_jacobian, geometry_params, gravity_in_base
+from robstiff_drake.identification.tracker_report import (_confounded, _floor, _screen, _term_reports, _verdict,
+                                                          stats3d, validate)
+from robstiff_drake.identification.tracker_search import (ALPHA, MIN_GAIN, MIN_KEEP_GAIN, _heldout, _linearised,
+                                                          _residual_map, _search)
 from robstiff_drake.identification.tracker_terms import blocks as all_blocks
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.progress import progress
 
 MAX_REGISTRATION_MM = 25.0  # 3D RMS left by registration on the nominal arm: beyond, another arm or other angles
 WARN_REGISTRATION_MM = 10.0
-# An effect must lower the held-out RMS by this much (thousands of rows make a
-# 2 % gain certain; the Wald test and the held-out folds guard against overfitting)
-MIN_GAIN = 0.02
-MIN_KEEP_GAIN = 0.01
-ALPHA = 0.01
-OUTLIER_SIGMAS = 6.0
 MIN_ROWS_FOR_MAP = 200
-
-
-def stats3d(e):
-    """{mean, rms, max} of 3D error lengths (mm) of e (n, 3) mm."""
-    L = np.linalg.norm(e, axis=1)
-    return {"mean": float(L.mean()), "rms": float(np.sqrt(np.mean(L**2))), "max": float(L.max())}
 
 
 @dataclass
@@ -144,258 +137,11 @@ def _candidate_blocks(problem, fit, rows, free, Xgeo):
         if b.frame != "geometry":
             kept = independent_columns(np.hstack([Xgeo, Z]), list(range(Xgeo.shape[1] + Z.shape[1])))
             if len(kept) < Xgeo.shape[1] + Z.shape[1]:
-                skipped.append({"name": b.name, "reason": "not identifiable: its columns add less than their rank to "
-                                                          "the registration's, the measured point's and the geometry's"})
+                skipped.append({"name": b.name, "reason": "not identifiable: its columns add less than their "
+                                "rank to the registration's, the measured point's and the geometry's"})
                 continue
         out.append((b, Z))
     return out, skipped
-
-
-def _checks(b, values, half, problem, ev_info):
-    ok, why = b.plausible(values, ev_info)
-    if not ok:
-        smallest = np.sign(values) * np.maximum(np.abs(values) - half, 0.0)
-        if b.plausible(smallest, ev_info)[0]:
-            ok, why = True, why + ", but its 95 % interval reaches the physical range"
-    physical = True
-    if b.name == "joint_compliance":
-        physical = bool(np.all(values > 0))
-    return ok, why, physical
-
-
-MAX_RESTARTS = 3
-
-
-def _search(cv, base_cols, cands, info, pbar, kept_init=()):
-    """Forward selection, then the backward check, over the candidate blocks.
-    Forward steps judge a block by its fit only (held-out gain, clustered
-    Wald test): before the arm's geometry is in, the sag or a transmission
-    error absorbs part of the geometry's residual and would look
-    non-physical; the backward check then drops whatever no longer earns its
-    place or is implausible or non-physical at the model's final fit, and
-    the forward search resumes without the implausible ones (they are
-    leads).  Returns (kept, rounds, leads, dropped, declared RMS, final RMS
-    (m, linearised), {name: columns})."""
-    cols_of = {}
-    i = len(base_cols)
-    for b, Z in cands:
-        cols_of[b.name] = np.arange(i, i + Z.shape[1])
-        i += Z.shape[1]
-    by_name = {b.name: b for b, _ in cands}
-    kept, rounds, leads, dropped, banned = list(kept_init), [], {}, [], set()
-
-    def cols(names):
-        return np.concatenate([base_cols] + [cols_of[n] for n in names])
-
-    def judge(names, name):
-        c = cols(names)
-        coef, cov, G = cv.fit(c)
-        pos = np.arange(len(c) - len(cols_of[name]), len(c))  # the block's columns come last
-        b = by_name[name]
-        p = wald_p(coef, cov, pos, G)  # is it different from the declared model's value?
-        half = stats.t.ppf(0.975, max(G - 1, 1)) * np.sqrt(np.maximum(np.diag(cov)[pos], 0))
-        ok, why, physical = _checks(b, b.start + coef[pos], half, None, info)
-        if not physical:
-            why = (why + "; " if why else "") + "non-physical (a negative compliance)"
-        return p, ok and physical, why
-
-    current = cv.heldout_rms(cols(kept))
-    rms_declared = current
-    for _ in range(MAX_RESTARTS + 1):
-        while True:
-            pool = [b.name for b, _ in cands if b.name not in kept and b.name not in banned]
-            if not pool:
-                break
-            results = []
-            for name in pool:
-                rms = cv.heldout_rms(cols(kept + [name]))
-                r = {"name": name, "rms_mm": rms * 1e3, "p_grouped": None}
-                if rms <= (1 - MIN_GAIN) * current:
-                    r["p_grouped"] = judge(kept + [name], name)[0]
-                results.append(r)
-            rounds.append(results)
-            if pbar is not None:
-                pbar.update(1)
-            fits = [r for r in results if r["p_grouped"] is not None and r["p_grouped"] < ALPHA / len(results)]
-            if not fits:
-                break
-            best = min(fits, key=lambda r: r["rms_mm"])
-            kept.append(best["name"])
-            current = best["rms_mm"] / 1e3
-        gone = []
-        while kept:
-            weak = []
-            for name in kept:
-                rest = [n for n in kept if n != name]
-                gain = 1 - current / cv.heldout_rms(cols(rest))
-                p, ok, why = judge(rest + [name], name)
-                if not ok:
-                    weak.append((0, -gain, name, why))
-                elif gain < MIN_KEEP_GAIN or p > ALPHA / len(kept):
-                    weak.append((1, gain, name, None))
-            if not weak:
-                break
-            _, _, name, why = min(weak)
-            kept.remove(name)
-            dropped.append(name)
-            if why is not None:  # implausible or non-physical at the final fit: a lead, not tried again
-                gone.append(name)
-                leads[name] = {"name": name, "rms_mm": current * 1e3, "plausibility": why, "round": len(rounds)}
-            current = cv.heldout_rms(cols(kept))
-        if not gone:
-            break
-        banned |= set(gone)
-    for name in list(leads):  # a lead's own fit with the final model, for the report
-        if name in kept:
-            leads.pop(name)
-            continue
-        leads[name]["rms_mm"] = cv.heldout_rms(cols(kept + [name])) * 1e3
-        leads[name]["plausibility"] = judge(kept + [name], name)[2] or leads[name]["plausibility"]
-    # a lead matters only if it fits better than the final model
-    out = [leads[n] for n in leads if leads[n]["rms_mm"] < current * 1e3]
-    dropped = [n for n in dict.fromkeys(dropped) if n not in kept]
-    return kept, rounds, sorted(out, key=lambda r: r["rms_mm"]), dropped, rms_declared, current, cols_of
-
-
-def _values(fit, blocks):
-    """{block: its parameters' values in ``fit``}."""
-    out = {}
-    for b in blocks:
-        out[b.name] = (np.array([fit.geo[k, GEOM.index(kind)] for k, kind in b.geo]) if b.frame == "geometry"
-                       else fit.coef[b.name])
-    return out
-
-
-def _linearised(problem, fit, cands, rows, tests, groups):
-    """The search's LinearCV at ``fit``: the registration's and measured
-    point's columns, then every candidate's (kept ones at their values)."""
-    every = [b for b, _ in cands]
-    fit_all = fit.copy()
-    for b in every:
-        if b.frame != "geometry" and b.name not in fit_all.coef:
-            fit_all.coef[b.name] = np.full(len(b.params), b.start)
-    fit_all.blocks = list(fit.blocks)
-    X, sl, ev = problem.columns(fit_all, every, rows)
-    r = (problem.m[rows] - problem.predict(fit, rows)).reshape(-1)
-    # the kept blocks' parameters counted from the declared model's values, as in the first pass: the
-    # target is the residual plus what they contribute, linearised here, so any subset of blocks can be fitted
-    for name, v in _values(fit, fit.blocks).items():
-        b = next(x for x in every if x.name == name)
-        r = r + X[:, sl[name]] @ (v - b.start)
-    order = [np.arange(9)] + [np.arange(sl[b.name].start, sl[b.name].stop) for b in every]
-    cv = LinearCV(X[:, np.concatenate(order)], r, tests, np.repeat(groups[rows], 3))
-    return cv, {"ev": ev, "c_nom": problem.c_nom}
-
-
-def _heldout(problem, fit_all, blocks, folds, pbar=None):
-    """Held-out residuals (N, 3) m (rows outside the folds' tests: NaN) by
-    Gauss-Newton in each fold from the all-rows fit, and the fold fits."""
-    e = np.full((problem.n, 3), np.nan)
-    fits = []
-    for train, test in folds:
-        f = problem.gauss_newton(fit_all, blocks, train, iterations=4)
-        e[test] = problem.m[test] - problem.predict(f, test)
-        fits.append(f)
-        if pbar is not None:
-            pbar.update(1)
-    return e, fits
-
-
-def _residual_map(problem, fits, folds, e_after):
-    """Held-out residuals with the non-parametric map (nested), per-fold
-    means without/with it, and whether it generalises."""
-    e_map = e_after.copy()
-    per_fold = []
-    for f, (train, test) in zip(fits, folds):
-        train = train[rmap.subsample(len(train), rmap.MAX_ROWS)]
-        ev_tr, _ = problem.evaluate(f, train)
-        r_train = (problem.m[train] - problem.predict(f, train, ev_tr)) @ f.R  # base frame
-        pick = rmap.subsample(len(train), rmap.CHOOSE_ROWS)
-        H, ridge = rmap.choose(problem.q_ctrl[train][pick], ev_tr.Jv[pick], r_train[pick])
-        mp = rmap.ResidualMap(H, ridge).fit(problem.q_ctrl[train], ev_tr.Jv, r_train)
-        ev_te, _ = problem.evaluate(f, test)
-        e_map[test] = e_after[test] - mp.predict(problem.q_ctrl[test], ev_te.Jv) @ f.R.T
-        per_fold.append((float(np.mean(np.linalg.norm(e_after[test], axis=1))),
-                         float(np.mean(np.linalg.norm(e_map[test], axis=1)))))
-    return e_map, per_fold
-
-
-def _floor(problem, groups, rows, noise_mm):
-    """The floor: stated, or the pooled scatter of rows measured at one pose."""
-    g = groups[rows]
-    _, inv, counts = np.unique(g, return_inverse=True, return_counts=True)
-    rep = None
-    dof = int(np.sum(counts[counts > 1] - 1))
-    if dof >= nf.MIN_REPLICATE_DOF:
-        means = np.zeros((len(counts), 3))
-        np.add.at(means, inv, problem.m[rows])
-        means /= counts[:, None]
-        dev = problem.m[rows] - means[inv]
-        rep = float(np.sqrt(np.sum(dev**2) / (3 * dof))) * 1e3
-    if noise_mm is not None:
-        return nf.Floor(float(noise_mm), "stated", float(noise_mm), rep, dof, int(np.sum(counts > 1)))
-    if rep is not None:
-        return nf.Floor(rep, "replicates", None, rep, dof, int(np.sum(counts > 1)))
-    return nf.Floor(None, None, None, None, dof, 0)
-
-
-def _screen(problem, fit, rows, floor_m):
-    """Rows whose 3D residual is gross (chi-square(3) at 0.01 / N and
-    OUTLIER_SIGMAS robust sigma, never below the floor)."""
-    from robstiff_drake.identification.robust_fit import robust_scale, threshold
-
-    e = problem.m[rows] - problem.predict(fit, rows)
-    L = np.linalg.norm(e, axis=1)
-    s = robust_scale(L)
-    if floor_m is not None:
-        s = max(s, floor_m)
-    if s == 0:
-        return np.array([], dtype=int)
-    return rows[L**2 / s**2 > max(threshold(len(L)), OUTLIER_SIGMAS**2)]
-
-
-def _term_reports(problem, fit, kept_blocks, rows, groups):
-    """Each kept effect in words, with its parameters, 95 % intervals
-    (pose-clustered) and plausibility, at the final fit."""
-    X, slices, ev = problem.columns(fit, kept_blocks, rows)
-    r = (problem.m[rows] - problem.predict(fit, rows, ev)).reshape(-1)
-    cv = LinearCV(X, r, [np.arange(len(r))], np.repeat(groups[rows], 3))
-    _, cov, G = cv.fit(np.arange(X.shape[1]))
-    half = stats.t.ppf(0.975, max(G - 1, 1)) * np.sqrt(np.maximum(np.diag(cov), 0))
-    info = {"ev": ev, "c_nom": problem.c_nom}
-    out = []
-    for b in kept_blocks:
-        sl = slices[b.name]
-        v = np.array([fit.geo[k, GEOM.index(kind)] for k, kind in b.geo]) if b.frame == "geometry" \
-            else fit.coef[b.name]
-        ok, why, physical = _checks(b, v, half[sl], problem, info)
-        out.append({"name": b.name, "kind": b.kind, "description": b.describe(v, info),
-                    "params": {f"{lab} ({u})": float(x * s) for (lab, u, s), x in zip(b.params, v)},
-                    "ci95": {f"{lab} ({u})": [float((x - h) * s), float((x + h) * s)]
-                             for (lab, u, s), x, h in zip(b.params, v, half[sl])},
-                    "plausible": bool(ok and physical), "plausibility": why})
-    return out, X, slices
-
-
-def _verdict(floor, lof, rms_after_mm, trends, leads, unexplained):
-    if floor.sigma_mm is None:
-        return None, ("no verdict: no noise floor is known (state the instrument's noise per component with "
-                      "--noise-mm, or measure some poses twice); the accuracy figures above stand")
-    text = (f"held-out RMS {rms_after_mm:.4f} mm per component against a floor of {floor.sigma_mm:.4f} mm "
-            f"({floor.source}); lack-of-fit p = {lof.p_value:.2g}")
-    if lof.p_value < nf.ALPHA_LACK_OF_FIT:
-        lead = ""
-        if leads:
-            lead = (f"; {leads[0]['name']} would fit more of it (held-out {leads[0]['rms_mm']:.4f} mm) but was not "
-                    f"added: {leads[0]['plausibility']}")
-        trend = (f"; {', '.join(trends)} (a trend along the file's order, no t_s or seq) was taken out, not as a "
-                 "cause" if trends else "")
-        return False, (f"the final model does NOT explain the data: {text}; {unexplained:.4f} mm unexplained" + lead
-                       + trend)
-    if trends:
-        return False, (f"not established: {text}, reached only with {', '.join(trends)}: the file has neither t_s nor "
-                       "seq, so its order is not known to be the order of measurement; add the time of each row")
-    return True, f"the final model explains the data as far as the noise allows: {text}"
 
 
 def _prepare(robot, campaign, tool_m, w):
@@ -523,7 +269,8 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         "error_3d_mm": {"before": stats3d(e_b), "after": stats3d(e_a),
                         "after_with_residual_map": None if e_map is None else stats3d(e_map[rows] * 1e3),
                         "held_out": f"{len(folds)}-fold, grouped by pose, folds seeded {FOLD_SEED}; before: "
-                                    "registration and measured point on the nominal arm"},
+                                    "registration and measured point on the robot file's arm (its kinematics, "
+                                    "and its sag with the file's masses and stiffness)"},
         "rms_before_mm": rms_before, "rms_after_mm": rms_after,
         "rms_linearised_mm": {"declared": rms_decl * 1e3, "final": rms_lin * 1e3},
         "noise_floor_mm": floor.sigma_mm, "noise_source": floor.source,
@@ -556,57 +303,3 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
     return d
 
 
-def _confounded(X, kept_blocks, problem, fit, rows):
-    i, blocks = 9, {"registration": np.arange(0, 6), "measured_point": np.arange(6, 9)}
-    for b in kept_blocks:
-        n = len(b.params) if b.frame != "geometry" else len(b.geo)
-        blocks[b.name] = np.arange(i, i + n)
-        i += n
-    names = list(blocks)
-    geometry = {b.name for b in kept_blocks if b.frame == "geometry"}
-    kept = {b.name for b in kept_blocks}
-    # the geometry's blocks are one calibration: their parameters correlate as kinematic calibration's do
-    pairs = [(a, b) for j, a in enumerate(names) for b in names[j + 1:]
-             if (a in kept or b in kept) and not (a in geometry and b in geometry)]
-    return confounded_pairs(X, blocks, pairs)
-
-
-def validate(d, other):
-    """3D errors (mm) of another campaign of the same arm under the fitted
-    model and registration, and with the registration (6 parameters)
-    refitted to it, before (declared model) and after."""
-    problem, fit, robot = d.problem, d.fit, d.robot
-    q = robot.joint_rad(other.q_deg)
-    nominal_mm = kin.tool_position(robot.dh, q, fit.u) * 1e3
-    unit = position_scale(other, nominal_mm)
-    p2 = Problem(robot, other.q_deg, other.pos * unit / 1e3, force_N=other.force_N, t_s=other.t_s,
-                 temp_c=other.temp_c, seq=other.seq, tool_guess_m=fit.u)
-    p2.set_gravity(problem.g_base)
-    rows = np.arange(p2.n)
-    # drift and thermal terms are centred on the fitted campaign's mean time and temperature: the
-    # validation file is predicted without them (their origin in another session is not known)
-    arm = [b for b in fit.blocks if b.frame != "instrument" and b.name != "thermal_expansion"]
-    f_same = fit.copy()
-    f_same.blocks = arm
-    e_same = (p2.m - p2.predict(f_same, rows)) * 1e3
-    base = Fit(fit.R.copy(), fit.t.copy(), fit.u.copy(), np.zeros((6, 5)))
-    e_decl = (p2.m - p2.predict(base, rows)) * 1e3
-
-    def reregistered(f0):
-        f = f0.copy()
-        for _ in range(6):
-            X, sl, ev = p2.columns(f, [], rows)
-            r = (p2.m - p2.predict(f, rows, ev)).reshape(-1)
-            step, *_ = np.linalg.lstsq(X[:, :6], r, rcond=None)
-            full = np.zeros(X.shape[1])
-            full[:6] = step
-            f = p2.apply(f, [], full, sl)
-            f.blocks, f.coef, f.geo = f0.blocks, f0.coef, f0.geo
-        return (p2.m - p2.predict(f, rows)) * 1e3
-
-    return {"data": other.path, "n_measurements": p2.n,
-            "error_3d_mm": {"before": stats3d(e_decl), "after": stats3d(e_same)},
-            "error_3d_mm_reregistered": {"before": stats3d(reregistered(base)), "after": stats3d(reregistered(f_same))},
-            "note": "after: the fitted arm, measured point and registration; reregistered: the instrument's 6 "
-                    "registration parameters refitted to this file (another session, the tracker moved); drift and "
-                    "thermal terms are not carried over"}

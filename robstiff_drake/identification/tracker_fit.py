@@ -17,7 +17,9 @@ from robstiff_drake.identification.tracker_terms import Eval
 from robstiff_drake.model import kinematics as kin
 
 GN_ITER = 10
-SAG_ITER = 1  # fixed-point steps of the sag from the nominal pose's (its error shrinks by the sag's own relative size, ~3e-3, per step)
+# fixed-point steps of the sag from the nominal pose's (the error shrinks by the sag's own relative size,
+# about 3e-3, per step)
+SAG_ITER = 1
 GN_TOL = 1e-9  # relative step
 RANK_TOL = 1e-3  # a column whose part outside the others' span is below this (unit norm) is not identifiable
 

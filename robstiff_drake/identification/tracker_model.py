@@ -30,7 +30,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.robot import GRAVITY_BASE_M_PER_S2
 
 GEOM = ("theta", "d", "a", "alpha", "beta")
