@@ -247,3 +247,17 @@ def test_the_residual_map_only_when_it_generalises(capsys, tmp_path):
     world = tw.make_tracker_campaign(robot, 62, n=1500, noise_mm=NOISE)
     rep = _diagnose(capsys, [_write(tmp_path, world, "b.csv"), "--robot", UR10, "--noise-mm", NOISE])
     assert rep["residual_map"]["kept"] is False and rep["explains_data"] is True, rep["verdict"]
+
+
+def test_applied_loads_give_every_loaded_joints_stiffness(capsys, tmp_path):
+    # each pose measured unloaded and under 300-700 N: the weight and the loads deflect the same springs; the
+    # loaded diagnosis's terms are tried as blocks and none is taken where the plant has only springs
+    robot = load_robot("irb6400")
+    world = tw.make_tracker_campaign(robot, 71, n=600, noise_mm=NOISE, loads=True)
+    rep = _diagnose(capsys, [_write(tmp_path, world), "--noise-mm", NOISE])
+    assert rep["explains_data"] is True, rep["verdict"]
+    assert "joint_compliance" in rep["selected_effects"]
+    assert not [n for n in rep["selected_effects"] if n.startswith("load:")]
+    tried = {r["name"] for rnd in rep["rounds"] for r in rnd}
+    assert {"load:lost_motion", "load:backlash_j2", "load:force_crosstalk"} <= tried
+    np.testing.assert_allclose(rep["joint_stiffness_Nm_per_rad"][:5], world.true["k_Nm_per_rad"][:5], rtol=0.05)

@@ -35,7 +35,8 @@ import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import FixedOffsetFrame, RevoluteJoint, SpatialInertia, UnitInertia
+from pydrake.multibody.math import SpatialForce
+from pydrake.multibody.tree import FixedOffsetFrame, MultibodyForces, RevoluteJoint, SpatialInertia, UnitInertia
 
 from robstiff_drake.model.description import make_urdf
 from robstiff_drake.plant import JOINT_NAMES
@@ -108,13 +109,25 @@ class Arm:
         return self.plant.CalcPointsPositions(self.context, self.flange.body_frame(), np.reshape(p_flange, (3, 1)),
                                               self.plant.world_frame())[:, 0]
 
-    def equilibrium(self, q_link_cmd, iterations=30):
-        """Positions with the joints (and base) sagged under gravity."""
+    def applied(self, q_full, force_N, p_flange):
+        """Generalized forces of a force (world frame) at a flange point, by Drake."""
+        plant, ctx = self.plant, self.context
+        plant.SetPositions(ctx, q_full)
+        forces = MultibodyForces(plant)
+        R_WB = plant.EvalBodyPoseInWorld(ctx, self.flange).rotation().matrix()
+        self.flange.AddInForce(ctx, R_WB @ p_flange, SpatialForce(np.zeros(3), np.asarray(force_N, float)),
+                               plant.world_frame(), forces)
+        return plant.CalcGeneralizedForces(ctx, forces)
+
+    def equilibrium(self, q_link_cmd, iterations=30, force_N=None, p_flange=None):
+        """Positions with the joints (and base) sagged under gravity (and a force at a flange point)."""
         q = np.zeros(self.plant.num_positions())
         q[self.arm] = q_link_cmd
         for _ in range(iterations):
             self.plant.SetPositions(self.context, q)
             tau = self.plant.CalcGravityGeneralizedForces(self.context)
+            if force_N is not None:
+                tau = tau + self.applied(q, force_N, p_flange)
             new = q.copy()
             new[self.arm] = q_link_cmd + tau[self.arm] / self.k
             if self.base_joints:
@@ -135,7 +148,7 @@ def _poses(robot, rng, n, frac=0.7):
 
 
 def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=False, base_tilt=False, drift=True,
-                          extra_columns=False, pose_seed=None, clock=True, unnamed=0.0):
+                          extra_columns=False, pose_seed=None, clock=True, unnamed=0.0, loads=False):
     """A tracker campaign of ``robot`` (the robot file the user has) as
     Drake's perturbed plant measures it; see the module docstring.  The arm,
     tracker and target follow from ``seed``; ``pose_seed`` (when given)
@@ -144,7 +157,9 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
     (rad): an error no named effect holds, joints 2 and 3 off by
     unnamed * (sin(3 J + phi3) + sin(4 J + phi4)) (reducer errors at the 3rd
     and 4th harmonic of the joint's turn: the named transmission error has
-    the 1st and 2nd; what a non-parametric map can learn)."""
+    the 1st and 2nd; what a non-parametric map can learn).  ``loads``: every
+    pose is measured twice, unloaded and under a force of 300-700 N in a
+    random direction at the target (the fx, fy, fz columns)."""
     rng = np.random.default_rng(seed)
     dh_true, true = _perturb(robot, rng)
     k_true = robot.joint_stiffness_Nm_per_rad * rng.uniform(0.7, 1.4, 6)
@@ -164,7 +179,7 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
     guess = target * 1e3 + rng.normal(size=3) / np.sqrt(3) * rng.uniform(1, 5)
     if pose_seed is not None:
         rng = np.random.default_rng([seed, pose_seed])
-    rows, q_ctrl_all, pts, times = 0, [], [], []
+    rows, q_ctrl_all, pts, times, forces = 0, [], [], [], []
     t = 0.0
     while rows < n:
         q_model = _poses(robot, rng, 1)[0]
@@ -179,21 +194,29 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
         if unnamed:
             te_ctrl[1:3] += unnamed * (np.sin(3 * q_ctrl[1:3] + te_phase[:2]) + np.sin(4 * q_ctrl[1:3] + te_phase[2:4]))
         q_link = q_model + G @ te_ctrl
-        q = arm.equilibrium(q_link)
-        t += rng.uniform(3.0, 8.0)  # s between measurements (an automated campaign)
-        p = arm.point(q, target) + rng.normal(scale=noise_mm * 1e-3, size=3)
-        q_ctrl_all.append(np.rad2deg(q_ctrl))
-        pts.append(p * 1e3)
-        times.append(t)
-        rows += 1
-    q_ctrl_all, times = np.array(q_ctrl_all), np.array(times)
+        for force in ([np.zeros(3), None] if loads else [None]):
+            if force is None and loads:
+                f = rng.normal(size=3)
+                force = f / np.linalg.norm(f) * rng.uniform(300.0, 700.0)
+            # the file gives the force in the robot's base frame; Drake's world is the tracker's frame
+            q = arm.equilibrium(q_link, force_N=X_WB.rotation().matrix() @ force, p_flange=target)
+            t += rng.uniform(3.0, 8.0)  # s between measurements (an automated campaign)
+            p = arm.point(q, target) + rng.normal(scale=noise_mm * 1e-3, size=3)
+            q_ctrl_all.append(np.rad2deg(q_ctrl))
+            pts.append(p * 1e3)
+            times.append(t)
+            forces.append(np.zeros(3) if force is None else force)
+            rows += 1
+    n = rows
+    q_ctrl_all, times, forces = np.array(q_ctrl_all), np.array(times), np.array(forces)
     pts = np.array(pts) + np.outer(times / times[-1], v_drift) * 1e3
     true.update(k_Nm_per_rad=k_true, tool_mm=target * 1e3, tool_guess_mm=guess, X_WB=X_WB.GetAsMatrix4(),
                 transmission_rad=te_amp, drift_mm=v_drift * 1e3, base_k=base_k, noise_mm=noise_mm,
                 effects=["joint_offsets", "link_lengths", "link_twists", "joint_compliance"]
                 + [f"transmission_error_j{j + 1}" for j in range(6) if te_amp[j] > 0]
                 + (["base_tilt"] if base_tilt else []) + (["time_drift"] if drift else []))
-    head = ["q1", "q2", "q3", "q4", "q5", "q6", "x", "y", "z"] + (["t_s"] if clock else [])
+    head = ["q1", "q2", "q3", "q4", "q5", "q6", "x", "y", "z"] + (["t_s"] if clock else []) + \
+        (["fx", "fy", "fz"] if loads else [])
     lines = [f"# Tracker campaign made by tests/tracker_world.py (Drake plant of a perturbed {robot.name}); seed {seed}",
              "# tool_mm: " + ", ".join(f"{v:.3f}" for v in guess)]
     if extra_columns:  # what a tracker's export adds: units in the header, a point id, an uncertainty, a timestamp
@@ -208,7 +231,8 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
         lines.append(",".join(head))
         for i in range(n):
             lines.append(",".join([f"{v:.6f}" for v in q_ctrl_all[i]] + [f"{v:.5f}" for v in pts[i]]
-                                  + ([f"{times[i]:.1f}"] if clock else [])))
+                                  + ([f"{times[i]:.1f}"] if clock else [])
+                                  + ([f"{v:.3f}" for v in forces[i]] if loads else [])))
     return TrackerWorld("\n".join(lines) + "\n", true, robot_true, n)
 
 

@@ -49,6 +49,7 @@ from robstiff_drake.identification.registration import check_geometry, register
 from robstiff_drake.identification.threads import single_blas_thread
 from robstiff_drake.identification.tracker_campaign import position_scale
 from robstiff_drake.identification.tracker_fit import Fit, LinearCV, Problem, independent_columns, rows_to_eq
+from robstiff_drake.identification.tracker_loads import load_blocks
 from robstiff_drake.identification.tracker_model import GEOM, geometry_jacobian, geometry_params, gravity_in_base
 from robstiff_drake.identification.tracker_report import (_confounded, _floor, _screen, _term_reports, _verdict,
                                                           stats3d, validate)
@@ -121,13 +122,13 @@ def _identifiable(problem, fit, rows, robot):
     return free, [c for c in cand if c not in free], allX[:, kept]
 
 
-def _candidate_blocks(problem, fit, rows, free, Xgeo):
+def _candidate_blocks(problem, fit, rows, free, Xgeo, extra=()):
     """The blocks the campaign can be searched for, their columns at the
     declared fit, and [(name, reason)] of those it cannot."""
     problem.geo_free = free
     ev, _ = problem.evaluate(fit, rows)
     out, skipped = [], []
-    for b in all_blocks(ev, free):
+    for b in list(all_blocks(ev, free)) + list(extra):
         why = b.needs(ev) if b.needs else None
         if why:
             skipped.append({"name": b.name, "reason": why})
@@ -192,7 +193,8 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
     n_steps = 2 + 12 + 2 * len(folds) + (len(folds) if residual_map else 0)
     with progress(n_steps, None, "tracker diagnosis", unit="step", leave=False) as bar:
         free, not_free, Xgeo = _identifiable(problem, fit0, all_rows, robot)
-        cands, skipped = _candidate_blocks(problem, fit0, all_rows, free, Xgeo)
+        cands, skipped = _candidate_blocks(problem, fit0, all_rows, free, Xgeo,
+                                           load_blocks(robot, campaign, fit0.u))
         bar.update(1)
         r0 = (problem.m - problem.predict(fit0, all_rows)).reshape(-1)
         X0, _, ev0 = problem.columns(fit0, [], all_rows)

@@ -105,7 +105,8 @@ class Problem:
 
         return Eval(T=T, p=p, Jv=jacobian_v(T, p), tau=tau, moment=moment,
                     q_ctrl_rad=self.q_ctrl[rows], G=self.G, c_nom=self.c_nom, t_h=sub(self.t_h),
-                    dtemp=sub(self.dtemp), seq=sub(self.seq), order=self.order[rows], geo_free=self.geo_free), dh
+                    dtemp=sub(self.dtemp), seq=sub(self.seq), order=self.order[rows], geo_free=self.geo_free,
+                    rows=np.asarray(rows)), dh
 
     def parts(self, fit, ev):
         """(R (p + dp), dm): the arm's point in the instrument's axes and the

@@ -90,6 +90,7 @@ class Eval:
     seq: np.ndarray | None  # (N,) measurement order, centred
     order: np.ndarray  # (N,) the rows' order in the file, centred, per 1000 rows
     geo_free: list = field(default_factory=list)  # [(link, kind)] identifiable geometry
+    rows: np.ndarray = None  # the campaign's rows these are
 
 
 @dataclass
@@ -157,7 +158,8 @@ def joint_compliance_block(ev):
     def describe(v, info):
         k = [f"k{j + 1} = {1.0 / (x * info['c_nom'][j]):.3g}" if x > 0 else f"k{j + 1} negative"
              for j, x in zip(joints, v)]
-        return "the joints sag under the arm's weight (robot file's masses): stiffness " + ", ".join(k) + " N*m/rad"
+        return ("the joints deflect under the arm's weight (robot file's masses) and the applied loads: stiffness "
+                + ", ".join(k) + " N*m/rad")
 
     def plausible(v, info):
         bad = [f"joint {j + 1}: {x:.3g}x the robot file's compliance" for j, x in zip(joints, v)
