@@ -35,9 +35,9 @@ import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.math import SpatialForce
-from pydrake.multibody.tree import FixedOffsetFrame, MultibodyForces, RevoluteJoint, SpatialInertia, UnitInertia
+from pydrake.multibody.tree import FixedOffsetFrame, RevoluteJoint, SpatialInertia, UnitInertia
 
+import open_world as ow
 from robstiff_drake.model.description import make_urdf
 from robstiff_drake.plant import JOINT_NAMES
 
@@ -72,8 +72,9 @@ def _perturb(robot, rng, tilt_between_parallel=True):
     return new, {"dtheta_rad": dtheta, "dd_m": dd, "da_m": da, "dalpha_rad": dalpha, "beta_rad": beta}
 
 
-class Arm:
-    """The perturbed arm in Drake, its base welded (or on two compliant floor
+class Arm(ow.DrakeRobot):
+    """The perturbed arm in Drake (open_world.DrakeRobot's point and load
+    torques, a constructor of its own), its base welded (or on two compliant floor
     joints) at the pose X_WB in the tracker's frame (the world)."""
 
     def __init__(self, robot, X_WB, base_k=None):
@@ -104,21 +105,6 @@ class Arm:
         self.flange = plant.GetBodyByName("flange")
         self.k = np.asarray(robot.joint_stiffness_Nm_per_rad, dtype=float)
 
-    def point(self, q_full, p_flange):
-        self.plant.SetPositions(self.context, q_full)
-        return self.plant.CalcPointsPositions(self.context, self.flange.body_frame(), np.reshape(p_flange, (3, 1)),
-                                              self.plant.world_frame())[:, 0]
-
-    def applied(self, q_full, force_N, p_flange):
-        """Generalized forces of a force (world frame) at a flange point, by Drake."""
-        plant, ctx = self.plant, self.context
-        plant.SetPositions(ctx, q_full)
-        forces = MultibodyForces(plant)
-        R_WB = plant.EvalBodyPoseInWorld(ctx, self.flange).rotation().matrix()
-        self.flange.AddInForce(ctx, R_WB @ p_flange, SpatialForce(np.zeros(3), np.asarray(force_N, float)),
-                               plant.world_frame(), forces)
-        return plant.CalcGeneralizedForces(ctx, forces)
-
     def equilibrium(self, q_link_cmd, iterations=30, force_N=None, p_flange=None):
         """Positions with the joints (and base) sagged under gravity (and a force at a flange point)."""
         q = np.zeros(self.plant.num_positions())
@@ -127,7 +113,7 @@ class Arm:
             self.plant.SetPositions(self.context, q)
             tau = self.plant.CalcGravityGeneralizedForces(self.context)
             if force_N is not None:
-                tau = tau + self.applied(q, force_N, p_flange)
+                tau = tau + self.load_torques(q, force_N, p_flange)
             new = q.copy()
             new[self.arm] = q_link_cmd + tau[self.arm] / self.k
             if self.base_joints:
@@ -199,7 +185,8 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
                 f = rng.normal(size=3)
                 force = f / np.linalg.norm(f) * rng.uniform(300.0, 700.0)
             # the file gives the force in the robot's base frame; Drake's world is the tracker's frame
-            q = arm.equilibrium(q_link, force_N=X_WB.rotation().matrix() @ force, p_flange=target)
+            q = arm.equilibrium(q_link, force_N=None if force is None else X_WB.rotation().matrix() @ force,
+                                p_flange=target)
             t += rng.uniform(3.0, 8.0)  # s between measurements (an automated campaign)
             p = arm.point(q, target) + rng.normal(scale=noise_mm * 1e-3, size=3)
             q_ctrl_all.append(np.rad2deg(q_ctrl))
