@@ -46,6 +46,8 @@ reported with its physical range):
                  share is sized
   point_offset   the measured point (a tracker target on the spindle housing)
                  is 10-200 mm away from the loaded point at the cutter
+and tests/open_world_loads.py's: load_history, periodic_drift, crosstalk,
+preload, drift_no_seq.
 """
 
 from dataclasses import dataclass
@@ -70,7 +72,9 @@ NOISE_MM = 0.01
 FORCE_N = 700.0
 TOOL_M = np.array([0.0, 0.0, 0.35])
 N_ROWS, LOADS_PER_POSE = 120, 4
-KINDS = ("none", "base", "wrist_lost_motion", "frame", "hysteresis", "outliers", "angle_j3", "point_offset")
+# tests/open_world_loads.py: the loads' history, the clock, the force sensor, the loads' size
+LOAD_KINDS = ("load_history", "periodic_drift", "crosstalk", "preload", "drift_no_seq")
+KINDS = ("none", "base", "wrist_lost_motion", "frame", "hysteresis", "outliers", "angle_j3", "point_offset") + LOAD_KINDS
 OUT_OF_LIBRARY = KINDS[1:]
 
 # Physical ranges of the effects' parameters (what each case reports against).
@@ -279,6 +283,13 @@ def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_
     noise_mm / sqrt(2)), so the rows of a pose share part of it."""
     if kind not in KINDS:
         raise ValueError(f"unknown kind {kind}")
+    if kind in LOAD_KINDS:
+        from open_world_loads import make_load_campaign
+
+        if repeats != 1 or shared_reference:
+            raise ValueError(f"{kind}: one reading per load, independent noise")
+        return make_load_campaign(kind, seed, n=n, loads_per_pose=loads_per_pose, noise_mm=noise_mm,
+                                  size_range=size_range)
     rng = np.random.default_rng(seed)
     model = load_robot()
     k = np.asarray(model.joint_stiffness_Nm_per_rad, dtype=float)
@@ -375,12 +386,14 @@ def make_campaign(kind, seed, *, n=N_ROWS, loads_per_pose=LOADS_PER_POSE, noise_
 
 def to_csv(c):
     """CSV text of an OpenWorldCampaign (comment lines first, then the header)."""
-    out = [f"# {line}" for line in c.comments] + [tool_header_line(TOOL_M),
-                                                   "pose,seq,q1,q2,q3,q4,q5,q6,fx,fy,fz,dx,dy,dz"]
     cp = c.campaign
+    out = [f"# {line}" for line in c.comments] + [tool_header_line(TOOL_M),
+                                                   "pose," + ("seq," if cp.seq is not None else "")
+                                                   + "q1,q2,q3,q4,q5,q6,fx,fy,fz,dx,dy,dz"]
     for i in range(len(cp)):
-        row = [cp.pose[i], str(int(cp.seq[i]))] + [f"{v:.9g}" for v in cp.q_deg[i]] + \
-              [f"{v:.9g}" for v in cp.force_N[i]] + [f"{v:.9g}" for v in cp.disp_mm[i]]
+        row = [cp.pose[i]] + ([str(int(cp.seq[i]))] if cp.seq is not None else []) + \
+              [f"{v:.9g}" for v in cp.q_deg[i]] + [f"{v:.9g}" for v in cp.force_N[i]] + \
+              [f"{v:.9g}" for v in cp.disp_mm[i]]
         out.append(",".join(row))
     return "\n".join(out) + "\n"
 

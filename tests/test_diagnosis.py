@@ -21,13 +21,19 @@ def test_the_undeclared_effect_is_named_first(robot, index, effect):
         c = synth.stiffness_campaign(robot, n=120, noise_mm=NOISE, seed=int(rng.integers(1 << 30)),
                                      effects={effect: size})
         d = diagnose(robot, c.to_campaign(), noise_mm=NOISE)
-        assert d.selected and d.selected[0] == effect, (effect, size, d.selected)
-        assert d.discovered == [], (effect, d.discovered)
-        assert d.rms_after_mm <= 1.25 * NOISE, (effect, d.rms_after_mm)
-        assert d.rms_before_mm > d.rms_after_mm
-        # the named effect explains the data unless it needs an implausible size (then it is said)
-        implausible = [t["name"] for t in d.terms if not t["plausible"]]
-        assert d.explains_data is (not implausible), (effect, d.verdict)
+        # the final model stays physical, unless the six springs alone are not (then no verdict, and no sign blamed)
+        assert all(k > 0 for k in d.joint_stiffness_Nm_per_rad) or d.explains_data is None, d.verdict
+        assert all(t["plausible"] for t in d.terms), d.terms  # and plausible
+        if effect in d.selected:  # at a plausible size the effect is added and explains the data
+            assert d.selected[0] == effect and d.discovered == [], (effect, size, d.selected, d.discovered)
+            assert d.rms_after_mm <= 1.25 * NOISE, (effect, d.rms_after_mm)
+            assert d.rms_before_mm > d.rms_after_mm
+            assert d.explains_data is True, (effect, d.verdict)
+        else:  # sized 0.02-0.06 mm beyond the springs, several need an implausible size: named as the lead, not added
+            assert d.leads and d.leads[0]["name"] == effect, (effect, size, d.leads)
+            assert d.leads[0]["rms_mm"] <= 1.25 * NOISE
+            assert d.explains_data is not True and effect in d.verdict and "not added" in d.verdict, d.verdict
+            assert "signs" not in d.verdict
 
 
 def test_a_campaign_without_effect_gets_none(robot):
@@ -65,13 +71,15 @@ def test_too_few_measurements_skip_candidates(robot):
     c = synth.stiffness_campaign(robot, n=9, loads_per_pose=3, seed=6)
     d = diagnose(robot, c.to_campaign())
     skipped = [r for r in d.rounds[0] if r.status == "skipped"]
-    assert skipped and all("measurements" in r.reason for r in skipped)
+    # skipped for the parameters the 9 rows cannot carry, or for what the term needs (seq, different load sizes)
+    assert skipped and any("measurements" in r.reason for r in skipped)
+    assert all(any(w in r.reason for w in ("measurements", "measurement times", "load", "seq")) for r in skipped)
     assert d.selected == []
 
 
 def test_diagnose_cli_outputs(capsys, tmp_path, robot):
     data = tmp_path / "c.csv"
-    assert main(["synth", "stiffness", str(data), "--effect", "force_bias=0.04", "--seed", "9"]) == 0
+    assert main(["synth", "stiffness", str(data), "--effect", "force_bias=0.02", "--seed", "9"]) == 0
     capsys.readouterr()
     report, plots = tmp_path / "report.md", tmp_path / "plots"
     code = main(["diagnose", str(data), "--json", "-", "--report", str(report), "--plots", str(plots),

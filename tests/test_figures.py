@@ -33,6 +33,7 @@ CHECKED = {
     "commands/identify.py": "test_identify_plot",
     "commands/diagnose.py": "test_diagnose_views",
     "commands/diagnose_run.py": "test_diagnose_run_plot",
+    "commands/diagnose_tracker.py": "test_diagnose_tracker_views",
 }
 
 
@@ -201,6 +202,28 @@ def test_diagnose_views(tmp_path, monkeypatch):
     assert main(["synth", "stiffness", str(data), "--n", "48", "--effect", "lost_motion", "--quiet"]) == 0
     monkeypatch.setattr(matplotlib.figure.Figure, "savefig", checked_savefig)
     assert main(["diagnose", str(data), "--plots", str(tmp_path / "views")]) == 0
+    saved = sorted(p.name for p in (tmp_path / "views").glob("*.png"))
+    assert saved and sorted(checked) == saved
+    bad = {name: found for name, found in checked.items() if found}
+    assert not bad, bad
+
+
+def test_diagnose_tracker_views(tmp_path, monkeypatch):
+    """Through the CLI: the view `diagnose --plots` saves for a tracker campaign (tests/tracker_world.py)."""
+    import matplotlib.figure
+    import tracker_world as tw
+
+    checked = {}
+    savefig = matplotlib.figure.Figure.savefig
+
+    def checked_savefig(fig, fname, *args, **kwargs):
+        checked[Path(str(fname)).name] = problems(fig)
+        return savefig(fig, fname, *args, **kwargs)
+
+    data = tmp_path / "tracker.csv"
+    data.write_text(tw.make_tracker_campaign(load_robot("irb6400"), 3, n=120).csv_text)
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", checked_savefig)
+    assert main(["diagnose", str(data), "--plots", str(tmp_path / "views"), "--quiet"]) == 0
     saved = sorted(p.name for p in (tmp_path / "views").glob("*.png"))
     assert saved and sorted(checked) == saved
     bad = {name: found for name, found in checked.items() if found}

@@ -9,6 +9,7 @@ from robstiff_drake.commands.identify import campaign_warnings
 from robstiff_drake.commands.main import parse_tool
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
+from robstiff_drake.identification.confounding import CONFOUNDED_MIN
 from robstiff_drake.identification.diagnosis import CANDIDATES, DICTIONARY, diagnose
 from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
 from robstiff_drake.identification.selection import ALPHA_ROUND, MIN_GAIN
@@ -70,6 +71,9 @@ def to_dict(d, campaign):
         "joint_stiffness_Nm_per_rad": d.joint_stiffness_Nm_per_rad,
         "identifiable": [bool(v) for v in d.identifiable],
         "non_physical_joints": d.non_physical,
+        "leads": d.leads,
+        "confounded": d.confounded,
+        "floor_check": d.floor_check,
         "warnings": list(d.warnings),
     })
 
@@ -108,6 +112,15 @@ def format_report(d, campaign, markdown=False):
                   f"held-out RMS {t['rms_gain_mm']:.4f} mm lower with it"]
     if d.dropped:
         lines.append("dropped by the backward check: " + ", ".join(d.dropped))
+    if d.leads:
+        lines.append("fit the residual but not added (not physical or not plausible):")
+        lines += [f"  {r['name']} (round {r['round']}, held-out {r['rms_mm']:.4f} mm): {r['reason']}" for r in d.leads]
+    lines.append("confounded (correlation of the estimates, fitted together; |r| >= "
+                 f"{CONFOUNDED_MIN:g}): " + ("none" if not d.confounded else ", ".join(
+                     f"{a} / {b} {r:+.2f}" for (a, b), r in ((c["terms"], c["correlation"]) for c in d.confounded))))
+    if d.confounded:
+        a, b = d.confounded[0]["terms"]
+        lines.append(f"  to separate them: robstiff plan-poses N --separate {a},{b} [--campaign DATA.csv]")
     where = [s for s in d.residual_structure if s["strength"] > 0.02][:5]
     lines.append("where the remaining residual lives: " + (", ".join(
         f"{s['variable']} ({100 * s['strength']:.0f} % of it, {s['rms_mm']:.4f} mm)" for s in where)
@@ -246,14 +259,27 @@ def residual_views(d, campaign, robot, folder, tool_m=None):
     return written
 
 
-def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=None, noise_mm=None):
-    check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--report": report},
+def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=None, noise_mm=None, validate=None,
+        write_robot=None):
+    from robstiff_drake.commands import diagnose_tracker
+    from robstiff_drake.identification.tracker_campaign import is_tracker_file
+
+    check_outputs(inputs=[data, robot_yaml, validate], files={"--json": json_out, "--report": report,
+                                                              "--write-robot": write_robot},
                   folders={"--plots": plots})
     if noise_mm is not None and not 0 < noise_mm <= MAX_NOISE_MM:
         raise InputError(f"--noise-mm {noise_mm:g}: the noise of one displacement component must be in "
                          f"(0, {MAX_NOISE_MM:g}] mm")
+    tracker = is_tracker_file(data)
+    diagnose_tracker.check_tracker_options(tracker, validate, write_robot)
     robot = load_robot(robot_yaml)
+    if write_robot is not None:
+        check_outputs(inputs=[robot.source], files={"--write-robot": write_robot})
     warnings = Warnings()
+    if tracker:
+        return diagnose_tracker.run(data=data, tool_m=parse_tool(tool), noise_mm=noise_mm, robot=robot,
+                                    json_out=json_out, report=report, plots_dir=plots, validate=validate,
+                                    write_robot=write_robot, warnings=warnings)
     campaign = read_stiffness_campaign(data, robot)
     tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), warnings)
     warnings.extend_from(campaign_warnings(campaign))

@@ -132,11 +132,61 @@ def campaign_warnings(campaign):
             "noise; add a seq column if these are repeats at a coarse resolution)"]
 
 
+def _run_tracker(data, robot, tool_m, json_out, warnings):
+    """identify on an absolute-position campaign: the joint stiffness the
+    sag under the arm's weight gives, with the kinematic errors and the
+    registration fitted with it (the tracker diagnosis's model)."""
+    from robstiff_drake.commands.diagnose_tracker import format_report
+    from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
+    from robstiff_drake.identification.tracker_diagnosis import diagnose_tracker
+
+    d = diagnose_tracker(robot, read_tracker_campaign(data, robot), tool_m=tool_m, warnings=warnings,
+                         residual_map=False)
+    rep = d.report
+    comp = next((t for t in rep["effects"] if t["name"] == "joint_compliance"), None)
+    k = np.array(rep["joint_stiffness_Nm_per_rad"], dtype=float)
+    ident = np.zeros(6, dtype=bool)
+    ci = [[None, None] for _ in range(6)]
+    if comp is not None:
+        c_nom = 1.0 / robot.joint_stiffness_Nm_per_rad
+        for (name, (lo, hi)) in comp["ci95"].items():
+            j = int(name.split()[0][1:]) - 1
+            ident[j] = True
+            ci[j] = [float(1 / (hi * c_nom[j])) if hi > 0 else None, float(1 / (lo * c_nom[j])) if lo > 0 else None]
+    if not ident.any():
+        warnings.add("the campaign identifies no joint's stiffness: the sag under the arm's weight did not earn its "
+                     "place (see robstiff diagnose)")
+    res = {"data": data, "robot": robot.name, "kind": "absolute", "joint_stiffness_Nm_per_rad": k,
+           "joint_stiffness_ci95_Nm_per_rad": ci, "identifiable": ident.tolist(),
+           "joint_stiffness_nominal_Nm_per_rad": robot.joint_stiffness_Nm_per_rad, "tracker": rep,
+           "warnings": list(warnings)}
+    if json_out is not None:
+        emit_json(res, json_out)
+    if json_out != "-":
+        print(f"identified from {data} (absolute positions): the joints' sag under the arm's weight")
+        for j in range(6):
+            note = (f"[{ci[j][0]:.4g}, {ci[j][1] if ci[j][1] is not None else float('inf'):.4g}]"
+                    if ident[j] else "not identified (nominal)")
+            print(f"  joint {j + 1}: {k[j]:12.4g} N*m/rad   {note}")
+        print()
+        print(format_report(rep))
+    return 0
+
+
 def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=None):
+    from robstiff_drake.identification.tracker_campaign import is_tracker_file
+
     check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--plot": plot})
     robot = load_robot(robot_yaml)
     tool_arg = parse_tool(tool)
     warnings = Warnings()
+    if is_tracker_file(data):
+        if plot is not None or robust:
+            from robstiff_drake.errors import InputError
+
+            raise InputError("--plot and --robust are for stiffness campaigns; an absolute-position campaign's views "
+                             "are `robstiff diagnose DATA.csv --plots DIR`")
+        return _run_tracker(data, robot, tool_arg, json_out, warnings)
     campaign = read_stiffness_campaign(data, robot)
     tool_m = campaign_tool_m(campaign, robot, tool_arg, warnings)
     warnings.extend_from(campaign_warnings(campaign))

@@ -205,6 +205,11 @@ def build_parser():
     p.add_argument("--noise-mm", type=float, default=None, metavar="SIGMA",
                    help="1-sigma noise of one displacement component (instrument), mm; without it the floor comes "
                         "from replicate rows (same pose and load), or no verdict is given")
+    p.add_argument("--validate", metavar="FILE.csv",
+                   help="absolute-position campaigns: a second campaign of the same arm to test the fitted model on")
+    p.add_argument("--write-robot", metavar="OUT.yaml",
+                   help="absolute-position campaigns: write the robot file with the corrections kept (kinematics, "
+                        "tool point, stiffness) and their provenance")
 
     p = sub.add_parser("diagnose-run", help="trace a machining run's residual surface error to its cause; write "
                                             "each candidate fix and decide from verification cuts")
@@ -231,6 +236,13 @@ def build_parser():
     p.add_argument("--seed", type=SEED, default=0)
     p.add_argument("--out", metavar="PLAN.csv", help="write the plan (q1..q6, fx, fy, fz per row)")
     p.add_argument("--json", metavar="OUT", help="write the comparison as JSON ('-' for stdout)")
+    p.add_argument("--separate", metavar="EFFECT_A,EFFECT_B",
+                   help="plan the rows that best separate two confounded effects (stiffness_jN, a named effect or "
+                        "a dictionary term, as `robstiff diagnose` names them): poses and load directions with the "
+                        "predicted 95 %% interval half-widths")
+    p.add_argument("--campaign", metavar="DATA.csv",
+                   help="with --separate: the stiffness campaign the plan adds to (its rows count, its identified "
+                        "compliances and '# tool_mm:' line are used)")
     _add_robot_option(p)
 
     from robstiff_drake.identification.table2_grouping import GROUPING
@@ -466,7 +478,8 @@ def _dispatch(args):
         from robstiff_drake.commands import diagnose
 
         return diagnose.run(data=args.data, tool=args.tool, json_out=args.json, report=args.report,
-                            plots=args.plots, robot_yaml=args.robot, noise_mm=args.noise_mm)
+                            plots=args.plots, robot_yaml=args.robot, noise_mm=args.noise_mm,
+                            validate=args.validate, write_robot=args.write_robot)
     if args.command == "diagnose-run":
         from robstiff_drake.commands import diagnose_run
 
@@ -477,7 +490,7 @@ def _dispatch(args):
 
         return plan_poses.run(n=args.n, candidates=args.candidates, force_N=args.force_N, noise_mm=args.noise_mm,
                               tool=args.tool, seed=args.seed, out=args.out, json_out=args.json,
-                              robot_yaml=args.robot)
+                              robot_yaml=args.robot, separate=args.separate, campaign=args.campaign)
     if args.command == "table2":
         from robstiff_drake.commands import table2
 

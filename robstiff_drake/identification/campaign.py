@@ -9,6 +9,7 @@ Stiffness campaigns (one row per loaded measurement):
   rx,ry,rz    optional measured tool rotation (small-angle vector), mrad, base frame
   pose        optional id shared by rows measured at the same pose
   seq         optional measurement order
+  t_s         optional time of the measurement, s
 
 A stiffness campaign records its tool point in a comment line before the
 header row, ``# tool_mm: x, y, z`` (mm, flange frame = DH frame 6; see
@@ -108,13 +109,15 @@ def decode_text(path):
         return raw.decode("cp1252", errors="replace"), "Windows-1252"
 
 
-def _delimiter(path, header_line, header_text, known):
+def _delimiter(path, header_line, header_text, known, rename=None):
     """The delimiter of a header line: the one of ',', ';' and tab that splits
     it into the most known column names (a spreadsheet in a locale with a
     decimal comma saves with ';')."""
     best, best_hits = ",", -1
     for d in DELIMITERS:
         names = [h.strip().lower() for h in next(csv.reader([header_text], delimiter=d))]
+        if rename is not None:
+            names = [rename(h) for h in names]
         hits = sum(n in known for n in names)
         if hits > best_hits:
             best, best_hits = d, hits
@@ -142,11 +145,46 @@ def parse_number(v, where):
     raise InputError(f"{where}: {excerpt(v)} is not a number")
 
 
-def read_table(path, *, required, optional=(), text_columns=(), ranges=None):
+# A whole column of numbers, one per line, as the fast path checks it (the
+# same numbers as NUMBER, spaces around them allowed).
+_COLUMN = re.compile(r"(?:[ \t]*[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?[ \t]*\n)*"
+                     r"[ \t]*[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?[ \t]*", re.ASCII)
+_DECIMAL_COMMA = re.compile(r"[ \t]*[+-]?\d*,\d+(?:[eE][+-]?\d+)?[ \t]*", re.ASCII)
+
+
+def _numeric_column(path, data, cells, col, name, limits, decimal_comma=False):
+    """Column ``col`` as finite floats within ``limits`` (lo, hi, unit), or
+    InputError naming the first bad cell.  Checked as one string (linear in
+    the rows, in C) and converted at once; a column that fails is walked
+    cell by cell for the message."""
+    values = [row[col] for row in cells]
+    if decimal_comma:  # a ';'- or tab-separated file from a locale with a decimal comma
+        values = [v.replace(",", ".", 1) if _DECIMAL_COMMA.fullmatch(v) else v for v in values]
+    arr = None
+    if _COLUMN.fullmatch("\n".join(values)):
+        arr = np.array(values, dtype=float)
+        if not np.all(np.isfinite(arr)):
+            arr = None
+    if arr is None:
+        arr = np.array([parse_number(v.strip(), f"{path}:{data[r][0]}, column {col + 1} ({name})")
+                        for r, v in enumerate(values)])
+    if limits is not None:
+        lo, hi, unit = limits
+        bad = np.flatnonzero(~((arr >= lo) & (arr <= hi)))
+        if bad.size:
+            r = int(bad[0])
+            raise InputError(f"{path}:{data[r][0]}, column {col + 1} ({name}): {values[r].strip()} is outside the "
+                             f"plausible range [{lo:g}, {hi:g}] {unit} (other units?)")
+    return arr
+
+
+def read_table(path, *, required, optional=(), text_columns=(), ranges=None, rename=None, decimal_comma=False):
     """Read a measurement CSV.  ``required``/``optional`` columns are parsed
     as finite floats (within ``ranges``: {column: (lo, hi, unit)}, when
     given); ``text_columns`` are kept as strings; any other column is kept
-    as text and ignored."""
+    as text and ignored.  ``rename``: a function from a header cell (lower
+    case, stripped) to the column's name (aliases, units in the header);
+    ``decimal_comma``: in a ';'- or tab-separated file, '1,5' is 1.5."""
     path = Path(path)
     raw, encoding = decode_text(path)
     comments, rows = [], []
@@ -162,8 +200,10 @@ def read_table(path, *, required, optional=(), text_columns=(), ranges=None):
         raise InputError(f"{path}: empty file (no header row and no data)")
     header_line, header_text = rows[0]
     known = set(required) | set(optional) | set(text_columns)
-    delim = _delimiter(path, header_line, header_text, known)
+    delim = _delimiter(path, header_line, header_text, known, rename)
     header = [h.strip().lower() for h in next(csv.reader([header_text], delimiter=delim))]
+    if rename is not None:
+        header = [rename(h) for h in header]
     seen = {}
     for i, h in enumerate(header):
         if not h:
@@ -183,26 +223,16 @@ def read_table(path, *, required, optional=(), text_columns=(), ranges=None):
     data = rows[1:]
     if not data:
         raise InputError(f"{path}: no data rows after the header (line {header_line})")
-    cells = []
-    for lineno, line in data:
-        values = next(csv.reader([line], delimiter=delim))
+    cells = list(csv.reader([line for _, line in data], delimiter=delim))
+    for (lineno, _), values in zip(data, cells):
         if len(values) != len(header):
             raise InputError(f"{path}:{lineno}: expected {len(header)} cells (as in the header), got {len(values)}")
-        cells.append([v.strip() for v in values])
     numeric_names = [c for c in list(required) + list(optional) if c in seen]
     numeric = {}
     for name in numeric_names:
-        col = seen[name]
-        arr = np.empty(len(cells))
-        lo, hi, unit = (ranges or {}).get(name, (-np.inf, np.inf, ""))
-        for r, row in enumerate(cells):
-            where = f"{path}:{data[r][0]}, column {col + 1} ({name})"
-            arr[r] = parse_number(row[col], where)
-            if not lo <= arr[r] <= hi:
-                raise InputError(f"{where}: {row[col]} is outside the plausible range [{lo:g}, {hi:g}] {unit} "
-                                 "(other units?)")
-        numeric[name] = arr
-    text = {h: [row[seen[h]] for row in cells] for h in header if h not in numeric}
+        numeric[name] = _numeric_column(path, data, cells, seen[name], name, (ranges or {}).get(name),
+                                        decimal_comma and delim != ",")
+    text = {h: [row[seen[h]].strip() for row in cells] for h in header if h not in numeric}
     return Table(str(path), header_line, header, numeric, text,
                  np.array([ln for ln, _ in data]), comments, encoding, DELIMITERS[delim])
 
@@ -224,6 +254,7 @@ class StiffnessCampaign:
     has_moments: bool
     copies: list = field(default_factory=list)  # [(file line, line of the row it repeats)], set aside
     tool_mm: np.ndarray | None = None  # the file's '# tool_mm:' line (flange frame, mm), None without one
+    t_s: np.ndarray | None = None  # optional time of each measurement (s)
 
     def __len__(self):
         return len(self.lines)
@@ -261,7 +292,7 @@ def check_joint_limits(table, robot):
 # 1 rad of tool rotation is not a small-deflection measurement.
 RANGES = {**{c: (-1e5, 1e5, "N") for c in F_COLS}, **{c: (-1e5, 1e5, "N*m") for c in M_COLS},
           **{c: (-100.0, 100.0, "mm") for c in D_COLS}, **{c: (-1000.0, 1000.0, "mrad") for c in R_COLS},
-          "seq": (-1e12, 1e12, "")}
+          "seq": (-1e12, 1e12, ""), "t_s": (-1e12, 1e12, "s")}
 
 
 def _copies(table, names):
@@ -277,7 +308,7 @@ def _copies(table, names):
 
 
 def read_stiffness_campaign(path, robot, *, min_rows=6):
-    table = read_table(path, required=Q_COLS + F_COLS + D_COLS, optional=M_COLS + R_COLS + ("seq",),
+    table = read_table(path, required=Q_COLS + F_COLS + D_COLS, optional=M_COLS + R_COLS + ("seq", "t_s"),
                        text_columns=("pose",), ranges=RANGES)
     check_joint_limits(table, robot)
     disp_all = np.column_stack([table.numeric[n] for n in D_COLS])
@@ -285,7 +316,7 @@ def read_stiffness_campaign(path, robot, *, min_rows=6):
         raise InputError(f"{table.path}: all displacements dx,dy,dz are zero: nothing was measured")
     # a row that repeats another in every measured value is a copy, not a
     # second measurement (two real measurements differ by their noise)
-    copies = _copies(table, Q_COLS + F_COLS + M_COLS + D_COLS + R_COLS + ("seq",))
+    copies = _copies(table, Q_COLS + F_COLS + M_COLS + D_COLS + R_COLS + ("seq", "t_s"))
     if copies:
         drop = {i for i, _ in copies}
         keep = np.array([i for i in range(len(table)) if i not in drop])
@@ -321,6 +352,7 @@ def read_stiffness_campaign(path, robot, *, min_rows=6):
         has_moments=moments is not None,
         copies=copy_lines,
         tool_mm=read_tool_header(path),
+        t_s=table.numeric.get("t_s"),
     )
 
 

@@ -69,11 +69,11 @@ def rows_to_eq(rows):
     return (3 * rows[:, None] + np.arange(3)).ravel()
 
 
-def clustered_wald(X, y, groups_eq, cols):
-    """Least squares of y (n,) on X (n, p), and the p-value of the Wald test
-    that the coefficients ``cols`` (a slice) are zero, with the covariance
-    clustered by ``groups_eq`` (n,) (CR1 factor G / (G - 1)) and referred to
-    F(q, G - 1).  Returns (p, coefficients, residual)."""
+def clustered_cov(X, y, groups_eq):
+    """Least squares of y (n,) on X (n, p) with the covariance of the
+    coefficients clustered by ``groups_eq`` (n,) (CR1 factor G / (G - 1)).
+    Returns (coefficients, covariance, G, residual); the covariance is None
+    with fewer than 3 clusters."""
     scale = np.linalg.norm(X, axis=0)
     scale[scale == 0] = 1.0
     Xs = X / scale
@@ -84,10 +84,31 @@ def clustered_wald(X, y, groups_eq, cols):
     U = U[np.bincount(groups_eq) > 0]
     G = len(U)
     if G < 3:
-        return 1.0, coef_s / scale, r
+        return coef_s / scale, None, G, r
     bread = np.linalg.pinv(Xs.T @ Xs)
     V = bread @ (U.T @ U) @ bread * (G / (G - 1))
-    b = coef_s[cols]
+    return coef_s / scale, V / np.outer(scale, scale), G, r
+
+
+def wald_p(coef, cov, cols, G):
+    """p-value of the Wald test that coef[cols] = 0 with covariance ``cov``
+    from G clusters, referred to F(q, G - 1); 1 without a covariance."""
+    if cov is None:
+        return 1.0
+    idx = np.arange(len(coef))[cols]
+    b = coef[idx]
+    Vb = cov[np.ix_(idx, idx)]
+    s = np.sqrt(np.maximum(np.diag(Vb), 1e-300))
     q = len(b)
-    W = float(b @ np.linalg.pinv(V[cols, cols]) @ b)
-    return float(special.fdtrc(q, G - 1, W / q)), coef_s / scale, r
+    W = float((b / s) @ np.linalg.pinv(Vb / np.outer(s, s)) @ (b / s))
+    return float(special.fdtrc(q, G - 1, W / q))
+
+
+def clustered_wald(X, y, groups_eq, cols):
+    """Least squares of y (n,) on X (n, p), and the p-value of the Wald test
+    that the coefficients ``cols`` (a slice) are zero, with the covariance
+    clustered by ``groups_eq`` (n,) (CR1 factor G / (G - 1)) and referred to
+    F(q, G - 1): valid whatever the correlation of a pose's rows.  Returns
+    (p, coefficients, residual)."""
+    coef, cov, G, r = clustered_cov(X, y, groups_eq)
+    return wald_p(coef, cov, cols, G), coef, r

@@ -29,14 +29,18 @@ import numpy as np
 from scipy import stats
 
 from robstiff_drake.identification import noise_floor as nf
+from robstiff_drake.identification import plausibility as pl
 from robstiff_drake.identification import robust_fit, selection
+from robstiff_drake.identification.confounding import CONFOUNDED_MIN, confounded_pairs
 from robstiff_drake.identification.candidates import CANDIDATES
 from robstiff_drake.identification.cross_validation import (FOLD_SEED, K_FOLDS, MIN_POSES, pose_groups, rows_to_eq,
                                                             splits, test_groups)
 from robstiff_drake.identification.dictionary import DICTIONARY
 from robstiff_drake.identification.joint_stiffness import identify
 from robstiff_drake.identification.residual_structure import residual_structure
-from robstiff_drake.identification.terms import GRID, Context, fit_model, term_columns
+from robstiff_drake.identification.threads import single_blas_thread
+from robstiff_drake.identification.terms import (GAUSS_NEWTON, GRID, Context, fit_model, gauss_newton_columns,
+                                                 term_columns)
 from robstiff_drake.io import Warnings
 
 # kept for callers of the earlier interface
@@ -75,6 +79,9 @@ class Diagnosis:
     non_physical: list = field(default_factory=list)
     warnings: list = field(default_factory=list)
     thresholds: dict = field(default_factory=dict)
+    leads: list = field(default_factory=list)  # fits, but not added: [{name, rms_mm, reason, ...}]
+    confounded: list = field(default_factory=list)  # [{terms: [a, b], correlation}]
+    floor_check: dict = None  # a stated floor far above the residual: {ratio, p_below, message}
 
 
 def subset(campaign, rows):
@@ -84,7 +91,8 @@ def subset(campaign, rows):
                    moment_Nm=campaign.moment_Nm[rows], disp_mm=campaign.disp_mm[rows],
                    rot_mrad=None if campaign.rot_mrad is None else campaign.rot_mrad[rows],
                    pose=None if campaign.pose is None else [campaign.pose[i] for i in rows],
-                   seq=None if campaign.seq is None else campaign.seq[rows], lines=campaign.lines[rows])
+                   seq=None if campaign.seq is None else campaign.seq[rows], lines=campaign.lines[rows],
+                   t_s=None if getattr(campaign, "t_s", None) is None else campaign.t_s[rows])
 
 
 def thresholds():
@@ -107,31 +115,14 @@ def _cluster_ci(ctx, fit, rows, units):
     scale[scale == 0] = 1.0
     Xs = X / scale
     bread = np.linalg.pinv(Xs.T @ Xs)
-    g = np.repeat(np.asarray(units)[rows], 3)
-    uniq = np.unique(g)
-    meat = np.zeros((X.shape[1], X.shape[1]))
-    for k in uniq:
-        u = Xs[g == k].T @ r[g == k]
-        meat += np.outer(u, u)
-    G = len(uniq)
+    _, g = np.unique(np.repeat(np.asarray(units)[rows], 3), return_inverse=True)
+    U = np.zeros((g.max() + 1, X.shape[1]))
+    np.add.at(U, g, Xs * r[:, None])  # each pose's score (linear in the rows)
+    meat = U.T @ U
+    G = len(U)
     cov = bread @ meat @ bread * (G / max(G - 1, 1))
     std = np.sqrt(np.maximum(np.diag(cov), 0)) / scale
     return stats.t.ppf(0.975, max(G - 1, 1)) * std
-
-
-def _plausible(t, v, half_width, info):
-    """The term's plausibility at its estimate; a size beyond the physical
-    range whose 95 % interval still reaches the range (each parameter moved
-    toward zero by its half-width) is not called implausible."""
-    if t.plausible is None:
-        return True, ""
-    ok, why = t.plausible(v, info)
-    if ok:
-        return ok, why
-    smallest = np.sign(v) * np.maximum(np.abs(v) - half_width, 0.0)
-    if t.plausible(smallest, info)[0]:
-        return True, why + ", but its 95 % interval reaches the physical range"
-    return False, why
 
 
 def _term_reports(ctx, result, rows, units):
@@ -143,7 +134,7 @@ def _term_reports(ctx, result, rows, units):
         info = {"ctx": ctx, "c": fit.c, "g": fit.grid.get(t.name)}
         sl = fit.slices[t.name]
         hw = half[sl]
-        ok, why = _plausible(t, v, hw, info)
+        ok, why = pl.check_term(t, v, hw, info)
         params = {f"{n} ({u})": float(x * s) for (n, u, s), x in zip(t.params, v)}
         ci = {f"{n} ({u})": [float((x - h) * s), float((x + h) * s)] for (n, u, s), x, h in zip(t.params, v, hw)}
         if t.kind == GRID:
@@ -165,10 +156,23 @@ def _run(robot, campaign, tool_m, rows, groups, noise_mm, terms_by_name):
     return base, ctx, floor, fold_rows, result, units, by_pose
 
 
-def _verdict(d, floor, lof, non_physical, discovered, implausible, structure, n_hyp):
+# A stated floor the held-out residual is significantly below (lower tail of
+# the lack-of-fit test at this level) is reported as overstated.
+ALPHA_FLOOR_ABOVE = 0.01
+MAX_LEADS = 5
+
+
+def _verdict(d, floor, lof, non_physical, discovered, implausible, structure, n_hyp, leads=(), confounded=()):
     if non_physical:
-        return None, (f"no verdict: the identified compliance of joint(s) {', '.join(map(str, non_physical))} is "
-                      "negative (non-physical); check the signs and units of the displacements and forces")
+        head = (f"no verdict: the six springs alone need a negative compliance of joint(s) "
+                f"{', '.join(map(str, non_physical))} (non-physical)")
+        fix = [r for r in leads if r["all_positive"]]
+        if fix:
+            return None, (f"{head}; {fix[0]['name']} would make every compliance positive (held-out "
+                          f"{fix[0]['rms_mm']:.4f} mm) but was not added: {fix[0]['reason']}: the model lacks "
+                          "something that looks like it")
+        return None, f"{head}, and nothing the search tried reverses it; check the signs and units of the " \
+                     "displacements and forces"
     if floor.sigma_mm is None:
         return None, ("no verdict: no noise floor is known (state it with --noise-mm, or measure replicate rows: "
                       "the same pose and load); whether the model explains the data cannot be said")
@@ -177,15 +181,99 @@ def _verdict(d, floor, lof, non_physical, discovered, implausible, structure, n_
     text = (f"held-out RMS {d['rms_after']:.4f} mm against a floor of {floor.sigma_mm:.4f} mm ({floor.source}); "
             f"lack-of-fit p = {lof.p_value:.2g}")
     if above:
+        lead = ""
+        if leads:
+            best = leads[0]
+            conf = [c for c in confounded if best["name"] in c["terms"]]
+            lead = (f"; {best['name']} would fit more of it (held-out {best['rms_mm']:.4f} mm) but was not added: "
+                    f"{best['reason']}")
+            if conf:
+                other = next(t for t in conf[0]["terms"] if t != best["name"])
+                lead += (f"; it is confounded with {other} (correlation of the estimates "
+                         f"{conf[0]['correlation']:+.2f}): the campaign cannot separate them (robstiff plan-poses "
+                         f"--separate {best['name']},{other})")
+        trend = (f"; {', '.join(d['trends'])}: a trend along the file's order was taken out, not as a cause (the "
+                 "file has neither seq nor t_s)" if d.get("trends") else "")
         return False, (f"the final model does NOT explain the data: {text}; {d['unexplained']:.4f} mm unexplained"
-                       + (f", strongest with: {where}" if where else ""))
+                       + (f", strongest with: {where}" if where else "") + lead + trend)
+    if d.get("rivals"):
+        chosen, r = d["rivals"][0]
+        return False, (f"not established: {text}, but a trend along the file's order ({r.name}, held-out "
+                       f"{r.rms_mm:.4f} mm when {chosen} was added) fits the same residual about as well as {chosen}: "
+                       "the file has neither seq nor t_s, so a drift during the measurements cannot be told from it; "
+                       "add the measurement order or time and diagnose again")
+    if d.get("trends"):
+        return False, (f"not established: {text}, reached only with {', '.join(d['trends'])}: a trend along the "
+                       "file's order, which is not known to be the order of measurement (the file has neither seq nor "
+                       "t_s); add the measurement order or time and diagnose again")
+    better = [r for r in leads if r["rms_mm"] < (1 - selection.MIN_GAIN["dictionary"]) * d["rms_after"]]
+    if better:
+        r = better[0]
+        return False, (f"not established: {text}, but {r['name']} fits better (held-out {r['rms_mm']:.4f} mm) and "
+                       f"was not added: {r['reason']}: the data carry something that looks like it")
     if discovered:
         return False, (f"not established: {text}, reached only with terms found by searching {n_hyp} hypotheses "
                        f"({', '.join(discovered)}); confirm them on a new campaign before trusting them")
     if implausible:
         return False, (f"not established: {text}, but only with effect(s) of implausible size "
                        f"({', '.join(implausible)}): the data carry something else that looks like them")
-    return True, f"the final model explains the data as far as the noise allows: {text}"
+    verdict = f"the final model explains the data as far as the noise allows: {text}"
+    if floor.source == "stated" and lof.p_below < ALPHA_FLOOR_ABOVE:
+        verdict += (f"; but the residual is {floor.sigma_mm / d['rms_after']:.1f}x below the stated floor "
+                    f"(lower-tail p = {lof.p_below:.2g}): a floor that large hides any effect smaller than about "
+                    f"{floor.sigma_mm:.4f} mm, so this says little; state the instrument's noise for a displacement")
+    return True, verdict
+
+
+def _lead_reports(result):
+    """The candidates that fit but were not added (not physical or not
+    plausible), the best of each name, best first."""
+    best = {}
+    for rnd, r in result.leads:
+        if r.name not in best or r.rms_mm < best[r.name][1].rms_mm:
+            best[r.name] = (rnd, r)
+    # a lead matters only if it fits better than the final model
+    out = sorted([v for v in best.values() if v[1].rms_mm < result.state.rms_mm], key=lambda x: x[1].rms_mm)
+    out = out[:MAX_LEADS]
+    return [{"name": r.name, "source": r.source, "round": rnd + 1, "rms_mm": r.rms_mm, "params": r.params,
+             "physical": r.physical, "plausible": r.plausible, "all_positive": r.all_positive,
+             "reason": r.plausibility} for rnd, r in out], \
+        [r for _, r in out]
+
+
+def _lead_columns(ctx, t, c, r):
+    if t.kind == GAUSS_NEWTON:
+        return gauss_newton_columns(ctx, t, c, r.values)[0]
+    return term_columns(ctx, t, c, None, r.grid)[0]
+
+
+def _confounded(ctx, fit, rows, lead_results, terms_by_name):
+    """[{terms, correlation}]: the kept terms against the joints' compliances
+    and each other (in the final fit); each lead against the joints and terms
+    of the model it was tried on (fitted together there); the leads against
+    each other (in the final fit with both added)."""
+    eq = rows_to_eq(rows)
+    X = fit.X[eq]
+    joints = {f"stiffness_j{j + 1}": np.array([i]) for i, j in enumerate(ctx.free)}
+    kept = {name: np.arange(sl.start, sl.stop) for name, sl in fit.slices.items()}
+    out = confounded_pairs(X, {**joints, **kept},
+                           [(a, b) for i, a in enumerate(kept) for b in list(joints) + list(kept)[i + 1:]])
+    out += [{"terms": [r.name, other], "correlation": v} for r in lead_results
+            for other, v in r.correlations.items() if abs(v) >= CONFOUNDED_MIN]
+    cols = {r.name: _lead_columns(ctx, terms_by_name[r.name], fit.c, r)[eq] for r in lead_results}
+    names = list(cols)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            n0, na = X.shape[1], cols[a].shape[1]
+            out += confounded_pairs(np.hstack([X, cols[a], cols[b]]),
+                                    {a: np.arange(n0, n0 + na), b: np.arange(n0 + na, n0 + na + cols[b].shape[1])})
+    seen, unique = set(), []
+    for d in sorted(out, key=lambda d: -abs(d["correlation"])):
+        key = frozenset(d["terms"])
+        if key not in seen:
+            seen.add(key)
+            unique.append(d)
+    return unique
 
 
 def _outlier_report(campaign, flagged, resid_mm, k, k_with, free, w):
@@ -214,11 +302,16 @@ def _named_columns(ctx, names, c):
     return columns
 
 
-def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None):
-    """Diagnose a campaign (see the module docstring).  ``noise_mm``: the
-    stated 1-sigma noise of one displacement component; ``candidates``: names
-    from the named library (default all); ``dictionary``: search the open
-    dictionary too."""
+def diagnose(robot, campaign, **kw):
+    """Diagnose a campaign (see the module docstring).  ``tool_m``;
+    ``noise_mm``: the stated 1-sigma noise of one displacement component;
+    ``candidates``: names from the named library (default all);
+    ``dictionary``: search the open dictionary too; ``warnings``."""
+    with single_blas_thread():
+        return _diagnose(robot, campaign, **kw)
+
+
+def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None):
     w = warnings if warnings is not None else Warnings(quiet=True)
     tool_m = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
     names = list(candidates or CANDIDATES)
@@ -247,6 +340,8 @@ def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, di
     k = np.array(robot.joint_stiffness_Nm_per_rad, dtype=float)
     k[ctx.free] = 1.0 / fit.c[ctx.free]
     non_physical = [int(j) + 1 for j in ctx.free if fit.c[j] <= 0]
+    if non_physical and not base.non_physical:  # cannot happen: the search keeps the model physical
+        raise AssertionError(f"the search left joint(s) {non_physical} with a negative compliance")
     if base.non_physical and not non_physical:
         w.add(f"the six springs alone give joint(s) {', '.join(map(str, base.non_physical))} a negative compliance; "
               "the final model does not")
@@ -274,11 +369,29 @@ def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, di
               f"{floor.stated_mm:.4f} mm: check the statement")
     structure = residual_structure(ctx, state.resid.reshape(-1, 3), rows)
     unexplained = nf.unexplained_mm(state.rms_mm, floor.sigma_mm)
-    explains, verdict = _verdict({"rms_after": state.rms_mm, "unexplained": unexplained or 0.0}, floor, lof,
+    leads, lead_results = _lead_reports(result)
+    for r in leads:
+        w.add(f"{r['name']} fits the residual (held-out {r['rms_mm']:.4f} mm) but was not added: {r['reason']}")
+    confounded = _confounded(ctx, fit, rows, lead_results + [r for _, r in result.rival_trends], terms_by_name)
+    for chosen, r in result.rival_trends:
+        w.add(f"{chosen} and {r.name} (a trend along the file's order) fit the same residual about as well; the file "
+              "has no seq or t_s column to tell a drift from it")
+    trends = [t.name for t in state.terms if t.trend]
+    explains, verdict = _verdict({"rms_after": state.rms_mm, "unexplained": unexplained or 0.0, "trends": trends,
+                                  "rivals": result.rival_trends},
+                                 floor, lof,
                                  non_physical, [r["name"] for r in discovered], implausible, structure,
-                                 result.n_hypotheses)
+                                 result.n_hypotheses, leads, confounded)
     if non_physical:
         w.add(verdict)
+    floor_check = None
+    if lof is not None and floor.source == "stated" and lof.p_below < ALPHA_FLOOR_ABOVE:
+        floor_check = {"ratio": floor.sigma_mm / state.rms_mm, "p_below": lof.p_below,
+                       "message": f"the held-out RMS {state.rms_mm:.4f} mm is {floor.sigma_mm / state.rms_mm:.1f}x "
+                                  f"below the stated noise floor {floor.sigma_mm:.4f} mm (lower-tail p = "
+                                  f"{lof.p_below:.2g}): the floor is overstated and hides every effect smaller than "
+                                  "it; state the instrument's noise for one displacement component"}
+        w.add(floor_check["message"])
 
     resid_final_mm = (ctx.b - fit.predict()).reshape(-1, 3) * 1e3
     k_with = base_all.stiffness_Nm_per_rad
@@ -294,7 +407,7 @@ def diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, di
         unexplained_mm=unexplained, outliers=outliers, stiffness_with_outliers_Nm_per_rad=k_with, terms=reports,
         discovered=discovered, dropped=result.dropped, residual_structure=structure,
         n_hypotheses=result.n_hypotheses, rows_used=rows, non_physical=non_physical, warnings=list(w),
-        thresholds=thresholds())
+        thresholds=thresholds(), leads=leads, confounded=confounded, floor_check=floor_check)
 
 
 __all__ = ["diagnose", "Diagnosis", "CANDIDATES", "DICTIONARY"]

@@ -34,6 +34,8 @@ The measurement:
   * drift_quadratic      drift that grows with the square of measurement order
 A translation of the measuring frame against the base cancels in loaded-minus-
 unloaded displacements, so it has no term; a constant displacement offset does.
+The loads' history, the force sensor's crosstalk, the load's size, periodic
+drift and trends along the file's order are in dictionary_loads.py.
 
 Every term carries its plausibility check (identification/plausibility.py).
 """
@@ -205,7 +207,10 @@ def _coupling(j, k):
         return stack([ctx.from_dq(dq * np.sqrt(ctx.c_nom[j] * ctx.c_nom[k]))])
 
     def rho(v, info):
-        return float(v[0]) * np.sqrt(info["ctx"].c_nom[j] * info["ctx"].c_nom[k] / (info["c"][j] * info["c"][k]))
+        prod = info["c"][j] * info["c"][k]
+        if prod <= 0:
+            return float("inf")
+        return float(v[0]) * np.sqrt(info["ctx"].c_nom[j] * info["ctx"].c_nom[k] / prod)
 
     def describe(v, info):
         c = float(v[0]) * np.sqrt(info["ctx"].c_nom[j] * info["ctx"].c_nom[k])
@@ -354,6 +359,9 @@ def build_dictionary():
                   "drift growing with the square of measurement order", _drift2, pl.DRIFT_TOTAL_MAX_M, 1e3, "mm",
                   needs=_needs_seq, total=lambda ctx: float(np.ptp(ctx.seq)) ** 2),
     ]
+    from robstiff_drake.identification.dictionary_loads import terms as load_terms
+
+    terms += load_terms()
     return {t.name: t for t in terms}
 
 

@@ -20,6 +20,18 @@ from robstiff_drake.model import kinematics as kin
 # A joint whose (nominal-scaled) regressor column is below this fraction of
 # the largest gets no torque from the campaign's loads: no information at all.
 ZERO_COLUMN_REL = 1e-9
+# A joint whose largest torque is below this fraction of the campaign's
+# largest (any joint) carries none: what is left is round-off (8.7e-14 N*m on
+# joint 6 with the tool on its axis against 1e3 N*m on joint 2), and no term
+# (springs or the diagnosis's dictionary) is built on it.
+TORQUE_REL_MIN = 1e-6
+
+
+def carrying_joints(tau):
+    """(6,) bool: the joints whose largest |torque| (tau (N, 6)) is at least
+    TORQUE_REL_MIN of the campaign's largest."""
+    tmax = np.max(np.abs(tau), axis=0) if len(tau) else np.zeros(6)
+    return tmax > TORQUE_REL_MIN * max(float(tmax.max()), 1e-300)
 # A joint whose column is nearly a combination of the others: variance
 # inflation factor above this (sqrt: its standard error is amplified > 1000x).
 MAX_VIF = 1e6
@@ -191,8 +203,9 @@ def identify(robot, campaign, *, tool_m=None, robust=False, use_rotations=True):
     # from a first fit (two blocks of different units cannot share one sigma).
     weights = (1.0, 1.0)
     colnorm = np.linalg.norm(stacked(weights)[0], axis=0)
+    carries = carrying_joints(np.einsum("nrj,nr->nj", kin.jacobian(robot.dh, q, tool_m), W))
     for j in range(6):
-        if colnorm[j] <= ZERO_COLUMN_REL * colnorm.max():
+        if colnorm[j] <= ZERO_COLUMN_REL * colnorm.max() or not carries[j]:
             identifiable[j] = False
             reasons[j] = "the loads give this joint no torque (force on its axis)"
 

@@ -51,21 +51,21 @@ class Floor:
 
 
 def replicate_sets(campaign, groups, rows):
-    """Lists of row indices (within ``rows``) measured at the same pose under the same load."""
+    """Lists of row indices (within ``rows``) measured at the same pose under
+    the same load: the rows sorted by pose and load, a set being a run of
+    consecutive rows whose load is within LOAD_MATCH_REL of the previous
+    one's (vectorised: linear in the rows after the sort)."""
     W = campaign.wrench
-    sets = []
-    for g in np.unique(groups[rows]):
-        members = [r for r in rows if groups[r] == g]
-        used = set()
-        for i, r in enumerate(members):
-            if r in used:
-                continue
-            scale = max(np.linalg.norm(W[r]), 1e-9)
-            same = [s for s in members[i:] if s not in used and np.linalg.norm(W[s] - W[r]) <= LOAD_MATCH_REL * scale]
-            used.update(same)
-            if len(same) > 1:
-                sets.append(same)
-    return sets
+    rows = np.asarray(rows)
+    g = np.asarray(groups)[rows]
+    Wr = W[rows]
+    order = np.lexsort(tuple(Wr[:, k] for k in range(Wr.shape[1] - 1, -1, -1)) + (g,))
+    rs, gs, Ws = rows[order], g[order], Wr[order]
+    scale = np.maximum(np.linalg.norm(Ws, axis=1), 1e-9)
+    same = np.r_[False, (gs[1:] == gs[:-1]) & (np.linalg.norm(Ws[1:] - Ws[:-1], axis=1) <= LOAD_MATCH_REL * scale[:-1])]
+    starts = np.flatnonzero(~same)
+    sets = [list(block) for block in np.split(rs, starts[1:]) if len(block) > 1]
+    return [sorted(int(r) for r in s) for s in sets]
 
 
 def estimate_floor(campaign, groups, rows, stated_mm=None):
@@ -85,7 +85,8 @@ def estimate_floor(campaign, groups, rows, stated_mm=None):
 
 def cv_map(X, folds, rows):
     """M with e = M y over the equations of ``rows`` (held-out residuals of a
-    linear model with columns X, (3N, p), refitted in each fold)."""
+    linear model with columns X, (3N, p), refitted in each fold).  Dense,
+    (3N)^2: for checking the moments below on small campaigns only."""
     eq_all = rows_to_eq(rows)
     pos = {int(e): i for i, e in enumerate(eq_all)}
     M = np.eye(len(eq_all))
@@ -99,8 +100,9 @@ def cv_map(X, folds, rows):
     return M
 
 
-def _moments(M, groups_rows, rho):
-    """(E, V) of |M eps|^2 for unit-variance noise with correlation rho within a pose."""
+def dense_moments(M, groups_rows, rho):
+    """(E, V) of |M eps|^2 for unit-variance noise with correlation rho
+    within a pose, from the dense map (a check of ``moments``)."""
     if rho == 0:
         B = M @ M.T
     else:
@@ -111,35 +113,127 @@ def _moments(M, groups_rows, rho):
     return float(np.trace(B)), 2.0 * float(np.sum(B * B))
 
 
+def _group_sum(A, g_eq):
+    """Each row of A (n, p) replaced by the sum of the rows of its group (P A)."""
+    _, inv = np.unique(g_eq, return_inverse=True)
+    sums = np.zeros((inv.max() + 1, A.shape[1]))
+    np.add.at(sums, inv, A)
+    return sums[inv], np.bincount(inv)[inv]
+
+
+def moments(X, folds, rows, groups_rows, rho):
+    """(E, V) of Q = |M eps|^2, eps with unit variance and correlation rho
+    between the equations of one pose and component, M the held-out map of
+    the folds (see the module docstring): E = tr(B), V = 2 tr(B^2),
+    B = M S M^T.  Exact, in memory linear in the rows: M = I - U V^T with
+    U_f = E_f X G_f (fold f's test rows), V_f = D_f X (its training rows),
+    G_f = (X^T D_f X)^+, and S = (1 - rho) I + rho P (P sums a pose's
+    equations of one component), so B = S + F Lambda F^T with F = [U, S V]
+    and every trace reduces to p x p Gram matrices of the folds.  The rows
+    of a pose must share a fold when rho > 0 (the folds are grouped)."""
+    eq_all = rows_to_eq(rows)
+    n = len(eq_all)
+    pos = np.full(int(eq_all.max()) + 1, -1)
+    pos[eq_all] = np.arange(n)
+    Xr = X[eq_all]
+    scale = np.linalg.norm(Xr, axis=0)
+    scale[scale == 0] = 1.0
+    Xr = Xr / scale
+    p = Xr.shape[1]
+    g_eq = np.repeat(np.asarray(groups_rows), 3) * 3 + np.tile(np.arange(3), len(rows))
+    Xb, n_g = _group_sum(Xr, g_eq) if rho else (np.zeros_like(Xr), np.ones(n))
+    Y = (1 - rho) * Xr + rho * Xb  # S X
+    SY = (1 - rho) * Y + rho * ((1 - rho) * Xb + rho * n_g[:, None] * Xb)  # S^2 X
+    tests = [pos[rows_to_eq(test)] for _, test in folds]
+    K = len(tests)
+    A = [Xr[t].T @ Xr[t] for t in tests]  # X^T E_f X
+    YX = [Xr[t].T @ Y[t] for t in tests]  # X^T E_f S X
+    YY = [Y[t].T @ Y[t] for t in tests]  # X^T S E_f S X
+    SYX = [SY[t].T @ Xr[t] for t in tests]  # X^T S^2 E_f X
+    A_all, YY_all = sum(A), sum(YY)
+    covered = np.zeros(n, dtype=bool)
+    for t in tests:
+        covered[t] = True
+    if not covered.all():
+        raise ValueError("the folds' test rows must cover the rows")
+    G = [np.linalg.pinv(A_all - A[f]) for f in range(K)]
+    # V_f^T S V_g = X^T D_f S D_g X and W_f^T W_g = X^T S D_f D_g S X (S, E_h commute: P is block-diagonal by fold)
+    YX_all = sum(YX)
+
+    def outside(total, parts, f, g):
+        return total - parts[f] - (parts[g] if g != f else 0)
+
+    kp = K * p
+    UU, UW, WW, C = (np.zeros((kp, kp)) for _ in range(4))
+    USU, WSU = np.zeros((kp, kp)), np.zeros((kp, kp))
+    for f in range(K):
+        sf = slice(f * p, (f + 1) * p)
+        UU[sf, sf] = G[f] @ A[f] @ G[f]
+        USU[sf, sf] = G[f] @ YX[f] @ G[f]
+        for g in range(K):
+            sg = slice(g * p, (g + 1) * p)
+            C[sf, sg] = outside(YX_all, YX, f, g)
+            WW[sf, sg] = outside(YY_all, YY, f, g)
+            if f != g:
+                UW[sf, sg] = G[f] @ YX[f].T  # U_f^T W_g = G_f X^T E_f S X (E_f D_g = E_f)
+                WSU[sg, sf] = SYX[f] @ G[f]  # W_g^T S U_f = X^T S^2 E_f X G_f
+    tr_S = float(n)
+    sizes = np.bincount(np.unique(g_eq, return_inverse=True)[1]) if rho else np.ones(n)
+    tr_S2 = (1 - rho**2) * n + rho**2 * float(np.sum(sizes**2))
+    E = tr_S - 2 * np.trace(UW) + np.trace(C @ UU)
+    tr_SL = -2 * np.trace(WSU) + np.trace(C @ USU)
+    Gam = np.block([[UU, UW], [UW.T, WW]])
+    Lam = np.block([[C, -np.eye(kp)], [-np.eye(kp), np.zeros((kp, kp))]])
+    LG = Lam @ Gam
+    tr_L2 = float(np.sum(LG * LG.T))
+    return float(E), 2.0 * float(tr_S2 + 2 * tr_SL + tr_L2)
+
+
+def _groups_within_folds(folds, rows, groups_rows):
+    fold_of = {}
+    where = {int(r): i for i, r in enumerate(rows)}
+    for f, (_, test) in enumerate(folds):
+        for r in test:
+            g = groups_rows[where[int(r)]]
+            if fold_of.setdefault(g, f) != f:
+                return False
+    return True
+
+
 @dataclass
 class LackOfFit:
     p_value: float
     statistic: float  # Q / E: 1 when the held-out error is at the floor
     dof: float  # Satterthwaite degrees of freedom
     test: str
+    p_below: float = 1.0  # lower tail: the held-out error significantly BELOW the floor (an overstated floor)
 
 
 def lack_of_fit(resid_eq_m, X, folds, rows, groups, floor):
     """Test the held-out residuals (3N,) m against the floor (see module docstring)."""
     eq = rows_to_eq(rows)
     Q = float(resid_eq_m[eq] @ resid_eq_m[eq])
-    M = cv_map(X, folds, rows)
     g_rows = np.asarray(groups)[rows]
-    rhos = [0.0] + ([SHARED_REFERENCE_CORRELATION] if len(np.unique(g_rows)) < len(g_rows) else [])
-    best = None
+    shared = len(np.unique(g_rows)) < len(g_rows) and _groups_within_folds(folds, rows, g_rows)
+    rhos = [0.0] + ([SHARED_REFERENCE_CORRELATION] if shared else [])
+    best, p_below = None, 0.0
     sigma2 = (floor.sigma_mm * 1e-3) ** 2
     for rho in rhos:
-        E, V = _moments(M, g_rows, rho)
+        E, V = moments(X, folds, rows, g_rows, rho)
         g, h = V / (2 * E), 2 * E * E / V
         if floor.source == "replicates":
             F = (Q / (g * h)) / sigma2
             p = float(stats.f.sf(F, h, 3 * floor.replicate_dof))
+            low = float(stats.f.cdf(F, h, 3 * floor.replicate_dof))
             res = LackOfFit(p, Q / (E * sigma2), h, f"F({h:.0f}, {3 * floor.replicate_dof}) against the replicates")
         else:
             p = float(stats.chi2.sf(Q / sigma2 / g, h))
+            low = float(stats.chi2.cdf(Q / sigma2 / g, h))
             res = LackOfFit(p, Q / (E * sigma2), h, f"scaled chi-square, {h:.0f} degrees of freedom")
+        p_below = max(p_below, low)
         if best is None or res.p_value > best.p_value:
             best = res
+    best.p_below = p_below
     return best
 
 

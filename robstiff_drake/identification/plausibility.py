@@ -107,3 +107,20 @@ def compliance_ratio(c0, dc):
     ok = hi / lo <= COMPLIANCE_RATIO_MAX
     return ok, (f"compliance varies {hi / lo:.2f}x over the campaign ({'within' if ok else 'beyond'} the "
                 f"{COMPLIANCE_RATIO_MAX:g}x of reducer torsion curves)")
+
+
+def check_term(term, values, half_width, info):
+    """(ok, reason) of a term's fitted size (SI ``values``): its own check
+    (``term.plausible``) at the estimate; a size beyond the physical range
+    whose 95 % interval still reaches the range (each parameter moved toward
+    zero by its ``half_width``) is not called implausible."""
+    if term.plausible is None:
+        return True, ""
+    v = np.asarray(values, dtype=float)
+    ok, why = term.plausible(v, info)
+    if ok:
+        return ok, why
+    smallest = np.sign(v) * np.maximum(np.abs(v) - np.asarray(half_width, dtype=float), 0.0)
+    if term.plausible(smallest, info)[0]:
+        return True, why + ", but its 95 % interval reaches the physical range"
+    return False, why

@@ -60,11 +60,29 @@ def variables(ctx, rows):
     if ctx.seq is not None:
         x = _scaled(ctx.seq[rows])
         out["measurement order"] = np.column_stack([x, x**2])
-    g = ctx.groups[rows]
-    uniq = np.unique(g)
-    if 1 < len(uniq) < len(rows):
-        out["pose"] = (g[:, None] == uniq[None, 1:]).astype(float)
     return out
+
+
+def _explained_by_groups(resid, g):
+    """(adjusted R^2, RMS of the fitted part) of resid (N, 3) on one indicator
+    per group (the groups' means), without forming the (N, groups) basis."""
+    n = len(resid)
+    _, inv = np.unique(g, return_inverse=True)
+    k = inv.max()  # groups - 1 (the intercept takes one)
+    if k < 1 or n - k - 1 <= 0:
+        return 0.0, 0.0
+    sums = np.zeros((k + 1, 3))
+    np.add.at(sums, inv, resid)
+    means = sums / np.bincount(inv)[:, None]
+    fitted = means[inv]
+    centred = resid - resid.mean(axis=0)
+    ss_tot = float(np.sum(centred**2))
+    if ss_tot == 0:
+        return 0.0, 0.0
+    ss_res = float(np.sum((resid - fitted) ** 2))
+    adj = 1 - (ss_res / (n - k - 1)) / (ss_tot / (n - 1))
+    part = fitted - resid.mean(axis=0)
+    return max(float(adj), 0.0), float(np.sqrt(np.mean(part**2)))
 
 
 def residual_structure(ctx, resid_rows_m, rows):
@@ -74,4 +92,8 @@ def residual_structure(ctx, resid_rows_m, rows):
     for name, B in variables(ctx, rows).items():
         adj, rms = _explained(r, B)
         out.append({"variable": name, "strength": adj, "rms_mm": rms})
+    g = ctx.groups[rows]
+    if 1 < len(np.unique(g)) < len(rows):
+        adj, rms = _explained_by_groups(r, g)
+        out.append({"variable": "pose", "strength": adj, "rms_mm": rms})
     return sorted(out, key=lambda d: -d["strength"])

@@ -22,14 +22,26 @@ NAMED_PREFERENCE.  A candidate whose columns the campaign cannot separate
 from the model's (rank) is "not identifiable" and never selected; one that
 needs a column the file lacks, or more parameters than the data support, is
 skipped, with the reason.
+
+The model stays physical and plausible: a candidate that fits but needs a
+size beyond its physical range (identification/plausibility.py; its 95 %
+interval does not reach the range), or that drives a joint's compliance
+negative that was positive, is not added: it is kept as a *lead* (what the
+residual looks like, at a size the physics does not allow), reported with
+the reason.  The backward check never drops a term whose removal would make
+a compliance negative.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import special
 
-from robstiff_drake.identification.cross_validation import clustered_wald, rows_to_eq
+from scipy import stats
+
+from robstiff_drake.identification import plausibility as pl
+from robstiff_drake.identification.confounding import correlation, design_covariance
+from robstiff_drake.identification.cross_validation import clustered_cov, clustered_wald, rows_to_eq, wald_p
 from robstiff_drake.identification.terms import GAUSS_NEWTON, GRID, fit_model, held_out, rms_mm, term_columns
 from robstiff_drake.progress import progress
 
@@ -57,6 +69,12 @@ class CandidateResult:
     params: dict = field(default_factory=dict)  # "name (unit)" -> value, fitted on all rows
     values: np.ndarray = None  # SI
     grid: float = None
+    physical: bool = None  # the fit with it keeps every positive compliance positive (None: not checked)
+    plausible: bool = None  # its size is within the physical range (None: not checked)
+    plausibility: str = ""
+    negative_joints: list = field(default_factory=list)  # 1-based joints it drives negative
+    all_positive: bool = None  # with it every free joint's compliance is positive
+    correlations: dict = field(default_factory=dict)  # joint or term -> correlation of the estimates, fitted together
 
 
 class Projection:
@@ -178,25 +196,67 @@ def evaluate(ctx, rows, folds, gidx, state, t, gain_needed):
             if best is None or sse < best[0]:
                 best = (sse, coef, g, Zf)
         rss1, values, g_best, Zf = best
-    p_grouped = float("nan")
+    p_grouped, checks = float("nan"), {}
     if rms <= gain_needed:
         if t.kind == GAUSS_NEWTON:
-            p_grouped, _, _ = clustered_wald(f.X[eq], ctx.b[eq] - f.offset[eq], geq, f.slices[t.name])
+            X, y, sl = f.X[eq], ctx.b[eq] - f.offset[eq], f.slices[t.name]
         else:
-            X = np.hstack([state.full.X, Zf])
-            p_grouped, _, _ = clustered_wald(X[eq], ctx.b[eq] - state.full.offset[eq], geq, slice(p0, p0 + pe))
+            X = np.hstack([state.full.X, Zf])[eq]
+            y, sl = ctx.b[eq] - state.full.offset[eq], slice(p0, p0 + pe)
+        coef, cov, G, _ = clustered_cov(X, y, geq)
+        p_grouped = wald_p(coef, cov, sl, G)
+        checks = physical_and_plausible(ctx, t, state, coef, cov, G, sl, g_best)
+        checks["correlations"] = _correlations(ctx, state, X, sl)
     df2 = n_eq - p0 - pe
     F = ((state.rss - rss1) / pe) / (rss1 / df2) if rss1 > 0 else np.inf
     p = float(special.fdtrc(pe, df2, F)) if np.isfinite(F) else 0.0
     dbic = n_eq * np.log(rss1 / state.rss) + pe * np.log(n_eq) if state.rss > 0 and rss1 > 0 else float("nan")
     params = {lab: float(v * s) for lab, (_, _, s), v in zip(_label(t), t.params, values)}
     return CandidateResult(t.name, t.source, "ok", "", rms, float(F), p, float(dbic), p_grouped, params,
-                           np.asarray(values), g_best)
+                           np.asarray(values), g_best, **checks)
+
+
+def _correlations(ctx, state, X, sl):
+    """Correlation of the candidate's estimates (columns ``sl`` of X) with
+    each free joint's compliance and each term of the current model."""
+    cov = design_covariance(X)
+    idx = np.arange(sl.start, sl.stop)
+    out = {f"stiffness_j{j + 1}": correlation(cov, idx, [i]) for i, j in enumerate(ctx.free)}
+    for name, s in state.full.slices.items():
+        out[name] = correlation(cov, idx, np.arange(s.start, s.stop))
+    return out
+
+
+def physical_and_plausible(ctx, t, state, coef, cov, G, sl, g=None):
+    """Does the fit with term t keep the model physical (no compliance that
+    was positive turns negative) and is t's size plausible (its 95 %
+    interval reaching the range is enough)?  Returns CandidateResult fields."""
+    nf = len(ctx.free)
+    c = ctx.c_from(coef[:nf])
+    negative = [int(j) + 1 for j in ctx.free if c[j] <= 0 < state.full.c[j]]
+    half = np.zeros(len(coef)) if cov is None else \
+        stats.t.ppf(0.975, max(G - 1, 1)) * np.sqrt(np.maximum(np.diag(cov), 0.0))
+    ok, why = pl.check_term(t, coef[sl], half[sl], {"ctx": ctx, "c": c, "g": g})
+    if negative:
+        why = (f"with it the compliance of joint(s) {', '.join(map(str, negative))} turns negative (non-physical)"
+               + (f"; {why}" if why else ""))
+    return {"physical": not negative, "plausible": bool(ok), "plausibility": why, "negative_joints": negative,
+            "all_positive": bool(np.all(c[ctx.free] > 0))}
+
+
+def _fits(r, current_rms, m):
+    """The candidate's fit earns a place (held-out gain and clustered test)."""
+    return (r.status == "ok" and r.rms_mm <= (1 - MIN_GAIN[r.source]) * current_rms
+            and r.p_grouped < ALPHA_ROUND / max(m, 1))
 
 
 def _qualifies(r, current_rms, m):
-    return (r.status == "ok" and r.rms_mm <= (1 - MIN_GAIN[r.source]) * current_rms
-            and r.p_grouped < ALPHA_ROUND / max(m, 1))
+    return _fits(r, current_rms, m) and r.physical is not False and r.plausible is not False
+
+
+def leads(r, current_rms, m):
+    """A candidate that fits but is not physical or not plausible."""
+    return _fits(r, current_rms, m) and (r.physical is False or r.plausible is False)
 
 
 def _choose(qualified):
@@ -209,6 +269,32 @@ def _choose(qualified):
     return best_dic
 
 
+def implausible_terms(ctx, state, rows, geq):
+    """{name: reason} of the model's terms whose size at the full fit is
+    beyond the physical range (their 95 % interval not reaching it)."""
+    eq = rows_to_eq(rows)
+    f = state.full
+    coef, cov, G, _ = clustered_cov(f.X[eq], ctx.b[eq] - f.offset[eq], geq)
+    half = np.zeros(len(coef)) if cov is None else \
+        stats.t.ppf(0.975, max(G - 1, 1)) * np.sqrt(np.maximum(np.diag(cov), 0.0))
+    out = {}
+    for t in state.terms:
+        sl = f.slices[t.name]
+        ok, why = pl.check_term(t, f.values[t.name], half[sl], {"ctx": ctx, "c": f.c, "g": f.grid.get(t.name)})
+        if not ok:
+            out[t.name] = why
+    return out
+
+
+def _dropped_lead(rounds, name, why):
+    """(round, result) of a term added in an earlier round and dropped as implausible at the final fit."""
+    for i, rnd in enumerate(rounds):
+        for r in rnd:
+            if r.name == name:
+                return i, replace(r, plausible=False, plausibility=why + " (at the final fit; dropped)")
+    raise KeyError(name)
+
+
 @dataclass
 class SearchResult:
     state: State
@@ -218,19 +304,18 @@ class SearchResult:
     added: list  # [(name, held-out RMS before, after)]
     dropped: list  # names dropped by the backward check
     rms_without_mm: dict  # kept term -> held-out RMS of the final model without it
+    leads: list = field(default_factory=list)  # [(round index, CandidateResult)]: fits, but not physical/plausible
+    rival_trends: list = field(default_factory=list)  # [(term chosen, trend CandidateResult fitting as well)]
 
 
-def search(ctx, rows, folds, terms_by_name, groups):
-    """Forward selection over ``terms_by_name`` (library and dictionary), then
-    the backward check; ``groups`` (N,): the units of the clustered tests."""
-    gidx = np.unique(np.asarray(groups)[rows], return_inverse=True)[1]
-    state = model_state(ctx, [], rows, folds, gidx)
-    rms_before = state.rms_mm
-    rounds, added, dropped, n_tried = [], [], [], 0
+def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found, rivals):
+    """Forward steps from ``state`` until no candidate qualifies; returns the
+    state and the number of hypotheses tested."""
+    n_tried = 0
     while len(state.terms) < MAX_TERMS:
         names = {t.name for t in state.terms}
         n_lib = sum(t.source == "library" for t in state.terms)
-        pool = [t for t in terms_by_name.values() if t.name not in names
+        pool = [t for t in terms_by_name.values() if t.name not in names and t.name not in banned
                 and (t.source != "library" or n_lib < MAX_LIBRARY)]
         if not pool:
             break
@@ -244,30 +329,73 @@ def search(ctx, rows, folds, terms_by_name, groups):
         rounds.append(results)
         m = sum(r.status == "ok" for r in results)
         n_tried += m
-        best = _choose([r for r in results if _qualifies(r, state.rms_mm, m)])
+        found += [(len(rounds) - 1, r) for r in results if leads(r, state.rms_mm, m)]
+        qualified = [r for r in results if _qualifies(r, state.rms_mm, m)]
+        best = _choose(qualified)
         if best is None:
             break
+        # a trend along the file's order that fits about as well as the cause chosen: the data cannot tell them
+        # apart (the file has no measurement order); said with the verdict
+        rivals += [(best.name, r) for r in qualified if terms_by_name[r.name].trend and r.name != best.name
+                   and r.rms_mm <= (1 + NAMED_PREFERENCE) * best.rms_mm]
         new = model_state(ctx, state.terms + [terms_by_name[best.name]], rows, folds, gidx)
         added.append((best.name, state.rms_mm, new.rms_mm))
         state = new
-    without = {}
-    while len(state.terms) > 1:
+    return state, n_tried
+
+
+def _backward(ctx, rows, folds, gidx, state, rounds, dropped, found):
+    """The backward check (module docstring).  Returns (state, {kept term:
+    held-out RMS without it}, names dropped as implausible)."""
+    geq = np.repeat(gidx, 3)
+    eq = rows_to_eq(rows)
+    gone = []
+    while state.terms:
         trial = {}
-        geq = np.repeat(gidx, 3)
-        eq = rows_to_eq(rows)
         for t in state.terms:
             s = model_state(ctx, [u for u in state.terms if u is not t], rows, folds, gidx)
             p, _, _ = clustered_wald(state.full.X[eq], ctx.b[eq] - state.full.offset[eq], geq,
                                      state.full.slices[t.name])
             trial[t.name] = (s, p, 1 - state.rms_mm / s.rms_mm)
-        weak = [(gain, name) for name, (s, p, gain) in trial.items()
-                if p > ALPHA_ROUND / len(state.terms) or gain < MIN_KEEP_GAIN]
+        implausible = implausible_terms(ctx, state, rows, geq)
+        n = len(state.terms)
+        weak = [(name not in implausible, gain, name) for name, (s, p, gain) in trial.items()
+                if (name in implausible or (n > 1 and (p > ALPHA_ROUND / n or gain < MIN_KEEP_GAIN)))
+                and not any(s.full.c[j] <= 0 < state.full.c[j] for j in ctx.free)]
         if not weak:
-            without = {name: s.rms_mm for name, (s, _, _) in trial.items()}
-            break
-        name = min(weak)[1]
+            return state, {name: s.rms_mm for name, (s, _, _) in trial.items()}, gone
+        name = min(weak)[2]
         dropped.append(name)
+        if name in implausible:
+            found.append(_dropped_lead(rounds, name, implausible[name]))
+            gone.append(name)
         state = trial[name][0]
+    return state, {}, gone
+
+
+MAX_RESTARTS = 3  # forward searches resumed after the backward check dropped an implausible term
+
+
+def search(ctx, rows, folds, terms_by_name, groups):
+    """Forward selection over ``terms_by_name`` (library and dictionary), then
+    the backward check; when that drops a term as implausible at the final
+    fit, the forward search resumes without it.  ``groups`` (N,): the units
+    of the clustered tests."""
+    gidx = np.unique(np.asarray(groups)[rows], return_inverse=True)[1]
+    state = model_state(ctx, [], rows, folds, gidx)
+    rms_before = state.rms_mm
+    rounds, added, dropped, found, banned, n_tried, rivals = [], [], [], [], set(), 0, []
+    for _ in range(MAX_RESTARTS + 1):
+        state, n = _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found, rivals)
+        n_tried += n
+        state, without, gone = _backward(ctx, rows, folds, gidx, state, rounds, dropped, found)
+        if not gone:
+            break
+        banned |= set(gone)
     if len(state.terms) == 1:
         without = {state.terms[0].name: rms_before}
-    return SearchResult(state, rms_before, rounds, n_tried, added, dropped, without)
+    kept = {t.name for t in state.terms}
+    dropped = [n for n in dict.fromkeys(dropped) if n not in kept]
+    return SearchResult(state, rms_before, rounds, n_tried, added, dropped, without,
+                        [(i, r) for i, r in found if r.name not in kept],
+                        [(c, r) for c, r in rivals if c in kept and r.name not in kept])

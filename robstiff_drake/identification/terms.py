@@ -26,7 +26,7 @@ from typing import Callable
 import numpy as np
 
 from robstiff_drake.identification.cross_validation import pose_groups, rows_to_eq
-from robstiff_drake.identification.joint_stiffness import regressor
+from robstiff_drake.identification.joint_stiffness import carrying_joints, regressor
 from robstiff_drake.model import kinematics as kin
 
 LINEAR, GRID, BILINEAR, GAUSS_NEWTON = "linear", "grid", "bilinear", "gauss-newton"
@@ -59,6 +59,7 @@ class Term:
     describe: Callable = None
     plausible: Callable = None
     needs: Callable = None
+    trend: bool = False  # a trend along the file's order (no seq/t_s): reported as unexplained, never as a cause
 
 
 class Context:
@@ -74,11 +75,14 @@ class Context:
         self.J = kin.jacobian(robot.dh, self.q, self.tool)
         self.Jv, self.Jw = self.J[:, :3, :], self.J[:, 3:, :]
         self.tau = np.einsum("nrj,nr->nj", self.J, self.W)
+        self.tau[:, ~carrying_joints(self.tau)] = 0.0  # round-off torques carry nothing (no term is built on them)
         self.c_nom = 1.0 / np.asarray(robot.joint_stiffness_Nm_per_rad, dtype=float)
         self.frames = kin.frames(robot.dh, self.q)
         self.p_tool = self.frames[:, 6, :3, 3] + self.frames[:, 6, :3, :3] @ self.tool
         self.groups = pose_groups(campaign)
         self.seq = None if campaign.seq is None else np.asarray(campaign.seq, dtype=float)
+        t_s = getattr(campaign, "t_s", None)
+        self.t_s = None if t_s is None else np.asarray(t_s, dtype=float)
         A_d, _ = regressor(robot.dh, self.q, self.W, self.tool)
         A = (A_d * self.c_nom).reshape(-1, 6)
         self.identifiable = np.asarray(identifiable, dtype=bool)

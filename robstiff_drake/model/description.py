@@ -46,6 +46,17 @@ def _rot_x(a):
     return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
 
 
+def _rot_y(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _beta(dh, i):
+    """Hayati's tilt of standard link i (0 when the chain has none)."""
+    beta = getattr(dh, "beta_rad", None)
+    return 0.0 if beta is None else float(beta[i])
+
+
 def _rot_z(a):
     c, s = np.cos(a), np.sin(a)
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
@@ -109,7 +120,7 @@ def make_urdf(robot):
             xyz, R = base[:3, 3], base[:3, :3] @ _rot_z(dh.home_rad[0])
         else:
             xyz = np.array([dh.a_m[i - 1], 0.0, dh.d_m[i - 1]])
-            R = _rot_x(dh.alpha_rad[i - 1]) @ _rot_z(dh.home_rad[i])
+            R = _rot_x(dh.alpha_rad[i - 1]) @ _rot_y(_beta(dh, i - 1)) @ _rot_z(dh.home_rad[i])
         lo, hi = lower[i], upper[i]
         out.append(
             f'  <joint name="joint_{i + 1}" type="revolute">\n'
@@ -131,7 +142,7 @@ def make_urdf(robot):
         '  <joint name="flange_fixed" type="fixed">\n'
         f'    <parent link="{names[6]}"/>\n'
         '    <child link="flange"/>\n'
-        f"    {_origin(xyz, _rot_x(dh.alpha_rad[5]))}\n"
+        f"    {_origin(xyz, _rot_x(dh.alpha_rad[5]) @ _rot_y(_beta(dh, 5)))}\n"
         "  </joint>\n"
     )
     pl = robot.payload

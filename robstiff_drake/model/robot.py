@@ -46,13 +46,17 @@ NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*")  # robot and link names (file nam
 class DH:
     """The canonical chain: a fixed base transform (4x4, m; None: identity)
     then six standard-DH links, link i = Rz(theta_i) Tz(d_i) Tx(a_i)
-    Rx(alpha_i) with theta_i = q_i + home_i (q: the model's joint angles)."""
+    Rx(alpha_i) [Ry(beta_i)] with theta_i = q_i + home_i (q: the model's
+    joint angles)."""
 
     d_m: np.ndarray
     a_m: np.ndarray
     alpha_rad: np.ndarray
     home_rad: np.ndarray
     base: np.ndarray | None = None
+    # Hayati's tilt: link i = Rz Tz Tx Rx(alpha_i) Ry(beta_i), for nearly
+    # parallel consecutive axes (a calibrated arm); None: all zero
+    beta_rad: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -270,25 +274,38 @@ def _rot_x(a):
     return np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]])
 
 
+def _rot_y(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1.0, 0], [-s, 0, c]])
+
+
 def _dh(values, convention):
     """The canonical chain (DH) of the file's kinematic table."""
     d = values["dh.d_mm"] / 1000.0
     a = values["dh.a_mm"] / 1000.0
     alpha = np.deg2rad(values["dh.alpha_deg"])
     home = np.deg2rad(values["dh.home_deg"])
+    # optional: Hayati's tilt about y after each row's x-twist (a calibrated
+    # arm's nearly parallel axes; `robstiff diagnose --write-robot` writes it)
+    beta_deg = values.get("dh.beta_deg")
+    beta = np.deg2rad(beta_deg) if beta_deg is not None and np.any(beta_deg) else None
     if convention == "standard_dh":
-        return DH(d_m=d, a_m=a, alpha_rad=alpha, home_rad=home)
+        return DH(d_m=d, a_m=a, alpha_rad=alpha, home_rad=home, beta_rad=beta)
     # Modified (Craig) DH: link i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i),
     # rows i = 1..6 list (alpha_{i-1}, a_{i-1}, d_i, theta offset_i).  Regrouped,
     # the chain is Rx(alpha_0) Tx(a_0) (a fixed base transform), then standard
     # links i = 1..5 with (d_i, a_i, alpha_i) taken from rows i and i+1, and a
-    # last link with d_6 only (Tx and Rx commute: both act along x).
+    # last link with d_6 only (Tx and Rx commute: both act along x).  A row's
+    # beta_deg is Ry(beta_i) after its Rx(alpha_{i-1}) Tx(a_{i-1}), before Rz:
+    # row 1's joins the base transform, row i+1's ends standard link i.
     base = None
-    if a[0] != 0.0 or alpha[0] != 0.0:
+    b = np.zeros(N_JOINTS) if beta is None else beta
+    if a[0] != 0.0 or alpha[0] != 0.0 or b[0] != 0.0:
         base = np.eye(4)
-        base[:3, :3] = _rot_x(alpha[0])
+        base[:3, :3] = _rot_x(alpha[0]) @ _rot_y(b[0])
         base[0, 3] = a[0]
-    return DH(d_m=d, a_m=np.r_[a[1:], 0.0], alpha_rad=np.r_[alpha[1:], 0.0], home_rad=home, base=base)
+    return DH(d_m=d, a_m=np.r_[a[1:], 0.0], alpha_rad=np.r_[alpha[1:], 0.0], home_rad=home, base=base,
+              beta_rad=None if not np.any(b[1:]) else np.r_[b[1:], 0.0])
 
 
 def _joint_map(values):

@@ -78,6 +78,10 @@ KEYS = {
     "dh.a_mm": Key("vector", length=N_JOINTS, names=JOINTS, **LENGTH),
     "dh.alpha_deg": Key("vector", **ANGLE),
     "dh.home_deg": Key("vector", **ANGLE),
+    # Hayati's tilt between nearly parallel axes (a calibrated arm, written by
+    # `diagnose --write-robot`): a small correction; larger angles belong in alpha_deg
+    "dh.beta_deg": Key("vector", "deg", -5.0, 5.0, N_JOINTS, required=False, names=JOINTS,
+                       why="a small tilt between nearly parallel axes; larger angles belong in alpha_deg"),
     "controller": Key("section", required=False),
     "controller.sign": Key("vector", "", -1.0, 1.0, N_JOINTS, required=False, names=JOINTS,
                            why="each sign must be +1 or -1"),

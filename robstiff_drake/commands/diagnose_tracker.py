@@ -1,0 +1,134 @@
+"""``robstiff diagnose`` (and ``identify``) on an absolute-position campaign
+(a laser tracker's: q1..q6 and x, y, z): the accuracy before and after,
+the effects found, the corrected robot file (``--write-robot``) and the
+test on a second file (``--validate``).  See
+identification/tracker_diagnosis.py."""
+
+import numpy as np
+
+from robstiff_drake.errors import InputError
+from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
+from robstiff_drake.identification.tracker_diagnosis import diagnose_tracker
+from robstiff_drake.io import RunFolder, Warnings, emit_json, write_atomic
+
+
+def _g(v, fmt=".4f"):
+    return "-" if v is None else format(v, fmt)
+
+
+def format_report(rep, markdown=False):
+    h = "## " if markdown else ""
+    e = rep["error_3d_mm"]
+    lines = [f"# Tracker campaign diagnosis of {rep['data']}" if markdown else f"diagnosis of {rep['data']} "
+             "(absolute positions)", "",
+             f"{rep['n_measurements']} measured poses" + (f" ({len(rep['outliers'])} gross outlier row(s) left out)"
+                                                          if rep["outliers"] else "")
+             + f"; 3D error held out ({e['held_out']}):",
+             "                                       mean        rms        max   (mm)"]
+    rows = [("declared (the robot file's arm)", e["before"]), ("final model (the effects below)", e["after"])]
+    if e["after_with_residual_map"] is not None:
+        kept = rep["residual_map"]["kept"]
+        rows.append(("+ joint-space map" + ("" if kept else " (not kept)"), e["after_with_residual_map"]))
+    for name, s in rows:
+        lines.append(f"  {name:34s} {s['mean']:9.4f}  {s['rms']:9.4f}  {s['max']:9.4f}")
+    f = rep["noise_floor_mm"]
+    lines += [f"held-out RMS per component: {rep['rms_before_mm']:.4f} -> {rep['rms_after_mm']:.4f} mm; noise floor: "
+              + ("none stated or measured" if f is None else f"{f:.4f} mm ({rep['noise_source']})"), "",
+              f"{h}verdict" if markdown else "verdict:", rep["verdict"], ""]
+    reg = rep["registration"]
+    lines += ["registration (instrument = rotation @ base + translation): translation "
+              + ", ".join(f"{v:.3f}" for v in reg["translation_mm"]) + " mm, roll/pitch/yaw "
+              + ", ".join(f"{v:.4f}" for v in reg["rpy_deg"]) + " deg",
+              "measured point on the flange (tool): " + ", ".join(f"{v:.3f}" for v in rep["tool_mm"]) + " mm"
+              + (" (the file's guess: " + ", ".join(f"{v:.3f}" for v in rep["tool_guess_mm"]) + ")"), "",
+              "effects found: " + (", ".join(rep["selected_effects"]) or "none")]
+    for t in rep["effects"]:
+        lines.append(f"  {t['name']}: {t['description']}")
+        lines.append(f"    {'plausible' if t['plausible'] else 'IMPLAUSIBLE'}: {t['plausibility']}"
+                     + ("; a trend, not a cause" if t["kind"] == "trend" else ""))
+    if rep["leads"]:
+        lines.append("fit the residual but not added (not physical or not plausible):")
+        lines += [f"  {r['name']} (held-out {r['rms_mm']:.4f} mm): {r['plausibility']}" for r in rep["leads"]]
+    if rep["dropped"]:
+        lines.append("dropped by the backward check: " + ", ".join(rep["dropped"]))
+    lines.append("confounded (correlation of the estimates; |r| >= 0.8): " + ("none" if not rep["confounded"] else
+                 ", ".join(f"{c['terms'][0]} / {c['terms'][1]} {c['correlation']:+.2f}" for c in rep["confounded"])))
+    lines.append("geometry identifiable: " + ", ".join(rep["identifiable_geometry"]))
+    lines.append("not identifiable (the registration, the measured point or the others take them): "
+                 + (", ".join(rep["not_identifiable_geometry"]) or "none"))
+    if rep["not_tried"]:
+        lines.append("not tried: " + "; ".join(f"{s['name']} ({s['reason']})" for s in rep["not_tried"]))
+    if rep["residual_map"] is not None:
+        rm = rep["residual_map"]
+        lines.append(f"joint-space residual map: {'kept' if rm['kept'] else 'not kept'} ({rm['rule']}); per fold mean "
+                     + ", ".join(f"{p['without']:.4f}->{p['with']:.4f}" for p in rm["per_fold_mean_mm"]) + " mm")
+    lines.append("joint stiffness (N*m/rad): " + ", ".join(f"{k:.4g}" for k in rep["joint_stiffness_Nm_per_rad"]))
+    if rep["outliers"]:
+        lines.append("outlier rows: " + ", ".join(f"line {o['line']} ({o['residual_mm']:.3f} mm)"
+                                                  for o in rep["outliers"][:20]))
+    v = rep["validation"]
+    if v is not None:
+        ve, vr = v["error_3d_mm"], v["error_3d_mm_reregistered"]
+        lines += ["", f"validation on {v['data']} ({v['n_measurements']} poses), 3D error mean / rms / max (mm):",
+                  f"  robot file's arm, same registration  {ve['before']['mean']:.4f} / {ve['before']['rms']:.4f} / "
+                  f"{ve['before']['max']:.4f}",
+                  f"  fitted model, same registration      {ve['after']['mean']:.4f} / {ve['after']['rms']:.4f} / "
+                  f"{ve['after']['max']:.4f}",
+                  f"  fitted model, registration refitted  {vr['after']['mean']:.4f} / {vr['after']['rms']:.4f} / "
+                  f"{vr['after']['max']:.4f}  (nominal: {vr['before']['mean']:.4f} / {vr['before']['rms']:.4f} / "
+                  f"{vr['before']['max']:.4f})"]
+    return "\n".join(lines)
+
+
+def plots(d, folder):
+    """The 3D error before/after along each joint angle, and its distribution."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    P, fit = d.problem, d.fit
+    rows = np.arange(P.n)
+    e_after = np.linalg.norm(P.m - P.predict(fit, rows), axis=1) * 1e3
+    fig, axes = plt.subplots(2, 3, figsize=(12, 6.5), constrained_layout=True)
+    for j, ax in enumerate(axes.ravel()):
+        ax.plot(np.rad2deg(P.q_ctrl[:, j]), e_after, ".", ms=2)
+        ax.set_xlabel(f"q{j + 1} (deg)")
+        ax.set_ylabel("3D error, final model (mm)")
+    fig.suptitle("what the final model leaves, against each joint angle (all rows, fitted)")
+    folder.save_figure("error_vs_joint_angles.png", fig, dpi=90)
+    return ["error_vs_joint_angles.png"]
+
+
+def run(*, data, tool_m, noise_mm, robot, json_out=None, report=None, plots_dir=None, validate=None,
+        write_robot=None, warnings=None):
+    w = warnings if warnings is not None else Warnings()
+    campaign = read_tracker_campaign(data, robot)
+    other = read_tracker_campaign(validate, robot) if validate is not None else None
+    d = diagnose_tracker(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=w, validation=other)
+    rep = d.report
+    if write_robot is not None:
+        from robstiff_drake.identification.robot_writer import write_corrected_robot
+
+        err = write_corrected_robot(write_robot, robot, d.fit, rep, data, d.problem.q)
+        rep["corrected_robot"] = {"path": str(write_robot), "fk_check_mm": err * 1e3}
+    rep["warnings"] = list(w)
+    if json_out is not None:
+        emit_json(rep, json_out)
+    if report is not None:
+        write_atomic(report, format_report(rep, markdown=True) + "\n")
+    if plots_dir is not None:
+        with RunFolder(plots_dir) as folder:
+            plots(d, folder)
+    if json_out != "-":
+        print(format_report(rep))
+        if write_robot is not None:
+            print(f"corrected robot file written to {write_robot} (its forward kinematics reproduce the fitted model "
+                  f"to {rep['corrected_robot']['fk_check_mm']:.2g} mm)")
+    return 0
+
+
+def check_tracker_options(tracker, validate, write_robot):
+    if not tracker and (validate is not None or write_robot is not None):
+        raise InputError("--validate and --write-robot are for absolute-position campaigns (q1..q6 and x, y, z; a "
+                         "laser tracker's); this file is a stiffness campaign (dx, dy, dz)")

@@ -1,0 +1,188 @@
+"""The search of identification/tracker_diagnosis.py: forward steps and
+the backward check over the effects' blocks on linearised pose-grouped
+folds (tracker_fit.LinearCV), the held-out refits by Gauss-Newton and the
+joint-space residual map nested in the folds.  Plain numpy + scipy.
+"""
+
+import numpy as np
+from scipy import stats
+
+from robstiff_drake.identification import residual_map as rmap
+from robstiff_drake.identification.cross_validation import wald_p
+from robstiff_drake.identification.tracker_fit import LinearCV
+from robstiff_drake.identification.tracker_model import GEOM
+
+# An effect must lower the held-out RMS by this much (thousands of rows make a
+# 2 % gain certain; the Wald test and the held-out folds guard against overfitting)
+MIN_GAIN = 0.02
+MIN_KEEP_GAIN = 0.01
+ALPHA = 0.01
+
+
+def _checks(b, values, half, problem, ev_info):
+    ok, why = b.plausible(values, ev_info)
+    if not ok:
+        smallest = np.sign(values) * np.maximum(np.abs(values) - half, 0.0)
+        if b.plausible(smallest, ev_info)[0]:
+            ok, why = True, why + ", but its 95 % interval reaches the physical range"
+    physical = True
+    if b.name == "joint_compliance":
+        physical = bool(np.all(values > 0))
+    return ok, why, physical
+
+
+MAX_RESTARTS = 3
+
+
+def _search(cv, base_cols, cands, info, pbar, kept_init=()):
+    """Forward selection, then the backward check, over the candidate blocks.
+    Forward steps judge a block by its fit only (held-out gain, clustered
+    Wald test): before the arm's geometry is in, the sag or a transmission
+    error absorbs part of the geometry's residual and would look
+    non-physical; the backward check then drops whatever no longer earns its
+    place or is implausible or non-physical at the model's final fit, and
+    the forward search resumes without the implausible ones (they are
+    leads).  Returns (kept, rounds, leads, dropped, declared RMS, final RMS
+    (m, linearised), {name: columns})."""
+    cols_of = {}
+    i = len(base_cols)
+    for b, Z in cands:
+        cols_of[b.name] = np.arange(i, i + Z.shape[1])
+        i += Z.shape[1]
+    by_name = {b.name: b for b, _ in cands}
+    kept, rounds, leads, dropped, banned = list(kept_init), [], {}, [], set()
+
+    def cols(names):
+        return np.concatenate([base_cols] + [cols_of[n] for n in names])
+
+    def judge(names, name):
+        c = cols(names)
+        coef, cov, G = cv.fit(c)
+        pos = np.arange(len(c) - len(cols_of[name]), len(c))  # the block's columns come last
+        b = by_name[name]
+        p = wald_p(coef, cov, pos, G)  # is it different from the declared model's value?
+        half = stats.t.ppf(0.975, max(G - 1, 1)) * np.sqrt(np.maximum(np.diag(cov)[pos], 0))
+        ok, why, physical = _checks(b, b.start + coef[pos], half, None, info)
+        if not physical:
+            why = (why + "; " if why else "") + "non-physical (a negative compliance)"
+        return p, ok and physical, why
+
+    current = cv.heldout_rms(cols(kept))
+    rms_declared = current
+    for _ in range(MAX_RESTARTS + 1):
+        while True:
+            pool = [b.name for b, _ in cands if b.name not in kept and b.name not in banned]
+            if not pool:
+                break
+            results = []
+            for name in pool:
+                rms = cv.heldout_rms(cols(kept + [name]))
+                r = {"name": name, "rms_mm": rms * 1e3, "p_grouped": None}
+                if rms <= (1 - MIN_GAIN) * current:
+                    r["p_grouped"] = judge(kept + [name], name)[0]
+                results.append(r)
+            rounds.append(results)
+            if pbar is not None:
+                pbar.update(1)
+            fits = [r for r in results if r["p_grouped"] is not None and r["p_grouped"] < ALPHA / len(results)]
+            if not fits:
+                break
+            best = min(fits, key=lambda r: r["rms_mm"])
+            kept.append(best["name"])
+            current = best["rms_mm"] / 1e3
+        gone = []
+        while kept:
+            weak = []
+            for name in kept:
+                rest = [n for n in kept if n != name]
+                gain = 1 - current / cv.heldout_rms(cols(rest))
+                p, ok, why = judge(rest + [name], name)
+                if not ok:
+                    weak.append((0, -gain, name, why))
+                elif gain < MIN_KEEP_GAIN or p > ALPHA / len(kept):
+                    weak.append((1, gain, name, None))
+            if not weak:
+                break
+            _, _, name, why = min(weak)
+            kept.remove(name)
+            dropped.append(name)
+            if why is not None:  # implausible or non-physical at the final fit: a lead, not tried again
+                gone.append(name)
+                leads[name] = {"name": name, "rms_mm": current * 1e3, "plausibility": why, "round": len(rounds)}
+            current = cv.heldout_rms(cols(kept))
+        if not gone:
+            break
+        banned |= set(gone)
+    for name in list(leads):  # a lead's own fit with the final model, for the report
+        if name in kept:
+            leads.pop(name)
+            continue
+        leads[name]["rms_mm"] = cv.heldout_rms(cols(kept + [name])) * 1e3
+        leads[name]["plausibility"] = judge(kept + [name], name)[2] or leads[name]["plausibility"]
+    # a lead matters only if it fits better than the final model
+    out = [leads[n] for n in leads if leads[n]["rms_mm"] < current * 1e3]
+    dropped = [n for n in dict.fromkeys(dropped) if n not in kept]
+    return kept, rounds, sorted(out, key=lambda r: r["rms_mm"]), dropped, rms_declared, current, cols_of
+
+
+def _values(fit, blocks):
+    """{block: its parameters' values in ``fit``}."""
+    out = {}
+    for b in blocks:
+        out[b.name] = (np.array([fit.geo[k, GEOM.index(kind)] for k, kind in b.geo]) if b.frame == "geometry"
+                       else fit.coef[b.name])
+    return out
+
+
+def _linearised(problem, fit, cands, rows, tests, groups):
+    """The search's LinearCV at ``fit``: the registration's and measured
+    point's columns, then every candidate's (kept ones at their values)."""
+    every = [b for b, _ in cands]
+    fit_all = fit.copy()
+    for b in every:
+        if b.frame != "geometry" and b.name not in fit_all.coef:
+            fit_all.coef[b.name] = np.full(len(b.params), b.start)
+    fit_all.blocks = list(fit.blocks)
+    X, sl, ev = problem.columns(fit_all, every, rows)
+    r = (problem.m[rows] - problem.predict(fit, rows)).reshape(-1)
+    # the kept blocks' parameters counted from the declared model's values, as in the first pass: the
+    # target is the residual plus what they contribute, linearised here, so any subset of blocks can be fitted
+    for name, v in _values(fit, fit.blocks).items():
+        b = next(x for x in every if x.name == name)
+        r = r + X[:, sl[name]] @ (v - b.start)
+    order = [np.arange(9)] + [np.arange(sl[b.name].start, sl[b.name].stop) for b in every]
+    cv = LinearCV(X[:, np.concatenate(order)], r, tests, np.repeat(groups[rows], 3))
+    return cv, {"ev": ev, "c_nom": problem.c_nom}
+
+
+def _heldout(problem, fit_all, blocks, folds, pbar=None):
+    """Held-out residuals (N, 3) m (rows outside the folds' tests: NaN) by
+    Gauss-Newton in each fold from the all-rows fit, and the fold fits."""
+    e = np.full((problem.n, 3), np.nan)
+    fits = []
+    for train, test in folds:
+        f = problem.gauss_newton(fit_all, blocks, train, iterations=4)
+        e[test] = problem.m[test] - problem.predict(f, test)
+        fits.append(f)
+        if pbar is not None:
+            pbar.update(1)
+    return e, fits
+
+
+def _residual_map(problem, fits, folds, e_after):
+    """Held-out residuals with the non-parametric map (nested), per-fold
+    means without/with it, and whether it generalises."""
+    e_map = e_after.copy()
+    per_fold = []
+    for f, (train, test) in zip(fits, folds):
+        train = train[rmap.subsample(len(train), rmap.MAX_ROWS)]
+        ev_tr, _ = problem.evaluate(f, train)
+        r_train = (problem.m[train] - problem.predict(f, train, ev_tr)) @ f.R  # base frame
+        pick = rmap.subsample(len(train), rmap.CHOOSE_ROWS)
+        H, ridge = rmap.choose(problem.q_ctrl[train][pick], ev_tr.Jv[pick], r_train[pick])
+        mp = rmap.ResidualMap(H, ridge).fit(problem.q_ctrl[train], ev_tr.Jv, r_train)
+        ev_te, _ = problem.evaluate(f, test)
+        e_map[test] = e_after[test] - mp.predict(problem.q_ctrl[test], ev_te.Jv) @ f.R.T
+        per_fold.append((float(np.mean(np.linalg.norm(e_after[test], axis=1))),
+                         float(np.mean(np.linalg.norm(e_map[test], axis=1)))))
+    return e_map, per_fold

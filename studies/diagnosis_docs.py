@@ -1,0 +1,118 @@
+"""Regenerates the examples of docs/diagnosis.md from the commands they
+show: each block between ``<!-- generated: NAME -->`` and ``<!-- end NAME
+-->`` is replaced by the output of the commands written above it (run here
+in a temporary folder, so the paths printed are the ones a user types), and
+docs/diagnosis_example/ (the worked example's campaign, report and plots)
+is written again.  With ``--studies`` it also runs
+studies/diagnosis_confusion.py (30 campaigns per row, about half an hour),
+studies/tracker_campaigns.py and the two benchmarks, and replaces the
+``confusion``, ``tracker_study`` and ``speed`` blocks (``--confusion FILE``
+takes the confusion study's output from a file instead of running it).  The FANUC example needs the real data
+(tests/realdata.py; ROBSTIFF_REALDATA): without it that block is left as it
+was and the script says so.
+
+Run: python3 studies/diagnosis_docs.py [--studies [--confusion FILE]]
+"""
+
+import argparse
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "diagnosis.md"
+EXAMPLE = ROOT / "docs" / "diagnosis_example"
+sys.path.insert(0, str(ROOT / "tests"))
+
+
+def sh(cmd, cwd, env=None):
+    """Run a shell line; its stdout (and, for a failure, an error)."""
+    proc = subprocess.run(cmd, shell=True, cwd=cwd, capture_output=True, text=True, env=env)
+    if proc.returncode != 0:
+        raise SystemExit(f"{cmd}: exit {proc.returncode}\n{proc.stderr[-2000:]}")
+    return proc.stdout
+
+
+def block(lines, name):
+    return f"<!-- generated: {name} -->\n```\n{lines.rstrip()}\n```\n<!-- end {name} -->"
+
+
+def replace(text, name, body):
+    pat = re.compile(rf"<!-- generated: {re.escape(name)} -->.*?<!-- end {re.escape(name)} -->", re.S)
+    if not pat.search(text):
+        raise SystemExit(f"docs/diagnosis.md: no block '{name}'")
+    return pat.sub(lambda m: body, text)
+
+
+def worked_example(tmp):
+    """The worked example: synth, diagnose with plots and report; copied to docs/diagnosis_example/."""
+    out = sh("robstiff synth stiffness campaign.csv --effect lost_motion=0.03 --seed 5", tmp)
+    out += sh("robstiff diagnose campaign.csv --noise-mm 0.01 --plots plots --report report.md 2>/dev/null", tmp)
+    if EXAMPLE.exists():
+        shutil.rmtree(EXAMPLE)
+    EXAMPLE.mkdir()
+    shutil.copy(Path(tmp) / "campaign.csv", EXAMPLE / "campaign.csv")
+    shutil.copy(Path(tmp) / "report.md", EXAMPLE / "report.md")
+    shutil.copytree(Path(tmp) / "plots", EXAMPLE / "plots", ignore=shutil.ignore_patterns("RUN_ID"))
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--studies", action="store_true", help="also run the studies and benchmarks (slow)")
+    ap.add_argument("--confusion", metavar="FILE", help="with --studies: diagnosis_confusion.py's output, already run")
+    args = ap.parse_args()
+    text = DOC.read_text(encoding="utf-8")
+    env = dict(os.environ, PYTHONPATH=str(ROOT / "tests") + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    with tempfile.TemporaryDirectory() as tmp:
+        text = replace(text, "worked", block(worked_example(tmp), "worked"))
+        sh(f"python3 {ROOT}/tests/open_world.py hysteresis 5 hyst.csv", tmp, env)
+        text = replace(text, "open_world", block(sh("robstiff diagnose hyst.csv --noise-mm 0.01 2>/dev/null", tmp),
+                                                 "open_world"))
+        sh("robstiff synth stiffness quiet.csv --seed 5", tmp)
+        out = sh("robstiff diagnose quiet.csv --noise-mm 0.1 --json - 2>/dev/null", tmp)
+        import json
+
+        res = json.loads(out)
+        text = replace(text, "floor", block(f"verdict: {res['verdict']}\nfloor_check: {json.dumps(res['floor_check'])}",
+                                            "floor"))
+        sh(f"python3 {ROOT}/tests/tracker_world.py irb6400 7 3000 tracker.csv", tmp, env)
+        text = replace(text, "tracker", block(sh("robstiff diagnose tracker.csv --noise-mm 0.03 --write-robot "
+                                                  "irb6400_corrected.yaml 2>/dev/null", tmp), "tracker"))
+        import realdata
+
+        reason = realdata.missing(realdata.FANUC)
+        if reason:
+            print(f"FANUC example left as it was: {reason}")
+        else:
+            sh(f"python3 {ROOT}/tests/realdata.py fanuc fanuc.csv", tmp, env)
+            out = sh("robstiff diagnose fanuc.csv --robot r2000ic_165f --noise-mm 0.03 2>/dev/null", tmp)
+            res = json.loads(sh("robstiff diagnose fanuc.csv --robot r2000ic_165f --noise-mm 0.03 --json - "
+                                "2>/dev/null", tmp))
+            a, b = res["confounded"][0]["terms"] if res["confounded"] else ("tool_offset", "stiffness_j3")
+            out += "\n$ robstiff plan-poses 24 --robot r2000ic_165f --separate " \
+                   f"{a},{b} --campaign fanuc.csv --noise-mm 0.03\n"
+            plan = sh(f"robstiff plan-poses 24 --robot r2000ic_165f --separate {a},{b} --campaign fanuc.csv "
+                      "--noise-mm 0.03", tmp)
+            out += "\n".join(plan.splitlines()[:12]) + "\n  ..."
+            text = replace(text, "fanuc", block(out, "fanuc"))
+    if args.studies:
+        out = Path(args.confusion).read_text() if args.confusion else \
+            sh(f"python3 {ROOT}/studies/diagnosis_confusion.py 2>/dev/null", ROOT)
+        text = replace(text, "confusion", "<!-- generated: confusion -->\n" + out.strip() + "\n<!-- end confusion -->")
+        out = sh(f"python3 {ROOT}/studies/tracker_campaigns.py --rows 2000 --seeds 2 2>/dev/null", ROOT)
+        text = replace(text, "tracker_study", "<!-- generated: tracker_study -->\n" + out.strip()
+                       + "\n<!-- end tracker_study -->")
+        out = "$ python3 benchmarks/bench_diagnosis.py\n" + sh(f"python3 {ROOT}/benchmarks/bench_diagnosis.py || true", ROOT)
+        out += "\n$ python3 benchmarks/bench_tracker.py\n" + sh(f"python3 {ROOT}/benchmarks/bench_tracker.py || true", ROOT)
+        text = replace(text, "speed", block(out, "speed"))
+    DOC.write_text(text, encoding="utf-8")
+    print(f"wrote {DOC} and {EXAMPLE}")
+
+
+if __name__ == "__main__":
+    main()

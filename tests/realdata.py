@@ -1,0 +1,65 @@
+"""Where the real third-party measurements are (``../shared/realdata`` next
+to the repository, or $ROBSTIFF_REALDATA), and the FANUC R-2000iC campaign
+in this project's campaign format.  Tests skip, and studies stop, with a
+printed reason when the folder is absent; nothing here copies the data into
+the repository (the converted campaign goes to a folder the caller gives).
+"""
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+ENV = "ROBSTIFF_REALDATA"
+FANUC = "fanuc_r2000ic"
+# The source's tool point (flange frame, m -> mm), from its README
+FANUC_TOOL_MM = (6.9, 245.3, 319.3)
+FANUC_ROBOT = "r2000ic_165f"
+
+
+def realdata_dir():
+    """The realdata folder: $ROBSTIFF_REALDATA, else <repo root>/../shared/realdata."""
+    if os.environ.get(ENV):
+        return Path(os.environ[ENV])
+    return Path(__file__).resolve().parents[1].parent / "shared" / "realdata"
+
+
+def missing(name):
+    """None when the data set ``name`` is there, else the reason it is not."""
+    folder = realdata_dir() / name
+    if not folder.is_dir():
+        return f"real data {name} not found at {folder} (set {ENV} to the realdata folder)"
+    return None
+
+
+def fanuc_campaign_csv(out_path):
+    """Write the FANUC campaign as a stiffness campaign (q1..q6 in FANUC's
+    degrees, forces N, displacements mm, base frame; one pose per row; no
+    seq column: the source does not give the measurement order) with the
+    source's tool point in its '# tool_mm:' line.  Returns the path."""
+    folder = realdata_dir() / FANUC
+    q = np.loadtxt(folder / "joint_angles.csv", delimiter=",", skiprows=1)  # rad, FANUC's J1..J6
+    f = np.loadtxt(folder / "forces.csv", delimiter=",", skiprows=1)  # N, base frame
+    d = np.loadtxt(folder / "deltaX.csv", delimiter=",", skiprows=1)  # m, base frame
+    lines = [f"# FANUC R-2000iC campaign of {folder} (MIT; see its README), converted by tests/realdata.py",
+             "# tool_mm: " + ", ".join(f"{v:g}" for v in FANUC_TOOL_MM),
+             "pose,q1,q2,q3,q4,q5,q6,fx,fy,fz,dx,dy,dz"]
+    for i in range(len(q)):
+        lines.append(",".join([f"P{i + 1:02d}"] + [f"{v:.10g}" for v in np.rad2deg(q[i])]
+                              + [f"{v:.10g}" for v in f[i]] + [f"{v:.10g}" for v in d[i] * 1e3]))
+    out_path = Path(out_path)
+    out_path.write_text("\n".join(lines) + "\n")
+    return out_path
+
+
+if __name__ == "__main__":  # python3 tests/realdata.py fanuc OUT.csv: the FANUC campaign in this project's format
+    import sys
+
+    if len(sys.argv) != 3 or sys.argv[1] != "fanuc":
+        sys.exit("usage: python3 tests/realdata.py fanuc OUT.csv")
+    reason = missing(FANUC)
+    if reason:
+        sys.exit(reason)
+    if Path(sys.argv[2]).exists():
+        sys.exit(f"{sys.argv[2]}: exists; not overwritten")
+    print(f"wrote {fanuc_campaign_csv(sys.argv[2])}")

@@ -1,0 +1,263 @@
+"""Absolute-position (laser tracker) campaigns made by Drake's perturbed
+plant (tests/tracker_world.py): traced to the effects planted, the error
+cut to the noise, the corrected robot file, validation, and bad input."""
+
+import ast
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tracker_world as tw
+
+from robstiff_drake.commands.main import main
+from robstiff_drake.identification.robot_writer import write_corrected_robot
+from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
+from robstiff_drake.identification.tracker_diagnosis import diagnose_tracker
+from robstiff_drake.identification.tracker_model import gravity, perturbed_dh
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.robot import load_robot
+from robstiff_drake.plant import JOINT_NAMES, make_robot_plant
+
+UR10 = Path(__file__).resolve().parent / "data" / "ur10_user.yaml"
+NOISE = 0.03
+# mean length of a 3D Gaussian error of NOISE per component: 2 sqrt(2/pi) sigma
+MEAN3D = 2 * np.sqrt(2 / np.pi) * NOISE
+
+
+def _write(tmp_path, world, name="c.csv"):
+    path = tmp_path / name
+    path.write_text(world.csv_text)
+    return path
+
+
+def _diagnose(capsys, argv):
+    code = main(["diagnose"] + [str(a) for a in argv] + ["--json", "-"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    return json.loads(out)
+
+
+def test_the_generator_shares_no_code_with_the_diagnosis():
+    tree = ast.parse(Path(tw.__file__).read_text())
+    imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    forbidden = {f"robstiff_drake.identification.{m}" for m in
+                 ("tracker_model", "tracker_fit", "tracker_terms", "tracker_diagnosis", "registration")}
+    assert not imported & (forbidden | {"robstiff_drake.model.kinematics"}), imported
+    assert "pydrake.multibody.plant" in imported
+
+
+@pytest.mark.parametrize("name", ["irb6400", "r2000ic_165f", "kr240_r2900", str(UR10)])
+def test_gravity_torques_are_drakes(name):
+    robot = load_robot(name)
+    plant, _ = make_robot_plant(robot)
+    ctx = plant.CreateDefaultContext()
+    idx = [plant.GetJointByName(n).position_start() for n in JOINT_NAMES]
+    q = np.random.default_rng(3).uniform(-1.5, 1.5, size=(6, 6))
+    tau, _ = gravity(robot, kin.frames(robot.dh, q), q)
+    for i in range(len(q)):
+        x = np.zeros(plant.num_positions())
+        x[idx] = q[i]
+        plant.SetPositions(ctx, x)
+        np.testing.assert_allclose(tau[i], plant.CalcGravityGeneralizedForces(ctx)[idx], atol=1e-9 * np.abs(tau).max())
+
+
+def test_hayati_tilt_in_kinematics_and_urdf(tmp_path):
+    # beta in the numpy chain and in the URDF Drake parses agree (standard and modified DH)
+    for name in ("irb6400", "r2000ic_165f"):
+        robot = load_robot(name)
+        delta = np.zeros((6, 5))
+        delta[1, 4], delta[2, 4] = 0.01, -0.02
+        from dataclasses import replace
+        bent = replace(robot, dh=perturbed_dh(robot.dh, delta), name=name + "_bent")
+        plant, _ = make_robot_plant(bent)
+        ctx = plant.CreateDefaultContext()
+        idx = [plant.GetJointByName(n).position_start() for n in JOINT_NAMES]
+        for q in np.random.default_rng(4).uniform(-1, 1, size=(4, 6)):
+            x = np.zeros(plant.num_positions())
+            x[idx] = q
+            plant.SetPositions(ctx, x)
+            p = plant.CalcPointsPositions(ctx, plant.GetFrameByName("flange"), np.zeros((3, 1)),
+                                          plant.world_frame())[:, 0]
+            np.testing.assert_allclose(p, kin.tool_position(bent.dh, q), atol=1e-12)
+
+
+@pytest.mark.parametrize("name, seed", [("irb6400", 11), (str(UR10), 12)])
+def test_campaign_traced_and_cut_to_the_noise(capsys, tmp_path, name, seed):
+    robot = load_robot(name)
+    world = tw.make_tracker_campaign(robot, seed, n=700, noise_mm=NOISE)
+    data = _write(tmp_path, world)
+    rep = _diagnose(capsys, [data, "--robot", name, "--noise-mm", NOISE])
+    e = rep["error_3d_mm"]
+    assert e["before"]["mean"] > 0.5, e  # registration and the nominal arm leave the geometry and the sag
+    assert e["after"]["mean"] <= 1.2 * MEAN3D, e
+    for effect in ("joint_offsets", "link_lengths", "link_twists", "joint_compliance", "time_drift"):
+        assert effect in rep["selected_effects"], (effect, rep["selected_effects"])
+    assert rep["explains_data"] is True, rep["verdict"]
+    # the measured point within 2 mm of the true one (d6 and the point's z are one parameter: the rank test says so)
+    assert np.linalg.norm(np.array(rep["tool_mm"]) - world.true["tool_mm"]) < 2.0
+    assert "d6" in rep["not_identifiable_geometry"]
+    # the sag's stiffness of the main axes within 15 % of the plant's
+    k_true = world.true["k_Nm_per_rad"]
+    for j in (1, 2):
+        assert rep["joint_stiffness_Nm_per_rad"][j] == pytest.approx(k_true[j], rel=0.15)
+    assert set(rep["registration"]) >= {"rotation", "translation_mm"}
+    assert all(set(c) == {"terms", "correlation"} for c in rep["confounded"])
+
+
+def test_corrected_robot_file_reproduces_the_fit(capsys, tmp_path):
+    for name, seed in (("r2000ic_165f", 21), ("kr240_r2900", 22)):  # modified DH and coupled joints; sign flips
+        robot = load_robot(name)
+        world = tw.make_tracker_campaign(robot, seed, n=500, noise_mm=NOISE)
+        data = _write(tmp_path, world, f"{name}.csv")
+        d = diagnose_tracker(robot, read_tracker_campaign(data, robot), noise_mm=NOISE, residual_map=False)
+        out = tmp_path / f"{name}_corrected.yaml"
+        write_corrected_robot(out, robot, d.fit, d.report, str(data), d.problem.q)
+        new = load_robot(str(out))
+        q_ctrl = np.random.default_rng(5).uniform(np.rad2deg(robot.q_lower_rad) * 0.5,
+                                                  np.rad2deg(robot.q_upper_rad) * 0.5, size=(50, 6))
+        want = kin.tool_position(perturbed_dh(robot.dh, d.fit.geo), robot.joint_rad(q_ctrl), d.fit.u)
+        got = kin.tool_position(new.dh, new.joint_rad(q_ctrl), new.payload.tool_point_m)
+        assert np.max(np.abs(got - want)) < 1e-9
+        assert "held-out" in out.read_text().lower() and str(data) in out.read_text()
+        # every command takes it like any robot file
+        assert main(["fk", *map(str, q_ctrl[0]), "--robot", str(out), "--json", "-"]) == 0
+        fk = json.loads(capsys.readouterr().out)
+        np.testing.assert_allclose(np.array(fk["position_mm"]) / 1e3,
+                                   kin.tool_position(new.dh, new.joint_rad(q_ctrl[0])), atol=1e-9)
+        # and the corrected arm, its stiffness included, leaves nothing of the geometry and the sag to find
+        d2 = diagnose_tracker(new, read_tracker_campaign(data, new), noise_mm=NOISE, residual_map=False)
+        assert not {"joint_offsets", "link_lengths", "link_twists", "joint_compliance"} & \
+            set(d2.report["selected_effects"]), d2.report["selected_effects"]
+        assert d2.report["error_3d_mm"]["before"]["mean"] < 0.1 * d.report["error_3d_mm"]["before"]["mean"]
+
+
+def test_validation_file(capsys, tmp_path):
+    robot = load_robot("irb6400")
+    a = _write(tmp_path, tw.make_tracker_campaign(robot, 31, n=500, noise_mm=NOISE), "a.csv")
+    b = _write(tmp_path, tw.make_tracker_campaign(robot, 31, n=200, noise_mm=NOISE, pose_seed=1), "b.csv")
+    rep = _diagnose(capsys, [a, "--noise-mm", NOISE, "--validate", b])
+    v = rep["validation"]
+    assert v["data"] == str(b) and v["n_measurements"] == 200
+    assert v["error_3d_mm_reregistered"]["after"]["mean"] < 2 * MEAN3D
+    assert v["error_3d_mm"]["after"]["mean"] < 0.2 * v["error_3d_mm"]["before"]["mean"]
+
+
+def test_a_tracker_export_reads_as_the_plain_file(tmp_path):
+    robot = load_robot("irb6400")
+    plain = _write(tmp_path, tw.make_tracker_campaign(robot, 41, n=60), "plain.csv")
+    export = _write(tmp_path, tw.make_tracker_campaign(robot, 41, n=60, extra_columns=True), "export.csv")
+    a, b = read_tracker_campaign(plain, robot), read_tracker_campaign(export, robot)
+    np.testing.assert_allclose(a.q_deg, b.q_deg, atol=1e-6)
+    np.testing.assert_allclose(a.pos, b.pos, atol=1e-5)
+    np.testing.assert_allclose(a.t_s, b.t_s, atol=0.06)
+    assert b.units["x"] == "mm" and b.pos_unit_mm == 1.0
+
+
+def _variant(tmp_path, text, name, fn):
+    lines = text.splitlines()
+    head = next(i for i, l in enumerate(lines) if not l.startswith("#"))
+    out = lines[:head + 1] + [fn(l) for l in lines[head + 1:]]
+    path = tmp_path / name
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+def _scale_xyz(factor):
+    def fn(line):
+        c = line.split(",")
+        c[6:9] = [f"{float(v) * factor:.9g}" for v in c[6:9]]
+        return ",".join(c)
+    return fn
+
+
+@pytest.mark.parametrize("factor, word", [(1e-3, "metres"), (1 / 25.4, "inches")])
+def test_positions_in_other_units_are_refused(capsys, tmp_path, factor, word):
+    world = tw.make_tracker_campaign(load_robot("irb6400"), 51, n=40)
+    path = _variant(tmp_path, world.csv_text, "u.csv", _scale_xyz(factor))
+    code = main(["diagnose", str(path)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and word in err, err
+
+
+def test_a_unit_in_the_header_is_converted(capsys, tmp_path):
+    world = tw.make_tracker_campaign(load_robot("irb6400"), 52, n=300)
+    path = _variant(tmp_path, world.csv_text.replace("x,y,z", "x [m],y [m],z [m]"), "m.csv", _scale_xyz(1e-3))
+    rep = _diagnose(capsys, [path, "--noise-mm", NOISE])
+    assert rep["position_unit_mm"] == 1000.0 and rep["error_3d_mm"]["after"]["mean"] < 1.5 * MEAN3D
+    assert any("converted to mm" in w for w in rep["warnings"])
+
+
+def test_frames_that_cannot_be_registered(capsys, tmp_path):
+    robot = load_robot("irb6400")
+    text = tw.make_tracker_campaign(robot, 53, n=40).csv_text
+    lines = text.splitlines()
+    head = next(i for i, l in enumerate(lines) if not l.startswith("#"))
+    few = tmp_path / "few.csv"  # three poses, repeated
+    few.write_text("\n".join(lines[:head + 1] + lines[head + 1:head + 4] * 4) + "\n")
+    line = tmp_path / "line.csv"  # the tool moved along a straight line with a fixed orientation
+    from robstiff_drake.model import ik
+
+    T0 = ik.tool_down_pose(np.array([1.5, -0.3, 0.8]))
+    qs = []
+    for s_ in np.linspace(0, 0.6, 12):
+        T = T0.copy()
+        T[1, 3] += s_
+        qs.append(ik.solve_for(robot, T, np.array([0, 0, 0.2])))
+    pts = kin.tool_position(robot.dh, np.array(qs), np.array([0, 0, 0.2])) * 1e3
+    rows = [",".join(f"{v:.6f}" for v in robot.controller_deg(q)) + "," + ",".join(f"{v:.5f}" for v in p)
+            for q, p in zip(qs, pts)]
+    line.write_text("# tool_mm: 0, 0, 200\nq1,q2,q3,q4,q5,q6,x,y,z\n" + "\n".join(rows) + "\n")
+    for path, word in ((few, "distinct pose"), (line, "one line")):
+        code = main(["diagnose", str(path)])
+        err = capsys.readouterr().err
+        assert code == 2 and len(err.strip().splitlines()) == 1 and word in err, err
+
+
+def test_a_robot_file_for_another_arm_is_refused(capsys, tmp_path):
+    world = tw.make_tracker_campaign(load_robot("irb6400"), 54, n=60)
+    data = _write(tmp_path, world)
+    code = main(["diagnose", str(data), "--robot", str(UR10)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "does not describe this arm" in err, err
+
+
+def test_a_drift_without_clock_is_a_trend_not_a_cause(capsys, tmp_path):
+    robot = load_robot("irb6400")
+    world = tw.make_tracker_campaign(robot, 55, n=600, noise_mm=0.01, clock=False)
+    rep = _diagnose(capsys, [_write(tmp_path, world), "--noise-mm", 0.01])
+    trend = [t for t in rep["effects"] if t["kind"] == "trend"]
+    if np.linalg.norm(world.true["drift_mm"]) > 0.1:
+        assert [t["name"] for t in trend] == ["order_trend"]
+    if trend:
+        assert rep["explains_data"] is not True and "order" in rep["verdict"]
+    assert "time_drift" not in rep["selected_effects"]
+
+
+def test_the_residual_map_only_when_it_generalises(capsys, tmp_path):
+    # a reducer error at the 3rd and 4th harmonic of joints 2 and 3: no named effect holds it, the map does
+    robot = load_robot(str(UR10))
+    world = tw.make_tracker_campaign(robot, 61, n=1500, noise_mm=NOISE, unnamed=1e-4)
+    rep = _diagnose(capsys, [_write(tmp_path, world), "--robot", UR10, "--noise-mm", NOISE])
+    e = rep["error_3d_mm"]
+    assert rep["residual_map"]["kept"] is True, rep["residual_map"]
+    assert e["after_with_residual_map"]["mean"] < 0.75 * e["after"]["mean"], e
+    assert "non-parametric" in rep["verdict"] and rep["explains_data"] is False
+    # without it, the map is tried and not kept
+    world = tw.make_tracker_campaign(robot, 62, n=1500, noise_mm=NOISE)
+    rep = _diagnose(capsys, [_write(tmp_path, world, "b.csv"), "--robot", UR10, "--noise-mm", NOISE])
+    assert rep["residual_map"]["kept"] is False and rep["explains_data"] is True, rep["verdict"]
+
+
+def test_applied_loads_give_every_loaded_joints_stiffness(capsys, tmp_path):
+    # each pose measured unloaded and under 300-700 N: the weight and the loads deflect the same springs; the
+    # loaded diagnosis's terms are tried as blocks and none is taken where the plant has only springs
+    robot = load_robot("irb6400")
+    world = tw.make_tracker_campaign(robot, 71, n=600, noise_mm=NOISE, loads=True)
+    rep = _diagnose(capsys, [_write(tmp_path, world), "--noise-mm", NOISE])
+    assert rep["explains_data"] is True, rep["verdict"]
+    assert "joint_compliance" in rep["selected_effects"]
+    assert not [n for n in rep["selected_effects"] if n.startswith("load:")]
+    tried = {r["name"] for rnd in rep["rounds"] for r in rnd}
+    assert {"load:lost_motion", "load:backlash_j2", "load:force_crosstalk"} <= tried
+    np.testing.assert_allclose(rep["joint_stiffness_Nm_per_rad"][:5], world.true["k_Nm_per_rad"][:5], rtol=0.05)
