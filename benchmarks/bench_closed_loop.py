@@ -24,8 +24,8 @@ from pydrake.systems.primitives import ConstantVectorSource
 
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.milling_cell import build_milling_cell
-from robstiff_drake.diagrams.scenario import load_scenario
-from robstiff_drake.diagrams.station import add_compliant_arm, servo_parameters
+from robstiff_drake.diagrams.scenario import load_scenario, plant_damping_ratios
+from robstiff_drake.diagrams.station import add_compliant_arm, gravity_holding_torque, servo_parameters, set_drives_at_rest
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import DIAGRAMS_DIR
 
@@ -36,14 +36,17 @@ def bare_plant_rtf(sc, robot, q0, t_end):
     builder = DiagramBuilder()
     arm = add_compliant_arm(builder, robot=robot, plant_config=sc.plant_config,
                             joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
-                            damping_ratio=sc.plant.damping_ratio, q_modes_rad=q0, servo=servo_parameters(sc),
+                            damping_ratios=plant_damping_ratios(sc), q_modes_rad=q0, servo=servo_parameters(sc),
                             interpolator_period_s=sc.servo.interpolator_period_ms / 1e3)
     cmd = builder.AddSystem(ConstantVectorSource(q0))
     vel = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
     builder.Connect(cmd.get_output_port(), arm["position_command"])
     builder.Connect(vel.get_output_port(), arm["velocity_command"])
     sim = Simulator(builder.Build())
-    arm["plant"].SetPositions(arm["plant"].GetMyMutableContextFromRoot(sim.get_mutable_context()), q0)
+    root = sim.get_mutable_context()
+    arm["plant"].SetPositions(arm["plant"].GetMyMutableContextFromRoot(root), q0)
+    theta = q0 + gravity_holding_torque(arm["controller_plant"], q0) / robot.joint_stiffness_Nm_per_rad
+    set_drives_at_rest(arm, root, theta, q0)
     sim.Initialize()
     t0 = time.perf_counter()
     sim.AdvanceTo(t_end)

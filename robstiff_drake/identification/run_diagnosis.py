@@ -65,7 +65,7 @@ scans and settings only).
 """
 
 import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import signal
@@ -78,6 +78,7 @@ from robstiff_drake.identification import run_verification as rv
 from robstiff_drake.identification import scan_statistics as ss
 from robstiff_drake.identification.arm_response import SEGMENT_S, STEP_S, delayed
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.joint_dynamics import DEFAULT_MODAL_DAMPING_RATIO
 from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
 from robstiff_drake.model.servo import ServoParameters
 from robstiff_drake.model.transmission import static_deflection, twist
@@ -94,10 +95,11 @@ SMOOTH_MM = 6.0
 SMOOTH_HZ = (2.0, 10.0)
 GRID_EVERY = 5  # the fit's grid: every 5th step of the arm's response (200 Hz; nothing faster is left)
 GRID_HZ = 1.0 / (GRID_EVERY * STEP_S)
-# ASSUMPTION: the arm's first mode has 10 % of critical damping (modal tests of large industrial arms
-# report 5-15 %); a settings file does not state it.  It sets how long the arm rings after the path
-# accelerates (the arm's own motion error), not the size of the ringing's first swing.
-DAMPING_RATIO = 0.10
+# ASSUMPTION, where the logs do not carry the arm's damping (``estimate_damping``): 5 % on every mode
+# (model/joint_dynamics.DEFAULT_MODAL_DAMPING_RATIO gives the source); a settings file does not state it.  It
+# sets how long the arm rings after the path accelerates (the arm's own motion error), not the size of the
+# ringing's first swing.
+DAMPING_RATIO = DEFAULT_MODAL_DAMPING_RATIO
 ALPHA = 1e-3  # per test; about 10 causes are tried per round
 SIZE_FACTOR = 1.0  # a named cause changes the surface by at least this many noise floors (RMS)
 MAX_CAUSES = 2
@@ -212,12 +214,13 @@ def _segments(n, step_s):
     return seg, np.arange(0, n, per)
 
 
-def run_signals(files, robot, arm):
+def run_signals(files, robot, arm, damping_ratio=None):
     """RunSignals from a run's logs and settings.  ``robot``: the DH table;
     ``arm``: the controller's model of the arm (diagrams/run_arm.ArmModel:
     gravity and inertia torques, mass matrix at a pose)."""
     s, jl = files.settings, files.joints
     servo = servo_of(s)
+    damping_ratio = DAMPING_RATIO if damping_ratio is None else damping_ratio
     t_j, q_j, c_j = jl.t_s, robot.joint_rad(jl.q_deg), robot.model_delta_rad(jl.correction_deg)
     cutoff = smoothing_hz(files, robot)
     t, W, rate = _process_wrench(files, robot, cutoff)
@@ -250,16 +253,20 @@ def run_signals(files, robot, arm):
     velocity_terms = _resample(tf, grid, arm.inertia_torques(q_nom, v, np.zeros_like(a)))
     seg, firsts = _segments(len(tf), h)
     per = firsts[1] - firsts[0] if len(firsts) > 1 else len(tf)
-    full, bare, betas, inertia_maps = [], [], np.empty(len(tf)), []
+    full, bare, inertia_maps = [], [], []
+    damping_torque = np.empty_like(g_rate)
     for n0 in firsts:
         i = min(n0 + per // 2, len(tf) - 1)
-        M, G, beta, _, L = arm.dynamics_at(q_arm[i], 1.0 / c, DAMPING_RATIO)
-        full.append(arm_response.arm_matrices(M, 1.0 / c, beta, G, servo, h))
+        # the drives are tuned and the damping set at the first path point, as the station's
+        jm = arm.joints_at(q_arm[i], 1.0 / c, damping_ratio, servo, design_q_rad=q_arm[0])
+        L = arm.payload_map(q_arm[i])
+        full.append(arm_response.arm_matrices(jm, h))
         # the sensor's reading holds the payload's inertia: the load it measures drives the arm without it
-        bare.append(arm_response.arm_matrices(M + J[i].T @ L, 1.0 / c, beta, G, servo, h))
-        betas[n0:n0 + per] = beta
+        bare.append(arm_response.arm_matrices(replace(jm, M=jm.M + J[i].T @ L), h))
+        # the gears' damping of the gravity twist's rate, D d/dt(C g)
+        damping_torque[n0:n0 + per] = (c * g_rate[n0:n0 + per]) @ jm.D.T
         inertia_maps.append(L)
-    motion_torque = betas[:, None] * g_rate - velocity_terms
+    motion_torque = damping_torque - velocity_terms
     motion = arm_response.responses(full, seg, [(motion_torque, None, path)])[..., 0]
     acc = np.gradient(np.gradient(q_arm + motion, h, axis=0), h, axis=0)
     W_cut = W_f - np.einsum("nrj,nj->nr", np.array(inertia_maps)[seg], acc)
@@ -275,7 +282,7 @@ def run_signals(files, robot, arm):
     dz_loop = dz[k, 0] + dz[k, 1] + np.einsum("nj,nj->n", Jg[:, 2, :], believed)
     return RunSignals(grid, q_nom, corr, W_f[k], tau, g, tau_i, g0, Jg[:, 2, :],
                       kin.tool_position(robot.dh, q_nom, tool), c, model_dq, dz[k, 2], dz_loop, servo,
-                      DAMPING_RATIO, cutoff)
+                      damping_ratio, cutoff)
 
 
 def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost_motion_rad, coupling_c23):

@@ -39,7 +39,10 @@ GRAVITY_BASE_M_PER_S2 = np.array([0.0, 0.0, -9.81])  # in the robot base frame
 CONVENTIONS = ("standard_dh", "modified_dh")
 NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*")  # robot and link names (file names, URDF names)
 TOP_KEYS = {"name", "manufacturer", "model", "source", "convention", "dh", "controller", "joint_limits",
-            "joint_stiffness_Nm_per_rad", "links", "payload", "machining_workspace"}
+            "joint_stiffness_Nm_per_rad", "links", "payload", "machining_workspace", "motor_inertia_kgm2"}
+# Reflected rotor inertias (kg*m^2, at the joint: n^2 J_rotor): above 1e4 a value is a unit slip (the
+# largest arms' main axes reflect a few hundred); 0 would leave the motor massless
+MOTOR_INERTIA_RANGE_KGM2 = (1e-3, 1e4)
 
 
 @dataclass(frozen=True)
@@ -168,6 +171,9 @@ class RobotModel:
     citation: str = ""  # where the kinematics come from (the file's `source:`)
     convention: str = "standard_dh"
     joint_map: JointMap = IDENTITY_MAP
+    # the motors' rotor inertias reflected to the joints (n^2 J_rotor, kg*m^2); None: not in the file
+    # (the station then takes the rule of diagrams/station.motor_inertia)
+    motor_inertia_kgm2: np.ndarray | None = None
 
     @property
     def joint_compliance_rad_per_Nm(self):
@@ -433,6 +439,27 @@ def _read_links(r, doc):
     return tuple(links)
 
 
+def _read_motor_inertia(r, doc, text):
+    """The file's ``motor_inertia_kgm2`` (6,), each within
+    MOTOR_INERTIA_RANGE_KGM2; None when the file has none.  An error names
+    the file's line."""
+    key = "motor_inertia_kgm2"
+    if key not in doc:
+        return None
+    m = re.search(rf"^{key}\s*:", text, re.MULTILINE)
+    where = f"{r.path}:{text[:m.start()].count(chr(10)) + 1}" if m else r.path
+    value = doc[key]
+    lo, hi = MOTOR_INERTIA_RANGE_KGM2
+    try:
+        J = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        J = np.full(0, np.nan)
+    if J.shape != (N_JOINTS,) or not np.all(np.isfinite(J)) or np.any((J < lo) | (J > hi)):
+        raise InputError(f"{where}: {key}: expected {N_JOINTS} reflected rotor inertias in [{lo:g}, {hi:g}] kg*m^2, "
+                         f"got {value!r}")
+    return J
+
+
 def _check_not_singular(r, dh):
     """Refuse a chain that cannot place the flange: every length zero, or a
     Jacobian of rank below 6 at every one of a set of fixed configurations."""
@@ -508,6 +535,7 @@ def load_robot(path=None):
         r.fail("joint_stiffness_Nm_per_rad", f"joint {j} stiffness must be > 0")
 
     links = _read_links(r, doc)
+    motor_inertia = _read_motor_inertia(r, doc, text)
 
     pl = r.mapping(doc, "payload")
     r.only_keys(pl, {"mass_kg", "com_mm", "tool_point_mm"}, "payload.")
@@ -548,6 +576,7 @@ def load_robot(path=None):
         citation=r.text(doc, "source", default="-"),
         convention=convention,
         joint_map=joint_map,
+        motor_inertia_kgm2=motor_inertia,
     )
 
 
