@@ -54,8 +54,8 @@ class PlantConfig:
     # Joint stiffness of the plant (N*m/rad); empty: the robot file's nominal.
     joint_stiffness_Nm_per_rad: list[float] = vec([], (0, 6), *STIFFNESS_RANGE_NM_PER_RAD, "N*m/rad")
     # Damping per mode (modal damping, model/joint_dynamics.py): the damping ratio of each mode of the links
-    # on their gears (motors held), lowest frequency first; or one ratio for every mode.  Empty
-    # damping_ratios: modal_damping_ratio for every mode.  ASSUMPTION (default): 5 % (joint_dynamics.py
+    # on their gears (motors held), lowest frequency first; or one ratio for every mode.  damping_ratios,
+    # when not empty, sets every mode (modal_damping_ratio is then not used); empty: modal_damping_ratio.  ASSUMPTION (default): 5 % (joint_dynamics.py
     # gives the source).  The plant step is stable by its size, not by the damping (the run is refused
     # with the step it needs when it is not).
     damping_ratios: list[float] = vec([], (0, 6), 0.0, MAX_DAMPING_RATIO, "",
@@ -432,10 +432,6 @@ def check_scenario(sc):
     if not sc.toolpath.program and len(sc.path.waypoints_mm) < 2:
         _fail(sc, "path.waypoints_mm", f"expected at least 2 waypoints (or a toolpath.program), got "
                                        f"{len(sc.path.waypoints_mm)}")
-    lines = getattr(sc, "_key_lines", {})
-    if ("plant", "damping_ratios") in lines and ("plant", "modal_damping_ratio") in lines:
-        _fail(sc, "plant.damping_ratios", "give plant.damping_ratios (one per mode) or plant.modal_damping_ratio "
-                                          "(every mode), not both")
     if sc.model.joint_stiffness_Nm_per_rad and sc.model.identified_json:
         _fail(sc, "model.identified_json", "give model.joint_stiffness_Nm_per_rad or model.identified_json, not both")
     path = _check_sizes(sc)

@@ -439,6 +439,18 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
             "lost_motion_rad": b, "gear_torque_at_rest": gear_torque_at_rest}
 
 
+# The revolution-averaged cutting force is updated every 4 ms (or every plant step, if longer): it changes
+# with the cutter's engagement over millimetres of feed, and the cutter moves 0.08-0.24 mm per update at
+# 20-60 mm/s (the time-step study, studies/time_step_convergence.py, compares it with an update every
+# plant step).  Tooth-resolved, it is updated every plant step.
+AVERAGED_FORCE_PERIOD_S = 0.004
+
+
+def cutting_force_period_s(mode, plant_step_s):
+    """How often the milling force source updates the cutting load (s)."""
+    return max(plant_step_s, AVERAGED_FORCE_PERIOD_S) if mode == "averaged" else plant_step_s
+
+
 def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad, check_stability=True,
                          name="milling_station"):
     """The station of scenario ``sc`` (see module docstring).  ``path`` (the
@@ -468,7 +480,8 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
     q_link = state_demux.get_output_port(0)
     fk = DeflectionPredictor(robot.dh, k, tool)
     milling = builder.AddNamedSystem("milling_force", MillingForceSource(
-        force_model=force_model, workpiece=workpiece, path=path, kinematics=fk, tool_point_m=tool, period_s=h,
+        force_model=force_model, workpiece=workpiece, path=path, kinematics=fk, tool_point_m=tool,
+        period_s=cutting_force_period_s(sc.cutting.mode, h),
         spindle_body_index=plant.GetBodyByName("spindle").index(), mode=sc.cutting.mode,
         samples_per_tooth=sc.cutting.samples_per_tooth, phase_rad=np.deg2rad(sc.cutting.phase_deg)))
     builder.Connect(q_link, milling.get_input_port())
