@@ -19,6 +19,7 @@ Run: python3 benchmarks/bench_block_costs.py
 """
 
 import copy
+import os
 import importlib
 import pkgutil
 import sys
@@ -35,7 +36,7 @@ from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import DIAGRAMS_DIR
 
-REPEATS = 5
+REPEATS = int(__import__("os").environ.get("REPEATS", 5))
 DECLARATIONS = ("DeclareVectorOutputPort", "DeclareAbstractOutputPort", "DeclarePeriodicDiscreteUpdateEvent",
                 "DeclarePeriodicUnrestrictedUpdateEvent", "DeclarePeriodicPublishEvent",
                 "DeclarePerStepPublishEvent", "DeclareForcedPublishEvent")
@@ -134,6 +135,7 @@ def main():
     timer = CallbackTimer()
     plain_runs = {label: min(one_run(sc, robot)[:2] for _ in range(REPEATS)) for label, sc in cases}
     instrument(timer)  # from here on, new systems are built with timed callbacks
+    print(f"load average {os.getloadavg()[0]:.2f} / {os.getloadavg()[1]:.2f} / {os.getloadavg()[2]:.2f}")
     print(f"closed-loop block pass, compensation on, best of {REPEATS} runs; microseconds per controller tick "
           f"({base.controller.period_ms:g} ms), exclusive time of each Python block:")
     for label, sc in cases:

@@ -1,10 +1,12 @@
 """Benchmark: real-time factor of the closed-loop milling simulation
 (diagrams/block_milling.yaml, the paper's block pass, about 12.5 s
 simulated), beside the bare arm (the station's compliant arm and drives:
-gears, servo, interpolator and the controller's gravity model, no Python
-systems) measured in the same run at the same step.
+links, gears, motors and drives, interpolator and the controller's gravity
+model, no Python systems) measured in the same run at the same step.
 
-Targets: >= 20x real time revolution-averaged, >= 1x tooth-resolved.
+Targets (issue 22): revolution-averaged, >= 20x real time and >= 0.3 of
+the bare station's speed measured in the same run; tooth-resolved, >= 0.12
+of the bare station's.
 Each case runs ``REPEATS`` times; the machine is shared and its speed
 varies from run to run, so the best run is the figure judged (as timeit
 does) and the median is printed beside it.  Prints each figure, the ratio to
@@ -13,6 +15,7 @@ Run: python3 benchmarks/bench_closed_loop.py
 """
 
 import copy
+import os
 import statistics
 import sys
 import time
@@ -59,17 +62,17 @@ def main():
     cases = []
     sc = copy.deepcopy(base)
     cases.append((f"averaged, scenario settings (plant {sc.plant_config.time_step * 1e3:g} ms, sensor "
-                   f"{sc.sensor.rate_hz:g} Hz)", sc, 20.0))
+                   f"{sc.sensor.rate_hz:g} Hz)", sc, (20.0, 0.3)))
     sc = copy.deepcopy(base)
-    sc.plant_config.time_step = 0.002
-    cases.append(("averaged, plant step 2 ms (reference, no target)", sc, None))
+    sc.sensor.rate_hz = 1000.0
+    cases.append(("averaged, sensor 1 kHz (reference, no target)", sc, None))
     sc = copy.deepcopy(base)
     sc.cutting.mode = "tooth"
     sc.plant_config.time_step, sc.sensor.rate_hz = 0.002, 1000.0
-    cases.append(("tooth-resolved (plant 2 ms, sensor 1 kHz, 20 samples/tooth)", sc, 1.0))
+    cases.append(("tooth-resolved (plant 2 ms, sensor 1 kHz, 20 samples/tooth)", sc, (None, 0.12)))
     ok = True
     print(f"closed-loop block pass, compensation on; real-time factor = simulated s / wall s, best and median of "
-          f"{REPEATS} runs:")
+          f"{REPEATS} runs; load average {os.getloadavg()[0]:.2f} at the start:")
     for label, sc, target in cases:
         cell = build_milling_cell(sc, robot, compensation=True)
         runs = [run_cut(sc, robot, compensation=True, cell=cell) for _ in range(REPEATS)]
@@ -78,11 +81,14 @@ def main():
         best = max(rtf)
         verdict = "no target"
         if target is not None:
-            passed = best >= target
+            rtf_min, ratio_min = target
+            passed = (rtf_min is None or best >= rtf_min) and best / bare >= ratio_min
             ok &= passed
-            verdict = f"target >= {target:g}x: {'PASS' if passed else 'FAIL'}"
+            verdict = ("target " + (f">= {rtf_min:g}x and " if rtf_min else "") + f"ratio >= {ratio_min:g}: "
+                       + ("PASS" if passed else "FAIL"))
         print(f"  {label:62s} best {best:5.1f}x  median {statistics.median(rtf):5.1f}x   bare plant {bare:6.1f}x   "
               f"ratio {best / bare:.2f}   {verdict}")
+    print(f"load average {os.getloadavg()[0]:.2f} / {os.getloadavg()[1]:.2f} / {os.getloadavg()[2]:.2f} at the end")
     return 0 if ok else 1
 
 
