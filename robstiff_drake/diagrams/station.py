@@ -483,7 +483,8 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
         force_model=force_model, workpiece=workpiece, path=path, kinematics=fk, tool_point_m=tool,
         period_s=cutting_force_period_s(sc.cutting.mode, h),
         spindle_body_index=plant.GetBodyByName("spindle").index(), mode=sc.cutting.mode,
-        samples_per_tooth=sc.cutting.samples_per_tooth, phase_rad=np.deg2rad(sc.cutting.phase_deg)))
+        samples_per_tooth=sc.cutting.samples_per_tooth, phase_rad=np.deg2rad(sc.cutting.phase_deg),
+        sensor_period_s=1.0 / sc.sensor.rate_hz))
     builder.Connect(q_link, milling.get_input_port())
     builder.Connect(milling.GetOutputPort("spatial_force"), plant.get_applied_spatial_force_input_port())
 
