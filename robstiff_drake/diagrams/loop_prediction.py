@@ -17,12 +17,12 @@ from robstiff_drake.diagrams.scenario import (
     plant_step_s,
     plant_stiffness,
 )
-from robstiff_drake.diagrams.station import (  # noqa: F401  (gravity_stiffness: its old home)
+from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (gravity_stiffness: its old home)
     controller_model,
     gravity_stiffness,
     joint_model,
-    servo_parameters,
 )
+from robstiff_drake.diagrams.station import servo_parameters
 from robstiff_drake.diagrams.sweep import configure
 from robstiff_drake.model import ik, joint_dynamics
 from robstiff_drake.model import kinematics as kin

@@ -4,8 +4,8 @@ arm's weight from the controller's gravity model, and its inertia) and the
 arm's mass matrix, the weight's own stiffness and its modes at a pose.
 
 Everything here comes from the robot file (masses, inertias, payload: the
-Drake plant of robstiff_drake/plant.py, through diagrams/station.py's
-``controller_model``), never from a run's plant: a cell's controller knows
+Drake plant of robstiff_drake/plant.py, through diagrams/compliant_arm.py's
+``controller_model``, diagrams/compliant_arm.py), never from a run's plant: a cell's controller knows
 its arm's model, not its gears' truth.  The diagnosis itself
 (identification/run_diagnosis.py) is plain numpy and calls this through the
 methods of ``ArmModel``.
@@ -17,7 +17,7 @@ import numpy as np
 from pydrake.multibody.tree import MultibodyForces
 
 from robstiff_drake.diagrams.loop_prediction import payload_inertial_wrench_map
-from robstiff_drake.diagrams.station import controller_model, joint_model
+from robstiff_drake.diagrams.compliant_arm import controller_model, joint_model
 from robstiff_drake.model import joint_dynamics
 
 
