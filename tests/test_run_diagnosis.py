@@ -379,3 +379,19 @@ def test_the_cuts_decide_only_beyond_the_noise():
     assert v["chosen"] is None and not v["decided"] and set([v["best"], *v["tied_with"]]) == {"A", "B"}
     v = rv.decide(_scan(0.001, rng), [("A", _scan(0.0, rng))], 0.003, 75.0)
     assert v["chosen"] is None and not v["vs_first_cut"]["better"]
+
+
+def test_a_fix_whose_cut_is_worse_than_the_first_is_not_verified():
+    """One candidate, cut once, worse than the first cut: the verdict is
+    "no fix better than the first cut", never "verified" (not even in part)."""
+    from robstiff_drake.identification.run_diagnosis import _verified_fix
+
+    report = {"candidates": [{"name": "lost_motion", "params": {"lost_motion": {}}, "changes": ["x"],
+                              "settings": "candidates/lost_motion/compensator.yaml"}]}
+    verdict = {"chosen": None, "decided": False, "best": "lost_motion", "tied_with": [],
+               "vs_first_cut": {"better": False}, "reason": "no candidate's cut is better than the first cut"}
+    assert _verified_fix(report, verdict)["status"] == "no fix better than the first cut"
+    verdict["vs_first_cut"]["better"] = True
+    verdict["tied_with"] = ["stiffness_error_j3"]
+    report["candidates"].append({"name": "stiffness_error_j3", "params": {"lost_motion": {}, "x": {}}})
+    assert _verified_fix(report, verdict)["status"].startswith("verified in part: lost_motion")

@@ -953,9 +953,11 @@ def _verified_fix(report, verdict):
     cands = {c["name"]: c for c in report.get("candidates", [])}
     if chosen is None:
         tied = [verdict["best"]] + verdict["tied_with"]
-        out = {"status": "undecided" if not verdict["decided"] else "no fix better than the first cut",
+        # the best cut must beat the first cut before anything counts as verified
+        better = bool(verdict.get("vs_first_cut", {}).get("better", True))
+        out = {"status": "undecided" if better and not verdict["decided"] else "no fix better than the first cut",
                "candidate": None, "changes": [], "settings": None, "reason": verdict["reason"], "tied": tied}
-        if not verdict["decided"] and all(t in cands for t in tied):
+        if better and not verdict["decided"] and all(t in cands for t in tied):
             # the tied cuts share a cause: its fix is verified, the rest is not
             common = set.intersection(*(set(cands[t]["params"]) for t in tied))
             if common:
