@@ -1,10 +1,16 @@
 """Benchmark: real-time factor of the closed-loop milling simulation
 (diagrams/block_milling.yaml, the paper's block pass, about 12.5 s
 simulated), beside the bare arm (the station's compliant arm and drives:
-gears, servo, interpolator and the controller's gravity model, no Python
-systems) measured in the same run at the same step.
+links, gears, motors and drives, interpolator and the controller's gravity
+model, no Python systems) measured in the same run at the same step.
 
-Targets: >= 20x real time revolution-averaged, >= 1x tooth-resolved.
+Targets (issue 22): revolution-averaged, >= 20x real time and >= 0.3 of
+the bare station's speed measured in the same run; tooth-resolved, >= 0.12
+of the bare station's.  Judged on wall time; the same figures by CPU time
+(the process's, all its threads, numpy's BLAS threads included) are
+printed beside them: on a machine shared with other jobs the wall clock
+shows the load, the CPU time the code's own cost (and the BLAS threads'
+spinning, which OPENBLAS_NUM_THREADS=1 removes).
 Each case runs ``REPEATS`` times; the machine is shared and its speed
 varies from run to run, so the best run is the figure judged (as timeit
 does) and the median is printed beside it.  Prints each figure, the ratio to
@@ -13,6 +19,7 @@ Run: python3 benchmarks/bench_closed_loop.py
 """
 
 import copy
+import os
 import statistics
 import sys
 import time
@@ -24,8 +31,8 @@ from pydrake.systems.primitives import ConstantVectorSource
 
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.milling_cell import build_milling_cell
-from robstiff_drake.diagrams.scenario import load_scenario
-from robstiff_drake.diagrams.station import add_compliant_arm, servo_parameters
+from robstiff_drake.diagrams.scenario import load_scenario, plant_damping_ratios
+from robstiff_drake.diagrams.station import add_compliant_arm, gravity_holding_torque, servo_parameters, set_drives_at_rest
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import DIAGRAMS_DIR
 
@@ -36,18 +43,28 @@ def bare_plant_rtf(sc, robot, q0, t_end):
     builder = DiagramBuilder()
     arm = add_compliant_arm(builder, robot=robot, plant_config=sc.plant_config,
                             joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
-                            damping_ratio=sc.plant.damping_ratio, q_modes_rad=q0, servo=servo_parameters(sc),
+                            damping_ratios=plant_damping_ratios(sc), q_modes_rad=q0, servo=servo_parameters(sc),
                             interpolator_period_s=sc.servo.interpolator_period_ms / 1e3)
     cmd = builder.AddSystem(ConstantVectorSource(q0))
     vel = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
     builder.Connect(cmd.get_output_port(), arm["position_command"])
     builder.Connect(vel.get_output_port(), arm["velocity_command"])
     sim = Simulator(builder.Build())
-    arm["plant"].SetPositions(arm["plant"].GetMyMutableContextFromRoot(sim.get_mutable_context()), q0)
+    root = sim.get_mutable_context()
+    arm["plant"].SetPositions(arm["plant"].GetMyMutableContextFromRoot(root), q0)
+    theta = q0 + gravity_holding_torque(arm["controller_plant"], q0) / robot.joint_stiffness_Nm_per_rad
+    set_drives_at_rest(arm, root, theta, q0)
     sim.Initialize()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     sim.AdvanceTo(t_end)
-    return t_end / (time.perf_counter() - t0)
+    return t_end / (time.perf_counter() - t0), t_end / (time.process_time() - c0)
+
+
+def timed_cut(sc, robot, cell):
+    """(real-time factor by wall time, by CPU time) of one compensated pass."""
+    c0 = time.process_time()
+    res = run_cut(sc, robot, compensation=True, cell=cell)
+    return res.realtime_factor, res.sim_seconds / (time.process_time() - c0)
 
 
 def main():
@@ -56,30 +73,37 @@ def main():
     cases = []
     sc = copy.deepcopy(base)
     cases.append((f"averaged, scenario settings (plant {sc.plant_config.time_step * 1e3:g} ms, sensor "
-                   f"{sc.sensor.rate_hz:g} Hz)", sc, 20.0))
+                   f"{sc.sensor.rate_hz:g} Hz)", sc, (20.0, 0.3)))
     sc = copy.deepcopy(base)
-    sc.plant_config.time_step = 0.002
-    cases.append(("averaged, plant step 2 ms (reference, no target)", sc, None))
+    sc.sensor.rate_hz = 1000.0
+    cases.append(("averaged, sensor 1 kHz (reference, no target)", sc, None))
     sc = copy.deepcopy(base)
     sc.cutting.mode = "tooth"
     sc.plant_config.time_step, sc.sensor.rate_hz = 0.002, 1000.0
-    cases.append(("tooth-resolved (plant 2 ms, sensor 1 kHz, 20 samples/tooth)", sc, 1.0))
+    cases.append(("tooth-resolved (plant 2 ms, sensor 1 kHz, 20 samples/tooth)", sc, (None, 0.12)))
     ok = True
     print(f"closed-loop block pass, compensation on; real-time factor = simulated s / wall s, best and median of "
-          f"{REPEATS} runs:")
+          f"{REPEATS} runs; load average {os.getloadavg()[0]:.2f} at the start:")
     for label, sc, target in cases:
         cell = build_milling_cell(sc, robot, compensation=True)
-        runs = [run_cut(sc, robot, compensation=True, cell=cell) for _ in range(REPEATS)]
-        rtf = [r.realtime_factor for r in runs]
-        bare = max(bare_plant_rtf(sc, robot, cell.q_ref[0], runs[0].sim_seconds) for _ in range(REPEATS))
+        sim_s = run_cut(sc, robot, compensation=True, cell=cell).sim_seconds
+        runs = [timed_cut(sc, robot, cell) for _ in range(REPEATS)]
+        rtf, rtf_cpu = [r[0] for r in runs], [r[1] for r in runs]
+        bares = [bare_plant_rtf(sc, robot, cell.q_ref[0], sim_s) for _ in range(REPEATS)]
+        bare, bare_cpu = max(b[0] for b in bares), max(b[1] for b in bares)
         best = max(rtf)
         verdict = "no target"
         if target is not None:
-            passed = best >= target
+            rtf_min, ratio_min = target
+            passed = (rtf_min is None or best >= rtf_min) and best / bare >= ratio_min
             ok &= passed
-            verdict = f"target >= {target:g}x: {'PASS' if passed else 'FAIL'}"
+            verdict = ("target " + (f">= {rtf_min:g}x and " if rtf_min else "") + f"ratio >= {ratio_min:g}: "
+                       + ("PASS" if passed else "FAIL"))
         print(f"  {label:62s} best {best:5.1f}x  median {statistics.median(rtf):5.1f}x   bare plant {bare:6.1f}x   "
               f"ratio {best / bare:.2f}   {verdict}")
+        print(f"  {'':62s} by CPU time: best {max(rtf_cpu):5.1f}x, bare plant {bare_cpu:6.1f}x, ratio "
+              f"{max(rtf_cpu) / bare_cpu:.2f} (all the process's threads)")
+    print(f"load average {os.getloadavg()[0]:.2f} / {os.getloadavg()[1]:.2f} / {os.getloadavg()[2]:.2f} at the end")
     return 0 if ok else 1
 
 

@@ -12,11 +12,12 @@ the same simulated machine (`robstiff simulate RUN/sim_scenario.yaml
   softer_joint_3      block test (plain compensation), the plant's joint 3 20 % softer than
                       the model
   lost_motion         tests/data/balanced_y_pass.yaml (predictive compensation): a pass along
-                      y where joint 2 carries almost none of the arm's weight, 40 urad of lost
-                      motion on joints 1-3 (joint 1's moves the tool sideways, joint 3's gear
-                      never leaves its loaded flank: only joint 2's shows on the face)
+                      y where joint 2 carries almost none of the arm's weight, 40 urad of gear
+                      play (a dead zone) on joints 1-3 (joint 1's moves the tool sideways,
+                      joint 3's gear never leaves its loaded flank: only joint 2's shows on the
+                      face); diagnose-run's law is the smooth one (studies/play_diagnosis.py)
   loop_lag            interrupted_cut, plain compensation at a 24 ms period
-  lost_motion_loaded  block test (predictive), 40 urad on joints 2-3, which carry kN*m of the
+  lost_motion_loaded  block test (predictive), 40 urad of play on joints 2-3, which carry kN*m of the
                       arm's weight: physically invisible on the face, nothing to name
 
 Prints the before/after table (docs/run_diagnosis.md); writes each case's

@@ -1,6 +1,6 @@
 """Does the loop model's stability test agree with where the simulation
-diverges?  The sweep of diagrams/interrupted_cut_low_damping.yaml (5 % modal
-damping): periods 4-48 ms x cutoffs 5-50 Hz x delays 0 and 2 periods, plain
+diverges?  The sweep of diagrams/interrupted_cut_low_damping.yaml (3 % modal
+damping on every mode): periods 4-48 ms x cutoffs 5-50 Hz x delays 0 and 2 periods, plain
 compensation, each run simulated and predicted.
 
 A run counts as divergent in simulation when it went unstable (non-finite,

@@ -90,7 +90,7 @@ def test_short_cut_cuts_more_and_compensation_fixes_it(short_runs):
 def test_diagram_names_every_block(short_runs):
     _, _, on = short_runs
     dot = on.cell.diagram.GetGraphvizString(max_depth=2)
-    for name in ("milling_station", "compensator", "plant", "joint_servo", "interpolator_hold", "gear_spring",
+    for name in ("milling_station", "compensator", "plant", "joint_servo", "interpolator_hold", "gear_transmission",
                  "motor_reference_gravity", "position_reported", "path", "milling_force", "wrist_sensor",
                  "wrench_guard", "force_filter", "sample_wrench", "gravity_removal", "deflection_prediction",
                  "saturation", "transport_delay", "reference_correction", "q_command"):
@@ -115,16 +115,16 @@ def test_dropouts_and_spikes_never_reach_the_plant(robot, short_runs):
 
 
 def test_surface_is_converged_in_the_plant_step(short_runs):
-    """The scenarios step the plant at 4 ms: the uncut surface (the loop's
-    biggest signal) is the same as at 2 ms to 1 um in the mean, 5 um in PV."""
+    """The scenarios step the plant at 2 ms: the uncut surface (the loop's
+    biggest signal) is the same as at 1 ms to 1 um in the mean, 5 um in PV."""
     from robstiff_drake.model.robot import load_robot
 
     sc, off, _ = short_runs
-    coarse = copy.deepcopy(sc)
-    coarse.plant_config.time_step = 0.004
-    off4 = run_cut(coarse, load_robot(), compensation=False)
-    assert abs(off4.surface_error_mm["mean"] - off.surface_error_mm["mean"]) < 1e-3
-    assert abs(off4.surface_error_mm["pv"] - off.surface_error_mm["pv"]) < 5e-3
+    fine = copy.deepcopy(sc)
+    fine.plant_config.time_step = 0.001
+    off1 = run_cut(fine, load_robot(), compensation=False)
+    assert abs(off1.surface_error_mm["mean"] - off.surface_error_mm["mean"]) < 1e-3
+    assert abs(off1.surface_error_mm["pv"] - off.surface_error_mm["pv"]) < 5e-3
 
 
 def _write(tmp_path, text):
@@ -142,9 +142,19 @@ def _write(tmp_path, text):
         (lambda s: s.replace("  period_ms: 4.0", "  period_ms: 1.0"), "controller.period_ms: 1 ms is below the plant step"),
         (lambda s: s.replace("    cutoff_hz: 2.0", "    cutoff_hz: 900.0"), "controller.filter.cutoff_hz: 900 Hz must be between 0 and half"),
         (lambda s: s.replace("  mode: averaged", "  mode: exact"), "cutting.mode: expected one of 'averaged', 'tooth', got 'exact'"),
-        (lambda s: s.replace("  time_step: 0.002", "  time_step: 0.004").replace("  damping_ratio: 0.10",
-                                                                                "  damping_ratio: 0.01"),
-         "plant_config.time_step: a 4 ms plant step is unstable for the 124 Hz joint mode at damping ratio 0.01"),
+        (lambda s: s.replace("  time_step: 0.002", "  time_step: 0.004"),
+         "plant_config.time_step: a 4 ms plant step is unstable for the arm's 126 Hz mode"),
+        (lambda s: s.replace("  modal_damping_ratio: 0.05", "  modal_damping_ratio: 0.0"),
+         "plant_config.time_step: the joints' loop is unstable whatever the step"),
+        (lambda s: s.replace("  modal_damping_ratio: 0.05", "  damping_ratios: [0.05, 0.05, 0.6, 0.05, 0.05, 0.05]"),
+         "plant.damping_ratios[2]: 0.6 is outside the allowed range [0, 0.5]"),
+        (lambda s: s.replace("  modal_damping_ratio: 0.05", "  modal_damping_ratio: 0.05\n  damping_ratios: [0.05]"),
+         "plant.damping_ratios: expected 0 or 6 numbers, got 1"),
+        (lambda s: s.replace("  modal_damping_ratio: 0.05", "  damping_ratio: 0.10"),
+         "plant.damping_ratio: replaced by plant.modal_damping_ratio"),
+        (lambda s: s.replace("  modal_damping_ratio: 0.05", "  modal_damping_ratio: 0.05\n  lost_motion_rad: "
+                                                                "[0.0, 0.005, 0.0, 0.0, 0.0, 0.0]"),
+         "plant.lost_motion_rad[1]: 0.005 is outside the allowed range [0, 0.002] rad"),
         (lambda s: s.replace("    - [1702.5, 0.0, 700.0]", "    - [1702.5, 0.0, 700.0]\n    - [1702.5, 0.0, 1900.0]"),
          "outside its joint limit"),
         (lambda s: s.replace("    - [1497.5, 0.0, 700.0]\n    - [1702.5, 0.0, 700.0]",

@@ -104,31 +104,27 @@ def test_a_softer_joint_is_traced_and_its_fix_verified(tmp_path, capsys):
     assert (run_dir / "diagnosis" / "diagnosis.png").exists()
 
 
-def test_lost_motion_is_traced_where_the_total_torque_changes_sign(tmp_path, capsys):
-    """40 urad of lost motion in joints 1-3 on a pass where joint 2's gear
-    carries almost none of the arm's weight: the cut's torque takes its play
-    up, and the run traces it to joint 2 alone.  Joint 1's play moves the
-    tool sideways (its axis is vertical) and joint 3's gear never leaves its
-    loaded flank (about -1860 N*m of weight): both are dropped for lack of
-    data, not fitted."""
-    run_dir = simulate(tmp_path, with_plant(BALANCED, "lost_motion_rad: [4.0e-5, 4.0e-5, 4.0e-5, 0.0, 0.0, 0.0]"),
-                       "backlash")
+def test_gear_play_the_smooth_law_cannot_follow_is_left_unexplained(tmp_path, capsys):
+    """150 urad of play (a dead zone) in joint 2 on a pass where its gear's
+    total torque crosses zero: the link falls across the gap, the face is
+    off by tenths of a millimetre, and diagnose-run's smooth lost-motion
+    law (tanh over 50 N*m) would need b2 past its plausibility bound: no
+    cause is named and the report says the model leaves the error
+    unexplained, not a confident wrong fix (studies/play_diagnosis.py has
+    20-300 urad)."""
+    run_dir = simulate(tmp_path, with_plant(BALANCED, "lost_motion_rad: [0.0, 1.5e-4, 0.0, 0.0, 0.0, 0.0]"),
+                       "play")
     # the physics the test relies on, from the controller's model and the logs (independent of the diagnosis)
     files = rf.load_run_files(run_dir)
     robot = run_robot(run_dir)
     sig = run_signals(files, robot, ArmModel(robot))
     total = sig.tau_static_Nm + sig.tau_inertia_Nm - sig.tau_Nm  # what the gears carry
-    assert total[:, 1].min() < -20.0 and total[:, 1].max() > 0.0  # joint 2's changes sign
-    assert total[:, 2].max() < -1500.0  # joint 3's keeps it
+    assert total[:, 1].min() < -20.0 and total[:, 1].max() > 20.0  # joint 2's changes sign
     rep = diagnose(run_dir, capsys)
-    assert "lost_motion" in {c["name"] for c in rep["causes"]} | set(rep["also_consistent_with"])
-    row = round_of(rep, "lost_motion")
-    assert set(row["dropped_no_data"]) >= {"b1", "b3"} and list(row["params"]) == ["b2 (urad)"]
-    assert 25 < row["params"]["b2 (urad)"] < 70  # the truth: 40
-    verified = verify(tmp_path, run_dir, rep, capsys)
-    fix = verified["fix"]
-    assert fix["status"].startswith("verified") and "lost_motion" in verified_causes(fix)
-    assert after(verified)["rms"] < verified["surface_error_before_mm"]["rms"]
+    assert rep["rms_before_mm"] > 0.1
+    assert rep["causes"] == [] and rep["fix"] is None
+    assert not rep["explains_data"] and rep["unexplained_mm"] > 0.1
+    assert "plausibility bound" in round_of(rep, "lost_motion")["why_not"]
 
 
 def test_lost_motion_in_gears_that_carry_the_weight_is_not_named(tmp_path, capsys):
@@ -383,3 +379,19 @@ def test_the_cuts_decide_only_beyond_the_noise():
     assert v["chosen"] is None and not v["decided"] and set([v["best"], *v["tied_with"]]) == {"A", "B"}
     v = rv.decide(_scan(0.001, rng), [("A", _scan(0.0, rng))], 0.003, 75.0)
     assert v["chosen"] is None and not v["vs_first_cut"]["better"]
+
+
+def test_a_fix_whose_cut_is_worse_than_the_first_is_not_verified():
+    """One candidate, cut once, worse than the first cut: the verdict is
+    "no fix better than the first cut", never "verified" (not even in part)."""
+    from robstiff_drake.identification.run_diagnosis import _verified_fix
+
+    report = {"candidates": [{"name": "lost_motion", "params": {"lost_motion": {}}, "changes": ["x"],
+                              "settings": "candidates/lost_motion/compensator.yaml"}]}
+    verdict = {"chosen": None, "decided": False, "best": "lost_motion", "tied_with": [],
+               "vs_first_cut": {"better": False}, "reason": "no candidate's cut is better than the first cut"}
+    assert _verified_fix(report, verdict)["status"] == "no fix better than the first cut"
+    verdict["vs_first_cut"]["better"] = True
+    verdict["tied_with"] = ["stiffness_error_j3"]
+    report["candidates"].append({"name": "stiffness_error_j3", "params": {"lost_motion": {}, "x": {}}})
+    assert _verified_fix(report, verdict)["status"].startswith("verified in part: lost_motion")

@@ -19,6 +19,16 @@ from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import info
 
 
+def _damping_line(d):
+    """The arm's damping the model used, and where it comes from."""
+    if d.get("ratio") is not None:
+        return (f"the arm's damping from the run: {d['ratio']:.0%} of critical on every mode (the face fits as well "
+                f"from {d['interval'][0]:.0%} to {d['interval'][1]:.0%})")
+    if d.get("source") == "given":
+        return f"the arm's damping: {d['used']:.0%} of critical on every mode (given)"
+    return f"the arm's damping: {d['source']}; a tap test on the spindle would decide it"
+
+
 def plot(rep, extras, title):
     """The first cut's measured surface error, the traced model's, and each verification cut's."""
     import matplotlib
@@ -65,7 +75,8 @@ def format_report(rep):
                                      else "-") + " mm",
              f"rule: {t['rule']}",
              f"surface error rms {rep['rms_before_mm']:.4f} mm with the compensator as set",
-             f"known from the logs: the arm's own motion error leaves {rep['motion_error_mm']:.4f} mm rms on the face"]
+             f"known from the logs: the arm's own motion error leaves {rep['motion_error_mm']:.4f} mm rms on the face",
+             _damping_line(rep["damping"])]
     lag = rep["loop_lag"]
     if lag["status"] == "ok":
         verdict = ("significant" if lag["significant"] else f"not significant: {lag['why_not']}")

@@ -158,6 +158,15 @@ def build_parser():
     p.add_argument("--check", action="store_true", help="only check that the files in OUT are up to date")
     _add_robot_option(p)
 
+    p = sub.add_parser("import-urdf", help="a robot file from a URDF (Drake's parser): DH from the joint axes, "
+                                           "masses and inertias in the link frames, joint limits")
+    p.add_argument("urdf", metavar="ROBOT.urdf")
+    p.add_argument("--out", required=True, metavar="ROBOT.yaml", help="the robot file to write")
+    p.add_argument("--template", metavar="ROBOT", default=None,
+                   help="library robot or robot file whose joint stiffness, motor inertias, payload and workspace "
+                        "the new file takes (a URDF has none; default: irb6400)")
+    p.add_argument("--name", default=None, help="the robot's name in the file (default: the URDF's, cleaned)")
+
     p = _add_campaign_command(sub, "identify", "joint stiffness from a stiffness campaign (least squares, Eq. 8)",
                               "result")
     p.add_argument("--plot", metavar="OUT.png", help="measured vs predicted, residuals, stiffness with intervals")
@@ -364,6 +373,8 @@ EXAMPLES = {
     "stiffness-map": "robstiff stiffness-map --robot kr240_r2900 --out kr240_map.png",
     "kg-study": "robstiff kg-study --grid 3 --json kg.json",
     "make-urdf": "robstiff make-urdf --robot irb6640 --out urdf",
+    "import-urdf": "robstiff import-urdf urdf/robstiff_irb6640/urdf/irb6640.urdf --out my_irb6640.yaml "
+                   "--template irb6640",
     "identify": "robstiff synth stiffness campaign.csv && robstiff identify campaign.csv --plot fit.png",
     "calibrate-payload": "robstiff synth payload payload.csv && robstiff calibrate-payload payload.csv "
                          "--yaml payload.yaml",
@@ -455,6 +466,10 @@ def _dispatch(args):
         from robstiff_drake.commands import make_urdf
 
         return make_urdf.run(check=args.check, out=args.out, robot_yaml=args.robot)
+    if args.command == "import-urdf":
+        from robstiff_drake.commands import import_urdf
+
+        return import_urdf.run(urdf=args.urdf, out=args.out, template=args.template, name=args.name)
     if args.command == "identify":
         from robstiff_drake.commands import identify
 

@@ -2,6 +2,8 @@
 sweep combination: what it predicts for stability and surface error, to set
 beside the closed-loop simulation."""
 
+from dataclasses import replace
+
 import numpy as np
 
 from robstiff_drake.diagrams.experiment import ScanLine, material_top, zone_stats
@@ -11,17 +13,18 @@ from robstiff_drake.diagrams.scenario import (
     cutting_setup,
     model_stiffness,
     planned_path,
+    plant_damping_ratios,
     plant_step_s,
     plant_stiffness,
 )
-from robstiff_drake.diagrams.station import (
+from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (gravity_stiffness: its old home)
     controller_model,
-    modal_frequencies_hz,
-    servo_parameters,
-    stiffness_proportional_beta_s,
+    gravity_stiffness,
+    joint_model,
 )
+from robstiff_drake.diagrams.station import servo_parameters
 from robstiff_drake.diagrams.sweep import configure
-from robstiff_drake.model import ik
+from robstiff_drake.model import ik, joint_dynamics
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, path_terms, process_stiffness
 from robstiff_drake.model.surface import envelope_heights, surface_error_stats
@@ -49,20 +52,6 @@ def payload_inertial_wrench_map(robot, q):
     return np.vstack([force, skew @ force - R @ pl.inertia_about_com_kg_m2 @ R.T @ J_com[3:]])
 
 
-def gravity_stiffness(plant, context, q, delta_rad=1e-6):
-    """d tau_gravity / dq (6, 6) at q, N*m/rad, by central differences: the
-    arm's weight's own stiffness, which the gears carry along with theirs."""
-    G = np.empty((6, 6))
-    for k in range(6):
-        e = np.zeros(6)
-        e[k] = delta_rad
-        plant.SetPositions(context, q + e)
-        plus = plant.CalcGravityGeneralizedForces(context)
-        plant.SetPositions(context, q - e)
-        G[:, k] = (plus - plant.CalcGravityGeneralizedForces(context)) / (2 * delta_rad)
-    return G
-
-
 def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sensor_feels_inertia=True):
     """Predicted closed-loop poles and surface-error statistics for one sweep
     combination (dict with spectral_radius, stable, surface_error_mm,
@@ -75,25 +64,27 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
     path = planned_path(sc)
     t_mid = path.dwell_s + 0.5 * path.move_s
     q_mid = ik.solve_ik(robot.dh, ik.tool_down_pose(path.position(t_mid), path.yaw), tool)
-    key = (robot.source, tuple(np.round(q_mid, 9)))
+    _, _, q_ref = cell_planned_path(sc, robot, tool)
+    key = (robot.source, tuple(np.round(q_mid, 9)), tuple(np.round(q_ref[0], 9)),
+           tuple(plant_stiffness(sc, robot)), float(sc.plant.coupling_c23_rad_per_Nm),
+           tuple(plant_damping_ratios(sc)), servo_parameters(sc))
     cache = mass_matrix_cache if mass_matrix_cache is not None else {}
     if key not in cache:
+        # the plant's joints (damping and drives set at the start pose, as the station's), at mid-pass
         plant = controller_model(robot)
-        ctx = plant.CreateDefaultContext()
-        G = gravity_stiffness(plant, ctx, q_mid)
-        plant.SetPositions(ctx, q_mid)
-        cache[key] = (plant.CalcMassMatrix(ctx), G)
-    M, G = cache[key]
-    freqs = modal_frequencies_hz(M, plant_stiffness(sc, robot))
-    beta = stiffness_proportional_beta_s(freqs, sc.plant.damping_ratio)
+        Kg = joint_dynamics.stiffness_matrix(plant_stiffness(sc, robot), sc.plant.coupling_c23_rad_per_Nm)
+        at_start = joint_model(plant, robot, q_ref[0], Kg, plant_damping_ratios(sc), servo_parameters(sc))
+        mid = joint_model(plant, robot, q_mid, Kg, plant_damping_ratios(sc), servo_parameters(sc))
+        cache[key] = replace(at_start, M=mid.M, G=mid.G)
+    joints = cache[key]
     ba = filter_coefficients(sc.controller.filter, sc.sensor.rate_hz, cutter.spindle_rpm)
     T = sc.controller.period_ms / 1e3
     scale = sc.model.force_model_scale
-    loop = LoopModel(M=M, K=plant_stiffness(sc, robot), beta_s=beta, J=kin.jacobian(robot.dh, q_mid, tool),
+    loop = LoopModel(M=joints.M, K=joints.K, beta_s=None, J=kin.jacobian(robot.dh, q_mid, tool),
                      C_model=1.0 / model_stiffness(sc, robot), filter_ba=ba, rate_hz=sc.sensor.rate_hz, period_s=T,
                      delay_steps=sc.controller.delay_steps, mode=sc.controller.mode, model_scale=scale,
                      sensor_inertia=payload_inertial_wrench_map(robot, q_mid) if sensor_feels_inertia else None,
-                     gravity_stiffness=G, servo=servo_parameters(sc))
+                     gravity_stiffness=joints.G, joints=joints)
 
     h = loop.h
     servo = servo_parameters(sc)

@@ -59,8 +59,8 @@ class MillingCell:
         return self.station.natural_frequencies_hz
 
     @property
-    def damping_beta_s(self):
-        return self.station.damping_beta_s
+    def damping_ratios(self):
+        return self.station.damping_ratios
 
     @property
     def plant_time_step_s(self):

@@ -4,22 +4,21 @@ arm's weight from the controller's gravity model, and its inertia) and the
 arm's mass matrix, the weight's own stiffness and its modes at a pose.
 
 Everything here comes from the robot file (masses, inertias, payload: the
-Drake plant of robstiff_drake/plant.py, through diagrams/station.py's
-``controller_model``), never from a run's plant: a cell's controller knows
+Drake plant of robstiff_drake/plant.py, through diagrams/compliant_arm.py's
+``controller_model``, diagrams/compliant_arm.py), never from a run's plant: a cell's controller knows
 its arm's model, not its gears' truth.  The diagnosis itself
 (identification/run_diagnosis.py) is plain numpy and calls this through the
-three methods of ``ArmModel``.
+methods of ``ArmModel``.
 """
+
+from dataclasses import replace
 
 import numpy as np
 from pydrake.multibody.tree import MultibodyForces
 
-from robstiff_drake.diagrams.loop_prediction import gravity_stiffness, payload_inertial_wrench_map
-from robstiff_drake.diagrams.station import (
-    controller_model,
-    modal_frequencies_hz,
-    stiffness_proportional_beta_s,
-)
+from robstiff_drake.diagrams.loop_prediction import payload_inertial_wrench_map
+from robstiff_drake.diagrams.compliant_arm import controller_model, joint_model
+from robstiff_drake.model import joint_dynamics
 
 
 class ArmModel:
@@ -53,19 +52,20 @@ class ArmModel:
             out[i] = plant.CalcInverseDynamics(ctx, a, self._no_forces)  # M a + c v (force elements left out)
         return out
 
-    def dynamics_at(self, q_rad, joint_stiffness_Nm_per_rad, damping_ratio):
-        """(M (6, 6) kg m^2, G (6, 6) N*m/rad: d tau_gravity / dq, beta (s):
-        the stiffness-proportional damping that gives the first mode
-        ``damping_ratio``, first natural frequency (Hz), L (6, 6): the
-        payload's inertial wrench at the tool point (base frame) per joint
-        acceleration, which the wrist sensor feels) at q."""
-        plant, ctx = self.plant, self._ctx
-        q = np.asarray(q_rad, dtype=float)
-        G = gravity_stiffness(plant, ctx, q)
-        plant.SetPositions(ctx, q)
-        plant.SetVelocities(ctx, np.zeros(6))
-        M = plant.CalcMassMatrix(ctx)
-        freqs = modal_frequencies_hz(M, joint_stiffness_Nm_per_rad)
-        L = payload_inertial_wrench_map(self.robot, q)
-        return M, G, stiffness_proportional_beta_s(freqs, damping_ratio), float(freqs[0]), L
+    def joints_at(self, q_rad, joint_stiffness_Nm_per_rad, damping_ratios, servo, design_q_rad=None):
+        """The linear joints (model/joint_dynamics.JointModel) at q: the mass
+        matrix and the weight's stiffness there, the gears' modal damping
+        (``damping_ratios``) and the drives' velocity gains designed at
+        ``design_q_rad`` (the station's start pose; default q), motors with
+        the robot file's inertia."""
+        K = joint_dynamics.stiffness_matrix(joint_stiffness_Nm_per_rad)
+        here = joint_model(self.plant, self.robot, np.asarray(q_rad, dtype=float), K, damping_ratios, servo)
+        if design_q_rad is None:
+            return here
+        design = joint_model(self.plant, self.robot, np.asarray(design_q_rad, dtype=float), K, damping_ratios, servo)
+        return replace(design, M=here.M, G=here.G)
 
+    def payload_map(self, q_rad):
+        """L (6, 6): the payload's inertial wrench at the tool point (base
+        frame) per joint acceleration at q, which the wrist sensor feels."""
+        return payload_inertial_wrench_map(self.robot, np.asarray(q_rad, dtype=float))

@@ -27,6 +27,7 @@ from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingFor
 from robstiff_drake.diagrams import toolpath as program_setup
 from robstiff_drake.model.path import PathError, PlannedPath
 from robstiff_drake.model.program_path import program_pieces
+from robstiff_drake.model.joint_dynamics import DEFAULT_MODAL_DAMPING_RATIO
 from robstiff_drake.model.payload import PayloadCalibration
 from robstiff_drake.model.robot_file import STIFFNESS_RANGE_NM_PER_RAD
 from robstiff_drake.user_files import load_json, load_yaml, read_user_text
@@ -35,32 +36,43 @@ from robstiff_drake.user_files import load_json, load_yaml, read_user_text
 # any real set-up, narrow enough that a typo (a unit slip, a missing decimal
 # point) is caught before a long run.  The reasoning is next to each one.
 MAX_COORD_MM = 10000.0  # a cell: 10 m from the robot base covers the largest arm on a track
+MAX_DAMPING_RATIO = 0.5
+MAX_PLAY_RAD = 2e-3
 
 
 def _plant_config():
-    # The arm's joints are the only "contact": SAP's discrete solver treats
-    # the joints' damping implicitly (see add_compliant_arm).
-    return MultibodyPlantConfig(time_step=0.004, discrete_contact_approximation="sap")
+    # No contact: the gears are explicit forces (the plant's step is symplectic Euler, see
+    # model/joint_dynamics.py); 2 ms keeps the IRB 6400's stiffest mode (125 Hz) stable.
+    return MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap")
 
 
 @dataclass
 class PlantConfig:
     """The 'true' robot: a discrete MultibodyPlant (its step and solver in
     the scenario's ``plant_config``, Drake's MultibodyPlantConfig) whose
-    joints are gears (springs) between the motor angle the servo holds and
-    the link angle (diagrams/station.py)."""
+    joints are gears between a motor with its rotor's inertia (robot file:
+    ``motor_inertia_kgm2``), which the drive turns, and the link
+    (diagrams/station.py, model/joint_dynamics.py)."""
 
     # Joint stiffness of the plant (N*m/rad); empty: the robot file's nominal.
     joint_stiffness_Nm_per_rad: list[float] = vec([], (0, 6), *STIFFNESS_RANGE_NM_PER_RAD, "N*m/rad")
-    # Stiffness-proportional damping D = beta * K, beta = 2 zeta / omega_1:
-    # the first mode gets damping ratio zeta, higher modes more.  The step
-    # must keep every mode stable: beta >= step / 2 does for any stiffness.
-    # ASSUMPTION: 10 % (modal tests of large industrial arms report 5-15 %).
-    damping_ratio: float = num(0.10, 0.0, 1.0, "", hi_open=True)
-    # The gears' lost motion (rad, taken up in the direction of the total
-    # torque the gear carries) and the coupling compliance between joints 2
-    # and 3 (rad/(N*m)): model/transmission.py.  Empty / 0: none.
-    lost_motion_rad: list[float] = vec([], (0, 6), 0.0, 0.01, "rad", why="10 mrad is a worn-out gearbox")
+    # Damping per mode (modal damping, model/joint_dynamics.py): the damping ratio of each mode of the links
+    # on their gears (motors held), lowest frequency first; or one ratio for every mode.  damping_ratios,
+    # when not empty, sets every mode (modal_damping_ratio is then not used); empty: modal_damping_ratio.  ASSUMPTION (default): 5 % (joint_dynamics.py
+    # gives the source).  The plant step is stable by its size, not by the damping (the run is refused
+    # with the step it needs when it is not).
+    damping_ratios: list[float] = vec([], (0, 6), 0.0, MAX_DAMPING_RATIO, "",
+                                      why="a structural mode past 50 % of critical is no longer a mode; modal "
+                                          "tests of industrial arms find 2-10 %")
+    modal_damping_ratio: float = num(DEFAULT_MODAL_DAMPING_RATIO, 0.0, MAX_DAMPING_RATIO, "",
+                                     why="a structural mode past 50 % of critical is no longer a mode; modal "
+                                         "tests of industrial arms find 2-10 %")
+    # The gears' play (rad): half the width b of each gear's dead zone (2b in all, no torque inside it,
+    # the gear's stiffness outside: model/transmission.play_torque), and the coupling compliance between
+    # joints 2 and 3 (rad/(N*m)).  Empty / 0: none.
+    lost_motion_rad: list[float] = vec([], (0, 6), 0.0, MAX_PLAY_RAD, "rad",
+                                       why="2 mrad (7 arcmin) is a worn-out reducer; robot reducers are "
+                                           "specified at 0.1-0.3 mrad (RV: at most 1 arcmin)")
     coupling_c23_rad_per_Nm: float = num(0.0, -1e-5, 1e-5, "rad/(N*m)", why="at most the softest joint's own "
                                                                          "compliance (1e-5 rad/(N*m) = 1e5 N*m/rad)")
 
@@ -88,6 +100,9 @@ class ServoConfig:
     position_gain_per_s: float = num(60.0, 1.0, 1000.0, "1/s")
     velocity_bandwidth_hz: float = num(30.0, 1.0, 500.0, "Hz")
     velocity_feedforward: float = num(1.0, 0.0, 1.0, "")
+    # The velocity loop's integral corner (a PI, as industrial drives have): ASSUMPTION 7.5 Hz, a quarter of
+    # the velocity bandwidth (model/servo.py).
+    velocity_integral_hz: float = num(7.5, 0.0, 100.0, "Hz")
 
 
 @dataclass
@@ -319,7 +334,14 @@ def load_scenario(path, toolpath=None, work_offset=None):
 
     path = Path(path)
     text_ = read_user_text(path, "scenario file")
-    lines = validate(Scenario, path, text_)
+    try:
+        lines = validate(Scenario, path, text_)
+    except InputError as e:
+        if "plant.damping_ratio: unknown key" in str(e):  # the key before the damping was modal
+            raise InputError(str(e).split(": unknown key")[0] + ": replaced by plant.modal_damping_ratio (one "
+                             "ratio for every mode) or plant.damping_ratios (one per mode): the plant's damping "
+                             "is modal now, not stiffness-proportional") from None
+        raise
     try:
         sc = yaml_load_typed(schema=Scenario, data=text_) if text_.strip() else Scenario()
     except (RuntimeError, ValueError, TypeError) as e:  # validate() lets nothing through that gets here
@@ -542,6 +564,13 @@ def numbers(value):
                                                         for v in value):
         return None
     return np.asarray(value, dtype=float)
+
+
+def plant_damping_ratios(sc):
+    """The plant's damping ratio of each mode (6,), lowest frequency first."""
+    if sc.plant.damping_ratios:
+        return np.asarray(sc.plant.damping_ratios, dtype=float)
+    return np.full(6, float(sc.plant.modal_damping_ratio))
 
 
 def plant_stiffness(sc, robot):

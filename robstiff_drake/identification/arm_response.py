@@ -1,8 +1,9 @@
 """How the arm and its servo respond to what a run logs: the linear model of
 the joints (model/loop_model.LoopModel's arm and motor-side servo, without
 its compensator) driven by the logged signals instead of a force model.
-Plain numpy; the caller supplies the arm's mass matrix, the weight's
-stiffness and the damping (diagrams/run_arm.py computes them from the robot
+Plain numpy; the caller supplies the joints' linear model (model/
+joint_dynamics.JointModel: mass matrix, the weight's stiffness, the gears'
+damping, motors and drives; diagrams/run_arm.py computes it from the robot
 file).
 
 In coordinates relative to where the arm is meant to be, the program's
@@ -37,14 +38,15 @@ SEGMENT_S = 0.5  # the linearisation is redone every this many seconds of the ru
 _NO_FILTER = (np.array([1.0]), np.array([1.0]))
 
 
-def arm_matrices(M, K, beta_s, G, servo, step_s=STEP_S):
-    """(Ad, B_load, B_corr, B_path) of the arm and servo at one pose:
-    state (q - q_path, its rate, theta - theta_path, its rate) (24),
-    inputs joint torques (6, N*m), the servo's reference beyond the path
-    (6, rad) and the path terms (18: 0, the velocity term, q_path'')."""
-    loop = LoopModel(M=M, K=np.asarray(K, dtype=float), beta_s=beta_s, J=np.eye(6), C_model=1.0 / np.asarray(K),
-                     filter_ba=_NO_FILTER, rate_hz=1.0 / step_s, period_s=step_s, delay_steps=0, servo=servo,
-                     gravity_stiffness=G)
+def arm_matrices(joints, step_s=STEP_S):
+    """(Ad, B_load, B_corr, B_path) of the arm, motors and drives at one pose
+    (``joints``, a JointModel): state (q - q_path, its rate, theta -
+    theta_path, its rate, the drives' integrals) (30), inputs joint torques
+    (6, N*m), the drives' reference beyond the path (6, rad) and the path
+    terms (18: 0, the velocity term, q_path'')."""
+    loop = LoopModel(M=joints.M, K=joints.K, beta_s=None, J=np.eye(6), C_model=1.0 / np.diag(joints.K),
+                     filter_ba=_NO_FILTER, rate_hz=1.0 / step_s, period_s=step_s, delay_steps=0,
+                     gravity_stiffness=joints.G, joints=joints)
     return loop.Ad, loop.Bw, loop.Bc, loop.Br
 
 

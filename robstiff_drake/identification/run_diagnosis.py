@@ -65,7 +65,7 @@ scans and settings only).
 """
 
 import copy
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import signal
@@ -78,6 +78,7 @@ from robstiff_drake.identification import run_verification as rv
 from robstiff_drake.identification import scan_statistics as ss
 from robstiff_drake.identification.arm_response import SEGMENT_S, STEP_S, delayed
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.joint_dynamics import DEFAULT_MODAL_DAMPING_RATIO
 from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
 from robstiff_drake.model.servo import ServoParameters
 from robstiff_drake.model.transmission import static_deflection, twist
@@ -94,10 +95,16 @@ SMOOTH_MM = 6.0
 SMOOTH_HZ = (2.0, 10.0)
 GRID_EVERY = 5  # the fit's grid: every 5th step of the arm's response (200 Hz; nothing faster is left)
 GRID_HZ = 1.0 / (GRID_EVERY * STEP_S)
-# ASSUMPTION: the arm's first mode has 10 % of critical damping (modal tests of large industrial arms
-# report 5-15 %); a settings file does not state it.  It sets how long the arm rings after the path
-# accelerates (the arm's own motion error), not the size of the ringing's first swing.
-DAMPING_RATIO = 0.10
+# ASSUMPTION, where the run does not decide the arm's damping (``profile_damping``): 5 % on every mode
+# (model/joint_dynamics.DEFAULT_MODAL_DAMPING_RATIO gives the source); a settings file does not state it.  It
+# sets how long the arm rings after the path accelerates (the arm's own motion error), not the size of the
+# ringing's first swing.
+DAMPING_RATIO = DEFAULT_MODAL_DAMPING_RATIO
+# The damping's profile (``profile_damping``): the ratios tried, and its likelihood interval (chi-square, one
+# parameter, 95 %: the fit's residual sum of squares within 3.84 noise floors squared, per effective point,
+# of the best).
+DAMPING_GRID = np.array([0.02, 0.03, 0.05, 0.07, 0.10, 0.15, 0.20])
+DAMPING_CHI2 = 3.84
 ALPHA = 1e-3  # per test; about 10 causes are tried per round
 SIZE_FACTOR = 1.0  # a named cause changes the surface by at least this many noise floors (RMS)
 MAX_CAUSES = 2
@@ -130,8 +137,9 @@ class RunSignals:
     dz_motion_m: np.ndarray  # (n,) the arm's own motion error along the program (known, not a cause)
     dz_loop_m: np.ndarray  # (n,) the loop's tracking error the logs predict (the plant taken as the model)
     servo: ServoParameters
-    damping_ratio: float
+    damping_ratio: float  # the gears' modal damping ratio the model used
     smooth_hz: float  # the load's smoothing
+    damping: dict = None  # estimate_damping's result (None: the ratio was given)
 
 
 def _fill_dropouts(t, w, path):
@@ -212,10 +220,47 @@ def _segments(n, step_s):
     return seg, np.arange(0, n, per)
 
 
-def run_signals(files, robot, arm):
+def _arm_response(arm, ctx, damping_ratio):
+    """The arm's response at ``damping_ratio`` (the gears' modal ratio):
+    (its own motion along the program (n, 6), its deviation under the
+    measured load, the payload's inertia taken out, and under the logged
+    correction (n, 6, 2))."""
+    x = ctx
+    full, bare, inertia_maps = [], [], []
+    damping_torque = np.empty_like(x["g_rate"])
+    per = x["per"]
+    for n0 in x["firsts"]:
+        i = min(n0 + per // 2, len(x["tf"]) - 1)
+        # the drives are tuned and the damping set at the first path point, as the station's
+        jm = arm.joints_at(x["q_arm"][i], 1.0 / x["c"], damping_ratio, x["servo"], design_q_rad=x["q_arm"][0])
+        L = arm.payload_map(x["q_arm"][i])
+        full.append(arm_response.arm_matrices(jm, STEP_S))
+        # the sensor's reading holds the payload's inertia: the load it measures drives the arm without it
+        bare.append(arm_response.arm_matrices(replace(jm, M=jm.M + x["J"][i].T @ L), STEP_S))
+        # the gears' damping of the gravity twist's rate, D d/dt(C g)
+        damping_torque[n0:n0 + per] = (x["c"] * x["g_rate"][n0:n0 + per]) @ jm.D.T
+        inertia_maps.append(L)
+    Ls = np.array(inertia_maps)[x["seg"]]
+    motion_torque = damping_torque - x["velocity_terms"]
+    motion = arm_response.responses(full, x["seg"], [(motion_torque, None, x["path"])])[..., 0]
+    acc = np.gradient(np.gradient(x["q_arm"] + motion, STEP_S, axis=0), STEP_S, axis=0)
+    W_cut = x["W_f"] - np.einsum("nrj,nj->nr", Ls, acc)
+    tau_cut = np.einsum("nrj,nr->nj", x["J"], W_cut)
+    dev = arm_response.responses(bare, x["seg"], [(tau_cut, None, None), (None, x["corr_servo"], None)])
+    return motion, dev
+
+
+def run_signals(files, robot, arm, damping_ratio=None):
     """RunSignals from a run's logs and settings.  ``robot``: the DH table;
     ``arm``: the controller's model of the arm (diagrams/run_arm.ArmModel:
-    gravity and inertia torques, mass matrix at a pose)."""
+    gravity and inertia torques, mass matrix at a pose); ``damping_ratio``:
+    the gears' modal damping ratio (None: DAMPING_RATIO)."""
+    return signals_at(run_context(files, robot, arm), arm, DAMPING_RATIO if damping_ratio is None else damping_ratio)
+
+
+def run_context(files, robot, arm):
+    """What the run's signals need that does not depend on the arm's
+    damping (a dict for ``signals_at``)."""
     s, jl = files.settings, files.joints
     servo = servo_of(s)
     t_j, q_j, c_j = jl.t_s, robot.joint_rad(jl.q_deg), robot.model_delta_rad(jl.correction_deg)
@@ -240,42 +285,36 @@ def run_signals(files, robot, arm):
     path = arm_response.path_terms(q_arm, h, servo.velocity_feedforward, g_f * c)
     # the fitting grid: every GRID_EVERY-th step
     k = np.arange(0, len(tf), GRID_EVERY)
-    grid, q_nom, Jg = tf[k], q_arm[k], J[k]
+    grid, q_nom = tf[k], q_arm[k]
     v_f = np.gradient(q_arm, h, axis=0)
     v, a = v_f[k], np.gradient(v_f, h, axis=0)[k]
-    tau = tau_f[k]
-    g = arm.gravity_torques(q_nom)
-    g0 = arm.gravity_torques(q_j[:1] - c_j[:1])[0]
-    tau_i = arm.inertia_torques(q_nom, v, a)
-    velocity_terms = _resample(tf, grid, arm.inertia_torques(q_nom, v, np.zeros_like(a)))
     seg, firsts = _segments(len(tf), h)
-    per = firsts[1] - firsts[0] if len(firsts) > 1 else len(tf)
-    full, bare, betas, inertia_maps = [], [], np.empty(len(tf)), []
-    for n0 in firsts:
-        i = min(n0 + per // 2, len(tf) - 1)
-        M, G, beta, _, L = arm.dynamics_at(q_arm[i], 1.0 / c, DAMPING_RATIO)
-        full.append(arm_response.arm_matrices(M, 1.0 / c, beta, G, servo, h))
-        # the sensor's reading holds the payload's inertia: the load it measures drives the arm without it
-        bare.append(arm_response.arm_matrices(M + J[i].T @ L, 1.0 / c, beta, G, servo, h))
-        betas[n0:n0 + per] = beta
-        inertia_maps.append(L)
-    motion_torque = betas[:, None] * g_rate - velocity_terms
-    motion = arm_response.responses(full, seg, [(motion_torque, None, path)])[..., 0]
-    acc = np.gradient(np.gradient(q_arm + motion, h, axis=0), h, axis=0)
-    W_cut = W_f - np.einsum("nrj,nj->nr", np.array(inertia_maps)[seg], acc)
-    tau_cut = np.einsum("nrj,nr->nj", J, W_cut)
-    dev = arm_response.responses(bare, seg, [(tau_cut, None, None), (None, corr_servo, None)])
+    return {"settings": s, "robot": robot, "tool": tool, "tf": tf, "q_arm": q_arm, "J": J, "seg": seg,
+            "firsts": firsts, "per": firsts[1] - firsts[0] if len(firsts) > 1 else len(tf), "c": c, "servo": servo,
+            "g_rate": g_rate, "path": path, "W_f": W_f, "corr_servo": corr_servo, "cutoff": cutoff, "k": k,
+            "grid": grid, "q_nom": q_nom, "tau": tau_f[k], "g": arm.gravity_torques(q_nom),
+            "g0": arm.gravity_torques(q_j[:1] - c_j[:1])[0], "tau_i": arm.inertia_torques(q_nom, v, a),
+            "velocity_terms": _resample(tf, grid, arm.inertia_torques(q_nom, v, np.zeros_like(a))),
+            "corr": _resample(grid, t_j, _lowpass(c_j, 1.0 / float(np.median(np.diff(t_j))), cutoff))}
+
+
+def signals_at(ctx, arm, damping_ratio, damping=None):
+    """RunSignals of a run (``run_context``) with the gears' modal damping
+    ratio ``damping_ratio``."""
+    x, s, k = ctx, ctx["settings"], ctx["k"]
+    motion, dev = _arm_response(arm, ctx, damping_ratio)
+    J, Jg = x["J"], x["J"][k]
     dz = np.einsum("nj,njk->nk", J[:, 2, :], np.concatenate([dev, motion[..., None]], axis=2))
-    corr = _resample(grid, t_j, _lowpass(c_j, 1.0 / float(np.median(np.diff(t_j))), cutoff))
     # what the compensator predicts: its model's law under the process load (model/compensator.DeflectionModel)
-    model_dq = static_deflection(g, tau, c, s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
+    model_dq = static_deflection(x["g"], x["tau"], x["c"], s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
     # the loop's tracking error with the plant as the model believes it: its stiffness (dynamic), and its
     # lost motion and coupling (quasi-static, the law of the total torque)
-    believed = gear_law_deviation(g, g0, tau_i, tau, s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
+    believed = gear_law_deviation(x["g"], x["g0"], x["tau_i"], x["tau"], s.lost_motion_rad,
+                                  s.coupling_c23_rad_per_Nm)
     dz_loop = dz[k, 0] + dz[k, 1] + np.einsum("nj,nj->n", Jg[:, 2, :], believed)
-    return RunSignals(grid, q_nom, corr, W_f[k], tau, g, tau_i, g0, Jg[:, 2, :],
-                      kin.tool_position(robot.dh, q_nom, tool), c, model_dq, dz[k, 2], dz_loop, servo,
-                      DAMPING_RATIO, cutoff)
+    return RunSignals(x["grid"], x["q_nom"], x["corr"], x["W_f"][k], x["tau"], x["g"], x["tau_i"], x["g0"],
+                      Jg[:, 2, :], kin.tool_position(x["robot"].dh, x["q_nom"], x["tool"]), x["c"], model_dq,
+                      dz[k, 2], dz_loop, x["servo"], damping_ratio, x["cutoff"], damping)
 
 
 def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost_motion_rad, coupling_c23):
@@ -571,6 +610,48 @@ def noise_floor(scan, segs, stated_mm, warnings):
     return floor, source, stated, estimated
 
 
+def profile_damping(run_ctx, arm, scan, cutter_mm, y, floor_m, stats_ctx, model):
+    """The gears' modal damping ratio that the run's face decides: the
+    causes of ``model`` (a Fit: the loop's tracking error and the named
+    causes) refitted with the arm's response at each ratio of DAMPING_GRID
+    (the arm's own motion error and the loop's response ring more or less);
+    the interval of ratios whose fit is within DAMPING_CHI2 noise floors
+    squared (per effective point) of the best.  A dict: ratio (None when the
+    interval covers the whole grid: the face does not decide it), interval,
+    the fits' rms (mm) per ratio, source, used."""
+    rss, residuals = [], []
+    for z in DAMPING_GRID:
+        sig = signals_at(run_ctx, arm, z)
+        env = Envelope(scan, sig, cutter_mm)
+        by_name = {c.name: c for c in candidates(sig)}
+        causes = [by_name[c.name] for c in model.causes]
+        r = (fit_model(env, causes, model.keep, y).residual if causes else env.surface(np.zeros_like(sig.t_s)) - y)
+        residuals.append(r)
+        rss.append(float(r @ r))
+    rss = np.array(rss)
+    i = int(np.argmin(rss))
+    n_eff, _ = ss.effective_points(residuals[i] * 1e3, stats_ctx["segs"], stats_ctx["length_mm"], cutter_mm)
+    chi2 = (rss - rss[i]) / floor_m**2 * n_eff / y.size
+    inside = chi2 <= DAMPING_CHI2
+    lo, hi = float(DAMPING_GRID[inside].min()), float(DAMPING_GRID[inside].max())
+    # a fit that leaves more than the noise says the model lacks something: the damping would take its place
+    explained = ss.consistent_with_floor(residuals[i] * 1e3, floor_m * 1e3, n_eff, EXPLAIN_ALPHA)
+    decided = explained and not (lo == DAMPING_GRID[0] and hi == DAMPING_GRID[-1])
+    ratio = float(DAMPING_GRID[i]) if decided else None
+    if decided:
+        source = "estimated from the run (the fit to the face at each ratio)"
+    elif not explained:
+        source = (f"assumed ({DAMPING_RATIO:g}): the run does not decide it (the best fit, at {DAMPING_GRID[i]:g}, "
+                  f"leaves {_rms(residuals[i]) * 1e3:.4f} mm, more than the noise: the model lacks something the "
+                  "damping would stand in for)")
+    else:
+        source = (f"assumed ({DAMPING_RATIO:g}): the run does not decide it (every ratio from {lo:g} to {hi:g} fits "
+                  "the face as well)")
+    return {"ratio": ratio, "interval": [lo, hi], "grid": DAMPING_GRID.tolist(),
+            "rms_mm": (np.sqrt(rss / y.size) * 1e3).tolist(), "used": ratio if decided else DAMPING_RATIO,
+            "source": source}
+
+
 def trace(env, cands, y, floor_m, stats_ctx, base):
     """Forward selection of causes on top of ``base`` (the loop's tracking
     error: always in the model); returns (rounds, final Fit)."""
@@ -713,7 +794,9 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
     settings, scan = files.settings, files.scan
     D = settings.cutter_diameter_mm
     servo_of(settings)  # refused before any computation when the file does not state it
-    sig = run_signals(files, robot, arm(robot))
+    model_of_arm = arm(robot)
+    run_ctx = run_context(files, robot, model_of_arm)
+    sig = signals_at(run_ctx, model_of_arm, DAMPING_RATIO)
     env = Envelope(scan, sig, D)
     if env.covered.sum() < rf.MIN_ROWS[rf.SCAN]:
         raise InputError(f"{scan.path}: only {int(env.covered.sum())} scan points lie under the logged pass "
@@ -726,10 +809,23 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
     floor_mm, source, stated, estimated = noise_floor(scan, ss.segments(scan.x_mm, scan.y_mm), noise_mm, warnings)
     floor = floor_mm * 1e-3
     ctx = {"segs": segs, "length_mm": ss.scan_length_mm(x_c, y_c, segs), "cutter_mm": D}
-    loop, *cands = candidates(sig)
     empty = Fit([], [], np.zeros(0), float(y @ y), -y)
-    loop_row, loop_fit = try_cause(env, empty, loop, y, floor, ctx)
-    rounds, final = trace(env, cands, y, floor, ctx, loop_fit if loop_fit is not None else empty)
+
+    def traced(sig_, env_):
+        loop_, *cands_ = candidates(sig_)
+        loop_row_, loop_fit_ = try_cause(env_, empty, loop_, y, floor, ctx)
+        return (loop_, cands_, loop_row_, loop_fit_, *trace(env_, cands_, y, floor, ctx,
+                                                              loop_fit_ if loop_fit_ is not None else empty))
+
+    loop, cands, loop_row, loop_fit, rounds, final = traced(sig, env)
+    # the arm's damping, from how well the traced model fits the face at each ratio; re-traced at the
+    # best one when the run decides it
+    damping = profile_damping(run_ctx, model_of_arm, scan, D, y, floor, ctx, final)
+    if damping["ratio"] is not None and damping["ratio"] != DAMPING_RATIO:
+        sig = signals_at(run_ctx, model_of_arm, damping["ratio"], damping)
+        env = Envelope(scan, sig, D)
+        loop, cands, loop_row, loop_fit, rounds, final = traced(sig, env)
+    sig.damping = damping
     model = [c for c in final.causes if c.name != LOOP]
     alts = alternatives(env, cands, y, floor, ctx, final) if model else []
     n_eff, tau = ss.effective_points(final.residual * 1e3, segs, ctx["length_mm"], D)
@@ -759,6 +855,7 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
                                 "error and the loop's tracking error, both predicted from the logs, are in the "
                                 "model before any cause")},
         "loop_lag_ms": loop_lag_ms(sig),
+        "damping": sig.damping or {"used": sig.damping_ratio, "source": "given"},
         "motion_error_mm": _rms(env.surface(np.zeros_like(sig.t_s))) * 1e3,
         "loop_lag": _loop_report(loop_row, named.get(LOOP), sizes.get(LOOP), settings.mode, loop_fix),
         "rms_before_mm": _rms(y) * 1e3, "rms_after_mm": rms_after,
@@ -856,9 +953,11 @@ def _verified_fix(report, verdict):
     cands = {c["name"]: c for c in report.get("candidates", [])}
     if chosen is None:
         tied = [verdict["best"]] + verdict["tied_with"]
-        out = {"status": "undecided" if not verdict["decided"] else "no fix better than the first cut",
+        # the best cut must beat the first cut before anything counts as verified
+        better = bool(verdict.get("vs_first_cut", {}).get("better", True))
+        out = {"status": "undecided" if better and not verdict["decided"] else "no fix better than the first cut",
                "candidate": None, "changes": [], "settings": None, "reason": verdict["reason"], "tied": tied}
-        if not verdict["decided"] and all(t in cands for t in tied):
+        if better and not verdict["decided"] and all(t in cands for t in tied):
             # the tied cuts share a cause: its fix is verified, the rest is not
             common = set.intersection(*(set(cands[t]["params"]) for t in tied))
             if common:

@@ -4,10 +4,14 @@ measures.  Plain numpy/scipy: the caller supplies the arm's mass matrix.
 The loop, linearised at one pose and stepped at the sensor rate h:
 
   arm       M dq'' + D dq' + (K - G) dq = J^T W + K theta + D theta'
-            (ZOH over h; D = beta K; G = d tau_gravity / dq, the weight's
-            own stiffness, which the gears carry)
-  servo     theta'' = omega_v (Kp (theta_ref - theta) - theta')   (motor side,
-            model/servo.py; the correction has no velocity feed-forward)
+            (ZOH over h; G = d tau_gravity / dq, the weight's own
+            stiffness, which the gears carry)
+  motor     with ``joints`` (model/joint_dynamics.JointModel, the plant's):
+            its rotor inertia, the gear's torque pushing it back, the drive's
+            position loop and PI velocity loop (model/servo.py), D the modal
+            damping; without: kinematic, theta'' = omega_v (Kp (theta_ref -
+            theta) - theta') (the rigid axis; D = beta K).  The correction
+            has no velocity feed-forward
   interpolator  theta_ref = c delayed by the interpolator's dead time
             (a shift register at h)
   process   W = W_nom(t) + [K_p J_v dq; 0]           (the cut's stiffness: the
@@ -68,15 +72,33 @@ class LoopModel:
     # model.servo.ServoParameters of the motor side; None: the motor follows
     # the command at once (the plant before the servo was modelled).
     servo: object = None
+    # model.joint_dynamics.JointModel: the motors with inertia, drives and modal damping of the plant
+    # (supersedes M, K, beta_s, gravity_stiffness and servo's kinematic motor); None: the kinematic motor
+    joints: object = None
 
     def __post_init__(self):
         self.h = 1.0 / self.rate_hz
         self.N = max(1, int(round(self.period_s * self.rate_hz)))
-        Kd = np.diag(self.K)
+        Kd = np.diag(self.K) if np.ndim(self.K) == 1 else np.asarray(self.K, dtype=float)
         Ke = Kd - (self.gravity_stiffness if self.gravity_stiffness is not None else 0.0)
         Minv = np.linalg.inv(self.M)
         Z = np.zeros((6, 6))
-        if self.servo is None:  # arm (q, q'); inputs W (6), c (6)
+        if self.joints is not None:  # links (q, q'), motors (theta, theta'), drives' integrals z
+            jm = self.joints
+            self.servo = jm.servo
+            Ac, B = jm.continuous()
+            Minv = np.linalg.inv(jm.M)
+            I6 = np.eye(6)
+            Kv = np.diag(jm.velocity_gain / jm.motor_inertia_kgm2)
+            kp = jm.servo.position_gain_per_s
+            Bw = np.vstack([np.zeros((6, 6)), Minv @ self.J.T, np.zeros((18, 6))])
+            # the path's motion terms (see below): the reference beyond the path, the velocity error the
+            # feed-forward leaves, the path's acceleration
+            Br = np.vstack([np.zeros((6, 18)), np.hstack([Z, Z, -I6]), np.zeros((6, 18)),
+                            np.hstack([kp * Kv, Kv, -I6]), np.hstack([kp * I6, I6, Z])])
+            Bc = np.hstack([Bw, B[:, 0:6], Br])
+            self.n_delay = int(round(jm.servo.interpolator_delay_s / self.h))
+        elif self.servo is None:  # arm (q, q'); inputs W (6), c (6)
             Ac = np.block([[Z, np.eye(6)], [-Minv @ Ke, -self.beta_s * Minv @ Kd]])
             Bc = np.vstack([np.zeros((6, 12)), np.hstack([Minv @ self.J.T, Minv @ Kd])])
             self.n_delay = 0
@@ -106,6 +128,7 @@ class LoopModel:
         self.PJ = self.C_model[:, None] * self.J.T  # dq = C_m J^T W
         # joint acceleration from the arm's state and inputs: dq'' = A_q x + B_w W + B_c c
         self.acc_x, self.acc_w, self.acc_c = Ac[6:12], Bc[6:12, :6], Bc[6:12, 6:12]
+        self.nx = nx
         n = self.delay_steps
         # state layout
         sizes = {"arm": nx, "S": 6, "G": 6, "X": 6 * self.nf, "Z": 6, "buf": 6 * n, "c": 6, "ff": 6,

@@ -124,6 +124,11 @@ class MillingForceModel:
     def _per_tooth(self, theta_cos, theta_sin, c_xy, z_b, u, workpiece):
         """Force and moment (about the tool point) for teeth at the given angles,
         summed; (3,), (3,)."""
+        (fu, fv, fz, mu, mv, mz), a = self._tooth_terms(theta_cos, theta_sin, c_xy, z_b, u, workpiece)
+        return np.array([fu.sum(), fv.sum(), fz.sum()]), np.array([mu.sum(), mv.sum(), mz.sum()]), a
+
+    def _tooth_terms(self, theta_cos, theta_sin, c_xy, z_b, u, workpiece):
+        """((f_u, f_v, f_z, m_u, m_v, m_z) per tooth angle, depth a per tooth)."""
         R = self.cutter.radius_m
         v = np.array([-u[1], u[0]])
         tip = c_xy[None, :] + R * (theta_cos[:, None] * u[None, :] + theta_sin[:, None] * v[None, :])
@@ -145,9 +150,7 @@ class MillingForceModel:
         mu = rv * fz
         mv = -ru * fz
         mz = ru * fv - rv * fu
-        F_uvz = np.array([fu.sum(), fv.sum(), fz.sum()])
-        M_uvz = np.array([mu.sum(), mv.sum(), mz.sum()])
-        return F_uvz, M_uvz, a
+        return (fu, fv, fz, mu, mv, mz), a
 
     @staticmethod
     def _to_base(vec_uvz, u):
@@ -164,6 +167,19 @@ class MillingForceModel:
         F, M, _ = self._per_tooth(np.cos(theta), np.sin(theta), np.asarray(tool_point_m[:2]), tool_point_m[2], u,
                                   workpiece)
         return np.concatenate([self._to_base(F, u), self._to_base(M, u)])
+
+    def tooth_wrenches(self, t_s, tool_point_m, feed_dir_xy, workpiece, phase_rad=0.0):
+        """(n, 6): the wrench of ``tooth_wrench`` at each of the times ``t_s``
+        (n,), one row each (one vectorised evaluation)."""
+        u = np.asarray(feed_dir_xy, dtype=float)
+        n_t, n = np.size(t_s), self.cutter.n_teeth
+        base = phase_rad - self.cutter.spindle_rad_per_s * np.atleast_1d(t_s)
+        theta = (base[:, None] + 2 * np.pi * np.arange(n) / n).ravel()
+        terms, _ = self._tooth_terms(np.cos(theta), np.sin(theta), np.asarray(tool_point_m[:2]), tool_point_m[2], u,
+                                     workpiece)
+        fu, fv, fz, mu, mv, mz = (x.reshape(n_t, n).sum(axis=1) for x in terms)
+        return np.column_stack([fu * u[0] - fv * u[1], fu * u[1] + fv * u[0], fz,
+                                mu * u[0] - mv * u[1], mu * u[1] + mv * u[0], mz])
 
     def lead_intervals(self, tool_point_m, feed_dir_xy, workpiece):
         """The leading half of the cutter (theta in [-pi/2, pi/2]) split where a

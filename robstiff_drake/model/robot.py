@@ -175,6 +175,9 @@ class RobotModel:
     # one line each: values that look like another unit, implausible physics
     # (model/robot_file.check_units, model/robot_checks.plausibility)
     warnings: tuple = ()
+    # the motors' rotor inertias reflected to the joints (n^2 J_rotor, kg*m^2); None: not in the file
+    # (the station then takes the rule of diagrams/station.motor_inertia)
+    motor_inertia_kgm2: np.ndarray | None = None
 
     @property
     def joint_compliance_rad_per_Nm(self):
@@ -438,6 +441,7 @@ def load_robot(path=None):
         citation=values.get("source", "-"),
         convention=convention,
         joint_map=joint_map,
+        motor_inertia_kgm2=values.get("motor_inertia_kgm2"),
     )
     warnings = tuple(input_warning(w if w.startswith(str(path)) else f"{path}: {w}")
                      for w in unit_warnings + plausibility(robot))

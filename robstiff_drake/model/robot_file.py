@@ -96,6 +96,11 @@ KEYS = {
     "joint_limits.upper_deg": Key("vector", "deg", -720.0, 720.0, N_JOINTS, names=JOINTS),
     "joint_stiffness_Nm_per_rad": Key("vector", "N*m/rad", *STIFFNESS_RANGE_NM_PER_RAD, N_JOINTS, names=JOINTS,
                                       why="a small cobot's wrist ~1e3; the stiffest large-robot axis ~1e7"),
+    # Reflected rotor inertias (n^2 J_rotor at the joint): above 1e4 a value is a unit slip (the largest
+    # arms' main axes reflect a few hundred); 0 would leave the motor massless.  Absent: the station's rule
+    # (diagrams/station.motor_inertia)
+    "motor_inertia_kgm2": Key("vector", "kg*m^2", 1e-3, 1e4, N_JOINTS, required=False, names=JOINTS,
+                              why="the largest arms' main axes reflect a few hundred kg*m^2"),
     "links": Key("list", length=N_JOINTS + 1, why="the base and six moving links"),
     "links[].name": Key("text"),
     "links[].mass_kg": Key("number", "kg", 0.01, 2e4, why="a desktop arm's wrist to the heaviest industrial robots, "

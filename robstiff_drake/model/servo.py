@@ -6,11 +6,20 @@ joint, in link-side units (the gear ratio divided out):
     theta'' = omega_v (Kp (theta_ref - theta) + f_v omega_ref - theta')
 
 so that theta / theta_ref = omega_v (Kp + f_v s) / (s^2 + omega_v s + omega_v Kp).
-The motor angle theta is what the encoder reads.  The servo is taken as
-stiff against the load: the gear's torque does not push the motor back
-(the velocity loop's integral action makes its static stiffness infinite,
-and its dynamic stiffness is far above the gear's at the arm's modes);
-what the load does is twist the gear (model/transmission.py).
+The motor angle theta is what the encoder reads.  That kinematic form is
+the rigid axis's response (the controller's own model of its lag, which
+the compensator's timing uses).  The plant's drives are torque-level
+(``drive_continuous``): the motor has its reflected rotor inertia J_m and
+the gear's torque pushes it back, against a velocity loop with integral
+action (a PI, as industrial drives have) around the position loop, with
+the controller's gravity model fed forward as a torque:
+
+    J_m theta'' = K_v (e_v + omega_i z) + tau_ff - tau_gear,
+    e_v = Kp (theta_ref - theta) + f_v omega_ref - theta',   z' = e_v,
+
+K_v tuned for the rigid axis (motor and link inertia) so that a rigid
+axis has the velocity bandwidth omega_v: then the kinematic form above is
+its response, and the compensator's lag estimate stays what it was.
 
 A command without velocity feed-forward (a correction from the wrist
 sensor, say) reaches the motor after the interpolator's delay and, at low
@@ -23,7 +32,7 @@ discretisation for a step.
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
+from scipy import linalg, signal
 
 
 @dataclass(frozen=True)
@@ -32,6 +41,10 @@ class ServoParameters:
     velocity_bandwidth_hz: float  # omega_v / (2 pi)
     velocity_feedforward: float  # f_v, 0..1
     interpolator_delay_s: float  # dead time from a new joint reference to the drives
+    # the velocity loop's integral corner omega_i / (2 pi) (Hz): the drives' PI (``drive_continuous``).
+    # ASSUMPTION: a quarter of the velocity bandwidth (the usual PI tuning keeps the integral corner a
+    # factor 4-5 below the loop's crossover, for its phase margin); ABB publishes no drive tuning
+    velocity_integral_hz: float = 7.5
 
     @property
     def omega_v(self):
@@ -88,3 +101,72 @@ class ServoParameters:
         wv, kp = self.omega_v, self.position_gain_per_s
         fv = self.velocity_feedforward if velocity_feedforward else 0.0
         return wv * (kp + fv * s) / (s * s + wv * s + wv * kp) * np.exp(-s * self.interpolator_delay_s)
+
+
+# the drives' inputs, in order: the interpolated reference (theta_ref, omega_ref) and the torque
+# feed-forward (all three delayed by the interpolator), then the gear's torque on the motor (not delayed)
+DRIVE_REFERENCE_SIZE = 18
+
+
+def velocity_gain_Nms(servo, rigid_inertia_kgm2):
+    """K_v (6,) N*m*s/rad: the velocity loop's gain that gives a rigid axis
+    of inertia ``rigid_inertia_kgm2`` (motor and link, reflected to the
+    joint) the velocity bandwidth omega_v."""
+    return np.asarray(rigid_inertia_kgm2, dtype=float) * servo.omega_v
+
+
+def drive_continuous(servo, motor_inertia_kgm2, velocity_gain):
+    """(A, B) of the six torque-level drives (see the module docstring):
+    state (theta (6), theta' (6), z (6): the velocity error's integral),
+    input (theta_ref, omega_ref, tau_ff, tau_gear) (24: rad, rad/s, N*m,
+    N*m), motor inertias ``motor_inertia_kgm2`` (6, kg*m^2, reflected to
+    the joint) and velocity gains ``velocity_gain`` (6, N*m*s/rad)."""
+    Jinv = np.diag(1.0 / np.asarray(motor_inertia_kgm2, dtype=float))
+    Kv = np.diag(np.asarray(velocity_gain, dtype=float))
+    kp, fv, wi = servo.position_gain_per_s, servo.velocity_feedforward, 2.0 * np.pi * servo.velocity_integral_hz
+    I, Z = np.eye(6), np.zeros((6, 6))
+    # e_v = kp theta_ref + fv omega_ref - kp theta - theta'
+    A = np.block([[Z, I, Z], [-kp * Jinv @ Kv, -Jinv @ Kv, wi * Jinv @ Kv], [-kp * I, -I, Z]])
+    B = np.block([[Z, Z, Z, Z], [kp * Jinv @ Kv, fv * Jinv @ Kv, Jinv, -Jinv], [kp * I, fv * I, Z, Z]])
+    return A, B
+
+
+def drive_discrete(servo, step_s, motor_inertia_kgm2, velocity_gain, n_delay=0):
+    """(A, B, C, D) of the drives discretised exactly for ``step_s`` with
+    their inputs held over the step (zero-order hold), with the
+    interpolator's dead time as a shift register of ``n_delay`` samples of
+    the reference and feed-forward in front of them (one system, one
+    discrete update per step): state (the register, oldest last; theta,
+    theta', z), input (theta_ref, omega_ref, tau_ff, tau_gear), output
+    (theta, theta')."""
+    A, B = drive_continuous(servo, motor_inertia_kgm2, velocity_gain)
+    nx, nu = A.shape[0], B.shape[1]
+    E = linalg.expm(np.block([[A, B], [np.zeros((nu, nx + nu))]]) * step_s)
+    Ad, Bd = E[:nx, :nx], E[:nx, nx:]
+    m = DRIVE_REFERENCE_SIZE
+    n = m * n_delay
+    Aa = np.zeros((n + nx, n + nx))
+    Ba = np.zeros((n + nx, nu))
+    Aa[n:, n:] = Ad
+    Ba[n:, m:] = Bd[:, m:]  # the gear's torque acts at once
+    if n_delay == 0:
+        Ba[n:, :m] = Bd[:, :m]
+    else:
+        Ba[:m, :m] = np.eye(m)  # the newest sample enters the register
+        for k in range(1, n_delay):
+            Aa[k * m:(k + 1) * m, (k - 1) * m:k * m] = np.eye(m)  # and moves along it
+        Aa[n:, n - m:n] = Bd[:, :m]  # the drive sees the oldest
+    C = np.hstack([np.zeros((12, n)), np.eye(12), np.zeros((12, 6))])
+    return Aa, Ba, C, np.zeros((12, nu))
+
+
+def drive_state_at_rest(servo, velocity_gain, theta_rad, gear_torque_Nm, feedforward_Nm, n_delay=0):
+    """The drives' state (as ``drive_discrete`` orders it) at rest at motor
+    angles ``theta_rad`` holding ``gear_torque_Nm`` with ``feedforward_Nm``
+    fed forward: the register full of (theta, 0, tau_ff), the integral
+    carrying what the feed-forward does not."""
+    wi = 2.0 * np.pi * servo.velocity_integral_hz
+    z = (np.asarray(gear_torque_Nm, dtype=float) - np.asarray(feedforward_Nm, dtype=float)) / (
+        np.asarray(velocity_gain, dtype=float) * wi)
+    sample = np.concatenate([theta_rad, np.zeros(6), feedforward_Nm])
+    return np.concatenate([np.tile(sample, n_delay), theta_rad, np.zeros(6), z])

@@ -17,7 +17,14 @@ few newton-metres either way would flip.  Where the total torque keeps its
 sign, the lost motion is a constant offset that any static model absorbs;
 it shows only where the total torque changes sign.
 
-Plain numpy; the plant's system and the compensator's model both call it.
+Plain numpy.  That smooth law is the compensator's model and
+``diagnose-run``'s lost-motion cause.  The plant's gears have play
+(``play_torque``): a dead zone of total width 2b in which the gear
+transmits no torque, the gear's stiffness outside it; which flank is in
+contact is the link's own state (where it sits in the gap), so a load that
+reverses slowly leaves a hysteresis loop of width 2b and slopes 1/k, and a
+load that falls to zero leaves the link on the flank it last pressed.
+How the impacts at the flanks are damped: systems/gear_transmission.py.
 """
 
 import numpy as np
@@ -75,3 +82,31 @@ def static_deflection(tau_hold_Nm, tau_process_Nm, compliance_rad_per_Nm, lost_m
     args = (compliance_rad_per_Nm, lost_motion_rad, coupling_c23_rad_per_Nm)
     th = np.asarray(tau_hold_Nm, dtype=float)
     return twist(th, *args) - twist(th - np.asarray(tau_process_Nm, dtype=float), *args)
+
+
+# Below this torque (N*m) a gear counts as unloaded: its link sits in the middle of its play at rest.
+PLAY_UNLOADED_NM = 1e-6
+
+
+def play_torque(phi_rad, stiffness_Nm_per_rad, play_rad):
+    """The elastic torque (N*m) of gears with play: K dz(phi), dz the dead
+    zone of half-width b (phi - b above b, phi + b below -b, 0 inside);
+    ``stiffness_Nm_per_rad`` (6, 6) (the coupled stiffness matrix) or (6,)."""
+    phi = np.asarray(phi_rad, dtype=float)
+    b = np.asarray(play_rad, dtype=float)
+    dz = phi - np.clip(phi, -b, b)
+    K = np.asarray(stiffness_Nm_per_rad, dtype=float)
+    return dz @ K.T if K.ndim == 2 else K * dz
+
+
+def play_twist(tau_Nm, compliance_rad_per_Nm, play_rad, coupling_c23_rad_per_Nm=0.0):
+    """The twist (rad) at rest of gears with play carrying ``tau_Nm``: the
+    elastic twist C tau, plus the play b on the side the elastic twist
+    presses (none where the gear is unloaded: the link then sits in the
+    middle of its play)."""
+    tau = np.asarray(tau_Nm, dtype=float)
+    elastic = twist(tau, compliance_rad_per_Nm, None, coupling_c23_rad_per_Nm)
+    b = np.zeros(6) if play_rad is None or not len(play_rad) else np.asarray(play_rad, dtype=float)
+    c = np.asarray(compliance_rad_per_Nm, dtype=float)
+    loaded = np.abs(elastic) > PLAY_UNLOADED_NM * c
+    return elastic + b * np.sign(elastic) * loaded

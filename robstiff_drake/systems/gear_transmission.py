@@ -1,37 +1,60 @@
-"""The gears' lost motion and joint coupling in the plant: the joint servo
-spring is linear, K (theta - q); a gear with play or coupling transmits the
-torque of model/transmission.py instead.  This system hands the spring the
-motor angle that makes its linear torque equal the law's:
+"""The gears' torque when some have play: between the motor angle theta and
+the link angle q each gear transmits
 
-    theta_eff = q + c * torque(theta - q)
+    tau = K dz(theta - q) + D_c (theta' - q')        in contact,
+    tau = 0                                           inside its play,
 
-so the plant carries exactly one law, the one the compensator's model uses.
-Only in the diagram when the plant has lost motion or coupling."""
+dz the dead zone of half-width b (model/transmission.play_torque), K the
+gears' (coupled) stiffness and D_c their damping (the station's modal
+damping matrix) restricted to the gears in contact.  Which flank is in
+contact is the link's own state: where it sits in the gap.
+
+Impacts.  The flanks meet as a spring-damper (Kelvin-Voigt contact), and
+the contact can only push: when the damper would pull the flanks together
+as they separate, the torque is zero instead.  That is the "physical"
+backlash model of Nordin, Galic and Gutman ("New models for backlash and
+gear play", Int. J. Adaptive Control and Signal Processing 11(1):49-63,
+1997; surveyed in Nordin and Gutman, "Controlling mechanical systems with
+backlash - a survey", Automatica 38(10):1633-1649, 2002), which corrects
+the plain dead-zone model's tension at separation.  An impact of a link
+of inertia J on a gear of stiffness k then rebounds with the coefficient
+of restitution exp(-pi zeta / sqrt(1 - zeta^2)), zeta = d / (2 sqrt(k J))
+(d the gear's damping): the gear's own damping, no extra parameter.
+
+Without play the gear is linear and the station uses a MatrixGain
+instead (no Python in the step)."""
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from robstiff_drake.model import transmission
 
+class GearPlay(LeafSystem):
+    """Inputs ``motor_state`` (12: theta, theta' rad, rad/s) and
+    ``link_state`` (12: q, q'); output ``gear_torque`` (6, N*m: on the link;
+    the motor feels minus it)."""
 
-class GearTransmission(LeafSystem):
-    """Inputs ``motor_state`` (12: theta, theta' rad, rad/s) and ``link_state``
-    (12: q, q'); output ``spring_setpoint`` (12): (theta_eff, theta')."""
-
-    def __init__(self, *, joint_stiffness_Nm_per_rad, lost_motion_rad, coupling_c23_rad_per_Nm):
+    def __init__(self, *, stiffness_Nm_per_rad, damping_Nms_per_rad, play_rad):
         super().__init__()
-        self._c = 1.0 / np.asarray(joint_stiffness_Nm_per_rad, dtype=float)
-        self._b = np.asarray(lost_motion_rad if lost_motion_rad else np.zeros(6), dtype=float)
-        self._c23 = float(coupling_c23_rad_per_Nm)
+        self._K = np.asarray(stiffness_Nm_per_rad, dtype=float)
+        self._D = np.asarray(damping_Nms_per_rad, dtype=float)
+        self._b = np.asarray(play_rad, dtype=float)
+        self._has_play = self._b > 0
         self._motor = self.DeclareVectorInputPort("motor_state", 12)
         self._link = self.DeclareVectorInputPort("link_state", 12)
-        self.DeclareVectorOutputPort("spring_setpoint", 12, self._calc,
+        self.DeclareVectorOutputPort("gear_torque", 6, self._calc,
                                      prerequisites_of_calc={self._motor.ticket(), self._link.ticket()})
 
+    def torque(self, motor_state, link_state):
+        """The gears' torque (6, N*m) on the links at these states."""
+        phi = motor_state[:6] - link_state[:6]
+        rate = motor_state[6:] - link_state[6:]
+        b = self._b
+        dz = phi - np.clip(phi, -b, b)
+        contact = ~self._has_play | (np.abs(phi) > b)
+        tau = self._K @ dz + (self._D * np.outer(contact, contact)) @ rate
+        # no tension: a flank in contact can only push (the sign of its dead-zone twist)
+        pulls = self._has_play & (tau * dz < 0.0)
+        return np.where(contact & ~pulls, tau, 0.0)
+
     def _calc(self, context, output):
-        m = self._motor.Eval(context)
-        q = self._link.Eval(context)[:6]
-        tau = transmission.torque(m[:6] - q, self._c, self._b, self._c23)
-        out = m.copy()
-        out[:6] = q + self._c * tau
-        output.SetFromVector(out)
+        output.SetFromVector(self.torque(self._motor.Eval(context), self._link.Eval(context)))

@@ -30,11 +30,15 @@ class MillingForceSource(LeafSystem):
       force the plant's step averages away, which a fast sensor still sees).
 
     In averaged mode every output is held state (no computation between
-    updates).
+    updates).  In tooth mode each update also computes, in the same
+    vectorised evaluation as the period's mean, the instantaneous wrench at
+    the instants the outputs will be read before the next update: the
+    sensor's samples (every ``sensor_period_s``) and the update's end (the
+    loggers'); an output read at another instant computes its own.
     """
 
     def __init__(self, *, force_model, workpiece, path, kinematics, tool_point_m, period_s, spindle_body_index,
-                 mode="averaged", samples_per_tooth=20, phase_rad=0.0):
+                 mode="averaged", samples_per_tooth=20, phase_rad=0.0, sensor_period_s=None):
         super().__init__()
         if mode not in ("averaged", "tooth"):
             raise ValueError(f"mode must be 'averaged' or 'tooth', got {mode!r}")
@@ -49,6 +53,8 @@ class MillingForceSource(LeafSystem):
         # tooth-resolved: the period's mean over samples_per_tooth samples per tooth pass
         n_sub = max(1, int(round(period_s * force_model.cutter.tooth_pass_hz * samples_per_tooth)))
         self._sub_t = np.arange(n_sub) * (period_s / n_sub)
+        self._period = float(period_s)
+        self._sensor_period = float(sensor_period_s or period_s)
         self._q = self.DeclareVectorInputPort("q", 6)
         # held: flange rotation (9) and tool point (3); the period's wrench
         # (base frame, at the tool point) and the spatial force list
@@ -63,7 +69,12 @@ class MillingForceSource(LeafSystem):
         if mode == "averaged":
             self.DeclareStateOutputPort("wrench", self._w)
         else:
-            now = {self.discrete_state_ticket(self._pose), self.time_ticket()}
+            # the instants read before the next update (offsets from the update) and their wrenches (base frame)
+            self._offsets = self._read_offsets(0.0)
+            self._inst = self.DeclareDiscreteState(np.zeros(6 * 8))
+            self._inst_t = self.DeclareDiscreteState(np.full(8, np.nan))
+            now = {self.discrete_state_ticket(self._pose), self.time_ticket(), self.discrete_state_ticket(self._inst),
+                   self.discrete_state_ticket(self._inst_t)}
             self.DeclareVectorOutputPort("wrench", 6, lambda c, o: o.SetFromVector(self._tooth_wrench_now(c)),
                                          prerequisites_of_calc=now)
             self.DeclareVectorOutputPort("ripple_sensor", 6, self._calc_ripple,
@@ -75,9 +86,21 @@ class MillingForceSource(LeafSystem):
         self._applied.F_Bq_W = SpatialForce(np.array(w[3:]), np.array(w[:3]))
         return self._applied
 
+    def _read_offsets(self, t):
+        """The instants in (t, t + period] that the outputs are read at (the
+        sensor's grid and the period's end), as times, at most 8."""
+        T = self._sensor_period
+        first = np.floor(t / T + 1e-9) * T + T
+        ins = list(np.arange(first, t + self._period + 1e-12, T)) + [t + self._period]
+        return np.unique(np.round(ins, 12))[:8]
+
     def _tooth_wrench_now(self, context):
-        p = context.get_discrete_state(self._pose).value()[9:]
         t = context.get_time()
+        times = context.get_discrete_state(self._inst_t).value()
+        hit = np.flatnonzero(np.abs(times - t) < 1e-9)
+        if hit.size:
+            return context.get_discrete_state(self._inst).value()[6 * hit[0]:6 * hit[0] + 6]
+        p = context.get_discrete_state(self._pose).value()[9:]
         return self._model.tooth_wrench(t, p, self._path.feed_direction(t), self._workpiece, self._phase)
 
     def _calc_ripple(self, context, output):
@@ -85,22 +108,35 @@ class MillingForceSource(LeafSystem):
         ripple = self._tooth_wrench_now(context) - context.get_discrete_state(self._w).value()
         output.SetFromVector(to_sensor_frame(R, self._tool, ripple.tolist()))
 
-    def step_wrench(self, t, q):
-        """(wrench over the period starting at t as a list, pose): the pose is
-        the flange rotation (row-major 9) and the tool point (3), m."""
+    def step_wrench(self, t, q, instants=()):
+        """(wrench over the period starting at t as a list, pose, the
+        instantaneous wrenches at ``instants`` (tooth mode; (k, 6))): the
+        pose is the flange rotation (row-major 9) and the tool point (3), m."""
         pose = self._kin.pose_only(q)
         p = pose[9:]
         u = self._path.feed_direction(t)
+        inst = None
         if self._mode == "tooth":
-            w = self._model.tooth_wrench(t + self._sub_t, p, u, self._workpiece, self._phase) / len(self._sub_t)
+            n = len(self._sub_t)
+            rows = self._model.tooth_wrenches(np.r_[t + self._sub_t, instants], p, u, self._workpiece, self._phase)
+            w, inst = rows[:n].sum(axis=0) / n, rows[n:]
         else:
             w = self._model.average_wrench(p, u, self._workpiece)
-        return w.tolist(), pose
+        return w.tolist(), pose, inst
 
     def _update(self, context, state):
         q = self._q.Eval(context)
-        w, pose = self.step_wrench(context.get_time(), q)
+        t = context.get_time()
+        instants = self._read_offsets(t) if self._mode == "tooth" else ()
+        w, pose, inst = self.step_wrench(t, q, instants)
         discrete = state.get_mutable_discrete_state()
         discrete.set_value(int(self._pose), np.array(pose))
         discrete.set_value(int(self._w), np.array(w))
+        if inst is not None:
+            times = np.full(8, np.nan)
+            times[:len(instants)] = instants
+            values = np.zeros(48)
+            values[:inst.size] = inst.ravel()
+            discrete.set_value(int(self._inst), values)
+            discrete.set_value(int(self._inst_t), times)
         state.get_mutable_abstract_state(int(self._force)).set_value([self._spatial_force(w)])

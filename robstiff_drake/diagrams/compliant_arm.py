@@ -1,0 +1,296 @@
+"""The compliant arm of the station (diagrams/station.py): a discrete
+MultibodyPlant of the links, each driven through its gear (stiffness,
+play, modal damping) by a motor with its rotor's inertia that a
+torque-level drive turns, the robot controller's absolute-accuracy gravity
+model (its reference and its torque feed-forward) and the interpolator's
+dead time; the joints' linear model (model/joint_dynamics.py) at a pose,
+and the check that the plant's step keeps every mode stable."""
+
+import numpy as np
+from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
+from pydrake.systems.controllers import InverseDynamics
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    Demultiplexer,
+    DiscreteTimeDelay,
+    LinearSystem,
+    MatrixGain,
+    Multiplexer,
+    ZeroOrderHold,
+)
+
+from robstiff_drake.model import joint_dynamics, transmission
+from robstiff_drake.model import servo as servo_model
+from robstiff_drake.plant import add_robot, check_plant_matches
+from robstiff_drake.systems.gear_transmission import GearPlay
+
+
+def modal_frequencies_hz(M, k_Nm_per_rad, G=None):
+    """Undamped natural frequencies (Hz) of joint springs k (6,) or a
+    stiffness matrix (6, 6) with the mass matrix M (motors held; with G,
+    the weight's own stiffness), ascending."""
+    K = np.asarray(k_Nm_per_rad, dtype=float)
+    return joint_dynamics.held_modes(M, np.diag(K) if K.ndim == 1 else K, G)[0] / (2 * np.pi)
+
+
+def natural_frequencies(plant, context, q, k_Nm_per_rad):
+    """Undamped natural frequencies (Hz) of the joint springs at q (motors
+    held), ascending."""
+    plant.SetPositions(context, q)
+    return modal_frequencies_hz(plant.CalcMassMatrix(context), k_Nm_per_rad)
+
+
+def motor_inertia(robot, M):
+    """The motors' rotor inertias reflected to the joints (6,, kg*m^2): the
+    robot file's ``motor_inertia_kgm2``; a file without them: ASSUMPTION,
+    each equal to its link's inertia on the joint in M (a load-to-motor
+    inertia ratio of 1, inside the 1-5 that servo axes are sized for)."""
+    if robot.motor_inertia_kgm2 is not None:
+        return np.asarray(robot.motor_inertia_kgm2, dtype=float)
+    return np.diag(M).copy()
+
+
+def joint_model(controller_plant, robot, q_rad, stiffness_matrix, damping_ratios, servo):
+    """The linear joints (model/joint_dynamics.JointModel) at pose q: the
+    controller model's mass matrix and weight's stiffness, the gears, their
+    modal damping (``damping_ratios``, per mode or one for all), the motors
+    and drives (velocity loops tuned for the rigid axes at q)."""
+    ctx = controller_plant.CreateDefaultContext()
+    G = gravity_stiffness(controller_plant, ctx, np.asarray(q_rad, dtype=float))
+    controller_plant.SetPositions(ctx, q_rad)
+    M = controller_plant.CalcMassMatrix(ctx)
+    D = joint_dynamics.modal_damping_matrix(M, stiffness_matrix, G, damping_ratios)
+    Jm = motor_inertia(robot, M)
+    return joint_dynamics.JointModel(M=M, K=stiffness_matrix, G=G, D=D, motor_inertia_kgm2=Jm, servo=servo,
+                                     velocity_gain=servo_model.velocity_gain_Nms(servo, Jm + np.diag(M)))
+
+
+def unstable_step_message(jm, time_step_s):
+    """None when the plant step keeps every mode of the joints ``jm``
+    stable, else why not and the step that would do (one line)."""
+    if jm.is_stable_step(time_step_s):
+        return None
+    lam = np.linalg.eigvals(jm.continuous()[0])
+    worst = lam[np.argmax(lam.real)]
+    if worst.real >= 0.0:  # no step helps: the loop itself grows
+        return (f"the joints' loop is unstable whatever the step: its {abs(worst) / (2 * np.pi):.1f} Hz mode grows "
+                f"(the drives' loops against too lightly damped gears): raise plant.modal_damping_ratio or "
+                f"plant.damping_ratios, or lower servo.velocity_integral_hz")
+    f_top = max(jm.closed_loop_modes()[0].max(), joint_dynamics.free_modes_hz(
+        jm.M, jm.K, jm.G, jm.motor_inertia_kgm2).max())
+    ok = jm.largest_stable_step_s(time_step_s)
+    ok_ms = np.floor(ok * 1e4) / 10.0  # rounded down to 0.1 ms
+    return (f"a {time_step_s * 1e3:g} ms plant step is unstable for the arm's {f_top:.0f} Hz mode (the gears' "
+            f"explicit step needs omega h < 2 in every mode): use at most {ok_ms:g} ms "
+            f"(plant_config.time_step: {ok_ms / 1e3:g})")
+
+
+def controller_model(robot):
+    """The robot controller's own model of the arm and payload (a
+    continuous MultibodyPlant, finalized): its gravity model, and the arm's
+    modes.  Keep it alive as long as a diagram that uses it."""
+    plant = MultibodyPlant(0.0)
+    add_robot(plant, robot)
+    plant.Finalize()
+    check_plant_matches(plant, robot)
+    return plant
+
+
+def gravity_stiffness(plant, context, q, delta_rad=1e-6):
+    """d tau_gravity / dq (6, 6) at q, N*m/rad, by central differences: the
+    arm's weight's own stiffness, which the gears carry along with theirs."""
+    G = np.empty((6, 6))
+    for k in range(6):
+        e = np.zeros(6)
+        e[k] = delta_rad
+        plant.SetPositions(context, q + e)
+        plus = plant.CalcGravityGeneralizedForces(context)
+        plant.SetPositions(context, q - e)
+        G[:, k] = (plus - plant.CalcGravityGeneralizedForces(context)) / (2 * delta_rad)
+    return G
+
+
+def gravity_holding_torque(controller_plant, q):
+    """The joint torques (N*m) that hold the arm and payload still at q
+    (minus the generalized gravity forces)."""
+    ctx = controller_plant.CreateDefaultContext()
+    controller_plant.SetPositions(ctx, q)
+    return -controller_plant.CalcGravityGeneralizedForces(ctx)
+
+
+def static_link_angles(controller_plant, theta, compliance, lost_motion_rad=None, coupling_c23=0.0, iterations=50):
+    """The link angles q (rad) at which the plant's gears (play of
+    half-width ``lost_motion_rad``), their motors held at ``theta``, hold
+    the arm still against gravity: q = theta - play_twist(g(q)), by
+    fixed-point iteration (the twist is a few mrad, so it converges at
+    once)."""
+    q = np.array(theta, dtype=float)
+    for _ in range(iterations):
+        q_new = theta - transmission.play_twist(gravity_holding_torque(controller_plant, q), compliance,
+                                                lost_motion_rad, coupling_c23)
+        if np.max(np.abs(q_new - q)) < 1e-13:
+            return q_new
+        q = q_new
+    return q
+
+
+def set_drives_at_rest(arm, root_context, theta, q_command=None):
+    """Every sample of ``arm``'s interpolator and drives (the systems
+    add_compliant_arm returns under "interpolator" and "servo") at rest at
+    the motor angles ``theta`` (rad) with the controller commanding
+    ``q_command`` (its gravity model's torque fed forward; None: the link
+    angles the plant's context holds): the drives' integrals carry what the
+    feed-forward leaves of the gears' torque at the plant's link angles
+    (set those first)."""
+    plant, ctrl = arm["plant"], arm["controller_plant"]
+    q = plant.GetPositions(plant.GetMyContextFromRoot(root_context))
+    ff = gravity_holding_torque(ctrl, q if q_command is None else np.asarray(q_command, dtype=float))
+    gear = arm["gear_torque_at_rest"](theta, q)
+    sample = np.concatenate([theta, np.zeros(6), ff])
+    for block in arm["interpolator"]:
+        ctx = block.GetMyMutableContextFromRoot(root_context)
+        ctx.SetDiscreteState(np.tile(sample, ctx.get_discrete_state_vector().size() // sample.size))
+    drives = arm["servo"]
+    n_delay = (drives.num_states() - 18) // servo_model.DRIVE_REFERENCE_SIZE
+    drives.GetMyMutableContextFromRoot(root_context).SetDiscreteState(servo_model.drive_state_at_rest(
+        arm["servo_parameters"], arm["joints"].velocity_gain, theta, gear, ff, n_delay))
+
+
+def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_rad, damping_ratios, q_modes_rad,
+                      servo, interpolator_period_s, lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0,
+                      check_stability=True):
+    """The arm and its drives: a discrete MultibodyPlant (``plant_config``)
+    of the links, each driven through its gear by a motor with its rotor's
+    inertia, which a torque-level drive turns (model/servo.py); the robot
+    controller's absolute-accuracy gravity model (its reference and its
+    torque feed-forward) and the interpolator's dead time (see the module
+    docstring).
+
+    Gear j carries tau = K dz(theta - q) + D (theta' - q') onto the link
+    and minus that onto its motor: K the gears' stiffness (with the 2-3
+    coupling), dz the play's dead zone (``lost_motion_rad``: half-widths;
+    none: dz(x) = x), D the modal damping that gives each motors-held mode
+    its ratio in ``damping_ratios`` (model/joint_dynamics.py, at
+    ``q_modes_rad``).  Without play the torque is one MatrixGain (no Python
+    in the step), with play systems/gear_transmission.GearPlay.  The gear's
+    torque is explicit over a step (symplectic Euler in the plant, the
+    drives exact with it held): stable while omega h < 2 in every mode
+    (model/joint_dynamics.py), whatever the damping.
+
+    Returns a dict: plant, controller_plant (the controller's model: keep it
+    alive with the diagram), ``position_command`` and ``velocity_command``
+    (input ports), ``motor_state`` (output port: theta, theta'),
+    ``motor_position``, ``reported_position`` (output port: the motor angles
+    less the controller's gravity model), ``gear_torque`` (output port),
+    ``servo`` (the drives' LinearSystem), ``interpolator`` (its blocks),
+    joints (the JointModel), natural_frequencies_hz (motors held).  Raises
+    ValueError, naming the step that would do, if the step is unstable for
+    these joints (unless ``check_stability`` is false)."""
+    k = np.asarray(joint_stiffness_Nm_per_rad, dtype=float)
+    # ASSUMPTION: the absolute-accuracy model is calibrated for this arm (as
+    # ABB calibrates each robot with the option): its gravity model uses the
+    # gears' true linear stiffness; their play and coupling are not in it
+    # (the touch-off absorbs their static part at the start pose).
+    k_model = k
+    h = float(plant_config.time_step)
+    plant, _ = AddMultibodyPlant(plant_config, builder)
+    plant.set_name("plant")
+    add_robot(plant, robot)
+    plant.Finalize()
+    ctrl = controller_model(robot)
+    Kg = joint_dynamics.stiffness_matrix(k, coupling_c23_rad_per_Nm)
+    jm = joint_model(ctrl, robot, q_modes_rad, Kg, damping_ratios, servo)
+    why = unstable_step_message(jm, h) if check_stability else None
+    if why:
+        raise ValueError(why)
+
+    # the robot controller: absolute-accuracy gravity model, interpolator, drives
+    cmd_in = builder.AddNamedSystem("position_command_in", Multiplexer([6]))
+    vel_in = builder.AddNamedSystem("velocity_command_in", Multiplexer([6]))
+    zeros = builder.AddNamedSystem("zero_velocity", ConstantVectorSource(np.zeros(6)))
+    # the touch-off offset: a parameter in the Context, set by MillingStation.set_initial_state
+    offset = builder.AddNamedSystem("touch_off_offset", ConstantVectorSource(np.zeros(6)))
+
+    def gravity_at(angles, name):
+        """The controller model's gravity-holding torque at ``angles``
+        (InverseDynamics: C++, no Python per step)."""
+        as_state = builder.AddNamedSystem(f"{name}_as_state", Multiplexer([6, 6]))
+        builder.Connect(angles, as_state.get_input_port(0))
+        builder.Connect(zeros.get_output_port(), as_state.get_input_port(1))
+        gravity = builder.AddNamedSystem(f"{name}_gravity", InverseDynamics(
+            ctrl, InverseDynamics.InverseDynamicsMode.kGravityCompensation))
+        builder.Connect(as_state.get_output_port(), gravity.get_input_port_estimated_state())
+        return gravity.get_output_port()
+
+    # the reference (theta_ref = q + C_model g(q) + offset, omega_ref) and the torque fed forward, g(q)
+    I, Z, C = np.eye(6), np.zeros((6, 6)), np.diag(1.0 / k_model)
+    terms = builder.AddNamedSystem("motor_reference_terms", Multiplexer([6, 6, 6, 6]))
+    builder.Connect(cmd_in.get_output_port(), terms.get_input_port(0))
+    builder.Connect(vel_in.get_output_port(), terms.get_input_port(1))
+    builder.Connect(gravity_at(cmd_in.get_output_port(), "motor_reference"), terms.get_input_port(2))
+    builder.Connect(offset.get_output_port(), terms.get_input_port(3))
+    ref = builder.AddNamedSystem("motor_reference", MatrixGain(np.block([[I, Z, C, I], [Z, I, Z, Z],
+                                                                         [Z, Z, I, Z]])))
+    builder.Connect(terms.get_output_port(), ref.get_input_port())
+    m = servo_model.DRIVE_REFERENCE_SIZE
+    n_i = int(round(servo.interpolator_delay_s / interpolator_period_s))
+    last, interp = ref.get_output_port(), []
+    n_reg = 0
+    if abs(interpolator_period_s - h) < 1e-12:
+        # the interpolator runs at the plant's step: its dead time is a shift
+        # register inside the drives' LinearSystem (one discrete update, not three)
+        # (n + 1 samples: the same dead time as a hold and a delay line of n - 1 in front of it)
+        n_reg = n_i + 1 if n_i else 0
+        n_i = 0
+    if n_i >= 1:  # n periods: a hold adds one, a delay line the rest (same-instant semantics)
+        interp.append(builder.AddNamedSystem("interpolator_hold", ZeroOrderHold(interpolator_period_s, m)))
+        if n_i >= 2:
+            interp.append(builder.AddNamedSystem("interpolator_delay",
+                                                 DiscreteTimeDelay(interpolator_period_s, n_i - 1, m)))
+        for block in interp:
+            builder.Connect(last, block.get_input_port())
+            last = block.get_output_port()
+    drive_in = builder.AddNamedSystem("drive_inputs", Multiplexer([m, 6]))
+    builder.Connect(last, drive_in.get_input_port(0))
+    drives = builder.AddNamedSystem("joint_servo", LinearSystem(
+        *servo_model.drive_discrete(servo, h, jm.motor_inertia_kgm2, jm.velocity_gain, n_reg), h))
+    builder.Connect(drive_in.get_output_port(), drives.get_input_port())
+    motor = drives.get_output_port()  # (theta, theta')
+
+    # the gears: K dz(theta - q) + D (theta' - q') on the link, minus that on the motor
+    b = np.asarray(lost_motion_rad if lost_motion_rad is not None and len(lost_motion_rad) else np.zeros(6),
+                   dtype=float)
+    if np.any(b):
+        gear = builder.AddNamedSystem("gear_transmission", GearPlay(
+            stiffness_Nm_per_rad=Kg, damping_Nms_per_rad=jm.D, play_rad=b))
+        builder.Connect(motor, gear.GetInputPort("motor_state"))
+        builder.Connect(plant.get_state_output_port(), gear.GetInputPort("link_state"))
+    else:
+        gear_in = builder.AddNamedSystem("gear_inputs", Multiplexer([12, 12]))
+        gear = builder.AddNamedSystem("gear_transmission", MatrixGain(np.hstack([Kg, jm.D, -Kg, -jm.D])))
+        builder.Connect(motor, gear_in.get_input_port(0))
+        builder.Connect(plant.get_state_output_port(), gear_in.get_input_port(1))
+        builder.Connect(gear_in.get_output_port(), gear.get_input_port())
+    tau = gear.get_output_port()
+    builder.Connect(tau, plant.get_actuation_input_port())
+    builder.Connect(tau, drive_in.get_input_port(1))
+
+    # what the controller reports: the encoders less its gravity model (and the touch-off)
+    motor_demux = builder.AddNamedSystem("motor_demux", Demultiplexer([6, 6]))
+    builder.Connect(motor, motor_demux.get_input_port())
+    rep_terms = builder.AddNamedSystem("position_reported_terms", Multiplexer([6, 6, 6]))
+    builder.Connect(motor_demux.get_output_port(0), rep_terms.get_input_port(0))
+    builder.Connect(gravity_at(motor_demux.get_output_port(0), "position_reported"), rep_terms.get_input_port(1))
+    builder.Connect(offset.get_output_port(), rep_terms.get_input_port(2))
+    reported = builder.AddNamedSystem("position_reported", MatrixGain(np.hstack([I, -C, -I])))
+    builder.Connect(rep_terms.get_output_port(), reported.get_input_port())
+
+    def gear_torque_at_rest(theta, q):
+        return transmission.play_torque(np.asarray(theta) - np.asarray(q), Kg, b)
+
+    return {"plant": plant, "controller_plant": ctrl, "position_command": cmd_in.get_input_port(0),
+            "velocity_command": vel_in.get_input_port(0), "motor_state": motor,
+            "motor_position": motor_demux.get_output_port(0), "reported_position": reported.get_output_port(),
+            "gear_torque": tau, "servo": drives, "servo_parameters": servo, "interpolator": interp,
+            "touch_off": offset, "joints": jm, "natural_frequencies_hz": modal_frequencies_hz(jm.M, Kg, jm.G),
+            "lost_motion_rad": b, "gear_torque_at_rest": gear_torque_at_rest}
