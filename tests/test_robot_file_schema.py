@@ -153,7 +153,7 @@ def test_implausible_physics_is_a_warning_in_the_text_and_the_json(capsys, tmp_p
 def test_a_nonphysical_inertia_is_refused(capsys, tmp_path):
     p = edited(tmp_path, "    box_mm: [450.0, 600.0, 450.0]",
                "    box_mm: [450.0, 600.0, 450.0]\n    inertia_kgm2: [1.0, 1.0, 5.0, 0, 0, 0]")
-    refused(capsys, p, f"{p}:{line_of(p, 'inertia_kgm2')}: key 'links[3].inertia_kgm2': not a physical inertia "
+    refused(capsys, p, f"{p}:{line_of(p, '    inertia_kgm2')}: key 'links[3].inertia_kgm2': not a physical inertia "
                        "tensor")
 
 

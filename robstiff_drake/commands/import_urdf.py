@@ -136,12 +136,18 @@ def run(*, urdf, out, template=None, name=None):
     imp = read_urdf(urdf_path)
     tpl = load_robot(template)
     text = robot_file_text(imp, tpl, urdf_path, name or imp.name)
-    write_atomic(Path(out), text)
-    robot = load_robot(str(out))
+    # the file is read back and checked before it is written (a failed check leaves nothing behind)
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        draft = Path(tmp) / Path(out).name
+        draft.write_text(text, encoding="utf-8")
+        robot = load_robot(str(draft))
     fk, inertia = check_against_urdf(imp, robot)
     if fk > FK_TOL_M or inertia > INERTIA_TOL:
-        raise InputError(f"{out}: the written robot file misses the URDF's flange by {fk * 1e3:.3g} mm and its "
-                         f"inertia by {inertia:.3g} (relative): please report this URDF")
+        raise InputError(f"{out}: the robot file made from the URDF misses its flange by {fk * 1e3:.3g} mm and its "
+                         f"inertia by {inertia:.3g} (relative); nothing written: please report this URDF")
+    write_atomic(Path(out), text)
     info(f"wrote {out}: {imp.convention}, flange within {fk * 1e3:.2g} mm of the URDF's, mass and inertia about the "
          f"base within {inertia:.2g} (relative), at 20 configurations; joint stiffness, motors and workspace from "
          f"{tpl.name}")
