@@ -15,7 +15,7 @@ from robstiff_drake.identification.run_verification import plan_markdown
 from robstiff_drake.identification.scan_statistics import along_mm, segments
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model.robot import load_robot
-from robstiff_drake.progress import info
+from robstiff_drake.progress import wrote
 
 
 def plot(rep, extras, title):
@@ -163,6 +163,7 @@ def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_y
         emit_json(rep, json_out)
     if json_out != "-":
         print(format_report(rep))
-        info(f"wrote {out}/: diagnosis.json, diagnosis.png" + (", verification_plan.md, candidates/"
-                                                               if extras["plan"] else ""))
+    wrote(out, "diagnosis.json, diagnosis.png" + (", verification_plan.md, candidates/" if extras["plan"] else ""),
+          folder=True, to_stderr=json_out == "-")
+    wrote(json_out, to_stderr=json_out == "-")
     return 0

@@ -3,10 +3,9 @@
 import numpy as np
 
 from robstiff_drake.commands.main import parse_tool
-from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
-from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
 from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic
 from robstiff_drake.model.robot import load_robot
+from robstiff_drake.progress import wrote
 
 
 def fit_to_dict(fit, campaign, robot, tool_m):
@@ -122,6 +121,10 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
     check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--plot": plot})
     robot = load_robot(robot_yaml)
     tool_arg = parse_tool(tool)
+    # scipy comes with these: after the checks of the arguments
+    from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
+    from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
+
     warnings = Warnings()
     campaign = read_stiffness_campaign(data, robot)
     tool_m = campaign_tool_m(campaign, robot, tool_arg, warnings)
@@ -138,4 +141,7 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
         save_figure_atomic(plot_fit(fit, campaign, robot), plot, dpi=100)
     if json_out != "-":
         print(format_fit(fit, campaign, robot))
+    wrote(json_out, "the identified model (compensate --model, a scenario's model.identified_json)",
+          to_stderr=json_out == "-")
+    wrote(plot, to_stderr=json_out == "-")
     return 0
