@@ -234,23 +234,28 @@ def surface_csv(res, run_id=""):
     return buf.getvalue()
 
 
-def scenario_text(sc, run_id=""):
-    """The scenario as run (YAML), with its file references made absolute."""
+def scenario_text(sc, run_id="", kept=None):
+    """The scenario as run (YAML): its file references name the run folder's
+    kept copies (``kept``, diagrams/run_inputs.py), else made absolute."""
     import copy
 
     from pydrake.common.yaml import yaml_dump_typed
 
+    from robstiff_drake.diagrams.run_inputs import scenario_as_kept
     from robstiff_drake.diagrams.scenario import Scenario, resolve, robot_spec
 
-    sc = copy.deepcopy(sc)
-    for attr in ("identified_json", "payload_yaml"):
-        if getattr(sc.model, attr):
-            setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
-    if sc.toolpath.program:
-        sc.toolpath.program = str(resolve(sc, sc.toolpath.program).resolve())
-    spec = robot_spec(sc)
-    if spec is not None and spec != sc.robot:  # a robot file: make its path absolute
-        sc.robot = str(Path(spec).resolve())
+    if kept is not None:
+        sc = scenario_as_kept(sc, kept)
+    else:
+        sc = copy.deepcopy(sc)
+        for attr in ("identified_json", "payload_yaml"):
+            if getattr(sc.model, attr):
+                setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
+        if sc.toolpath.program:
+            sc.toolpath.program = str(resolve(sc, sc.toolpath.program).resolve())
+        spec = robot_spec(sc)
+        if spec is not None and spec != sc.robot:  # a robot file: make its path absolute
+            sc.robot = str(Path(spec).resolve())
     source, sc.source = sc.source, ""
     body = "".join(line for line in yaml_dump_typed(sc, schema=Scenario).splitlines(keepends=True)
                    if not line.startswith("source:"))  # set by the loader, not a key of the file
@@ -261,16 +266,20 @@ def scenario_text(sc, run_id=""):
 def write_outputs(sc, results, robot, run, warnings=()):
     """Every file of a run into ``run`` (an io.RunFolder), each stamped with
     its run id; returns the names written.  The compensated cut's cell files
-    (docs/run_files.md) and the simulation's truth (``sim_*``)."""
+    (docs/run_files.md), the simulation's truth (``sim_*``) and the inputs the
+    run was made with (``inputs/``: diagrams/run_inputs.py)."""
     from robstiff_drake.diagrams.cell_record import cell_files
+    from robstiff_drake.diagrams.run_inputs import INPUTS_DIR, kept_inputs, write_kept
 
+    kept = kept_inputs(sc, robot)
+    write_kept(run, kept)
     written = []
     for res in results:
         if res.compensation:
-            for name, text in cell_files(sc, res, robot, run.run_id).items():
+            for name, text in cell_files(sc, res, robot, run.run_id, robot_ref=kept.robot).items():
                 run.write(name, text)
                 written.append(name)
-    run.write(f"{SIM_PREFIX}scenario.yaml", scenario_text(sc, run.run_id))
+    run.write(f"{SIM_PREFIX}scenario.yaml", scenario_text(sc, run.run_id, kept))
     written.append(f"{SIM_PREFIX}scenario.yaml")
     run.save_figure("surface_error.png", plot_surfaces(results, sc), dpi=110)
     written.append("surface_error.png")
@@ -290,6 +299,7 @@ def write_outputs(sc, results, robot, run, warnings=()):
     written.append("joint_reference.csv")
     run.write("summary.json", json_text(dict(summary(results, sc, warnings), run_id=run.run_id)))
     written.append("summary.json")
+    written.append(f"{INPUTS_DIR}/ ({', '.join(Path(n).name for n in kept.names.values())})")
     return written
 
 
