@@ -272,7 +272,7 @@ def build_parser():
     p.add_argument("--plot", metavar="OUT.png", help="error against period, one curve per cutoff and mode")
     p.add_argument("--workers", type=_number_in(1, 64, integer=True), default=None, help="local processes (default: the number of cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://127.0.0.1:8786")
-    p.add_argument("--plant-step-ms", type=_number_in(0.05, 20.0, "ms"), default=None, help="plant step for every run (default: the scenario's)")
+    p.add_argument("--plant-step-ms", type=_number_in(0.05, 20.0, "ms"), default=None, help="plant step for every run (default: the scenario's, or the shortest period when that is shorter)")
     p.add_argument("--no-predict", action="store_true", help="skip the linear loop model's predictions")
     p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
     _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
