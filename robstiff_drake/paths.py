@@ -37,7 +37,13 @@ def examples_dir():
     """The example campaigns' folder (examples/ in the repository).  A
     function, not a constant: an editable install made before the folder
     existed does not map it, and only `robstiff examples` needs it."""
-    return _package_dir("robstiff_drake.examples")
+    try:
+        return _package_dir("robstiff_drake.examples")
+    except ModuleNotFoundError:
+        from robstiff_drake.errors import InputError
+
+        raise InputError("the example campaigns are not installed with this package (an editable install older than "
+                         "examples/): reinstall it, pip install -e . in the clone") from None
 
 
 def library_robots():
