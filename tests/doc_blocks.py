@@ -16,8 +16,8 @@ line just above its fence, an HTML comment the rendered page does not show
     reader brings (``my_robot.yaml``, a measured plan), from the packaged
     examples.
 ``<!-- run: shorten --OPTION VALUE ... -->``
-    run each command with these options' values instead (a sweep of 60
-    runs as 4): the option is one the command documents.
+    run the block's commands that have these options with these values
+    instead (a sweep of 60 runs as 4): options the commands document.
 ``<!-- run: exit 2 -->``
     every command of the block must fail with exit status 2 and one line.
 
@@ -133,13 +133,14 @@ def pages():
 
 
 def shortened(command, shorten):
-    """``command`` with the values of the options in ``shorten`` ('--a 1 --b 2') replaced."""
-    if not shorten:
-        return command
-    repl = shorten.split()
-    for option, value in zip(repl[::2], repl[1::2]):
-        pattern = re.compile(rf"(?<=\s){re.escape(option)}(\s+|=)\S+")
-        if not pattern.search(command):
-            raise ValueError(f"shorten: {option} is not in the command {command!r}")
-        command = pattern.sub(f"{option} {value}", command)
+    """``command`` with the values of those options of ``shorten`` ('--a 1 --b 2') it has replaced
+    (a block's other commands keep theirs)."""
+    for option, value in shorten_options(shorten).items():
+        command = re.sub(rf"(?<=\s){re.escape(option)}(\s+|=)\S+", f"{option} {value}", command)
     return command
+
+
+def shorten_options(shorten):
+    """'--a 1 --b 2' -> {'--a': '1', '--b': '2'}."""
+    words = (shorten or "").split()
+    return dict(zip(words[::2], words[1::2]))
