@@ -1,9 +1,20 @@
 """The output layer shared by every command.
 
-* ``check_outputs(...)``: refuse, before any computation, an output that is
-  an input, a folder where a file is wanted (or the reverse), a special file
-  (device, FIFO, socket), a read-only file, or a place that cannot be
-  written (InputError: one line, exit status 2).
+* ``check_outputs(...)`` (robstiff_drake/output_checks.py): refuse, before
+  any computation, an output that is an input, a folder where a file is
+  wanted (or the reverse), a special file (device, FIFO, socket), a
+  read-only file, a path longer than the system takes, or a place that
+  cannot be written (InputError: one line, exit status 2).
+* One rule for every file a command reads (robstiff_drake/command.py: the
+  command's inputs, noted by every reader, wherever the file was named): no
+  output may be, contain, or replace an input.  ``check_outputs`` refuses
+  such an output against the inputs noted so far and declares the outputs
+  (``command.note_input`` then refuses an input read later that one of
+  them would overwrite or contain), and every write checks once more
+  before it renames anything into place.
+* ``staged_outputs()``: the files a command writes inside it appear
+  together when it ends without an error (nothing half-written: a full
+  disk while writing the second file leaves neither).
 * ``write_atomic`` / ``save_figure_atomic`` / ``emit_json``: a temporary
   file in the target's folder and a rename, so a reader never sees a
   half-written file; through a symlink the link's target is replaced (the
@@ -13,6 +24,9 @@
   renamed into place when every file is written), stamped with a run id.
 * ``Warnings``: implausible results, one line each, printed to stderr as
   ``robstiff: warning: ...`` and listed under ``warnings`` in the JSON.
+  A new Warnings, and every JSON object the command writes, carries the
+  command's input warnings (``command.input_warning``: a robot file whose
+  first mode is implausible, say, found by its reader).
 * JSON is always valid JSON: NaN and infinities become null, with a warning.
 """
 
@@ -24,19 +38,14 @@ import shutil
 import stat
 import sys
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.errors import InputError
-
-STDOUT = "-"
-RUN_ID_FILE = "RUN_ID"
-
-
-class OutputError(InputError):
-    """An output that cannot be written (one line, exit status 2)."""
-
+from robstiff_drake.command import STDOUT, check_not_an_input, current
+from robstiff_drake.errors import OutputError, one_line
+from robstiff_drake.output_checks import RUN_ID_FILE, check_outputs  # noqa: F401 (the commands import them from io)
 
 # ---------------------------------------------------------------- warnings
 
@@ -45,14 +54,17 @@ class Warnings(list):
     """One-line warnings about a legal input whose result is implausible.
 
     ``add`` prints the line to stderr at once (so a long run shows it when
-    it happens) and keeps it for the JSON's ``warnings`` key."""
+    it happens) and keeps it for the JSON's ``warnings`` key.  A new
+    Warnings starts with the command's input warnings (already printed)."""
 
     def __init__(self, *, quiet=False):
         super().__init__()
         self.quiet = quiet
+        if current() is not None:
+            self.extend(current().input_warnings)
 
     def add(self, message):
-        message = " ".join(str(message).split())
+        message = one_line(" ".join(str(message).split()))
         if message in self:
             return
         self.append(message)
@@ -71,115 +83,6 @@ def _umask():
     mask = os.umask(0)
     os.umask(mask)
     return mask
-
-
-def _same(a, b):
-    try:
-        return os.path.samefile(a, b)
-    except OSError:
-        return os.path.realpath(a) == os.path.realpath(b)
-
-
-def _inside(path, folder):
-    p, f = os.path.realpath(path), os.path.realpath(folder)
-    return p == f or p.startswith(f.rstrip(os.sep) + os.sep)
-
-
-def _existing_ancestor(path):
-    """The nearest ancestor of ``path`` that exists (Path), and the part below it."""
-    p = Path(os.path.abspath(path)).parent
-    while not p.exists():
-        if p.is_symlink():  # a dangling symlink on the way
-            return p, True
-        p = p.parent
-    return p, False
-
-
-def _check_parent(path, key):
-    anc, dangling = _existing_ancestor(path)
-    if dangling:
-        raise OutputError(f"{key} {path}: {anc} is a broken symbolic link")
-    if not anc.is_dir():
-        raise OutputError(f"{key} {path}: {anc} is a file, not a folder")
-    if not os.access(anc, os.W_OK | os.X_OK):
-        raise OutputError(f"{key} {path}: cannot write in {anc} (permission denied)")
-
-
-def _check_file_output(path, key, inputs):
-    text = str(path)
-    if text == STDOUT:
-        return
-    if text == "" or text.endswith(os.sep):
-        raise OutputError(f"{key} {text!r}: expected a file name")
-    target = os.path.realpath(text)
-    for src in inputs:
-        if src is not None and str(src) != STDOUT and os.path.exists(src) and _same(text, src):
-            raise OutputError(f"{key} {text}: this is an input of the command ({src}); "
-                              "choose another output file, inputs are never overwritten")
-    if os.path.lexists(text) and not os.path.exists(text):
-        raise OutputError(f"{key} {text}: a symbolic link to {os.readlink(text)}, which does not exist")
-    if os.path.exists(target):
-        st = os.stat(target)
-        if stat.S_ISDIR(st.st_mode):
-            raise OutputError(f"{key} {text}: is a folder; give a file name")
-        if not stat.S_ISREG(st.st_mode):
-            kind = ("a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else
-                    "a FIFO" if stat.S_ISFIFO(st.st_mode) else "a socket" if stat.S_ISSOCK(st.st_mode)
-                    else "not a regular file")
-            raise OutputError(f"{key} {text}: is {kind}; outputs go to regular files "
-                              f"(use '{STDOUT}' for standard output where the option takes it)")
-        if not st.st_mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH) or not os.access(target, os.W_OK):
-            raise OutputError(f"{key} {text}: the file is read-only; it is not replaced")
-    _check_parent(target, key)
-
-
-def _is_run_folder(path):
-    return (Path(path) / RUN_ID_FILE).is_file()
-
-
-def _check_folder_output(path, key, inputs):
-    text = str(path)
-    if text in ("", STDOUT):
-        raise OutputError(f"{key} {text!r}: expected a folder name")
-    if os.path.lexists(text) and not os.path.exists(text):
-        raise OutputError(f"{key} {text}: a symbolic link to {os.readlink(text)}, which does not exist")
-    real = os.path.realpath(text)
-    if os.path.exists(real):
-        if not os.path.isdir(real):
-            raise OutputError(f"{key} {text}: is a file, not a folder")
-        for src in inputs:
-            if src is not None and str(src) != STDOUT and os.path.exists(src) and _inside(src, real):
-                raise OutputError(f"{key} {text}: the folder holds an input of the command ({src}), and a run "
-                                  "folder is replaced as a whole; choose another output folder")
-        if any(Path(real).iterdir()) and not _is_run_folder(real):
-            raise OutputError(f"{key} {text}: the folder exists and is not a robstiff run folder (no {RUN_ID_FILE} "
-                              "file); choose a new folder or empty it, it would be replaced as a whole")
-        if os.path.ismount(real) or real == os.path.realpath(os.getcwd()):
-            raise OutputError(f"{key} {text}: cannot replace this folder as a whole; choose a sub-folder")
-    _check_parent(real, key)
-
-
-def check_outputs(*, inputs=(), files=None, folders=None):
-    """Refuse bad outputs before anything is computed.
-
-    ``inputs``: paths the command reads (files or folders).  ``files`` and
-    ``folders``: ``{option name: path or None}`` of the outputs (None: not
-    asked for).  Raises OutputError (one line naming the option and path)."""
-    inputs = [os.fspath(p) for p in inputs if p is not None]
-    seen = {}
-    for key, path in (files or {}).items():
-        if path is None:
-            continue
-        _check_file_output(os.fspath(path), key, inputs)
-        if str(path) != STDOUT:
-            real = os.path.realpath(path)
-            if real in seen:
-                raise OutputError(f"{key} {path}: the same file as {seen[real]}")
-            seen[real] = key
-    for key, path in (folders or {}).items():
-        if path is None:
-            continue
-        _check_folder_output(os.fspath(path), key, inputs)
 
 
 # ---------------------------------------------------------------- writing
@@ -202,7 +105,9 @@ def _write_error(path, e):
 
 def _replace_atomic(path, write):
     """Write through ``write(tmp_path)`` into a temporary file next to the
-    target, then rename it over the target."""
+    target, then rename it over the target (inside ``staged_outputs``: when
+    the block ends)."""
+    check_not_an_input(path)
     target = _target(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -214,13 +119,41 @@ def _replace_atomic(path, write):
         os.close(fd)
         write(tmp)
         os.chmod(tmp, mode)
-        os.replace(tmp, target)
+        if current() is not None and current().staged is not None:
+            current().staged.append((tmp, target, path))
+        else:
+            os.replace(tmp, target)
     except OSError as e:
         Path(tmp).unlink(missing_ok=True)
         raise _write_error(path, e) from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+@contextmanager
+def staged_outputs():
+    """Inside this block (of a command: main's command_scope), files written
+    with write_atomic / save_figure_atomic / emit_json go to temporary files
+    that are renamed into place together when the block ends without an
+    error; on an error (a full disk at the second file) every temporary file
+    is removed and no output appears or changes."""
+    command = current()
+    if command is None or command.staged is not None:
+        yield
+        return
+    command.staged = staged = []
+    try:
+        yield
+        for tmp, target, path in staged:
+            try:
+                os.replace(tmp, target)
+            except OSError as e:
+                raise _write_error(path, e) from None
+    finally:
+        command.staged = None
+        for tmp, _, _ in staged:
+            Path(tmp).unlink(missing_ok=True)
 
 
 def write_atomic(path, data):
@@ -270,9 +203,14 @@ def _to_jsonable(obj, where, bad):
 
 def json_text(obj):
     """``obj`` as JSON text; NaN and infinities become null, and when ``obj``
-    is a dict a warning in its ``warnings`` list names them."""
+    is a dict a warning in its ``warnings`` list names them.  A dict also
+    gets the command's input warnings (``input_warning``) in that list."""
     bad = []
     data = _to_jsonable(obj, "", bad)
+    if isinstance(data, dict) and current() is not None and current().input_warnings:
+        listed = data.setdefault("warnings", [])
+        if isinstance(listed, list):
+            listed[:0] = [w for w in current().input_warnings if w not in listed]
     if bad and isinstance(data, dict):
         shown = ", ".join(bad[:5]) + (f" and {len(bad) - 5} more" if len(bad) > 5 else "")
         data.setdefault("warnings", [])
@@ -359,6 +297,11 @@ class RunFolder:
             return False
         target = _target(self.path)
         old = None
+        try:
+            check_not_an_input(self.path, is_folder=True)
+        except BaseException:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            raise
         try:
             (self._tmp / RUN_ID_FILE).write_text(self.run_id + "\n")
             dir_mode = 0o777 & ~_umask()

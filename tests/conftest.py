@@ -34,3 +34,17 @@ def random_q(robot, rng, n=None):
     """Random configurations inside the joint limits (rad)."""
     size = (6,) if n is None else (n, 6)
     return rng.uniform(robot.q_lower_rad, robot.q_upper_rad, size=size)
+
+
+@pytest.fixture(scope="session")
+def short_run_folder(tmp_path_factory):
+    """A run folder of tests/data/short_block.yaml's compensated cut (made
+    once; copy it before changing anything in it)."""
+    from pathlib import Path
+
+    from robstiff_drake.commands.main import main
+
+    d = tmp_path_factory.mktemp("short_run")
+    scenario = Path(__file__).parent / "data" / "short_block.yaml"
+    assert main(["simulate", str(scenario), "--compensation", "on", "--out", str(d / "cut"), "--quiet"]) == 0
+    return d / "cut"

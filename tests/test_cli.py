@@ -71,7 +71,7 @@ def test_negative_angles_are_accepted(capsys):
         (["stiffness-map", "--out", "x.svg"], "must name a .png file"),
         (["kg-study", "--grid", "0"], "argument --grid: 0 is outside the allowed range [1, 20]"),
         (["nonsense"], "invalid choice"),
-        (["stiffness", "--robot", "/nonexistent.yaml", "0", "0", "0", "0", "45", "0"], "cannot read robot parameter file"),
+        (["stiffness", "--robot", "/nonexistent.yaml", "0", "0", "0", "0", "45", "0"], "/nonexistent.yaml: no such robot file"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(capsys, argv, message):

@@ -20,7 +20,7 @@ print(json.dumps({"code": code, "heavy": sorted(m for m in ("pydrake", "scipy") 
 CASES = [  # (argv, a part of the error line, modules that must not be imported)
     (["simulate", "no_such_scenario"], "no such scenario file, and no packaged scenario", ("pydrake", "scipy")),
     (["simulate", "block_milling", "--replay", "r.png", "--out", "o"], "give a name ending in .html", ("pydrake",)),
-    (["simulate", "block_milling", "--compensator", "missing.yaml"], "--compensator missing.yaml: cannot read",
+    (["simulate", "block_milling", "--compensator", "missing.yaml"], "missing.yaml: no such run file",
      ("pydrake", "scipy")),
     (["simulate", "block_milling", "--robot", "no_such_robot"], "not a library robot", ("pydrake", "scipy")),
     (["sweep", "block_milling", "--period-ms", "4,x"], "'x' is not a number", ("pydrake",)),
@@ -37,7 +37,7 @@ CASES = [  # (argv, a part of the error line, modules that must not be imported)
     (["identify", "a_file.txt", "--tool", "1,2"], "--tool: expected 3 comma-separated numbers", ("pydrake", "scipy")),
     (["diagnose", "missing.csv"], "missing.csv: cannot read", ("pydrake", "scipy")),
     (["calibrate-payload", "missing.csv"], "missing.csv: cannot read", ("pydrake", "scipy")),
-    (["stiffness", "0", "0", "0", "--robot", "my_robot.yaml"], "my_robot.yaml: cannot read robot parameter file",
+    (["stiffness", "0", "0", "0", "--robot", "my_robot.yaml"], "my_robot.yaml: no such robot file",
      ("pydrake", "scipy")),
     (["synth", "stiffness", "c.csv", "--effect", "no_such_effect"], "unknown effect", ("pydrake", "scipy")),
 ]

@@ -432,3 +432,101 @@ def test_ctrl_c_during_a_simulation_leaves_nothing_behind(tmp_path):
     assert proc.returncode == 130, err
     assert err.strip() == "robstiff: interrupted"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["slow.yaml"]
+
+
+# ------------------------------------------------- issue 19: small contract breaks
+
+
+def test_a_full_disk_at_the_second_output_leaves_neither(capsys, tmp_path, campaign, monkeypatch):
+    """identify --json --plot: the plot fails on a full disk after the JSON was
+    written; the JSON must not be left behind (it was: id.json)."""
+    import matplotlib.figure
+
+    def full(self, *a, **k):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", full)
+    code, _, err = cli(capsys, "identify", campaign, "--json", tmp_path / "id.json", "--plot", tmp_path / "fit.png")
+    one_line_error(code, err)
+    assert "No space left on device" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v.csv"]
+    (tmp_path / "id.json").write_text("earlier")  # an earlier result stays as it was
+    code, _, err = cli(capsys, "identify", campaign, "--json", tmp_path / "id.json", "--plot", tmp_path / "fit.png")
+    assert code == 2 and (tmp_path / "id.json").read_text() == "earlier"
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda d: str(d) + "/" + ("x" * 200 + "/") * 25 + "c.csv", "the path is 5"),
+    (lambda d: d / ("y" * 300 + ".csv"), "a name in it is 304 bytes long"),
+])
+def test_an_output_path_the_system_cannot_take_is_one_line(capsys, tmp_path, make, message):
+    code, _, err = cli(capsys, "synth", "stiffness", make(tmp_path))
+    one_line_error(code, err)
+    assert message in err and len(err) < 500
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_kg_study_shows_its_progress(capsys):
+    code, out, err = cli(capsys, "kg-study", "--grid", "2", "--progress")
+    assert code == 0
+    assert "kg-study: 100%" in err and "cases" in err
+
+
+@pytest.mark.parametrize("nominal", [["a"] * 6, {"a": 1}, [[1, 2], [3], 4, 5, 6, 7]])
+def test_a_model_with_a_malformed_nominal_stiffness_is_one_line(capsys, tmp_path, campaign, nominal):
+    assert cli(capsys, "identify", campaign, "--json", tmp_path / "m.json")[0] == 0
+    doc = json.loads((tmp_path / "m.json").read_text())
+    doc["joint_stiffness_nominal_Nm_per_rad"] = nominal
+    (tmp_path / "m.json").write_text(json.dumps(doc))
+    c = synth.payload_campaign(ROBOT, n=15, seed=0)
+    (tmp_path / "p.csv").write_text(synth.payload_csv(c, noise_N=1.0, noise_Nm=0.1, seed=0, how="test"))
+    assert cli(capsys, "calibrate-payload", tmp_path / "p.csv", "--yaml", tmp_path / "pay.yaml")[0] == 0
+    code, _, err = cli(capsys, "compensate", "--egm-port", "9", "--netft", "127.0.0.1:9", "--model",
+                       tmp_path / "m.json", "--payload", tmp_path / "pay.yaml", "--wait-s", "0.1")
+    one_line_error(code, err)
+    assert "joint_stiffness_nominal_Nm_per_rad: expected six numbers" in err
+
+
+# ------------------------------------------------- issue 19: intervals a design cannot support
+
+
+def _campaign_file(tmp_path, name, n, loads_per_pose, tool_line=None):
+    tool = ROBOT.payload.tool_point_m
+    c = synth.stiffness_campaign(ROBOT, n=n, loads_per_pose=loads_per_pose, seed=4, tool_m=tool)
+    text = synth.stiffness_csv(c, robot=ROBOT, noise_mm=0.01, seed=4, force_N=300.0, tool_m=tool, how="test")
+    if tool_line is not None:
+        assert "# tool_mm: 0, 0, 350" in text
+        text = text.replace("# tool_mm: 0, 0, 350", tool_line)
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+@pytest.mark.parametrize("n, loads, tool_line, reason", [
+    (120, 4, "# tool_mm: 0, 0, 0.35", "the tool point (0, 0, 0.35) mm is 0.35 mm from the flange: a length in metres?"),
+    (24, 24, None, "every row is at one pose"),
+    (20, 4, None, "5 poses for 5 identified joints"),
+])
+def test_intervals_a_campaign_cannot_support_are_not_printed(capsys, tmp_path, n, loads, tool_line, reason):
+    p = _campaign_file(tmp_path, "c.csv", n, loads, tool_line)
+    code, out, err = cli(capsys, "identify", p, "--json", tmp_path / "id.json")
+    assert code == 0, err
+    res = json.loads((tmp_path / "id.json").read_text())
+    assert res["intervals_available"] is False
+    assert any(reason in r for r in res["intervals_not_available_because"]), res["intervals_not_available_because"]
+    assert all(v is None for row in res["joint_stiffness_ci95_Nm_per_rad"] for v in row)
+    assert all(v is None for v in res["joint_stiffness_std_Nm_per_rad"])
+    assert any("95 % intervals not available" in w for w in res["warnings"])
+    assert "not available" in out and "95 % intervals not available" in err
+    assert not any(line.strip().startswith("1 ") and "[" in line for line in out.splitlines())
+
+
+def test_a_campaign_loaded_along_one_line_has_no_intervals(tmp_path):
+    from robstiff_drake.identification.campaign import read_stiffness_campaign
+    from robstiff_drake.identification.interval_support import interval_support
+
+    c = read_stiffness_campaign(_campaign_file(tmp_path, "c.csv", 60, 4), ROBOT)
+    assert interval_support(c, ROBOT.payload.tool_point_m, 5) == []
+    c.force_N[:] = np.outer(np.where(c.force_N[:, 0] < 0, -1.0, 1.0), [300.0, 0.0, 0.0])
+    assert interval_support(c, ROBOT.payload.tool_point_m, 5) == [
+        "every load is along one line: the rows cannot separate the joints beyond it; load in several directions"]

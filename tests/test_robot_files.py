@@ -49,7 +49,7 @@ BAD = [
     ("unknown convention", lambda d: d.update(convention="hartenberg"), "convention", "unknown convention 'hartenberg'"),
     ("zero lengths", _zero_lengths, "dh", "every link length (a_mm, d_mm) is zero"),
     ("singular chain", _coincident_axes, "dh", "the kinematic table is singular"),
-    ("negative mass", lambda d: d["links"][3].update(mass_kg=-50.0), "links[3].mass_kg", "must be > 0"),
+    ("negative mass", lambda d: d["links"][3].update(mass_kg=-50.0), "links[3].mass_kg", "-50 is outside the allowed range [0.01, 20000] kg"),
     ("non-physical inertia", lambda d: d["links"][2].update(inertia_kgm2=[1.0, 1.0, 5.0, 0, 0, 0]),
      "links[2].inertia_kgm2", "not a physical inertia tensor"),
     ("lower above upper", lambda d: d["joint_limits"].update(lower_deg=[-180, 80, -28, -300, -120, -300]),
@@ -63,7 +63,7 @@ BAD = [
     ("coupling to itself", lambda d: d.update(controller={"coupling": [{"joint": 3, "from": 3, "factor": 1.0}]}),
      "controller.coupling[0].from", "cannot be coupled to itself"),
     ("negative stiffness", lambda d: d.update(joint_stiffness_Nm_per_rad=[1e6, 1e6, -1e6, 1e5, 1e5, 1e5]),
-     "joint_stiffness_Nm_per_rad", "joint 3 stiffness must be > 0"),
+     "joint_stiffness_Nm_per_rad", "joint 3: -1e+06 is outside the allowed range [1000, 1e+09] N*m/rad"),
 ]
 
 

@@ -38,8 +38,10 @@ def _write(tmp_path, mutate):
         (lambda d: d.update(extra=1), "key 'extra': unknown key"),
         (lambda d: d["dh"].pop("a_mm"), "key 'dh.a_mm': missing"),
         (lambda d: d["dh"].update(d_mm=[1, 2, 3]), "key 'dh.d_mm': expected 6 numbers, got 3"),
-        (lambda d: d.update(joint_stiffness_Nm_per_rad=[1, 1, 0, 1, 1, 1]), "joint 3 stiffness must be > 0"),
-        (lambda d: d["links"][2].update(mass_kg=-1), "key 'links[2].mass_kg': must be > 0"),
+        (lambda d: d.update(joint_stiffness_Nm_per_rad=[1e6, 1e6, 0, 1e5, 1e5, 1e5]),
+         "key 'joint_stiffness_Nm_per_rad': joint 3: 0 is outside the allowed range [1000, 1e+09] N*m/rad"),
+        (lambda d: d["links"][2].update(mass_kg=-1),
+         "key 'links[2].mass_kg': -1 is outside the allowed range [0.01, 20000] kg"),
         (lambda d: d["joint_limits"].update(lower_deg=[0, 80, 0, 0, 0, 0]), "joint 2: lower 80.0 >= upper 70.0"),
     ],
 )
@@ -54,7 +56,7 @@ def test_bad_robot_file_names_the_key(tmp_path, mutate, message):
 def test_invalid_yaml_names_line_and_column(tmp_path):
     path = tmp_path / "bad.yaml"
     path.write_text("name: x\ndh: [1, 2\n")
-    with pytest.raises(InputError, match=r"line \d+, column \d+"):
+    with pytest.raises(InputError, match=r"bad.yaml:\d+: column \d+: invalid YAML"):
         load_robot(path)
 
 

@@ -4,8 +4,10 @@ the reader's subset and its one-line errors, the corner path's geometry
 profile (kept along a blend, smooth, no step), the unchanged straight path,
 the scenario's toolpath section and the scan along the path."""
 
+import json
 import math
 import os
+import re
 import subprocess
 import sys
 
@@ -15,7 +17,8 @@ import pytest
 from robstiff_drake.diagrams.scenario import load_scenario, planned_path
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.gcode import read_program
-from robstiff_drake.model.path import Corner, PlannedPath, program_elements
+from robstiff_drake.model.path import Corner, PlannedPath
+from robstiff_drake.model.program_path import program_elements
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -58,32 +61,35 @@ def test_reads_a_post_output():
     assert last.end_mm == pytest.approx((0.0, 38.1, -1.0)) and last.feed_mm_per_min == pytest.approx(254.0)
 
 
-@pytest.mark.parametrize("line, words", [
-    ("T2 M6", ["T2", "tool"]),
-    ("G81 X1 Y1 Z-2 R1", ["G81", "canned cycles"]),
-    ("G41 D1 X1", ["G41", "cutter radius compensation"]),
-    ("G1 X1 A30", ["A30", "5-axis"]),
-    ("G1 X1 B30", ["B30", "5-axis"]),
-    ("G18 G2 X1 Z1 I1", ["G18", "XY plane"]),
-    ("G2 X1 Y1 I0 J3", ["G2", "not on the arc"]),
-    ("G2 X1 Y1", ["G2", "I/J", "R"]),
-    ("G1 X1 (unclosed", ["parenthesis"]),
-    ("G1 X1 Q", ["'Q'"]),
-    ("G43 H1 Z5", ["G43", "tool length"]),
-    ("M4", ["M4", "counter-clockwise"]),
+@pytest.mark.parametrize("line, col, words", [
+    ("G1 X1\nT2 M6", 4, ["M6", "after the program has cut (line 3)", "one tool"]),
+    ("G81 X1 Y1 Z-2 R1", 1, ["G81", "canned cycles"]),
+    ("G41 D1 X1", 1, ["G41", "cutter radius compensation"]),
+    ("G1 X1 A30", 7, ["A30", "5-axis"]),
+    ("G1 X1 B30", 7, ["B30", "5-axis"]),
+    ("G18 G2 X1 Z1 I1 J1", 17, ["J1", "ZX plane (G18)"]),
+    ("G2 X1 Y1 I0 J3", 1, ["G2", "not on the arc"]),
+    ("G2 X1 Y1", 1, ["G2", "I/J", "R"]),
+    ("G1 X1 (unclosed", 7, ["'('", "')'"]),
+    ("G1 X1 Q", 7, ["Q without a number"]),
+    ("G44 H1 Z5", 1, ["G44", "tool length"]),
+    ("M4", 1, ["M4", "counter-clockwise"]),
+    ("G1 X1 M32", 7, ["M32", "unsupported M-code"]),
+    ("G12 X1", 1, ["G12", "unsupported G-code"]),
 ])
-def test_unsupported_words_name_the_line_and_word(line, words):
+def test_unsupported_words_name_the_file_line_column_and_word(line, col, words):
     prog = "G0 X0 Y0 Z0\nF100\n" + line + "\n"
+    n = 3 + line.count("\n")
     with pytest.raises(InputError) as e:
         read_program(prog, "p.nc")
     msg = str(e.value)
-    assert msg.startswith("p.nc:3: ") and "\n" not in msg
+    assert msg.startswith(f"p.nc:{n}:{col}: ") and "\n" not in msg, msg
     for w in words:
         assert w in msg, msg
 
 
 def test_feed_move_without_f_is_refused():
-    with pytest.raises(InputError, match=r"p.nc:2: G1 without a feed"):
+    with pytest.raises(InputError, match=r"p.nc:2:1: G1 without a feed"):
         read_program("G0 X0 Y0 Z0\nG1 X5\n", "p.nc")
 
 
@@ -231,8 +237,8 @@ def test_toolpath_option_replaces_the_waypoints(tmp_path):
                          os.path.join(ROOT, "diagrams", "block_milling.yaml"), "--toolpath", str(prog), "--out",
                          str(tmp_path / "out")], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert cp.returncode == 2
-    assert cp.stderr.strip() == f"robstiff: error: {prog}:3: T2: tool selection / tool changes are not supported; " \
-                                "one program, one tool"
+    assert cp.stderr.strip() == f"robstiff: error: {prog}:3:4: M6: a tool change after the program has cut (line 2): " \
+                                "a second tool; one program, one tool"
 
 
 def test_scan_follows_a_path_along_y(tmp_path):
@@ -256,3 +262,185 @@ def test_scan_follows_a_path_along_y(tmp_path):
     assert np.ptp(line.x_m[face]) < 1e-9
     assert res.surface_error_mm["rms"] > 0.05  # the arm deflects under the cut
     assert {"entry_max_abs", "exit_max_abs", "steady_mean", "steady_max_abs"} <= set(res.surface_error_mm)
+
+
+# ------------------------------------------------------------ posted programs on the cell
+
+
+FACE = os.path.join(ROOT, "diagrams", "face_contour_fanuc.yaml")
+
+
+def scenario_with_program(tmp_path, program_text, scenario=FACE, **replace):
+    """A copy of ``scenario`` in tmp_path that runs ``program_text`` (its text's lines replaced as ``replace``)."""
+    prog = tmp_path / "prog.nc"
+    prog.write_text(program_text)
+    text = open(scenario).read()
+    text = text.replace("program: face_contour_fanuc.nc", f"program: {prog}")
+    for old, new in replace.items():
+        assert old in text, old
+        text = text.replace(old, new)
+    f = tmp_path / "scenario.yaml"
+    f.write_text(text)
+    return f, prog
+
+
+def test_posted_examples_run_unchanged_and_make_the_same_path():
+    from robstiff_drake.diagrams.toolpath import program_warnings
+
+    fusion = load_scenario(FACE)
+    mastercam = load_scenario(FACE, toolpath=os.path.join(ROOT, "diagrams", "face_contour_mastercam.nc"))
+    for sc in (fusion, mastercam):
+        assert sc.path.feed_mm_per_s == pytest.approx(20.0) and sc.cutter.spindle_rpm == 3600.0
+        assert sc._program.tool_diameter_mm == 75.0 and sc._program.warnings == []
+        assert [w.split(";")[0] for w in program_warnings(sc)] == [
+            "toolpath.program: 2 cutting feeds (F300, F1200 mm/min)"]
+    a, b = planned_path(fusion), planned_path(mastercam)
+    assert a.duration_s == pytest.approx(b.duration_s, abs=1e-9)
+    ts = np.linspace(0.0, a.duration_s, 200)
+    np.testing.assert_allclose(a.positions(ts), b.positions(ts), atol=1e-9)
+    # the program's zero on the plate's top: the plunge at the plate's corner goes to z = 703 - 2 mm
+    assert min(p[2] for p in a.positions(ts)) * 1e3 == pytest.approx(701.0)
+
+
+def test_the_tool_comment_is_checked_against_the_cutter(tmp_path):
+    text = open(os.path.join(ROOT, "diagrams", "face_contour_fanuc.nc")).read().replace("D=75.", "D=50.")
+    f, prog = scenario_with_program(tmp_path, text)
+    with pytest.raises(InputError) as e:
+        load_scenario(f)
+    msg = str(e.value)
+    assert msg.startswith(f"{f}:") and "cutter.diameter_mm: 75 mm, but the program's tool (T1, " in msg
+    assert f"{prog}:8) is 50 mm" in msg
+
+
+PLATE_PROGRAM = """%
+(T1 D=75. CR=0. - ZMIN=-2. - FACE MILL)
+G90 G94 G17 G49 G40 G80
+G21
+T1 M6
+S3600 M3
+G54
+G0 X-110. Y-40.
+G43 Z15. H1
+G0 Z5.
+G1 Z-2. F300.
+X60. F1200.
+{extra}
+G0 Z15.
+M30
+%
+"""
+
+
+def test_a_rapid_into_uncut_stock_is_refused_through_cut_stock_it_is_not(tmp_path):
+    # back along the faced strip at the cut's depth: the material is gone
+    f, _ = scenario_with_program(tmp_path, PLATE_PROGRAM.format(extra="G0 X-60."))
+    load_scenario(f)
+    # across the uncut half of the plate at the cut's depth: a crash
+    f, prog = scenario_with_program(tmp_path, PLATE_PROGRAM.format(extra="G0 Y40."))
+    with pytest.raises(InputError) as e:
+        load_scenario(f)
+    msg = str(e.value)
+    assert msg.startswith(f"{prog}:13: a rapid move (G0) to (60, 40, -2) runs the 75 mm cutter 2 mm below the top "
+                          "of workpiece box 1 where no earlier cut has removed the material"), msg
+    # a feed into uncut stock with the spindle stopped
+    f, prog = scenario_with_program(tmp_path, PLATE_PROGRAM.format(extra="M5\nG1 Y40."))
+    with pytest.raises(InputError, match=rf"^{prog}:14: a feed move with the spindle stopped \(M5 or S0\)"):
+        load_scenario(f)
+    # ... a rapid down into the plate before any cut
+    f, prog = scenario_with_program(tmp_path, PLATE_PROGRAM.format(extra="").replace("G0 Z5.", "G0 X0. Z-1."))
+    with pytest.raises(InputError, match=rf"^{prog}:10: a rapid move \(G0\) to \(0, -40, -1\)"):
+        load_scenario(f)
+
+
+def test_a_program_that_misses_the_workpiece_gets_one_line_with_both_extents(tmp_path):
+    f, prog = scenario_with_program(tmp_path, PLATE_PROGRAM.format(extra=""),
+                                    **{"work_offset_mm: [1600.0, 0.0, 703.0]": "work_offset_mm: [0.0, 0.0, 0.0]"})
+    with pytest.raises(InputError) as e:
+        load_scenario(f)
+    msg = str(e.value)
+    assert "\n" not in msg and "air cut" not in msg
+    assert msg.startswith(f"{prog}: the program's cuts span X -110..60, Y -40..-40, Z -2..5 mm (its frame)"), msg
+    assert "the workpiece spans X 1540..1660, Y -40..40 mm, top at Z 703 mm" in msg
+    offset = msg.split("--work-offset ")[-1].split(" ")[0]
+    assert offset == "1625,40,703"  # the middle of the cuts over the plate's middle, Z0 on its top
+    sc = load_scenario(f, work_offset=offset)  # placed: it loads
+    assert sc.toolpath.work_offset_mm == [1625.0, 40.0, 703.0]
+    sc = load_scenario(f, work_offset="1600,0,703,0")
+    assert sc.toolpath.work_offset_mm == [1600.0, 0.0, 703.0] and sc.toolpath.work_rotation_deg == 0.0
+
+
+@pytest.mark.parametrize("text, what", [("1600,0", "expected X,Y,Z"), ("1600,0,x", "component 3 'x' is not a number"),
+                                        ("1600,0,20000", "component 3 '20000' is outside the allowed range "
+                                                         "[-10000, 10000] mm"),
+                                        ("1600,0,703,400", "component 4 '400' is outside the allowed range "
+                                                           "[-360, 360] deg"),
+                                        ("1600,0,nan", "component 3 'nan' is outside")])
+def test_work_offset_option_is_checked(text, what):
+    with pytest.raises(InputError, match="^" + re.escape(f"--work-offset: {what}")):
+        load_scenario(FACE, work_offset=text)
+
+
+def test_a_program_out_of_reach_names_the_first_line_that_leaves_it(tmp_path):
+    from robstiff_drake.diagrams.milling_cell import planned_path as cell_path
+    from robstiff_drake.model.robot import load_robot
+
+    extra = "G1 X60. Y-40. Z60.\nG1 X2500. Y-40. Z60.\nG1 X60. Y-40. Z60."  # 2.5 m along +x: out of reach
+    f, prog = scenario_with_program(tmp_path, PLATE_PROGRAM.format(extra=extra))
+    sc = load_scenario(f)
+    robot = load_robot(None)
+    with pytest.raises(InputError) as e:
+        cell_path(sc, robot, robot.tool_point(where="the test"))
+    msg = str(e.value)
+    assert msg.startswith(f"{prog}:14: path point at t = ") and "(robot " in msg, msg
+
+
+def test_a_dwell_rests_on_the_path_and_g61_stops_at_every_corner(tmp_path):
+    base, _ = scenario_with_program(tmp_path, PLATE_PROGRAM.format(extra="G1 Y-30."))
+    p0 = planned_path(load_scenario(base))
+    d = tmp_path / "dwell"
+    d.mkdir()
+    f, _ = scenario_with_program(d, PLATE_PROGRAM.format(extra="G4 P2000\nG1 Y-30."))
+    p1 = planned_path(load_scenario(f))
+    assert p1.duration_s > p0.duration_s + 2.0
+    ts = np.arange(0.0, p1.duration_s, 0.01)
+    v = np.array([p1.speed(t) for t in ts])
+    rest = ts[v == 0.0]
+    at_corner = rest[np.linalg.norm(p1.positions(rest) * 1e3 - [1660.0, -40.0, 701.0], axis=1) < 1e-9]
+    assert at_corner.max() - at_corner.min() == pytest.approx(2.0, abs=0.011)  # two seconds at the corner
+    # zones: a corner path at the face pass's end in G64, none (and a stop) in G61
+    assert any(type(e).__name__ == "Corner" for e in p0.elements)
+    g = tmp_path / "g61"
+    g.mkdir()
+    f, _ = scenario_with_program(g, PLATE_PROGRAM.format(extra="G1 Y-30.").replace("G54", "G54 G61"))
+    p2 = planned_path(load_scenario(f))
+    assert not any(type(e).__name__ == "Corner" for e in p2.elements)
+    t_corner = ts[np.argmin(np.linalg.norm(p2.positions(ts) * 1e3 - [1660.0, -40.0, 701.0], axis=1))]
+    assert p2.speed(t_corner) < 1e-3
+
+
+def test_the_documented_example_runs_as_written(tmp_path):
+    """docs/toolpaths.md: its my_program.nc on the block, first without the
+    work offset (the one line it prints), then with it (it runs)."""
+    doc = open(os.path.join(ROOT, "docs", "toolpaths.md"), encoding="utf-8").read()
+    program = re.search(r"<!-- example-file: my_program.nc -->\n```\n(.*?)```", doc, flags=re.S).group(1)
+    console = re.search(r"```console\n(.*?)```", doc, flags=re.S).group(1).splitlines()
+    (tmp_path / "my_program.nc").write_text(program)
+    os.symlink(os.path.join(ROOT, "diagrams"), tmp_path / "diagrams")
+    commands = [line[2:] for line in console if line.startswith("$ ")]
+    assert len(commands) == 2 and "--work-offset" not in commands[0] and "--work-offset" in commands[1]
+    expected_error = console[console.index("$ " + commands[0]) + 1]
+
+    def run(command):
+        argv = command.split()
+        assert argv[0] == "robstiff"
+        return subprocess.run([sys.executable, "-m", "robstiff_drake"] + argv[1:], capture_output=True, text=True,
+                              cwd=tmp_path, timeout=600)
+
+    cp = run(commands[0])
+    assert cp.returncode == 2 and cp.stderr.strip() == expected_error, cp.stderr
+    cp = run(commands[1] + " --compensation off --json -")
+    assert cp.returncode == 0, cp.stderr
+    summary = json.loads(cp.stdout)
+    assert summary["spindle_power_W"] > 1000.0  # it cut the block (about 3 kW: 3 mm deep, 50 mm wide)
+    assert summary["surface_error_mm"]["uncompensated"]["max_abs"] > 0.005  # and the arm deflected
+    assert open(tmp_path / "my_program.nc").read() == program  # the input is untouched

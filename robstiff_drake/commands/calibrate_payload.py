@@ -3,7 +3,7 @@ centre of mass, force and torque bias) from static readings."""
 
 
 from robstiff_drake.commands.main import parse_vector
-from robstiff_drake.io import Warnings, check_outputs, emit_json, write_atomic
+from robstiff_drake.io import Warnings, check_outputs, emit_json, staged_outputs, write_atomic
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote
 
@@ -21,27 +21,28 @@ def run(*, data, json_out=None, yaml_out=None, mount_rpy=None, robot_yaml=None):
     fit = calibrate(robot, campaign, mount_rpy_deg=mount)
     warnings.extend_from(check_payload_fit(fit, robot, campaign.path))
     block = yaml_block(fit, data)
-    if json_out is not None:
-        emit_json({
-            "data": campaign.path,
-            "mass_kg": fit.mass_kg,
-            "mass_std_kg": fit.mass_std_kg,
-            "com_mm": fit.com_m * 1e3,
-            "com_std_mm": fit.com_std_m * 1e3,
-            "force_bias_N": fit.force_bias_N,
-            "torque_bias_Nm": fit.torque_bias_Nm,
-            "rms_force_N": fit.rms_force_N,
-            "rms_torque_Nm": fit.rms_torque_Nm,
-            "n_configurations": fit.n_configurations,
-            "n_gravity_directions": fit.n_directions,
-            "sensor_mount_rpy_deg": fit.mount_rpy_deg,
-            "residuals": [{"line": int(ln), "force_N": f, "torque_Nm": t}
-                          for ln, f, t in zip(campaign.lines, fit.residual_force_N, fit.residual_torque_Nm)],
-            "yaml": block,
-            "warnings": list(warnings),
-        }, json_out)
-    if yaml_out is not None:
-        write_atomic(yaml_out, block)
+    with staged_outputs():  # both files or neither
+        if json_out is not None:
+            emit_json({
+                "data": campaign.path,
+                "mass_kg": fit.mass_kg,
+                "mass_std_kg": fit.mass_std_kg,
+                "com_mm": fit.com_m * 1e3,
+                "com_std_mm": fit.com_std_m * 1e3,
+                "force_bias_N": fit.force_bias_N,
+                "torque_bias_Nm": fit.torque_bias_Nm,
+                "rms_force_N": fit.rms_force_N,
+                "rms_torque_Nm": fit.rms_torque_Nm,
+                "n_configurations": fit.n_configurations,
+                "n_gravity_directions": fit.n_directions,
+                "sensor_mount_rpy_deg": fit.mount_rpy_deg,
+                "residuals": [{"line": int(ln), "force_N": f, "torque_Nm": t}
+                              for ln, f, t in zip(campaign.lines, fit.residual_force_N, fit.residual_torque_Nm)],
+                "yaml": block,
+                "warnings": list(warnings),
+            }, json_out)
+        if yaml_out is not None:
+            write_atomic(yaml_out, block)
     if json_out != "-":
         t = t95(3 * fit.n_configurations - 4)
         print(f"payload from {campaign.path}: {fit.n_configurations} configurations, "

@@ -24,8 +24,8 @@ from robstiff_drake.cell.compensate import CompensatorLoop, LoopLog, LoopSetting
 from robstiff_drake.cell.egm import SensorLink
 from robstiff_drake.cell.rdt import NetFTReader, parse_host_port
 from robstiff_drake.cell.run_log import write_log
-from robstiff_drake.diagrams.scenario import checked_joint_stiffness, read_payload_calibration
-from robstiff_drake.errors import InputError
+from robstiff_drake.diagrams.scenario import checked_joint_stiffness, numbers, read_payload_calibration
+from robstiff_drake.errors import InputError, excerpt
 from robstiff_drake.io import RunFolder, check_outputs
 from robstiff_drake.model.compensator import Compensator
 from robstiff_drake.model.filters import filter_coefficients
@@ -60,8 +60,11 @@ def read_model(path, robot):
         raise InputError(f"--model {path}: identified for the robot {name!r}, not for {robot.name!r} ({robot.source})")
     nominal = doc.get("joint_stiffness_nominal_Nm_per_rad")
     if nominal is not None:
-        nom = np.asarray(nominal, dtype=float)
-        if nom.shape != (6,) or not np.allclose(nom, robot.joint_stiffness_Nm_per_rad, rtol=NOMINAL_TOLERANCE, atol=0):
+        nom = numbers(nominal)  # None for text, a dict or a ragged list
+        if nom is None or nom.shape != (6,):
+            raise InputError(f"--model {path}: joint_stiffness_nominal_Nm_per_rad: expected six numbers, got "
+                             f"{excerpt(nominal)}")
+        if not np.allclose(nom, robot.joint_stiffness_Nm_per_rad, rtol=NOMINAL_TOLERANCE, atol=0):
             raise InputError(f"--model {path}: identified against another robot file (its nominal stiffness "
                              f"{np.round(nom, 0).tolist()} is not {robot.name}'s "
                              f"{np.round(robot.joint_stiffness_Nm_per_rad, 0).tolist()} N*m/rad)")

@@ -10,7 +10,8 @@ import numpy as np
 
 from robstiff_drake.identification.run_diagnosis import diagnose_run
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.run_files import read_settings, settings_text
+from robstiff_drake.identification.run_files import SETTINGS, load_run_files, read_settings, run_file, settings_text
+from robstiff_drake.identification.run_folder_checks import check_run
 from robstiff_drake.identification.run_verification import plan_markdown
 from robstiff_drake.identification.scan_statistics import along_mm, segments
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
@@ -133,12 +134,12 @@ def run_robot_and_file(run_dir, robot_yaml=None, warnings=None):
     from robstiff_drake.model.robot import resolve_robot, same_robot_file
     from robstiff_drake.paths import library_robots
 
-    settings_path = Path(run_dir) / "compensator.yaml"
+    settings_path = run_file(run_dir, SETTINGS)
     spec = None
     if settings_path.is_file():
         _, settings = read_settings(settings_path)
         if settings.robot in library_robots():
-            kept = settings_path.parent / INPUTS_DIR / f"{settings.robot}.yaml"
+            kept = run_file(run_dir, f"{INPUTS_DIR}/{settings.robot}.yaml")
             spec = str(kept) if kept.is_file() else settings.robot
         elif settings.robot:
             spec = str(settings_path.parent / settings.robot)
@@ -178,6 +179,7 @@ def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_y
     check_outputs(inputs=[run_dir, *verify], files={"--json": json_out}, folders={"--out": out})
     warnings = Warnings()
     robot, robot_file = run_robot_and_file(run_dir, robot_yaml, warnings)
+    check_run(load_run_files(run_dir), robot)  # logs in other units, or of another robot: one line, before the fit
     from robstiff_drake.diagrams.run_arm import ArmModel
 
     rep, extras = diagnose_run(run_dir, robot, ArmModel, noise_mm=noise_mm, verify=verify)

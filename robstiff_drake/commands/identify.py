@@ -3,21 +3,27 @@
 import numpy as np
 
 from robstiff_drake.commands.main import parse_tool
-from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic
+from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic, staged_outputs
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote
 
 
-def fit_to_dict(fit, campaign, robot, tool_m):
+def fit_to_dict(fit, campaign, robot, tool_m, no_intervals=()):
+    """The result as JSON; ``no_intervals``: why the campaign's design cannot
+    support its intervals (interval_support), which are then null."""
+    withheld = bool(no_intervals)
     return {
         "data": campaign.path,
         "robot": robot.name,
         "tool_mm": (np.asarray(tool_m) * 1e3).tolist(),
         "joint_stiffness_Nm_per_rad": fit.stiffness_Nm_per_rad,
-        "joint_stiffness_std_Nm_per_rad": [None if np.isnan(v) else float(v) for v in fit.stiffness_std_Nm_per_rad],
-        # null: not identifiable, or unbounded (the compliance's interval reaches zero)
-        "joint_stiffness_ci95_Nm_per_rad": [[float(v) if np.isfinite(v) else None for v in row]
+        "joint_stiffness_std_Nm_per_rad": [None if withheld or np.isnan(v) else float(v)
+                                           for v in fit.stiffness_std_Nm_per_rad],
+        # null: not identifiable, unbounded (the compliance's interval reaches zero), or not available
+        "joint_stiffness_ci95_Nm_per_rad": [[float(v) if np.isfinite(v) and not withheld else None for v in row]
                                             for row in fit.stiffness_ci95_Nm_per_rad],
+        "intervals_available": not withheld,
+        "intervals_not_available_because": list(no_intervals),
         "joint_stiffness_nominal_Nm_per_rad": robot.joint_stiffness_Nm_per_rad,
         "joint_compliance_rad_per_Nm": fit.compliance_rad_per_Nm,
         "identifiable": [bool(v) for v in fit.identifiable],
@@ -35,7 +41,7 @@ def fit_to_dict(fit, campaign, robot, tool_m):
     }
 
 
-def format_fit(fit, campaign, robot):
+def format_fit(fit, campaign, robot, no_intervals=()):
     lines = [
         f"identified from {campaign.path}: {fit.n_measurements} measurements, "
         f"{'robust (Huber)' if fit.robust else 'least squares'}, "
@@ -46,7 +52,9 @@ def format_fit(fit, campaign, robot):
     for j in range(6):
         k = fit.stiffness_Nm_per_rad[j]
         nom = robot.joint_stiffness_Nm_per_rad[j]
-        if fit.identifiable[j]:
+        if fit.identifiable[j] and no_intervals:
+            lines.append(f"  {j + 1}     {k:12.4g}       {'n/a':>10}   {'not available':^26}   {nom:10.4g}    ")
+        elif fit.identifiable[j]:
             lo, hi = fit.stiffness_ci95_Nm_per_rad[j]
             note = "NON-PHYSICAL (negative compliance)" if (j + 1) in fit.non_physical else ""
             lines.append(f"  {j + 1}     {k:12.4g}       {fit.stiffness_std_Nm_per_rad[j]:10.3g}   "
@@ -59,13 +67,15 @@ def format_fit(fit, campaign, robot):
         f"residual RMS {fit.rms_residual_mm:.4f} mm (all components), noise estimate sigma {fit.sigma_mm:.4f} mm, "
         f"{fit.dof} degrees of freedom, condition number {fit.condition_number:.3g} (nominal-scaled columns)",
     ]
+    if no_intervals:
+        lines.append("std errors and 95 % intervals not available: " + "; ".join(no_intervals))
     if fit.outlier_rows:
         lines.append("outliers (|residual| > 4 robust sigma) at lines: "
                      + ", ".join(str(campaign.lines[i]) for i in fit.outlier_rows))
     return "\n".join(lines)
 
 
-def plot_fit(fit, campaign, robot):
+def plot_fit(fit, campaign, robot, no_intervals=()):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -94,8 +104,11 @@ def plot_fit(fit, campaign, robot):
     rel = fit.stiffness_Nm_per_rad / robot.joint_stiffness_Nm_per_rad
     ci = fit.stiffness_ci95_Nm_per_rad / robot.joint_stiffness_Nm_per_rad[:, None]
     ok = fit.identifiable
-    ax.errorbar(j[ok], rel[ok], yerr=np.abs(np.vstack([rel[ok] - ci[ok, 0], np.minimum(ci[ok, 1], 10) - rel[ok]])),
-                fmt="o", capsize=4, label="identified, 95 % interval")
+    if no_intervals:
+        ax.plot(j[ok], rel[ok], "o", label="identified (intervals not available)")
+    else:
+        ax.errorbar(j[ok], rel[ok], yerr=np.abs(np.vstack([rel[ok] - ci[ok, 0], np.minimum(ci[ok, 1], 10) - rel[ok]])),
+                    fmt="o", capsize=4, label="identified, 95 % interval")
     ax.plot(j[~ok], rel[~ok], "x", color="grey", ms=10, label="not identifiable (nominal)")
     ax.axhline(1.0, color="k", lw=0.8)
     ax.set_xticks(j)
@@ -124,6 +137,7 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
     # scipy comes with these: after the checks of the arguments
     from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
     from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
+    from robstiff_drake.identification.interval_support import interval_support
 
     warnings = Warnings()
     campaign = read_stiffness_campaign(data, robot)
@@ -135,12 +149,17 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
     if fit.condition_number > 1e4:
         warnings.add(f"condition number {fit.condition_number:.3g}: the poses and loads barely separate the joints; "
                      "plan the campaign with `robstiff plan-poses`")
-    if json_out is not None:
-        emit_json(dict(fit_to_dict(fit, campaign, robot, tool_m), warnings=list(warnings)), json_out)
-    if plot is not None:
-        save_figure_atomic(plot_fit(fit, campaign, robot), plot, dpi=100)
+    no_intervals = interval_support(campaign, tool_m, int(np.sum(fit.identifiable)))
+    if no_intervals:
+        warnings.add(f"{campaign.path}: 95 % intervals not available, the campaign's design cannot support them: "
+                     + "; ".join(no_intervals))
+    with staged_outputs():  # both files or neither (a full disk at the plot leaves no JSON behind)
+        if json_out is not None:
+            emit_json(dict(fit_to_dict(fit, campaign, robot, tool_m, no_intervals), warnings=list(warnings)), json_out)
+        if plot is not None:
+            save_figure_atomic(plot_fit(fit, campaign, robot, no_intervals), plot, dpi=100)
     if json_out != "-":
-        print(format_fit(fit, campaign, robot))
+        print(format_fit(fit, campaign, robot, no_intervals))
     wrote(json_out, "the identified model (compensate --model, a scenario's model.identified_json)",
           to_stderr=json_out == "-")
     wrote(plot, to_stderr=json_out == "-")

@@ -11,7 +11,7 @@ from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model import ik
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.robot import load_robot
-from robstiff_drake.progress import wrote
+from robstiff_drake.progress import progress, wrote
 
 G_M_PER_S2 = 9.81
 
@@ -23,8 +23,9 @@ def _directions():
     return np.vstack([axes, diag])
 
 
-def study(robot, *, grid=5, force_N=500.0, payload_kg=150.0):
-    """The study's numbers as a dict (see module docstring)."""
+def study(robot, *, grid=5, force_N=500.0, payload_kg=150.0, show_progress=None):
+    """The study's numbers as a dict (see module docstring); a progress bar
+    over the cases (``show_progress``: as progress.progress's ``enabled``)."""
     tool = robot.tool_point(where="kg-study")
     points, qs = ik.workspace_poses(robot, grid, tool)
     if len(qs) == 0:
@@ -34,9 +35,11 @@ def study(robot, *, grid=5, force_N=500.0, payload_kg=150.0):
         f"{payload_kg:g} kg payload at the tool (gravity)": [np.array([0.0, 0.0, -payload_kg * G_M_PER_S2])],
     }
     results = []
+    bar = progress(len(qs) * sum(len(f) for f in cases.values()), show_progress, "kg-study", unit="cases")
     for label, forces in cases.items():
         rel, abs_um, conv_err, cct_err, defl, where = [], [], [], [], [], []
         for p, q in zip(points, qs):
+            bar.update(len(forces))
             for f in forces:
                 e = st.kg_effect(robot.dh, q, robot.joint_stiffness_Nm_per_rad, np.concatenate([f, np.zeros(3)]), tool)
                 rel.append(e["relative_change"])
@@ -63,6 +66,7 @@ def study(robot, *, grid=5, force_N=500.0, payload_kg=150.0):
             "max_conventional_error_vs_exact": float(np.max(conv_err)),
             "max_cct_error_vs_exact": float(np.max(cct_err)),
         })
+    bar.close()
     return {
         "robot": robot.name,
         "n_poses": int(len(qs)),
@@ -101,13 +105,14 @@ def format_table(res):
     return "\n".join(lines)
 
 
-def run(*, grid=5, force_N=500.0, payload_kg=150.0, json_out=None, robot_yaml=None):
+def run(*, grid=5, force_N=500.0, payload_kg=150.0, json_out=None, robot_yaml=None, show_progress=None):
     if grid < 1:
         raise InputError(f"kg-study: --grid must be >= 1, got {grid}")
     if not (force_N > 0 and payload_kg > 0):
         raise InputError("kg-study: --force-N and --payload-kg must be > 0")
     check_outputs(inputs=[robot_yaml], files={"--json": json_out})
-    res = study(load_robot(robot_yaml), grid=grid, force_N=force_N, payload_kg=payload_kg)
+    res = study(load_robot(robot_yaml), grid=grid, force_N=force_N, payload_kg=payload_kg,
+                show_progress=show_progress)
     if json_out is not None:
         emit_json(res, json_out)
     if json_out != "-":

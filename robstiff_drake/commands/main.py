@@ -10,7 +10,7 @@ import re
 import signal
 import sys
 
-from robstiff_drake.errors import InputError, Terminated
+from robstiff_drake.errors import InputError, Terminated, one_line
 
 
 class _UsageError(InputError):
@@ -29,7 +29,8 @@ class _Parser(argparse.ArgumentParser):
 # Allowed ranges of the vector options (a tool 5 m from the flange is no
 # robot tool; a stiffness outside 1e3-1e9 N*m/rad is no robot joint).
 VECTOR_RANGES = {"--tool": (-5000.0, 5000.0, "mm"), "--com-mm": (-2000.0, 2000.0, "mm"),
-                 "--mount-rpy": (-360.0, 360.0, "deg"), "--stiffness": (1e3, 1e9, "N*m/rad")}
+                 "--mount-rpy": (-360.0, 360.0, "deg"), "--stiffness": (1e3, 1e9, "N*m/rad"),
+                 "--work-offset": (-10000.0, 10000.0, "mm")}
 
 
 def parse_vector(text, n, what):
@@ -149,6 +150,7 @@ def build_parser():
     p.add_argument("--force-N", type=FORCE_N, default=500.0, help="tool force magnitude (default: %(default)s N)")
     p.add_argument("--payload-kg", type=_number_in(1e-3, 2000.0, "kg"), default=150.0, help="payload mass (default: %(default)s kg)")
     p.add_argument("--json", metavar="OUT", help="write the results as JSON ('-' for stdout)")
+    p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
     _add_robot_option(p)
 
     p = sub.add_parser("make-urdf", help="write a robot's Drake/ROS description (URDF, package.xml) into a folder")
@@ -248,6 +250,9 @@ def build_parser():
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
     p.add_argument("--toolpath", metavar="PROGRAM", help="a G-code program as the path, placed by the scenario's "
                                                         "toolpath.work_offset_mm (docs/toolpaths.md)")
+    p.add_argument("--work-offset", metavar="X,Y,Z[,ROT_DEG]",
+                   help="where the program's zero is in the robot's base frame (mm), and its turn about the base z "
+                        "axis (deg): replaces toolpath.work_offset_mm (and work_rotation_deg)")
     p.add_argument("--compensator", metavar="SETTINGS.yaml",
                    help="run the scenario's machine with this compensator (a compensator.yaml, e.g. a candidate "
                         "fix of diagnose-run): a verification cut")
@@ -440,7 +445,7 @@ def _dispatch(args):
         from robstiff_drake.commands import kg_study
 
         return kg_study.run(grid=args.grid, force_N=args.force_N, payload_kg=args.payload_kg,
-                            json_out=args.json, robot_yaml=args.robot)
+                            json_out=args.json, robot_yaml=args.robot, show_progress=args.progress)
     if args.command == "make-urdf":
         from robstiff_drake.commands import make_urdf
 
@@ -489,7 +494,8 @@ def _dispatch(args):
 
         return simulate.run(scenario=args.scenario, compensation=args.compensation, json_out=args.json,
                             out=args.out, compensator=args.compensator, noise_seed=args.noise_seed,
-                            robot_yaml=args.robot, toolpath=args.toolpath, replay=args.replay, progress=args.progress)
+                            robot_yaml=args.robot, toolpath=args.toolpath, work_offset=args.work_offset,
+                            replay=args.replay, progress=args.progress)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep
 
@@ -529,6 +535,16 @@ def _dispatch(args):
     raise AssertionError(args.command)
 
 
+# An error is one line of at most this many characters (a message that
+# quotes a file name or a value is escaped and shortened, whatever they hold).
+MAX_ERROR_CHARS = 1000
+
+
+def _error_text(e):
+    text = one_line(e)
+    return text if len(text) <= MAX_ERROR_CHARS else text[:MAX_ERROR_CHARS - 3] + "..."
+
+
 def _on_sigterm(signum, frame):
     raise Terminated()
 
@@ -547,10 +563,13 @@ def main(argv=None):
         from robstiff_drake.commands.preflight import check_inputs
 
         check_inputs(args)  # the named inputs exist, before any heavy import
-        return _dispatch(args) or 0
+        from robstiff_drake.command import command_scope
+
+        with command_scope():
+            return _dispatch(args) or 0
     except InputError as e:
         prog = getattr(e, "prog", "robstiff")
-        print(f"{prog}: error: {e}", file=sys.stderr)
+        print(f"{prog}: error: {_error_text(e)}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. `robstiff demo | head`
         import os

@@ -3,8 +3,8 @@
 A mistyped file name should be refused as fast as ``--help`` answers: this
 module imports nothing beyond the standard library and ``paths`` (no numpy,
 no scipy, no Drake), and runs between argument parsing and the import of the
-command's module.  It checks only that the named inputs exist (their
-content is the readers' business, after the import) and resolves a
+command's module.  It checks only that the named inputs exist, in the words of
+their readers (their content is the readers' business, after the import) and resolves a
 scenario given by name (``robstiff simulate block_milling``) to the
 packaged file, so the command itself always gets a path.
 
@@ -22,9 +22,12 @@ NO_FILE = os.strerror(2)  # "No such file or directory", as the readers word it
 # command -> attribute names of its positional or option inputs, by kind
 DATA_FILES = {"identify": ["data"], "diagnose": ["data"], "calibrate-payload": ["data"]}
 SCENARIOS = {"simulate": "scenario", "sweep": "scenario", "sim-cell": "scenario"}
-OPTION_FILES = {  # command -> [(attribute, option as the user wrote it)]
-    "simulate": [("compensator", "--compensator"), ("toolpath", "--toolpath")],
-    "compensate": [("model", "--model"), ("payload", "--payload"), ("reference", "--reference")],
+# command -> [(attribute, the one line for a missing file, worded as the file's reader words it)]
+OPTION_FILES = {
+    "simulate": [("compensator", "{path}: no such run file"), ("toolpath", "{path}: no such G-code program")],
+    "compensate": [("model", "--model {path}: cannot read (" + NO_FILE + ")"),
+                   ("payload", "{path}: no such payload calibration"),
+                   ("reference", "--reference {path}: cannot read (" + NO_FILE + ")")],
 }
 
 
@@ -42,8 +45,8 @@ def check_robot(spec):
     if path.exists():
         return
     if path_like:
-        raise InputError(f"{text}: cannot read robot parameter file ({NO_FILE}); a library robot is named "
-                         f"without a folder or suffix ({', '.join(library_robots())})")
+        raise InputError(f"{text}: no such robot file (a library robot is named without a folder or suffix: "
+                         f"{', '.join(library_robots())})")
     if text not in library_robots():
         raise InputError(f"--robot {text}: not a library robot ({', '.join(library_robots())}) and not a YAML file")
 
@@ -63,10 +66,10 @@ def check_inputs(args):
         if found is None:
             raise InputError(unknown_scenario(text))
         setattr(args, attr, str(found))
-    for attr, option in OPTION_FILES.get(command, ()):
+    for attr, line in OPTION_FILES.get(command, ()):
         path = getattr(args, attr, None)
         if path is not None and _missing(path):
-            raise InputError(f"{option} {path}: cannot read ({NO_FILE})")
+            raise InputError(line.format(path=path))
     if command == "diagnose-run":
         for folder in [args.run_dir, *(args.verify or [])]:
             if not os.path.isdir(folder):

@@ -178,15 +178,16 @@ def simulated_line(runs):
     return f"simulated {sim} {per}({names}) in {wall} s wall ({factor:.1f}x real time)"
 
 
-def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath=None):
+def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath=None, work_offset=None):
     """The scenario to simulate: from its file (its path replaced by the
-    G-code program ``toolpath`` when given), with the compensator of a
-    settings file (``compensator``) and the sensor's and scanner's noise
-    seeds set to ``noise_seed`` (a repeated cut: new noise) when given."""
+    G-code program ``toolpath`` when given, placed by ``work_offset``,
+    "X,Y,Z[,ROT_DEG]"), with the compensator of a settings file
+    (``compensator``) and the sensor's and scanner's noise seeds set to
+    ``noise_seed`` (a repeated cut: new noise) when given."""
     from robstiff_drake.diagrams.cell_record import scenario_with_compensator
     from robstiff_drake.diagrams.scenario import load_scenario
 
-    sc = load_scenario(scenario, toolpath=toolpath)
+    sc = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset)
     if compensator is not None:
         _, settings = read_settings(compensator)
         sc = scenario_with_compensator(sc, settings, robot)
@@ -196,19 +197,20 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
 
 
 def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None, compensator=None,
-             noise_seed=None, toolpath=None, progress=False):
+             noise_seed=None, toolpath=None, work_offset=None, progress=False):
     """Load and run; returns (scenario, results).  The robot: ``robot`` (a
     RobotModel), else --robot's ``robot_yaml``, else the scenario's own.
     Warnings about the settings and the result go to ``warnings`` (an
-    io.Warnings) if given.  ``compensator``, ``noise_seed``, ``toolpath``: see load_for_run;
+    io.Warnings) if given.  ``compensator``, ``noise_seed``, ``toolpath``, ``work_offset``: see load_for_run;
     ``progress``: a bar over simulated time (experiment.run_cut)."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
     from robstiff_drake.diagrams.experiment import run_cut
     from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
 
-    robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath), robot_yaml)
-    sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed, toolpath=toolpath)
+    robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset), robot_yaml)
+    sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed, toolpath=toolpath,
+                      work_offset=work_offset)
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot))
     results = [run_cut(sc, robot, compensation=c, progress=progress) for c in MODES[compensation]]
@@ -304,22 +306,25 @@ def write_outputs(sc, results, robot, run, warnings=()):
 
 
 def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None,
-        robot_yaml=None, toolpath=None, replay=None, progress=None):
+        robot_yaml=None, toolpath=None, work_offset=None, replay=None, progress=None):
     check_outputs(inputs=[scenario, compensator, toolpath], files={"--json": json_out, "--replay": replay},
                   folders={"--out": out})
     from robstiff_drake.diagrams import replay as replay_3d
 
-    if replay is not None:
+    if replay is not None and not Path(replay).exists():  # a new file: its name now, before Drake's import
         replay_3d.check_replay_path(replay)
     from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 
-    robot = scenario_robot(load_scenario(scenario, toolpath=toolpath), robot_yaml)
+    robot = scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset), robot_yaml)
+    if replay is not None:  # an existing file: after the scenario's inputs are known (it may be one of them)
+        replay_3d.check_replay_path(replay)
     meshcat = None
     if replay is not None:  # Meshcat needs its server: refuse before the simulation when it cannot start
         meshcat = replay_3d.start_meshcat()
     warnings = Warnings()
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
-                           compensator=compensator, noise_seed=noise_seed, toolpath=toolpath, progress=progress)
+                           compensator=compensator, noise_seed=noise_seed, toolpath=toolpath, work_offset=work_offset,
+                           progress=progress)
     summ = summary(results, sc, warnings)
     with RunFolder(out) as run_folder:
         written = write_outputs(sc, results, robot, run_folder, warnings)

@@ -80,8 +80,8 @@ def planned_path(sc, robot, tool):
                robot.q_lower_rad.tobytes(), robot.q_upper_rad.tobytes())
         if key not in _REFERENCES:
             _REFERENCES[key] = path.joint_references(robot, tool, p.reference_period_ms / 1e3)
-    except PathError as e:
-        raise InputError(f"{sc.source}: path: {e} (robot {robot.name})") from None
+    except PathError as e:  # (a program's path: its file:line, the first that leaves the robot's reach or limits)
+        raise InputError(f"{e.where or f'{sc.source}: path'}: {e} (robot {robot.name})") from None
     t_ref, q_ref = _REFERENCES[key]
     return path, t_ref, q_ref
 

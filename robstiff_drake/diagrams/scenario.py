@@ -6,31 +6,34 @@ key and allowed range; then checked for what depends on several keys and
 for the size of the run, before anything is built.
 
 Units are in the key names.  Paths to other files (an identification JSON,
-a payload-calibration YAML) are relative to the scenario file.
+a payload-calibration YAML) are relative to the scenario file.  Every file
+the scenario names is noted as an input of the command when the scenario is
+loaded (io.note_input: no output may overwrite or contain it), and read
+through user_files (bounded, no YAML aliases).
 """
 
-import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
 
 from robstiff_drake.diagrams.schema import check_object, choice, drake_config, num, rows, text, validate, vec
-from robstiff_drake.errors import InputError
+from robstiff_drake.errors import InputError, excerpt
+from robstiff_drake.command import note_input
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
-from robstiff_drake.model.gcode import read_program_file
-from robstiff_drake.model.path import PathError, PlannedPath, program_elements
+from robstiff_drake.diagrams import toolpath as program_setup
+from robstiff_drake.model.path import PathError, PlannedPath
+from robstiff_drake.model.program_path import program_pieces
 from robstiff_drake.model.payload import PayloadCalibration
+from robstiff_drake.model.robot_file import STIFFNESS_RANGE_NM_PER_RAD
+from robstiff_drake.user_files import load_json, load_yaml, read_user_text
 
 # Ranges: what a machining robot's cell can physically be, wide enough for
 # any real set-up, narrow enough that a typo (a unit slip, a missing decimal
 # point) is caught before a long run.  The reasoning is next to each one.
-STIFFNESS_RANGE_NM_PER_RAD = (1e3, 1e9)  # a small cobot's wrist ~1e3; the stiffest large-robot axis ~1e7
 MAX_COORD_MM = 10000.0  # a cell: 10 m from the robot base covers the largest arm on a track
 
 
@@ -151,8 +154,9 @@ class ToolpathConfig:
     """A G-code program (model/gcode.py) as the path, placed on the
     workpiece: a program point p (mm, work frame) is at
     work_offset_mm + Rz(work_rotation_deg) p in the robot's base frame (the
-    G54 offset).  F gives the feed and S the spindle speed (they replace
-    path.feed_mm_per_s and cutter.spindle_rpm); G0 moves go at rapid_mm_per_s."""
+    G54 offset; ``simulate --work-offset`` sets both).  F gives the feed
+    and S the spindle speed (they replace path.feed_mm_per_s and
+    cutter.spindle_rpm); G0 moves go at rapid_mm_per_s."""
 
     program: str = text("")  # relative to this file; empty: path.waypoints_mm
     work_offset_mm: list[float] = vec([0.0, 0.0, 0.0], (3,), -MAX_COORD_MM, MAX_COORD_MM, "mm")
@@ -161,6 +165,15 @@ class ToolpathConfig:
     # rapids near a part; a CNC's rapid traverse of 10-30 m/min is for a
     # machine tool's guarded axes)
     rapid_mm_per_s: float = num(100.0, 0.1, 2000.0, "mm/s")
+    # A number without a decimal point (X10): "calculator" reads 10 mm (10 in
+    # under G20), as LinuxCNC and a Fanuc with calculator-type input do;
+    # "increment": 10 least input increments, 0.010 mm (0.0010 in), as a
+    # Fanuc reads it by default (IS-B).  CAM posts write every coordinate
+    # with a point (X10.), so only hand-written programs differ.
+    decimal_point: str = choice("calculator", ("calculator", "increment"))
+    # Blocks that start with '/': "skip" them (the controller's block-delete
+    # switch on) or "run" them.
+    block_delete: str = choice("skip", ("skip", "run"))
 
 
 @dataclass
@@ -295,24 +308,17 @@ MAX_FILTER_TAPS = 5000
 MAX_SCAN_POINTS = 2_000_000
 
 
-def load_scenario(path, toolpath=None):
+def load_scenario(path, toolpath=None, work_offset=None):
     """Read and check a scenario file; InputError (one line naming the file,
     line, key and allowed range) on anything wrong, before anything is built.
     ``toolpath``: a G-code program that replaces the scenario's path (the
-    command line's --toolpath, relative to the working folder)."""
+    command line's --toolpath, relative to the working folder);
+    ``work_offset``: the command line's --work-offset "X,Y,Z[,ROT_DEG]"
+    (mm, deg), replacing toolpath.work_offset_mm (and work_rotation_deg)."""
     from pydrake.common.yaml import yaml_load_typed
 
     path = Path(path)
-    if not path.exists():
-        raise InputError(f"{path}: no such scenario file")
-    if not path.is_file():
-        raise InputError(f"{path}: not a file")
-    try:
-        text_ = path.read_bytes().decode("utf-8-sig")
-    except OSError as e:
-        raise InputError(f"{path}: cannot read ({e.strerror})") from None
-    except UnicodeDecodeError as e:
-        raise InputError(f"{path}: not UTF-8 text (byte {e.start}); save the scenario as UTF-8") from None
+    text_ = read_user_text(path, "scenario file")
     lines = validate(Scenario, path, text_)
     try:
         sc = yaml_load_typed(schema=Scenario, data=text_) if text_.strip() else Scenario()
@@ -322,22 +328,42 @@ def load_scenario(path, toolpath=None):
     sc.source = str(path)
     sc._key_lines = lines
     if toolpath is not None:
+        note_input(toolpath, "--toolpath")
         sc.toolpath.program = str(Path(toolpath).resolve())
+        sc._program_label = str(toolpath)  # (its messages name it as given)
         sc.path.waypoints_mm = []
+    if work_offset is not None:
+        offset, rotation = program_setup.parse_work_offset(work_offset, ToolpathConfig)
+        sc.toolpath.work_offset_mm = offset
+        if rotation is not None:
+            sc.toolpath.work_rotation_deg = rotation
+    for key, named in named_files(sc).items():
+        note_input(named, f"{key} of {path}")
     apply_program(sc)
     check_scenario(sc)
     return sc
 
 
+def named_files(sc):
+    """{key: path} of the files the scenario names (its program, robot file,
+    identification JSON, payload calibration), resolved against its folder."""
+    out = {}
+    for key, value in (("toolpath.program", sc.toolpath.program), ("model.identified_json", sc.model.identified_json),
+                       ("model.payload_yaml", sc.model.payload_yaml)):
+        if value:
+            out[key] = resolve(sc, value)
+    spec = robot_spec(sc)
+    if spec is not None and spec == str(resolve(sc, sc.robot)):
+        out["robot"] = Path(spec)
+    return out
+
+
 def _program(sc):
     """The scenario's G-code program (model/gcode.Program), read once."""
-    prog = getattr(sc, "_program", None)
     p = resolve(sc, sc.toolpath.program)
-    if prog is None or prog.path != str(p):
-        if not p.is_file():
-            _fail(sc, "toolpath.program", f"no such G-code program {p}" if not p.exists() else f"{p} is not a file")
-        prog = sc._program = read_program_file(p)
-    return prog
+    if not p.is_file():
+        _fail(sc, "toolpath.program", f"no such G-code program {p}" if not p.exists() else f"{p} is not a file")
+    return program_setup.read_program(sc, p)
 
 
 def _dominant(values_by_length):
@@ -353,21 +379,11 @@ def apply_program(sc):
         return
     if sc.path.waypoints_mm:
         _fail(sc, "toolpath.program", "give path.waypoints_mm or toolpath.program, not both")
-    prog = _program(sc)
-    feeds, speeds = {}, {}
-    for m in prog.moves:
-        if m.kind == "rapid":
-            continue
-        length = math.dist(m.start_mm, m.end_mm) if m.kind == "line" else abs(m.sweep_rad()) * m.radius_mm
-        feeds[m.feed_mm_per_min] = feeds.get(m.feed_mm_per_min, 0.0) + length
-        if m.spindle_rpm is not None:
-            speeds[m.spindle_rpm] = speeds.get(m.spindle_rpm, 0.0) + length
+    feeds, speeds = program_setup.feeds_and_speeds(_program(sc))
     if feeds:
         sc.path.feed_mm_per_s = _dominant(feeds) / 60.0
     if speeds:
         sc.cutter.spindle_rpm = float(_dominant(speeds))
-    sc._program_feeds = sorted(feeds)
-    sc._program_speeds = sorted(speeds)
 
 
 def plant_step_s(sc):
@@ -412,8 +428,12 @@ def check_scenario(sc):
                                        f"{len(sc.path.waypoints_mm)}")
     if sc.model.joint_stiffness_Nm_per_rad and sc.model.identified_json:
         _fail(sc, "model.identified_json", "give model.joint_stiffness_Nm_per_rad or model.identified_json, not both")
+    if sc.toolpath.program:
+        program_setup.check_tool(sc, _program(sc), lambda key, what: _fail(sc, key, what))
     path = _check_sizes(sc)
     _check_engagement(sc, path)
+    if sc.toolpath.program:
+        program_setup.check_stock(sc, _program(sc))
 
 
 def _path_key(sc):
@@ -433,6 +453,8 @@ def _check_engagement(sc, path):
         dy = np.maximum(np.maximum(y0 - pts[:, 1], pts[:, 1] - y1), 0.0)
         if np.any((dx * dx + dy * dy < R * R) & (pts[:, 2] < top)):
             return
+    if sc.toolpath.program:
+        raise InputError(program_setup.placement_message(sc, _program(sc)))
     _fail(sc, _path_key(sc), f"the cutter ({sc.cutter.diameter_mm:g} mm) never comes below the top of a "
                              "workpiece box while over it: an air cut leaves no surface to measure")
 
@@ -487,27 +509,18 @@ def resolve(sc, relative):
     return (Path(sc.source).parent / relative) if sc.source else Path(relative)
 
 
-def _read_text(sc, key, p):
-    try:
-        return p.read_bytes().decode("utf-8-sig")
-    except OSError as e:
-        _fail(sc, key, f"cannot read {p} ({e.strerror})")
-    except UnicodeDecodeError:
-        _fail(sc, key, f"{p} is not UTF-8 text")
-
-
 def model_stiffness(sc, robot):
     """The compensator's joint stiffness (N*m/rad)."""
     if sc.model.joint_stiffness_Nm_per_rad:
         return np.asarray(sc.model.joint_stiffness_Nm_per_rad, dtype=float)
     if sc.model.identified_json:
         p = resolve(sc, sc.model.identified_json)
-        try:
-            k = json.loads(_read_text(sc, "model.identified_json", p))["joint_stiffness_Nm_per_rad"]
-        except (ValueError, KeyError, TypeError) as e:
-            _fail(sc, "model.identified_json", f"cannot read joint_stiffness_Nm_per_rad from {p} "
-                                               f"({type(e).__name__}: {e})")
-        return checked_joint_stiffness(k, where=str(p))
+        named_by = f"model.identified_json of {sc.source or 'the scenario'}"
+        doc = load_json(read_user_text(p, "JSON file", named_by=named_by), p)
+        if not isinstance(doc, dict) or "joint_stiffness_Nm_per_rad" not in doc:
+            _fail(sc, "model.identified_json", f"{p} has no joint_stiffness_Nm_per_rad (write it with `robstiff "
+                                               "identify DATA.csv --json OUT`)")
+        return checked_joint_stiffness(doc["joint_stiffness_Nm_per_rad"], where=str(p))
     return robot.joint_stiffness_Nm_per_rad
 
 
@@ -515,14 +528,20 @@ def checked_joint_stiffness(value, *, where):
     """``value`` as six finite joint stiffnesses (N*m/rad) within
     STIFFNESS_RANGE_NM_PER_RAD, or an InputError that names ``where``."""
     lo, hi = STIFFNESS_RANGE_NM_PER_RAD
-    try:
-        k = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        k = np.full(0, np.nan)
-    if k.shape != (6,) or not np.all(np.isfinite(k)) or np.any((k < lo) | (k > hi)):
+    k = numbers(value)
+    if k is None or k.shape != (6,) or not np.all(np.isfinite(k)) or np.any((k < lo) | (k > hi)):
         raise InputError(f"{where}: joint_stiffness_Nm_per_rad: expected six finite stiffnesses in "
-                         f"[{lo:g}, {hi:g}] N*m/rad, got {k.tolist() if k.size else 'something else'}")
+                         f"[{lo:g}, {hi:g}] N*m/rad, got {excerpt(value)}")
     return k
+
+
+def numbers(value):
+    """``value`` as a flat float array when it is a list of plain numbers
+    (no text, bool, list or dict in it), else None."""
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                                                        for v in value):
+        return None
+    return np.asarray(value, dtype=float)
 
 
 def plant_stiffness(sc, robot):
@@ -531,28 +550,18 @@ def plant_stiffness(sc, robot):
     return robot.joint_stiffness_Nm_per_rad
 
 
-def work_transform(tp):
-    """program point (mm, work frame) -> base frame (m): the work offset
-    and a rotation about z (toolpath section ``tp``)."""
-    c, s = math.cos(math.radians(tp.work_rotation_deg)), math.sin(math.radians(tp.work_rotation_deg))
-    ox, oy, oz = tp.work_offset_mm
-
-    def transform(p_mm):
-        x, y, z = p_mm
-        return np.array([ox + c * x - s * y, oy + s * x + c * y, oz + z]) / 1e3
-
-    return transform
-
-
 def planned_path(sc):
     """The scenario's tool path (PlannedPath, SI units): through its
     waypoints, or along its G-code program; PathError if it is malformed."""
     p = sc.path
     if sc.toolpath.program:
         tp = sc.toolpath
-        elements, speeds = program_elements(_program(sc).moves, tp.rapid_mm_per_s / 1e3, work_transform(tp))
-        return PlannedPath.from_elements(elements, speeds, np.deg2rad(p.yaw_deg), p.dwell_s, p.ramp_s,
-                                         p.zone_mm / 1e3)
+        prog = _program(sc)
+        elements, speeds, stops, dwells, moves = program_pieces(prog.moves, tp.rapid_mm_per_s / 1e3,
+                                                                program_setup.work_transform(tp))
+        return PlannedPath.from_elements(elements, speeds, np.deg2rad(p.yaw_deg), p.dwell_s + prog.dwell_before_s,
+                                         p.ramp_s, p.zone_mm / 1e3, stops=stops, dwells_s=dwells,
+                                         tags=[f"{prog.path}:{m.line}" for m in moves])
     return PlannedPath(np.asarray(p.waypoints_mm, dtype=float) / 1e3, p.feed_mm_per_s / 1e3, np.deg2rad(p.yaw_deg),
                        p.dwell_s, p.ramp_s, p.zone_mm / 1e3)
 
@@ -594,17 +603,13 @@ class PayloadCalibrationFile:
     payload_calibration: PayloadCalibrationSchema = field(default_factory=PayloadCalibrationSchema)
 
 
-def read_payload_calibration(path):
-    """A payload-calibration YAML, checked against its ranges (InputError)."""
+def read_payload_calibration(path, named_by=None):
+    """A payload-calibration YAML, checked against its ranges (InputError);
+    ``named_by``: the file and key that name it (for the output check)."""
     path = Path(path)
-    try:
-        text_ = path.read_bytes().decode("utf-8-sig")
-    except OSError as e:
-        raise InputError(f"{path}: cannot read ({e.strerror})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not UTF-8 text") from None
+    text_ = read_user_text(path, "payload calibration", named_by=named_by)
     validate(PayloadCalibrationFile, path, text_)
-    doc = yaml.safe_load(text_) or {}
+    doc = load_yaml(text_, path)[0] or {}
     if "payload_calibration" not in doc or "mass_kg" not in (doc["payload_calibration"] or {}):
         raise InputError(f"{path}: payload_calibration.mass_kg: missing (write the file with "
                          "`robstiff calibrate-payload DATA.csv --yaml OUT.yaml`)")
@@ -620,7 +625,7 @@ def payload_calibration(sc, robot):
         p = resolve(sc, sc.model.payload_yaml)
         if not p.is_file():
             _fail(sc, "model.payload_yaml", f"no such file {p}")
-        return read_payload_calibration(p)
+        return read_payload_calibration(p, f"model.payload_yaml of {sc.source or 'the scenario'}")
     return exact_payload_calibration(sc, robot)
 
 
@@ -650,15 +655,7 @@ def scenario_warnings(sc, robot):
         dc = np.linalg.norm(np.asarray(cal.com_mm or [0, 0, 0]) - robot.payload.com_m * 1e3)
         if dc > PAYLOAD_COM_MM:
             out.append(f"model.payload_yaml: calibrated centre of mass is {dc:.0f} mm from the robot file's")
-    feeds = getattr(sc, "_program_feeds", [])
-    if len(feeds) > 1:
-        out.append(f"toolpath.program: {len(feeds)} cutting feeds ({', '.join(f'F{f:g}' for f in feeds)} mm/min); the "
-                   f"force model takes the one over most of the cut ({sc.path.feed_mm_per_s * 60:g} mm/min) for the "
-                   "chip thickness everywhere")
-    speeds = getattr(sc, "_program_speeds", [])
-    if len(speeds) > 1:
-        out.append(f"toolpath.program: {len(speeds)} spindle speeds; the force model takes "
-                   f"S{sc.cutter.spindle_rpm:g} everywhere")
+    out += program_setup.program_warnings(sc)
     if sc.cutting.mode == "tooth":
         tooth_hz = sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth
         if sc.sensor.rate_hz < 2.0 * tooth_hz:

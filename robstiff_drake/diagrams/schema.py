@@ -8,6 +8,8 @@ It catches what a typed loader alone lets through or reports without a
 key: unknown and duplicated keys (PyYAML keeps the last of a duplicated
 section silently), values of the wrong type ("four" for a period), NaN and
 infinities, values outside their physical range, lists of the wrong length.
+The file is parsed by user_files.load_yaml (no anchors or aliases, bounded
+nesting); a value quoted in an error is a short, escaped excerpt.
 """
 
 import math
@@ -15,14 +17,13 @@ import re
 import typing
 from dataclasses import field, fields, is_dataclass
 
-import yaml
-
-from robstiff_drake.errors import InputError
+from robstiff_drake.errors import InputError, excerpt
+from robstiff_drake.user_files import load_yaml
 
 # A number as YAML 1.2 (and Drake's loader) reads it: PyYAML's YAML 1.1
 # takes "1e9" (no dot) for text, so plain ASCII numbers in text are numbers.
-_NUMBER = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?")
-_INTEGER = re.compile(r"[+-]?\d+")
+_NUMBER = re.compile(r"[+-]?(\d+(\.\d*)?|\.\d+)([eE][+-]?\d+)?", re.ASCII)
+_INTEGER = re.compile(r"[+-]?\d+", re.ASCII)
 
 
 class SchemaError(InputError):
@@ -71,62 +72,10 @@ def text(default="", *, max_length=10000):
 # ---------------------------------------------------------------- parsing
 
 
-class _LineLoader(yaml.SafeLoader):
-    """SafeLoader that refuses duplicated keys and remembers the line of
-    every key: ``loader.lines[("controller", "period_ms")] = 12``."""
-
-
-def _construct_mapping(loader, node, deep=False):
-    loader.flatten_mapping(node)
-    out = {}
-    seen = {}
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=deep)
-        line = key_node.start_mark.line + 1
-        if not isinstance(key, str):
-            raise SchemaError(f"{loader.source}:{line}: key {key!r} is not a name")
-        if key in seen:
-            raise SchemaError(f"{loader.source}:{line}: duplicated key '{key}' (first on line {seen[key]}); "
-                              "a second section would silently replace the first")
-        seen[key] = line
-        out[key] = loader.construct_object(value_node, deep=True)
-        loader.key_lines.append((id(out), key, line))
-    return out
-
-
-_LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
-
-
 def load_yaml_with_lines(path, text_):
-    """(document, {key path tuple: line}) of a YAML text, duplicates refused."""
-    loader = _LineLoader(text_)
-    loader.source = str(path)
-    loader.key_lines = []
-    try:
-        doc = loader.get_single_data()
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f":{mark.line + 1}: column {mark.column + 1}:" if mark else ":"
-        raise SchemaError(f"{path}{where} invalid YAML ({getattr(e, 'problem', None) or e})") from None
-    finally:
-        loader.dispose()
-    lines = {}
-    parents = {id(doc): ()} if isinstance(doc, dict) else {}
-
-    def walk(obj, prefix):
-        if isinstance(obj, dict):
-            parents[id(obj)] = prefix
-            for k, v in obj.items():
-                walk(v, prefix + (k,))
-        elif isinstance(obj, list):
-            for i, v in enumerate(obj):
-                walk(v, prefix + (i,))
-
-    walk(doc, ())
-    for obj_id, key, line in loader.key_lines:
-        if obj_id in parents:
-            lines[parents[obj_id] + (key,)] = line
-    return doc, lines
+    """(document, {key path tuple: line}) of a YAML text: user_files.load_yaml
+    (no anchors or aliases, bounded nesting, duplicated keys refused)."""
+    return load_yaml(text_, path)
 
 
 # ---------------------------------------------------------------- checking
@@ -155,7 +104,7 @@ class _Checker:
     def fail(self, path, what):
         line = self.line_of(path)
         where = f"{self.source}:{line}" if line else str(self.source)
-        raise SchemaError(f"{where}: {dotted(path)}: {what}")
+        raise SchemaError(f"{where}: {excerpt(dotted(path), 120)[1:-1]}: {what}")
 
     @staticmethod
     def _range_text(m):
@@ -167,11 +116,11 @@ class _Checker:
         if isinstance(value, str) and _NUMBER.fullmatch(value.strip()):
             value = int(value) if _INTEGER.fullmatch(value.strip()) else float(value)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(path, f"expected {what} in {m['unit'] or 'no unit'}, got {value!r}")
+            self.fail(path, f"expected {what} in {m['unit'] or 'no unit'}, got {excerpt(value)}")
         if isinstance(value, float) and not math.isfinite(value):
             self.fail(path, f"{value} is not a finite number (allowed: {self._range_text(m)})")
         if m.get("integer") and not isinstance(value, int):
-            self.fail(path, f"expected a whole number, got {value!r}")
+            self.fail(path, f"expected a whole number, got {excerpt(value)}")
         lo, hi = m["lo"], m["hi"]
         below = value <= lo if m.get("lo_open") else value < lo
         above = value >= hi if m.get("hi_open") else value > hi
@@ -185,7 +134,7 @@ class _Checker:
                 self.fail(path, "an empty section: give its keys or remove the line")
             return
         if not isinstance(doc, dict):
-            self.fail(path, f"expected a section of keys, got {type(doc).__name__} {doc!r}")
+            self.fail(path, f"expected a section of keys, got {type(doc).__name__} {excerpt(doc)}")
         hints = typing.get_type_hints(schema_cls)
         by_name = {f.name: f for f in fields(schema_cls) if not f.name.startswith("_")}
         for key, value in doc.items():
@@ -211,7 +160,7 @@ class _Checker:
         if value is None:
             self.fail(p, "an empty section: give its keys or remove the line")
         if not isinstance(value, dict):
-            self.fail(p, f"expected a section of {struct.__name__} keys, got {value!r}")
+            self.fail(p, f"expected a section of {struct.__name__} keys, got {excerpt(value)}")
         types = {f.name: f.type for f in struct.__fields__}
         for key, v in value.items():
             q = p + (key,)
@@ -226,18 +175,18 @@ class _Checker:
         elif key in m["choices"]:
             self._choice(q, v, {"options": m["choices"][key]})
         elif kind is bool and not isinstance(v, bool):
-            self.fail(q, f"expected true or false, got {v!r}")
+            self.fail(q, f"expected true or false, got {excerpt(v)}")
         elif kind is float:
             self.number(q, v, dict(lo=-math.inf, hi=math.inf, unit="", integer=False, lo_open=False, hi_open=False))
         elif kind is str and not isinstance(v, str):
-            self.fail(q, f"expected text, got {v!r}")
+            self.fail(q, f"expected text, got {excerpt(v)}")
 
     def _num(self, p, value, m):
         self.number(p, value, m, "a whole number" if m["integer"] else "a number")
 
     def _vec(self, p, value, m):
         if not isinstance(value, list):
-            self.fail(p, f"expected a list of numbers in {m['unit']}, got {value!r}")
+            self.fail(p, f"expected a list of numbers in {m['unit']}, got {excerpt(value)}")
         if len(value) not in m["lengths"]:
             n = " or ".join(str(n) for n in m["lengths"])
             self.fail(p, f"expected {n} numbers, got {len(value)}")
@@ -246,22 +195,22 @@ class _Checker:
 
     def _rows(self, p, value, m):
         if not isinstance(value, list):
-            self.fail(p, f"expected a list of rows [{m['names']}], got {value!r}")
+            self.fail(p, f"expected a list of rows [{m['names']}], got {excerpt(value)}")
         if not m["min_rows"] <= len(value) <= m["max_rows"]:
             self.fail(p, f"expected {m['min_rows']} to {m['max_rows']} rows, got {len(value)}")
         for i, row in enumerate(value):
             if not isinstance(row, list) or len(row) != m["width"]:
-                self.fail(p + (i,), f"expected [{m['names']}] ({m['width']} numbers), got {row!r}")
+                self.fail(p + (i,), f"expected [{m['names']}] ({m['width']} numbers), got {excerpt(row)}")
             for j, v in enumerate(row):
                 self.number(p + (i, j), v, dict(m, integer=False, lo_open=False, hi_open=False))
 
     def _choice(self, p, value, m):
         if value not in m["options"]:
-            self.fail(p, f"expected one of {', '.join(repr(o) for o in m['options'])}, got {value!r}")
+            self.fail(p, f"expected one of {', '.join(repr(o) for o in m['options'])}, got {excerpt(value)}")
 
     def _text(self, p, value, m):
         if not isinstance(value, str):
-            self.fail(p, f"expected text, got {value!r}")
+            self.fail(p, f"expected text, got {excerpt(value)}")
         if len(value) > m["max_length"]:
             self.fail(p, f"text longer than {m['max_length']} characters")
 

@@ -30,7 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.errors import InputError
+from robstiff_drake.errors import InputError, excerpt
+from robstiff_drake.command import note_input
 
 Q_COLS = tuple(f"q{i}" for i in range(1, 7))
 F_COLS = ("fx", "fy", "fz")
@@ -79,9 +80,12 @@ def decode_text(path):
     UTF-8 (with or without Excel's byte-order mark), UTF-16 (with its mark),
     or a Windows/Latin-1 code page.  Returns (text, encoding)."""
     path = Path(path)
+    note_input(path)  # no output of the command may overwrite it
     try:
         if path.is_dir():
             raise InputError(f"{path}: is a folder, not a measurement file")
+        if path.exists() and not path.is_file():
+            raise InputError(f"{path}: not a regular file (a device, FIFO or socket), not a measurement file")
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:
             raise InputError(f"{path}: {size / 1e6:.0f} MB is more than a measurement file can be "
@@ -120,21 +124,22 @@ def _delimiter(path, header_line, header_text, known):
 
 
 def parse_number(v, where):
-    """A cell as a finite float, or InputError naming the cell."""
+    """A cell as a finite float, or InputError naming the cell (quoted as a
+    short, escaped excerpt)."""
     if v == "":
         raise InputError(f"{where}: empty cell")
     if NUMBER.fullmatch(v):
         x = float(v)
         if math.isfinite(x):
             return x
-        raise InputError(f"{where}: '{v}' is too large to be a number")
+        raise InputError(f"{where}: {excerpt(v)} is too large to be a number")
     if NON_FINITE.fullmatch(v):
-        raise InputError(f"{where}: '{v}' is not a finite number")
+        raise InputError(f"{where}: {excerpt(v)} is not a finite number")
     if re.fullmatch(r"[+-]?\d+,\d+", v):
-        raise InputError(f"{where}: '{v}' has a decimal comma; write the decimal point as '.'")
+        raise InputError(f"{where}: {excerpt(v)} has a decimal comma; write the decimal point as '.'")
     if any(ch.isdigit() for ch in v) and not v.isascii():
-        raise InputError(f"{where}: '{v}' is not a number in ASCII digits")
-    raise InputError(f"{where}: '{v}' is not a number")
+        raise InputError(f"{where}: {excerpt(v)} is not a number in ASCII digits")
+    raise InputError(f"{where}: {excerpt(v)} is not a number")
 
 
 def read_table(path, *, required, optional=(), text_columns=(), ranges=None):
@@ -164,7 +169,7 @@ def read_table(path, *, required, optional=(), text_columns=(), ranges=None):
         if not h:
             raise InputError(f"{path}:{header_line}, column {i + 1}: empty column name in the header")
         if h in seen:
-            raise InputError(f"{path}:{header_line}: duplicated column '{h}' (columns {seen[h] + 1} and {i + 1})")
+            raise InputError(f"{path}:{header_line}: duplicated column {excerpt(h)} (columns {seen[h] + 1} and {i + 1})")
         seen[h] = i
     for name in required:
         if name not in seen:
@@ -375,7 +380,7 @@ def read_tool_header(path):
             tool = np.array([])
         if tool.shape != (3,) or not np.all(np.isfinite(tool)) or np.any(np.abs(tool) > 5000.0):
             raise InputError(f"{path}:{lineno}: '# {TOOL_KEY}:' expects three numbers x, y, z within +-5000 mm (flange frame), "
-                             f"got {value.strip()!r}")
+                             f"got {excerpt(value.strip())}")
         found = (lineno, tool)
     return None if found is None else found[1]
 
@@ -391,11 +396,22 @@ def campaign_tool_m(campaign, robot, tool_m=None, warnings=None):
         if tool_m is not None and np.max(np.abs(np.asarray(tool_m) - file_m)) > 1e-9:
             raise InputError(f"--tool {fmt(tool_m)} mm disagrees with the tool point ({fmt(file_m)}) mm that "
                              f"{campaign.path} records in its '# {TOOL_KEY}:' line; drop --tool or correct the file")
-        return file_m
+        return _tool_in_mm(file_m, f"{campaign.path}'s '# {TOOL_KEY}:' line", warnings)
     if tool_m is not None:
-        return np.asarray(tool_m, dtype=float)
+        return _tool_in_mm(np.asarray(tool_m, dtype=float), "--tool", warnings)
     tool = robot.tool_point(where=f"{campaign.path} (it has no '# {TOOL_KEY}:' line and no --tool was given)")
     if warnings is not None:
         warnings.add(f"{campaign.path} has no '# {TOOL_KEY}:' line: its measurements are taken to be at the robot "
                      f"file's tool point ({fmt(tool)}) mm; record the tool point in the file or pass --tool")
     return tool
+
+
+def _tool_in_mm(tool_m, where, warnings):
+    """``tool_m``, with a warning when it sits within a few mm of the flange
+    but not at it (a tool point written in metres)."""
+    from robstiff_drake.identification.interval_support import tool_looks_like_metres
+
+    if warnings is not None and tool_looks_like_metres(tool_m):
+        warnings.add(f"{where}: the tool point ({', '.join(f'{v * 1e3:g}' for v in tool_m)}) mm is "
+                     f"{np.linalg.norm(tool_m) * 1e3:g} mm from the flange: a length in metres? (write mm)")
+    return tool_m

@@ -20,14 +20,17 @@ angles at the interface are the controller's degrees.
 """
 
 import math
+import os
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from robstiff_drake.errors import InputError
+from robstiff_drake.errors import InputError, excerpt
+from robstiff_drake.command import inside
 from robstiff_drake.io import RUN_ID_FILE
+from robstiff_drake.user_files import UserYamlLoader, read_user_text
 
 WRENCH_LOG = "wrench_log.csv"
 JOINT_LOG = "joint_log.csv"
@@ -175,13 +178,19 @@ def _fail(path, line=None, column=None, what=""):
 
 
 def _read_text(path):
-    path = Path(path)
-    if not path.is_file():
-        _fail(path, what="no such file" if not path.exists() else "not a file")
-    try:
-        return path.read_text()
-    except (OSError, UnicodeDecodeError) as e:
-        _fail(path, what=f"cannot read ({e})")
+    """A run file's text (user_files.read_user_text: a regular file, UTF-8,
+    noted as an input of the command; no size bound, a long run's logs are large)."""
+    return read_user_text(path, "run file", max_bytes=None)
+
+
+def run_file(folder, name):
+    """``folder/name``, refused (InputError) when it resolves outside the
+    folder (a symbolic link out of it): a run folder's files are its own."""
+    p = Path(folder) / name
+    if os.path.lexists(p) and not inside(p, folder):
+        _fail(p, what=f"a symbolic link to a file outside the run folder {folder}; every file of a run folder must "
+                      "be inside it (copy the file in)")
+    return p
 
 
 def _header_meta(path, lines):
@@ -219,9 +228,9 @@ def read_table(path, columns, *, empty_ok=()):
             header, header_line = cells, n
             for j, h in enumerate(header, 1):
                 if h not in columns:
-                    _fail(path, n, j, f"unknown column {h!r} (expected {', '.join(columns)})")
+                    _fail(path, n, j, f"unknown column {excerpt(h)} (expected {', '.join(columns)})")
                 if header.index(h) != j - 1:
-                    _fail(path, n, j, f"column {h!r} is given twice")
+                    _fail(path, n, j, f"column {excerpt(h)} is given twice")
             missing = [c for c in columns if c not in header]
             if missing:
                 _fail(path, n, what=f"missing column {missing[0]} (expected {', '.join(columns)})")
@@ -238,9 +247,9 @@ def read_table(path, columns, *, empty_ok=()):
             try:
                 v = float(c)
             except ValueError:
-                _fail(path, n, j, f"{h}: {c!r} is not a number")
+                _fail(path, n, j, f"{h}: {excerpt(c)} is not a number")
             if not math.isfinite(v):
-                _fail(path, n, j, f"{h}: {c!r} is not a finite number")
+                _fail(path, n, j, f"{h}: {excerpt(c)} is not a finite number")
             vals.append(v)
         rows.append(vals)
         row_lines.append(n)
@@ -354,7 +363,7 @@ def _meta_number(path, meta, key, *, low=0.0):
     try:
         v = float(text)
     except ValueError:
-        _fail(path, line, what=f"{key}: {text!r} is not a number")
+        _fail(path, line, what=f"{key}: {excerpt(text)} is not a number")
     if not (math.isfinite(v) and v >= low):
         _fail(path, line, what=f"{key}: must be a number >= {low:g}, got {text}")
     return v
@@ -513,20 +522,20 @@ def _check_value(path, loader, node, key, kind):
     if isinstance(kind, tuple) and kind[0] == "choice":
         v = _scalar(loader, node)
         if v not in kind[1]:
-            raise InputError(f"{where}: {key}: expected one of {', '.join(kind[1])}, got {v!r}")
+            raise InputError(f"{where}: {key}: expected one of {', '.join(kind[1])}, got {excerpt(v)}")
         return v
     if isinstance(kind, tuple) and kind[0] == "range":
         x = _as_number(_scalar(loader, node))
         if x is None or not kind[1] <= x <= kind[2]:
             raise InputError(f"{where}: {key}: expected a number from {kind[1]:g} to {kind[2]:g}, "
-                             f"got {_scalar(loader, node)!r}")
+                             f"got {excerpt(_scalar(loader, node))}")
         return x
     if isinstance(kind, tuple) and kind[0] == "vector":
         _, n, each = kind
         v = _scalar(loader, node)
         nums = [_as_number(x) for x in v] if isinstance(v, list) else None
         if nums is None or len(nums) != n or any(x is None or not math.isfinite(x) for x in nums):
-            raise InputError(f"{where}: {key}: expected a list of {n} numbers, got {v!r}")
+            raise InputError(f"{where}: {key}: expected a list of {n} numbers, got {excerpt(v)}")
         if each == "positive" and min(nums) <= 0:
             raise InputError(f"{where}: {key}: every value must be > 0, got {v}")
         if each == "nonneg" and min(nums) < 0:
@@ -536,16 +545,16 @@ def _check_value(path, loader, node, key, kind):
     if kind == "text":
         v = "" if v is None else v
         if not isinstance(v, str) or len(v) > 4096:
-            raise InputError(f"{where}: {key}: expected a name or a file path, got {v!r}")
+            raise InputError(f"{where}: {key}: expected a name or a file path, got {excerpt(v)}")
         return v
     if kind.startswith("int"):
         low = int(kind[-1])
         if isinstance(v, bool) or not isinstance(v, int) or v < low:
-            raise InputError(f"{where}: {key}: expected a whole number >= {low}, got {v!r}")
+            raise InputError(f"{where}: {key}: expected a whole number >= {low}, got {excerpt(v)}")
         return v
     x = _as_number(v)
     if x is None or not math.isfinite(x):
-        raise InputError(f"{where}: {key}: expected a number, got {v!r}")
+        raise InputError(f"{where}: {key}: expected a number, got {excerpt(v)}")
     if kind == "positive" and x <= 0:
         raise InputError(f"{where}: {key}: must be > 0, got {v}")
     if kind == "nonneg" and x < 0:
@@ -559,7 +568,7 @@ def _mapping(path, node, key):
     out = {}
     for k, v in node.value:
         if k.value in out:
-            raise InputError(f"{_where(path, k)}: {key}.{k.value}: given twice")
+            raise InputError(f"{_where(path, k)}: {key}.{excerpt(k.value)[1:-1]}: given twice")
         out[k.value] = (k, v)
     return out
 
@@ -568,7 +577,7 @@ def read_settings(path):
     """The compensator's settings: ({key: (value, line)} of the header, CompensatorSettings)."""
     text = _read_text(path)
     meta = _header_meta(path, text.splitlines())
-    loader = yaml.SafeLoader(text)
+    loader = UserYamlLoader(text, path)  # no anchors or aliases, bounded nesting
     try:
         root = loader.get_single_node()
     except yaml.YAMLError as e:
@@ -582,7 +591,7 @@ def read_settings(path):
     top = _mapping(path, root, "(top)")
     for k, (knode, _) in top.items():
         if k != "compensator":
-            raise InputError(f"{_where(path, knode)}: unknown top-level key {k!r} (expected 'compensator'; "
+            raise InputError(f"{_where(path, knode)}: unknown top-level key {excerpt(k)} (expected 'compensator'; "
                              "a settings file holds the compensator only)")
     if "compensator" not in top:
         _fail(path, what="missing the 'compensator:' mapping")
@@ -592,7 +601,7 @@ def read_settings(path):
         items = _mapping(path, node, prefix)
         for k, (knode, _) in items.items():
             if k not in layout:
-                raise InputError(f"{_where(path, knode)}: {prefix}: unknown key {k!r} "
+                raise InputError(f"{_where(path, knode)}: {prefix}: unknown key {excerpt(k)} "
                                  f"(allowed: {', '.join(layout)})")
         for k, spec in layout.items():
             key = f"{prefix}.{k}"
@@ -600,7 +609,7 @@ def read_settings(path):
                 if k in _OPTIONAL_SECTIONS and prefix == "compensator":
                     continue
                 if isinstance(spec, dict) or spec[0] not in _OPTIONAL:
-                    raise InputError(f"{_where(path, node)}: {prefix}: missing key {k!r}")
+                    raise InputError(f"{_where(path, node)}: {prefix}: missing key {excerpt(k)}")
                 continue
             knode, vnode = items[k]
             if isinstance(spec, dict):
@@ -624,13 +633,13 @@ def read_settings(path):
 
 def read_run_id(folder):
     """The run id in ``folder``/RUN_ID (InputError if there is none)."""
-    p = Path(folder) / RUN_ID_FILE
+    p = run_file(folder, RUN_ID_FILE)
     if not p.is_file():
         raise InputError(f"{folder}: no {RUN_ID_FILE} file (a run folder names its run there; every file of the "
                          "run carries the same id in a '# run_id: ...' line)")
-    rid = p.read_text().strip()
+    rid = _read_text(p).strip()
     if not rid or len(rid.split()) != 1:
-        _fail(p, 1, what=f"expected one run id, got {rid!r}")
+        _fail(p, 1, what=f"expected one run id, got {excerpt(rid)}")
     return rid
 
 
@@ -654,7 +663,7 @@ def load_run_files(folder, names=CELL_FILES):
     if not folder.is_dir():
         raise InputError(f"{folder}: no such run folder")
     for name in names:
-        if not (folder / name).is_file():
+        if not run_file(folder, name).is_file():
             raise InputError(f"{folder}: missing {name} (a run folder holds {', '.join(CELL_FILES)} and "
                              f"{RUN_ID_FILE}, see docs/run_files.md; `robstiff simulate` writes them for its "
                              "compensated cut)")

@@ -48,7 +48,13 @@ _BEZIER_TABLE = 257  # arc-length samples of a corner curve
 
 
 class PathError(ValueError):
-    """The path cannot be followed (reach, joint limits, singularity)."""
+    """The path cannot be followed (reach, joint limits, singularity);
+    ``where``: the tag of the path's element concerned (a program's
+    "file:line"), or None."""
+
+    def __init__(self, message, where=None):
+        super().__init__(message)
+        self.where = where
 
 
 # ---------------------------------------------------------------- elements
@@ -73,33 +79,42 @@ class Line:
 
 
 class Arc:
-    """An arc about a vertical axis (a helix when z changes): centre (x, y),
-    radius, start angle and signed sweep (rad, counter-clockwise +)."""
+    """An arc about an axis n (a helix when the point moves along n): its
+    centre, radius, start angle and signed sweep (rad, counter-clockwise +
+    seen from +n) in the plane of the unit vectors u, v (n = u x v), and
+    the positions h0, h1 along n at its start and end.  The default plane
+    is XY (u = x, v = y, n = z): centre (x, y), heights z.  ``center``:
+    (x, y) in that default plane, or a 3D point on the axis."""
 
-    def __init__(self, center_xy, radius, angle0, sweep, z0, z1):
-        self.c = (float(center_xy[0]), float(center_xy[1]))
+    def __init__(self, center, radius, angle0, sweep, h0, h1, u=(1.0, 0.0, 0.0), v=(0.0, 1.0, 0.0)):
+        self.u = np.asarray(u, dtype=float)
+        self.v = np.asarray(v, dtype=float)
+        self.n = np.cross(self.u, self.v)
+        c = np.zeros(3)
+        c[: len(center)] = np.asarray(center, dtype=float)
+        self.c = c - self.n * float(np.dot(self.n, c))  # the axis' point in the plane through the origin
         self.r = float(radius)
         self.a0 = float(angle0)
         self.sweep = float(sweep)
-        self.z0, self.z1 = float(z0), float(z1)
+        self.z0, self.z1 = float(h0), float(h1)
         self.length = math.hypot(self.r * self.sweep, self.z1 - self.z0)
 
     def point(self, s):
         f = s / self.length
         a = self.a0 + self.sweep * f
-        return np.array([self.c[0] + self.r * math.cos(a), self.c[1] + self.r * math.sin(a),
-                         self.z0 + (self.z1 - self.z0) * f])
+        return (self.c + self.r * (math.cos(a) * self.u + math.sin(a) * self.v)
+                + self.n * (self.z0 + (self.z1 - self.z0) * f))
 
     def tangent(self, s):
         a = self.a0 + self.sweep * s / self.length
         k = self.r * self.sweep / self.length
-        return np.array([-k * math.sin(a), k * math.cos(a), (self.z1 - self.z0) / self.length])
+        return k * (-math.sin(a) * self.u + math.cos(a) * self.v) + self.n * ((self.z1 - self.z0) / self.length)
 
     def trimmed(self, s0, s1):
         f0, f1 = s0 / self.length, s1 / self.length
         dz = self.z1 - self.z0
         return Arc(self.c, self.r, self.a0 + self.sweep * f0, self.sweep * (f1 - f0), self.z0 + dz * f0,
-                   self.z0 + dz * f1)
+                   self.z0 + dz * f1, self.u, self.v)
 
 
 class Corner:
@@ -139,29 +154,33 @@ def _turn_rad(t_in, t_out):
     return math.acos(c)
 
 
-def blend_corners(elements, speeds, zone_m):
+def blend_corners(elements, speeds, zone_m, forced_stops=None):
     """Insert a corner path at every corner between consecutive elements.
 
-    Returns (elements, speeds, stop_after): ``stop_after[i]`` is True where
-    the path must stop after element i (a reversal, or a sharp corner at
-    zone 0 ... which keeps full speed, as before blending: False)."""
+    ``forced_stops[i]``: the path must stop after element i (an exact stop
+    of the program: G61, G9, M0, a dwell): no zone there.  Returns
+    (elements, speeds, stop_after, source): ``stop_after[k]`` is True where
+    the path must stop after element k (a reversal, or a forced stop; a
+    sharp corner at zone 0 keeps full speed, as before blending: False);
+    ``source[k]``: the index of the input element that element k is part
+    of (a corner path: the element it leaves)."""
     n = len(elements)
-    stops = [False] * n
+    stops = list(forced_stops) if forced_stops is not None else [False] * n
     if n < 2 or zone_m < 0:
-        return list(elements), list(speeds), stops
+        return list(elements), list(speeds), stops, list(range(n))
     # zone of each corner: at most half of each neighbour's length
     zones = []
     for i in range(n - 1):
         a, b = elements[i], elements[i + 1]
         turn = _turn_rad(a.tangent(a.length), b.tangent(0.0))
-        if turn < TANGENT_TOLERANCE_RAD or zone_m == 0:
+        if stops[i] or turn < TANGENT_TOLERANCE_RAD or zone_m == 0:
             zones.append(0.0)
         elif turn > math.radians(MAX_BLEND_TURN_DEG):
             zones.append(0.0)
             stops[i] = True
         else:
             zones.append(min(zone_m, 0.5 * a.length, 0.5 * b.length))
-    out, out_speeds, out_stops = [], [], []
+    out, out_speeds, out_stops, source = [], [], [], []
     for i, e in enumerate(elements):
         s0 = zones[i - 1] if i > 0 else 0.0
         s1 = e.length - (zones[i] if i < n - 1 else 0.0)
@@ -169,6 +188,7 @@ def blend_corners(elements, speeds, zone_m):
             out.append(e.trimmed(s0, s1) if (s0 > 0 or s1 < e.length) else e)
             out_speeds.append(speeds[i])
             out_stops.append(stops[i])
+            source.append(i)
         if i < n - 1 and zones[i] > 0:
             b = elements[i + 1]
             r = zones[i]
@@ -180,7 +200,8 @@ def blend_corners(elements, speeds, zone_m):
             out.append(Corner(p0, c1, c2, p3))
             out_speeds.append(min(speeds[i], speeds[i + 1]))
             out_stops.append(False)
-    return out, out_speeds, out_stops
+            source.append(i)
+    return out, out_speeds, out_stops, source
 
 
 # ---------------------------------------------------------------- speed profile
@@ -223,9 +244,10 @@ def plan_speeds(lengths, speeds, stops, ramp_s):
 
 class SpeedProfile:
     """Arc length s(t) (m) of blocks of given lengths and planned speeds,
-    with cosine ramps of ``ramp_s`` in the faster block at every change."""
+    with cosine ramps of ``ramp_s`` in the faster block at every change;
+    ``dwells[i]`` (s): a rest after block i (which must end in a stop)."""
 
-    def __init__(self, lengths, speeds, stops, ramp_s):
+    def __init__(self, lengths, speeds, stops, ramp_s, dwells=None):
         self.ramp_s = float(ramp_s)
         v = plan_speeds(lengths, speeds, stops, ramp_s)
         phases = []  # (t0, s0, va, vb, duration): ramp if va != vb else cruise
@@ -247,6 +269,9 @@ class SpeedProfile:
             if d_out > 0:
                 phases.append((t, s, v[i], vn, w))
                 t, s = t + w, s + d_out
+            if dwells is not None and dwells[i] > 0:  # at rest: a phase of speed 0
+                phases.append((t, s, 0.0, 0.0, float(dwells[i])))
+                t += float(dwells[i])
         self.phases = phases
         self.duration_s = t
         self.length = float(sum(lengths))
@@ -301,44 +326,63 @@ class PlannedPath:
         self._setup(elements, [float(feed_m_per_s)] * len(elements), wp, yaw_rad, dwell_s, ramp_s, zone_m)
 
     @classmethod
-    def from_elements(cls, elements, speeds_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0, zone_m=0.0):
-        """A path through Line / Arc elements, each at its own speed (m/s)."""
+    def from_elements(cls, elements, speeds_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0, zone_m=0.0, *,
+                      stops=None, dwells_s=None, tags=None):
+        """A path through Line / Arc elements, each at its own speed (m/s).
+        ``stops[i]``: the path comes to rest after element i (an exact
+        stop: no zone there); ``dwells_s[i]``: and rests there that long
+        (s); ``tags[i]``: where element i comes from (a program's
+        "file:line"), named by the errors of joint_references."""
         if not elements:
             raise PathError("a path needs at least one move")
         if any(not v > 0 for v in speeds_m_per_s):
             raise PathError("every move needs a speed > 0")
         self = cls.__new__(cls)
         wp = np.array([elements[0].point(0.0)] + [e.point(e.length) for e in elements])
-        self._setup(list(elements), [float(v) for v in speeds_m_per_s], wp, yaw_rad, dwell_s, ramp_s, zone_m)
+        n = len(elements)
+        dwells = [float(d) for d in dwells_s] if dwells_s is not None else [0.0] * n
+        stops = [bool(x) or d > 0 for x, d in zip(stops if stops is not None else [False] * n, dwells)]
+        self._setup(list(elements), [float(v) for v in speeds_m_per_s], wp, yaw_rad, dwell_s, ramp_s, zone_m,
+                    stops, dwells, tags)
         return self
 
-    def _setup(self, elements, speeds, waypoints, yaw_rad, dwell_s, ramp_s, zone_m):
+    def _setup(self, elements, speeds, waypoints, yaw_rad, dwell_s, ramp_s, zone_m, forced_stops=None, dwells=None,
+               tags=None):
         self.waypoints = waypoints
         self.directions = np.array([e.tangent(0.0) for e in elements])
         self.yaw = float(yaw_rad)
         self.dwell_s = float(dwell_s)
         self.zone_m = float(zone_m)
         self.feed = float(max(speeds))
-        self.elements, self.speeds, stops = blend_corners(elements, speeds, self.zone_m)
+        self.elements, self.speeds, stops, source = blend_corners(elements, speeds, self.zone_m, forced_stops)
+        # a dwell belongs to the last piece of its element (a stop: no corner path follows it)
+        last_piece = {i: k for k, i in enumerate(source)}
+        self._dwells = [0.0] * len(self.elements)
+        for i, d in enumerate(dwells or ()):
+            if d > 0:
+                self._dwells[last_piece[i]] = d
+        self.tags = [tags[i] for i in source] if tags is not None else None
         self.lengths = np.array([e.length for e in self.elements])
         self.total_length = float(self.lengths.sum())
         self._s_knots = np.r_[0.0, np.cumsum(self.lengths)].tolist()
         # blocks of constant commanded speed (consecutive elements at one speed, no stop between)
-        blocks, bspeeds, bstops = [], [], []
+        blocks, bspeeds, bstops, bdwells = [], [], [], []
         for i, (L, v) in enumerate(zip(self.lengths, self.speeds)):
             if blocks and bspeeds[-1] == v and not bstops[-1]:
                 blocks[-1] += L
                 bstops[-1] = stops[i]
+                bdwells[-1] = self._dwells[i]
             else:
                 blocks.append(float(L))
                 bspeeds.append(v)
                 bstops.append(stops[i])
+                bdwells.append(self._dwells[i])
         # a short path has no cruise phase: as before, the ramps shrink to fit
         # a single block rather than slowing it down
         if len(blocks) == 1:
             ramp_s = min(float(ramp_s), blocks[0] / bspeeds[0])
         self.ramp_s = float(ramp_s)
-        self.profile = SpeedProfile(blocks, bspeeds, bstops, self.ramp_s)
+        self.profile = SpeedProfile(blocks, bspeeds, bstops, self.ramp_s, bdwells)
         self.move_s = self.profile.duration_s
         # horizontal feed direction per element (the previous one's where an element is vertical)
         dirs, last = [], (1.0, 0.0)
@@ -356,7 +400,7 @@ class PlannedPath:
 
     def signature(self):
         """A key that changes with the path's geometry or timing (for caches)."""
-        parts = [self.dwell_s, self.ramp_s, self.zone_m, self.yaw]
+        parts = [self.dwell_s, self.ramp_s, self.zone_m, self.yaw, tuple(self._dwells), self.move_s]
         for e, v in zip(self.elements, self.speeds):
             parts.append(v)
             parts.extend(np.round(e.point(0.0), 12).tolist())
@@ -418,11 +462,16 @@ class PlannedPath:
         keep = n > 0.5  # less than 60 degrees from horizontal
         return s[keep], pts[keep], tg[keep, :2] / n[keep, None]
 
+    def tag_at(self, t):
+        """Where the path at time t comes from (``tags`` of from_elements), or None."""
+        return self.tags[self._element(self.arc_length(t))] if self.tags else None
+
     def joint_references(self, robot, tool_m, dt_s, q_start=None):
         """(times, q (N, 6) rad) along the path every dt_s, by IK with each
         solution warm-started from the previous one.  Raises PathError when
         a point is out of reach, outside the joint limits or near a
-        singularity."""
+        singularity (its ``where``: the tag of the element, e.g. the
+        program's file:line, the first that leaves them)."""
         ts = np.arange(0.0, self.duration_s + 0.5 * dt_s, dt_s)
         qs = np.empty((len(ts), 6))
         q_prev = q_start
@@ -432,39 +481,14 @@ class PlannedPath:
                 q = ik.solve_for(robot, ik.tool_down_pose(p, self.yaw), tool_m, q_ref_rad=q_prev)
             except ik.IKError as e:
                 raise PathError(f"path point at t = {t:.3f} s, tool point ({p[0] * 1e3:.1f}, {p[1] * 1e3:.1f}, "
-                                f"{p[2] * 1e3:.1f}) mm: {e}") from None
+                                f"{p[2] * 1e3:.1f}) mm: {e}", where=self.tag_at(t)) from None
             J = kin.jacobian(robot.dh, q, tool_m)
             s = np.linalg.svd(J, compute_uv=False)
             if s[-1] < MIN_JACOBIAN_CONDITION * s[0]:
                 joints = singular_joints(J, rel_tol=MIN_JACOBIAN_CONDITION) or (5,)
                 raise PathError(f"path point at t = {t:.3f} s, tool point ({p[0] * 1e3:.1f}, {p[1] * 1e3:.1f}, "
-                                f"{p[2] * 1e3:.1f}) mm passes through a singularity ({describe_singularity(joints)})")
+                                f"{p[2] * 1e3:.1f}) mm passes through a singularity ({describe_singularity(joints)})",
+                                where=self.tag_at(t))
             qs[k] = q
             q_prev = q
         return ts, qs
-
-
-# ---------------------------------------------------------------- programs
-
-
-def program_elements(moves, rapid_m_per_s, transform):
-    """Elements (m, base frame) and speeds (m/s) of G-code moves
-    (model/gcode.py Move, mm in the work frame).  ``transform(p_mm)`` maps
-    a work-frame point (mm) to the base frame (m), a rotation about z and a
-    shift; ``rapid_m_per_s``: the speed of G0 moves."""
-    elements, speeds = [], []
-    for m in moves:
-        p0, p1 = transform(m.start_mm), transform(m.end_mm)
-        if elements:  # (an arc may end up to gcode.ARC_END_TOLERANCE_MM off its programmed end point)
-            p0 = elements[-1].point(elements[-1].length)
-        if math.dist(p0, p1) < 1e-9 and m.kind != "arc":
-            continue
-        if m.kind == "arc":
-            c = transform((m.center_mm[0], m.center_mm[1], m.start_mm[2]))
-            a0 = math.atan2(p0[1] - c[1], p0[0] - c[0])
-            r = math.hypot(p0[0] - c[0], p0[1] - c[1])
-            elements.append(Arc((c[0], c[1]), r, a0, m.sweep_rad(), p0[2], p1[2]))
-        else:
-            elements.append(Line(p0, p1))
-        speeds.append(rapid_m_per_s if m.kind == "rapid" else m.feed_mm_per_min / 60e3)
-    return elements, speeds

@@ -1,7 +1,8 @@
 """The robot's parameters (kinematic table, controller convention, limits,
 joint stiffness, inertias, payload), loaded from a YAML robot file: one of
 the library in ``models/`` (``load_robot("irb6640")``) or any file of the
-same form (``load_robot("my_robot.yaml")``).
+same form (``load_robot("my_robot.yaml")``); its keys, with their ranges
+and units, are in model/robot_file.py (KEYS: one line to add a key).
 
 Plain numpy: nothing here knows about Drake.  Inside the model, lengths are
 metres and angles radians; the YAML and every user-facing interface use mm
@@ -29,17 +30,16 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from robstiff_drake.errors import InputError
+from robstiff_drake.errors import InputError, excerpt
+from robstiff_drake.command import input_warning
+from robstiff_drake.model.robot_checks import plausibility, shape_inertia
+from robstiff_drake.model.robot_file import N_JOINTS, check_units, read_robot_values
 from robstiff_drake.paths import DEFAULT_ROBOT_NAME, library_robots, robot_file
+from robstiff_drake.user_files import load_yaml, read_user_text
 
-N_JOINTS = 6
 GRAVITY_BASE_M_PER_S2 = np.array([0.0, 0.0, -9.81])  # in the robot base frame
-CONVENTIONS = ("standard_dh", "modified_dh")
 NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*")  # robot and link names (file names, URDF names)
-TOP_KEYS = {"name", "manufacturer", "model", "source", "convention", "dh", "controller", "joint_limits",
-            "joint_stiffness_Nm_per_rad", "links", "payload", "machining_workspace"}
 
 
 @dataclass(frozen=True)
@@ -168,6 +168,9 @@ class RobotModel:
     citation: str = ""  # where the kinematics come from (the file's `source:`)
     convention: str = "standard_dh"
     joint_map: JointMap = IDENTITY_MAP
+    # one line each: values that look like another unit, implausible physics
+    # (model/robot_file.check_units, model/robot_checks.plausibility)
+    warnings: tuple = ()
 
     @property
     def joint_compliance_rad_per_Nm(self):
@@ -250,29 +253,15 @@ class RobotModel:
         return self.payload.tool_point_m
 
 
-def _inertia_box(m, size):
-    a, b, c = size
-    return np.diag([m * (b * b + c * c), m * (a * a + c * c), m * (a * a + b * b)]) / 12.0
-
-
-def _inertia_cylinder(m, radius, length, axis):
-    i_ax = 0.5 * m * radius**2
-    i_perp = m * (3 * radius**2 + length**2) / 12.0
-    k = "xyz".index(axis)
-    diag = [i_perp] * 3
-    diag[k] = i_ax
-    return np.diag(diag)
-
-
-def _inertia_tensor(r, v, key):
+def _inertia_tensor(values, key, v):
     """[ixx, iyy, izz, ixy, ixz, iyz] (kg m^2) -> 3x3, refused unless physical
     (positive principal moments, each no larger than the sum of the others)."""
     ixx, iyy, izz, ixy, ixz, iyz = v
     I = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
     w = np.linalg.eigvalsh(I)
     if w[0] <= 0 or w[0] + w[1] < w[2] * (1 - 1e-9):
-        r.fail(key, f"not a physical inertia tensor (principal moments {np.round(w, 6).tolist()} kg m^2: each must "
-                    "be > 0 and at most the sum of the other two)")
+        values.fail(key, f"not a physical inertia tensor (principal moments {np.round(w, 6).tolist()} kg m^2: each "
+                         "must be > 0 and at most the sum of the other two)")
     return I
 
 
@@ -281,71 +270,12 @@ def _rot_x(a):
     return np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]])
 
 
-class _Reader:
-    """Walks the parsed YAML with error messages that name file and key."""
-
-    def __init__(self, path):
-        self.path = str(path)
-
-    def fail(self, key, what):
-        raise InputError(f"{self.path}: key '{key}': {what}")
-
-    def get(self, mapping, key, prefix=""):
-        full = f"{prefix}{key}"
-        if not isinstance(mapping, dict) or key not in mapping:
-            self.fail(full, "missing")
-        return mapping[key]
-
-    def mapping(self, mapping, key, prefix=""):
-        value = self.get(mapping, key, prefix)
-        if not isinstance(value, dict):
-            self.fail(f"{prefix}{key}", f"expected a mapping of keys, got {value!r}")
-        return value
-
-    def vector(self, mapping, key, n, prefix=""):
-        value = self.get(mapping, key, prefix)
-        try:
-            arr = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            self.fail(f"{prefix}{key}", f"expected {n} numbers, got {value!r}")
-        if arr.shape != (n,):
-            self.fail(f"{prefix}{key}", f"expected {n} numbers, got {arr.size}")
-        if not np.all(np.isfinite(arr)):
-            self.fail(f"{prefix}{key}", "contains a non-finite number")
-        return arr
-
-    def number(self, mapping, key, prefix="", positive=False):
-        value = self.get(mapping, key, prefix)
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(f"{prefix}{key}", f"expected a number, got {value!r}")
-        if not np.isfinite(value):
-            self.fail(f"{prefix}{key}", f"expected a finite number, got {value!r}")
-        if positive and not value > 0:
-            self.fail(f"{prefix}{key}", f"must be > 0, got {value!r}")
-        return float(value)
-
-    def text(self, mapping, key, default=None):
-        if key not in mapping and default is not None:
-            return default
-        value = self.get(mapping, key)
-        if not isinstance(value, (str, int, float)) or isinstance(value, bool):
-            self.fail(key, f"expected text, got {value!r}")
-        return str(value)
-
-    def only_keys(self, mapping, allowed, prefix=""):
-        for key in mapping:
-            if key not in allowed:
-                self.fail(f"{prefix}{key}", f"unknown key (allowed: {', '.join(sorted(allowed))})")
-
-
-def _read_dh(r, doc, convention):
+def _dh(values, convention):
     """The canonical chain (DH) of the file's kinematic table."""
-    dh_doc = r.mapping(doc, "dh")
-    r.only_keys(dh_doc, {"d_mm", "a_mm", "alpha_deg", "home_deg"}, "dh.")
-    d = r.vector(dh_doc, "d_mm", N_JOINTS, "dh.") / 1000.0
-    a = r.vector(dh_doc, "a_mm", N_JOINTS, "dh.") / 1000.0
-    alpha = np.deg2rad(r.vector(dh_doc, "alpha_deg", N_JOINTS, "dh."))
-    home = np.deg2rad(r.vector(dh_doc, "home_deg", N_JOINTS, "dh."))
+    d = values["dh.d_mm"] / 1000.0
+    a = values["dh.a_mm"] / 1000.0
+    alpha = np.deg2rad(values["dh.alpha_deg"])
+    home = np.deg2rad(values["dh.home_deg"])
     if convention == "standard_dh":
         return DH(d_m=d, a_m=a, alpha_rad=alpha, home_rad=home)
     # Modified (Craig) DH: link i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(theta_i) Tz(d_i),
@@ -361,85 +291,59 @@ def _read_dh(r, doc, convention):
     return DH(d_m=d, a_m=np.r_[a[1:], 0.0], alpha_rad=np.r_[alpha[1:], 0.0], home_rad=home, base=base)
 
 
-def _read_joint_map(r, doc):
-    if "controller" not in doc:
+def _joint_map(values):
+    if "controller" not in values and not any(k.startswith("controller.") for k in values):
         return IDENTITY_MAP
-    c = r.mapping(doc, "controller")
     p = "controller."
-    r.only_keys(c, {"sign", "offset_deg", "coupling"}, p)
-    sign = r.vector(c, "sign", N_JOINTS, p) if "sign" in c else np.ones(N_JOINTS)
+    sign = values.get(p + "sign", np.ones(N_JOINTS))
     if not np.all(np.isin(sign, (-1.0, 1.0))):
-        r.fail(p + "sign", f"each sign must be +1 or -1, got {sign.tolist()}")
-    offset = np.deg2rad(r.vector(c, "offset_deg", N_JOINTS, p)) if "offset_deg" in c else np.zeros(N_JOINTS)
+        values.fail(p + "sign", f"each sign must be +1 or -1, got {sign.tolist()}")
+    offset = np.deg2rad(values.get(p + "offset_deg", np.zeros(N_JOINTS)))
     coupling = []
-    raw = c.get("coupling") or []
-    if not isinstance(raw, list):
-        r.fail(p + "coupling", "expected a list of {joint: J, from: K, factor: F}")
-    for n, entry in enumerate(raw):
-        q = f"{p}coupling[{n}]."
-        if not isinstance(entry, dict):
-            r.fail(f"{p}coupling[{n}]", "expected {joint: J, from: K, factor: F}")
-        r.only_keys(entry, {"joint", "from", "factor"}, q)
-        j, k = r.number(entry, "joint", q), r.number(entry, "from", q)
-        f = r.number(entry, "factor", q)
-        if j not in range(1, 7) or k not in range(1, 7):
-            r.fail(q + "joint", f"joints are numbered 1 to 6, got joint {j:g} from {k:g}")
+    for n, entry in enumerate(values.get(p + "coupling", [])):
+        j, k = int(entry["joint"]), int(entry["from"])
         if j == k:
-            r.fail(q + "from", "a joint cannot be coupled to itself (use sign)")
-        coupling.append((int(j) - 1, int(k) - 1, f))
+            values.fail(f"{p}coupling[{n}].from", "a joint cannot be coupled to itself (use sign)")
+        coupling.append((j - 1, k - 1, entry["factor"]))
     jm = JointMap(sign, offset, tuple(coupling))
     if abs(np.linalg.det(jm.G)) < 1e-9:
-        r.fail(p + "coupling", "the map from controller to model angles is singular (not invertible)")
+        values.fail(p + "coupling", "the map from controller to model angles is singular (not invertible)")
     return jm
 
 
-def _read_links(r, doc):
-    links_doc = r.get(doc, "links")
-    if not isinstance(links_doc, list) or len(links_doc) != N_JOINTS + 1:
-        r.fail("links", f"expected a list of {N_JOINTS + 1} links (base and six moving links)")
+def _links(values):
     links = []
-    for i, ld in enumerate(links_doc):
+    for i, ld in enumerate(values["links"]):
         p = f"links[{i}]."
-        if not isinstance(ld, dict):
-            r.fail(f"links[{i}]", "expected a mapping (name, mass_kg, com_mm, box_mm or cylinder_mm)")
-        r.only_keys(ld, {"name", "mass_kg", "com_mm", "box_mm", "cylinder_mm", "inertia_kgm2"}, p)
-        m = r.number(ld, "mass_kg", p, positive=True)
-        com = r.vector(ld, "com_mm", 3, p) / 1000.0
+        m = ld["mass_kg"]
+        if "box_mm" in ld and "cylinder_mm.radius" in ld:
+            values.fail(p + "cylinder_mm", "give box_mm or cylinder_mm, not both")
         if "box_mm" in ld:
-            size = r.vector(ld, "box_mm", 3, p) / 1000.0
-            if np.any(size <= 0):
-                r.fail(p + "box_mm", "every side must be > 0")
-            inertia, shape, axis = _inertia_box(m, size), "box", "z"
-        elif "cylinder_mm" in ld:
-            cyl = r.mapping(ld, "cylinder_mm", p)
-            r.only_keys(cyl, {"radius", "axis", "length"}, p + "cylinder_mm.")
-            rad = r.number(cyl, "radius", p + "cylinder_mm.", positive=True) / 1000.0
-            length = r.number(cyl, "length", p + "cylinder_mm.", positive=True) / 1000.0
-            axis = r.get(cyl, "axis", p + "cylinder_mm.")
-            if axis not in ("x", "y", "z"):
-                r.fail(p + "cylinder_mm.axis", f"expected x, y or z, got {axis!r}")
-            inertia, shape = _inertia_cylinder(m, rad, length, axis), "cylinder"
-            size = np.array([rad, length, 0.0])
+            size, shape, axis = ld["box_mm"] / 1000.0, "box", "z"
+        elif "cylinder_mm.radius" in ld:
+            shape, axis = "cylinder", ld["cylinder_mm.axis"]
+            size = np.array([ld["cylinder_mm.radius"] / 1000.0, ld["cylinder_mm.length"] / 1000.0, 0.0])
         else:
-            r.fail(p + "box_mm", "each link needs box_mm or cylinder_mm")
+            values.fail(p + "box_mm", "each link needs box_mm or cylinder_mm")
+        inertia = shape_inertia(m, shape, size, axis)
         if "inertia_kgm2" in ld:  # a published tensor instead of the shape's
-            inertia = _inertia_tensor(r, r.vector(ld, "inertia_kgm2", 6, p), p + "inertia_kgm2")
-        name = str(r.get(ld, "name", p))
+            inertia = _inertia_tensor(values, p + "inertia_kgm2", ld["inertia_kgm2"])
+        name = ld["name"]
         if not NAME_RE.fullmatch(name):
-            r.fail(p + "name", f"{name!r}: use letters, digits and _ only")
+            values.fail(p + "name", f"{excerpt(name)}: use letters, digits and _ only")
         if name in [link.name for link in links] or name in ("flange", "spindle"):
-            r.fail(p + "name", f"link name {name!r} is used twice (or is one of the reserved flange, spindle)")
-        links.append(Link(name, m, com, inertia, size, shape, axis))
+            values.fail(p + "name", f"link name {name!r} is used twice (or is one of the reserved flange, spindle)")
+        links.append(Link(name, m, ld["com_mm"] / 1000.0, inertia, size, shape, axis))
     return tuple(links)
 
 
-def _check_not_singular(r, dh):
+def _check_not_singular(values, dh):
     """Refuse a chain that cannot place the flange: every length zero, or a
     Jacobian of rank below 6 at every one of a set of fixed configurations."""
     from robstiff_drake.model import kinematics as kin
 
     if not np.any(dh.a_m) and not np.any(dh.d_m) and (dh.base is None or not np.any(dh.base[:3, 3])):
-        r.fail("dh", "every link length (a_mm, d_mm) is zero: the chain has no extent")
+        values.fail("dh", "every link length (a_mm, d_mm) is zero: the chain has no extent")
     qs = np.random.default_rng(0).uniform(-np.pi, np.pi, size=(20, N_JOINTS))  # fixed: same check every time
     J = kin.jacobian(dh, qs, np.zeros(3))
     scale = np.abs(np.r_[dh.a_m, dh.d_m]).max()
@@ -448,8 +352,8 @@ def _check_not_singular(r, dh):
     Jn[:, :3, :] /= scale
     s = np.linalg.svd(Jn, compute_uv=False)
     if np.all(s[:, -1] < 1e-9 * s[:, 0]):
-        r.fail("dh", "the kinematic table is singular: at every tested configuration the six joints move the "
-                     "flange in fewer than six independent directions (two joint axes coincide?)")
+        values.fail("dh", "the kinematic table is singular: at every tested configuration the six joints move the "
+                          "flange in fewer than six independent directions (two joint axes coincide?)")
 
 
 def resolve_robot(spec=None):
@@ -469,86 +373,58 @@ def resolve_robot(spec=None):
 
 def load_robot(path=None):
     """Load a RobotModel: ``path`` is a library name, a YAML file, or None
-    (the default robot, the paper's IRB6400)."""
+    (the default robot, the paper's IRB6400).  The file is checked key by
+    key against model/robot_file.KEYS (ranges and units), for values in
+    another unit, and for plausible physics (model/robot_checks.py); the
+    warnings are in the model's ``warnings`` and, inside a command, printed
+    and added to its JSON (io.input_warning).  InputError (one line naming
+    file, line and key) for anything wrong."""
     path = resolve_robot(path)
-    try:
-        text = path.read_text()
-    except OSError as e:
-        raise InputError(f"{path}: cannot read robot parameter file ({e.strerror})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: not a text file") from None
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}: " if mark else ""
-        raise InputError(f"{path}: {where}invalid YAML ({getattr(e, 'problem', e)})") from None
-    r = _Reader(path)
-    if not isinstance(doc, dict):
-        raise InputError(f"{path}: expected a mapping at the top level")
-    r.only_keys(doc, TOP_KEYS)
-
-    convention = r.text(doc, "convention", default="standard_dh")
-    if convention not in CONVENTIONS:
-        r.fail("convention", f"unknown convention {convention!r} (known: {', '.join(CONVENTIONS)})")
-    dh = _read_dh(r, doc, convention)
-    joint_map = _read_joint_map(r, doc)
-
-    lim = r.mapping(doc, "joint_limits")
-    r.only_keys(lim, {"lower_deg", "upper_deg"}, "joint_limits.")
-    lower = r.vector(lim, "lower_deg", N_JOINTS, "joint_limits.")
-    upper = r.vector(lim, "upper_deg", N_JOINTS, "joint_limits.")
+    doc, lines = load_yaml(read_user_text(path, "robot file"), path)
+    values = read_robot_values(path, doc, lines)
+    unit_warnings = check_units(values)
+    convention = values.get("convention", "standard_dh")
+    dh = _dh(values, convention)
+    joint_map = _joint_map(values)
+    lower, upper = values["joint_limits.lower_deg"], values["joint_limits.upper_deg"]
     for i in range(N_JOINTS):
         if not lower[i] < upper[i]:
-            r.fail("joint_limits", f"joint {i + 1}: lower {lower[i]} >= upper {upper[i]}")
-
-    k = r.vector(doc, "joint_stiffness_Nm_per_rad", N_JOINTS)
-    if np.any(k <= 0):
-        j = int(np.argmax(k <= 0)) + 1
-        r.fail("joint_stiffness_Nm_per_rad", f"joint {j} stiffness must be > 0")
-
-    links = _read_links(r, doc)
-
-    pl = r.mapping(doc, "payload")
-    r.only_keys(pl, {"mass_kg", "com_mm", "tool_point_mm"}, "payload.")
-    payload = Payload(
-        mass_kg=r.number(pl, "mass_kg", "payload.", positive=True),
-        com_m=r.vector(pl, "com_mm", 3, "payload.") / 1000.0,
-        tool_point_m=(r.vector(pl, "tool_point_mm", 3, "payload.") / 1000.0 if "tool_point_mm" in pl else None),
-    )
-
-    ws = r.mapping(doc, "machining_workspace")
-    p = "machining_workspace."
-    r.only_keys(ws, {"x_mm", "y_mm", "z_mm", "reference_tool_point_mm"}, p)
+            values.fail("joint_limits", f"joint {i + 1}: lower {lower[i]} >= upper {upper[i]}")
+    links = _links(values)
+    payload = Payload(mass_kg=values["payload.mass_kg"], com_m=values["payload.com_mm"] / 1000.0,
+                      tool_point_m=(values["payload.tool_point_mm"] / 1000.0 if "payload.tool_point_mm" in values
+                                    else None))
     box = {}
     for key in ("x_mm", "y_mm", "z_mm"):
-        lo_hi = r.vector(ws, key, 2, p) / 1000.0
+        lo_hi = values[f"machining_workspace.{key}"] / 1000.0
         if not lo_hi[0] < lo_hi[1]:
-            r.fail(p + key, "expected [min, max] with min < max")
+            values.fail(f"machining_workspace.{key}", "expected [min, max] with min < max")
         box[key] = (float(lo_hi[0]), float(lo_hi[1]))
     workspace = Workspace(box["x_mm"], box["y_mm"], box["z_mm"],
-                          r.vector(ws, "reference_tool_point_mm", 3, p) / 1000.0)
-
-    _check_not_singular(r, dh)
-    name = r.text(doc, "name")
+                          values["machining_workspace.reference_tool_point_mm"] / 1000.0)
+    _check_not_singular(values, dh)
+    name = values["name"]
     if not NAME_RE.fullmatch(name):
-        r.fail("name", f"{name!r}: use letters, digits and _ only (it names files and the URDF)")
-    return RobotModel(
+        values.fail("name", f"{excerpt(name)}: use letters, digits and _ only (it names files and the URDF)")
+    robot = RobotModel(
         name=name,
         dh=dh,
         q_lower_rad=np.deg2rad(lower),
         q_upper_rad=np.deg2rad(upper),
-        joint_stiffness_Nm_per_rad=k,
+        joint_stiffness_Nm_per_rad=values["joint_stiffness_Nm_per_rad"],
         links=links,
         payload=payload,
         workspace=workspace,
         source=str(path),
-        manufacturer=r.text(doc, "manufacturer", default="-"),
-        model=r.text(doc, "model", default=r.text(doc, "name")),
-        citation=r.text(doc, "source", default="-"),
+        manufacturer=values.get("manufacturer", "-"),
+        model=values.get("model", name),
+        citation=values.get("source", "-"),
         convention=convention,
         joint_map=joint_map,
     )
+    warnings = tuple(input_warning(w if w.startswith(str(path)) else f"{path}: {w}")
+                     for w in unit_warnings + plausibility(robot))
+    return replace(robot, warnings=warnings)
 
 
 def same_robot_file(a, b):
