@@ -82,3 +82,21 @@ def info(text, file=None):
     """Print an informational line (stdout unless ``file``), unless quiet."""
     if not _QUIET:
         print(text, file=file or sys.stdout)
+
+
+def shown_path(path):
+    """A path as a line shows it: ``run/`` and ``run//x`` as ``run`` and ``run/x``."""
+    from pathlib import Path
+
+    return str(Path(path))
+
+
+def wrote(path, detail="", *, folder=False, to_stderr=False):
+    """The informational line for a file (or, ``folder``, a folder: ``run/``)
+    a command wrote: ``wrote PATH`` or ``wrote PATH: detail``; nothing for
+    standard output (``-``) or an output not asked for (None).  ``to_stderr``
+    when the command's JSON goes to standard output."""
+    if path is None or str(path) == "-":
+        return
+    shown = shown_path(path) + ("/" if folder else "")
+    info(f"wrote {shown}" + (f": {detail}" if detail else ""), file=sys.stderr if to_stderr else None)

@@ -4,6 +4,8 @@ display coordinates after a draw (what the PNG shows):
 * every title, axis label and legend lies inside the figure (nothing clipped);
 * no legend covers data: no plotted point (lines, markers, scatter, error
   bars) inside a legend's box, and no legend over an image or colour mesh;
+* no legend covers a title or an axis label (a figure legend beside the
+  axes at the top can reach into a long figure title);
 * every axes that shows data has both axis labels, each with its unit in
   parentheses, or one of the dimensionless quantities named in
   DIMENSIONLESS; a colour bar's label has its unit.
@@ -95,6 +97,9 @@ def problems(fig):
         name = "legend " + ", ".join(t.get_text() for t in leg.get_texts()[:2])
         if not _inside(lb, fig.bbox):
             found.append(f"{name} is cut off at the figure's edge")
+        for what, t in _texts(fig):
+            if _overlap(lb, t.get_window_extent(renderer)):
+                found.append(f"{name} covers the {what}")
         for ax in fig.axes:
             xy = _data_points(ax)
             inside = (xy[:, 0] > lb.x0) & (xy[:, 0] < lb.x1) & (xy[:, 1] > lb.y0) & (xy[:, 1] < lb.y1)

@@ -64,8 +64,10 @@ def test_the_checks_find_what_they_look_for():
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("height")
     fig.suptitle("a title far too long to fit in a figure four inches wide, so its ends are cut off")
+    fig.legend(["a key beside the figure's title"], loc="outside right upper")
     found = problems(fig)
     plt.close(fig)
+    assert any("covers the figure title" in p for p in found), found
     assert any("covers" in p and "data point" in p for p in found), found
     assert any("cut off" in p and "figure title" in p for p in found), found
     assert any("'height' has no unit" in p for p in found), found
@@ -164,6 +166,27 @@ def test_surface_plot_legend_covers_no_pad():
         return SimpleNamespace(scans=scans, surface_error_mm=stats, compensation=compensation)
 
     fig = plot_surfaces([result(False, 1e-2), result(True, 1e-3)], SimpleNamespace(name="cylinder_head"))
+    check(fig)
+
+
+def test_surface_plot_along_a_path_keeps_its_title_clear():
+    """A G-code contour's plot: three scan lines along the path, labelled with their offsets (long
+    labels); the key sat beside the figure's title and covered its end (issue 23)."""
+    from robstiff_drake.commands.simulate import plot_surfaces
+    from robstiff_drake.diagrams.experiment import ScanLine
+
+    s = np.linspace(0.1, 0.36, 300)
+
+    def result(compensation, scale):
+        scans = []
+        for off in (-0.015, 0.0, 0.015):
+            e = scale * (0.1 + 0.1 * np.sin(30 * s + off))
+            scans.append(ScanLine(0.0, s, np.full_like(s, 0.7), 0.7 - e, None, s_m=s, offset_m=off))
+        err = np.concatenate([x.error_m for x in scans]) * 1e3
+        stats = {"mean": err.mean(), "rms": np.sqrt(np.mean(err**2)), "max_abs": np.abs(err).max(), "pv": np.ptp(err)}
+        return SimpleNamespace(scans=scans, surface_error_mm=stats, compensation=compensation)
+
+    fig = plot_surfaces([result(False, 1e-3), result(True, 1e-4)], SimpleNamespace(name="contour_with_arcs"))
     check(fig)
 
 

@@ -156,7 +156,7 @@ def test_simulation_progress_bar(capsys, tmp_path, short_scenario):
     code, _, err = run(capsys, *argv, "--out", tmp_path / "b")  # stderr is no terminal: no bar
     assert code == 0 and "simulated" not in err
     code, out, err = run(capsys, *argv, "--out", tmp_path / "c", "--progress", "--quiet")
-    assert code == 0 and "simulated" not in err and "wrote to" not in out and "surface error" in out
+    assert code == 0 and "simulated" not in err and "wrote " not in out and "surface error" in out
 
 
 def test_sweep_progress_bar_and_one_period_plot(capsys, tmp_path, short_scenario):

@@ -1,7 +1,11 @@
 """``robstiff simulate ... --replay OUT.html``: the 3D replay opens in a real
 headless browser (Debian's chromium, driven over the DevTools protocol),
-without a server, and shows the robots, the workpiece and the tool paths;
-without Meshcat's server the command stops before its simulation.
+without a server, and shows the robots, the workpiece and the tool paths:
+the default camera frames all of them (every drawn corner projects inside
+the view, the robots fill most of its height), the tool paths are tubes,
+the magnification is on the page, and the robots' shapes never coincide
+(each is drawn larger than the one inside it: no z-fighting); without
+Meshcat's server the command stops before its simulation.
 
 The browser test skips, with the reason printed, where chromium is not
 installed (`.ci/run` installs it where it can)."""
@@ -35,8 +39,53 @@ SCENE_JS = """(() => {
           magnification: (document.getElementById("robstiff-magnification") || {}).textContent,
           animation_s: viewer.animator && viewer.animator.mixer ? viewer.animator.mixer.time : null,
           clips: viewer.animator ? viewer.animator.actions.length : 0,
+          title: (document.getElementById("%s") || {}).textContent,
           resources: performance.getEntriesByType("resource").map(r => r.name.slice(0, 40))};
-})()""" % replay.CAPTION_ID
+})()""" % (replay.CAPTION_ID, replay.TITLE_ID)
+
+# How far out each group of drawn objects reaches in the default camera's view: the largest |x|, |y| of
+# its meshes' bounding-box corners in normalised device coordinates (inside the view: <= 1), and the
+# vertical span of the robots (a share of the view's height, 2).
+FRAMING_JS = """(() => {
+  const cam = viewer.camera;
+  viewer.scene.updateMatrixWorld(true);
+  cam.updateMatrixWorld(true);
+  const out = {};
+  viewer.scene.traverse(o => {
+    if (!o.isMesh || !o.visible) return;
+    const path = [];
+    for (let q = o; q; q = q.parent) path.unshift(q.name);
+    const name = path.filter(n => n).join("/");
+    const group = name.startsWith("Scene/drake/robots/") ? "robots" :
+                  name.startsWith("Scene/cell/workpiece") ? "workpiece" :
+                  name.startsWith("Scene/cell/tool_path") ? "tool_path" : null;
+    if (!group) return;
+    o.geometry.computeBoundingBox();
+    const b = o.geometry.boundingBox;
+    const g = out[group] || (out[group] = {reach: 0, ymin: 1e9, ymax: -1e9});
+    for (const x of [b.min.x, b.max.x]) for (const y of [b.min.y, b.max.y]) for (const z of [b.min.z, b.max.z]) {
+      const v = b.min.clone();
+      v.set(x, y, z);
+      v.applyMatrix4(o.matrixWorld).project(cam);
+      g.reach = Math.max(g.reach, Math.abs(v.x), Math.abs(v.y));
+      g.ymin = Math.min(g.ymin, v.y);
+      g.ymax = Math.max(g.ymax, v.y);
+    }
+  });
+  return out;
+})()"""
+
+SHOW_ONLY_JS = """(() => {
+  viewer.scene.traverse(o => {
+    const path = [];
+    for (let q = o; q; q = q.parent) path.unshift(q.name);
+    const name = path.filter(n => n).join("/");
+    const keep = "Scene/drake/robots/%s";  // that robot, the nodes above it and the scene's other objects
+    if (name.startsWith("Scene/drake/robots/")) o.visible = name.startsWith(keep) || keep.startsWith(name);
+  });
+  viewer.set_dirty();
+  return true;
+})()"""
 
 
 @pytest.fixture(scope="module")
@@ -86,6 +135,13 @@ def test_replay_opens_in_a_headless_browser(replay_run):
             time.sleep(1.0)
             png = page.screenshot()
             later = page.evaluate(SCENE_JS)
+            framing = page.evaluate(FRAMING_JS)
+            alone = {}
+            for run in replay.RUN_COLORS:  # each run's robot with the others hidden
+                page.evaluate(SHOW_ONLY_JS % run)
+                time.sleep(0.5)
+                alone[run] = page.screenshot()
+            page.evaluate(SHOW_ONLY_JS % "")
     except Unavailable as why:
         print(f"\nSKIPPED the browser test: {why}")
         pytest.skip(f"no headless browser: {why}")
@@ -102,23 +158,63 @@ def test_replay_opens_in_a_headless_browser(replay_run):
     assert any(p.startswith("Scene/cell/workpiece/box_0") for p in scene["meshes"])
     assert {f"Scene/cell/tool_path/{n}" for n in ("planned", "uncompensated_magnified", "compensated_magnified")} \
         <= set(scene["meshes"])
-    # the page says the magnification, and the animation is there and plays
+    # the default camera frames the robots, the workpiece and the tool paths; the robots fill most of its height
+    print(f"framing (NDC): {framing}")
+    for group in ("robots", "workpiece", "tool_path"):
+        assert framing[group]["reach"] <= 1.0, (group, framing)
+    assert framing["robots"]["ymax"] - framing["robots"]["ymin"] >= 1.2, framing
+    # the page says the magnification, in its title line and its caption, and the animation is there and plays
     assert scene["magnification"] == f"{summary['replay']['magnification']:g}"
+    assert f"deflection magnified {scene['magnification']}" in scene["title"]
     assert "Deflection magnified" in scene["caption"]
     assert scene["clips"] >= 1 and later["animation_s"] > scene["animation_s"]
     # everything it loaded came from the file itself (data: URLs), nothing from a server
     assert all(r.startswith(("data:", "file:")) for r in later["resources"]), later["resources"]
 
-    # the robots are drawn: the screenshot has the runs' colours (orange, blue)
+    # the robots are drawn: each run's colour (orange, blue) fills its share of the screenshot with the other
+    # robots hidden, and the outer (compensated) one shows in the whole scene
     import io
 
     import matplotlib.image as mpimg
 
-    img = mpimg.imread(io.BytesIO(png), format="png")[..., :3]
+    def share(png_bytes, rgba):
+        img = mpimg.imread(io.BytesIO(png_bytes), format="png")[..., :3]
+        return np.all(np.abs(img - np.array(rgba[:3])) < 0.25, axis=-1).mean()
+
     for name, rgba in replay.RUN_COLORS.items():
-        near = np.all(np.abs(img - np.array(rgba[:3])) < 0.25, axis=-1)
-        print(f"{name}: {near.mean():.3%} of the pixels")
-        assert near.mean() > 0.002, f"{name} robot not visible in the screenshot ({near.mean():.4%} of pixels)"
+        print(f"{name}: {share(alone[name], rgba):.3%} of the pixels alone, {share(png, rgba):.3%} with the others")
+        assert share(alone[name], rgba) > 0.02, f"{name} robot not visible alone ({share(alone[name], rgba):.4%})"
+    assert share(png, replay.RUN_COLORS["compensated"]) > 0.02
+
+
+def test_the_robots_shapes_never_coincide():
+    """No z-fighting: every box and cylinder of the compensated robot is at least 4 mm larger on each side
+    than the uncompensated robot's, and the planned robot's 4 mm larger again."""
+    import re
+
+    robot = load_robot()
+
+    def sizes(name):
+        text = replay._urdf_with_color(robot, replay.RUN_COLORS.get(name, (0, 0, 0, 1)),
+                                       inflate_m=replay.ROBOT_INFLATE_M[name])
+        boxes = [[float(v) for v in m.split()] for m in re.findall(r'<box size="([^"]*)"', text)]
+        cylinders = [[float(v) for v in m] for m in re.findall(r'<cylinder radius="([^"]*)" length="([^"]*)"', text)]
+        return np.array(sum(boxes, [])), np.array(sum(cylinders, []))
+
+    inner = sizes("uncompensated")
+    for outer_name, inner_name in (("compensated", "uncompensated"), ("planned", "compensated")):
+        outer, inner = sizes(outer_name), sizes(inner_name)
+        assert np.all(outer[0] - inner[0] >= 2 * 0.004 - 1e-9)  # box sizes: 4 mm on each side
+        assert np.all(outer[1] - inner[1] >= 0.004 - 1e-9)  # cylinder radius 4 mm, length 8 mm
+
+
+def test_the_tool_path_is_a_tube_around_the_path():
+    path = np.column_stack([np.linspace(1.5, 1.7, 30), np.zeros(30), np.full(30, 0.7)])
+    vertices, faces = replay.tube_mesh(path, 0.006)
+    v = vertices.T
+    # every vertex is 6 mm from the path's line, and the faces index the vertices
+    assert np.allclose(np.hypot(v[:, 1], v[:, 2] - 0.7), 0.006)
+    assert faces.min() == 0 and faces.max() == len(v) - 1 and faces.shape[0] == 3
 
 
 def test_replay_needs_meshcat_before_the_simulation(tmp_path, capsys, monkeypatch):

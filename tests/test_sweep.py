@@ -59,7 +59,7 @@ def test_failed_run_is_a_row(tmp_path):
         (["--period-ms", "4,,8"], "expected a comma-separated list"),
         (["--period-ms", "4,x"], "'x' is not a number"),
         (["--period-ms", "4,-8"], "values must be > 0"),
-        (["--period-ms", "1"], "period 1 ms is below the plant step (2 ms)"),
+        (["--period-ms", "1", "--plant-step-ms", "2"], "period 1 ms is below the plant step (2 ms)"),
         (["--period-ms", "16", "--plant-step-ms", "16"], "a 16 ms plant step is unstable for the arm's 126 Hz mode"),
         (["--period-ms", "4", "--delay-steps", "1.5"], "'1.5' is not a whole number"),
         (["--period-ms", "4", "--cutoff-hz", "700"], "cutoff 700 Hz must be between 0 and half the sensor rate"),
@@ -73,6 +73,19 @@ def test_sweep_bad_input(capsys, tmp_path, argv, message):
     assert code == 2
     assert len(err.strip().splitlines()) == 1 and message in err, err
     assert not out.exists()  # no partial JSON presented as complete
+
+
+def test_a_period_below_the_scenarios_plant_step_sets_the_step_of_every_run(capsys):
+    """`sweep --period-ms 2,4,8,16` on a scenario stepped at 4 ms (docs/your_robot.md) runs every
+    combination at a 2 ms plant step, and says so; an explicit --plant-step-ms is kept as given."""
+    from types import SimpleNamespace
+
+    from robstiff_drake.commands.sweep import shortest_period_step
+
+    sc = SimpleNamespace(plant_config=SimpleNamespace(time_step=0.004))
+    assert shortest_period_step(sc, [2.0, 4.0, 8.0, 16.0]) == 2.0
+    assert "plant step 2 ms for every run (the scenario's 4 ms" in capsys.readouterr().out
+    assert shortest_period_step(sc, [4.0, 8.0]) is None and capsys.readouterr().out == ""
 
 
 def test_dask_cluster_on_loopback(tmp_path):

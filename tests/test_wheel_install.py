@@ -1,30 +1,52 @@
 """The package as a user gets it: a wheel built from a copy of the sources,
-installed (not editable) into a fresh virtual environment, run from an
-empty folder: the robot library and the scenarios must come from the
-installed package, not from the working tree.
+installed (not editable) into a fresh virtual environment, run from empty
+folders.  The robot library, the scenarios and the examples must come from
+the installed package, not from the working tree; every ``--help`` example
+and every marked command block of docs/*.md must run as written
+(tests/doc_blocks.py says how a block is marked), so the docs cannot drift
+from the code.
 
-Slow (a wheel build and the demo's two closed-loop runs, about a minute):
-marked ``slow``; it runs with the rest (deselect with ``-m "not slow"``).
-For speed the wheel is built without build isolation and installed with
---no-deps; the new environment reaches the test environment's packages
-(drake, numpy, ...) through a .pth line naming its site-packages (a venv
-made from a venv with --system-site-packages would see the base
-interpreter's packages instead), which does not run the editable install's
-import hook, so ``robstiff_drake`` can only come from the wheel.
+Slow (a wheel build, the help examples and the doc pages; about two
+minutes on a quiet machine): marked ``slow``; it runs with the rest
+(deselect with ``-m "not slow"``).  For speed the wheel is built without
+build isolation and installed with --no-deps; the new environment reaches
+the test environment's packages (drake, numpy, ...) through a .pth line
+naming its site-packages (a venv made from a venv with
+--system-site-packages would see the base interpreter's packages instead),
+which does not run the editable install's import hook, so
+``robstiff_drake`` can only come from the wheel.  One environment serves
+every test here; the doc pages run two at a time (each page in its own
+folder, its blocks in order).
 """
 
 import json
 import os
+import re
+import resource
 import shutil
 import site
 import subprocess
 import sys
+import time
+import zipfile
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
+from doc_blocks import blocks, pages, shortened, shorten_options
+
+from robstiff_drake.commands.main import EXAMPLES
 
 REPO = Path(__file__).resolve().parents[1]
-SOURCES = ("pyproject.toml", "README.md", "robstiff_drake", "models", "diagrams", "data")
+SOURCES = ("pyproject.toml", "README.md", "LICENSE", "robstiff_drake", "models", "diagrams", "data", "examples")
+# --help examples that need more than this machine: a controller and a sensor on the network
+HELP_NEEDS_A_CELL = {
+    "compensate": "streams to an ABB controller and reads a Net F/T: needs a cell (tests/test_sim_cell.py runs "
+                  "compensate against sim-cell on 127.0.0.1)",
+    "sim-cell": "waits for a compensator on the network (tests/test_sim_cell.py runs the pair on 127.0.0.1)",
+}
+BLOCK_TIMEOUT_S = 600
 
 
 def run(cmd, cwd, env, timeout=300):
@@ -33,9 +55,11 @@ def run(cmd, cwd, env, timeout=300):
     return proc.stdout
 
 
-@pytest.mark.slow
-def test_a_built_wheel_runs_the_demo_from_a_clean_folder(tmp_path):
-    src = tmp_path / "src"
+@pytest.fixture(scope="module")
+def installed(tmp_path_factory):
+    """The wheel, and a fresh environment with it installed: SimpleNamespace(wheel, venv, python, env, tmp)."""
+    tmp = tmp_path_factory.mktemp("wheel")
+    src = tmp / "src"
     src.mkdir()
     for name in SOURCES:
         p = REPO / name
@@ -44,35 +68,202 @@ def test_a_built_wheel_runs_the_demo_from_a_clean_folder(tmp_path):
         else:
             shutil.copy2(p, src / name)
     env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV"))}
-    env["HOME"] = str(tmp_path / "home")
-    env["ROBSTIFF_CACHE_DIR"] = str(tmp_path / "cache")
-    dist = tmp_path / "dist"
-    run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--no-index", "-q", "-w", dist, src],
-        tmp_path, env)
+    env["HOME"] = str(tmp / "home")
+    env["ROBSTIFF_CACHE_DIR"] = str(tmp / "cache")
+    env["MPLBACKEND"] = "Agg"
+    dist = tmp / "dist"
+    out = subprocess.run([sys.executable, "-m", "pip", "wheel", "-v", "--no-deps", "--no-build-isolation", "--no-index",
+                          "-w", str(dist), str(src)], cwd=tmp, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout + out.stderr
     (wheel,) = dist.glob("robstiff_drake-*.whl")
-
-    venv = tmp_path / "venv"
-    run([sys.executable, "-m", "venv", "--without-pip", venv], tmp_path, env)
+    venv = tmp / "venv"
+    run([sys.executable, "-m", "venv", "--without-pip", venv], tmp, env)
     python = venv / "bin" / "python"
-    new_site = Path(run([python, "-c", "import site; print(site.getsitepackages()[0])"], tmp_path, env).strip())
+    new_site = Path(run([python, "-c", "import site; print(site.getsitepackages()[0])"], tmp, env).strip())
     (new_site / "test_env_packages.pth").write_text("\n".join(site.getsitepackages()) + "\n")
-    run([sys.executable, "-m", "pip", "--python", python, "install", "--no-deps", "--no-index", "-q", wheel],
-        tmp_path, env)
+    run([sys.executable, "-m", "pip", "--python", python, "install", "--no-deps", "--no-index", "-q", wheel], tmp, env)
+    env = dict(env, PATH=f"{venv / 'bin'}{os.pathsep}{env.get('PATH', '')}", VIRTUAL_ENV=str(venv))
+    return SimpleNamespace(wheel=wheel, venv=venv, python=python, env=env, tmp=tmp, build_log=out.stdout + out.stderr)
 
-    clean = tmp_path / "clean"
+
+def shell(script, cwd, env, timeout=BLOCK_TIMEOUT_S):
+    """Run ``script`` with bash (stop at the first failing command); (status, stdout, stderr, seconds)."""
+    t0 = time.perf_counter()
+    proc = subprocess.run(["bash", "-c", "set -eo pipefail\n" + script], cwd=cwd, env=env, capture_output=True,
+                          text=True, timeout=timeout)
+    return proc.returncode, proc.stdout, proc.stderr, time.perf_counter() - t0
+
+
+# ---------------------------------------------------------------- the wheel itself
+
+
+@pytest.mark.slow
+def test_the_wheel_holds_every_file_the_docs_and_examples_name(installed):
+    names = set(zipfile.ZipFile(installed.wheel).namelist())
+    packaged = {"diagrams": "robstiff_drake/scenarios", "models": "robstiff_drake/models", "data": "robstiff_drake/data",
+                "examples": "robstiff_drake/examples"}
+    for folder, package in packaged.items():
+        for p in (REPO / folder).iterdir():
+            if p.suffix in (".yaml", ".nc", ".csv") or p.name == "README.md" and folder == "examples":
+                assert f"{package}/{p.name}" in names, f"{folder}/{p.name} is not in the wheel"
+    # every packaged file the docs name by its repository path is in the wheel
+    named = set()
+    for page in [*(REPO / "docs").glob("*.md"), REPO / "README.md"]:
+        named |= set(re.findall(r"(?<![\w/])(diagrams|models|data|examples)/([\w.-]+\.(?:yaml|nc|csv))\b",
+                                page.read_text()))
+    for folder, name in named:
+        if "<" in name or re.search(r"[A-Z]{3,}", name):  # a placeholder: block_milling_<robot>.yaml, _NAME.yaml
+            continue
+        assert f"{packaged[folder]}/{name}" in names, f"the docs name {folder}/{name}, which is not in the wheel"
+    # the licence: an SPDX expression and the file, as PEP 639 has them
+    meta = next(n for n in names if n.endswith(".dist-info/METADATA"))
+    text = zipfile.ZipFile(installed.wheel).read(meta).decode()
+    assert "License-Expression: MIT" in text and any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
+    # no deprecation warning from the build (-v shows the backend's output; a licence as a TOML table warned)
+    assert "SetuptoolsDeprecationWarning" not in installed.build_log, installed.build_log[-3000:]
+
+
+@pytest.mark.slow
+def test_the_installed_package_runs_from_an_empty_folder(installed):
+    clean = installed.tmp / "clean"
     clean.mkdir()
-    robstiff = venv / "bin" / "robstiff"
+    env, python = installed.env, installed.python
     where = run([python, "-c", "import robstiff_drake.paths as p; print(p.MODELS_DIR)"], clean, env).strip()
-    assert Path(where).is_relative_to(venv) and (Path(where) / "kr240_r2900.yaml").is_file()
-    assert run([robstiff, "--version"], clean, env).strip() == "robstiff-drake 0.1.0"
-    assert "r2000ic_165f" in run([robstiff, "robots"], clean, env)
-    out = run([robstiff, "demo", "--out", "demo"], clean, env)
-    rep = json.loads((clean / "demo" / "demo.json").read_text())
+    assert Path(where).is_relative_to(installed.venv) and (Path(where) / "kr240_r2900.yaml").is_file()
+    assert run(["robstiff", "--version"], clean, env).strip() == "robstiff-drake 0.1.0"
+    assert "r2000ic_165f" in run(["robstiff", "robots"], clean, env)
+    # a scenario by name; a name that is neither a file nor packaged: one line with the packaged names
+    proc = subprocess.run(["robstiff", "simulate", "no_such_block"], cwd=clean, env=env, capture_output=True, text=True)
+    assert proc.returncode == 2 and "packaged: block_milling," in proc.stderr and len(proc.stderr.splitlines()) == 1
+    out = run(["robstiff", "examples", "--copy", "mine"], clean, env)
+    assert out.startswith("wrote mine/: README.md, scenarios/") and (clean / "mine/campaigns/campaign.csv").is_file()
+    assert sorted(p.name for p in clean.iterdir()) == ["mine"]  # nothing else written in the working folder
+
+
+# ---------------------------------------------------------------- every command block of docs/*.md
+
+
+def test_every_command_block_of_the_docs_is_marked():
+    """A block that shows commands says whether the wheel test runs it (docs/*.md, tests/doc_blocks.py):
+    a new example cannot slip by unrun."""
+    unmarked, bad = [], []
+    for page in pages():
+        for b in blocks(page):
+            if not b.shows_commands():
+                continue
+            if b.marker is None:
+                unmarked.append(f"{b.where}: {b.commands()[:1]}")
+                continue
+            if "skip" in b.clauses and not b.clauses["skip"]:
+                bad.append(f"{b.where}: `run: skip` needs a reason")
+            if "skip" in b.clauses:
+                continue
+            for option in shorten_options(b.clauses.get("shorten")):
+                if not any(re.search(rf"\s{re.escape(option)}(\s|=)", c) for c in b.commands()):
+                    bad.append(f"{b.where}: shorten {option}: no command of the block has it")
+            for c in b.commands():
+                if re.search(r"\btests/", c):
+                    bad.append(f"{b.where}: `{c}` names a file of tests/, which no wheel holds")
+    assert not unmarked, "command blocks without a <!-- run ... --> marker:\n" + "\n".join(unmarked)
+    assert not bad, "\n".join(bad)
+
+
+def _run_page(page, root, env):
+    """Run the marked blocks of one page in order in root/PAGE; (failures, skips, timings)."""
+    folder = root / Path(page).stem
+    folder.mkdir(parents=True)
+    failures, skips, timings = [], [], []
+    page_blocks = blocks(page)
+    for b in page_blocks:
+        if b.example_file:
+            (folder / b.example_file).write_text("\n".join(b.body) + "\n")
+    for b in page_blocks:
+        if b.marker is None or not b.shows_commands():
+            continue
+        if "skip" in b.clauses:
+            skips.append(f"{b.where}: {b.clauses['skip']}")
+            continue
+        commands = [shortened(c, b.clauses.get("shorten")) for c in b.commands()]
+        expect = int(b.clauses.get("exit", 0))
+        script = b.clauses.get("setup", "")
+        if expect:
+            script += "".join(f"\n{c} && exit 91 || [ $? -eq {expect} ]" for c in commands)
+        else:
+            script += "".join(f"\n{c}" for c in commands)
+        code, out, err, seconds = shell(script, folder, env)
+        timings.append((seconds, b.where))
+        if code != 0:
+            failures.append(f"{b.where} (in {folder}) exited {code}:\n{script}\n--- stderr:\n{err[-2500:]}")
+    return failures, skips, timings
+
+
+def _doc_commands():
+    """{command as run: where} of every runnable doc block's commands."""
+    out = {}
+    for page in pages():
+        for b in blocks(page):
+            if b.marker is not None and b.shows_commands() and "skip" not in b.clauses:
+                for c in b.commands():
+                    out.setdefault(shortened(c, b.clauses.get("shorten")), b.where)
+    return out
+
+
+def _run_help_examples(root, env):
+    """Every --help example not run as written by a doc block, each in its own empty folder."""
+    failures, skips, timings = [], [], []
+    in_docs = _doc_commands()
+    for name, example in EXAMPLES.items():
+        if name in HELP_NEEDS_A_CELL:
+            skips.append(f"robstiff {name} --help's example: {HELP_NEEDS_A_CELL[name]}")
+            continue
+        if example in in_docs:
+            skips.append(f"robstiff {name} --help's example: run as written by {in_docs[example]}")
+            continue
+        folder = root / name.replace(" ", "_")
+        folder.mkdir(parents=True)
+        code, out, err, seconds = shell(example, folder, env)
+        timings.append((seconds, f"robstiff {name} --help's example"))
+        if code != 0:
+            failures.append(f"robstiff {name} --help's example `{example}` exited {code}:\n{err[-2000:]}")
+    return failures, skips, timings
+
+
+HEAVY = re.compile(r"robstiff (simulate|sweep|demo|diagnose-run|diagnose) ")
+
+
+def _weight(page):
+    """How long a page's blocks take, roughly: its closed-loop and diagnosis commands (the longest first)."""
+    return sum(len(HEAVY.findall(" ".join(b.commands()))) for b in blocks(page)
+               if b.marker is not None and "skip" not in b.clauses)
+
+
+@pytest.mark.slow
+def test_every_help_example_and_doc_block_runs_from_an_empty_folder(installed):
+    """What a reader copies from `robstiff COMMAND --help` or from docs/*.md works as written, from the
+    wheel, each page in its own empty folder (its blocks in order), each help example in its own."""
+    jobs = {page: (lambda page=page: _run_page(page, installed.tmp / "docs", installed.env))
+            for page in sorted(pages(), key=_weight, reverse=True)}
+    jobs["--help examples"] = lambda: _run_help_examples(installed.tmp / "help", installed.env)
+    t0, cpu0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        results = dict(zip(jobs, pool.map(lambda job: job(), jobs.values())))
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu_s = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
+    failures = [f for r in results.values() for f in r[0]]
+    for r in results.values():
+        for seconds, where in r[2]:
+            print(f"{seconds:6.1f} s  {where}")
+    for r in results.values():
+        for skip in r[1]:
+            print(f"SKIPPED {skip}")
+    print(f"run: {sum(len(r[2]) for r in results.values())}, skipped: {sum(len(r[1]) for r in results.values())}; "
+          f"{time.perf_counter() - t0:.0f} s wall, {cpu_s:.0f} s of CPU (load average {os.getloadavg()[0]:.1f})")
+    assert not failures, "\n\n".join(failures)
+    # the demo (docs/results.md, the help's example) found its scenario, robot and cutting data in the installed
+    # package: the block test's result; it wrote nothing but its folder
+    demo = installed.tmp / "docs" / "results"
+    rep = json.loads((demo / "robstiff-out" / "demo.json").read_text())
     unc, comp = rep["surface_error_mm"]["uncompensated"], rep["surface_error_mm"]["compensated"]
-    # the installed package found its scenario, robot and cutting data: the
-    # block test's result (as test_cli's demo test bounds it)
-    assert 0.15 <= unc["mean"] <= 0.5 and abs(comp["mean"]) <= 0.02, out
-    assert f"{unc['mean']:+.3f}" in out and f"{comp['mean']:+.3f}" in out, out
-    assert (clean / "demo" / "demo.json").is_file() and (clean / "demo" / "surface_error.png").is_file()
-    assert sorted(p.name for p in clean.iterdir()) == ["demo"]  # nothing else written in the working folder
-    assert list((tmp_path / "cache").glob("irb6400-*.urdf"))  # the URDF went to the cache
+    assert 0.15 <= unc["mean"] <= 0.5 and abs(comp["mean"]) <= 0.02
+    assert list((installed.tmp / "cache").glob("irb6400-*.urdf"))  # the URDF went to the cache
+    assert sorted(p.name for p in (installed.tmp / "help" / "diagnose-run").iterdir()) == ["cut1"]  # nothing else

@@ -26,7 +26,7 @@ def _egm_pb2():
     try:
         from abb_robot_client._egm_protobuf import egm_pb2
     except ImportError:
-        raise InputError("EGM needs the package abb-robot-client: pip install 'robstiff-drake[cell]'") from None
+        raise InputError("EGM needs the package abb-robot-client: in robstiff-drake's clone, pip install -e '.[cell]' (it is not on PyPI)") from None
     return egm_pb2
 
 
@@ -64,7 +64,7 @@ class SensorLink:
         try:
             from abb_robot_client.egm import EGM
         except ImportError:
-            raise InputError("EGM needs the package abb-robot-client: pip install 'robstiff-drake[cell]'") from None
+            raise InputError("EGM needs the package abb-robot-client: in robstiff-drake's clone, pip install -e '.[cell]' (it is not on PyPI)") from None
         self.pb2 = _egm_pb2()
         try:
             self._egm = EGM(port=port)

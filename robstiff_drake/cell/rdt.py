@@ -93,7 +93,7 @@ def _pynetft():
     try:
         import pynetft
     except ImportError:
-        raise InputError("reading a Net F/T needs the package pynetft: pip install 'robstiff-drake[cell]'") from None
+        raise InputError("reading a Net F/T needs the package pynetft: in robstiff-drake's clone, pip install -e '.[cell]' (it is not on PyPI)") from None
     return pynetft
 
 

@@ -3,16 +3,19 @@ centre of mass, force and torque bias) from static readings."""
 
 
 from robstiff_drake.commands.main import parse_vector
-from robstiff_drake.identification.campaign import read_payload_campaign
-from robstiff_drake.identification.payload import calibrate, check_payload_fit, t95, yaml_block
 from robstiff_drake.io import Warnings, check_outputs, emit_json, staged_outputs, write_atomic
 from robstiff_drake.model.robot import load_robot
+from robstiff_drake.progress import wrote
 
 
 def run(*, data, json_out=None, yaml_out=None, mount_rpy=None, robot_yaml=None):
     check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--yaml": yaml_out})
     robot = load_robot(robot_yaml)
     mount = (0.0, 0.0, 0.0) if mount_rpy is None else parse_vector(mount_rpy, 3, "--mount-rpy")
+    # scipy comes with these: after the checks of the arguments
+    from robstiff_drake.identification.campaign import read_payload_campaign
+    from robstiff_drake.identification.payload import calibrate, check_payload_fit, t95, yaml_block
+
     warnings = Warnings()
     campaign = read_payload_campaign(data, robot)
     fit = calibrate(robot, campaign, mount_rpy_deg=mount)
@@ -53,4 +56,7 @@ def run(*, data, json_out=None, yaml_out=None, mount_rpy=None, robot_yaml=None):
         print(f"  residual RMS     {fit.rms_force_N:.3f} N, {fit.rms_torque_Nm:.4f} N*m")
         print()
         print(block, end="")
+    wrote(json_out, to_stderr=json_out == "-")
+    wrote(yaml_out, "the gravity-removal block (compensate --payload, a scenario's model.payload_yaml)",
+          to_stderr=json_out == "-")
     return 0

@@ -31,6 +31,7 @@ from robstiff_drake.model.compensator import Compensator
 from robstiff_drake.model.filters import filter_coefficients
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.robot import load_robot
+from robstiff_drake.progress import wrote
 
 # How far the first joint feedback may be from the reference's start (deg)
 # before the run is refused: the robot must be brought to the path's start
@@ -186,7 +187,7 @@ def run(*, egm_port, netft, robot_yaml=None, model, payload, reference=None, log
                    "cycles": stats}
         with RunFolder(log) as run_folder:
             written = write_log(run_folder, log_data, comp.model, summary, f"robot {robot.name}, model {model}")
-        print(f"wrote to {log}/: " + ", ".join(written), file=sys.stderr)
+        wrote(log, ", ".join(written), folder=True, to_stderr=True)
     return 0
 
 

@@ -12,9 +12,8 @@ from robstiff_drake.commands import simulate, stiffness_map
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, json_text
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
-from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 from robstiff_drake.errors import InputError
-from robstiff_drake.progress import info
+from robstiff_drake.progress import info, wrote
 from robstiff_drake.paths import DEFAULT_ROBOT_NAME, DIAGRAMS_DIR, library_robots, scenario_file
 
 BLOCK = DIAGRAMS_DIR / "block_milling.yaml"  # the IRB6400's (the paper's) block test
@@ -71,6 +70,8 @@ def format_explanation(e):
 def run(*, out="robstiff-out", robot_yaml=None):
     check_outputs(folders={"--out": out})
     block = block_scenario(robot_yaml)
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot  # Drake: after the checks
+
     robot = scenario_robot(load_scenario(block), None if robot_yaml in library_robots() else robot_yaml)
     warnings = Warnings()
     sc, results = simulate.simulate(scenario=block, compensation="both", robot=robot, warnings=warnings,
@@ -89,5 +90,6 @@ def run(*, out="robstiff-out", robot_yaml=None):
         written.append("stiffness_map.png")
         run.write("demo.json", json_text(dict(summ, run_id=run.run_id)))
         written.append("demo.json")
-    info(f"\nwrote to {out}/: " + ", ".join(written))
+    info("")
+    wrote(out, ", ".join(written), folder=True)
     return 0

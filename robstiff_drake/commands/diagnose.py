@@ -15,6 +15,7 @@ from robstiff_drake.identification.joint_stiffness import check_angle_units, che
 from robstiff_drake.identification.selection import ALPHA_ROUND, MIN_GAIN
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, write_atomic
 from robstiff_drake.model.robot import load_robot
+from robstiff_drake.progress import wrote
 
 MAX_NOISE_MM = 10.0
 
@@ -295,6 +296,10 @@ def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=N
             residual_views(d, campaign, robot, folder, tool_m)
     if json_out != "-":
         print(format_report(d, campaign))
+    stderr = json_out == "-"
+    wrote(json_out, to_stderr=stderr)
+    wrote(report, "the report (Markdown)", to_stderr=stderr)
+    wrote(plots, "the residual views, one PNG each", folder=True, to_stderr=stderr)
     return 0
 
 

@@ -16,7 +16,7 @@ from robstiff_drake.identification.run_verification import plan_markdown
 from robstiff_drake.identification.scan_statistics import along_mm, segments
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model.robot import load_robot
-from robstiff_drake.progress import info
+from robstiff_drake.progress import wrote
 
 
 def _damping_line(d):
@@ -127,41 +127,79 @@ def format_report(rep):
     return "\n".join(lines)
 
 
-def run_robot(run_dir, robot_yaml=None):
-    """The robot of a run: the one its compensator.yaml names (a library
-    name, or a robot file relative to it); --robot must agree with it."""
-    from robstiff_drake.model.robot import same_robot_file
+def run_robot(run_dir, robot_yaml=None, warnings=None):
+    """The RobotModel of a run (see run_robot_and_file)."""
+    return run_robot_and_file(run_dir, robot_yaml, warnings)[0]
+
+
+def run_robot_and_file(run_dir, robot_yaml=None, warnings=None):
+    """The robot of a run: the one its compensator.yaml names, a robot file
+    relative to it (a simulated run's kept copy, inputs/NAME.yaml) or a
+    library name (the kept copy inputs/NAME.yaml when the run has one: the
+    robot as it ran).  --robot must agree with it; it stands in for a robot
+    file the folder names but lacks (with a warning).  Returns (RobotModel,
+    the robot file's path or None for the default robot)."""
+    import os
+
+    from robstiff_drake.diagrams.run_inputs import INPUTS_DIR
+    from robstiff_drake.model.robot import resolve_robot, same_robot_file
     from robstiff_drake.paths import library_robots
 
     settings_path = run_file(run_dir, SETTINGS)
     spec = None
     if settings_path.is_file():
         _, settings = read_settings(settings_path)
-        if settings.robot:
-            spec = settings.robot if settings.robot in library_robots() else str(settings_path.parent /
-                                                                                 settings.robot)
+        if settings.robot in library_robots():
+            kept = run_file(run_dir, f"{INPUTS_DIR}/{settings.robot}.yaml")
+            spec = str(kept) if kept.is_file() else settings.robot
+        elif settings.robot:
+            spec = str(settings_path.parent / settings.robot)
+            if not os.path.exists(spec):
+                if robot_yaml is None:
+                    raise InputError(f"{settings_path}: robot: {settings.robot}: the run folder has no such file; "
+                                     "give the robot file the run was made with, --robot PATH.yaml (runs simulated "
+                                     f"now keep it in {INPUTS_DIR}/)")
+                if warnings is not None:
+                    warnings.add(f"{settings_path} names the robot file {settings.robot}, which the run folder lacks: "
+                                 f"taking --robot {robot_yaml}")
+                spec = None
     if robot_yaml is not None and spec is not None and not same_robot_file(spec, robot_yaml):
         raise InputError(f"--robot {robot_yaml} disagrees with the robot of {settings_path} (robot: {spec}); "
                          "drop --robot or use the run's own robot")
-    return load_robot(robot_yaml if robot_yaml is not None else spec)
+    chosen = robot_yaml if robot_yaml is not None else spec
+    return load_robot(chosen), (None if chosen is None else resolve_robot(chosen))
+
+
+def _candidate_robot(settings, robot_file, candidate_path):
+    """A candidate fix's settings, its ``robot:`` naming the run's robot file
+    relative to where the candidate is written (a library name stays)."""
+    import dataclasses
+    import os
+
+    from robstiff_drake.paths import library_robots
+
+    if robot_file is None or not settings.robot or settings.robot in library_robots():
+        return settings
+    rel = os.path.relpath(Path(robot_file).resolve(), Path(candidate_path).parent.resolve())
+    return dataclasses.replace(settings, robot=rel)
 
 
 def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_yaml=None):
     out = Path(out) if out else Path(run_dir) / "diagnosis"
     verify = list(verify or [])
     check_outputs(inputs=[run_dir, *verify], files={"--json": json_out}, folders={"--out": out})
-    robot = run_robot(run_dir, robot_yaml)
+    warnings = Warnings()
+    robot, robot_file = run_robot_and_file(run_dir, robot_yaml, warnings)
     check_run(load_run_files(run_dir), robot)  # logs in other units, or of another robot: one line, before the fit
     from robstiff_drake.diagrams.run_arm import ArmModel
 
     rep, extras = diagnose_run(run_dir, robot, ArmModel, noise_mm=noise_mm, verify=verify)
-    warnings = Warnings()
     warnings.extend_from(rep["warnings"])
     rep["warnings"] = list(warnings)
     with RunFolder(out) as folder:
         note = f"candidate fix written by robstiff diagnose-run {run_dir} (run {rep['run_id']})"
         for rel, s in extras["settings"].items():
-            folder.write(rel, settings_text(s, folder.run_id, [note]))
+            folder.write(rel, settings_text(_candidate_robot(s, robot_file, out / rel), folder.run_id, [note]))
         if extras["plan"]:
             folder.write("verification_plan.md", plan_markdown(extras["plan"]))
         title = f"{Path(run_dir).name}: traced " + (", ".join(c["name"] for c in rep["causes"]) or "no cause")
@@ -176,6 +214,7 @@ def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_y
         emit_json(rep, json_out)
     if json_out != "-":
         print(format_report(rep))
-        info(f"wrote {out}/: diagnosis.json, diagnosis.png" + (", verification_plan.md, candidates/"
-                                                               if extras["plan"] else ""))
+    wrote(out, "diagnosis.json, diagnosis.png" + (", verification_plan.md, candidates/" if extras["plan"] else ""),
+          folder=True, to_stderr=json_out == "-")
+    wrote(json_out, to_stderr=json_out == "-")
     return 0

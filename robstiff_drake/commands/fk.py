@@ -9,6 +9,7 @@ from robstiff_drake.commands.stiffness import parse_q_deg
 from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.robot import load_robot
+from robstiff_drake.progress import wrote
 
 
 def fk_report(robot, q_deg, tool_m):
@@ -44,4 +45,5 @@ def run(*, q, tool=None, json_out=None, robot_yaml=None):
         print("rotation (columns: the frame's x, y, z axes):")
         for row in R:
             print("  " + "  ".join(f"{v:+.6f}" for v in row))
+    wrote(json_out, to_stderr=json_out == "-")
     return 0

@@ -3,11 +3,9 @@
 import numpy as np
 
 from robstiff_drake.commands.main import parse_tool
-from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
-from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
-from robstiff_drake.identification.interval_support import interval_support
 from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic, staged_outputs
 from robstiff_drake.model.robot import load_robot
+from robstiff_drake.progress import wrote
 
 
 def fit_to_dict(fit, campaign, robot, tool_m, no_intervals=()):
@@ -179,6 +177,11 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
     check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--plot": plot})
     robot = load_robot(robot_yaml)
     tool_arg = parse_tool(tool)
+    # scipy comes with these: after the checks of the arguments
+    from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
+    from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
+    from robstiff_drake.identification.interval_support import interval_support
+
     warnings = Warnings()
     if is_tracker_file(data):
         if plot is not None or robust:
@@ -207,4 +210,7 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
             save_figure_atomic(plot_fit(fit, campaign, robot, no_intervals), plot, dpi=100)
     if json_out != "-":
         print(format_fit(fit, campaign, robot, no_intervals))
+    wrote(json_out, "the identified model (compensate --model, a scenario's model.identified_json)",
+          to_stderr=json_out == "-")
+    wrote(plot, to_stderr=json_out == "-")
     return 0

@@ -11,7 +11,7 @@ from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model import ik
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.robot import load_robot
-from robstiff_drake.progress import progress
+from robstiff_drake.progress import progress, wrote
 
 G_M_PER_S2 = 9.81
 
@@ -117,4 +117,5 @@ def run(*, grid=5, force_N=500.0, payload_kg=150.0, json_out=None, robot_yaml=No
         emit_json(res, json_out)
     if json_out != "-":
         print(format_table(res))
+    wrote(json_out, to_stderr=json_out == "-")
     return 0

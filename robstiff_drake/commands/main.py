@@ -86,6 +86,7 @@ def parse_tool(text):
     return np.array(parse_vector(text, 3, "--tool")) / 1000.0
 
 
+SCENARIO_HELP = "a scenario file, or the name of a packaged one (`robstiff examples` lists them)"
 ROBOT_HELP = "a library robot (see `robstiff robots`) or a robot file (YAML); default: irb6400"
 TOOL_DEFAULT = "the robot file's payload.tool_point_mm"
 
@@ -263,7 +264,7 @@ def build_parser():
     p.add_argument("--plot", metavar="OUT.png")
 
     p = sub.add_parser("simulate", help="closed-loop milling simulation of a scenario (diagrams/*.yaml)")
-    p.add_argument("scenario", metavar="SCENARIO.yaml")
+    p.add_argument("scenario", metavar="SCENARIO.yaml", help=SCENARIO_HELP)
     p.add_argument("--compensation", default="both", choices=["on", "off", "both"],
                    help="run with, without, or both (default: %(default)s)")
     p.add_argument("--json", metavar="OUT", help="write the summary as JSON ('-' for stdout)")
@@ -288,7 +289,7 @@ def build_parser():
                          "scenario's `robot:` when it has one")
 
     p = sub.add_parser("sweep", help="sampling-delay study: closed-loop runs over period, delay, cutoff and mode")
-    p.add_argument("scenario", metavar="SCENARIO.yaml")
+    p.add_argument("scenario", metavar="SCENARIO.yaml", help=SCENARIO_HELP)
     p.add_argument("--period-ms", required=True, help="controller periods, e.g. 0.5,1,2,4,8,12,16,24,32,48,100")
     p.add_argument("--delay-steps", default="1", help="transport delays in periods (default: %(default)s)")
     p.add_argument("--cutoff-hz", default="5", help="force-filter cutoffs (default: %(default)s)")
@@ -297,14 +298,14 @@ def build_parser():
     p.add_argument("--plot", metavar="OUT.png", help="error against period, one curve per cutoff and mode")
     p.add_argument("--workers", type=_number_in(1, 64, integer=True), default=None, help="local processes (default: the number of cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="a Dask scheduler, e.g. tcp://127.0.0.1:8786")
-    p.add_argument("--plant-step-ms", type=_number_in(0.05, 20.0, "ms"), default=None, help="plant step for every run (default: the scenario's)")
+    p.add_argument("--plant-step-ms", type=_number_in(0.05, 20.0, "ms"), default=None, help="plant step for every run (default: the scenario's, or the shortest period when that is shorter)")
     p.add_argument("--no-predict", action="store_true", help="skip the linear loop model's predictions")
     p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
     _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
                          "scenario's `robot:` when it has one")
 
     p = sub.add_parser("sim-cell", help="the scenario's simulated cell behind EGM and Net F/T (for `compensate`)")
-    p.add_argument("scenario", metavar="SCENARIO.yaml")
+    p.add_argument("scenario", metavar="SCENARIO.yaml", help=SCENARIO_HELP)
     p.add_argument("--egm-to", required=True, metavar="HOST:PORT", help="where the compensator listens for EGM")
     p.add_argument("--netft-port", type=_number_in(1, 65535, integer=True), required=True, metavar="PORT",
                    help="UDP port of the simulated Net F/T (RDT)")
@@ -356,6 +357,11 @@ def build_parser():
     p.add_argument("--rt-priority", type=_number_in(0, 99, integer=True), default=0,
                    help="run the loop under SCHED_FIFO at this priority (Linux, needs the privilege; 0: off)")
 
+    p = sub.add_parser("examples", help="the packaged scenarios, G-code programs, robot files and example "
+                                        "campaigns; --copy DIR copies them to edit")
+    p.add_argument("--copy", metavar="DIR", help="copy them into DIR (created if missing; nothing existing is "
+                                                 "overwritten)")
+
     p = sub.add_parser("demo", help="the main job: the paper's block-milling test, without and with compensation")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
     _add_robot_option(p, "run the block test of this library robot (diagrams/block_milling_NAME.yaml) or of a "
@@ -383,15 +389,16 @@ EXAMPLES = {
     "synth payload": "robstiff synth payload payload.csv --mass-kg 120 --com-mm -10,0,250",
     "diagnose": "robstiff synth stiffness campaign.csv --effect lost_motion && robstiff diagnose campaign.csv "
                 "--plots views",
-    "diagnose-run": "robstiff simulate diagrams/block_milling.yaml --out cut1 && robstiff diagnose-run cut1",
+    "diagnose-run": "robstiff simulate block_milling --out cut1 && robstiff diagnose-run cut1",
     "plan-poses": "robstiff plan-poses 60 --out plan.csv",
     "table2": "robstiff table2 --plot table2.png",
-    "simulate": "robstiff simulate diagrams/block_milling.yaml --out block --replay block.html",
+    "simulate": "robstiff simulate block_milling --out block --replay block.html",
     "compensate": "robstiff compensate --egm-port 6510 --netft 192.168.1.1:49152 --model model.json "
                   "--payload payload.yaml --reference joint_reference.csv --log cut1",
-    "sim-cell": "robstiff sim-cell diagrams/block_milling.yaml --egm-to 127.0.0.1:6510 --netft-port 49152 "
+    "sim-cell": "robstiff sim-cell block_milling --egm-to 127.0.0.1:6510 --netft-port 49152 "
                 "--reference-out joint_reference.csv",
-    "sweep": "robstiff sweep diagrams/block_milling.yaml --period-ms 4,8,16 --plot sweep.png",
+    "sweep": "robstiff sweep block_milling --period-ms 4,8,16 --plot sweep.png",
+    "examples": "robstiff examples --copy my_cell",
     "demo": "robstiff demo --out robstiff-out",
 }
 
@@ -545,6 +552,10 @@ def _dispatch(args):
                               netft_counts=counts, wait_s=args.wait_s, duration_s=args.duration_s,
                               idle_exit_s=args.idle_exit_s, sensor_timeout_ms=args.sensor_timeout_ms,
                               rt_priority=args.rt_priority)
+    if args.command == "examples":
+        from robstiff_drake.commands import examples
+
+        return examples.run(copy=args.copy)
     if args.command == "demo":
         from robstiff_drake.commands import demo
 
@@ -577,6 +588,9 @@ def main(argv=None):
     try:
         args = build_parser().parse_args(vector_values_kept(sys.argv[1:] if argv is None else argv))
         was_quiet = set_quiet(getattr(args, "quiet", False))
+        from robstiff_drake.commands.preflight import check_inputs
+
+        check_inputs(args)  # the named inputs exist, before any heavy import
         from robstiff_drake.command import command_scope
 
         with command_scope():

@@ -6,13 +6,14 @@ import numpy as np
 from robstiff_drake.commands.main import parse_tool
 from robstiff_drake.identification.campaign import tool_header_line
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.pose_planning import plan_poses
-from robstiff_drake.identification.synth import command_line
 from robstiff_drake.io import check_outputs, emit_json, write_atomic
 from robstiff_drake.model.robot import load_robot
+from robstiff_drake.progress import wrote
 
 
 def plan_csv(plan, *, robot, force_N, noise_mm, tool_m):
+    from robstiff_drake.identification.synth import command_line
+
     lines = [
         "# Measurement plan made by robstiff-drake (robstiff plan-poses; D-optimal over candidate poses x 26 load",
         f"# directions). Made with: {command_line()}",
@@ -125,6 +126,8 @@ def run(*, n, candidates=120, force_N=300.0, noise_mm=0.01, tool=None, seed=0, o
         return _run_separate(n=n, separate=separate, campaign_csv=campaign, candidates=candidates, force_N=force_N,
                              noise_mm=noise_mm, tool=tool, seed=seed, out=out, json_out=json_out, robot=robot)
     tool_m = robot.tool_point(parse_tool(tool), where="plan-poses")
+    from robstiff_drake.identification.pose_planning import plan_poses  # scipy: after the checks
+
     plan = plan_poses(robot, n, n_candidate_poses=candidates, force_N=force_N, noise_mm=noise_mm, tool_m=tool_m,
                       seed=seed)
     if out is not None:
@@ -151,6 +154,8 @@ def run(*, n, candidates=120, force_N=300.0, noise_mm=0.01, tool=None, seed=0, o
                 continue
             a, b = plan.rel_std_planned[j], plan.rel_std_random[j]
             print(f"  {j + 1}     {100 * a:7.3f} %    {100 * b:7.3f} %               {b / a:5.2f}x")
-        print(f"D-efficiency gain over random: {res['d_efficiency_gain']:.2f}x"
-              + (f"; plan written to {out}" if out else ""))
+        print(f"D-efficiency gain over random: {res['d_efficiency_gain']:.2f}x")
+    wrote(out, f"the plan ({n} measurements at {res['n_poses']} poses; measure dx, dy, dz for each row)",
+          to_stderr=json_out == "-")
+    wrote(json_out, to_stderr=json_out == "-")
     return 0

@@ -7,6 +7,7 @@ import numpy as np
 from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import library_robots
+from robstiff_drake.progress import wrote
 
 
 def library():
@@ -41,4 +42,5 @@ def run(*, json_out=None):
             print(f"{r['name']:14s} {r['manufacturer']:12s} {r['model']:26s} {r['convention']:12s} "
                   f"{r['controller_map']:21s} {r['source']}")
         print("use one with --robot NAME, or give your own robot file with --robot PATH.yaml (docs/your_robot.md)")
+    wrote(json_out, to_stderr=json_out == "-")
     return 0

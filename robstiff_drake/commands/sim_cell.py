@@ -16,6 +16,7 @@ from robstiff_drake.diagrams.cell_station import CellStation
 from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import Warnings, check_outputs, emit_json, write_atomic
+from robstiff_drake.progress import wrote
 
 
 def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_out=None, robot_yaml=None,
@@ -68,4 +69,6 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
               f"rms {s['rms']:.4f}, max|e| {s['max_abs']:.4f}, PV {s['pv']:.4f}")
         print(f"{stats.cycles} cycles, {stats.answered} answered, {stats.unanswered} unanswered, "
               f"{stats.late_ticks} late")
+    wrote(reference_out, "the path's joint reference (compensate --reference)", to_stderr=json_out == "-")
+    wrote(json_out, to_stderr=json_out == "-")
     return 0

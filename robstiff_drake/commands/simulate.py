@@ -18,15 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.diagrams.cell_record import cell_files, scenario_with_compensator
-from robstiff_drake.diagrams.experiment import run_cut
+# Drake comes with the diagrams' modules, imported where they are used: a
+# bad argument is refused before that import (as fast as --help).
 from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, run_warnings
-from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.run_files import SIM_PREFIX, joint_reference_text, read_settings
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text, write_atomic
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.progress import info
+from robstiff_drake.progress import wrote
 
 MODES = {"on": (True,), "off": (False,), "both": (False, True)}
 
@@ -104,8 +103,10 @@ def plot_surfaces(results, sc):
         ax.set_xlabel("arc length along the path (mm); gaps: no material" if along_path
                       else "x along the pass (mm); gaps: no material")
         ax.set_ylabel("surface error (mm)\n+ = cut more")
-    # one key for both runs (the same scan lines), beside the axes: it covers no curve
-    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="outside right upper", fontsize=8)
+    # one key for both runs (the same scan lines), below the axes: it covers no curve, and no title
+    # (beside them, at the top, it covered the end of a long figure title)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=min(len(labels), 3), fontsize=8)
     fig.suptitle(f"{sc.name}: machined surface from the cutter's envelope (laser line scan)")
     return fig
 
@@ -160,9 +161,21 @@ def format_table(summ):
                  f"to {summ['spindle_power_W'] / 1e3:.2f} kW (rating {summ['spindle_rating_W'] / 1e3:.2f} kW)")
     lines.append("first natural frequencies at the start pose (Hz): "
                  + ", ".join(f"{v:.1f}" for v in summ["natural_frequencies_hz"]))
-    lines.append(f"simulated {summ['sim_seconds']:.2f} s in {summ['wall_seconds']:.2f} s wall "
-                 f"({summ['realtime_factor']:.1f}x real time)")
+    lines.append(simulated_line(summ["runs"]))
     return "\n".join(lines)
+
+
+def simulated_line(runs):
+    """'simulated 12.55 s per run (uncompensated, compensated) in 0.64 + 0.63 s wall (19.8x real time)':
+    each run's simulated time, not their sum."""
+    names = ", ".join(label(r["compensation"]) for r in runs)
+    sims = {round(r["sim_seconds"], 2) for r in runs}
+    sim = (f"{runs[0]['sim_seconds']:.2f} s" if len(sims) == 1 else
+           " / ".join(f"{r['sim_seconds']:.2f}" for r in runs) + " s")
+    wall = " + ".join(f"{r['wall_seconds']:.2f}" for r in runs)
+    factor = sum(r["sim_seconds"] for r in runs) / max(sum(r["wall_seconds"] for r in runs), 1e-9)
+    per = "per run " if len(runs) > 1 else ""
+    return f"simulated {sim} {per}({names}) in {wall} s wall ({factor:.1f}x real time)"
 
 
 def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath=None, work_offset=None):
@@ -171,6 +184,9 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
     "X,Y,Z[,ROT_DEG]"), with the compensator of a settings file
     (``compensator``) and the sensor's and scanner's noise seeds set to
     ``noise_seed`` (a repeated cut: new noise) when given."""
+    from robstiff_drake.diagrams.cell_record import scenario_with_compensator
+    from robstiff_drake.diagrams.scenario import load_scenario
+
     sc = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset)
     if compensator is not None:
         _, settings = read_settings(compensator)
@@ -189,6 +205,9 @@ def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warn
     ``progress``: a bar over simulated time (experiment.run_cut)."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
+    from robstiff_drake.diagrams.experiment import run_cut
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
+
     robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset), robot_yaml)
     sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed, toolpath=toolpath,
                       work_offset=work_offset)
@@ -217,23 +236,28 @@ def surface_csv(res, run_id=""):
     return buf.getvalue()
 
 
-def scenario_text(sc, run_id=""):
-    """The scenario as run (YAML), with its file references made absolute."""
+def scenario_text(sc, run_id="", kept=None):
+    """The scenario as run (YAML): its file references name the run folder's
+    kept copies (``kept``, diagrams/run_inputs.py), else made absolute."""
     import copy
 
     from pydrake.common.yaml import yaml_dump_typed
 
+    from robstiff_drake.diagrams.run_inputs import scenario_as_kept
     from robstiff_drake.diagrams.scenario import Scenario, resolve, robot_spec
 
-    sc = copy.deepcopy(sc)
-    for attr in ("identified_json", "payload_yaml"):
-        if getattr(sc.model, attr):
-            setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
-    if sc.toolpath.program:
-        sc.toolpath.program = str(resolve(sc, sc.toolpath.program).resolve())
-    spec = robot_spec(sc)
-    if spec is not None and spec != sc.robot:  # a robot file: make its path absolute
-        sc.robot = str(Path(spec).resolve())
+    if kept is not None:
+        sc = scenario_as_kept(sc, kept)
+    else:
+        sc = copy.deepcopy(sc)
+        for attr in ("identified_json", "payload_yaml"):
+            if getattr(sc.model, attr):
+                setattr(sc.model, attr, str(resolve(sc, getattr(sc.model, attr)).resolve()))
+        if sc.toolpath.program:
+            sc.toolpath.program = str(resolve(sc, sc.toolpath.program).resolve())
+        spec = robot_spec(sc)
+        if spec is not None and spec != sc.robot:  # a robot file: make its path absolute
+            sc.robot = str(Path(spec).resolve())
     source, sc.source = sc.source, ""
     body = "".join(line for line in yaml_dump_typed(sc, schema=Scenario).splitlines(keepends=True)
                    if not line.startswith("source:"))  # set by the loader, not a key of the file
@@ -244,14 +268,20 @@ def scenario_text(sc, run_id=""):
 def write_outputs(sc, results, robot, run, warnings=()):
     """Every file of a run into ``run`` (an io.RunFolder), each stamped with
     its run id; returns the names written.  The compensated cut's cell files
-    (docs/run_files.md) and the simulation's truth (``sim_*``)."""
+    (docs/run_files.md), the simulation's truth (``sim_*``) and the inputs the
+    run was made with (``inputs/``: diagrams/run_inputs.py)."""
+    from robstiff_drake.diagrams.cell_record import cell_files
+    from robstiff_drake.diagrams.run_inputs import INPUTS_DIR, kept_inputs, write_kept
+
+    kept = kept_inputs(sc, robot)
+    write_kept(run, kept)
     written = []
     for res in results:
         if res.compensation:
-            for name, text in cell_files(sc, res, robot, run.run_id).items():
+            for name, text in cell_files(sc, res, robot, run.run_id, robot_ref=kept.robot).items():
                 run.write(name, text)
                 written.append(name)
-    run.write(f"{SIM_PREFIX}scenario.yaml", scenario_text(sc, run.run_id))
+    run.write(f"{SIM_PREFIX}scenario.yaml", scenario_text(sc, run.run_id, kept))
     written.append(f"{SIM_PREFIX}scenario.yaml")
     run.save_figure("surface_error.png", plot_surfaces(results, sc), dpi=110)
     written.append("surface_error.png")
@@ -271,6 +301,7 @@ def write_outputs(sc, results, robot, run, warnings=()):
     written.append("joint_reference.csv")
     run.write("summary.json", json_text(dict(summary(results, sc, warnings), run_id=run.run_id)))
     written.append("summary.json")
+    written.append(f"{INPUTS_DIR}/ ({', '.join(Path(n).name for n in kept.names.values())})")
     return written
 
 
@@ -278,12 +309,17 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
         robot_yaml=None, toolpath=None, work_offset=None, replay=None, progress=None):
     check_outputs(inputs=[scenario, compensator, toolpath], files={"--json": json_out, "--replay": replay},
                   folders={"--out": out})
+    from robstiff_drake.diagrams import replay as replay_3d
+
+    if replay is not None and not Path(replay).exists():  # a new file: its name now, before Drake's import
+        replay_3d.check_replay_path(replay)
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+
     robot = scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset), robot_yaml)
+    if replay is not None:  # an existing file: after the scenario's inputs are known (it may be one of them)
+        replay_3d.check_replay_path(replay)
     meshcat = None
     if replay is not None:  # Meshcat needs its server: refuse before the simulation when it cannot start
-        from robstiff_drake.diagrams import replay as replay_3d
-
-        replay_3d.check_replay_path(replay)
         meshcat = replay_3d.start_meshcat()
     warnings = Warnings()
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
@@ -302,8 +338,10 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
         emit_json(summ, json_out)
     if json_out != "-":
         print(format_table(summ))
-        info(f"wrote to {out}/: " + ", ".join(written))
-        if replay is not None:
-            info(f"wrote {replay}: 3D replay, deflection magnified {shown['magnification']:g}x "
-                 f"({summ['replay']['bytes'] / 1e6:.1f} MB; opens in a browser without a server)")
+    stderr = json_out == "-"  # the JSON has standard output
+    wrote(out, ", ".join(written), folder=True, to_stderr=stderr)
+    if replay is not None:
+        wrote(replay, f"3D replay, deflection magnified {shown['magnification']:g}x "
+                      f"({summ['replay']['bytes'] / 1e6:.1f} MB; opens in a browser without a server)", to_stderr=stderr)
+    wrote(json_out, "the summary", to_stderr=stderr)
     return 0

@@ -13,6 +13,7 @@ from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
 from robstiff_drake.model.robot import load_robot
+from robstiff_drake.progress import wrote
 
 
 def parse_q_deg(values, what="stiffness"):
@@ -121,4 +122,5 @@ def run(*, q, tool=None, kx=False, json_out=None, robot_yaml=None):
             print("\nK_x (6x6; rows/cols: x y z [N/m], rx ry rz [N*m/rad]):")
             for row in rep["cartesian_stiffness_6x6"]:
                 print("  " + " ".join(f"{v:11.4g}" for v in row))
+    wrote(json_out, to_stderr=json_out == "-")
     return 0

@@ -3,16 +3,16 @@ study.  Every combination of period, delay, cutoff and mode is one
 closed-loop simulation (local process pool, or a Dask cluster), set beside
 the linear loop model's prediction."""
 
+import sys
 from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.diagrams.milling_cell import check_plant_step
-from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 from robstiff_drake.diagrams.sweep import check_combinations, combinations, run_sweep
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic
 from robstiff_drake.paths import library_robots
+from robstiff_drake.progress import info, wrote
 
 
 def parse_list(text, what, kind=float):
@@ -137,7 +137,12 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
         raise InputError(f"sweep: --workers must be >= 1, got {workers}")
     if plant_step_ms is not None and not plant_step_ms > 0:
         raise InputError(f"sweep: --plant-step-ms must be > 0, got {plant_step_ms}")
+    # Drake comes with these: after the checks of the arguments above
+    from robstiff_drake.diagrams.milling_cell import check_plant_step
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+
     sc = load_scenario(scenario)
+    plant_step_ms = plant_step_ms or shortest_period_step(sc, periods_ms, json_out)
     if plant_step_ms:
         sc.plant_config.time_step = plant_step_ms / 1e3
     combos = combinations(periods_ms, delay_steps, cutoffs_hz, mode_list)
@@ -153,14 +158,34 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
     if failed:
         warnings.add(f"{len(failed)} of {len(rows)} runs failed (see their 'error'); the first: {failed[0]['error']}")
     result = {"scenario": str(scenario), "robot": robot.name, "n_runs": len(rows), "n_failed": len(failed),
-              "complete": not failed, "runs": rows, "warnings": list(warnings)}
+              "complete": not failed, "plant_step_ms": sc.plant_config.time_step * 1e3, "runs": rows,
+              "warnings": list(warnings)}
     if json_out is not None:
         emit_json(result, json_out)
     if plot_out is not None:
         plot(rows, plot_out)
     if json_out != "-":
         print(format_table(rows))
+    wrote(json_out, f"{len(rows)} runs", to_stderr=json_out == "-")
+    wrote(plot_out, to_stderr=json_out == "-")
     return 0
+
+
+def shortest_period_step(sc, periods_ms, json_out=None):
+    """The plant step (ms) for a sweep whose shortest controller period is
+    below the scenario's plant step: that period, for every run (a plant
+    steps at least as often as its controller; one step for all runs keeps
+    them comparable, and a finer step changes the block test's result by
+    less than 0.1 um, studies/time_step_convergence.py).  None: the
+    scenario's step serves."""
+    step_ms = sc.plant_config.time_step * 1e3
+    shortest = min(periods_ms)
+    if shortest >= step_ms - 1e-9:
+        return None
+    info(f"sweep: plant step {shortest:g} ms for every run (the scenario's {step_ms:g} ms is longer than the "
+         f"shortest period, {shortest:g} ms; --plant-step-ms sets it)",
+         file=sys.stderr if json_out == "-" else None)
+    return shortest
 
 
 def format_table(rows):

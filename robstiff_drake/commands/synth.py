@@ -7,7 +7,6 @@ import numpy as np
 
 from robstiff_drake.commands.main import parse_tool, parse_vector
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification import synth
 from robstiff_drake.io import STDOUT, check_outputs, write_atomic
 from robstiff_drake.model.effects import EFFECTS
 from robstiff_drake.model.robot import load_robot
@@ -67,9 +66,12 @@ def run_stiffness(*, out, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01,
         k = np.array(parse_vector(stiffness, 6, "--stiffness"))
         if np.any(k <= 0):
             raise InputError("synth: --stiffness values must be > 0 (N*m/rad)")
+    effects = parse_effects(effects)
+    from robstiff_drake.identification import synth  # scipy: after the checks of the arguments
+
     try:
         c = synth.stiffness_campaign(robot, n=n, loads_per_pose=loads_per_pose, force_N=force_N, noise_mm=noise_mm,
-                                     seed=seed, tool_m=tool_m, effects=parse_effects(effects),
+                                     seed=seed, tool_m=tool_m, effects=effects,
                                      true_stiffness_Nm_per_rad=k)
     except ValueError as e:
         raise InputError(f"synth: {e}") from None
@@ -88,6 +90,8 @@ def run_payload(*, out, n=15, mass_kg=None, com=None, noise_N=1.0, noise_Nm=0.1,
     if mass_kg is not None:
         _positive("--mass-kg", mass_kg)
     com_m = None if com is None else np.array(parse_vector(com, 3, "--com-mm")) / 1000.0
+    from robstiff_drake.identification import synth  # scipy: after the checks of the arguments
+
     c = synth.payload_campaign(robot, n=n, mass_kg=mass_kg, com_m=com_m, noise_N=noise_N, noise_Nm=noise_Nm,
                                seed=seed)
     _write(out, synth.payload_csv(c, noise_N=noise_N, noise_Nm=noise_Nm, seed=seed))

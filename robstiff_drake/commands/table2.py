@@ -15,6 +15,7 @@ from robstiff_drake.identification.linearity import analyse_group, cartesian_dia
 from robstiff_drake.identification.table2_grouping import GROUPS, SPLIT_A
 from robstiff_drake.io import check_outputs, emit_json, save_figure_atomic
 from robstiff_drake.paths import DATA_DIR
+from robstiff_drake.progress import wrote
 
 TABLE2_CSV = DATA_DIR / "seed_table2.csv"
 
@@ -155,4 +156,6 @@ def run(*, json_out=None, plot_out=None, data=None):
         print("residual diagnosis without joint angles (per group: a line through the origin per component, "
               "and the extensions that can show):")
         print(diagnosis_markdown(diag))
+    wrote(json_out, to_stderr=json_out == "-")
+    wrote(plot_out, to_stderr=json_out == "-")
     return 0

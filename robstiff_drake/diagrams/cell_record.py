@@ -45,8 +45,9 @@ def _payload_dict(cal):
             "sensor_mount_rpy_deg": [float(v) for v in (cal.sensor_mount_rpy_deg or z)]}
 
 
-def compensator_settings(sc, robot):
-    """The compensator of scenario ``sc`` as CompensatorSettings."""
+def compensator_settings(sc, robot, robot_ref=None):
+    """The compensator of scenario ``sc`` as CompensatorSettings; ``robot_ref``:
+    how its ``robot:`` names the robot (default: the scenario's own)."""
     c = sc.controller
     return rf.CompensatorSettings(
         joint_stiffness_Nm_per_rad=[float(v) for v in model_stiffness(sc, robot)],
@@ -59,7 +60,7 @@ def compensator_settings(sc, robot):
         saturation_deg=float(c.saturation_deg), rate_limit_deg_per_s=float(c.rate_limit_deg_per_s),
         lost_motion_rad=[float(v) for v in (sc.model.lost_motion_rad or np.zeros(6))],
         coupling_c23_rad_per_Nm=float(sc.model.coupling_c23_rad_per_Nm),
-        force_model_scale=float(sc.model.force_model_scale), robot=_robot_spec_text(sc, robot),
+        force_model_scale=float(sc.model.force_model_scale), robot=robot_ref or _robot_spec_text(sc, robot),
         servo=servo_settings(sc))
 
 
@@ -163,8 +164,9 @@ def cell_logs(result):
     return wrench, joints, scan
 
 
-def cell_files(sc, result, robot, run_id):
-    """{file name: text} of the cell files of one simulated cut."""
+def cell_files(sc, result, robot, run_id, robot_ref=None):
+    """{file name: text} of the cell files of one simulated cut; ``robot_ref``:
+    see compensator_settings (a run folder names its kept copy)."""
     wrench, joints, scan = cell_logs(result)
     note = f"simulated by robstiff simulate ({sc.name or sc.source})"
     sim_wrench = ("In this simulated run: the reading after the compensator's guard (a dropout or a spike is "
@@ -175,6 +177,6 @@ def cell_files(sc, result, robot, run_id):
     return {
         rf.WRENCH_LOG: rf.wrench_log_text(wrench, run_id, [note, sim_wrench]),
         rf.JOINT_LOG: rf.joint_log_text(joints, run_id, [note]),
-        rf.SETTINGS: rf.settings_text(compensator_settings(sc, robot), run_id, [note]),
+        rf.SETTINGS: rf.settings_text(compensator_settings(sc, robot, robot_ref), run_id, [note]),
         rf.SCAN: rf.scan_text(scan, run_id, [note, sim_scan]),
     }

@@ -18,8 +18,15 @@ What is drawn (Drake's world frame = the robot's base frame, m):
   * the robot on the planned path (translucent grey);
   * the workpiece boxes (drawn WORKPIECE_DEPTH_M deep: the scenario gives
     only their tops);
-  * the planned tool path (black) and each run's magnified tool path.
-The page carries a caption with N and what each colour is.
+  * the planned tool path (black) and each run's magnified tool path, as
+    tubes (a WebGL line is one pixel wide whatever its width says).
+Where the robots coincide (the base, the links near it) their surfaces
+would lie in one another and flicker (z-fighting): each is drawn a few
+millimetres larger than the one inside it (ROBOT_INFLATE_M), the
+compensated robot outside the uncompensated one, the planned robot's
+translucent shell outside both.  The camera frames the robots over the
+whole cut, the workpiece and the paths (``camera_pose``).  The page says N
+in a title line and a caption with what each colour is.
 """
 
 import logging
@@ -42,8 +49,17 @@ CAPTION_ID = "robstiff-replay-caption"
 RUN_COLORS = {"uncompensated": (0.95, 0.45, 0.05, 1.0), "compensated": (0.10, 0.45, 0.85, 1.0)}
 PLANNED_ROBOT_RGBA = (0.6, 0.6, 0.6, 0.25)
 PLANNED_PATH_RGBA = (0.0, 0.0, 0.0, 1.0)
-WORKPIECE_RGBA = (0.35, 0.55, 0.45, 0.5)  # translucent: the tool path runs inside the material
-CAMERA_OFFSET_M = np.array([1.0, -1.8, 0.7])  # from the point it looks at: in front, to the side, above
+WORKPIECE_RGBA = (0.2, 0.65, 0.35, 0.6)  # translucent: the tool path runs inside the material
+# the camera looks from beside the arm (-y), a little in front (+x) and above: the arm's plane (x-z) and the
+# path's vertical deviations in profile
+CAMERA_DIRECTION = np.array([0.35, -1.0, 0.2])
+CAMERA_FOV_DEG = 75.0  # Meshcat's camera (three.js PerspectiveCamera), vertical field of view
+FRAMING_MARGIN = 0.08  # share of the field of view left free around the framed points
+# how much larger each robot is drawn than the one inside it (m): no coinciding surfaces
+ROBOT_INFLATE_M = {"uncompensated": 0.0, "compensated": 0.004, "planned": 0.008}
+PATH_TUBE_RADIUS_M = {"planned": 0.006, "run": 0.006}
+TITLE_ID = "robstiff-replay-title"
+SPINDLE_ALPHA = 0.35  # the spindles are drawn translucent: the tool path runs under them
 
 
 def start_meshcat(port=None):
@@ -113,12 +129,30 @@ def magnification(robot, tool_m, runs):
     return (nice_factor(TARGET_MAGNIFIED_M / dev) if dev > 0 else 1.0), dev
 
 
-def _urdf_with_color(robot, link_rgba, all_rgba=None):
+def _inflated(text, inflate_m):
+    """URDF text with every box and cylinder ``inflate_m`` larger on each side."""
+    if not inflate_m:
+        return text
+
+    def box(m):
+        return '<box size="' + " ".join(f"{float(v) + 2 * inflate_m:.9g}" for v in m.group(1).split()) + '"'
+
+    def cylinder(m):
+        return f'<cylinder radius="{float(m.group(1)) + inflate_m:.9g}" length="{float(m.group(2)) + 2 * inflate_m:.9g}"'
+
+    text = re.sub(r'<box size="([^"]*)"', box, text)
+    return re.sub(r'<cylinder radius="([^"]*)" length="([^"]*)"', cylinder, text)
+
+
+def _urdf_with_color(robot, link_rgba, all_rgba=None, inflate_m=0.0):
     """The robot's URDF with its link colour (and, with ``all_rgba``, every
-    colour, the spindle's too) replaced."""
-    text = make_urdf(robot)
+    colour, the spindle's too) replaced, its shapes ``inflate_m`` larger."""
+    text = _inflated(make_urdf(robot), inflate_m)
     rgba = " ".join(f"{v:g}" for v in link_rgba)
     text = re.sub(r'(<material name="link_color"><color rgba=")[^"]*', rf"\g<1>{rgba}", text)
+    # the spindle sits on the tool path: see the path and the workpiece through it
+    text = re.sub(r'(<material name="steel"><color rgba=")([^"]*)', lambda m: m.group(1) + " ".join(
+        m.group(2).split()[:3] + [f"{SPINDLE_ALPHA:g}"]), text)
     if all_rgba is not None:
         text = re.sub(r'(<color rgba=")[^"]*', r"\g<1>" + " ".join(f"{v:g}" for v in all_rgba), text)
     return text
@@ -137,8 +171,8 @@ def build_scene(meshcat, robot, names, fps=FRAMES_PER_SECOND):
     plant, scene_graph = AddMultibodyPlantSceneGraph(builder, time_step=0.0)
     instances = {}
     for name in ("planned", *names):
-        text = (_urdf_with_color(robot, PLANNED_ROBOT_RGBA, PLANNED_ROBOT_RGBA) if name == "planned"
-                else _urdf_with_color(robot, RUN_COLORS[name]))
+        text = (_urdf_with_color(robot, PLANNED_ROBOT_RGBA, PLANNED_ROBOT_RGBA, ROBOT_INFLATE_M[name])
+                if name == "planned" else _urdf_with_color(robot, RUN_COLORS[name], inflate_m=ROBOT_INFLATE_M[name]))
         (inst,) = Parser(plant, model_name_prefix=name).AddModelsFromString(text, "urdf")
         plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(robot.links[0].name, inst))
         instances[name] = inst
@@ -159,23 +193,118 @@ def draw_cell(meshcat, sc, workpiece, planned_path_m, run_paths_m):
         path = f"/cell/workpiece/box_{i}"
         meshcat.SetObject(path, Box(x1 - x0, y1 - y0, WORKPIECE_DEPTH_M), Rgba(*WORKPIECE_RGBA))
         meshcat.SetTransform(path, RigidTransform([(x0 + x1) / 2, (y0 + y1) / 2, top - WORKPIECE_DEPTH_M / 2]))
-    meshcat.SetLine("/cell/tool_path/planned", np.asfortranarray(planned_path_m.T), 3.0, Rgba(*PLANNED_PATH_RGBA))
+    draw_tube(meshcat, "/cell/tool_path/planned", planned_path_m, PATH_TUBE_RADIUS_M["planned"], PLANNED_PATH_RGBA)
     for name, p in run_paths_m.items():
-        meshcat.SetLine(f"/cell/tool_path/{name}_magnified", np.asfortranarray(p.T), 2.0, Rgba(*RUN_COLORS[name]))
+        draw_tube(meshcat, f"/cell/tool_path/{name}_magnified", p, PATH_TUBE_RADIUS_M["run"], RUN_COLORS[name])
+
+
+def tube_mesh(points_m, radius_m, sides=8):
+    """(vertices (3, N*sides), faces (3, M)) of a tube of ``radius_m`` along
+    the polyline ``points_m`` (N, 3); repeated points are dropped."""
+    p = np.asarray(points_m, dtype=float)
+    keep = np.r_[True, np.linalg.norm(np.diff(p, axis=0), axis=1) > 1e-9]
+    p = p[keep]
+    if len(p) < 2:
+        p = np.vstack([p[:1], p[:1] + [1e-6, 0.0, 0.0]])
+    tangent = np.gradient(p, axis=0)
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    ref = np.where(np.abs(tangent[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
+    u = np.cross(tangent, ref)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(tangent, u)
+    angles = 2 * np.pi * np.arange(sides) / sides
+    ring = (np.cos(angles)[None, :, None] * u[:, None, :] + np.sin(angles)[None, :, None] * v[:, None, :])
+    vertices = (p[:, None, :] + radius_m * ring).reshape(-1, 3)
+    faces = []
+    for i in range(len(p) - 1):
+        for k in range(sides):
+            a, b = i * sides + k, i * sides + (k + 1) % sides
+            c, d = a + sides, b + sides
+            faces += [(a, b, d), (a, d, c)]
+    return np.asfortranarray(vertices.T), np.asfortranarray(np.array(faces, dtype=np.int32).T)
+
+
+def draw_tube(meshcat, path, points_m, radius_m, rgba):
+    from pydrake.geometry import Rgba
+
+    vertices, faces = tube_mesh(points_m, radius_m)
+    meshcat.SetTriangleMesh(path, vertices, faces, Rgba(*rgba))
+
+
+def drawn_points(plant, context, instances, q_by_name, frames=24):
+    """Corners (m, world) of the bounding boxes of every illustration shape
+    (boxes, cylinders) of the robots, at ``frames`` instants of the cut
+    (``q_by_name``: {instance name: (frames, 6) joint angles})."""
+    from pydrake.geometry import Box, Cylinder, Role
+
+    plant_context = plant.GetMyMutableContextFromRoot(context)
+    query = plant.get_geometry_query_input_port()
+    inspector = query.Eval(plant_context).inspector()
+    shapes = []
+    for gid in inspector.GetAllGeometryIds():
+        if inspector.GetProperties(gid, Role.kIllustration) is None:
+            continue
+        shape = inspector.GetShape(gid)
+        if isinstance(shape, Box):
+            half = np.array([shape.width(), shape.depth(), shape.height()]) / 2
+        elif isinstance(shape, Cylinder):
+            half = np.array([shape.radius(), shape.radius(), shape.length() / 2])
+        else:
+            continue
+        shapes.append((gid, half))
+    cube = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    n = len(next(iter(q_by_name.values())))
+    pts = []
+    for k in np.unique(np.linspace(0, n - 1, frames).astype(int)):
+        for name, q in q_by_name.items():
+            plant.SetPositions(plant_context, instances[name], q[k])
+        q_obj = query.Eval(plant_context)
+        for gid, half in shapes:
+            X = q_obj.GetPoseInWorld(gid)
+            pts.append((X.rotation().matrix() @ (cube * half).T).T + X.translation())
+    return np.vstack(pts)
+
+
+def camera_pose(points_m, aspect=4 / 3):
+    """(camera position, target) in m from which the camera, looking along
+    -CAMERA_DIRECTION, sees every point of ``points_m`` (N, 3), in a window
+    of ``aspect`` (width / height) or wider (Meshcat's vertical field of
+    view is CAMERA_FOV_DEG), with FRAMING_MARGIN (a share) to spare."""
+    pts = np.asarray(points_m, dtype=float)
+    back = CAMERA_DIRECTION / np.linalg.norm(CAMERA_DIRECTION)  # from the target towards the camera
+    right = np.cross([0.0, 0.0, 1.0], back)
+    right /= np.linalg.norm(right)
+    up = np.cross(back, right)
+    tan_v = np.tan(np.radians(CAMERA_FOV_DEG) / 2) / (1 + FRAMING_MARGIN)
+    tan_h = aspect * tan_v
+    # centre the view on the points' extent across the image, then back off until all fit
+    x, y = pts @ right, pts @ up
+    target = right * (x.max() + x.min()) / 2 + up * (y.max() + y.min()) / 2 + back * float(np.mean(pts @ back))
+    rel = pts - target
+    x, y, depth = rel @ right, rel @ up, rel @ back  # depth: towards the camera
+    distance = float(np.max(np.maximum(np.abs(x) / tan_h, np.abs(y) / tan_v) + depth))
+    return target + back * distance, target
 
 
 def caption_html(sc, robot, factor, deviation_m, names, t_end_s):
-    """The page's caption: what is shown and the magnification."""
+    """The page's title line (the magnification, large) and its caption:
+    what is shown."""
     runs = ", ".join(f"{n}: {_color_name(n)}" for n in names)
-    return (f'<div id="{CAPTION_ID}" style="position:fixed;left:8px;bottom:8px;max-width:60vw;z-index:10;'
-            'background:rgba(255,255,255,0.85);padding:6px 10px;font:13px sans-serif;border-radius:4px">'
+    title = (f'<div id="{TITLE_ID}" style="position:fixed;left:8px;top:8px;z-index:10;'
+             'background:rgba(255,255,255,0.85);padding:6px 10px;font:bold 20px sans-serif;border-radius:4px">'
+             f'{_html(sc.name)}: deflection magnified <span id="robstiff-magnification">{factor:g}</span>&times;'
+             '</div>')
+    return title + (f'<div id="{CAPTION_ID}" style="position:fixed;right:8px;bottom:8px;max-width:40vw;z-index:10;'
+            'background:rgba(255,255,255,0.85);padding:5px 8px;font:12px sans-serif;border-radius:4px">'
             f'<b>{_html(sc.name)}</b> ({_html(robot.manufacturer)} {_html(robot.model)}), {t_end_s:.1f} s simulated. '
-            f'<b>Deflection magnified <span id="robstiff-magnification">{factor:g}</span>&times;</b>: each robot is '
+            f'<b>Deflection magnified {factor:g}&times;</b>: each robot is '
             f'drawn at planned + {factor:g} &times; (simulated &minus; planned) joint angles, so its tool point '
             f'leaves the planned path by {factor:g} times its real deviation (largest real deviation '
             f'{deviation_m * 1e3:.3f} mm: the deflection under the cut and the servo\'s lag). Robots: {runs}; '
             'translucent grey: on the planned path. Lines: black, the planned tool path; coloured, each run\'s '
-            f'magnified tool path. Workpiece boxes drawn {WORKPIECE_DEPTH_M * 1e3:.0f} mm deep. Controls (top '
+            f'magnified tool path. Workpiece boxes drawn {WORKPIECE_DEPTH_M * 1e3:.0f} mm deep. Where the robots '
+            f'coincide, the blue one is drawn {ROBOT_INFLATE_M["compensated"] * 1e3:g} mm larger than the orange one '
+            '(no flicker). Controls (top '
             'right): Animations to replay, the scene tree to hide a robot.</div>')
 
 
@@ -207,9 +336,14 @@ def replay_html(meshcat, sc, results, robot, *, fps=FRAMES_PER_SECOND):
     plant_context = plant.GetMyMutableContextFromRoot(context)
     vis_context = vis.GetMyContextFromRoot(context)
     path_t = np.linspace(0.0, cell.path.duration_s, 400)
-    draw_cell(meshcat, sc, cell.workpiece, cell.path.positions(path_t),
-              {name: tool_points(robot, tool_m, q) for name, q in shown.items()})
-    meshcat.SetCameraPose(_target(cell) + CAMERA_OFFSET_M, _target(cell))
+    planned_path = cell.path.positions(path_t)
+    run_paths = {name: tool_points(robot, tool_m, q) for name, q in shown.items()}
+    draw_cell(meshcat, sc, cell.workpiece, planned_path, run_paths)
+    w = cell.workpiece
+    boxes = [np.array([[x, y, z] for x in (x0, x1) for y in (y0, y1) for z in (top, top - WORKPIECE_DEPTH_M)])
+             for (x0, x1), (y0, y1), top in zip(w.x_m, w.y_m, w.top_m)]
+    robots = drawn_points(plant, context, instances, {"planned": q_plan, **shown})
+    meshcat.SetCameraPose(*camera_pose(np.vstack([robots, *boxes, planned_path, *run_paths.values()])))
 
     def show(k):
         plant.SetPositions(plant_context, instances["planned"], q_plan[k])
@@ -235,8 +369,3 @@ def replay_html(meshcat, sc, results, robot, *, fps=FRAMES_PER_SECOND):
     return html, {"magnification": factor, "max_deviation_mm": dev * 1e3, "frames": len(times),
                   "frames_per_second": fps}
 
-
-def _target(cell):
-    """Where the camera looks (m): the middle of the workpiece's top."""
-    w = cell.workpiece
-    return np.array([w.x_m.mean(), w.y_m.mean(), float(np.max(w.top_m))])

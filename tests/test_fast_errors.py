@@ -1,0 +1,55 @@
+"""A mistyped file name or a bad argument is refused before Drake (or scipy)
+is imported: the one-line error comes as fast as --help's answer.  Each
+case runs in a fresh interpreter and asserts what was imported when the
+error came (no timing: benchmarks/bench_bad_input.py times them against
+--help)."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+PROBE = """
+import json, sys
+from robstiff_drake.commands.main import main
+code = main(json.loads(sys.argv[1]))
+print(json.dumps({"code": code, "heavy": sorted(m for m in ("pydrake", "scipy") if m in sys.modules)}))
+"""
+
+CASES = [  # (argv, a part of the error line, modules that must not be imported)
+    (["simulate", "no_such_scenario"], "no such scenario file, and no packaged scenario", ("pydrake", "scipy")),
+    (["simulate", "block_milling", "--replay", "r.png", "--out", "o"], "give a name ending in .html", ("pydrake",)),
+    (["simulate", "block_milling", "--compensator", "missing.yaml"], "missing.yaml: no such run file",
+     ("pydrake", "scipy")),
+    (["simulate", "block_milling", "--robot", "no_such_robot"], "not a library robot", ("pydrake", "scipy")),
+    (["sweep", "block_milling", "--period-ms", "4,x"], "'x' is not a number", ("pydrake",)),
+    (["sweep", "block_milling", "--period-ms", "4", "--mode", "clever"], "expected plain and/or predictive",
+     ("pydrake",)),
+    (["sim-cell", "no_such_scenario", "--egm-to", "127.0.0.1:6510", "--netft-port", "49152"],
+     "no such scenario file", ("pydrake", "scipy")),
+    (["compensate", "--egm-port", "6510", "--netft", "127.0.0.1", "--model", "missing.json", "--payload", "p.yaml"],
+     "--model missing.json: cannot read", ("pydrake", "scipy")),
+    (["demo", "--robot", "no_such_robot"], "not a library robot", ("pydrake", "scipy")),
+    (["demo", "--out", "a_file.txt"], "is a file, not a folder", ("pydrake",)),
+    (["diagnose-run", "no_such_run"], "no such run folder", ("pydrake", "scipy")),
+    (["identify", "missing.csv"], "missing.csv: cannot read", ("pydrake", "scipy")),
+    (["identify", "a_file.txt", "--tool", "1,2"], "--tool: expected 3 comma-separated numbers", ("pydrake", "scipy")),
+    (["diagnose", "missing.csv"], "missing.csv: cannot read", ("pydrake", "scipy")),
+    (["calibrate-payload", "missing.csv"], "missing.csv: cannot read", ("pydrake", "scipy")),
+    (["stiffness", "0", "0", "0", "--robot", "my_robot.yaml"], "my_robot.yaml: no such robot file",
+     ("pydrake", "scipy")),
+    (["synth", "stiffness", "c.csv", "--effect", "no_such_effect"], "unknown effect", ("pydrake", "scipy")),
+]
+
+
+@pytest.mark.parametrize("argv, message, not_imported", CASES, ids=[" ".join(c[0][:2]) + f" #{i}"
+                                                                      for i, c in enumerate(CASES)])
+def test_bad_input_is_refused_before_the_heavy_imports(tmp_path, argv, message, not_imported):
+    (tmp_path / "a_file.txt").write_text("not a folder, not a campaign\n")
+    proc = subprocess.run([sys.executable, "-c", PROBE, json.dumps(argv)], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=120)
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    err = proc.stderr.strip().splitlines()
+    assert result["code"] == 2 and len(err) == 1 and message in err[0], (proc.stderr, result)
+    assert not set(not_imported) & set(result["heavy"]), f"imported {result['heavy']} before refusing {argv}"
