@@ -82,7 +82,8 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     egm_port, netft_port = free_udp_port(), free_udp_port()
     cell, ref, out = _sim_cell(tmp_path, egm_port=egm_port, netft_port=netft_port, lockstep=lockstep)
     comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
-                           "--netft", f"127.0.0.1:{netft_port}", "--model", model, "--payload", payload,
+                           "--netft", f"127.0.0.1:{netft_port}", "--netft-http-port", str(netft_port), "--model", model,
+                           "--payload", payload,
                            "--reference", str(_wait_for(ref)), "--wait-s", "40", "--idle-exit-s", "1.0",
                            "--cutoff-hz", "2", "--sensor-rate-hz", "1000", "--delay-steps", "1",
                            "--log", str(tmp_path / "log")],

@@ -4,10 +4,11 @@
 
 The message definitions are those of ABB's egm.proto as the package
 abb-robot-client ships them compiled (abb_robot_client._egm_protobuf,
-Apache-2.0); nothing is copied here.  The PC side sends through
-abb-robot-client's ``EGM`` class; it receives and checks the messages
-itself (abb-robot-client's receive neither checks the message type nor
-survives a datagram that is not protobuf), and the controller's side
+Apache-2.0); nothing is copied here.  The PC side (``EgmLink``,
+cell/link.py's checks) encodes and decodes with those definitions, as
+abb-robot-client's ``EGM`` class does (its receive neither checks the
+message type nor survives a datagram that is not protobuf, and its send
+answers whoever sent last), and the controller's side
 (``ControllerLink``: the simulated cell and the tests' fake controller) is
 written here: no package implements it.
 """
@@ -17,6 +18,7 @@ import select
 import socket
 import time
 
+from robstiff_drake.cell.link import Message, MessageError, PCLink
 from robstiff_drake.errors import InputError
 
 EGM_JOINTS = 6
@@ -30,7 +32,7 @@ def _egm_pb2():
     return egm_pb2
 
 
-class EgmMessageError(ValueError):
+class EgmMessageError(MessageError):
     """A datagram that is not a usable EgmRobot message."""
 
 
@@ -56,54 +58,35 @@ def parse_robot_message(data, pb2=None):
     return msg.header.seqno, msg.header.tm, joints, planned
 
 
-class SensorLink:
-    """The PC's side: receives EgmRobot on ``port`` and answers the
-    controller with joint targets (deg) through abb-robot-client."""
+class EgmLink(PCLink):
+    """The PC's side: receives EgmRobot on ``port`` from the controller
+    only, and answers it with an EgmSensor of joint targets (deg) in
+    ``planned.joints`` (EGMRunJoint), header MSGTYPE_CORRECTION as
+    abb-robot-client's ``EGM.send_to_robot`` writes it."""
 
-    def __init__(self, port):
-        try:
-            from abb_robot_client.egm import EGM
-        except ImportError:
-            raise InputError("EGM needs the package abb-robot-client: pip install 'robstiff-drake[cell]'") from None
+    name = "EGM"
+    option = "--egm-port"
+
+    def __init__(self, port, controller):
         self.pb2 = _egm_pb2()
+        super().__init__(port, controller)
+        self._out_seq = 0
+
+    def decode(self, data):
         try:
-            self._egm = EGM(port=port)
-        except OSError as e:
-            raise InputError(f"--egm-port {port}: cannot listen on UDP port {port} ({e.strerror}; is another "
-                             "compensator running?)") from None
-        self.sock = self._egm.socket
-        self.port = port
-        self.skipped = 0
+            seq, tm, joints, _ = parse_robot_message(data, self.pb2)
+        except EgmMessageError as e:
+            raise MessageError(str(e)) from None
+        return Message(seq, tm, joints)
 
-    def receive(self, timeout_s):
-        """(datagram, arrival time s on time.monotonic) of the newest message,
-        or None after ``timeout_s``.  Older messages waiting behind it (the
-        PC fell behind, or the controller sent before the loop started) are
-        dropped and counted in ``skipped``: answering them would be late."""
-        self.sock.settimeout(timeout_s)
-        try:
-            data, addr = self.sock.recvfrom(65536)
-        except (socket.timeout, BlockingIOError):
-            return None
-        except OSError:
-            return None
-        t = time.monotonic()
-        self.sock.setblocking(False)
-        while True:
-            try:
-                data, addr = self.sock.recvfrom(65536)
-                t = time.monotonic()
-                self.skipped += 1
-            except (BlockingIOError, InterruptedError, OSError):
-                break
-        self._egm.egm_addr = addr
-        return data, t
-
-    def send_joints(self, joints_deg):
-        return self._egm.send_to_robot(joints_deg)
-
-    def close(self):
-        self.sock.close()
+    def encode(self, message, targets_deg):
+        m = self.pb2.EgmSensor()
+        self._out_seq += 1
+        m.header.mtype = self.pb2.EgmHeader.MSGTYPE_CORRECTION
+        m.header.seqno = self._out_seq
+        m.header.tm = message.tm_ms & 0xFFFFFFFF
+        m.planned.joints.joints.extend(float(v) for v in targets_deg)
+        return m.SerializeToString()
 
 
 class ControllerLink:
@@ -119,6 +102,7 @@ class ControllerLink:
         self.addr = (host, port)
         self.seqno = 0
         self.t0 = time.monotonic()
+        self._sent = {}
 
     def restart(self):
         """A controller restart: the sequence number and clock start again."""
@@ -172,6 +156,39 @@ class ControllerLink:
                 if all(math.isfinite(v) for v in j):
                     latest = j
         return latest
+
+    name = "EGM"
+
+    def send_state(self, k, joints_deg, planned_deg, tm_ms, bad_type=False):
+        """Send cycle ``k``'s EgmRobot; the answer to it echoes ``tm_ms``."""
+        mtype = self.pb2.EgmHeader.MSGTYPE_COMMAND if bad_type else None
+        if len(self._sent) > 4096:  # answers that never came
+            self._sent.clear()
+        self._sent[int(round(tm_ms)) & 0xFFFFFFFF] = k
+        return self.send(self.robot_message(joints_deg, planned_deg, mtype, tm_ms=tm_ms))
+
+    def skip(self):
+        """A message lost on the way: its sequence number is used up."""
+        self.seqno += 1
+
+    def answers(self):
+        """[(cycle k answered or None, targets deg)] of the EgmSensor waiting."""
+        out = []
+        while True:
+            try:
+                data, _ = self.sock.recvfrom(65536)
+            except (BlockingIOError, InterruptedError, OSError):
+                return out
+            m = self.pb2.EgmSensor()
+            try:
+                m.ParseFromString(data)
+            except Exception:
+                continue
+            if m.HasField("planned") and len(m.planned.joints.joints) == EGM_JOINTS:
+                out.append((self._sent.pop(m.header.tm, None), list(m.planned.joints.joints)))
+
+    def wait(self, timeout_s):
+        select.select([self.sock], [], [], timeout_s)
 
     def close(self):
         self.sock.close()

@@ -168,6 +168,11 @@ class RobotModel:
     citation: str = ""  # where the kinematics come from (the file's `source:`)
     convention: str = "standard_dh"
     joint_map: JointMap = IDENTITY_MAP
+    # the controller's axis speed and acceleration limits (deg/s, deg/s^2,
+    # controller convention; joint_limits.speed_deg_per_s and
+    # .acceleration_deg_per_s2); None: the robot file does not give them
+    speed_limit_deg_per_s: np.ndarray | None = None
+    acceleration_limit_deg_per_s2: np.ndarray | None = None
 
     @property
     def joint_compliance_rad_per_Nm(self):
@@ -495,12 +500,18 @@ def load_robot(path=None):
     joint_map = _read_joint_map(r, doc)
 
     lim = r.mapping(doc, "joint_limits")
-    r.only_keys(lim, {"lower_deg", "upper_deg"}, "joint_limits.")
+    r.only_keys(lim, {"lower_deg", "upper_deg", "speed_deg_per_s", "acceleration_deg_per_s2"}, "joint_limits.")
     lower = r.vector(lim, "lower_deg", N_JOINTS, "joint_limits.")
     upper = r.vector(lim, "upper_deg", N_JOINTS, "joint_limits.")
     for i in range(N_JOINTS):
         if not lower[i] < upper[i]:
             r.fail("joint_limits", f"joint {i + 1}: lower {lower[i]} >= upper {upper[i]}")
+    rates = {}
+    for key in ("speed_deg_per_s", "acceleration_deg_per_s2"):  # optional: `compensate` needs them
+        if key in lim:
+            rates[key] = r.vector(lim, key, N_JOINTS, "joint_limits.")
+            if np.any(rates[key] <= 0):
+                r.fail(f"joint_limits.{key}", f"every value must be > 0, got {rates[key].tolist()}")
 
     k = r.vector(doc, "joint_stiffness_Nm_per_rad", N_JOINTS)
     if np.any(k <= 0):
@@ -548,6 +559,8 @@ def load_robot(path=None):
         citation=r.text(doc, "source", default="-"),
         convention=convention,
         joint_map=joint_map,
+        speed_limit_deg_per_s=rates.get("speed_deg_per_s"),
+        acceleration_limit_deg_per_s2=rates.get("acceleration_deg_per_s2"),
     )
 
 
