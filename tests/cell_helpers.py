@@ -40,7 +40,7 @@ def calibration(robot):
                               sensor_mount_rpy_deg=[0.0, 0.0, 0.0])
 
 
-def write_inputs(folder, robot, *, feed_mm_per_s=20.0, duration_s=3.0, robot_name=None, nominal=None):
+def write_inputs(folder, robot, *, feed_mm_per_s=20.0, duration_s=3.0, robot_name=None, nominal=None, start_mm=None):
     """model.json, payload.yaml and reference.csv in ``folder``; returns
     their paths and the reference as a function of time (rad)."""
     model = os.path.join(folder, "model.json")
@@ -60,7 +60,7 @@ def write_inputs(folder, robot, *, feed_mm_per_s=20.0, duration_s=3.0, robot_nam
     ts = np.arange(0.0, min(duration_s, 3.5) + 1e-9, 0.004)
     q_prev, qs = None, []
     for t in ts:
-        p = np.array(START_MM) / 1e3 + [feed_mm_per_s * min(t, 3.0) / 1e3, 0.0, 0.0]
+        p = np.array(start_mm or START_MM) / 1e3 + [feed_mm_per_s * min(t, 3.0) / 1e3, 0.0, 0.0]
         q_prev = ik.solve_ik(robot.dh, ik.tool_down_pose(p, 0.0), robot.payload.tool_point_m, q_ref_rad=q_prev,
                              q_lower_rad=robot.q_lower_rad, q_upper_rad=robot.q_upper_rad)
         qs.append(q_prev)

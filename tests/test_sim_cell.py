@@ -23,6 +23,10 @@ from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.model.robot import load_robot
 
 SHORT = os.path.join(ROOT, "tests", "data", "short_block.yaml")
+# the same pass on the KUKA (its A3 offset by -90 deg) and the FANUC (its J3 measured from the horizontal):
+# robot files with a `controller:` map between the controller's angles and the model's
+OTHER_ROBOTS = {name: os.path.join(ROOT, "tests", "data", f"short_block_{name}.yaml")
+                for name in ("kr240_r2900", "r2000ic_165f")}
 
 
 @pytest.fixture(scope="module")
@@ -55,10 +59,10 @@ def test_stepped_station_cuts_what_the_diagram_cuts(short):
     assert abs(adapter["pv"] - diagram["pv"]) < 0.15 * diagram["pv"] + 0.005, (adapter, diagram)
 
 
-def _sim_cell(tmp_path, *, egm_port, netft_port, lockstep):
+def _sim_cell(tmp_path, *, egm_port, netft_port, lockstep, scenario=SHORT):
     ref = tmp_path / "cell_reference.csv"
     out = tmp_path / "cell.json"
-    cell = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "sim-cell", SHORT,
+    cell = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "sim-cell", scenario,
                              "--egm-to", f"127.0.0.1:{egm_port}", "--netft-port", str(netft_port),
                              "--reference-out", str(ref), "--json", str(out), "--wait-s", "40"]
                             + (["--lockstep"] if lockstep else []),
@@ -79,16 +83,8 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     model, payload, _, _ = write_inputs(str(tmp_path), robot)
     # the payload calibration's bias is the scenario's sensor bias
     assert np.allclose(sc.sensor.force_bias_N, FORCE_BIAS_N) and np.allclose(sc.sensor.torque_bias_Nm, TORQUE_BIAS_NM)
-    egm_port, netft_port = free_udp_port(), free_udp_port()
-    cell, ref, out = _sim_cell(tmp_path, egm_port=egm_port, netft_port=netft_port, lockstep=lockstep)
-    comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
-                           "--netft", f"127.0.0.1:{netft_port}", "--netft-http-port", str(netft_port), "--model", model,
-                           "--payload", payload,
-                           "--reference", str(_wait_for(ref)), "--wait-s", "40", "--idle-exit-s", "1.0",
-                           "--cutoff-hz", "2", "--sensor-rate-hz", "1000", "--delay-steps", "1",
-                           "--log", str(tmp_path / "log")],
-                          cwd=ROOT, capture_output=True, text=True, timeout=120)
-    _, cerr = cell.communicate(timeout=120)
+    cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=lockstep)
+    cerr = cell.stderr
     assert cell.returncode == 0, (cerr, comp.stderr)
     assert comp.returncode == 0, comp.stderr
     res = json.loads(out.read_text())
@@ -119,6 +115,53 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     # it then steps through the missed ones and the target jumps, the servo's
     # velocity feed-forward jerks the arm by tens of micrometres and the face
     # mill keeps the deepest dip over a cutter's width (docs/real_cell.md).
+
+
+def _run_pair(tmp_path, model, payload, *, lockstep, scenario=SHORT, robot=None):
+    """sim-cell and compensate, started together as docs/real_cell.md pastes them (compensate waits for
+    the reference sim-cell writes when it is up); (sim-cell's, compensate's completed process, JSON path)."""
+    egm_port, netft_port = free_udp_port(), free_udp_port()
+    cell, ref, out = _sim_cell(tmp_path, egm_port=egm_port, netft_port=netft_port, lockstep=lockstep,
+                               scenario=scenario)
+    comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
+                           "--netft", f"127.0.0.1:{netft_port}", "--netft-http-port", str(netft_port), "--model", model,
+                           "--payload", payload, "--reference", str(ref), "--wait-s", "60", "--idle-exit-s", "1.0",
+                           "--cutoff-hz", "2", "--sensor-rate-hz", "1000", "--delay-steps", "1",
+                           "--log", str(tmp_path / "log")] + (["--robot", robot] if robot else []),
+                          cwd=ROOT, capture_output=True, text=True, timeout=180)
+    _, cerr = cell.communicate(timeout=180)
+    return subprocess.CompletedProcess(cell.args, cell.returncode, "", cerr), comp, out
+
+
+@pytest.mark.parametrize("name", sorted(OTHER_ROBOTS))
+def test_kuka_and_fanuc_conventions_over_the_protocols_match_the_diagram(tmp_path, name):
+    """The controller's convention: the KUKA's and the FANUC's references,
+    feedback and targets are in their controllers' angles (A3 offset by
+    -90 deg; J3 from the horizontal), mapped through the robot file's
+    `controller:` block; in lockstep the corrections sent and the surface
+    cut match the in-diagram run's."""
+    sc = load_scenario(OTHER_ROBOTS[name])
+    robot = load_robot(name)
+    assert not robot.joint_map.is_identity
+    diagram = run_cut(sc, robot, compensation=True)
+    start = (robot.workspace.reference_tool_point_m * 1e3).tolist()
+    model, payload, _, _ = write_inputs(str(tmp_path), robot, duration_s=0.1, start_mm=start)
+    cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=True, scenario=OTHER_ROBOTS[name], robot=name)
+    assert cell.returncode == 0, (cell.stderr, comp.stderr)
+    assert comp.returncode == 0, comp.stderr
+    res = json.loads(out.read_text())
+    log = _read_log(tmp_path / "log" / "timeseries_compensated.csv")
+    tc, c = diagram.logs["correction"]
+    m_net = (log["t_s"] > 1.5) & (log["t_s"] < 2.5)
+    m_dia = (tc > 1.5) & (tc < 2.5)
+    net = np.array([np.mean(log[f"correction_q{j}_rad"][m_net]) for j in range(1, 7)])
+    dia = c[m_dia].mean(axis=0)
+    print(name, "steady corrections (urad): diagram", np.round(dia * 1e6, 1), "over EGM/RDT", np.round(net * 1e6, 1),
+          "surface", res["surface_error_mm"]["mean"], "diagram", diagram.surface_error_mm["mean"])
+    assert np.max(np.abs(dia)) > 50e-6, dia
+    assert np.max(np.abs(net - dia)) < 0.03 * np.max(np.abs(dia)), (net, dia)
+    assert abs(res["surface_error_mm"]["mean"] - diagram.surface_error_mm["mean"]) < 0.005, (res, diagram)
+    assert res["unanswered"] == 0, res
 
 
 def _wait_for(path, timeout_s=60.0):
