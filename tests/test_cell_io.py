@@ -323,3 +323,89 @@ def test_egm_robot_message_read_by_abb_robot_client():
     link.close()
     seq, tm, j, planned = parse_robot_message(link.robot_message(joints))
     assert j == joints and seq == 2
+
+
+# ------------------------------------------------------------ the simulated controller's supervision
+
+
+class _AnsweringCompensator:
+    """A stand-in compensator on 127.0.0.1: answers every EgmRobot with
+    ``answer(k, feedback_deg)`` (None: no answer) from a thread."""
+
+    def __init__(self, answer):
+        import threading
+
+        from abb_robot_client.egm import EGM
+
+        self.port = h.free_udp_port()
+        self.egm = EGM(port=self.port)
+        self.answer = answer
+        self.stop = threading.Event()
+        self.k = 0
+        self.th = threading.Thread(target=self._run, daemon=True)
+        self.th.start()
+
+    def _run(self):
+        while not self.stop.is_set():
+            ok, state = self.egm.receive_from_robot(timeout=0.05)
+            if not ok:
+                continue
+            self.k += 1
+            target = self.answer(self.k, list(state.joint_angles))
+            if target is not None:
+                self.egm.send_to_robot(np.array(target, dtype=float))
+
+    def close(self):
+        self.stop.set()
+        self.th.join(5)
+        self.egm.socket.close()
+
+
+def _supervised_cell(robot, port, lockstep=True):
+    q0 = np.radians([0.0, 7.008, 29.517, 0.0, 53.476, 0.0])
+    return h.start_cell(robot, lambda t: q0, egm_port=port, netft_port=h.free_udp_port(), duration_s=20.0,
+                        lockstep=lockstep)
+
+
+@pytest.mark.parametrize("bad, words", [
+    (lambda q: [q[0], 1e300] + q[2:], "outside the working range"),
+    (lambda q: [q[0] + 90.0] + q[1:], "the axis speed"),
+], ids=["1e300-deg", "90-deg-jump"])
+def test_the_simulated_controller_refuses_what_no_servo_could_follow(robot_fixture, bad, words):
+    """A target beyond the working ranges or a step faster than the axis
+    speed stops the simulated controller, as its supervision would (before:
+    it followed 1e300 deg and cut a +51.9 mm 'surface')."""
+    comp = _AnsweringCompensator(lambda k, q: bad(q) if k == 100 else q)
+    th, net = _supervised_cell(robot_fixture, comp.port)
+    try:
+        th.join(30)
+    finally:
+        net.stop = True
+        th.join(10)
+        net.close()
+        comp.close()
+    st = net.stats
+    assert st.refused == 1 and words in st.stop_reason, st.stop_reason
+    lo, hi = np.degrees(robot_fixture.q_lower_rad), np.degrees(robot_fixture.q_upper_rad)
+    q = np.degrees(np.array(st.q_cmd))
+    assert np.all(np.isfinite(q)) and np.all(q >= lo - 1e-9) and np.all(q <= hi + 1e-9)
+    assert np.abs(np.diff(q, axis=0)).max() < 1.0
+
+
+def test_the_simulated_controller_says_when_it_stopped_being_answered(robot_fixture):
+    comp = _AnsweringCompensator(lambda k, q: q if k < 80 else None)
+    th, net = _supervised_cell(robot_fixture, comp.port)
+    try:
+        th.join(30)
+    finally:
+        net.stop = True
+        th.join(10)
+        net.close()
+        comp.close()
+    assert "no answer from the compensator" in net.stats.stop_reason
+    assert 0.2 < net.stats.t_stop < 0.4  # the 79th answer, about 78 cycles of 4 ms after the first
+
+
+@pytest.fixture(scope="module")
+def robot_fixture():
+    return load_robot()

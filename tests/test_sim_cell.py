@@ -172,3 +172,24 @@ def _wait_for(path, timeout_s=60.0):
         assert time.monotonic() - t0 < timeout_s, f"sim-cell wrote no {path.name}"
         time.sleep(0.1)
     return path
+
+
+def test_sim_cell_says_when_the_compensator_went_silent_before_the_cut(tmp_path):
+    """The compensator answers 20 messages, then nothing, before the cutter
+    reaches the part (before: KeyError 'mean' in --lockstep): sim-cell
+    says when it stopped being answered, that no face was cut, and exits 3."""
+    from test_cell_io import _AnsweringCompensator
+
+    comp = _AnsweringCompensator(lambda k, q: q if k <= 20 else None)
+    try:
+        cell, ref, out = _sim_cell(tmp_path, egm_port=comp.port, netft_port=free_udp_port(), lockstep=True)
+        _, err = cell.communicate(timeout=180)
+    finally:
+        comp.close()
+    assert cell.returncode == 3, err
+    assert "Traceback" not in err, err
+    assert "no answer from the compensator for 1 s after t = 0.0" in err
+    assert "no face was cut" in err
+    res = json.loads(out.read_text())
+    assert res["surface_error_mm"] is None and res["stopped"].startswith("no answer")
+    assert res["health"]["verdict"] == "poor"

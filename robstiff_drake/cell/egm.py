@@ -103,6 +103,7 @@ class ControllerLink:
         self.seqno = 0
         self.t0 = time.monotonic()
         self._sent = {}
+        self._last_k = None
 
     def restart(self):
         """A controller restart: the sequence number and clock start again."""
@@ -165,6 +166,7 @@ class ControllerLink:
         if len(self._sent) > 4096:  # answers that never came
             self._sent.clear()
         self._sent[int(round(tm_ms)) & 0xFFFFFFFF] = k
+        self._last_k = k
         return self.send(self.robot_message(joints_deg, planned_deg, mtype, tm_ms=tm_ms))
 
     def skip(self):
@@ -185,7 +187,10 @@ class ControllerLink:
             except Exception:
                 continue
             if m.HasField("planned") and len(m.planned.joints.joints) == EGM_JOINTS:
-                out.append((self._sent.pop(m.header.tm, None), list(m.planned.joints.joints)))
+                # an answer that echoes no message's clock (abb-robot-client's EGM does not) answers the
+                # newest message, as a controller takes the latest target it has
+                k = self._sent.pop(m.header.tm, None) if m.header.tm else None
+                out.append((self._last_k if k is None else k, list(m.planned.joints.joints)))
 
     def wait(self, timeout_s):
         select.select([self.sock], [], [], timeout_s)

@@ -61,9 +61,10 @@ class Histogram:
         return {"median": self.percentile(50), "p99": self.percentile(99), "max": self.max}
 
 
-def verdict(*, cycles, answered, late, unanswered, faults, lost_fraction, refused=0):
-    """(word, reasons list, one line) of a run's health."""
-    reasons = []
+def verdict(*, cycles, answered, late, unanswered, faults, lost_fraction, refused=0, stopped=""):
+    """(word, reasons list, one line) of a run's health; ``stopped``: why
+    the run stopped before its end ("": it did not)."""
+    reasons = [stopped] if stopped else []
     n = max(int(cycles), 1)
     missed = late + unanswered
     if refused:
@@ -73,7 +74,7 @@ def verdict(*, cycles, answered, late, unanswered, faults, lost_fraction, refuse
     if missed:
         reasons.append(f"{missed} of {cycles} cycles without a fresh answer ({late} late, {unanswered} unanswered)")
     lost_txt = "unknown" if not math.isfinite(lost_fraction) else f"{100 * lost_fraction:.1f} %"
-    if refused or (math.isfinite(lost_fraction) and lost_fraction >= POOR_LOST) or missed > 0.2 * n:
+    if refused or stopped or (math.isfinite(lost_fraction) and lost_fraction >= POOR_LOST) or missed > 0.2 * n:
         word = "poor"
     elif faults or missed > GOOD_UNANSWERED * n or not (lost_fraction < GOOD_LOST):
         word = "degraded"

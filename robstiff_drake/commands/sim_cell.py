@@ -106,7 +106,8 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
     lost = stats.lost_fraction()
     word, reasons, line = verdict(cycles=stats.cycles, answered=stats.answered, late=stats.late_answers,
                                   unanswered=stats.unanswered, faults=int(bool(stats.stop_reason)),
-                                  lost_fraction=lost, refused=stats.refused)
+                                  lost_fraction=lost, refused=stats.refused,
+                                  stopped=stats.stop_reason or ("" if station.done else "the pass was not finished"))
     if word != "good":
         warnings.add(f"sim-cell: {line}")
     res = {"scenario": str(Path(scenario)), "robot": robot.name, "protocol": protocol,
