@@ -17,7 +17,9 @@ import numpy as np
 import pytest
 
 from cell_helpers import FORCE_BIAS_N, ROOT, TORQUE_BIAS_NM, free_udp_port, write_inputs
+from robstiff_drake.diagrams.cell_record import servo_settings
 from robstiff_drake.diagrams.cell_station import CellStation
+from robstiff_drake.identification.run_files import SERVO_KEYS
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.model.robot import load_robot
@@ -59,13 +61,13 @@ def test_stepped_station_cuts_what_the_diagram_cuts(short):
     assert abs(adapter["pv"] - diagram["pv"]) < 0.15 * diagram["pv"] + 0.005, (adapter, diagram)
 
 
-def _sim_cell(tmp_path, *, egm_port, netft_port, lockstep, scenario=SHORT):
+def _sim_cell(tmp_path, *, egm_port, netft_port, lockstep, scenario=SHORT, extra=()):
     ref = tmp_path / "cell_reference.csv"
     out = tmp_path / "cell.json"
     cell = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "sim-cell", scenario,
                              "--egm-to", f"127.0.0.1:{egm_port}", "--netft-port", str(netft_port),
                              "--reference-out", str(ref), "--json", str(out), "--wait-s", "40"]
-                            + (["--lockstep"] if lockstep else []),
+                            + (["--lockstep"] if lockstep else []) + list(extra),
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     return cell, ref, out
 
@@ -83,7 +85,10 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     model, payload, _, _ = write_inputs(str(tmp_path), robot)
     # the payload calibration's bias is the scenario's sensor bias
     assert np.allclose(sc.sensor.force_bias_N, FORCE_BIAS_N) and np.allclose(sc.sensor.torque_bias_Nm, TORQUE_BIAS_NM)
-    cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=lockstep)
+    servo = servo_settings(sc)
+    cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=lockstep, cell_extra=[
+        "--scan-out", str(tmp_path / "my_scan.csv")], comp_extra=[
+        "--servo", ",".join(str(servo[k]) for k in SERVO_KEYS), "--cutter-diameter-mm", str(sc.cutter.diameter_mm)])
     cerr = cell.stderr
     assert cell.returncode == 0, (cerr, comp.stderr)
     assert comp.returncode == 0, comp.stderr
@@ -110,6 +115,15 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
         # against the EGM messages differs from the diagram's by a sample).
         assert abs(surf["mean"] - diagram["mean"]) < 0.005, (surf, diagram)
         assert res["unanswered"] == 0, res
+        assert res["health"]["verdict"] == "good", res["health"]
+        # the log is a run folder diagnose-run reads, with the scan made outside it attached
+        dr = subprocess.run([sys.executable, "-m", "robstiff_drake", "diagnose-run", str(tmp_path / "log"), "--scan",
+                             str(tmp_path / "my_scan.csv"), "--json", str(tmp_path / "dr.json"), "--out",
+                             str(tmp_path / "dr")], cwd=ROOT, capture_output=True, text=True, timeout=300)
+        assert dr.returncode == 0, dr.stderr
+        rep = json.loads((tmp_path / "dr.json").read_text())
+        assert rep["n_scan_points"] > 100 and rep["run_id"] == (tmp_path / "log" / "RUN_ID").read_text().strip()
+        print("diagnose-run of the cell's log:", rep["rms_before_mm"], [c["name"] for c in rep["causes"]])
     # In real time nothing is asserted of the surface: on a shared machine
     # some cycles of the simulated controller (a Python thread) come late;
     # it then steps through the missed ones and the target jumps, the servo's
@@ -117,17 +131,17 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     # mill keeps the deepest dip over a cutter's width (docs/real_cell.md).
 
 
-def _run_pair(tmp_path, model, payload, *, lockstep, scenario=SHORT, robot=None):
+def _run_pair(tmp_path, model, payload, *, lockstep, scenario=SHORT, robot=None, comp_extra=(), cell_extra=()):
     """sim-cell and compensate, started together as docs/real_cell.md pastes them (compensate waits for
     the reference sim-cell writes when it is up); (sim-cell's, compensate's completed process, JSON path)."""
     egm_port, netft_port = free_udp_port(), free_udp_port()
     cell, ref, out = _sim_cell(tmp_path, egm_port=egm_port, netft_port=netft_port, lockstep=lockstep,
-                               scenario=scenario)
+                               scenario=scenario, extra=cell_extra)
     comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
                            "--netft", f"127.0.0.1:{netft_port}", "--netft-http-port", str(netft_port), "--model", model,
                            "--payload", payload, "--reference", str(ref), "--wait-s", "60", "--idle-exit-s", "1.0",
                            "--cutoff-hz", "2", "--sensor-rate-hz", "1000", "--delay-steps", "1",
-                           "--log", str(tmp_path / "log")] + (["--robot", robot] if robot else []),
+                           "--log", str(tmp_path / "log")] + (["--robot", robot] if robot else []) + list(comp_extra),
                           cwd=ROOT, capture_output=True, text=True, timeout=180)
     _, cerr = cell.communicate(timeout=180)
     return subprocess.CompletedProcess(cell.args, cell.returncode, "", cerr), comp, out

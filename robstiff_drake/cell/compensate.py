@@ -161,6 +161,7 @@ class CompensatorLoop:
         self.t_q_good = self.t_sensor_good = self.t_sensor_rejecting = self.t_sensor_invalid = None
         self.latest_sample_time = None
         self.last_raw = [float("nan")] * 6
+        self.t_logged = 0.0  # the controller's time of the last wrench record logged
         self.t_start = self.t_last_msg = None
         self.t_last_answer = 0.0
         self.pending_reseed = False
@@ -236,7 +237,11 @@ class CompensatorLoop:
         records = self.sensor.drain()
         got_good = False
         comp, lim = self.comp, self.s.max_jump_Nm
-        for w, t_arr, status, clipped in records:
+        # the records came between the last message and this one: stamped evenly over that span of the
+        # controller's clock (the logs' clock; strictly increasing whatever this PC's scheduling did)
+        t0, span = self.t_logged, self.t_session - self.t_logged
+        n_rec = len(records)
+        for i, (w, t_arr, status, clipped) in enumerate(records):
             self.n.sensor_records += 1
             if clipped:
                 self.n.sensor_clipped += 1
@@ -246,7 +251,7 @@ class CompensatorLoop:
                 w = (float("nan"),) * 6
             finite = all(v == v for v in w)
             if self.log is not None:
-                self.log.wrench(self.t_session + (t_arr - self.t_last_msg), w)
+                self.log.wrench(t0 + span * (i + 1) / n_rec if span > 0 else t0 + 1e-6 * (i + 1), w)
             self.last_raw = list(w)
             if finite and self.pending_reseed:
                 comp.reseed(list(w))
@@ -284,6 +289,8 @@ class CompensatorLoop:
             what = "invalid records (status flags, NaN or clipped), then none" if invalid else "no record"
             self.fault_on("sensor", f"sensor: {what} for {to * 1e3:.0f} ms")
             self.pending_reseed = True
+        if n_rec:
+            self.t_logged = max(self.t_session, t0 + 1e-6 * n_rec)
 
     # ------------------------------------------------------------ one message
 

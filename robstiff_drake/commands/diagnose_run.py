@@ -134,14 +134,14 @@ def run_robot(run_dir, robot_yaml=None):
     return load_robot(robot_yaml if robot_yaml is not None else spec)
 
 
-def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_yaml=None):
+def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_yaml=None, scan=None):
     out = Path(out) if out else Path(run_dir) / "diagnosis"
     verify = list(verify or [])
-    check_outputs(inputs=[run_dir, *verify], files={"--json": json_out}, folders={"--out": out})
+    check_outputs(inputs=[run_dir, *verify, scan], files={"--json": json_out}, folders={"--out": out})
     robot = run_robot(run_dir, robot_yaml)
     from robstiff_drake.diagrams.run_arm import ArmModel
 
-    rep, extras = diagnose_run(run_dir, robot, ArmModel, noise_mm=noise_mm, verify=verify)
+    rep, extras = diagnose_run(run_dir, robot, ArmModel, noise_mm=noise_mm, verify=verify, scan=scan)
     warnings = Warnings()
     warnings.extend_from(rep["warnings"])
     rep["warnings"] = list(warnings)

@@ -214,6 +214,9 @@ def build_parser():
     p.add_argument("--verify", nargs="+", metavar="CUT_DIR",
                    help="run folders of verification cuts (one per candidate fix's compensator.yaml): decide "
                         "from their scans")
+    p.add_argument("--scan", metavar="SCAN.csv",
+                   help="a scan of the machined face made outside the project (a CMM's or a laser line's, "
+                        "scan.csv's columns, no run id needed), instead of RUN_DIR/scan.csv")
     p.add_argument("--json", metavar="OUT", help="write the report as JSON ('-' for stdout)")
     p.add_argument("--out", metavar="DIR", help="where to write the report, candidate settings and plot "
                                                 "(default: RUN_DIR/diagnosis)")
@@ -286,6 +289,9 @@ def build_parser():
                    help="how long to wait at rest for the compensator's first answer (default: %(default)s)")
     p.add_argument("--reference-out", metavar="JOINTS.csv",
                    help="write the path's joint reference, for `compensate --reference`")
+    p.add_argument("--scan-out", metavar="SCAN.csv",
+                   help="write the machined face as a scanner measures it (scan.csv's columns, no run id), for "
+                        "`diagnose-run RUN --scan`")
     p.add_argument("--lockstep", action="store_true",
                    help="step the station only when the compensator has answered the last message (the loop's "
                         "physics without this PC's scheduling; default: real time, as a controller runs)")
@@ -492,7 +498,7 @@ def _dispatch(args):
         from robstiff_drake.commands import diagnose_run
 
         return diagnose_run.run(run_dir=args.run_dir, json_out=args.json, out=args.out, noise_mm=args.noise_mm,
-                                verify=args.verify, robot_yaml=args.robot)
+                                verify=args.verify, robot_yaml=args.robot, scan=args.scan)
     if args.command == "plan-poses":
         from robstiff_drake.commands import plan_poses
 
@@ -522,7 +528,7 @@ def _dispatch(args):
         return sim_cell.run(scenario=args.scenario, egm_to=args.egm_to, netft_port=args.netft_port, wait_s=args.wait_s,
                             reference_out=args.reference_out, json_out=args.json, robot_yaml=args.robot,
                             period_ms=args.period_ms, lockstep=args.lockstep, protocol=args.protocol,
-                            netft_http_port=args.netft_http_port)
+                            netft_http_port=args.netft_http_port, scan_out=args.scan_out)
     if args.command == "compensate":
         from robstiff_drake.commands import compensate
 

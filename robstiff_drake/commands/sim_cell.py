@@ -44,14 +44,15 @@ def _controller_link(protocol, host, port, period_s):
 
 def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_out=None, robot_yaml=None,
         period_ms=4.0, lockstep=False, protocol="egm", netft_http_port=None, netft_units=("N", "N-m"),
-        transport_delay_cycles=None):
+        transport_delay_cycles=None, scan_out=None):
     from robstiff_drake.cell.health import verdict
     from robstiff_drake.cell.rdt import parse_host_port
     from robstiff_drake.cell.sim_cell import CellNetwork
     from robstiff_drake.diagrams.cell_station import CellStation
     from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 
-    check_outputs(inputs=[scenario, robot_yaml], files={"--reference-out": reference_out, "--json": json_out})
+    check_outputs(inputs=[scenario, robot_yaml], files={"--reference-out": reference_out, "--json": json_out,
+                                                        "--scan-out": scan_out})
     if ":" not in str(egm_to):
         raise InputError(f"--egm-to {egm_to!r}: expected HOST:PORT (the compensator's --listen-port; for "
                          "Stream Motion the port this controller listens on)")
@@ -99,8 +100,10 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
     if stats.late_ticks and not lockstep:
         warnings.add(f"{stats.late_ticks} of {stats.cycles} cycles were more than half a period late (this machine "
                      "is busy: the simulated controller is not hard real-time)")
-    _, surface = station.surface()
+    scans, surface = station.surface()
     cut = "mean" in surface
+    if scan_out is not None and cut:
+        write_atomic(scan_out, station.scan_csv(scans))
     if not cut:
         warnings.add("no face was cut (the run stopped before the cutter reached the part)")
     lost = stats.lost_fraction()
