@@ -140,7 +140,7 @@ def _run_pair(tmp_path, model, payload, *, lockstep, scenario=SHORT, robot=None,
     comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
                            "--netft", f"127.0.0.1:{netft_port}", "--netft-http-port", str(netft_port), "--model", model,
                            "--payload", payload, "--reference", str(ref), "--wait-s", "60", "--idle-exit-s", "1.0",
-                           "--cutoff-hz", "2", "--sensor-rate-hz", "1000", "--delay-steps", "1",
+                           "--cutoff-hz", "2", "--sensor-rate-hz", "1000", "--delay-steps", "0",
                            "--log", str(tmp_path / "log")] + (["--robot", robot] if robot else []) + list(comp_extra),
                           cwd=ROOT, capture_output=True, text=True, timeout=180)
     _, cerr = cell.communicate(timeout=180)

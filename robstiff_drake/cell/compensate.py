@@ -434,10 +434,12 @@ class CompensatorLoop:
                         accepted.append((m, t, dt))
                 if not accepted:
                     continue  # duplicates or old datagrams only: nothing to answer
-                for m, t, dt in accepted[:-1]:  # older ones behind the newest: their clock only, unanswered
-                    self.n.skipped += 1
-                    self.n.received += 1
-                    self.t_session += dt
+                for m, t, dt in accepted[:-1]:
+                    # older ones behind the newest (this PC fell behind): each answered in turn, late; a
+                    # controller that takes the newest target loses nothing by it, and one that reads the
+                    # targets a cycle after sending (the transport delay) gets the target it is due
+                    self.n.late += 1
+                    self.cycle(m, t, dt)
                 msg, t_arr, dt = accepted[-1]
                 gap = t_arr - self.t_last_msg
                 self.n.gap_ms.add(gap * 1e3)

@@ -29,6 +29,10 @@ N_BINS = 10000  # 0-100 ms
 GOOD_LOST = 0.05
 POOR_LOST = 0.20
 GOOD_UNANSWERED = 0.01
+# Answers sent after the next message had come (this PC fell behind):
+# harmless to a controller that reads its targets a cycle later (EGM's
+# transport delay), so only a larger share degrades the verdict.
+GOOD_LATE = 0.05
 
 
 class Histogram:
@@ -76,7 +80,7 @@ def verdict(*, cycles, answered, late, unanswered, faults, lost_fraction, refuse
     lost_txt = "unknown" if not math.isfinite(lost_fraction) else f"{100 * lost_fraction:.1f} %"
     if refused or stopped or (math.isfinite(lost_fraction) and lost_fraction >= POOR_LOST) or missed > 0.2 * n:
         word = "poor"
-    elif faults or missed > GOOD_UNANSWERED * n or not (lost_fraction < GOOD_LOST):
+    elif faults or unanswered > GOOD_UNANSWERED * n or late > GOOD_LATE * n or not (lost_fraction < GOOD_LOST):
         word = "degraded"
     else:
         word = "good"

@@ -69,6 +69,7 @@ class NetworkStats:
     late_ticks: int = 0  # ticks sent more than half a period late
     skipped_ticks: int = 0  # periods the schedule slipped because the loop was more than a period late
     tick_error_s: list = field(default_factory=list)
+    step_ms: list = field(default_factory=list)  # the station's computation per engaged cycle (ms)
     t: list = field(default_factory=list)
     q_cmd: list = field(default_factory=list)  # rad
     q_meas: list = field(default_factory=list)  # rad
@@ -215,11 +216,17 @@ class CellNetwork:
             self.rdt.poll()
             need = k - 1 - D  # the message whose answer is due now
             self._collect(answers)
-            if stepped and need not in answers and need not in dropped and need >= 0:
+            last = k - 1  # lockstep: the answer to the last message sent before the station moves on
+            if stepped and last not in answers and last not in dropped and last >= 0 and last >= need:
                 t_wait = time.monotonic() + self.answer_timeout_s
-                while need not in answers and time.monotonic() < t_wait and not self.stop:
+                while last not in answers and time.monotonic() < t_wait and not self.stop:
                     self.egm.wait(min(0.05, max(t_wait - time.monotonic(), 0.0)))
                     self._collect(answers)
+                if last not in answers:
+                    st.stop_reason = (f"no answer from the compensator for {self.answer_timeout_s:g} s after "
+                                      f"t = {st.last_answer_t:.3f} s of the cut")
+                    st.t_stop = st.last_answer_t
+                    break
             # the newest answer to a message up to `need` (a controller takes the latest target it has;
             # an answer to an older message than `need` came late), answers to later ones wait their tick
             usable = [km for km in answers if km <= need]
@@ -254,7 +261,10 @@ class CellNetwork:
                     st.answered += 1
                 st.last_answer_t = t - t_eng
             te = t - t_eng if engaged else -1.0  # fault clock
+            t_s0 = time.perf_counter()
             q_meas, w = self.station.step(q_cmd) if engaged or hold is None else hold()
+            if engaged:
+                st.step_ms.append((time.perf_counter() - t_s0) * 1e3)
             self._send_wrench(w, te)
             if f.restart_at >= 0 and not restarted and te >= f.restart_at:
                 restarted = True

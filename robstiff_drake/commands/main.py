@@ -301,6 +301,9 @@ def build_parser():
                    help="the controller's side of ABB EGM, KUKA RSI or FANUC Stream Motion (default: %(default)s)")
     p.add_argument("--netft-http-port", type=_number_in(1, 65535, integer=True), default=None,
                    help="TCP port of the simulated sensor's calibration page (default: the --netft-port number)")
+    p.add_argument("--transport-delay-cycles", type=_number_in(0, 10, integer=True), default=None,
+                   help="cycles between a message and the tick its answer acts at, beyond the next one "
+                        "(default: the scenario's controller.delay_steps; run compensate with --delay-steps 0)")
     p.add_argument("--json", metavar="OUT", help="write the result as JSON ('-' for stdout)")
     _add_robot_option(p)
 
@@ -528,7 +531,8 @@ def _dispatch(args):
         return sim_cell.run(scenario=args.scenario, egm_to=args.egm_to, netft_port=args.netft_port, wait_s=args.wait_s,
                             reference_out=args.reference_out, json_out=args.json, robot_yaml=args.robot,
                             period_ms=args.period_ms, lockstep=args.lockstep, protocol=args.protocol,
-                            netft_http_port=args.netft_http_port, scan_out=args.scan_out)
+                            netft_http_port=args.netft_http_port, scan_out=args.scan_out,
+                            transport_delay_cycles=args.transport_delay_cycles)
     if args.command == "compensate":
         from robstiff_drake.commands import compensate
 

@@ -65,6 +65,11 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
     T = period_ms / 1e3
     station = CellStation(sc, robot, period_s=T)
     limits = (np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad), robot.speed_limit_deg_per_s)
+    # the scenario's transport delay (controller.delay_steps: "one period of transport delay") is the
+    # simulated controller's: it acts on the answer to a message that many cycles after the next tick, as
+    # the diagram's compensator delays its correction; `compensate` then runs with --delay-steps 0
+    if transport_delay_cycles is None:
+        transport_delay_cycles = int(sc.controller.delay_steps)
     link = _controller_link(protocol, host, port, T)
     net = CellNetwork(station, egm_to=(host, port), netft_port=netft_port, period_s=T, lockstep=lockstep,
                       limits=limits, netft_http_port=netft_port if netft_http_port is None else netft_http_port,
@@ -120,6 +125,10 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
            "stopped": stats.stop_reason or None, "t_stop_s": stats.t_stop if stats.stop_reason else None,
            "last_answer_s": stats.last_answer_t, "sim_seconds": station.times[-1], "lockstep": bool(lockstep),
            "transport_delay_cycles": net.delay_cycles,
+           "station_step_ms": {"median": float(np.median(stats.step_ms)) if stats.step_ms else None,
+                               "p99": float(np.percentile(stats.step_ms, 99)) if stats.step_ms else None},
+           "tick_late_ms": {"median": float(np.median(stats.tick_error_s) * 1e3) if stats.tick_error_s else None,
+                            "p99": float(np.percentile(stats.tick_error_s, 99) * 1e3) if stats.tick_error_s else None},
            "health": {"verdict": word, "reasons": reasons, "compensation_lost_fraction": lost, "line": line},
            "warnings": list(warnings)}
     if json_out is not None:
