@@ -131,13 +131,17 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     # mill keeps the deepest dip over a cutter's width (docs/real_cell.md).
 
 
-def _run_pair(tmp_path, model, payload, *, lockstep, scenario=SHORT, robot=None, comp_extra=(), cell_extra=()):
+def _run_pair(tmp_path, model, payload, *, lockstep, scenario=SHORT, robot=None, comp_extra=(), cell_extra=(),
+              protocol="egm"):
     """sim-cell and compensate, started together as docs/real_cell.md pastes them (compensate waits for
     the reference sim-cell writes when it is up); (sim-cell's, compensate's completed process, JSON path)."""
     egm_port, netft_port = free_udp_port(), free_udp_port()
     cell, ref, out = _sim_cell(tmp_path, egm_port=egm_port, netft_port=netft_port, lockstep=lockstep,
-                               scenario=scenario, extra=cell_extra)
-    comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
+                               scenario=scenario, extra=list(cell_extra) + ["--controller-protocol", protocol])
+    if protocol == "stream-motion":  # the PC is the client: it sends to the robot's port
+        comp_extra = list(comp_extra) + ["--controller", f"127.0.0.1:{egm_port}"]
+    comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--controller-protocol", protocol,
+                           "--listen-port", str(0 if protocol == "stream-motion" else egm_port),
                            "--netft", f"127.0.0.1:{netft_port}", "--netft-http-port", str(netft_port), "--model", model,
                            "--payload", payload, "--reference", str(ref), "--wait-s", "60", "--idle-exit-s", "1.0",
                            "--cutoff-hz", "2", "--sensor-rate-hz", "1000", "--delay-steps", "0",
@@ -147,20 +151,30 @@ def _run_pair(tmp_path, model, payload, *, lockstep, scenario=SHORT, robot=None,
     return subprocess.CompletedProcess(cell.args, cell.returncode, "", cerr), comp, out
 
 
-@pytest.mark.parametrize("name", sorted(OTHER_ROBOTS))
-def test_kuka_and_fanuc_conventions_over_the_protocols_match_the_diagram(tmp_path, name):
+_DIAGRAMS = {}
+
+
+def _diagram_run(name):
+    if name not in _DIAGRAMS:
+        _DIAGRAMS[name] = run_cut(load_scenario(OTHER_ROBOTS[name]), load_robot(name), compensation=True)
+    return _DIAGRAMS[name]
+
+
+@pytest.mark.parametrize("name, protocol", [("kr240_r2900", "egm"), ("kr240_r2900", "rsi"),
+                                            ("r2000ic_165f", "egm"), ("r2000ic_165f", "stream-motion")])
+def test_kuka_and_fanuc_conventions_over_the_protocols_match_the_diagram(tmp_path, name, protocol):
     """The controller's convention: the KUKA's and the FANUC's references,
     feedback and targets are in their controllers' angles (A3 offset by
     -90 deg; J3 from the horizontal), mapped through the robot file's
     `controller:` block; in lockstep the corrections sent and the surface
     cut match the in-diagram run's."""
-    sc = load_scenario(OTHER_ROBOTS[name])
     robot = load_robot(name)
     assert not robot.joint_map.is_identity
-    diagram = run_cut(sc, robot, compensation=True)
+    diagram = _diagram_run(name)
     start = (robot.workspace.reference_tool_point_m * 1e3).tolist()
     model, payload, _, _ = write_inputs(str(tmp_path), robot, duration_s=0.1, start_mm=start)
-    cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=True, scenario=OTHER_ROBOTS[name], robot=name)
+    cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=True, scenario=OTHER_ROBOTS[name], robot=name,
+                                protocol=protocol)
     assert cell.returncode == 0, (cell.stderr, comp.stderr)
     assert comp.returncode == 0, comp.stderr
     res = json.loads(out.read_text())
@@ -170,7 +184,7 @@ def test_kuka_and_fanuc_conventions_over_the_protocols_match_the_diagram(tmp_pat
     m_dia = (tc > 1.5) & (tc < 2.5)
     net = np.array([np.mean(log[f"correction_q{j}_rad"][m_net]) for j in range(1, 7)])
     dia = c[m_dia].mean(axis=0)
-    print(name, "steady corrections (urad): diagram", np.round(dia * 1e6, 1), "over EGM/RDT", np.round(net * 1e6, 1),
+    print(name, protocol, "steady corrections (urad): diagram", np.round(dia * 1e6, 1), "over EGM/RDT", np.round(net * 1e6, 1),
           "surface", res["surface_error_mm"]["mean"], "diagram", diagram.surface_error_mm["mean"])
     assert np.max(np.abs(dia)) > 50e-6, dia
     assert np.max(np.abs(net - dia)) < 0.03 * np.max(np.abs(dia)), (net, dia)

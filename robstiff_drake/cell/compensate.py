@@ -51,7 +51,8 @@ from robstiff_drake.errors import InputError, Terminated
 MAX_STEP_PERIODS = 2.0
 CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
 MAX_EVENTS_KEPT = 1000  # events kept for the summary (all go to the log file and stderr)
-STALE_PERIODS = 3.0  # a correction computed from a wrench older than this many periods is stale
+STALE_PERIODS = 3.0
+MALFORMED_FIRST = 25  # unusable datagrams from the controller before its first good one: refused at once  # a correction computed from a wrench older than this many periods is stale
 
 
 @dataclass
@@ -209,11 +210,13 @@ class CompensatorLoop:
         loop: exit 2) when none comes, or its feedback is absurd."""
         t_end = time.monotonic() + timeout_s
         while True:
-            got = self.link.receive(max(t_end - time.monotonic(), 0.0))
-            if got:
+            got = self.link.receive(min(max(t_end - time.monotonic(), 0.0), 0.5))
+            if not got:
+                self.link.open()  # (again: a start request lost on the way, or sent before the robot listened)
+            else:
                 msg, t_arr = got[-1]
                 break
-            if time.monotonic() >= t_end:
+            if time.monotonic() >= t_end or self.link.malformed >= MALFORMED_FIRST:
                 who = f"{self.link.controller_ip}" + (f":{self.link.controller_port}" if self.link.controller_port
                                                       else "")
                 extra = ""
@@ -222,8 +225,9 @@ class CompensatorLoop:
                              "were dropped: give the controller's address with --controller HOST[:PORT]")
                 elif self.link.malformed:
                     extra = f"; {self.link.malformed} datagrams from it were not usable ({self.link.malformed_example})"
-                raise InputError(f"{self.link.option} {self.link.port}: no {self.link.name} message from the "
-                                 f"controller {who} within {timeout_s:g} s{extra}")
+                within = f"within {timeout_s:g} s" if self.link.malformed < MALFORMED_FIRST else "yet"
+                raise InputError(f"{self.link.option} {self.link.port}: no usable {self.link.name} message from the "
+                                 f"controller {who} {within}{extra}")
         problem = pose_problem(self.robot, msg.joints_deg)
         if problem:
             raise InputError(f"{self.link.option} {self.link.port}: the controller's first message has absurd joint "
