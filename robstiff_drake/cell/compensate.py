@@ -401,10 +401,8 @@ class CompensatorLoop:
 
     # ------------------------------------------------------------ the loop
 
-    def run(self, first):
-        """Run from the first message (``first_message``'s result) until the
-        duration, an idle controller or an interrupt ends it."""
-        msg, t_arr = first
+    def run_start(self, msg, t_arr):
+        """Start the session on the first message (answered)."""
         self.t_start = self.t_last_msg = self.t_q_good = t_arr
         self.t_sensor_good = time.monotonic()  # (the sensor's records are drained from now on)
         self.q_deg = list(msg.joints_deg)
@@ -413,6 +411,11 @@ class CompensatorLoop:
         if self.log is not None:
             self.log.start(self)
         self.cycle(msg, t_arr, self._session(msg)[1])
+
+    def run(self, first):
+        """Run from the first message (``first_message``'s result) until the
+        duration, an idle controller or an interrupt ends it."""
+        self.run_start(*first)
         T = self.s.period_s
         try:
             while True:
