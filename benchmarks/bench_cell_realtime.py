@@ -53,8 +53,10 @@ def run_pair(folder, *, lockstep, protocol, scenario=SHORT, robot=None, delay_st
                             + (["--lockstep"] if lockstep else [])
                             + ([] if transport is None else ["--transport-delay-cycles", str(transport)]), cwd=ROOT, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
-    comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--listen-port", str(port),
-                           "--controller-protocol", protocol, "--netft", f"127.0.0.1:{netft}", "--netft-http-port",
+    client = protocol == "stream-motion"  # the PC sends to the robot's port
+    comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--listen-port",
+                           str(0 if client else port), "--controller-protocol", protocol]
+                          + (["--controller", f"127.0.0.1:{port}"] if client else []) + ["--netft", f"127.0.0.1:{netft}", "--netft-http-port",
                            str(netft), "--model", model, "--payload", payload, "--reference", ref, "--wait-s", "90",
                            "--idle-exit-s", "1.0", "--cutoff-hz", "2", "--delay-steps", str(delay_steps), "--log",
                            log] + (["--robot", robot] if robot else []),

@@ -99,8 +99,8 @@ def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=Non
     station = ServoArmStandIn(robot=robot, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
                               calibration=calibration(robot), process_wrench=wrench or cutting_wrench(),
                               reference=reference, q_start_rad=reference(0.0), seed=3)
-    limits = ((np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad), robot.speed_limit_deg_per_s)
-              if supervise else None)
+    limits = ((np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad), robot.speed_limit_deg_per_s,
+               robot.acceleration_limit_deg_per_s2) if supervise else None)
     net = CellNetwork(station, egm_to=("127.0.0.1", egm_port), netft_port=netft_port, faults=faults or Faults(),
                       netft_http_port=netft_port, lockstep=lockstep, limits=limits, link=link,
                       transport_delay_cycles=transport_delay_cycles)

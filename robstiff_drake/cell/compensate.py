@@ -163,6 +163,7 @@ class CompensatorLoop:
         self.latest_sample_time = None
         self.last_raw = [float("nan")] * 6
         self.t_logged = 0.0  # the controller's time of the last wrench record logged
+        self.t_sensor_grace = 0.0  # the first message after a gap in the controller's stream
         self.t_start = self.t_last_msg = None
         self.t_last_answer = 0.0
         self.pending_reseed = False
@@ -288,7 +289,10 @@ class CompensatorLoop:
                                     f"than {comp.max_jump_N:g} N or {lim:g} N*m)")
             self.pending_reseed = True
             self.t_sensor_rejecting = None
-        if not got_good and self.t_sensor_good is not None and t_now - self.t_sensor_good > to:
+        # silence counts while the controller streams: after a gap in the controller's messages (this PC
+        # or the network stalled) the sensor's records of that span may still be on their way
+        if not got_good and self.t_sensor_good is not None and t_now - max(self.t_sensor_good,
+                                                                           self.t_sensor_grace) > to:
             invalid = self.t_sensor_invalid is not None and self.t_sensor_invalid >= self.t_sensor_good
             what = "invalid records (status flags, NaN or clipped), then none" if invalid else "no record"
             self.fault_on("sensor", f"sensor: {what} for {to * 1e3:.0f} ms")
@@ -450,6 +454,8 @@ class CompensatorLoop:
                 msg, t_arr, dt = accepted[-1]
                 gap = t_arr - self.t_last_msg
                 self.n.gap_ms.add(gap * 1e3)
+                if gap > self.s.sensor_timeout_s:
+                    self.t_sensor_grace = t_arr
                 if gap > 1.5 * T:
                     self.n.gaps_over += 1
                 if self.t_last_answer > t_arr:

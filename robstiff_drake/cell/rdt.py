@@ -143,8 +143,12 @@ class NetFTReader:
     range, the true load unknown).  ``calibration``: (counts per force
     unit, counts per torque unit, force unit, torque unit, source)."""
 
-    def __init__(self, host, port=RDT_PORT, *, counts=None, units=None, http_port=80, receive_timeout_s=0.05,
+    def __init__(self, host, port=RDT_PORT, *, counts=None, units=None, http_port=80, receive_timeout_s=1.0,
                  queue_size=4096):
+        """``receive_timeout_s``: pynetft restarts the stream after this
+        long without a record (with its back-off); the compensator's own
+        sensor timeout (20 ms) is what faults: a short stall of this PC
+        must not make pynetft restart a stream that is still there."""
         self.host, self.port, self.http_port = host, port, int(http_port)
         self._p = p = _pynetft()
         override = None

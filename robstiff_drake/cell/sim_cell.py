@@ -31,6 +31,12 @@ from robstiff_drake.cell.rdt import DEFAULT_COUNTS_PER_UNIT, RDTServer
 
 SPIN_S = 0.0005  # spin (do not sleep) for the last part of each cycle
 TRANSPORT_DELAY_CYCLES = 0
+# ASSUMPTION: a controller's motion supervision lets a streamed target
+# change its step (a held cycle, then two steps) up to this many times the
+# robot file's acceleration limit (a lost datagram at machining feeds is
+# within it) and stops the robot beyond (a hold of tens of ms, then a jump:
+# a jerk no servo should follow).
+SUPERVISION_ACCEL = 10.0
 
 
 @dataclass
@@ -108,6 +114,7 @@ class CellNetwork:
         # acts at, beyond the next one (see ``run``; TRANSPORT_DELAY_CYCLES)
         self.delay_cycles = TRANSPORT_DELAY_CYCLES if transport_delay_cycles is None else int(transport_delay_cycles)
         self.limits = None if limits is None else tuple(np.asarray(x, dtype=float) for x in limits)
+        self._q_prev = None  # the target before the last (deg), for the acceleration supervision
         self.lockstep = bool(lockstep)
         self.answer_timeout_s = float(answer_timeout_s)
         self.period_s = float(period_s)
@@ -131,10 +138,14 @@ class CellNetwork:
 
     def refuse(self, targets_deg, q_cmd_deg):
         """Why the controller's supervision refuses ``targets_deg`` after
-        ``q_cmd_deg`` (None: it follows them)."""
+        ``q_cmd_deg`` (None: it follows them): outside the working ranges,
+        a step faster than the axis speed, or (with acceleration limits) a
+        change of the step beyond SUPERVISION_ACCEL times the acceleration
+        limit."""
         if self.limits is None:
             return None
-        lo, hi, speed = self.limits
+        lo, hi, speed = self.limits[:3]
+        acc = self.limits[3] if len(self.limits) > 3 else None
         t = np.asarray(targets_deg, dtype=float)
         if not np.all(np.isfinite(t)):
             return "a target that is not a finite number"
@@ -148,6 +159,13 @@ class CellNetwork:
             j = int(fast[0])
             return (f"q{j + 1} target {step[j]:.4g} deg from the last in one {self.period_s * 1e3:g} ms cycle "
                     f"(the axis speed {speed[j]:g} deg/s allows {speed[j] * self.period_s:.4g})")
+        if acc is not None and self._q_prev is not None:
+            a = np.abs(t - 2.0 * q_cmd_deg + self._q_prev) / self.period_s**2
+            hard = np.flatnonzero(a > SUPERVISION_ACCEL * acc)
+            if hard.size:
+                j = int(hard[0])
+                return (f"q{j + 1} accelerates at {a[j]:.4g} deg/s^2 between targets, more than "
+                        f"{SUPERVISION_ACCEL:g} x its {acc[j]:g} deg/s^2 limit")
         return None
 
     def _send_wrench(self, w, t):
@@ -215,6 +233,7 @@ class CellNetwork:
                     t -= n_skip * T
             self.rdt.poll()
             need = k - 1 - D  # the message whose answer is due now
+            q_before = q_cmd.copy()
             self._collect(answers)
             last = k - 1  # lockstep: the answer to the last message sent before the station moves on
             if stepped and last not in answers and last not in dropped and last >= 0 and last >= need:
@@ -260,6 +279,7 @@ class CellNetwork:
                 elif fresh:
                     st.answered += 1
                 st.last_answer_t = t - t_eng
+            self._q_prev = np.degrees(q_before) if engaged else None  # the command of the tick before
             te = t - t_eng if engaged else -1.0  # fault clock
             t_s0 = time.perf_counter()
             q_meas, w = self.station.step(q_cmd) if engaged or hold is None else hold()

@@ -38,6 +38,7 @@ NOMINAL_TOLERANCE = 1e-6
 # a force jump of --max-jump-N makes at this lever (m) or at the tool
 # point's distance from the sensor, whichever is longer.
 MIN_LEVER_M = 0.1
+SWITCH_INTERVAL_S = 0.0005
 PROTOCOL_PORTS = {"egm": None, "rsi": None, "stream-motion": 60015}  # the controller's port when not given
 
 
@@ -82,7 +83,7 @@ def read_model(path, robot):
         raise InputError(f"--model {path}: nested too deeply to be a model file") from None
 
 
-def read_reference(path, robot, period_s):
+def read_reference(path, robot, period_s=0.004):
     """(times s from 0, q (N, 6) controller deg) of a joint reference CSV:
     columns t_s, q1_deg .. q6_deg (header first; '#' lines are comments),
     checked by cell/safety.check_reference."""
@@ -237,6 +238,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         print(f"robstiff: compensate: sensor {host}:{port} streaming (calibration {cal_text}); waiting for "
               f"{link.name} messages from {where} on UDP port {link.port}", file=sys.stderr, flush=True)
         gc_frozen = _quiet_gc()
+        # the sensor's records come through pynetft's thread: let it have the interpreter within half a
+        # millisecond when the loop is busy (the default switch interval, 5 ms, is longer than a cycle)
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
         _realtime(rt_priority)
         first = loop.first_message(wait_s)
         q0 = first[0].joints_deg

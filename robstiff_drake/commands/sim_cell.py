@@ -64,7 +64,8 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
                          "supervision needs the axis speeds")
     T = period_ms / 1e3
     station = CellStation(sc, robot, period_s=T)
-    limits = (np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad), robot.speed_limit_deg_per_s)
+    limits = (np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad), robot.speed_limit_deg_per_s,
+              robot.acceleration_limit_deg_per_s2)
     # the scenario's transport delay (controller.delay_steps: "one period of transport delay") is the
     # simulated controller's: it acts on the answer to a message that many cycles after the next tick, as
     # the diagram's compensator delays its correction; `compensate` then runs with --delay-steps 0
