@@ -7,7 +7,6 @@ robot's working ranges and against where the arm is and should be;
 strangers must get no answer at all."""
 
 import json
-import math
 import os
 import subprocess
 import sys

@@ -125,7 +125,10 @@ def test_compensate_streams_the_reference(tmp_path):
                                                    wrench=lambda t: np.zeros(6))
     assert cp.returncode == 0, cp.stderr
     t, e = tool_errors(stats)
-    moving = (t > 0.5) & (t < 1.9)  # (the compensator runs 2 s)
+    # (the compensator runs 2 s of this PC's time; on a loaded machine the simulated controller's clock
+    # runs slower: up to its last answer)
+    moving = (t > 0.5) & (t < min(1.9, stats.last_answer_t - 0.05))
+    assert moving.sum() > 100
     # the tool follows the 20 mm/s pass along x: across it within 10 um,
     # along it within the servo's lag and a cycle or two (40 ms: 0.8 mm)
     assert np.abs(e[moving, 1:]).max() < 0.01e-3

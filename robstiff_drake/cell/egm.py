@@ -14,11 +14,9 @@ written here: no package implements it.
 """
 
 import math
-import select
-import socket
 import time
 
-from robstiff_drake.cell.link import Message, MessageError, PCLink
+from robstiff_drake.cell.link import ControllerSide, Message, MessageError, PCLink
 from robstiff_drake.errors import InputError
 
 EGM_JOINTS = 6
@@ -89,21 +87,18 @@ class EgmLink(PCLink):
         return m.SerializeToString()
 
 
-class ControllerLink:
+class ControllerLink(ControllerSide):
     """The controller's side (a simulated IRC5): sends EgmRobot to the
     sensor (the compensator) at ``host:port`` and receives its EgmSensor
     joint targets."""
 
+    name = "EGM"
+
     def __init__(self, host, port):
         self.pb2 = _egm_pb2()
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1" if host in ("127.0.0.1", "localhost") else "", 0))
-        self.sock.setblocking(False)
-        self.addr = (host, port)
+        super().__init__(("127.0.0.1" if host in ("127.0.0.1", "localhost") else "", 0), (host, port))
         self.seqno = 0
         self.t0 = time.monotonic()
-        self._sent = {}
-        self._last_k = None
 
     def restart(self):
         """A controller restart: the sequence number and clock start again."""
@@ -127,73 +122,36 @@ class ControllerLink:
         m.rapidExecState.state = self.pb2.EgmRapidCtrlExecState.RAPID_RUNNING
         return m.SerializeToString()
 
-    def send(self, data):
-        try:
-            self.sock.sendto(data, self.addr)
-            return True
-        except OSError:
-            return False
+    def send_state(self, k, joints_deg, planned_deg, tm_ms, bad_type=False):
+        """Send cycle ``k``'s EgmRobot; the answer to it echoes ``tm_ms``."""
+        mtype = self.pb2.EgmHeader.MSGTYPE_COMMAND if bad_type else None
+        self.sent_as(int(round(tm_ms)) & 0xFFFFFFFF, k)
+        return self.send(self.robot_message(joints_deg, planned_deg, mtype, tm_ms=tm_ms))
+
+    def skip(self):
+        self.seqno += 1
+
+    def answers(self):
+        """[(cycle k answered, targets deg)] of the EgmSensor waiting."""
+        out = []
+        for data, _ in self.datagrams():
+            m = self.pb2.EgmSensor()
+            try:
+                m.ParseFromString(data)
+            except Exception:
+                continue
+            j = list(m.planned.joints.joints) if m.HasField("planned") else []
+            if len(j) == EGM_JOINTS:
+                # an answer that echoes no message's clock (abb-robot-client's EGM does not) answers the
+                # newest message, as a controller takes the latest target it has
+                k = self.answer_of(m.header.tm) if m.header.tm else None
+                out.append((self._last_k if k is None else k, j))
+        return out
 
     def receive_targets(self, timeout_s=0.0):
         """The joint targets (deg, list) of the newest EgmSensor waiting, or
         None; with ``timeout_s`` > 0, wait that long (s) for one first."""
-        latest = None
         if timeout_s > 0.0:
-            select.select([self.sock], [], [], timeout_s)
-        while True:
-            try:
-                data, _ = self.sock.recvfrom(65536)
-            except (BlockingIOError, InterruptedError):
-                break
-            except OSError:
-                break
-            m = self.pb2.EgmSensor()
-            try:
-                m.ParseFromString(data)
-            except Exception:
-                continue
-            if m.HasField("planned") and len(m.planned.joints.joints) == EGM_JOINTS:
-                j = list(m.planned.joints.joints)
-                if all(math.isfinite(v) for v in j):
-                    latest = j
-        return latest
-
-    name = "EGM"
-
-    def send_state(self, k, joints_deg, planned_deg, tm_ms, bad_type=False):
-        """Send cycle ``k``'s EgmRobot; the answer to it echoes ``tm_ms``."""
-        mtype = self.pb2.EgmHeader.MSGTYPE_COMMAND if bad_type else None
-        if len(self._sent) > 4096:  # answers that never came
-            self._sent.clear()
-        self._sent[int(round(tm_ms)) & 0xFFFFFFFF] = k
-        self._last_k = k
-        return self.send(self.robot_message(joints_deg, planned_deg, mtype, tm_ms=tm_ms))
-
-    def skip(self):
-        """A message lost on the way: its sequence number is used up."""
-        self.seqno += 1
-
-    def answers(self):
-        """[(cycle k answered or None, targets deg)] of the EgmSensor waiting."""
-        out = []
-        while True:
-            try:
-                data, _ = self.sock.recvfrom(65536)
-            except (BlockingIOError, InterruptedError, OSError):
-                return out
-            m = self.pb2.EgmSensor()
-            try:
-                m.ParseFromString(data)
-            except Exception:
-                continue
-            if m.HasField("planned") and len(m.planned.joints.joints) == EGM_JOINTS:
-                # an answer that echoes no message's clock (abb-robot-client's EGM does not) answers the
-                # newest message, as a controller takes the latest target it has
-                k = self._sent.pop(m.header.tm, None) if m.header.tm else None
-                out.append((self._last_k if k is None else k, list(m.planned.joints.joints)))
-
-    def wait(self, timeout_s):
-        select.select([self.sock], [], [], timeout_s)
-
-    def close(self):
-        self.sock.close()
+            self.wait(timeout_s)
+        got = [j for _, j in self.answers() if all(math.isfinite(v) for v in j)]
+        return got[-1] if got else None

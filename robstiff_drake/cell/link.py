@@ -45,21 +45,27 @@ class Message:
     extra: dict = field(default_factory=dict)
 
 
-def parse_controller(text, default_port=None, what="--controller"):
-    """'HOST[:PORT]' -> (IP address text, port or None); InputError naming the option."""
+def split_host_port(text, default_port, what):
+    """'HOST[:PORT]' -> (host, port or ``default_port``); InputError naming the option."""
     host, sep, port = str(text).rpartition(":")
     if not sep:
         host, port = str(text), None
     if not host:
         raise InputError(f"{what} {text!r}: expected HOST[:PORT]")
-    p = default_port
-    if port is not None:
-        try:
-            p = int(port)
-        except ValueError:
-            raise InputError(f"{what} {text!r}: port {port!r} is not a number") from None
-        if not 1 <= p <= 65535:
-            raise InputError(f"{what} {text!r}: port {p} is outside 1-65535")
+    if port is None:
+        return host, default_port
+    try:
+        p = int(port)
+    except ValueError:
+        raise InputError(f"{what} {text!r}: port {port!r} is not a number") from None
+    if not 1 <= p <= 65535:
+        raise InputError(f"{what} {text!r}: port {p} is outside 1-65535")
+    return host, p
+
+
+def parse_controller(text, default_port=None, what="--controller"):
+    """'HOST[:PORT]' -> (IP address text, port or None); InputError naming the option."""
+    host, p = split_host_port(text, default_port, what)
     try:
         ip = socket.getaddrinfo(host, None, socket.AF_INET, socket.SOCK_DGRAM)[0][4][0]
     except (socket.gaierror, UnicodeError):
@@ -193,3 +199,53 @@ class PCLink:
             return True
         except OSError:
             return False
+
+
+class ControllerSide:
+    """Base of the simulated controllers' side of a protocol: one UDP
+    socket, and the messages sent by the key their answers echo (``sent``:
+    key -> cycle k; ``answer_of`` pops it)."""
+
+    MAX_PENDING = 4096  # answers that never came are forgotten past this many
+
+    def __init__(self, bind=("127.0.0.1", 0), peer=None):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(bind)
+        self.sock.setblocking(False)
+        self.addr = peer
+        self._sent = {}
+        self._last_k = None
+
+    def sent_as(self, key, k):
+        if len(self._sent) > self.MAX_PENDING:
+            self._sent.clear()
+        self._sent[key] = k
+        self._last_k = k
+
+    def answer_of(self, key):
+        return self._sent.pop(key, None)
+
+    def send(self, data, to=None):
+        try:
+            self.sock.sendto(data, to or self.addr)
+            return True
+        except OSError:
+            return False
+
+    def datagrams(self):
+        """The datagrams waiting, with their senders."""
+        out = []
+        while True:
+            try:
+                out.append(self.sock.recvfrom(65536))
+            except (BlockingIOError, InterruptedError, OSError):
+                return out
+
+    def wait(self, timeout_s):
+        select.select([self.sock], [], [], timeout_s)
+
+    def skip(self):
+        """A message lost on the way (the protocol's sequence number used up)."""
+
+    def close(self):
+        self.sock.close()

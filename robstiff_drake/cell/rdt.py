@@ -82,17 +82,9 @@ def status_is_valid(status):
 
 def parse_host_port(text, default_port=RDT_PORT, what="--netft"):
     """'HOST[:PORT]' -> (host, port); InputError naming the option."""
-    host, sep, port = str(text).rpartition(":")
-    if not sep:
-        host, port = str(text), str(default_port)
-    if not host:
-        raise InputError(f"{what} {text!r}: expected HOST[:PORT]")
-    try:
-        p = int(port)
-    except ValueError:
-        raise InputError(f"{what} {text!r}: port {port!r} is not a number") from None
-    if not 1 <= p <= 65535:
-        raise InputError(f"{what} {text!r}: port {p} is outside 1-65535")
+    from robstiff_drake.cell.link import split_host_port
+
+    host, p = split_host_port(text, default_port, what)
     try:
         socket.getaddrinfo(host, p, socket.AF_INET, socket.SOCK_DGRAM)
     except socket.gaierror:

@@ -26,15 +26,12 @@ first message's AIPos.  The session clock is the IPOC: sequence number
 IPOC / period, clock IPOC (ms).
 """
 
-import re
-import socket
 import xml.etree.ElementTree as ET
 
-from robstiff_drake.cell.link import Message, MessageError, PCLink
+from robstiff_drake.cell.link import ControllerSide, Message, MessageError, PCLink
 
 MAX_BYTES = 4096  # a Rob datagram is a few hundred bytes
 AXES = tuple(f"A{j}" for j in range(1, 7))
-_IPOC = re.compile(rb"<IPOC>\s*(\d+)\s*</IPOC>")
 
 
 def _parse(data, root_tag):
@@ -117,7 +114,7 @@ class RsiLink(PCLink):
         return encode_sen(message.echo, [t - s for t, s in zip(targets_deg, self.start_deg)])
 
 
-class RsiControllerLink:
+class RsiControllerLink(ControllerSide):
     """The controller's side (a simulated KRC): sends <Rob> to the PC at
     ``host:port`` every cycle and reads the <Sen> answers (targets = start +
     AK, the start being the axis angles of its first message)."""
@@ -125,31 +122,17 @@ class RsiControllerLink:
     name = "RSI"
 
     def __init__(self, host, port, period_s, ipoc0=1_000_000):
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1" if host in ("127.0.0.1", "localhost") else "", 0))
-        self.sock.setblocking(False)
-        self.addr = (host, port)
+        super().__init__(("127.0.0.1" if host in ("127.0.0.1", "localhost") else "", 0), (host, port))
         self.period_ms = period_s * 1e3
         self.ipoc0 = ipoc0
         self.start = None
-        self._sent = {}
 
     def send_state(self, k, joints_deg, planned_deg, tm_ms, bad_type=False):
         if self.start is None:
             self.start = list(joints_deg)
         ipoc = self.ipoc0 + int(round(tm_ms))
-        if len(self._sent) > 4096:
-            self._sent.clear()
-        self._sent[ipoc] = k
-        data = b"<Rob Type='KUKA'/>" if bad_type else encode_rob(ipoc, joints_deg, planned_deg)
-        try:
-            self.sock.sendto(data, self.addr)
-            return True
-        except OSError:
-            return False
-
-    def skip(self):
-        pass
+        self.sent_as(ipoc, k)
+        return self.send(b"<Rob Type='KUKA'/>" if bad_type else encode_rob(ipoc, joints_deg, planned_deg))
 
     def restart(self):
         self.ipoc0 += 10_000_000  # a new RSI session: another IPOC epoch
@@ -157,23 +140,12 @@ class RsiControllerLink:
 
     def answers(self):
         out = []
-        while True:
-            try:
-                data, _ = self.sock.recvfrom(65536)
-            except (BlockingIOError, InterruptedError, OSError):
-                return out
+        for data, _ in self.datagrams():
             try:
                 ipoc, ak = decode_sen(data)
             except MessageError:
                 continue
-            k = self._sent.pop(ipoc, None)
+            k = self.answer_of(ipoc)
             if k is not None and self.start is not None:  # the controller refuses an IPOC not its own
                 out.append((k, [s + a for s, a in zip(self.start, ak)]))
-
-    def wait(self, timeout_s):
-        import select
-
-        select.select([self.sock], [], [], timeout_s)
-
-    def close(self):
-        self.sock.close()
+        return out

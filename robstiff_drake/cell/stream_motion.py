@@ -27,11 +27,9 @@ state its unit); the session check (cell/session.py) faults when it does
 not advance with the sequence numbers at the configured period.
 """
 
-import select
-import socket
 import struct
 
-from robstiff_drake.cell.link import Message, MessageError, PCLink
+from robstiff_drake.cell.link import ControllerSide, Message, MessageError, PCLink
 
 VERSION = 3
 START, STOP, COMMAND, STATUS = 200, 2, 201, 202
@@ -99,7 +97,7 @@ class StreamMotionLink(PCLink):
         super().close()
 
 
-class StreamMotionControllerLink:
+class StreamMotionControllerLink(ControllerSide):
     """The robot's side (a simulated R-30iB): listens on ``host:port`` for
     a start packet, then sends a status packet to that client every cycle
     and reads its commands; a stop packet ends the stream."""
@@ -107,51 +105,36 @@ class StreamMotionControllerLink:
     name = "Stream Motion"
 
     def __init__(self, host, port):
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind((host, port))
-        self.sock.setblocking(False)
-        self.client = None
+        super().__init__((host, port))
         self.seq = 0
-        self._sent = {}
         self._pending = []
 
     def _poll(self):
-        while True:
-            try:
-                data, addr = self.sock.recvfrom(65536)
-            except (BlockingIOError, InterruptedError, OSError):
-                return
+        for data, addr in self.datagrams():
             if len(data) == _HEAD.size:
                 kind, _ = _HEAD.unpack(data)
                 if kind == START:
-                    self.client = addr
-                elif kind == STOP and addr == self.client:
-                    self.client = None
+                    self.addr = addr
+                elif kind == STOP and addr == self.addr:
+                    self.addr = None
                 continue
-            if addr != self.client:
+            if addr != self.addr:
                 continue
             try:
                 seq, targets = decode_command(data)
             except MessageError:
                 continue
-            k = self._sent.pop(seq, None)
+            k = self.answer_of(seq)
             if k is not None:
                 self._pending.append((k, targets))
 
     def send_state(self, k, joints_deg, planned_deg, tm_ms, bad_type=False):
         self._poll()
         self.seq += 1
-        if self.client is None:
+        if self.addr is None:
             return False
-        if len(self._sent) > 4096:
-            self._sent.clear()
-        self._sent[self.seq] = k
-        data = _HEAD.pack(STATUS, 1) if bad_type else encode_status(self.seq, tm_ms, joints_deg)
-        try:
-            self.sock.sendto(data, self.client)
-            return True
-        except OSError:
-            return False
+        self.sent_as(self.seq, k)
+        return self.send(_HEAD.pack(STATUS, 1) if bad_type else encode_status(self.seq, tm_ms, joints_deg))
 
     def skip(self):
         self.seq += 1
@@ -163,9 +146,3 @@ class StreamMotionControllerLink:
         self._poll()
         out, self._pending = self._pending, []
         return out
-
-    def wait(self, timeout_s):
-        select.select([self.sock], [], [], timeout_s)
-
-    def close(self):
-        self.sock.close()
