@@ -104,7 +104,8 @@ def main(argv=None):
                     f"{c['station_step_ms']['median']:.2f} p99 {c['station_step_ms']['p99']:.2f} ms, tick late p99 "
                     f"{c['tick_late_ms']['p99']:.2f} ms); compensate {p['health']['verdict']} (answered "
                     f"{p['answered']}, late {p['late']}, unanswered {p['unanswered']}, compute p99 "
-                    f"{p['compute_ms']['p99']:.3f} ms)", flush=True)
+                    f"{p['compute_ms']['p99']:.3f} ms)" + (f"; sim-cell stopped: {c['stopped']}" if c["stopped"] else ""),
+                  flush=True)
             time.sleep(1.0)
     if args.json:
         with open(args.json, "w") as f:

@@ -88,6 +88,7 @@ class Counters:
     sensor_clipped: int = 0  # records with a count at int32's end (the true force unknown)
     moment_spikes: int = 0
     saturated_cycles: int = 0
+    saturation_onsets: int = 0
     stale_s: float = 0.0  # controller time with a stale or ramped-down correction
     fault_onsets: int = 0
     events_dropped: int = 0
@@ -167,6 +168,7 @@ class CompensatorLoop:
         self.t_start = self.t_last_msg = None
         self.t_last_answer = 0.0
         self.pending_reseed = False
+        self.saturated = False
         self.last_sent = None
         self.ended_by = "interrupt"
         G = robot.joint_map.G
@@ -335,7 +337,7 @@ class CompensatorLoop:
             self.n.lost += max(0, (msg.seq - prev) % 2**32 - 1)
         if v == "jump":
             self.n.jumps += 1
-            restart = (msg.seq - (prev or 0)) % 2**32 >= 2**31 and msg.seq <= 2
+            restart = (msg.seq - (prev or 0)) % 2**32 >= 2**31 and msg.seq < 100  # numbering from the start again
             what = "the controller restarted" if restart else "the sequence jumped"
             self.fault_on("sequence", f"{self.link.name}: {what} (sequence number {msg.seq} after {prev})")
         elif v == "clock":
@@ -362,6 +364,15 @@ class CompensatorLoop:
         corr = self.comp.tick(self.q, min(dt, MAX_STEP_PERIODS * self.s.period_s), active)
         if any(abs(d) >= s for d, s in zip(self.comp.dq, self._sat)):
             self.n.saturated_cycles += 1
+            if not self.saturated:
+                self.saturated = True
+                self.n.saturation_onsets += 1
+                if self.n.saturation_onsets <= 5 or self.n.saturation_onsets % 100 == 0:
+                    j = max(range(6), key=lambda i: abs(self.comp.dq[i]) / self._sat[i])
+                    self.event(f"correction saturated on q{j + 1} at {math.degrees(self._sat[j]):g} deg (the model "
+                               f"asks more; onset {self.n.saturation_onsets}, {self.n.saturated_cycles} cycles so far)")
+        else:
+            self.saturated = False
         if self._identity:
             corr_deg = [math.degrees(c) for c in corr]
         else:
