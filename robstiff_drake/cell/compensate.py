@@ -33,16 +33,16 @@ Units: q and corrections in rad inside (the model's joints), controller
 degrees on the wire; wrenches in N and N*m, sensor frame; times in s.
 """
 
-import bisect
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from robstiff_drake.cell.health import Histogram, LostEstimate, verdict
-from robstiff_drake.cell.safety import FOLLOW_S, Envelope, UnsafeTarget, clamp_deg, motion_within, pose_problem
+from robstiff_drake.cell.health import Counters, verdict
+from robstiff_drake.cell.reference import Reference  # noqa: F401 (the loop's reference; commands import it here)
+from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_problem
 from robstiff_drake.cell.session import SessionClock
 from robstiff_drake.errors import InputError, Terminated
 
@@ -50,7 +50,6 @@ from robstiff_drake.errors import InputError, Terminated
 # of its rate limit in one answer, whatever the time since the last one.
 MAX_STEP_PERIODS = 2.0
 CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
-MAX_EVENTS_KEPT = 1000  # events kept for the summary (all go to the log file and stderr)
 STALE_PERIODS = 3.0
 MALFORMED_FIRST = 25  # unusable datagrams from the controller before its first good one: refused at once  # a correction computed from a wrench older than this many periods is stale
 
@@ -66,82 +65,6 @@ class LoopSettings:
     rate_limit_rad_per_s: float = math.radians(5.0)
     saturation_deg: float = 0.5
     max_jump_Nm: float = math.inf  # a moment jumping more than this from the last good sample is refused
-
-
-@dataclass
-class Counters:
-    """What the loop counts (bounded memory, whatever the run's length)."""
-
-    received: int = 0  # controller messages decoded
-    answered: int = 0
-    late: int = 0  # answers sent after the next message had arrived
-    skipped: int = 0  # messages never answered: a newer one was already waiting
-    refused: int = 0  # targets the safety check refused
-    unanswered_refused: int = 0  # messages left unanswered because no safe target was at hand
-    lost: int = 0  # messages the sequence numbers say never arrived
-    duplicates: int = 0
-    old: int = 0
-    jumps: int = 0
-    clock_faults: int = 0
-    gaps_over: int = 0  # gaps of more than 1.5 periods between messages
-    sensor_records: int = 0
-    sensor_clipped: int = 0  # records with a count at int32's end (the true force unknown)
-    moment_spikes: int = 0
-    saturated_cycles: int = 0
-    saturation_onsets: int = 0
-    stale_s: float = 0.0  # controller time with a stale or ramped-down correction
-    fault_onsets: int = 0
-    events_dropped: int = 0
-    compute_ms: Histogram = field(default_factory=Histogram)
-    age_ms: Histogram = field(default_factory=Histogram)
-    gap_ms: Histogram = field(default_factory=Histogram)
-    events: list = field(default_factory=list)  # (t_s, text), the first MAX_EVENTS_KEPT
-    lost_estimate: LostEstimate = field(default_factory=LostEstimate)
-
-
-class Reference:
-    """The joint reference in the controller's degrees against time since
-    the session started: (times s, q (N, 6) deg), held at its ends, or a
-    constant (``hold``); with each row's motion over one period and over
-    the servo's follow time (for the safety envelope)."""
-
-    def __init__(self, times_s=None, q_deg=None, period_s=0.004):
-        self.period_s = float(period_s)
-        if times_s is not None:
-            self._set(np.asarray(times_s, dtype=float), np.asarray(q_deg, dtype=float).reshape(-1, 6))
-        else:
-            self.t = self.q = None
-
-    def _set(self, t, q):
-        self.t, self.q = t, q
-        self._t = t.tolist()
-        self._rows = q.tolist()
-        self._m1 = motion_within(t, q, self.period_s).tolist()
-        self._mf = motion_within(t, q, self.period_s + FOLLOW_S).tolist()
-
-    def hold(self, q_deg):
-        self._set(np.array([0.0]), np.asarray(q_deg, dtype=float).reshape(1, 6))
-
-    def _index(self, t_s):
-        return max(0, min(bisect.bisect_right(self._t, t_s) - 1, len(self._t) - 1))
-
-    def at(self, t_s):
-        """(q (list, deg) at t_s: linear between rows, motion over a period,
-        motion over the follow time) (scalar code: a few microseconds)."""
-        t, rows = self._t, self._rows
-        i = self._index(t_s)
-        j = min(i + 1, len(t) - 1)
-        m1 = [max(a, b) for a, b in zip(self._m1[i], self._m1[j])]
-        mf = [max(a, b) for a, b in zip(self._mf[i], self._mf[j])]
-        if t_s <= t[0] or len(t) == 1 or t_s >= t[-1]:
-            return list(rows[0] if t_s <= t[0] else rows[-1]), m1, mf
-        f = (t_s - t[i]) / (t[i + 1] - t[i])
-        a, b = rows[i], rows[i + 1]
-        return [x + f * (y - x) for x, y in zip(a, b)], m1, mf
-
-    @property
-    def duration_s(self):
-        return float(self.t[-1])
 
 
 class CompensatorLoop:
@@ -186,7 +109,7 @@ class CompensatorLoop:
 
     def event(self, text):
         t = self.now()
-        if len(self.n.events) < MAX_EVENTS_KEPT:
+        if len(self.n.events) < Counters.MAX_EVENTS_KEPT:
             self.n.events.append((t, self.t_session, text))
         else:
             self.n.events_dropped += 1

@@ -16,6 +16,7 @@ not a fault.
 """
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -109,3 +110,37 @@ class LostEstimate:
 def fraction_of(mask, weights):
     w = np.asarray(weights, dtype=float)
     return float(np.sum(w[np.asarray(mask, dtype=bool)]) / np.sum(w)) if np.sum(w) > 0 else 0.0
+
+
+@dataclass
+class Counters:
+    """What the compensator's loop counts (bounded memory, whatever the
+    run's length)."""
+
+    MAX_EVENTS_KEPT = 1000  # events kept for the summary (all go to the log file and stderr)
+
+    received: int = 0  # controller messages decoded
+    answered: int = 0
+    late: int = 0  # answers sent after the next message had arrived
+    skipped: int = 0  # messages never answered: a newer one was already waiting
+    refused: int = 0  # targets the safety check refused
+    unanswered_refused: int = 0  # messages left unanswered because no safe target was at hand
+    lost: int = 0  # messages the sequence numbers say never arrived
+    duplicates: int = 0
+    old: int = 0
+    jumps: int = 0
+    clock_faults: int = 0
+    gaps_over: int = 0  # gaps of more than 1.5 periods between messages
+    sensor_records: int = 0
+    sensor_clipped: int = 0  # records with a count at int32's end (the true force unknown)
+    moment_spikes: int = 0
+    saturated_cycles: int = 0
+    saturation_onsets: int = 0
+    stale_s: float = 0.0  # controller time with a stale or ramped-down correction
+    fault_onsets: int = 0
+    events_dropped: int = 0
+    compute_ms: Histogram = field(default_factory=Histogram)
+    age_ms: Histogram = field(default_factory=Histogram)
+    gap_ms: Histogram = field(default_factory=Histogram)
+    events: list = field(default_factory=list)  # (t_s, text), the first MAX_EVENTS_KEPT
+    lost_estimate: LostEstimate = field(default_factory=LostEstimate)

@@ -241,6 +241,8 @@ class CellNetwork:
                 while last not in answers and time.monotonic() < t_wait and not self.stop:
                     self.egm.wait(min(0.05, max(t_wait - time.monotonic(), 0.0)))
                     self._collect(answers)
+                if self.stop:
+                    break  # the run's end (the pass is over), not the compensator's silence
                 if last not in answers:
                     st.stop_reason = (f"no answer from the compensator for {self.answer_timeout_s:g} s after "
                                       f"t = {st.last_answer_t:.3f} s of the cut")

@@ -84,7 +84,7 @@ def read_model(path, robot):
 
 
 def read_reference(path, robot, period_s=0.004):
-    """(times s from 0, q (N, 6) controller deg) of a joint reference CSV:
+    """(times s from 0, q (N, 6) controller angles in rad) of a joint reference CSV:
     columns t_s, q1_deg .. q6_deg (header first; '#' lines are comments),
     checked by cell/safety.check_reference."""
     from robstiff_drake.cell.safety import check_reference
@@ -124,7 +124,7 @@ def read_reference(path, robot, period_s=0.004):
         raise InputError(f"--reference {path}: no rows")
     a = np.array(rows)
     check_reference(str(path), robot, a[:, 0], a[:, 1:], period_s, numbers)
-    return a[:, 0] - a[0, 0], a[:, 1:]
+    return a[:, 0] - a[0, 0], np.radians(a[:, 1:])
 
 
 def wait_for_file(path, wait_s, what="--reference"):
@@ -193,7 +193,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         raise InputError(f"--payload {payload}: nested too deeply to be a payload calibration") from None
     if reference:
         wait_for_file(reference, wait_s)
-        ref = Reference(*read_reference(reference, robot, period_s), period_s=period_s)
+        t_ref, q_ref = read_reference(reference, robot, period_s)
+        ref = Reference(t_ref, np.degrees(q_ref), period_s=period_s)
     else:
         ref = Reference(period_s=period_s)
     host, port = parse_host_port(netft)
@@ -211,7 +212,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     try:
         sensor.open(timeout_s=2.0)
         good = [w for w, _, _, clipped in sensor.drain() if all(v == v for v in w) and not clipped]
-        w0 = np.mean(good, axis=0) if good else np.zeros(6)
+        # the guard's and filter's start: the median of the first records (a spike among them moves a mean)
+        w0 = np.median(good, axis=0) if good else np.zeros(6)
         comp = Compensator(predictor=predictor, calibration=cal, tool_m=tool, filter_ba=ba, max_jump_N=max_jump_N,
                            saturation_rad=math.radians(saturation_deg),
                            rate_limit_rad_per_s=math.radians(rate_limit_deg_per_s), delay_steps=delay_steps,
