@@ -66,7 +66,8 @@ class Histogram:
         return {"median": self.percentile(50), "p99": self.percentile(99), "max": self.max}
 
 
-def verdict(*, cycles, answered, late, unanswered, faults, lost_fraction, refused=0, stopped=""):
+def verdict(*, cycles, answered, late, unanswered, faults, lost_fraction, refused=0, stopped="",
+            unanswered_good=GOOD_UNANSWERED):
     """(word, reasons list, one line) of a run's health; ``stopped``: why
     the run stopped before its end ("": it did not)."""
     reasons = [stopped] if stopped else []
@@ -81,7 +82,7 @@ def verdict(*, cycles, answered, late, unanswered, faults, lost_fraction, refuse
     lost_txt = "unknown" if not math.isfinite(lost_fraction) else f"{100 * lost_fraction:.1f} %"
     if refused or stopped or (math.isfinite(lost_fraction) and lost_fraction >= POOR_LOST) or missed > 0.2 * n:
         word = "poor"
-    elif faults or unanswered > GOOD_UNANSWERED * n or late > GOOD_LATE * n or not (lost_fraction < GOOD_LOST):
+    elif faults or unanswered > unanswered_good * n or late > GOOD_LATE * n or not (lost_fraction < GOOD_LOST):
         word = "degraded"
     else:
         word = "good"
