@@ -268,3 +268,23 @@ def finish(proc, timeout=60):
     """(exit status, the whole stderr) of a process started by start_compensate."""
     out, err = proc.communicate(timeout=timeout)
     return proc.returncode, proc.early_err + err
+
+
+def logging_run(tmp, answered, timeout_s=60.0):
+    """`compensate --log` (a process, holding the start pose) against the
+    stand-in cell, returned once the controller has had ``answered``
+    answers: (process, cell thread, network, log folder)."""
+    import time
+
+    robot = load_robot()
+    model, payload, _, ref_fn = write_inputs(str(tmp), robot, duration_s=1.0)
+    egm_port, netft_port = free_udp_port(), free_udp_port()
+    th, net = start_cell(robot, lambda t: ref_fn(0.0), egm_port=egm_port, netft_port=netft_port,
+                         duration_s=timeout_s + 30.0)
+    log = os.path.join(str(tmp), "log")
+    proc = subprocess.Popen(compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=log),
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t0 = time.monotonic()
+    while net.stats.answered < answered and time.monotonic() - t0 < timeout_s and proc.poll() is None:
+        time.sleep(0.05)
+    return proc, th, net, log

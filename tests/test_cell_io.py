@@ -102,21 +102,10 @@ def test_sigterm_ends_the_run_and_writes_its_log(tmp_path):
     """A service manager stops the compensator with SIGTERM: the run ends as
     on Ctrl-C, with its log written whole (a run's log is the user's data)."""
     import signal
-    import subprocess
-    import time
 
-    robot = load_robot()
-    model, payload, _, ref_fn = h.write_inputs(str(tmp_path), robot, duration_s=1.0)
-    egm_port, netft_port = h.free_udp_port(), h.free_udp_port()
-    th, net = h.start_cell(robot, lambda t: ref_fn(0.0), egm_port=egm_port, netft_port=netft_port, duration_s=30.0)
+    proc, th, net, log = h.logging_run(tmp_path, 200)
     log = tmp_path / "log"
-    proc = subprocess.Popen(h.compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port,
-                                             log=str(log)), cwd=h.ROOT, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
     try:
-        t0 = time.monotonic()
-        while net.stats.answered < 200 and time.monotonic() - t0 < 30.0:  # running: answering the controller
-            time.sleep(0.05)
         assert net.stats.answered >= 200
         proc.send_signal(signal.SIGTERM)
         out, err = proc.communicate(timeout=30)
@@ -434,18 +423,9 @@ def test_the_log_survives_a_sigkill_up_to_its_last_second(tmp_path):
     the log was written only at the end)."""
     import signal
 
-    robot = load_robot()
-    model, payload, _, ref_fn = h.write_inputs(str(tmp_path), robot, duration_s=1.0)
-    egm_port, netft_port = h.free_udp_port(), h.free_udp_port()
-    th, net = h.start_cell(robot, lambda t: ref_fn(0.0), egm_port=egm_port, netft_port=netft_port, duration_s=60.0)
+    proc, th, net, log = h.logging_run(tmp_path, 600)
     log = tmp_path / "log"
-    proc = subprocess.Popen(h.compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port,
-                                             log=str(log)), cwd=h.ROOT, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
     try:
-        t0 = time.monotonic()
-        while net.stats.answered < 600 and time.monotonic() - t0 < 60.0:
-            time.sleep(0.05)
         assert net.stats.answered >= 600
         answered = net.stats.answered
         proc.send_signal(signal.SIGKILL)

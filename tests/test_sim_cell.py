@@ -99,15 +99,7 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     # The same chain: over the steady part of the cut (t = 1.5-2.5 s, the
     # force constant) the six joint corrections the compensator sent agree
     # with the diagram compensator's within 3 % of the largest one.
-    log = _read_log(tmp_path / "log" / "timeseries_compensated.csv")
-    tc, c = short_compensated.logs["correction"]
-    m_net = (log["t_s"] > 1.5) & (log["t_s"] < 2.5)
-    m_dia = (tc > 1.5) & (tc < 2.5)
-    net = np.array([np.mean(log[f"correction_q{j}_rad"][m_net]) for j in range(1, 7)])
-    dia = c[m_dia].mean(axis=0)
-    print("steady corrections (urad): diagram", np.round(dia * 1e6, 1), "over EGM/RDT", np.round(net * 1e6, 1))
-    assert np.max(np.abs(dia)) > 50e-6, dia  # a correction worth comparing
-    assert np.max(np.abs(net - dia)) < 0.03 * np.max(np.abs(dia)), (net, dia)
+    _same_steady_corrections(tmp_path, short_compensated, "irb6400 egm")
     assert plain["mean"] > 0.1 and abs(diagram["mean"]) < 0.2 * plain["mean"], (plain, diagram)
     if lockstep:
         # Each answer before the next step: the diagram's loop, its surface
@@ -129,6 +121,22 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     # it then steps through the missed ones and the target jumps, the servo's
     # velocity feed-forward jerks the arm by tens of micrometres and the face
     # mill keeps the deepest dip over a cutter's width (docs/real_cell.md).
+
+
+def _same_steady_corrections(tmp_path, diagram, label):
+    """The same chain: over the steady part of the cut (t = 1.5-2.5 s, the
+    force constant) the six joint corrections the compensator sent agree
+    with the diagram compensator's within 3 % of the largest one."""
+    log = _read_log(tmp_path / "log" / "timeseries_compensated.csv")
+    tc, c = diagram.logs["correction"]
+    m_net = (log["t_s"] > 1.5) & (log["t_s"] < 2.5)
+    m_dia = (tc > 1.5) & (tc < 2.5)
+    net = np.array([np.mean(log[f"correction_q{j}_rad"][m_net]) for j in range(1, 7)])
+    dia = c[m_dia].mean(axis=0)
+    print(label, "steady corrections (urad): diagram", np.round(dia * 1e6, 1), "over the protocols",
+          np.round(net * 1e6, 1))
+    assert np.max(np.abs(dia)) > 50e-6, dia  # a correction worth comparing
+    assert np.max(np.abs(net - dia)) < 0.03 * np.max(np.abs(dia)), (net, dia)
 
 
 def _run_pair(tmp_path, model, payload, *, lockstep, scenario=SHORT, robot=None, comp_extra=(), cell_extra=(),
@@ -178,16 +186,8 @@ def test_kuka_and_fanuc_conventions_over_the_protocols_match_the_diagram(tmp_pat
     assert cell.returncode == 0, (cell.stderr, comp.stderr)
     assert comp.returncode == 0, comp.stderr
     res = json.loads(out.read_text())
-    log = _read_log(tmp_path / "log" / "timeseries_compensated.csv")
-    tc, c = diagram.logs["correction"]
-    m_net = (log["t_s"] > 1.5) & (log["t_s"] < 2.5)
-    m_dia = (tc > 1.5) & (tc < 2.5)
-    net = np.array([np.mean(log[f"correction_q{j}_rad"][m_net]) for j in range(1, 7)])
-    dia = c[m_dia].mean(axis=0)
-    print(name, protocol, "steady corrections (urad): diagram", np.round(dia * 1e6, 1), "over EGM/RDT", np.round(net * 1e6, 1),
-          "surface", res["surface_error_mm"]["mean"], "diagram", diagram.surface_error_mm["mean"])
-    assert np.max(np.abs(dia)) > 50e-6, dia
-    assert np.max(np.abs(net - dia)) < 0.03 * np.max(np.abs(dia)), (net, dia)
+    _same_steady_corrections(tmp_path, diagram, f"{name} {protocol}")
+    print(name, protocol, "surface", res["surface_error_mm"]["mean"], "diagram", diagram.surface_error_mm["mean"])
     assert abs(res["surface_error_mm"]["mean"] - diagram.surface_error_mm["mean"]) < 0.005, (res, diagram)
     assert res["unanswered"] == 0, res
 
