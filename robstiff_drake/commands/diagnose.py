@@ -6,7 +6,7 @@ whether the result explains the data against the noise floor."""
 import numpy as np
 
 from robstiff_drake.commands.identify import campaign_warnings
-from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
 from robstiff_drake.identification.confounding import CONFOUNDED_MIN

@@ -3,7 +3,7 @@ stiffness identification, compared with random poses of the same size."""
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.identification.campaign import tool_header_line
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import check_outputs, emit_json, write_atomic
