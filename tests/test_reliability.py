@@ -530,3 +530,24 @@ def test_a_campaign_loaded_along_one_line_has_no_intervals(tmp_path):
     c.force_N[:] = np.outer(np.where(c.force_N[:, 0] < 0, -1.0, 1.0), [300.0, 0.0, 0.0])
     assert interval_support(c, ROBOT.payload.tool_point_m, 5) == [
         "every load is along one line: the rows cannot separate the joints beyond it; load in several directions"]
+
+
+@pytest.mark.parametrize("command", [
+    lambda c, d: ["table2", "--json", d / "t.json", "--plot", d / "t.png"],
+    lambda c, d: ["diagnose", c, "--json", d / "d.json", "--report", d / "d.md", "--plots", d / "views"],
+])
+def test_every_command_with_several_outputs_writes_all_or_none(capsys, tmp_path, campaign, monkeypatch, command):
+    """table2 and diagnose (like identify): a full disk at the figure leaves none of the other outputs behind
+    (they were written one by one before: t.json, d.json and d.md stayed)."""
+    import matplotlib.figure
+
+    def full(self, *a, **k):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", full)
+    out = tmp_path / "out"
+    out.mkdir()
+    code, _, err = cli(capsys, *command(campaign, out))
+    one_line_error(code, err)
+    assert "No space left on device" in err
+    assert list(out.iterdir()) == []
