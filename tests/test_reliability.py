@@ -551,3 +551,18 @@ def test_every_command_with_several_outputs_writes_all_or_none(capsys, tmp_path,
     one_line_error(code, err)
     assert "No space left on device" in err
     assert list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize("name, code_point", [("block\x1b[2J", "U+001B"), ("two\nlines", "U+000A"),
+                                              ("bidi\u202eevil", "U+202E")])
+def test_a_scenario_name_with_control_characters_is_refused(capsys, tmp_path, name, code_point):
+    """The scenario's name is printed in titles, report lines and the replay: an escape sequence in it
+    would act on the user's terminal (it was printed raw). One line naming file, line, key and character."""
+    from robstiff_drake.paths import DIAGRAMS_DIR
+
+    text = (DIAGRAMS_DIR / "short_block.yaml").read_text(encoding="utf-8")
+    p = tmp_path / "named.yaml"
+    p.write_text(text.replace("name: short_block", "name: " + json.dumps(name)), encoding="utf-8")
+    code, _, err = cli(capsys, "simulate", p)
+    one_line_error(code, err)
+    assert "named.yaml:6" in err and "name" in err and code_point in err and "\x1b" not in err
