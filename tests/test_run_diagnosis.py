@@ -295,6 +295,13 @@ def test_a_verification_cut_must_run_a_candidate(exact_run, tmp_path, capsys):
     other.write_text(rf.settings_text(settings, "x"))
     assert "tool point" in _error_line(capsys, "simulate", str(exact_run / "sim_scenario.yaml"), "--compensator",
                                        str(other), "--out", str(tmp_path / "never"))
+    settings.tool_point_mm = rf.read_settings(exact_run / rf.SETTINGS)[1].tool_point_mm
+    settings.robot = "kr240_r2900"  # another robot's compensator, on this robot's run: refused, not run
+    other.write_text(rf.settings_text(settings, "x"))
+    err = _error_line(capsys, "simulate", str(exact_run / "sim_scenario.yaml"), "--compensator", str(other),
+                      "--out", str(tmp_path / "never"))
+    assert "compensator.robot is kr240_r2900" in err and "not the simulated robot irb6400" in err
+    assert not (tmp_path / "never").exists()
 
 
 # ---------------------------------------------------------------- formats and statistics, no simulation
