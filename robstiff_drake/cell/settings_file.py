@@ -8,7 +8,7 @@ import numpy as np
 
 from robstiff_drake.identification import run_files as rf
 
-SERVO_NOTE = ("servo: not given to compensate (--servo DELAY_MS,KP_PER_S,BANDWIDTH_HZ,FEEDFORWARD); add the robot "
+SERVO_NOTE = ("servo: not given to compensate (--servo DELAY_MS,KP_PER_S,BANDWIDTH_HZ,FEEDFORWARD[,KI_HZ]); add the robot "
               "controller's servo section before diagnose-run")
 CUTTER_NOTE = ("tool.cutter_diameter_mm: not given to compensate (--cutter-diameter-mm); add it before "
                "diagnose-run")

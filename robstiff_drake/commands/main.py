@@ -326,9 +326,10 @@ def build_parser():
                         "lbf-ft, kgf-cm, kN-m)")
     p.add_argument("--netft-http-port", type=_number_in(1, 65535, integer=True), default=80,
                    help="TCP port of the sensor's calibration page netftapi2.xml (default: %(default)s)")
-    p.add_argument("--servo", metavar="DELAY_MS,KP,BW_HZ,FF", default=None,
+    p.add_argument("--servo", metavar="DELAY_MS,KP,BW_HZ,FF[,KI_HZ]", default=None,
                    help="the controller's servo for the log's compensator.yaml: interpolator dead time (ms), "
-                        "position gain (1/s), velocity bandwidth (Hz), velocity feed-forward (0-1)")
+                        "position gain (1/s), velocity bandwidth (Hz), velocity feed-forward (0-1) and, "
+                        "optionally, the velocity loop's integral corner (Hz, 0-100; default 7.5)")
     p.add_argument("--cutter-diameter-mm", type=_number_in(0.1, 1000.0, "mm"), default=None,
                    help="the cutter's diameter, for the log's compensator.yaml")
     p.add_argument("--wait-s", type=_number_in(0.1, 3600.0, "s"), default=30.0,
@@ -530,10 +531,13 @@ def _dispatch(args):
         units = [u.strip() for u in args.netft_units.split(",")] if args.netft_units else None
         if units is not None and len(units) != 2:
             raise InputError(f"--netft-units: expected FORCE,TORQUE (e.g. N,N-mm), got {args.netft_units!r}")
-        servo = parse_vector(args.servo, 4, "--servo") if args.servo else None
-        if servo is not None and (min(servo[:3]) <= 0 or not 0 <= servo[3] <= 1 or servo[0] > 1000):
+        n_servo = 5 if args.servo and args.servo.count(",") == 4 else 4
+        servo = parse_vector(args.servo, n_servo, "--servo") if args.servo else None
+        if servo is not None and (min(servo[:3]) <= 0 or not 0 <= servo[3] <= 1 or servo[0] > 1000
+                                  or (n_servo == 5 and not 0 <= servo[4] <= 100)):
             raise InputError(f"--servo {args.servo}: expected a dead time in (0, 1000] ms, a gain > 0 1/s, a "
-                             "bandwidth > 0 Hz and a feed-forward in [0, 1]")
+                             "bandwidth > 0 Hz, a feed-forward in [0, 1] and, optionally, an integral corner "
+                             "in [0, 100] Hz")
         if args.listen_port is None and args.protocol != "stream-motion":
             raise InputError(f"--listen-port (--egm-port) is required for --controller-protocol {args.protocol}")
         return compensate.run(listen_port=args.listen_port or 0, netft=args.netft, robot_yaml=args.robot,
