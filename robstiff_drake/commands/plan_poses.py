@@ -38,6 +38,8 @@ def plan_csv(plan, *, robot, force_N, noise_mm, tool_m):
 
 
 def separation_csv(plan, *, robot, force_N, noise_mm, tool_m):
+    from robstiff_drake.identification.synth import command_line
+
     a, b = plan.effects
     lines = [
         f"# Measurement plan made by robstiff-drake (robstiff plan-poses --separate {a},{b}; greedy over the",
