@@ -8,8 +8,9 @@ studies/diagnosis_confusion.py (30 campaigns per row, about half an hour),
 studies/tracker_campaigns.py and the two benchmarks, and replaces the
 ``confusion``, ``tracker_study`` and ``speed`` blocks (``--confusion FILE``
 takes the confusion study's output from a file instead of running it).  The FANUC example needs the real data
-(tests/realdata.py; ROBSTIFF_REALDATA): without it that block is left as it
-was and the script says so.
+(tests/realdata.py; ROBSTIFF_REALDATA), as does its rerun over fold
+assignments (studies/fanuc_folds.py): without it those blocks are left as
+they were and the script says so.
 
 Run: python3 studies/diagnosis_docs.py [--studies [--confusion FILE]]
 """
@@ -87,7 +88,7 @@ def main():
 
         reason = realdata.missing(realdata.FANUC)
         if reason:
-            print(f"FANUC example left as it was: {reason}")
+            print(f"FANUC example and its fold study left as they were: {reason}")
         else:
             sh(f"python3 {ROOT}/tests/realdata.py fanuc fanuc.csv", tmp, env)
             out = sh("robstiff diagnose fanuc.csv --robot r2000ic_165f --noise-mm 0.03 2>/dev/null", tmp)
@@ -100,6 +101,9 @@ def main():
                       "--noise-mm 0.03", tmp)
             out += "\n".join(plan.splitlines()[:12]) + "\n  ..."
             text = replace(text, "fanuc", block(out, "fanuc"))
+            folds = sh(f"python3 {ROOT}/studies/fanuc_folds.py 2>/dev/null", ROOT, env)
+            text = replace(text, "fanuc_folds", "<!-- generated: fanuc_folds -->\n" + folds.strip()
+                           + "\n<!-- end fanuc_folds -->")
     if args.studies:
         out = Path(args.confusion).read_text() if args.confusion else \
             sh(f"python3 {ROOT}/studies/diagnosis_confusion.py 2>/dev/null", ROOT)

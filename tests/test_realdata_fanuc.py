@@ -49,7 +49,8 @@ def test_diagnosis_is_honest(capsys, fanuc):
     # 20 %; the terms of physical size give about 18 % (14-22 % over the assignments; studies/fanuc_folds.py),
     # so this guards what they do, not the goal
     spread = res["fold_spread"]
-    assert len(spread["seeds"]) >= 5 and spread["reduction_min"] <= spread["reduction_median"] <= spread["reduction_max"]
+    assert len(spread["seeds"]) >= 5
+    assert spread["reduction_min"] <= spread["reduction_median"] <= spread["reduction_max"]
     assert res["rms_after_mm"] <= 0.9 * res["rms_before_mm"], (res["rms_before_mm"], res["rms_after_mm"])
     assert spread["reduction_min"] > 0.1, spread
     # the verdict says which terms carry the reduction and what kind they are

@@ -431,7 +431,8 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
         unexplained_mm=unexplained, outliers=outliers, stiffness_with_outliers_Nm_per_rad=k_with, terms=reports,
         discovered=discovered, dropped=result.dropped, residual_structure=structure,
         n_hypotheses=result.n_hypotheses, rows_used=rows, non_physical=non_physical, warnings=list(w),
-        thresholds=thresholds(fold_seed), leads=leads, confounded=confounded, floor_check=floor_check, fold_spread=spread)
+        thresholds=thresholds(fold_seed), leads=leads, confounded=confounded, floor_check=floor_check,
+        fold_spread=spread)
 
 
 __all__ = ["diagnose", "Diagnosis", "CANDIDATES", "DICTIONARY"]

@@ -28,8 +28,9 @@ size beyond its physical range (identification/plausibility.py, judged at
 the estimate: a 95 % interval that reaches the range does not make the
 estimate physical), or that drives a joint's compliance negative that was
 positive, is not added: it is kept as a *lead* (what the residual looks
-like, at a size the physics does not allow), reported with the reason.  The backward check never drops a term whose removal would make
-a compliance negative.
+like, at a size the physics does not allow), reported with the reason.
+The backward check never drops a term whose removal would make a
+compliance negative.
 """
 
 from dataclasses import dataclass, field, replace
