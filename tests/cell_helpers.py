@@ -40,7 +40,7 @@ def calibration(robot):
                               sensor_mount_rpy_deg=[0.0, 0.0, 0.0])
 
 
-def write_inputs(folder, robot, *, feed_mm_per_s=20.0, duration_s=3.0, robot_name=None, nominal=None):
+def write_inputs(folder, robot, *, feed_mm_per_s=20.0, duration_s=3.0, robot_name=None, nominal=None, start_mm=None):
     """model.json, payload.yaml and reference.csv in ``folder``; returns
     their paths and the reference as a function of time (rad)."""
     model = os.path.join(folder, "model.json")
@@ -60,7 +60,7 @@ def write_inputs(folder, robot, *, feed_mm_per_s=20.0, duration_s=3.0, robot_nam
     ts = np.arange(0.0, min(duration_s, 3.5) + 1e-9, 0.004)
     q_prev, qs = None, []
     for t in ts:
-        p = np.array(START_MM) / 1e3 + [feed_mm_per_s * min(t, 3.0) / 1e3, 0.0, 0.0]
+        p = np.array(start_mm or START_MM) / 1e3 + [feed_mm_per_s * min(t, 3.0) / 1e3, 0.0, 0.0]
         q_prev = ik.solve_ik(robot.dh, ik.tool_down_pose(p, 0.0), robot.payload.tool_point_m, q_ref_rad=q_prev,
                              q_lower_rad=robot.q_lower_rad, q_upper_rad=robot.q_upper_rad)
         qs.append(q_prev)
@@ -91,14 +91,19 @@ def cutting_wrench(t0=0.8, ramp_s=0.3, force_N=(-300.0, 260.0, 50.0)):
     return W
 
 
-def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=None, wrench=None, rt_priority=0):
+def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=None, wrench=None, rt_priority=0,
+               lockstep=False, link=None, supervise=True, transport_delay_cycles=None):
     """A simulated cell (stand-in arm) in a thread; returns (thread, network).
     ``rt_priority``: run the thread under SCHED_FIFO (a controller is hard
     real-time; the benchmark's option)."""
     station = ServoArmStandIn(robot=robot, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
                               calibration=calibration(robot), process_wrench=wrench or cutting_wrench(),
                               reference=reference, q_start_rad=reference(0.0), seed=3)
-    net = CellNetwork(station, egm_to=("127.0.0.1", egm_port), netft_port=netft_port, faults=faults or Faults())
+    limits = ((np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad), robot.speed_limit_deg_per_s,
+               robot.acceleration_limit_deg_per_s2) if supervise else None)
+    net = CellNetwork(station, egm_to=("127.0.0.1", egm_port), netft_port=netft_port, faults=faults or Faults(),
+                      netft_http_port=netft_port, lockstep=lockstep, limits=limits, link=link,
+                      transport_delay_cycles=transport_delay_cycles)
     def run():
         if rt_priority:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
@@ -111,7 +116,8 @@ def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=Non
 
 def compensate_cmd(model, payload, reference, *, egm_port, netft_port, log=None, extra=()):
     cmd = [sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
-           "--netft", f"127.0.0.1:{netft_port}", "--model", model, "--payload", payload,
+           "--netft", f"127.0.0.1:{netft_port}", "--netft-http-port", str(netft_port), "--model", model,
+           "--payload", payload,
            "--wait-s", "20", "--idle-exit-s", "0.5", "--cutoff-hz", "10", "--sensor-rate-hz", "1000"]
     if reference:
         cmd += ["--reference", reference]
@@ -144,3 +150,141 @@ def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), w
     th.join(30)
     net.close()
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err), net.stats, log
+
+
+class FakeSensor:
+    """A Net F/T on 127.0.0.1 (RDT and its calibration page) streaming
+    ``wrench(t)`` (N, N*m, sensor frame) at about 1 kHz from a thread."""
+
+    def __init__(self, wrench, units=("N", "N-m"), counts=(1e6, 1e6)):
+        from robstiff_drake.cell.rdt import RDTServer
+
+        self.server = RDTServer(0, http_port=0, units=units, counts_per_force=counts[0],
+                                counts_per_torque=counts[1])
+        self.port, self.http_port = self.server.port, self.server.http_port
+        self.wrench = wrench
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        import time
+
+        t0 = time.monotonic()
+        while not self._stop.is_set():
+            self.server.poll()
+            self.server.send(list(self.wrench(time.monotonic() - t0)))
+            time.sleep(0.001)
+
+    def close(self):
+        self._stop.set()
+        self.thread.join(5)
+        self.server.close()
+
+
+def hold_wrench(robot, q_rad):
+    """What the wrist sensor reads at rest at ``q_rad`` (payload weight and bias, no noise)."""
+    from robstiff_drake.model.payload import payload_wrench
+    from robstiff_drake.model.realtime import DeflectionPredictor
+
+    kin = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, robot.payload.tool_point_m)
+    R, _ = kin.flange_rotation_and_tool_point(np.asarray(q_rad, dtype=float))
+    w = payload_wrench(R, calibration(robot))
+    return lambda t: w
+
+
+class ScriptedController:
+    """A controller that sends EgmRobot messages exactly as a test says
+    (sequence number, clock, joints) from 127.0.0.1 (or ``host``, another
+    loopback address) and collects the answers: one message, then its
+    answer (lockstep, no timing on a loaded machine)."""
+
+    def __init__(self, compensate_port, host="127.0.0.1"):
+        from robstiff_drake.cell.egm import _egm_pb2
+
+        self.pb2 = _egm_pb2()
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind((host, 0))
+        self.addr = ("127.0.0.1", compensate_port)
+        self.port = self.sock.getsockname()[1]
+
+    def message(self, seq, tm_ms, joints_deg):
+        m = self.pb2.EgmRobot()
+        m.header.seqno = int(seq)
+        m.header.tm = int(tm_ms) & 0xFFFFFFFF
+        m.header.mtype = self.pb2.EgmHeader.MSGTYPE_DATA
+        m.feedBack.joints.joints.extend([float(v) for v in joints_deg])
+        return m.SerializeToString()
+
+    def send(self, seq, tm_ms, joints_deg):
+        self.sock.sendto(self.message(seq, tm_ms, joints_deg), self.addr)
+
+    def answers(self, timeout_s=0.0, want=1):
+        """The joint targets (deg) of the answers waiting (after waiting up
+        to ``timeout_s`` for ``want`` of them)."""
+        import select
+        import time
+
+        out, t_end = [], time.monotonic() + timeout_s
+        while True:
+            r, _, _ = select.select([self.sock], [], [], max(t_end - time.monotonic(), 0.0))
+            if not r:
+                return out
+            data, _ = self.sock.recvfrom(65536)
+            m = self.pb2.EgmSensor()
+            m.ParseFromString(data)
+            out.append(list(m.planned.joints.joints))
+            if len(out) >= want and timeout_s:
+                return out
+
+    def exchange(self, seq, tm_ms, joints_deg, timeout_s=5.0):
+        self.send(seq, tm_ms, joints_deg)
+        got = self.answers(timeout_s)
+        return got[-1] if got else None
+
+    def close(self):
+        self.sock.close()
+
+
+def start_compensate(model, payload, sensor, egm_port, *, reference=None, log=None, extra=()):
+    cmd = [sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port), "--netft",
+           f"127.0.0.1:{sensor.port}", "--netft-http-port", str(sensor.http_port), "--model", model, "--payload",
+           payload, "--wait-s", "30", "--idle-exit-s", "1.0", "--sensor-timeout-ms", "200"]
+    if reference:
+        cmd += ["--reference", reference]
+    if log:
+        cmd += ["--log", log]
+    proc = subprocess.Popen(cmd + list(extra), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # ready when it says it waits for the controller (its port is bound); its earlier lines are kept
+    proc.early_err = ""
+    for line in proc.stderr:
+        proc.early_err += line
+        if "waiting for" in line and "messages from" in line:
+            break
+    return proc
+
+
+def finish(proc, timeout=60):
+    """(exit status, the whole stderr) of a process started by start_compensate."""
+    out, err = proc.communicate(timeout=timeout)
+    return proc.returncode, proc.early_err + err
+
+
+def logging_run(tmp, answered, timeout_s=60.0):
+    """`compensate --log` (a process, holding the start pose) against the
+    stand-in cell, returned once the controller has had ``answered``
+    answers: (process, cell thread, network, log folder)."""
+    import time
+
+    robot = load_robot()
+    model, payload, _, ref_fn = write_inputs(str(tmp), robot, duration_s=1.0)
+    egm_port, netft_port = free_udp_port(), free_udp_port()
+    th, net = start_cell(robot, lambda t: ref_fn(0.0), egm_port=egm_port, netft_port=netft_port,
+                         duration_s=timeout_s + 30.0)
+    log = os.path.join(str(tmp), "log")
+    proc = subprocess.Popen(compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=log),
+                            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t0 = time.monotonic()
+    while net.stats.answered < answered and time.monotonic() - t0 < timeout_s and proc.poll() is None:
+        time.sleep(0.05)
+    return proc, th, net, log

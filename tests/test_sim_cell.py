@@ -17,12 +17,18 @@ import numpy as np
 import pytest
 
 from cell_helpers import FORCE_BIAS_N, ROOT, TORQUE_BIAS_NM, free_udp_port, write_inputs
+from robstiff_drake.diagrams.cell_record import servo_settings
 from robstiff_drake.diagrams.cell_station import CellStation
+from robstiff_drake.identification.run_files import SERVO_KEYS
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.model.robot import load_robot
 
 SHORT = os.path.join(ROOT, "tests", "data", "short_block.yaml")
+# the same pass on the KUKA (its A3 offset by -90 deg) and the FANUC (its J3 measured from the horizontal):
+# robot files with a `controller:` map between the controller's angles and the model's
+OTHER_ROBOTS = {name: os.path.join(ROOT, "tests", "data", f"short_block_{name}.yaml")
+                for name in ("kr240_r2900", "r2000ic_165f")}
 
 
 @pytest.fixture(scope="module")
@@ -55,13 +61,13 @@ def test_stepped_station_cuts_what_the_diagram_cuts(short):
     assert abs(adapter["pv"] - diagram["pv"]) < 0.15 * diagram["pv"] + 0.005, (adapter, diagram)
 
 
-def _sim_cell(tmp_path, *, egm_port, netft_port, lockstep):
+def _sim_cell(tmp_path, *, egm_port, netft_port, lockstep, scenario=SHORT, extra=()):
     ref = tmp_path / "cell_reference.csv"
     out = tmp_path / "cell.json"
-    cell = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "sim-cell", SHORT,
+    cell = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "sim-cell", scenario,
                              "--egm-to", f"127.0.0.1:{egm_port}", "--netft-port", str(netft_port),
                              "--reference-out", str(ref), "--json", str(out), "--wait-s", "40"]
-                            + (["--lockstep"] if lockstep else []),
+                            + (["--lockstep"] if lockstep else []) + list(extra),
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     return cell, ref, out
 
@@ -79,15 +85,11 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     model, payload, _, _ = write_inputs(str(tmp_path), robot)
     # the payload calibration's bias is the scenario's sensor bias
     assert np.allclose(sc.sensor.force_bias_N, FORCE_BIAS_N) and np.allclose(sc.sensor.torque_bias_Nm, TORQUE_BIAS_NM)
-    egm_port, netft_port = free_udp_port(), free_udp_port()
-    cell, ref, out = _sim_cell(tmp_path, egm_port=egm_port, netft_port=netft_port, lockstep=lockstep)
-    comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
-                           "--netft", f"127.0.0.1:{netft_port}", "--model", model, "--payload", payload,
-                           "--reference", str(_wait_for(ref)), "--wait-s", "40", "--idle-exit-s", "1.0",
-                           "--cutoff-hz", "2", "--sensor-rate-hz", "1000", "--delay-steps", "1",
-                           "--log", str(tmp_path / "log")],
-                          cwd=ROOT, capture_output=True, text=True, timeout=120)
-    _, cerr = cell.communicate(timeout=120)
+    servo = servo_settings(sc)
+    cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=lockstep, cell_extra=[
+        "--scan-out", str(tmp_path / "my_scan.csv")], comp_extra=[
+        "--servo", ",".join(str(servo[k]) for k in SERVO_KEYS), "--cutter-diameter-mm", str(sc.cutter.diameter_mm)])
+    cerr = cell.stderr
     assert cell.returncode == 0, (cerr, comp.stderr)
     assert comp.returncode == 0, comp.stderr
     res = json.loads(out.read_text())
@@ -97,15 +99,7 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     # The same chain: over the steady part of the cut (t = 1.5-2.5 s, the
     # force constant) the six joint corrections the compensator sent agree
     # with the diagram compensator's within 3 % of the largest one.
-    log = _read_log(tmp_path / "log" / "timeseries_compensated.csv")
-    tc, c = short_compensated.logs["correction"]
-    m_net = (log["t_s"] > 1.5) & (log["t_s"] < 2.5)
-    m_dia = (tc > 1.5) & (tc < 2.5)
-    net = np.array([np.mean(log[f"correction_q{j}_rad"][m_net]) for j in range(1, 7)])
-    dia = c[m_dia].mean(axis=0)
-    print("steady corrections (urad): diagram", np.round(dia * 1e6, 1), "over EGM/RDT", np.round(net * 1e6, 1))
-    assert np.max(np.abs(dia)) > 50e-6, dia  # a correction worth comparing
-    assert np.max(np.abs(net - dia)) < 0.03 * np.max(np.abs(dia)), (net, dia)
+    _same_steady_corrections(tmp_path, short_compensated, "irb6400 egm")
     assert plain["mean"] > 0.1 and abs(diagram["mean"]) < 0.2 * plain["mean"], (plain, diagram)
     if lockstep:
         # Each answer before the next step: the diagram's loop, its surface
@@ -113,11 +107,89 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
         # against the EGM messages differs from the diagram's by a sample).
         assert abs(surf["mean"] - diagram["mean"]) < 0.005, (surf, diagram)
         assert res["unanswered"] == 0, res
+        assert res["health"]["verdict"] == "good", res["health"]
+        # the log is a run folder diagnose-run reads, with the scan made outside it attached
+        dr = subprocess.run([sys.executable, "-m", "robstiff_drake", "diagnose-run", str(tmp_path / "log"), "--scan",
+                             str(tmp_path / "my_scan.csv"), "--json", str(tmp_path / "dr.json"), "--out",
+                             str(tmp_path / "dr")], cwd=ROOT, capture_output=True, text=True, timeout=300)
+        assert dr.returncode == 0, dr.stderr
+        rep = json.loads((tmp_path / "dr.json").read_text())
+        assert rep["n_scan_points"] > 100 and rep["run_id"] == (tmp_path / "log" / "RUN_ID").read_text().strip()
+        print("diagnose-run of the cell's log:", rep["rms_before_mm"], [c["name"] for c in rep["causes"]])
     # In real time nothing is asserted of the surface: on a shared machine
     # some cycles of the simulated controller (a Python thread) come late;
     # it then steps through the missed ones and the target jumps, the servo's
     # velocity feed-forward jerks the arm by tens of micrometres and the face
     # mill keeps the deepest dip over a cutter's width (docs/real_cell.md).
+
+
+def _same_steady_corrections(tmp_path, diagram, label):
+    """The same chain: over the steady part of the cut (t = 1.5-2.5 s, the
+    force constant) the six joint corrections the compensator sent agree
+    with the diagram compensator's within 3 % of the largest one."""
+    log = _read_log(tmp_path / "log" / "timeseries_compensated.csv")
+    tc, c = diagram.logs["correction"]
+    m_net = (log["t_s"] > 1.5) & (log["t_s"] < 2.5)
+    m_dia = (tc > 1.5) & (tc < 2.5)
+    net = np.array([np.mean(log[f"correction_q{j}_rad"][m_net]) for j in range(1, 7)])
+    dia = c[m_dia].mean(axis=0)
+    print(label, "steady corrections (urad): diagram", np.round(dia * 1e6, 1), "over the protocols",
+          np.round(net * 1e6, 1))
+    assert np.max(np.abs(dia)) > 50e-6, dia  # a correction worth comparing
+    assert np.max(np.abs(net - dia)) < 0.03 * np.max(np.abs(dia)), (net, dia)
+
+
+def _run_pair(tmp_path, model, payload, *, lockstep, scenario=SHORT, robot=None, comp_extra=(), cell_extra=(),
+              protocol="egm"):
+    """sim-cell and compensate, started together as docs/real_cell.md pastes them (compensate waits for
+    the reference sim-cell writes when it is up); (sim-cell's, compensate's completed process, JSON path)."""
+    egm_port, netft_port = free_udp_port(), free_udp_port()
+    cell, ref, out = _sim_cell(tmp_path, egm_port=egm_port, netft_port=netft_port, lockstep=lockstep,
+                               scenario=scenario, extra=list(cell_extra) + ["--controller-protocol", protocol])
+    if protocol == "stream-motion":  # the PC is the client: it sends to the robot's port
+        comp_extra = list(comp_extra) + ["--controller", f"127.0.0.1:{egm_port}"]
+    comp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--controller-protocol", protocol,
+                           "--listen-port", str(0 if protocol == "stream-motion" else egm_port),
+                           "--netft", f"127.0.0.1:{netft_port}", "--netft-http-port", str(netft_port), "--model", model,
+                           "--payload", payload, "--reference", str(ref), "--wait-s", "60", "--idle-exit-s", "1.0",
+                           "--cutoff-hz", "2", "--sensor-rate-hz", "1000", "--delay-steps", "0",
+                           "--log", str(tmp_path / "log")] + (["--robot", robot] if robot else []) + list(comp_extra),
+                          cwd=ROOT, capture_output=True, text=True, timeout=180)
+    _, cerr = cell.communicate(timeout=180)
+    return subprocess.CompletedProcess(cell.args, cell.returncode, "", cerr), comp, out
+
+
+_DIAGRAMS = {}
+
+
+def _diagram_run(name):
+    if name not in _DIAGRAMS:
+        _DIAGRAMS[name] = run_cut(load_scenario(OTHER_ROBOTS[name]), load_robot(name), compensation=True)
+    return _DIAGRAMS[name]
+
+
+@pytest.mark.parametrize("name, protocol", [("kr240_r2900", "egm"), ("kr240_r2900", "rsi"),
+                                            ("r2000ic_165f", "egm"), ("r2000ic_165f", "stream-motion")])
+def test_kuka_and_fanuc_conventions_over_the_protocols_match_the_diagram(tmp_path, name, protocol):
+    """The controller's convention: the KUKA's and the FANUC's references,
+    feedback and targets are in their controllers' angles (A3 offset by
+    -90 deg; J3 from the horizontal), mapped through the robot file's
+    `controller:` block; in lockstep the corrections sent and the surface
+    cut match the in-diagram run's."""
+    robot = load_robot(name)
+    assert not robot.joint_map.is_identity
+    diagram = _diagram_run(name)
+    start = (robot.workspace.reference_tool_point_m * 1e3).tolist()
+    model, payload, _, _ = write_inputs(str(tmp_path), robot, duration_s=0.1, start_mm=start)
+    cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=True, scenario=OTHER_ROBOTS[name], robot=name,
+                                protocol=protocol)
+    assert cell.returncode == 0, (cell.stderr, comp.stderr)
+    assert comp.returncode == 0, comp.stderr
+    res = json.loads(out.read_text())
+    _same_steady_corrections(tmp_path, diagram, f"{name} {protocol}")
+    print(name, protocol, "surface", res["surface_error_mm"]["mean"], "diagram", diagram.surface_error_mm["mean"])
+    assert abs(res["surface_error_mm"]["mean"] - diagram.surface_error_mm["mean"]) < 0.005, (res, diagram)
+    assert res["unanswered"] == 0, res
 
 
 def _wait_for(path, timeout_s=60.0):
@@ -128,3 +200,24 @@ def _wait_for(path, timeout_s=60.0):
         assert time.monotonic() - t0 < timeout_s, f"sim-cell wrote no {path.name}"
         time.sleep(0.1)
     return path
+
+
+def test_sim_cell_says_when_the_compensator_went_silent_before_the_cut(tmp_path):
+    """The compensator answers 20 messages, then nothing, before the cutter
+    reaches the part (before: KeyError 'mean' in --lockstep): sim-cell
+    says when it stopped being answered, that no face was cut, and exits 3."""
+    from test_cell_io import _AnsweringCompensator
+
+    comp = _AnsweringCompensator(lambda k, q: q if k <= 20 else None)
+    try:
+        cell, ref, out = _sim_cell(tmp_path, egm_port=comp.port, netft_port=free_udp_port(), lockstep=True)
+        _, err = cell.communicate(timeout=180)
+    finally:
+        comp.close()
+    assert cell.returncode == 3, err
+    assert "Traceback" not in err, err
+    assert "no answer from the compensator for 1 s after t = 0.0" in err
+    assert "no face was cut" in err
+    res = json.loads(out.read_text())
+    assert res["surface_error_mm"] is None and res["stopped"].startswith("no answer")
+    assert res["health"]["verdict"] == "poor"

@@ -137,13 +137,30 @@ def test_guard_holds_last_good_value():
     ctx = guard.CreateDefaultContext()
     for bad in ([np.nan] * 6, [np.inf, 0, 0, 0, 0, 0], [1 + 800.0, 1, 1, 1, 1, 1]):
         guard.get_input_port().FixValue(ctx, bad)
-        held, count = update(guard, ctx)
+        held, count, _ = update(guard, ctx)
         np.testing.assert_array_equal(held, np.ones(6))
         ctx.SetDiscreteState(1, count)
     assert ctx.get_discrete_state(1).value()[0] == 3
     guard.get_input_port().FixValue(ctx, [50.0, 1, 1, 1, 1, 1])
-    held, _ = update(guard, ctx)
+    held, _, _ = update(guard, ctx)
     np.testing.assert_array_equal(held, [50.0, 1, 1, 1, 1, 1])
+
+
+def test_guard_rearms_after_a_genuine_step():
+    """A step of the force beyond max_jump_N that stays: the guard takes it
+    after rejecting every sample for 20 ms, as the compensator process does
+    (it latched forever before); a one-sample spike is still rejected."""
+    guard = WrenchGuard(rate_hz=1000, max_jump_N=500, initial_wrench=np.zeros(6))
+    ctx = guard.CreateDefaultContext()
+    step = [800.0, 0, 0, 0, 0, 0]
+    held_seen = []
+    for k in range(40):
+        guard.get_input_port().FixValue(ctx, step if k != 0 else [5000.0, 0, 0, 0, 0, 0])
+        for i, v in enumerate(update(guard, ctx)):
+            ctx.SetDiscreteState(i, v)
+        held_seen.append(ctx.get_discrete_state(0).value()[0])
+    assert held_seen[0] == 0.0 and held_seen[19] == 0.0  # the spike and the first 20 ms of the step: held
+    assert held_seen[-1] == 800.0  # then the new level
 
 
 @pytest.mark.parametrize("kind", ["lowpass", "average"])

@@ -1,49 +1,57 @@
-"""The compensator as a process: one EGM message in, one EGM answer out.
+"""The compensator as a process: one controller message in, one answer out.
 
-For every EgmRobot the controller sends (every 4 ms on an IRC5), the loop
+For every message the controller sends (every 4 ms on an IRC5; RSI 4 or
+12 ms; Stream Motion its own cycle) from the configured controller only
+(cell/link.py drops anyone else's), the loop
 
-1. reads the measured joint angles (motor side, what the encoders give);
-2. takes every Net F/T record received since the last message through the
-   wrench guard and the force filter (at the sensor's rate);
-3. runs the chain of model/compensator.Compensator (gravity removal,
-   deflection prediction, saturation, delay, rate-limited correction);
-4. answers with joint targets = the joint reference at this moment + the
-   correction (EGMRunJoint: the PC streams the path).
+1. checks the sequence number and clock (cell/session.py): a duplicate or
+   an older datagram is dropped unanswered; a jump or a clock that
+   disagrees with the sequence is a fault; the reference advances by a
+   bounded step;
+2. reads the measured joint angles (the controller's degrees, mapped to
+   the model's joints through the robot file's ``controller:`` block);
+3. takes every Net F/T record received since the last message through
+   the guard (int32-clipped records and moment spikes refused and
+   counted) and the force filter;
+4. runs model/compensator.Compensator (gravity removal, deflection
+   prediction, saturation, delay, rate limit) and maps the correction to
+   the controller's joints;
+5. answers with target = reference(t) + correction through the link's one
+   send path (cell/safety.py's check: working ranges, the reference and
+   the arm's feedback); a refused target is never sent: a fault, the last
+   safe target instead (or nothing), and the correction ramps down.
 
 Faults.  Each is one log line when it starts and one when it ends, and
 while any lasts the correction ramps to zero at the rate limit (never a
-jump, never a stale correction held):
+jump, never a stale correction held): the sensor silent, invalid,
+clipped or rejected by the guard for ``sensor_timeout_s``; feedback not
+finite or outside the working ranges; the controller silent; its sequence
+or clock inconsistent (cleared after ``CLEAR_MESSAGES`` consistent
+messages once the correction is zero); a target refused.
 
-* the sensor is silent (no valid record for ``sensor_timeout_s``), or its
-  records are invalid (status flags, a NaN burst) or rejected by the guard
-  for that long; when it comes back, the guard and filter are reseeded on
-  the new reading;
-* the joint feedback is not finite for ``feedback_timeout_s``;
-* the controller restarted (its sequence number or clock went back);
-* a message of the wrong type or joint count (skipped, counted).
-
-The rate limit acts on the controller's own clock (header.tm): a lost
-message does not let the correction move by more than
-``rate_limit * MAX_STEP_PERIODS * period`` in one answer.
-
-Units: q and corrections in rad inside, degrees on the wire; wrenches in N
-and N*m, sensor frame; times in s.
+Units: q and corrections in rad inside (the model's joints), controller
+degrees on the wire; wrenches in N and N*m, sensor frame; times in s.
 """
 
-import bisect
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from robstiff_drake.cell.egm import EgmMessageError, parse_robot_message
+from robstiff_drake.cell.health import Counters, verdict
+from robstiff_drake.cell.reference import Reference  # noqa: F401 (the loop's reference; commands import it here)
+from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_problem
+from robstiff_drake.cell.session import SessionClock
 from robstiff_drake.errors import InputError, Terminated
 
 # The correction may move by at most this many controller periods' worth
 # of its rate limit in one answer, whatever the time since the last one.
 MAX_STEP_PERIODS = 2.0
+CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
+STALE_PERIODS = 3.0
+MALFORMED_FIRST = 25  # unusable datagrams from the controller before its first good one: refused at once  # a correction computed from a wrench older than this many periods is stale
 
 
 @dataclass
@@ -55,101 +63,66 @@ class LoopSettings:
     idle_exit_s: float = 0.0  # end the run after this long without a message (0: never)
     duration_s: float = 0.0  # end the run after this long (0: never)
     rate_limit_rad_per_s: float = math.radians(5.0)
-
-
-@dataclass
-class LoopLog:
-    """What the loop records, one row per answered message (see run_log.py)."""
-
-    rows: list = field(default_factory=list)  # per cycle
-    wrench: list = field(default_factory=list)  # per sensor record: (t_s, 6 values)
-    events: list = field(default_factory=list)  # (t_s, text)
-    compute_s: list = field(default_factory=list)
-    age_s: list = field(default_factory=list)
-    gaps_s: list = field(default_factory=list)  # time between consecutive messages
-    gaps_over: int = 0  # messages that arrived more than 1.5 periods after the previous one (the controller's side)
-    skipped: int = 0  # messages that arrived while the compensator was busy and were never answered
-    late_answers: int = 0  # answers sent after the next message had arrived
-    wrong_messages: int = 0
-
-
-class Reference:
-    """The joint reference (rad) against time since the EGM session started:
-    a trajectory (times s, q (N, 6) rad), held at its ends; or a constant."""
-
-    def __init__(self, times_s=None, q_rad=None):
-        self.t = None if times_s is None else np.asarray(times_s, dtype=float)
-        self.q = None if q_rad is None else np.asarray(q_rad, dtype=float).reshape(-1, 6)
-        self._lists()
-
-    def _lists(self):
-        self._t = None if self.t is None else self.t.tolist()
-        self._rows = None if self.q is None else self.q.tolist()
-
-    def hold(self, q_rad):
-        self.t = np.array([0.0])
-        self.q = np.asarray(q_rad, dtype=float).reshape(1, 6)
-        self._lists()
-
-    def at(self, t_s):
-        """q (list, rad) at t_s: linear between samples (scalar code: a
-        few microseconds, not six numpy calls)."""
-        t, rows = self._t, self._rows
-        if t_s <= t[0] or len(t) == 1:
-            return list(rows[0])
-        if t_s >= t[-1]:
-            return list(rows[-1])
-        i = bisect.bisect_right(t, t_s) - 1
-        f = (t_s - t[i]) / (t[i + 1] - t[i])
-        a, b = rows[i], rows[i + 1]
-        return [x + f * (y - x) for x, y in zip(a, b)]
-
-    @property
-    def duration_s(self):
-        return float(self.t[-1])
+    saturation_deg: float = 0.5
+    max_jump_Nm: float = math.inf  # a moment jumping more than this from the last good sample is refused
 
 
 class CompensatorLoop:
-    """The loop over an EGM link and a sensor reader (``cell.egm.SensorLink``
-    and ``cell.rdt.NetFTReader``, or stand-ins with the same methods)."""
+    """The loop over a controller link (cell/link.PCLink) and a sensor
+    reader (cell/rdt.NetFTReader, or stand-ins with the same methods)."""
 
-    def __init__(self, compensator, link, sensor, reference, settings, *, log=None, out=sys.stderr):
-        self.comp = compensator
-        self.link = link
-        self.sensor = sensor
-        self.ref = reference
-        self.s = settings
-        self.log = log or LoopLog()
+    def __init__(self, compensator, link, sensor, reference, robot, settings, *, log=None, out=sys.stderr):
+        self.comp, self.link, self.sensor, self.ref, self.robot, self.s = (compensator, link, sensor, reference,
+                                                                            robot, settings)
+        self.log = log  # run_log.StreamLog or None
         self.out = out
+        self.n = Counters()
+        self.clock = SessionClock(settings.period_s)
         self.faults = {}  # name -> start time
-        self.t_session = 0.0  # reference time (s): advanced on the controller's clock
-        self.last_tm = None
-        self.last_seq = None
-        self.q = None
-        self.t_q_good = None
-        self.t_sensor_good = None
-        self.t_sensor_rejecting = None
-        self.t_sensor_invalid = None
+        self.ok_since_fault = 0
+        self.t_session = 0.0
+        self.q = None  # the model's joint angles (rad)
+        self.q_deg = None  # the controller's (deg)
+        self.t_q_good = self.t_sensor_good = self.t_sensor_rejecting = self.t_sensor_invalid = None
         self.latest_sample_time = None
-        self.t_start = None
-        self.t_last_msg = None
+        self.last_raw = [float("nan")] * 6
+        self.t_logged = 0.0  # the controller's time of the last wrench record logged
+        self.t_sensor_grace = 0.0  # the first message after a gap in the controller's stream
+        self.t_start = self.t_last_msg = None
         self.t_last_answer = 0.0
         self.pending_reseed = False
+        self.saturated = False
+        self.last_sent = None
+        self.ended_by = "interrupt"
+        G = robot.joint_map.G
+        self._identity = robot.joint_map.is_identity
+        self._Ginv = np.linalg.inv(G)
+        self._lo = tuple(np.degrees(robot.q_lower_rad).tolist())
+        self._hi = tuple(np.degrees(robot.q_upper_rad).tolist())
+        self._clamp = clamp_deg(robot, settings.saturation_deg).tolist()
+        self._sat = [math.radians(settings.saturation_deg)] * 6
 
     # ------------------------------------------------------------ events
-
-    def event(self, text):
-        t = self.now()
-        self.log.events.append((t, text))
-        print(f"robstiff: compensate: t = {t:8.3f} s: {text}", file=self.out, flush=True)
 
     def now(self):
         return time.monotonic() - self.t_start if self.t_start is not None else 0.0
 
+    def event(self, text):
+        t = self.now()
+        if len(self.n.events) < Counters.MAX_EVENTS_KEPT:
+            self.n.events.append((t, self.t_session, text))
+        else:
+            self.n.events_dropped += 1
+        if self.log is not None:
+            self.log.event(t, self.t_session, text)
+        print(f"robstiff: compensate: t = {t:8.3f} s: {text}", file=self.out, flush=True)
+
     def fault_on(self, name, text):
         if name not in self.faults:
             self.faults[name] = self.now()
+            self.n.fault_onsets += 1
             self.event(f"{text}; the correction ramps to zero")
+        self.ok_since_fault = 0
 
     def fault_off(self, name, text):
         if name in self.faults:
@@ -159,35 +132,72 @@ class CompensatorLoop:
     # ------------------------------------------------------------ the start
 
     def first_message(self, timeout_s):
-        """Wait for the controller's first message; InputError when none
-        comes or it is not a usable EgmRobot (before the loop: exit 2)."""
-        got = self.link.receive(timeout_s)
-        if got is None:
-            raise InputError(f"--egm-port {self.link.port}: no EGM message from the controller within {timeout_s:g} s "
-                             "(is the RAPID program in EGMRunJoint, its UDP device pointing at this PC and port?)")
-        data, t_arr = got
-        try:
-            seq, tm, joints, _ = parse_robot_message(data, self.link.pb2)
-        except EgmMessageError as e:
-            raise InputError(f"--egm-port {self.link.port}: the first message is not usable: {e}") from None
-        if not all(math.isfinite(v) for v in joints):
-            raise InputError(f"--egm-port {self.link.port}: the first message's joint feedback is not finite")
-        return data, t_arr, seq, tm, np.radians(joints)
+        """The controller's first usable message; InputError (before the
+        loop: exit 2) when none comes, or its feedback is absurd."""
+        t_end = time.monotonic() + timeout_s
+        while True:
+            got = self.link.receive(min(max(t_end - time.monotonic(), 0.0), 0.5))
+            if not got:
+                self.link.open()  # (again: a start request lost on the way, or sent before the robot listened)
+            else:
+                msg, t_arr = got[-1]
+                break
+            if time.monotonic() >= t_end or self.link.malformed >= MALFORMED_FIRST:
+                who = f"{self.link.controller_ip}" + (f":{self.link.controller_port}" if self.link.controller_port
+                                                      else "")
+                extra = ""
+                if self.link.strangers:
+                    extra = (f"; {self.link.strangers} datagrams from other senders (e.g. {self.link.stranger_example}) "
+                             "were dropped: give the controller's address with --controller HOST[:PORT]")
+                elif self.link.malformed:
+                    extra = f"; {self.link.malformed} datagrams from it were not usable ({self.link.malformed_example})"
+                within = f"within {timeout_s:g} s" if self.link.malformed < MALFORMED_FIRST else "yet"
+                raise InputError(f"{self.link.option} {self.link.port}: no usable {self.link.name} message from the "
+                                 f"controller {who} {within}{extra}")
+        problem = pose_problem(self.robot, msg.joints_deg)
+        if problem:
+            raise InputError(f"{self.link.option} {self.link.port}: the controller's first message has absurd joint "
+                             f"feedback ({problem}); nothing was sent")
+        return msg, t_arr
 
-    # ------------------------------------------------------------ one cycle
+    # ------------------------------------------------------------ the sensor
 
     def _read_sensor(self, t_now):
         """Feed every record received since the last cycle to the chain."""
         records = self.sensor.drain()
         got_good = False
-        for w, t_arr, status in records:
+        comp, lim = self.comp, self.s.max_jump_Nm
+        # the records came between the last message and this one: stamped evenly over that span of the
+        # controller's clock (the logs' clock; strictly increasing whatever this PC's scheduling did)
+        t0, span = self.t_logged, self.t_session - self.t_logged
+        n_rec = len(records)
+        for i, (w, t_arr, status, clipped) in enumerate(records):
+            self.n.sensor_records += 1
+            if clipped:
+                self.n.sensor_clipped += 1
+                if self.n.sensor_clipped <= 5 or self.n.sensor_clipped % 1000 == 0:
+                    self.event(f"sensor: a record at the end of its int32 counts (the load beyond what the counts "
+                               f"carry; {self.n.sensor_clipped} so far): refused")
+                w = (float("nan"),) * 6
             finite = all(v == v for v in w)
+            if self.log is not None:
+                self.log.wrench(t0 + span * (i + 1) / n_rec if span > 0 else t0 + 1e-6 * (i + 1), w)
+            self.last_raw = list(w)
             if finite and self.pending_reseed:
-                self.comp.reseed(list(w))
+                comp.reseed(list(w))
                 self.pending_reseed = False
                 self.fault_off("sensor", "sensor: valid records again; guard and filter restarted on the new reading")
-            accepted = self.comp.sensor_sample(list(w)) if not self.pending_reseed else False
-            self.log.wrench.append((t_arr - self.t_start, *w))
+            if finite and not self.pending_reseed and (abs(w[3] - comp.held[3]) > lim or abs(w[4] - comp.held[4]) > lim
+                                                        or abs(w[5] - comp.held[5]) > lim):
+                self.n.moment_spikes += 1
+                if self.n.moment_spikes <= 5 or self.n.moment_spikes % 1000 == 0:
+                    self.event(f"sensor: a moment jumped more than {lim:g} N*m from the last good sample: refused "
+                               f"({self.n.moment_spikes} so far)")
+                w = comp.held  # the guard's answer to a spike: the last good sample again
+                accepted = False
+                comp.sensor_sample(list(w))
+            else:
+                accepted = comp.sensor_sample(list(w)) if not self.pending_reseed else False
             if not finite:
                 self.t_sensor_invalid = t_arr
             if accepted:
@@ -201,134 +211,222 @@ class CompensatorLoop:
         if self.t_sensor_rejecting is not None and t_now - self.t_sensor_rejecting > to and records:
             # the guard has refused every sample for a while: the force really changed, or the sensor is bad
             self.fault_on("sensor", f"sensor: the guard rejected every sample for {to * 1e3:.0f} ms (a jump of more "
-                                    f"than {self.comp.max_jump_N:g} N)")
+                                    f"than {comp.max_jump_N:g} N or {lim:g} N*m)")
             self.pending_reseed = True
             self.t_sensor_rejecting = None
-        if not got_good and self.t_sensor_good is not None and t_now - self.t_sensor_good > to:
+        # silence counts while the controller streams: after a gap in the controller's messages (this PC
+        # or the network stalled) the sensor's records of that span may still be on their way
+        if not got_good and self.t_sensor_good is not None and t_now - max(self.t_sensor_good,
+                                                                           self.t_sensor_grace) > to:
             invalid = self.t_sensor_invalid is not None and self.t_sensor_invalid >= self.t_sensor_good
-            what = "invalid records (status flags or NaN), then none" if invalid else "no record"
+            what = "invalid records (status flags, NaN or clipped), then none" if invalid else "no record"
             self.fault_on("sensor", f"sensor: {what} for {to * 1e3:.0f} ms")
             self.pending_reseed = True
+        if n_rec:
+            self.t_logged = max(self.t_session, t0 + 1e-6 * n_rec)
+
+    # ------------------------------------------------------------ one message
 
     def _feedback(self, joints_deg, t_now):
-        if all(math.isfinite(v) for v in joints_deg):
-            self.q = [math.radians(v) for v in joints_deg]
+        """Take the controller's joint feedback if it is a pose inside the
+        working ranges.  Non-finite feedback (a dropout) is a fault after
+        ``feedback_timeout_s``; finite feedback outside the ranges (no arm
+        is there: a lie or a corrupted message) at once.  Meanwhile the
+        last good feedback stands."""
+        problem = pose_problem(self.robot, joints_deg)
+        if problem is None:
+            self.q_deg = list(joints_deg)
+            r = [math.radians(v) for v in joints_deg]
+            self.q = r if self._identity else self.robot.joint_map.to_model(r).tolist()
             self.t_q_good = t_now
-            self.fault_off("feedback", "EGM: finite joint feedback again")
+            self.fault_off("feedback", "feedback: joint angles inside the working ranges again")
+        elif all(math.isfinite(v) for v in joints_deg):
+            self.fault_on("feedback", f"feedback: {problem}")
         elif t_now - self.t_q_good > self.s.feedback_timeout_s:
-            self.fault_on("feedback", f"EGM: joint feedback not finite for {self.s.feedback_timeout_s * 1e3:.0f} ms")
+            self.fault_on("feedback", f"feedback: {problem} for {self.s.feedback_timeout_s * 1e3:.0f} ms")
 
-    def _clock(self, seq, tm):
-        """Advance the reference time on the controller's clock; detect a restart."""
-        T = self.s.period_s
-        restarted = self.last_seq is not None and (seq < self.last_seq - 10 or (tm < self.last_tm and seq <= 2))
-        if restarted:
-            self.fault_on("restart", f"EGM: the controller restarted (sequence {seq} after {self.last_seq})")
-            dt = T
-        elif self.last_tm is None:
-            dt = 0.0
+    def _session(self, msg):
+        """The clock's verdict; False: drop the message unanswered."""
+        prev = self.clock.seq
+        v, dt = self.clock.accept(msg.seq, msg.tm_ms)
+        if v == "duplicate":
+            self.n.duplicates += 1
+            return False, 0.0
+        if v == "old":
+            self.n.old += 1
+            self.n.lost = max(self.n.lost - 1, 0)  # (counted lost when a newer one came first)
+            return False, 0.0
+        if prev is not None and v in ("ok", "clock"):
+            self.n.lost += max(0, (msg.seq - prev) % 2**32 - 1)
+        if v == "jump":
+            self.n.jumps += 1
+            restart = (msg.seq - (prev or 0)) % 2**32 >= 2**31 and msg.seq < 100  # numbering from the start again
+            what = "the controller restarted" if restart else "the sequence jumped"
+            self.fault_on("sequence", f"{self.link.name}: {what} (sequence number {msg.seq} after {prev})")
+        elif v == "clock":
+            self.n.clock_faults += 1
+            self.fault_on("clock", f"{self.link.name}: the controller's clock disagrees with its sequence "
+                                   f"(time stamp {msg.tm_ms} ms at sequence number {msg.seq}); the reference "
+                                   "advances by the sequence")
         else:
-            d = (tm - self.last_tm) * 1e-3
-            dt = d if 0.0 < d <= 100 * T else T  # a clock without ms (tm = 0) or one that wrapped: nominal
-        self.last_seq, self.last_tm = seq, tm
-        self.t_session += dt
-        return dt
+            self.ok_since_fault += 1
+            if self.ok_since_fault >= CLEAR_MESSAGES and all(abs(c) < 1e-12 for c in self.comp.correction):
+                for name in ("sequence", "clock", "target"):
+                    self.fault_off(name, f"{name}: {CLEAR_MESSAGES} consistent messages and the correction at zero; "
+                                         "compensating again")
+        return True, dt
 
-    def cycle(self, data, t_arr):
-        """One message: returns whether it was answered."""
-        t_now = t_arr
-        try:
-            seq, tm, joints, _ = parse_robot_message(data, self.link.pb2)
-        except EgmMessageError as e:
-            self.log.wrong_messages += 1
-            if self.log.wrong_messages <= 5 or self.log.wrong_messages % 1000 == 0:
-                self.event(f"EGM: message skipped: {e} ({self.log.wrong_messages} so far)")
-            return False
-        dt = self._clock(seq, tm)
-        if "restart" in self.faults and all(abs(c) < 1e-12 for c in self.comp.correction):
-            self.fault_off("restart", "EGM: after the controller's restart the correction is zero; compensating again")
-        self._feedback(joints, t_now)
-        self._read_sensor(t_now)
+    def cycle(self, msg, t_arr, dt):
+        """Answer one controller message that the session clock accepted
+        (``dt``: its step, s): returns whether its own target was sent."""
+        self.n.received += 1
+        self.t_session += dt
+        self._feedback(msg.joints_deg, t_arr)
+        self._read_sensor(t_arr)
         active = not self.faults
-        step_dt = min(dt, MAX_STEP_PERIODS * self.s.period_s)
-        corr = self.comp.tick(self.q, step_dt, active)
-        q_ref = self.ref.at(self.t_session)
-        target = [math.degrees(r + c) for r, c in zip(q_ref, corr)]
-        self.link.send_joints(target)
+        corr = self.comp.tick(self.q, min(dt, MAX_STEP_PERIODS * self.s.period_s), active)
+        if any(abs(d) >= s for d, s in zip(self.comp.dq, self._sat)):
+            self.n.saturated_cycles += 1
+            if not self.saturated:
+                self.saturated = True
+                self.n.saturation_onsets += 1
+                if self.n.saturation_onsets <= 5 or self.n.saturation_onsets % 100 == 0:
+                    j = max(range(6), key=lambda i: abs(self.comp.dq[i]) / self._sat[i])
+                    self.event(f"correction saturated on q{j + 1} at {math.degrees(self._sat[j]):g} deg (the model "
+                               f"asks more; onset {self.n.saturation_onsets}, {self.n.saturated_cycles} cycles so far)")
+        else:
+            self.saturated = False
+        if self._identity:
+            corr_deg = [math.degrees(c) for c in corr]
+        else:
+            corr_deg = np.degrees(self._Ginv @ np.asarray(corr)).tolist()
+        ref_deg, m1, mf = self.ref.at(self.t_session)
+        target = [r + c for r, c in zip(ref_deg, corr_deg)]
+        env = Envelope(self._lo, self._hi, tuple(ref_deg), tuple(c + m for c, m in zip(self._clamp, m1)),
+                       tuple(self.q_deg), tuple(c + m for c, m in zip(self._clamp, mf)))
+        sent = self._send(msg, target, env)
         t_done = time.monotonic()
-        self.log.compute_s.append(t_done - t_arr)
-        self.t_last_answer = t_done
         age = t_done - self.latest_sample_time if self.latest_sample_time is not None else float("nan")
-        self.log.age_s.append(age)
-        self.log.rows.append((self.t_session, t_arr - self.t_start, *q_ref, *self.q, *corr, *self.comp.dq,
-                              *self.comp.filtered, *self.comp.process_wrench, float(bool(self.faults)),
-                              t_done - t_arr, age, seq))
-        return True
+        self.n.compute_ms.add((t_done - t_arr) * 1e3)
+        self.n.age_ms.add(age * 1e3)
+        stale = bool(self.faults) or not sent or not age <= STALE_PERIODS * self.s.period_s
+        if stale:
+            self.n.stale_s += dt
+        self.n.lost_estimate.add(sum(abs(c) for c in self.comp.dq), stale)
+        self.t_last_answer = t_done
+        if self.log is not None:
+            self.log.cycle(self, msg, t_arr, ref_deg, corr, corr_deg, target if sent else None, t_done - t_arr, age)
+        return sent
+
+    def _send(self, msg, target, env):
+        try:
+            self.link.send_targets(msg, target, env)
+            self.last_sent = target
+            self.n.answered += 1
+            return True
+        except UnsafeTarget as e:
+            self.n.refused += 1
+            self.fault_on("target", f"target refused, not sent: {e}")
+        if self.last_sent is not None:
+            try:
+                self.link.send_targets(msg, self.last_sent, env)
+                self.n.answered += 1
+                return False
+            except UnsafeTarget:
+                pass
+        self.n.unanswered_refused += 1
+        return False
 
     # ------------------------------------------------------------ the loop
+
+    def run_start(self, msg, t_arr):
+        """Start the session on the first message (answered)."""
+        self.t_start = self.t_last_msg = self.t_q_good = t_arr
+        self.t_sensor_good = time.monotonic()  # (the sensor's records are drained from now on)
+        self.q_deg = list(msg.joints_deg)
+        r = [math.radians(v) for v in msg.joints_deg]
+        self.q = r if self._identity else self.robot.joint_map.to_model(r).tolist()
+        if self.log is not None:
+            self.log.start(self)
+        self.cycle(msg, t_arr, self._session(msg)[1])
 
     def run(self, first):
         """Run from the first message (``first_message``'s result) until the
         duration, an idle controller or an interrupt ends it."""
-        data, t_arr, seq, tm, q0 = first
-        newer = self.link.receive(0.0)  # the checks since the first message took time: start on the newest
-        if newer is not None:
-            data, t_arr = newer
-        self.t_start = t_arr
-        self.q = q0.tolist()
-        self.t_q_good = t_arr
-        self.t_sensor_good = t_arr
-        self.t_last_msg = t_arr
-        self.cycle(data, t_arr)
+        self.run_start(*first)
         T = self.s.period_s
         try:
             while True:
                 got = self.link.receive(self.s.egm_timeout_s)
                 now = time.monotonic()
                 if self.s.duration_s and now - self.t_start >= self.s.duration_s:
+                    self.ended_by = "duration"
                     break
-                if got is None:
-                    self.fault_on("egm", f"EGM: no message from the controller for {self.s.egm_timeout_s * 1e3:.0f} ms")
+                if not got:
+                    self.fault_on("silent", f"{self.link.name}: no message from the controller for "
+                                            f"{self.s.egm_timeout_s * 1e3:.0f} ms")
                     if self.s.idle_exit_s and now - self.t_last_msg > self.s.idle_exit_s:
-                        self.event(f"EGM: no message for {self.s.idle_exit_s:g} s: the run ends")
+                        self.ended_by = "idle"
+                        self.event(f"{self.link.name}: no message for {self.s.idle_exit_s:g} s: the run ends")
                         break
+                    if self.log is not None:
+                        self.log.tick(now)
                     continue
-                data, t_arr = got
+                accepted = []
+                for m, t in got:  # every datagram's sequence and clock, oldest first
+                    ok, dt = self._session(m)
+                    if ok:
+                        accepted.append((m, t, dt))
+                if not accepted:
+                    continue  # duplicates or old datagrams only: nothing to answer
+                for m, t, dt in accepted[:-1]:
+                    # older ones behind the newest (this PC fell behind): each answered in turn, late; a
+                    # controller that takes the newest target loses nothing by it, and one that reads the
+                    # targets a cycle after sending (the transport delay) gets the target it is due
+                    self.n.late += 1
+                    self.cycle(m, t, dt)
+                msg, t_arr, dt = accepted[-1]
                 gap = t_arr - self.t_last_msg
-                self.log.gaps_s.append(gap)
+                self.n.gap_ms.add(gap * 1e3)
+                if gap > self.s.sensor_timeout_s:
+                    self.t_sensor_grace = t_arr
                 if gap > 1.5 * T:
-                    self.log.gaps_over += 1
-                if self.log.compute_s and self.t_last_answer > t_arr:
-                    self.log.late_answers += 1
+                    self.n.gaps_over += 1
+                if self.t_last_answer > t_arr:
+                    self.n.late += 1
                 self.t_last_msg = t_arr
-                self.fault_off("egm", "EGM: messages again")
-                self.cycle(data, t_arr)
+                self.fault_off("silent", f"{self.link.name}: messages again")
+                self.cycle(msg, t_arr, dt)
+                if self.log is not None:
+                    self.log.tick(time.monotonic())
         except KeyboardInterrupt:
             self.event("interrupted: the run ends")
         except Terminated:  # a service manager's stop: end the run and write its log, as on Ctrl-C
             self.event("terminated: the run ends")
-        self.log.skipped = getattr(self.link, "skipped", 0)
-        return self.log
+        if self.ended_by == "idle" and "silent" in self.faults:
+            # the controller stopped streaming: the program's normal end, not a fault
+            self.faults.pop("silent")
+            self.n.fault_onsets -= 1
+        return self.n
 
-
-def cycle_stats(log, period_s):
-    """Median, p99 and largest computation time per message (ms), the
-    correction's age (ms), missed cycles and the number of messages."""
-    c = np.asarray(log.compute_s) * 1e3
-    a = np.asarray(log.age_s) * 1e3
-    a = a[np.isfinite(a)]
-    g = np.asarray(log.gaps_s) * 1e3
-
-    def q(x, p):
-        return float(np.percentile(x, p)) if x.size else float("nan")
-
-    return {"messages": int(c.size), "compute_ms": {"median": q(c, 50), "p99": q(c, 99), "max": float(c.max()) if c.size
-                                                    else float("nan")},
-            "correction_age_ms": {"median": q(a, 50), "p99": q(a, 99), "max": float(a.max()) if a.size else float("nan")},
-            "message_gap_ms": {"median": q(g, 50), "p99": q(g, 99), "max": float(g.max()) if g.size else float("nan")},
-            # a missed cycle: a message never answered (it came while the compensator was busy) or answered after
-            # the next one had arrived
-            "missed_cycles": int(log.skipped + log.late_answers), "controller_gaps": int(log.gaps_over),
-            "over_budget": int(np.sum(c > period_s * 1e3)),
-            "wrong_messages": int(log.wrong_messages), "sensor_records": len(log.wrench),
-            "faults": [{"t_s": t, "event": e} for t, e in log.events]}
+    def stats(self):
+        """The run's figures and its health (a dict for the JSON)."""
+        n, T = self.n, self.s.period_s
+        unanswered = n.skipped + n.unanswered_refused + n.lost
+        cycles = n.received + n.lost
+        lost = n.lost_estimate.fraction()
+        word, reasons, line = verdict(cycles=cycles, answered=n.answered, late=n.late, unanswered=unanswered,
+                                      faults=n.fault_onsets, lost_fraction=lost, refused=n.refused)
+        return {"messages": n.received, "cycles": cycles, "answered": n.answered, "late": n.late,
+                "unanswered": unanswered, "skipped": n.skipped, "lost_in_network": n.lost,
+                "duplicates_dropped": n.duplicates, "old_dropped": n.old, "sequence_jumps": n.jumps,
+                "clock_faults": n.clock_faults, "strangers_dropped": self.link.strangers,
+                "malformed": self.link.malformed, "targets_refused": n.refused,
+                "compute_ms": n.compute_ms.summary(), "correction_age_ms": n.age_ms.summary(),
+                "message_gap_ms": n.gap_ms.summary(), "missed_cycles": int(n.skipped + n.late),
+                "controller_gaps": n.gaps_over, "over_budget": int(sum(n.compute_ms.counts[int(T * 1e3 / 0.01):])),
+                "sensor_records": n.sensor_records, "sensor_clipped": n.sensor_clipped,
+                "moment_spikes": n.moment_spikes, "saturated_cycles": n.saturated_cycles,
+                "stale_correction_s": n.stale_s, "fault_onsets": n.fault_onsets, "ended_by": self.ended_by,
+                "faults": [{"t_s": t, "t_controller_s": tc, "event": e} for t, tc, e in n.events], "events_dropped": n.events_dropped,
+                "health": {"verdict": word, "reasons": reasons, "compensation_lost_fraction": lost, "line": line}}

@@ -4,19 +4,19 @@
 
 The message definitions are those of ABB's egm.proto as the package
 abb-robot-client ships them compiled (abb_robot_client._egm_protobuf,
-Apache-2.0); nothing is copied here.  The PC side sends through
-abb-robot-client's ``EGM`` class; it receives and checks the messages
-itself (abb-robot-client's receive neither checks the message type nor
-survives a datagram that is not protobuf), and the controller's side
+Apache-2.0); nothing is copied here.  The PC side (``EgmLink``,
+cell/link.py's checks) encodes and decodes with those definitions, as
+abb-robot-client's ``EGM`` class does (its receive neither checks the
+message type nor survives a datagram that is not protobuf, and its send
+answers whoever sent last), and the controller's side
 (``ControllerLink``: the simulated cell and the tests' fake controller) is
 written here: no package implements it.
 """
 
 import math
-import select
-import socket
 import time
 
+from robstiff_drake.cell.link import ControllerSide, Message, MessageError, PCLink
 from robstiff_drake.errors import InputError
 
 EGM_JOINTS = 6
@@ -26,11 +26,11 @@ def _egm_pb2():
     try:
         from abb_robot_client._egm_protobuf import egm_pb2
     except ImportError:
-        raise InputError("EGM needs the package abb-robot-client: in robstiff-drake's clone, pip install -e '.[cell]' (it is not on PyPI)") from None
+        raise InputError("EGM needs the package abb-robot-client: in robstiff-drake's clone, pip install -e '.[cell]' (robstiff-drake itself is not on PyPI)") from None
     return egm_pb2
 
 
-class EgmMessageError(ValueError):
+class EgmMessageError(MessageError):
     """A datagram that is not a usable EgmRobot message."""
 
 
@@ -56,67 +56,47 @@ def parse_robot_message(data, pb2=None):
     return msg.header.seqno, msg.header.tm, joints, planned
 
 
-class SensorLink:
-    """The PC's side: receives EgmRobot on ``port`` and answers the
-    controller with joint targets (deg) through abb-robot-client."""
+class EgmLink(PCLink):
+    """The PC's side: receives EgmRobot on ``port`` from the controller
+    only, and answers it with an EgmSensor of joint targets (deg) in
+    ``planned.joints`` (EGMRunJoint), header MSGTYPE_CORRECTION as
+    abb-robot-client's ``EGM.send_to_robot`` writes it."""
 
-    def __init__(self, port):
-        try:
-            from abb_robot_client.egm import EGM
-        except ImportError:
-            raise InputError("EGM needs the package abb-robot-client: in robstiff-drake's clone, pip install -e '.[cell]' (it is not on PyPI)") from None
+    name = "EGM"
+    option = "--egm-port"
+
+    def __init__(self, port, controller):
         self.pb2 = _egm_pb2()
+        super().__init__(port, controller)
+        self._out_seq = 0
+
+    def decode(self, data):
         try:
-            self._egm = EGM(port=port)
-        except OSError as e:
-            raise InputError(f"--egm-port {port}: cannot listen on UDP port {port} ({e.strerror}; is another "
-                             "compensator running?)") from None
-        self.sock = self._egm.socket
-        self.port = port
-        self.skipped = 0
+            seq, tm, joints, _ = parse_robot_message(data, self.pb2)
+        except EgmMessageError as e:
+            raise MessageError(str(e)) from None
+        return Message(seq, tm, joints)
 
-    def receive(self, timeout_s):
-        """(datagram, arrival time s on time.monotonic) of the newest message,
-        or None after ``timeout_s``.  Older messages waiting behind it (the
-        PC fell behind, or the controller sent before the loop started) are
-        dropped and counted in ``skipped``: answering them would be late."""
-        self.sock.settimeout(timeout_s)
-        try:
-            data, addr = self.sock.recvfrom(65536)
-        except (socket.timeout, BlockingIOError):
-            return None
-        except OSError:
-            return None
-        t = time.monotonic()
-        self.sock.setblocking(False)
-        while True:
-            try:
-                data, addr = self.sock.recvfrom(65536)
-                t = time.monotonic()
-                self.skipped += 1
-            except (BlockingIOError, InterruptedError, OSError):
-                break
-        self._egm.egm_addr = addr
-        return data, t
-
-    def send_joints(self, joints_deg):
-        return self._egm.send_to_robot(joints_deg)
-
-    def close(self):
-        self.sock.close()
+    def encode(self, message, targets_deg):
+        m = self.pb2.EgmSensor()
+        self._out_seq += 1
+        m.header.mtype = self.pb2.EgmHeader.MSGTYPE_CORRECTION
+        m.header.seqno = self._out_seq
+        m.header.tm = message.tm_ms & 0xFFFFFFFF
+        m.planned.joints.joints.extend(float(v) for v in targets_deg)
+        return m.SerializeToString()
 
 
-class ControllerLink:
+class ControllerLink(ControllerSide):
     """The controller's side (a simulated IRC5): sends EgmRobot to the
     sensor (the compensator) at ``host:port`` and receives its EgmSensor
     joint targets."""
 
+    name = "EGM"
+
     def __init__(self, host, port):
         self.pb2 = _egm_pb2()
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1" if host in ("127.0.0.1", "localhost") else "", 0))
-        self.sock.setblocking(False)
-        self.addr = (host, port)
+        super().__init__(("127.0.0.1" if host in ("127.0.0.1", "localhost") else "", 0), (host, port))
         self.seqno = 0
         self.t0 = time.monotonic()
 
@@ -142,36 +122,36 @@ class ControllerLink:
         m.rapidExecState.state = self.pb2.EgmRapidCtrlExecState.RAPID_RUNNING
         return m.SerializeToString()
 
-    def send(self, data):
-        try:
-            self.sock.sendto(data, self.addr)
-            return True
-        except OSError:
-            return False
+    def send_state(self, k, joints_deg, planned_deg, tm_ms, bad_type=False):
+        """Send cycle ``k``'s EgmRobot; the answer to it echoes ``tm_ms``."""
+        mtype = self.pb2.EgmHeader.MSGTYPE_COMMAND if bad_type else None
+        self.sent_as(int(round(tm_ms)) & 0xFFFFFFFF, k)
+        return self.send(self.robot_message(joints_deg, planned_deg, mtype, tm_ms=tm_ms))
 
-    def receive_targets(self, timeout_s=0.0):
-        """The joint targets (deg, list) of the newest EgmSensor waiting, or
-        None; with ``timeout_s`` > 0, wait that long (s) for one first."""
-        latest = None
-        if timeout_s > 0.0:
-            select.select([self.sock], [], [], timeout_s)
-        while True:
-            try:
-                data, _ = self.sock.recvfrom(65536)
-            except (BlockingIOError, InterruptedError):
-                break
-            except OSError:
-                break
+    def skip(self):
+        self.seqno += 1
+
+    def answers(self):
+        """[(cycle k answered, targets deg)] of the EgmSensor waiting."""
+        out = []
+        for data, _ in self.datagrams():
             m = self.pb2.EgmSensor()
             try:
                 m.ParseFromString(data)
             except Exception:
                 continue
-            if m.HasField("planned") and len(m.planned.joints.joints) == EGM_JOINTS:
-                j = list(m.planned.joints.joints)
-                if all(math.isfinite(v) for v in j):
-                    latest = j
-        return latest
+            j = list(m.planned.joints.joints) if m.HasField("planned") else []
+            if len(j) == EGM_JOINTS:
+                # an answer that echoes no message's clock (abb-robot-client's EGM does not) answers the
+                # newest message, as a controller takes the latest target it has
+                k = self.answer_of(m.header.tm) if m.header.tm else None
+                out.append((self._last_k if k is None else k, j))
+        return out
 
-    def close(self):
-        self.sock.close()
+    def receive_targets(self, timeout_s=0.0):
+        """The joint targets (deg, list) of the newest EgmSensor waiting, or
+        None; with ``timeout_s`` > 0, wait that long (s) for one first."""
+        if timeout_s > 0.0:
+            self.wait(timeout_s)
+        got = [j for _, j in self.answers() if all(math.isfinite(v) for v in j)]
+        return got[-1] if got else None

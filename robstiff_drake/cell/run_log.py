@@ -1,100 +1,203 @@
-"""A compensator run's log folder (``robstiff compensate --log DIR``), in
-the formats of a simulated run folder so that the same tools read both:
+"""A compensator run's log folder (``robstiff compensate --log DIR``),
+streamed to disk as the run goes (bounded memory whatever its length, and
+complete up to the last ``FLUSH_S`` after a kill), in the formats of a
+run folder (docs/run_files.md) so that ``robstiff diagnose-run`` reads it:
 
+* ``RUN_ID`` and ``compensator.yaml`` (the compensator's settings, the
+  robot controller's servo when ``--servo`` gives it), written at the
+  start;
+* ``joint_log.csv`` (t_s on the controller's clock, the joint angles sent:
+  reference + correction, controller degrees, and the correction in them)
+  and ``wrench_log.csv`` (the raw records in N and N*m, sensor frame;
+  an empty row for an invalid one), in the run-file formats;
 * ``timeseries_compensated.csv``: the columns of ``robstiff simulate``'s
-  time series (commands/simulate.py timeseries_csv) that a cell knows:
-  t_s, raw / filtered wrench (sensor frame), tool_wrench (base frame, tool
-  point), dq, correction, q*_deg (the joint angles commanded: reference +
-  correction); the simulation-only columns (tool_*, commanded_*) are not
-  there, a cell does not measure them;
-* ``wrench_log.csv`` and ``joint_log.csv``: the cell files of the run-folder
-  formats (t_s, fx_N .. mz_Nm, an empty row for an invalid record; t_s,
-  q1_deg .. q6_deg, corr1_deg .. corr6_deg);
-* ``cycles.csv``: per EGM message, the measured joints, the computation
-  time, the correction's age and whether a fault was on;
-* ``summary.json``: the settings, the cycle-time figures and the faults.
+  time series that a cell knows (raw / filtered wrench, tool wrench, dq,
+  correction, q*_deg commanded);
+* ``cycles.csv``: per answered message, the sequence number, the measured
+  joints, the computation time, the correction's age, whether a fault was
+  on and whether its own target was sent;
+* ``events.csv``: every fault and event with its time;
+* ``summary.json`` at the end: the settings, the cycle figures, the
+  health verdict.
 
-Every file carries the run id.
+The loop formats each row after its answer has left (tens of
+microseconds) into an in-memory chunk; every ``FLUSH_S`` the chunks go to
+a writer thread that only writes and flushes them (the GIL is released
+during the system call), so the loop never waits on the disk.  A disk
+that cannot keep up or is full loses rows, counted and said once.
 """
 
-import csv
-import io
-import math
+import os
+import queue
+import shutil
+import tempfile
+import threading
+from pathlib import Path
 
-import numpy as np
+from robstiff_drake.io import RUN_ID_FILE, json_text, new_run_id
 
-from robstiff_drake.io import json_text
-
+FLUSH_S = 0.5  # hand the rows to the writer at least this often (s)
+MAX_PENDING = 64  # chunks waiting for the writer (32 s of rows) before rows are dropped
 WRENCH = ("fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")
+FILES = {
+    "joint_log.csv": ["t_s"] + [f"q{j}_deg" for j in range(1, 7)] + [f"corr{j}_deg" for j in range(1, 7)],
+    "wrench_log.csv": ["t_s", *WRENCH],
+    "timeseries_compensated.csv": (["t_s"] + [f"raw_{x}" for x in WRENCH] + [f"filtered_{x}" for x in WRENCH]
+                                   + [f"tool_wrench_{x}" for x in WRENCH] + [f"dq_q{j}_rad" for j in range(1, 7)]
+                                   + [f"correction_q{j}_rad" for j in range(1, 7)]
+                                   + [f"q{j}_deg" for j in range(1, 7)]),
+    "cycles.csv": (["t_s", "seqno"] + [f"measured_q{j}_deg" for j in range(1, 7)]
+                   + ["compute_ms", "age_ms", "fault", "sent"]),
+    "events.csv": ["t_s", "t_controller_s", "event"],
+}
+NOTES = {
+    "joint_log.csv": "joint_log: once per answered controller message, q*_deg: the joint angles sent to the "
+                     "controller (the reference plus the compensator's correction, controller degrees); corr*_deg: "
+                     "the correction included in them; t_s: the controller's clock from its first message.",
+    "wrench_log.csv": "wrench_log: the wrist sensor's raw readings as the Net F/T delivered them (bias and payload "
+                      "weight included), converted from its calibration's units: force (N) and moment (N*m, about "
+                      "the sensor origin) in the sensor frame; t_s: the controller's clock (the joint log's) at the "
+                      "record's arrival; an empty row is an invalid or clipped record.",
+    "timeseries_compensated.csv": "robstiff compensate: one row per answered message (t_s: the controller's clock). "
+                                  "Wrenches: raw/filtered in the sensor frame, tool_wrench = the gravity-free "
+                                  "estimate at the tool point in the base frame. q*_deg: the joint angles sent. The "
+                                  "simulation-only columns of `robstiff simulate` (tool_*, commanded_*) are not "
+                                  "measured by a cell.",
+    "cycles.csv": "cycles: per answered message: the controller's sequence number, the measured joints (deg, "
+                  "controller), the computation time from the message's arrival to the answer (ms), the "
+                  "correction's age (ms since the newest sensor record it used arrived), whether a fault held the "
+                  "correction at a ramp to zero (1), and whether its own target was sent (0: the last safe one).",
+    "events.csv": "events: every fault's start and end and every event of the run, with its time (t_s: s since "
+                  "the first message, this PC's clock; t_controller_s: the controller's clock, the other logs' t_s).",
+}
 
 
-def _table(run_id, notes, header, rows, fmt=".7g"):
-    buf = io.StringIO()
-    buf.write(f"# run_id: {run_id}\n")
-    for n in notes:
-        buf.write(f"# {n}\n")
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(header)
-    for row in rows:
-        w.writerow(["" if (isinstance(v, float) and not math.isfinite(v)) else format(v, fmt) for v in row])
-    return buf.getvalue()
+def _num(v):
+    return "" if v != v or v in (float("inf"), float("-inf")) else format(v, ".7g")
 
 
-def _columns(log):
-    r = np.asarray(log.rows, dtype=float).reshape(-1, 42)
-    return {"t": r[:, 0], "t_wall": r[:, 1], "q_ref": r[:, 2:8], "q": r[:, 8:14], "corr": r[:, 14:20],
-            "dq": r[:, 20:26], "filtered": r[:, 26:32], "process": r[:, 32:38], "fault": r[:, 38],
-            "compute": r[:, 39], "age": r[:, 40], "seq": r[:, 41]}
+class _Writer(threading.Thread):
+    def __init__(self, files):
+        super().__init__(daemon=True)
+        self.files = files
+        self.q = queue.Queue(maxsize=MAX_PENDING)
+        self.error = None
+
+    def run(self):
+        while True:
+            item = self.q.get()
+            if item is None:
+                return
+            if self.error is not None:
+                continue
+            try:
+                for name, text in item.items():
+                    f = self.files[name]
+                    f.write(text)
+                    f.flush()
+            except OSError as e:
+                self.error = e.strerror or str(e)
 
 
-def raw_at_cycles(log, t_wall):
-    """The latest raw record (6) at each cycle's arrival (NaN before any)."""
-    if not log.wrench:
-        return np.full((len(t_wall), 6), np.nan)
-    w = np.asarray(log.wrench, dtype=float)
-    i = np.searchsorted(w[:, 0], t_wall, side="right") - 1
-    out = w[np.clip(i, 0, len(w) - 1), 1:]
-    out[i < 0] = np.nan
-    return out
+class StreamLog:
+    """The run folder ``path``, written as the run goes (see the module
+    docstring).  ``settings_text``: compensator.yaml's text without its
+    run id line (written at the start)."""
 
+    def __init__(self, path, settings_text, note):
+        self.path = Path(path)
+        self.run_id = new_run_id()
+        self.settings_text = settings_text
+        self.note = note
+        self.chunks = {name: [] for name in FILES}
+        self.t_flush = None
+        self.dropped_rows = 0
+        self.writer = None
+        self.model = None
 
-def write_log(run, log, model, summary, note):
-    """Write the log files into ``run`` (an io.RunFolder); ``model``: the
-    compensator's DeflectionModel (for the tool wrench)."""
-    c = _columns(log)
-    n = len(c["t"])
-    raw = raw_at_cycles(log, c["t_wall"])
-    tool = np.array([model.tool_wrench(w.tolist(), q.tolist()) for w, q in zip(c["process"], c["q"])]).reshape(n, 6)
-    q_cmd_deg = np.degrees(c["q_ref"] + c["corr"])
-    header = (["t_s"] + [f"raw_{x}" for x in WRENCH] + [f"filtered_{x}" for x in WRENCH]
-              + [f"tool_wrench_{x}" for x in WRENCH] + [f"dq_q{j}_rad" for j in range(1, 7)]
-              + [f"correction_q{j}_rad" for j in range(1, 7)] + [f"q{j}_deg" for j in range(1, 7)])
-    rows = np.column_stack([c["t"], raw, c["filtered"], tool, c["dq"], c["corr"], q_cmd_deg])
-    run.write("timeseries_compensated.csv", _table(
-        run.run_id, [f"robstiff compensate: {note}; one row per EGM message (t_s: the controller's clock from the "
-                     "first message). Wrenches: raw/filtered in the sensor frame, tool_wrench = the gravity-free "
-                     "estimate at the tool point in the base frame. q*_deg: the joint angles commanded (reference + "
-                     "correction). The simulation-only columns of `robstiff simulate` (tool_*, commanded_*) are not "
-                     "measured by a cell."], header, rows.tolist(), ".6g"))
-    w = np.asarray(log.wrench, dtype=float).reshape(-1, 7)
-    run.write("wrench_log.csv", _table(
-        run.run_id, ["wrench_log: the wrist sensor's raw readings as the Net F/T delivered them (bias and payload "
-                     "weight included): force (N) and moment (N*m, about the sensor origin) in the sensor frame; "
-                     "t_s: seconds since the first EGM message (this PC's clock, at the record's arrival); an empty "
-                     f"row is an invalid record. {note}"], ("t_s",) + WRENCH, w.tolist()))
-    run.write("joint_log.csv", _table(
-        run.run_id, ["joint_log: once per controller period, q*_deg: the joint angles sent to the controller "
-                     "(the reference plus the compensator's correction, controller degrees); corr*_deg: the "
-                     f"correction included in them. {note}"],
-        ["t_s"] + [f"q{j}_deg" for j in range(1, 7)] + [f"corr{j}_deg" for j in range(1, 7)],
-        np.column_stack([c["t"], q_cmd_deg, np.degrees(c["corr"])]).tolist(), ".10g"))
-    run.write("cycles.csv", _table(
-        run.run_id, ["cycles: per EGM message: the controller's sequence number, the measured joints (deg, "
-                     "motor side), the compensator's computation time from the message's arrival to the answer "
-                     "(ms), the correction's age (ms since the newest sensor record it used arrived) and whether a "
-                     "fault held the correction at a ramp to zero (1)."],
-        ["t_s", "seqno"] + [f"measured_q{j}_deg" for j in range(1, 7)] + ["compute_ms", "age_ms", "fault"],
-        np.column_stack([c["t"], c["seq"], np.degrees(c["q"]), c["compute"] * 1e3, c["age"] * 1e3,
-                         c["fault"]]).tolist()))
-    run.write("summary.json", json_text(dict(summary, run_id=run.run_id)))
-    return ["timeseries_compensated.csv", "wrench_log.csv", "joint_log.csv", "cycles.csv", "summary.json"]
+    # ------------------------------------------------------------ start and end
+
+    def start(self, loop):
+        """Replace an earlier run folder at ``path`` (check_outputs refused
+        anything else) and open the files: called when the loop starts, so
+        that a refused start leaves the earlier run as it was."""
+        self.model = loop.comp.model
+        target = Path(os.path.realpath(self.path))
+        if target.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
+            os.rmdir(old)
+            os.replace(target, old)
+            shutil.rmtree(old, ignore_errors=True)
+        target.mkdir(parents=True)
+        (target / RUN_ID_FILE).write_text(self.run_id + "\n")
+        (target / "compensator.yaml").write_text(f"# run_id: {self.run_id}\n" + self.settings_text)
+        files = {}
+        for name, header in FILES.items():
+            f = open(target / name, "w", encoding="utf-8")
+            f.write(f"# run_id: {self.run_id}\n# {NOTES[name]} {self.note}\n" + ",".join(header) + "\n")
+            f.flush()
+            files[name] = f
+        self.writer = _Writer(files)
+        self.writer.start()
+        self.t_flush = loop.t_start
+
+    def close(self, summary):
+        """Hand the last rows over, close the files and write summary.json."""
+        if self.writer is None:
+            return []
+        self.tick(None)
+        self.writer.q.put(None)
+        self.writer.join(30)
+        for f in self.writer.files.values():
+            try:
+                f.close()
+            except OSError:
+                pass
+        summary = dict(summary, run_id=self.run_id, log_rows_dropped=self.dropped_rows,
+                       log_error=self.writer.error)
+        target = Path(os.path.realpath(self.path))
+        tmp = target / ".summary.json.tmp"
+        tmp.write_text(json_text(summary))
+        os.replace(tmp, target / "summary.json")
+        return [RUN_ID_FILE, "compensator.yaml", *FILES, "summary.json"]
+
+    # ------------------------------------------------------------ rows
+
+    def tick(self, now):
+        """Hand the rows to the writer when ``FLUSH_S`` has passed (``now``
+        None: at once)."""
+        if now is not None and now - self.t_flush < FLUSH_S:
+            return
+        self.t_flush = now if now is not None else self.t_flush
+        item = {name: "".join(rows) for name, rows in self.chunks.items() if rows}
+        n = sum(len(rows) for rows in self.chunks.values())
+        for rows in self.chunks.values():
+            rows.clear()
+        if not item:
+            return
+        try:
+            self.writer.q.put_nowait(item)
+        except queue.Full:
+            self.dropped_rows += n
+
+    def event(self, t, t_controller, text):
+        self.chunks["events.csv"].append(f"{t:.4f},{t_controller:.4f},\"{text.replace(chr(34), chr(39))}\"\n")
+
+    def wrench(self, t, w):
+        self.chunks["wrench_log.csv"].append(",".join([format(t, ".6f")] + [_num(v) for v in w]) + "\n")
+
+    def cycle(self, loop, msg, t_arr, ref_deg, corr_rad, corr_deg, target_deg, compute_s, age_s):
+        t = format(loop.t_session, ".6f")
+        comp = loop.comp
+        sent = target_deg is not None
+        q_cmd = target_deg if sent else loop.last_sent or ref_deg
+        c = self.chunks
+        c["joint_log.csv"].append(",".join([t] + [format(v, ".10g") for v in q_cmd]
+                                           + [format(v, ".10g") for v in corr_deg]) + "\n")
+        tool = self.model.tool_wrench(comp.process_wrench, loop.q)
+        c["timeseries_compensated.csv"].append(",".join(
+            [t] + [_num(v) for v in loop.last_raw] + [_num(v) for v in comp.filtered] + [_num(v) for v in tool]
+            + [_num(v) for v in comp.dq] + [_num(v) for v in corr_rad] + [format(v, ".10g") for v in q_cmd]) + "\n")
+        c["cycles.csv"].append(",".join([t, str(msg.seq)] + [format(v, ".7g") for v in loop.q_deg]
+                                        + [_num(compute_s * 1e3), _num(age_s * 1e3), "1" if loop.faults else "0",
+                                           "1" if sent else "0"]) + "\n")

@@ -27,9 +27,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robstiff_drake.cell.egm import ControllerLink
-from robstiff_drake.cell.rdt import RDTServer
+from robstiff_drake.cell.rdt import DEFAULT_COUNTS_PER_UNIT, RDTServer
 
 SPIN_S = 0.0005  # spin (do not sleep) for the last part of each cycle
+TRANSPORT_DELAY_CYCLES = 0
+# ASSUMPTION: a controller's motion supervision lets a streamed target
+# change its step (a held cycle, then two steps) up to this many times the
+# robot file's acceleration limit (a lost datagram at machining feeds is
+# within it) and stops the robot beyond (a hold of tens of ms, then a jump:
+# a jerk no servo should follow).
+SUPERVISION_ACCEL = 10.0
 
 
 @dataclass
@@ -58,15 +65,27 @@ class Faults:
 @dataclass
 class NetworkStats:
     cycles: int = 0
+    stop_reason: str = ""  # why the simulated controller stopped before the run's end ("" : it did not)
+    t_stop: float = float("nan")  # when (s of the cut, from engagement)
+    last_answer_t: float = float("nan")  # the last answer's time (s of the cut)
+    refused: int = 0  # targets the controller's supervision refused
+    late_answers: int = 0  # ticks that took an answer to an older message (the one due came late)
     answered: int = 0  # EGM messages followed by an answer before the next one
     unanswered: int = 0
     late_ticks: int = 0  # ticks sent more than half a period late
     skipped_ticks: int = 0  # periods the schedule slipped because the loop was more than a period late
     tick_error_s: list = field(default_factory=list)
+    step_ms: list = field(default_factory=list)  # the station's computation per engaged cycle (ms)
     t: list = field(default_factory=list)
     q_cmd: list = field(default_factory=list)  # rad
     q_meas: list = field(default_factory=list)  # rad
     extra: list = field(default_factory=list)  # what the station reports (its `last_info`), per cycle
+
+    def lost_fraction(self):
+        """The controller's side of the compensation lost: the share of the
+        engaged cycles that ran on a stale target (late or held)."""
+        n = self.answered + self.unanswered + self.late_answers
+        return (self.unanswered + self.late_answers) / n if n else 0.0
 
 
 class CellNetwork:
@@ -82,14 +101,32 @@ class CellNetwork:
     advances by one period per message."""
 
     def __init__(self, station, *, egm_to, netft_port, period_s=0.004, faults=None, netft_host="127.0.0.1",
-                 lockstep=False, answer_timeout_s=1.0):
+                 lockstep=False, answer_timeout_s=1.0, limits=None, netft_http_port=None, netft_units=("N", "N-m"),
+                 netft_counts=None, link=None, transport_delay_cycles=None):
+        """``limits``: (lower deg, upper deg, axis speed deg/s) of the
+        robot (controller convention): a target outside the working
+        ranges, or one further from the last than the axis speed allows in
+        a period, stops the controller (its motion supervision) and the
+        run; None: no supervision.  ``answer_timeout_s``: once engaged, no
+        answer for this long stops the controller (EGM's CommTimeout)."""
         self.station = station
+        # the transport delay (cycles) from a message to the tick its answer
+        # acts at, beyond the next one (see ``run``; TRANSPORT_DELAY_CYCLES)
+        self.delay_cycles = TRANSPORT_DELAY_CYCLES if transport_delay_cycles is None else int(transport_delay_cycles)
+        self.limits = None if limits is None else tuple(np.asarray(x, dtype=float) for x in limits)
+        self._q_prev = None  # the target before the last (deg), for the acceleration supervision
         self.lockstep = bool(lockstep)
         self.answer_timeout_s = float(answer_timeout_s)
         self.period_s = float(period_s)
         self.faults = faults or Faults()
-        self.egm = ControllerLink(*egm_to)
-        self.rdt = RDTServer(netft_port, host=netft_host)
+        self.egm = link or ControllerLink(*egm_to)
+        counts = netft_counts or (DEFAULT_COUNTS_PER_UNIT, DEFAULT_COUNTS_PER_UNIT)
+        try:
+            self.rdt = RDTServer(netft_port, host=netft_host, counts_per_force=counts[0], counts_per_torque=counts[1],
+                                 units=netft_units, http_port=netft_http_port)
+        except BaseException:
+            self.egm.close()
+            raise
         self.netft_port = self.rdt.port
         self.rng = np.random.default_rng(self.faults.seed)
         self.stats = NetworkStats()
@@ -98,6 +135,38 @@ class CellNetwork:
     def close(self):
         self.egm.close()
         self.rdt.close()
+
+    def refuse(self, targets_deg, q_cmd_deg):
+        """Why the controller's supervision refuses ``targets_deg`` after
+        ``q_cmd_deg`` (None: it follows them): outside the working ranges,
+        a step faster than the axis speed, or (with acceleration limits) a
+        change of the step beyond SUPERVISION_ACCEL times the acceleration
+        limit."""
+        if self.limits is None:
+            return None
+        lo, hi, speed = self.limits[:3]
+        acc = self.limits[3] if len(self.limits) > 3 else None
+        t = np.asarray(targets_deg, dtype=float)
+        if not np.all(np.isfinite(t)):
+            return "a target that is not a finite number"
+        out = np.flatnonzero((t < lo - 1e-6) | (t > hi + 1e-6))
+        if out.size:
+            j = int(out[0])
+            return f"q{j + 1} target {t[j]:.4g} deg outside the working range [{lo[j]:g}, {hi[j]:g}] deg"
+        step = np.abs(t - q_cmd_deg)
+        fast = np.flatnonzero(step > speed * self.period_s + 1e-6)
+        if fast.size:
+            j = int(fast[0])
+            return (f"q{j + 1} target {step[j]:.4g} deg from the last in one {self.period_s * 1e3:g} ms cycle "
+                    f"(the axis speed {speed[j]:g} deg/s allows {speed[j] * self.period_s:.4g})")
+        if acc is not None and self._q_prev is not None:
+            a = np.abs(t - 2.0 * q_cmd_deg + self._q_prev) / self.period_s**2
+            hard = np.flatnonzero(a > SUPERVISION_ACCEL * acc)
+            if hard.size:
+                j = int(hard[0])
+                return (f"q{j + 1} accelerates at {a[j]:.4g} deg/s^2 between targets, more than "
+                        f"{SUPERVISION_ACCEL:g} x its {acc[j]:g} deg/s^2 limit")
+        return None
 
     def _send_wrench(self, w, t):
         f = self.faults
@@ -113,17 +182,31 @@ class CellNetwork:
             raw = b"\x12\x34garbage" if f.rdt_wrong_header else None
             self.rdt.send(row.tolist(), status, raw)
 
+    def _collect(self, answers):
+        for km, targets in self.egm.answers():
+            if km is not None:
+                answers[km] = targets
+
     def run(self, duration_s, q_start_rad):
-        """Run for ``duration_s`` (s) of real time from ``q_start_rad``."""
+        """Run for ``duration_s`` (s) of real time from ``q_start_rad``.
+
+        Tick k: the answer to message k - 1 - D (D: the transport delay in
+        cycles) is the target of the period k -> k+1 (none: the last target
+        is held, the cycle is late or unanswered); the station is stepped
+        with it and message k carries the state it reaches.  In lockstep
+        the tick waits for that answer instead of the wall clock."""
         f = self.faults
         T = self.period_s
+        D = self.delay_cycles
+        st = self.stats
         q_cmd = np.asarray(q_start_rad, dtype=float).copy()
         t0 = time.monotonic()
         k = 0
-        answered_since_last = True
         restarted = False
         engaged, t_eng = False, 0.0
         k_clock = 0  # the tick the controller's clock (header.tm) counts from: 0, or the last restart's
+        answers = {}  # message k -> targets (deg) received
+        dropped = set()  # messages lost on the way (nothing to answer)
         hold = getattr(self.station, "hold", None)
         while True:
             t_tick = t0 + k * T
@@ -136,35 +219,74 @@ class CellNetwork:
             while not stepped and time.monotonic() < t_tick:
                 pass
             t = k * T if stepped else time.monotonic() - t0
-            self.stats.tick_error_s.append(t - k * T)
+            st.tick_error_s.append(t - k * T)
             if t - k * T > 0.5 * T:
-                self.stats.late_ticks += 1
+                st.late_ticks += 1
                 if t - k * T > T:
                     # more than a period behind: the schedule slips (no burst to catch up, and no
                     # cycles stepped through unannounced).  A real controller is never late; this
                     # simulated one only stretches its time, and its messages' clock (header.tm)
                     # still advances by one period per message, as the station does.
                     n_skip = int((t - k * T) / T)
-                    self.stats.skipped_ticks += n_skip
+                    st.skipped_ticks += n_skip
                     t0 += n_skip * T
                     t -= n_skip * T
             self.rdt.poll()
-            targets = self.egm.receive_targets(self.answer_timeout_s if stepped else 0.0)
-            if stepped and targets is None and not answered_since_last:
-                break  # the compensator stopped answering
+            need = k - 1 - D  # the message whose answer is due now
+            q_before = q_cmd.copy()
+            self._collect(answers)
+            last = k - 1  # lockstep: the answer to the last message sent before the station moves on
+            if stepped and last not in answers and last not in dropped and last >= 0 and last >= need:
+                t_wait = time.monotonic() + self.answer_timeout_s
+                while last not in answers and time.monotonic() < t_wait and not self.stop:
+                    self.egm.wait(min(0.05, max(t_wait - time.monotonic(), 0.0)))
+                    self._collect(answers)
+                if self.stop:
+                    break  # the run's end (the pass is over), not the compensator's silence
+                if last not in answers:
+                    st.stop_reason = (f"no answer from the compensator for {self.answer_timeout_s:g} s after "
+                                      f"t = {st.last_answer_t:.3f} s of the cut")
+                    st.t_stop = st.last_answer_t
+                    break
+            # the newest answer to a message up to `need` (a controller takes the latest target it has;
+            # an answer to an older message than `need` came late), answers to later ones wait their tick
+            usable = [km for km in answers if km <= need]
+            targets, fresh = None, False
+            if usable:
+                km = max(usable)
+                targets, fresh = answers[km], km == need
+                for x in usable:
+                    answers.pop(x)
+            if engaged and not fresh and need not in dropped:
+                if targets is None and (stepped or t - t_eng - st.last_answer_t > self.answer_timeout_s):
+                    st.stop_reason = (f"no answer from the compensator for {self.answer_timeout_s:g} s after "
+                                      f"t = {st.last_answer_t:.3f} s of the cut")
+                    st.t_stop = st.last_answer_t
+                    break  # the compensator stopped answering (EGM's CommTimeout)
+                if targets is None:
+                    st.unanswered += 1
+                else:
+                    st.late_answers += 1
+            dropped.discard(need)
             if targets is not None:
+                why = self.refuse(targets, np.degrees(q_cmd))
+                if why is not None:
+                    st.refused += 1
+                    st.stop_reason = f"the controller refused a target: {why}"
+                    st.t_stop = t - t_eng if engaged else 0.0
+                    break  # the controller's motion supervision stops the robot
                 q_cmd = np.radians(targets)
-                answered_since_last = True
                 if not engaged:
                     engaged, t_eng = True, t
+                elif fresh:
+                    st.answered += 1
+                st.last_answer_t = t - t_eng
+            self._q_prev = np.degrees(q_before) if engaged else None  # the command of the tick before
             te = t - t_eng if engaged else -1.0  # fault clock
-            if k > 0 and engaged:
-                if answered_since_last:
-                    self.stats.answered += 1
-                else:
-                    self.stats.unanswered += 1
-            answered_since_last = False
+            t_s0 = time.perf_counter()
             q_meas, w = self.station.step(q_cmd) if engaged or hold is None else hold()
+            if engaged:
+                st.step_ms.append((time.perf_counter() - t_s0) * 1e3)
             self._send_wrench(w, te)
             if f.restart_at >= 0 and not restarted and te >= f.restart_at:
                 restarted = True
@@ -172,7 +294,8 @@ class CellNetwork:
                 pause_until = t_tick + f.restart_pause_s
                 k = int(math.ceil((pause_until - t0) / T))
                 k_clock = k
-                answered_since_last = True
+                answers.clear()
+                dropped.update(range(k - 2 - D, k))
                 continue
             q_deg = np.degrees(q_meas)
             if f.inside(f.egm_nan, te):
@@ -181,19 +304,18 @@ class CellNetwork:
             drop = engaged and ((f.egm_drop_every and k % f.egm_drop_every == f.egm_drop_every - 1) or
                                 (f.egm_drop_probability and self.rng.random() < f.egm_drop_probability))
             if not drop:
-                mtype = self.egm.pb2.EgmHeader.MSGTYPE_COMMAND if f.egm_wrong_type else None
                 # stamped with the cycle's own time: an IRC5 runs its 4 ms cycle in hard real time,
                 # only this simulation's ticks jitter (stamping the wall clock made the targets'
                 # spacing, and so the servo's velocity feed-forward, jitter by a millisecond)
-                self.egm.send(self.egm.robot_message(joints, np.degrees(q_cmd), mtype, tm_ms=(k - k_clock) * T * 1e3))
+                self.egm.send_state(k, joints, np.degrees(q_cmd), (k - k_clock) * T * 1e3, f.egm_wrong_type)
             else:
-                self.egm.seqno += 1
-                answered_since_last = True  # nothing to answer
-            self.stats.cycles += 1
-            self.stats.t.append(t)
-            self.stats.q_cmd.append(q_cmd.copy())
-            self.stats.q_meas.append(np.asarray(q_meas, dtype=float).copy())
-            self.stats.extra.append(getattr(self.station, "last_info", None))
+                self.egm.skip()
+                dropped.add(k)  # nothing to answer
+            st.cycles += 1
+            st.t.append(t)
+            st.q_cmd.append(q_cmd.copy())
+            st.q_meas.append(np.asarray(q_meas, dtype=float).copy())
+            st.extra.append(getattr(self.station, "last_info", None))
             k += 1
         return self.stats
 

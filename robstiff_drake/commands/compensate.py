@@ -1,80 +1,91 @@
-"""``robstiff compensate``: the compensator as a process between an ABB
-controller (EGM, UDP) and an ATI Net F/T (RDT, UDP), running the chain of
-the simulated cell (model/compensator.py) on the real signals.
+"""``robstiff compensate``: the compensator as a process between a robot
+controller (ABB EGM, KUKA RSI or FANUC Stream Motion, UDP) and an ATI Net
+F/T (RDT, UDP), running the chain of the simulated cell
+(model/compensator.py) on the real signals.
 
-    robstiff compensate --egm-port 6510 --netft 192.168.1.1 --robot ROBOT
-        --model identified.json --payload payload.yaml --reference joints.csv --log run1
+    robstiff compensate --egm-port 6510 --controller 192.168.125.1 --netft 192.168.1.1
+        --robot ROBOT --model identified.json --payload payload.yaml --reference joints.csv --log run1
 
-Inputs are checked, the sensor's stream started and the controller's first
-message awaited before the loop; anything wrong there is one line and exit
-status 2.  During the loop, faults are logged and ramp the correction to
-zero (cell/compensate.py).  Ctrl-C (or --duration-s, or a controller that
-stays silent for --idle-exit-s) ends the run; the log folder is written
-then, as a whole.
+Inputs are checked (the reference against the robot's working ranges,
+axis speeds and accelerations and the controller period), the sensor's
+calibration read and its stream started and the controller's first
+message awaited and checked before the loop; anything wrong there is one
+line and exit status 2.  During the loop faults are logged and ramp the
+correction to zero (cell/compensate.py); every target passes
+cell/safety.py's check.  Ctrl-C, SIGTERM, --duration-s or a controller
+silent for --idle-exit-s end the run; --log DIR is written as the run goes
+(cell/run_log.py); the run ends with its health verdict.
 """
 
 import json
 import math
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.cell.compensate import CompensatorLoop, LoopLog, LoopSettings, Reference, cycle_stats
-from robstiff_drake.cell.egm import SensorLink
-from robstiff_drake.cell.rdt import NetFTReader, parse_host_port
-from robstiff_drake.cell.run_log import write_log
-from robstiff_drake.diagrams.scenario import checked_joint_stiffness, numbers, read_payload_calibration
 from robstiff_drake.errors import InputError, excerpt
-from robstiff_drake.io import RunFolder, check_outputs
-from robstiff_drake.model.compensator import Compensator
-from robstiff_drake.model.filters import filter_coefficients
-from robstiff_drake.model.realtime import DeflectionPredictor
-from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote
 
 # How far the first joint feedback may be from the reference's start (deg)
 # before the run is refused: the robot must be brought to the path's start
-# (MoveAbsJ) before EGMRunJoint, or the first target would jump.
+# (MoveAbsJ) before streaming starts, or the first target would jump.
 START_TOLERANCE_DEG = 0.5
 # A model whose nominal stiffness differs from the robot file's by more
 # than this (relative) was identified against another robot file.
 NOMINAL_TOLERANCE = 1e-6
+# ASSUMPTION: without --max-jump-Nm, a moment jump is refused beyond what
+# a force jump of --max-jump-N makes at this lever (m) or at the tool
+# point's distance from the sensor, whichever is longer.
+MIN_LEVER_M = 0.1
+SWITCH_INTERVAL_S = 0.0005
+PROTOCOL_PORTS = {"egm": None, "rsi": None, "stream-motion": 60015}  # the controller's port when not given
+
+
+def _json_doc(path, what):
+    """A user's JSON file through the project's one reader (size, depth,
+    one-line errors; user_files.py)."""
+    from robstiff_drake.user_files import load_json, read_user_text
+
+    return load_json(read_user_text(path, f"{what} file"), f"{what} {path}")
 
 
 def read_model(path, robot):
     """The compensator's joint stiffness (N*m/rad) from `robstiff identify
     --json`'s file; InputError if it is not one, or is for another robot."""
-    path = Path(path)
-    try:
-        doc = json.loads(path.read_bytes().decode("utf-8-sig"))
-    except OSError as e:
-        raise InputError(f"--model {path}: cannot read ({e.strerror})") from None
-    except (UnicodeDecodeError, ValueError) as e:
-        raise InputError(f"--model {path}: not a JSON file ({e})") from None
+    from robstiff_drake.diagrams.scenario import checked_joint_stiffness, numbers
+
+    doc = _json_doc(path, "--model")
     if not isinstance(doc, dict) or "joint_stiffness_Nm_per_rad" not in doc:
         raise InputError(f"--model {path}: no joint_stiffness_Nm_per_rad (write it with `robstiff identify DATA.csv "
                          "--json OUT`)")
     name = doc.get("robot")
     if name is not None and name != robot.name:
-        raise InputError(f"--model {path}: identified for the robot {name!r}, not for {robot.name!r} ({robot.source})")
+        raise InputError(f"--model {path}: identified for the robot {str(name)[:80]!r}, not for {robot.name!r} "
+                         f"({robot.source})")
     nominal = doc.get("joint_stiffness_nominal_Nm_per_rad")
-    if nominal is not None:
-        nom = numbers(nominal)  # None for text, a dict or a ragged list
-        if nom is None or nom.shape != (6,):
-            raise InputError(f"--model {path}: joint_stiffness_nominal_Nm_per_rad: expected six numbers, got "
-                             f"{excerpt(nominal)}")
-        if not np.allclose(nom, robot.joint_stiffness_Nm_per_rad, rtol=NOMINAL_TOLERANCE, atol=0):
-            raise InputError(f"--model {path}: identified against another robot file (its nominal stiffness "
-                             f"{np.round(nom, 0).tolist()} is not {robot.name}'s "
-                             f"{np.round(robot.joint_stiffness_Nm_per_rad, 0).tolist()} N*m/rad)")
-    return checked_joint_stiffness(doc["joint_stiffness_Nm_per_rad"], where=f"--model {path}")
+    try:
+        if nominal is not None:
+            nom = numbers(nominal)  # None for text, a dict or a ragged list
+            if nom is None or nom.shape != (6,):
+                raise InputError(f"--model {path}: joint_stiffness_nominal_Nm_per_rad: expected six numbers, got "
+                                 f"{excerpt(nominal)}")
+            if not np.allclose(nom, robot.joint_stiffness_Nm_per_rad, rtol=NOMINAL_TOLERANCE, atol=0):
+                raise InputError(f"--model {path}: identified against another robot file (its nominal stiffness "
+                                 f"{np.round(nom, 0).tolist()} is not {robot.name}'s "
+                                 f"{np.round(robot.joint_stiffness_Nm_per_rad, 0).tolist()} N*m/rad)")
+        return checked_joint_stiffness(doc["joint_stiffness_Nm_per_rad"], where=f"--model {path}")
+    except RecursionError:  # a last guard: load_json bounds the depth
+        raise InputError(f"--model {path}: nested too deeply to be a model file") from None
 
 
-def read_reference(path, robot):
-    """(times s, q (N, 6) rad) of a joint reference CSV: columns t_s,
-    q1_deg .. q6_deg (header first; '#' lines are comments), times
-    increasing, angles inside the robot's joint limits."""
+def read_reference(path, robot, period_s=0.004):
+    """(times s from 0, q (N, 6) controller angles in rad) of a joint reference CSV:
+    columns t_s, q1_deg .. q6_deg (header first; '#' lines are comments),
+    checked by cell/safety.check_reference."""
+    from robstiff_drake.cell.safety import check_reference
+
     path = Path(path)
     try:
         lines = path.read_bytes().decode("utf-8-sig").splitlines()
@@ -83,7 +94,7 @@ def read_reference(path, robot):
     except UnicodeDecodeError:
         raise InputError(f"--reference {path}: not UTF-8 text") from None
     want = ["t_s"] + [f"q{j}_deg" for j in range(1, 7)]
-    header, idx, rows = None, None, []
+    header, idx, rows, numbers = None, None, [], []
     for n, line in enumerate(lines, 1):
         s = line.strip()
         if not s or s.startswith("#"):
@@ -104,90 +115,176 @@ def read_reference(path, robot):
             raise InputError(f"{path}:{n}: not a number in {', '.join(cells[i] for i in idx)}") from None
         if not all(math.isfinite(x) for x in v):
             raise InputError(f"{path}:{n}: not a finite number")
-        if rows and v[0] <= rows[-1][0]:
-            raise InputError(f"{path}:{n}: t_s {v[0]:g} is not after the previous row's {rows[-1][0]:g}")
         rows.append(v)
-    if len(rows) < 1:
+        numbers.append(n)
+    if not rows:
         raise InputError(f"--reference {path}: no rows")
     a = np.array(rows)
-    q = np.radians(a[:, 1:])
-    bad = (q < robot.q_lower_rad - 1e-9) | (q > robot.q_upper_rad + 1e-9)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise InputError(f"--reference {path}: row {i + 1}: q{j + 1} = {a[i, j + 1]:g} deg is outside "
-                         f"{robot.name}'s joint limits")
-    return a[:, 0] - a[0, 0], q
+    check_reference(str(path), robot, a[:, 0], a[:, 1:], period_s, numbers)
+    return a[:, 0] - a[0, 0], np.radians(a[:, 1:])
 
 
-def run(*, egm_port, netft, robot_yaml=None, model, payload, reference=None, log=None, period_ms=4.0,
+def wait_for_file(path, wait_s, what="--reference"):
+    """Wait up to ``wait_s`` for ``path`` to appear (a simulated cell
+    writes it when it is ready), saying so once."""
+    p = Path(path)
+    if p.exists():
+        return
+    print(f"robstiff: compensate: waiting up to {wait_s:g} s for {what} {path} to appear", file=sys.stderr,
+          flush=True)
+    t_end = time.monotonic() + wait_s
+    while not p.exists():
+        if time.monotonic() > t_end:
+            raise InputError(f"{what} {path}: no such file (waited {wait_s:g} s for it to appear)")
+        time.sleep(0.05)
+
+
+def _link(protocol, listen_port, controller, period_s):
+    if protocol == "egm":
+        from robstiff_drake.cell.egm import EgmLink
+
+        return EgmLink(listen_port, controller)
+    if protocol == "rsi":
+        from robstiff_drake.cell.rsi import RsiLink
+
+        return RsiLink(listen_port, controller, period_s)
+    from robstiff_drake.cell.stream_motion import StreamMotionLink
+
+    return StreamMotionLink(listen_port, controller)
+
+
+def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, log=None, period_ms=4.0,
         sensor_rate_hz=1000.0, filter_kind="lowpass", cutoff_hz=10.0, filter_order=2, spindle_rpm=3600.0,
-        max_jump_N=1000.0, saturation_deg=0.5, rate_limit_deg_per_s=5.0, delay_steps=0, netft_counts=None,
-        wait_s=30.0, duration_s=0.0, idle_exit_s=0.0, sensor_timeout_ms=20.0, rt_priority=0):
+        max_jump_N=1000.0, max_jump_Nm=None, saturation_deg=0.5, rate_limit_deg_per_s=5.0, delay_steps=0,
+        netft_counts=None, netft_units=None, netft_http_port=80, wait_s=30.0, duration_s=0.0, idle_exit_s=0.0,
+        sensor_timeout_ms=20.0, rt_priority=0, controller="127.0.0.1", protocol="egm", servo=None,
+        cutter_diameter_mm=None):
+    from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
+    from robstiff_drake.cell.link import parse_controller
+    from robstiff_drake.cell.rdt import NetFTReader, calibration_problem, parse_host_port
+    from robstiff_drake.cell.run_log import StreamLog
+    from robstiff_drake.cell.safety import pose_problem
+    from robstiff_drake.diagrams.scenario import read_payload_calibration
+    from robstiff_drake.io import check_outputs
+    from robstiff_drake.model.compensator import Compensator
+    from robstiff_drake.model.filters import filter_coefficients
+    from robstiff_drake.model.realtime import DeflectionPredictor
+    from robstiff_drake.model.robot import load_robot
+
     check_outputs(inputs=[model, payload, reference, robot_yaml], folders={"--log": log})
+    if netft_counts is not None or netft_units is not None:
+        if netft_counts is None or netft_units is None:
+            raise InputError("--netft-counts and --netft-units go together (the counts per force and per torque "
+                             "unit, and those units, e.g. --netft-counts 1000000,1000 --netft-units N,N-mm)")
+        problem = calibration_problem(netft_counts, netft_units)
+        if problem:
+            raise InputError(f"--netft-counts {','.join(f'{c:g}' for c in netft_counts)} --netft-units "
+                             f"{','.join(netft_units)}: {problem}")
+    ctrl = parse_controller(controller, PROTOCOL_PORTS[protocol])
+    period_s = period_ms / 1e3
     robot = load_robot(robot_yaml)
     k = read_model(model, robot)
-    cal = read_payload_calibration(payload)
-    ref = Reference(*read_reference(reference, robot)) if reference else Reference()
+    try:
+        cal = read_payload_calibration(payload)
+    except RecursionError:
+        raise InputError(f"--payload {payload}: nested too deeply to be a payload calibration") from None
+    if reference:
+        wait_for_file(reference, wait_s)
+        t_ref, q_ref = read_reference(reference, robot, period_s)
+        ref = Reference(t_ref, np.degrees(q_ref), period_s=period_s)
+    else:
+        ref = Reference(period_s=period_s)
     host, port = parse_host_port(netft)
     try:
         ba = filter_coefficients(filter_kind, cutoff_hz, filter_order, sensor_rate_hz, spindle_rpm)
     except ValueError as e:
         raise InputError(f"--cutoff-hz: {e}") from None
     tool = robot.payload.tool_point_m
+    if max_jump_Nm is None:
+        max_jump_Nm = max_jump_N * max(float(np.linalg.norm(tool)) if tool is not None else 0.0, MIN_LEVER_M)
     predictor = DeflectionPredictor(robot.dh, k, tool)
-    counts = netft_counts or (1_000_000.0, 1_000_000.0)
-    link = SensorLink(egm_port)
-    sensor = NetFTReader(host, port, counts[0], counts[1])
+    link = _link(protocol, listen_port, ctrl, period_s)
+    sensor = NetFTReader(host, port, counts=netft_counts, units=netft_units, http_port=netft_http_port)
+    stream_log = None
     try:
         sensor.open(timeout_s=2.0)
-        first_records = sensor.drain()
-        good = [w for w, _, st in first_records if all(v == v for v in w)]
-        w0 = np.mean(good, axis=0) if good else np.zeros(6)
+        good = [w for w, _, _, clipped in sensor.drain() if all(v == v for v in w) and not clipped]
+        # the guard's and filter's start: the median of the first records (a spike among them moves a mean)
+        w0 = np.median(good, axis=0) if good else np.zeros(6)
         comp = Compensator(predictor=predictor, calibration=cal, tool_m=tool, filter_ba=ba, max_jump_N=max_jump_N,
                            saturation_rad=math.radians(saturation_deg),
                            rate_limit_rad_per_s=math.radians(rate_limit_deg_per_s), delay_steps=delay_steps,
                            initial_wrench=w0)
-        settings = LoopSettings(period_s=period_ms / 1e3, sensor_timeout_s=sensor_timeout_ms / 1e3,
+        settings = LoopSettings(period_s=period_s, sensor_timeout_s=sensor_timeout_ms / 1e3,
                                 feedback_timeout_s=sensor_timeout_ms / 1e3, idle_exit_s=idle_exit_s,
-                                duration_s=duration_s, rate_limit_rad_per_s=math.radians(rate_limit_deg_per_s))
-        loop = CompensatorLoop(comp, link, sensor, ref, settings, log=LoopLog())
-        print(f"robstiff: compensate: sensor {host}:{port} streaming; waiting for the controller on UDP port "
-              f"{egm_port}", file=sys.stderr, flush=True)
+                                duration_s=duration_s, rate_limit_rad_per_s=math.radians(rate_limit_deg_per_s),
+                                saturation_deg=saturation_deg, max_jump_Nm=max_jump_Nm)
+        c = sensor.calibration
+        cal_text = (f"{c[0]:g} counts/{c[2]}, {c[1]:g} counts/{c[3]} ({'from the sensor' if c[4] == 'sensor' else 'override'})"
+                    if c else "unknown")
+        if log:
+            from robstiff_drake.cell.settings_file import compensator_yaml
+
+            stream_log = StreamLog(log, compensator_yaml(
+                robot=robot, robot_spec=robot_yaml, k=k, cal=cal, tool_m=tool, period_ms=period_ms,
+                delay_steps=delay_steps, filter_kind=filter_kind, cutoff_hz=cutoff_hz, filter_order=filter_order,
+                sensor_rate_hz=sensor_rate_hz, max_jump_N=max_jump_N, spindle_rpm=spindle_rpm,
+                saturation_deg=saturation_deg, rate_limit_deg_per_s=rate_limit_deg_per_s, servo=servo,
+                cutter_diameter_mm=cutter_diameter_mm), f"robot {robot.name}, model {model}")
+        loop = CompensatorLoop(comp, link, sensor, ref, robot, settings, log=stream_log)
+        where = f"{ctrl[0]}" + (f":{ctrl[1]}" if ctrl[1] else "")
+        link.open()
+        print(f"robstiff: compensate: sensor {host}:{port} streaming (calibration {cal_text}); waiting for "
+              f"{link.name} messages from {where} on UDP port {link.port}", file=sys.stderr, flush=True)
         gc_frozen = _quiet_gc()
+        # the sensor's records come through pynetft's thread: let it have the interpreter within half a
+        # millisecond when the loop is busy (the default switch interval, 5 ms, is longer than a cycle)
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
         _realtime(rt_priority)
         first = loop.first_message(wait_s)
-        q0 = first[4]
+        q0 = first[0].joints_deg
         if ref.q is None:
             ref.hold(q0)
-        off = np.degrees(np.abs(q0 - ref.q[0]))
+            problem = pose_problem(robot, q0)
+            if problem:
+                raise InputError(f"the hold pose (the controller's first message) is refused: {problem}")
+        off = np.abs(np.asarray(q0) - ref.q[0])
         if off.max() > START_TOLERANCE_DEG:
             j = int(np.argmax(off))
             raise InputError(f"--reference {reference}: the robot is {off[j]:.3f} deg from the reference's start on "
-                             f"joint {j + 1} (at most {START_TOLERANCE_DEG:g}); move it there (MoveAbsJ) before "
-                             "EGMRunJoint")
-        log_data = loop.run(first)
+                             f"joint {j + 1} (at most {START_TOLERANCE_DEG:g}); move it there before streaming starts")
+        loop.run(first)
         _restore_gc(gc_frozen)
     finally:
         sensor.close()
         link.close()
-    stats = cycle_stats(log_data, period_ms / 1e3)
-    c = stats["compute_ms"]
-    print(f"robstiff: compensate: {stats['messages']} messages; computation per message median {c['median']:.3f} ms, "
-          f"p99 {c['p99']:.3f} ms, max {c['max']:.3f} ms; correction age median "
-          f"{stats['correction_age_ms']['median']:.2f} ms; missed cycles {stats['missed_cycles']}; "
-          f"{len(stats['faults'])} fault events", file=sys.stderr)
-    if log:
-        summary = {"command": "compensate", "egm_port": egm_port, "netft": f"{host}:{port}", "robot": robot.name,
-                   "model": str(model), "payload": str(payload), "reference": str(reference) if reference else None,
+    stats = loop.stats()
+    cm = stats["compute_ms"]
+    print(f"robstiff: compensate: {stats['messages']} messages, {stats['answered']} answered; computation per message "
+          f"median {cm['median']:.3f} ms, p99 {cm['p99']:.3f} ms, max {cm['max']:.3f} ms; correction age median "
+          f"{stats['correction_age_ms']['median']:.2f} ms; {stats['late']} late, {stats['unanswered']} unanswered; "
+          f"{stats['fault_onsets']} faults; {stats['strangers_dropped']} datagrams from strangers dropped",
+          file=sys.stderr)
+    h = stats["health"]
+    print(f"robstiff: {'warning: ' if h['verdict'] != 'good' else ''}compensate: {h['line']}", file=sys.stderr)
+    if stream_log is not None:
+        summary = {"command": "compensate", "protocol": protocol, "listen_port": link.port, "controller": where,
+                   "netft": f"{host}:{port}", "netft_calibration": c, "robot": robot.name, "model": str(model),
+                   "payload": str(payload), "reference": str(reference) if reference else None,
                    "joint_stiffness_Nm_per_rad": k, "settings": {
                        "period_ms": period_ms, "sensor_rate_hz": sensor_rate_hz, "filter_kind": filter_kind,
                        "cutoff_hz": cutoff_hz, "filter_order": filter_order, "max_jump_N": max_jump_N,
-                       "saturation_deg": saturation_deg, "rate_limit_deg_per_s": rate_limit_deg_per_s,
-                       "delay_steps": delay_steps, "sensor_timeout_ms": sensor_timeout_ms},
-                   "cycles": stats}
-        with RunFolder(log) as run_folder:
-            written = write_log(run_folder, log_data, comp.model, summary, f"robot {robot.name}, model {model}")
+                       "max_jump_Nm": max_jump_Nm, "saturation_deg": saturation_deg,
+                       "rate_limit_deg_per_s": rate_limit_deg_per_s, "delay_steps": delay_steps,
+                       "sensor_timeout_ms": sensor_timeout_ms},
+                   "cycles": stats, "health": h, "warnings": [h["line"]] if h["verdict"] != "good" else []}
+        written = stream_log.close(summary)
         wrote(log, ", ".join(written), folder=True, to_stderr=True)
+        if servo is None or cutter_diameter_mm is None:
+            print("robstiff: note: compensator.yaml lacks " + " and ".join(
+                x for x, v in (("the controller's servo (--servo)", servo),
+                               ("tool.cutter_diameter_mm (--cutter-diameter-mm)", cutter_diameter_mm)) if v is None)
+                  + "; diagnose-run needs them", file=sys.stderr)
     return 0
 
 

@@ -184,16 +184,16 @@ def _candidate_robot(settings, robot_file, candidate_path):
     return dataclasses.replace(settings, robot=rel)
 
 
-def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_yaml=None):
+def run(*, run_dir, json_out=None, out=None, noise_mm=None, verify=None, robot_yaml=None, scan=None):
     out = Path(out) if out else Path(run_dir) / "diagnosis"
     verify = list(verify or [])
-    check_outputs(inputs=[run_dir, *verify], files={"--json": json_out}, folders={"--out": out})
+    check_outputs(inputs=[run_dir, *verify, scan], files={"--json": json_out}, folders={"--out": out})
     warnings = Warnings()
     robot, robot_file = run_robot_and_file(run_dir, robot_yaml, warnings)
-    check_run(load_run_files(run_dir), robot)  # logs in other units, or of another robot: one line, before the fit
+    check_run(load_run_files(run_dir, scan=scan), robot)  # logs in other units, or of another robot: one line, before the fit
     from robstiff_drake.diagrams.run_arm import ArmModel
 
-    rep, extras = diagnose_run(run_dir, robot, ArmModel, noise_mm=noise_mm, verify=verify)
+    rep, extras = diagnose_run(run_dir, robot, ArmModel, noise_mm=noise_mm, verify=verify, scan=scan)
     warnings.extend_from(rep["warnings"])
     rep["warnings"] = list(warnings)
     with RunFolder(out) as folder:

@@ -231,6 +231,9 @@ def build_parser():
     p.add_argument("--verify", nargs="+", metavar="CUT_DIR",
                    help="run folders of verification cuts (one per candidate fix's compensator.yaml): decide "
                         "from their scans")
+    p.add_argument("--scan", metavar="SCAN.csv",
+                   help="a scan of the machined face made outside the project (a CMM's or a laser line's, "
+                        "scan.csv's columns, no run id needed), instead of RUN_DIR/scan.csv")
     p.add_argument("--json", metavar="OUT", help="write the report as JSON ('-' for stdout)")
     p.add_argument("--out", metavar="DIR", help="where to write the report, candidate settings and plot "
                                                 "(default: RUN_DIR/diagnosis)")
@@ -313,24 +316,42 @@ def build_parser():
                    help="how long to wait at rest for the compensator's first answer (default: %(default)s)")
     p.add_argument("--reference-out", metavar="JOINTS.csv",
                    help="write the path's joint reference, for `compensate --reference`")
+    p.add_argument("--scan-out", metavar="SCAN.csv",
+                   help="write the machined face as a scanner measures it (scan.csv's columns, no run id), for "
+                        "`diagnose-run RUN --scan`")
     p.add_argument("--lockstep", action="store_true",
                    help="step the station only when the compensator has answered the last message (the loop's "
                         "physics without this PC's scheduling; default: real time, as a controller runs)")
-    p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=4.0, help="EGM cycle (default: %(default)s)")
+    p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=4.0,
+                   help="the controller's cycle (default: %(default)s)")
+    p.add_argument("--controller-protocol", dest="protocol", choices=["egm", "rsi", "stream-motion"], default="egm",
+                   help="the controller's side of ABB EGM, KUKA RSI or FANUC Stream Motion (default: %(default)s)")
+    p.add_argument("--netft-http-port", type=_number_in(1, 65535, integer=True), default=None,
+                   help="TCP port of the simulated sensor's calibration page (default: the --netft-port number)")
+    p.add_argument("--transport-delay-cycles", type=_number_in(0, 10, integer=True), default=None,
+                   help="cycles between a message and the tick its answer acts at, beyond the next one "
+                        "(default: the scenario's controller.delay_steps; run compensate with --delay-steps 0)")
     p.add_argument("--json", metavar="OUT", help="write the result as JSON ('-' for stdout)")
     _add_robot_option(p)
 
-    p = sub.add_parser("compensate", help="the compensator as a process: ABB EGM and an ATI Net F/T over UDP "
-                                          "(docs/real_cell.md)")
-    p.add_argument("--egm-port", type=_number_in(1, 65535, integer=True), required=True, metavar="PORT",
-                   help="UDP port the controller's EGM messages come to")
+    p = sub.add_parser("compensate", help="the compensator as a process: ABB EGM, KUKA RSI or FANUC Stream Motion "
+                                          "and an ATI Net F/T over UDP (docs/real_cell.md)")
+    p.add_argument("--listen-port", "--egm-port", dest="listen_port", type=_number_in(0, 65535, integer=True),
+                   default=None, metavar="PORT",
+                   help="UDP port the controller's messages come to (EGM and RSI: required; Stream Motion: 0, any)")
+    p.add_argument("--controller", default="127.0.0.1", metavar="HOST[:PORT]",
+                   help="the robot controller: datagrams from anyone else are dropped, never answered (a real cell "
+                        "must give it; Stream Motion's port default 60015)")
+    p.add_argument("--controller-protocol", dest="protocol", choices=["egm", "rsi", "stream-motion"], default="egm",
+                   help="ABB EGM (EGMRunJoint), KUKA RSI (XML, axis corrections) or FANUC Stream Motion (J519)")
     p.add_argument("--netft", required=True, metavar="HOST[:PORT]", help="the Net F/T (RDT port default 49152)")
     _add_robot_option(p)
     p.add_argument("--model", required=True, metavar="MODEL.json", help="`robstiff identify --json` output")
     p.add_argument("--payload", required=True, metavar="PAYLOAD.yaml", help="`robstiff calibrate-payload --yaml` output")
     p.add_argument("--reference", metavar="JOINTS.csv", help="joint reference (t_s, q1_deg..q6_deg) streamed from the "
-                                                             "first EGM message (default: hold the first position)")
-    p.add_argument("--log", metavar="DIR", help="write the run's time series (the formats of a simulate run folder)")
+                                                             "first message; waited for up to --wait-s "
+                                                             "(default: hold the first position)")
+    p.add_argument("--log", metavar="DIR", help="stream the run's logs into a run folder (diagnose-run reads it)")
     p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=4.0, help="controller cycle (default: %(default)s)")
     p.add_argument("--sensor-rate-hz", type=_number_in(1.0, 20000.0, "Hz"), default=1000.0,
                    help="the Net F/T's RDT output rate, for the filter (default: %(default)s)")
@@ -340,15 +361,29 @@ def build_parser():
     p.add_argument("--spindle-rpm", type=_number_in(10.0, 60000.0, "rpm"), default=3600.0,
                    help="for --filter revolution_average (default: %(default)s)")
     p.add_argument("--max-jump-N", type=_number_in(1.0, 1e5, "N"), default=1000.0, help="(default: %(default)s)")
+    p.add_argument("--max-jump-Nm", type=_number_in(0.1, 1e5, "N*m"), default=None,
+                   help="a moment jumping more is refused (default: --max-jump-N times the tool point's distance "
+                        "from the sensor, at least 0.1 m)")
     p.add_argument("--saturation-deg", type=_number_in(0.001, 10.0, "deg"), default=0.5, help="(default: %(default)s)")
     p.add_argument("--rate-limit-deg-per-s", type=_number_in(0.001, 1000.0, "deg/s"), default=5.0,
                    help="(default: %(default)s)")
     p.add_argument("--delay-steps", type=_number_in(0, 100, integer=True), default=0,
                    help="extra controller periods of delay (default: %(default)s; the network adds its own)")
-    p.add_argument("--netft-counts", metavar="PER_N,PER_NM", default=None,
-                   help="the sensor's counts per N and per N*m (default: 1000000,1000000)")
+    p.add_argument("--netft-counts", metavar="PER_FORCE,PER_TORQUE", default=None,
+                   help="override the sensor's calibration: counts per force unit and per torque unit (with "
+                        "--netft-units; default: read from the sensor)")
+    p.add_argument("--netft-units", metavar="FORCE,TORQUE", default=None,
+                   help="the units of --netft-counts, e.g. N,N-mm (N, lbf, klbf, kN, kgf; N-m, N-mm, lbf-in, "
+                        "lbf-ft, kgf-cm, kN-m)")
+    p.add_argument("--netft-http-port", type=_number_in(1, 65535, integer=True), default=80,
+                   help="TCP port of the sensor's calibration page netftapi2.xml (default: %(default)s)")
+    p.add_argument("--servo", metavar="DELAY_MS,KP,BW_HZ,FF", default=None,
+                   help="the controller's servo for the log's compensator.yaml: interpolator dead time (ms), "
+                        "position gain (1/s), velocity bandwidth (Hz), velocity feed-forward (0-1)")
+    p.add_argument("--cutter-diameter-mm", type=_number_in(0.1, 1000.0, "mm"), default=None,
+                   help="the cutter's diameter, for the log's compensator.yaml")
     p.add_argument("--wait-s", type=_number_in(0.1, 3600.0, "s"), default=30.0,
-                   help="how long to wait for the controller's first message (default: %(default)s)")
+                   help="how long to wait for the controller's first message and for --reference (default: %(default)s)")
     p.add_argument("--duration-s", type=_number_in(0.0, 1e6, "s"), default=0.0, help="end after this long (0: never)")
     p.add_argument("--idle-exit-s", type=_number_in(0.0, 3600.0, "s"), default=0.0,
                    help="end when the controller is silent this long (0: never)")
@@ -379,8 +414,8 @@ EXAMPLES = {
     "stiffness-map": "robstiff stiffness-map --robot kr240_r2900 --out kr240_map.png",
     "kg-study": "robstiff kg-study --grid 3 --json kg.json",
     "make-urdf": "robstiff make-urdf --robot irb6640 --out urdf",
-    "import-urdf": "robstiff import-urdf urdf/robstiff_irb6640/urdf/irb6640.urdf --out my_irb6640.yaml "
-                   "--template irb6640",
+    "import-urdf": "robstiff make-urdf --robot irb6640 --out urdf && robstiff import-urdf "
+                   "urdf/robstiff_irb6640/urdf/irb6640.urdf --out my_irb6640.yaml --template irb6640",
     "identify": "robstiff synth stiffness campaign.csv && robstiff identify campaign.csv --plot fit.png",
     "calibrate-payload": "robstiff synth payload payload.csv && robstiff calibrate-payload payload.csv "
                          "--yaml payload.yaml",
@@ -506,7 +541,7 @@ def _dispatch(args):
         from robstiff_drake.commands import diagnose_run
 
         return diagnose_run.run(run_dir=args.run_dir, json_out=args.json, out=args.out, noise_mm=args.noise_mm,
-                                verify=args.verify, robot_yaml=args.robot)
+                                verify=args.verify, robot_yaml=args.robot, scan=args.scan)
     if args.command == "plan-poses":
         from robstiff_drake.commands import plan_poses
 
@@ -536,22 +571,33 @@ def _dispatch(args):
 
         return sim_cell.run(scenario=args.scenario, egm_to=args.egm_to, netft_port=args.netft_port, wait_s=args.wait_s,
                             reference_out=args.reference_out, json_out=args.json, robot_yaml=args.robot,
-                            period_ms=args.period_ms, lockstep=args.lockstep)
+                            period_ms=args.period_ms, lockstep=args.lockstep, protocol=args.protocol,
+                            netft_http_port=args.netft_http_port, scan_out=args.scan_out,
+                            transport_delay_cycles=args.transport_delay_cycles)
     if args.command == "compensate":
         from robstiff_drake.commands import compensate
 
         counts = parse_vector(args.netft_counts, 2, "--netft-counts") if args.netft_counts else None
-        if counts and min(counts) <= 0:
-            raise InputError(f"--netft-counts: counts must be > 0, got {args.netft_counts}")
-        return compensate.run(egm_port=args.egm_port, netft=args.netft, robot_yaml=args.robot, model=args.model,
-                              payload=args.payload, reference=args.reference, log=args.log, period_ms=args.period_ms,
-                              sensor_rate_hz=args.sensor_rate_hz, filter_kind=args.filter_kind,
-                              cutoff_hz=args.cutoff_hz, filter_order=args.filter_order, spindle_rpm=args.spindle_rpm,
-                              max_jump_N=args.max_jump_N, saturation_deg=args.saturation_deg,
-                              rate_limit_deg_per_s=args.rate_limit_deg_per_s, delay_steps=args.delay_steps,
-                              netft_counts=counts, wait_s=args.wait_s, duration_s=args.duration_s,
+        units = [u.strip() for u in args.netft_units.split(",")] if args.netft_units else None
+        if units is not None and len(units) != 2:
+            raise InputError(f"--netft-units: expected FORCE,TORQUE (e.g. N,N-mm), got {args.netft_units!r}")
+        servo = parse_vector(args.servo, 4, "--servo") if args.servo else None
+        if servo is not None and (min(servo[:3]) <= 0 or not 0 <= servo[3] <= 1 or servo[0] > 1000):
+            raise InputError(f"--servo {args.servo}: expected a dead time in (0, 1000] ms, a gain > 0 1/s, a "
+                             "bandwidth > 0 Hz and a feed-forward in [0, 1]")
+        if args.listen_port is None and args.protocol != "stream-motion":
+            raise InputError(f"--listen-port (--egm-port) is required for --controller-protocol {args.protocol}")
+        return compensate.run(listen_port=args.listen_port or 0, netft=args.netft, robot_yaml=args.robot,
+                              model=args.model, payload=args.payload, reference=args.reference, log=args.log,
+                              period_ms=args.period_ms, sensor_rate_hz=args.sensor_rate_hz,
+                              filter_kind=args.filter_kind, cutoff_hz=args.cutoff_hz, filter_order=args.filter_order,
+                              spindle_rpm=args.spindle_rpm, max_jump_N=args.max_jump_N, max_jump_Nm=args.max_jump_Nm,
+                              saturation_deg=args.saturation_deg, rate_limit_deg_per_s=args.rate_limit_deg_per_s,
+                              delay_steps=args.delay_steps, netft_counts=counts, netft_units=units,
+                              netft_http_port=args.netft_http_port, wait_s=args.wait_s, duration_s=args.duration_s,
                               idle_exit_s=args.idle_exit_s, sensor_timeout_ms=args.sensor_timeout_ms,
-                              rt_priority=args.rt_priority)
+                              rt_priority=args.rt_priority, controller=args.controller, protocol=args.protocol,
+                              servo=servo, cutter_diameter_mm=args.cutter_diameter_mm)
     if args.command == "examples":
         from robstiff_drake.commands import examples
 

@@ -26,8 +26,8 @@ SCENARIOS = {"simulate": "scenario", "sweep": "scenario", "sim-cell": "scenario"
 OPTION_FILES = {
     "simulate": [("compensator", "{path}: no such run file"), ("toolpath", "{path}: no such G-code program")],
     "compensate": [("model", "--model {path}: cannot read (" + NO_FILE + ")"),
-                   ("payload", "{path}: no such payload calibration"),
-                   ("reference", "--reference {path}: cannot read (" + NO_FILE + ")")],
+                   ("payload", "{path}: no such payload calibration")],
+    # not compensate's --reference: compensate waits (bounded) for a reference about to appear (sim-cell's)
 }
 
 

@@ -153,15 +153,19 @@ def cell_logs(result):
     corr = corr if result.compensation else np.zeros_like(corr)
     robot = cell.robot
     joints = rf.JointLog(tc, robot.controller_deg(q_ref + corr), robot.controller_delta_deg(corr))
+    return wrench, joints, scan_of(result.scans, cell.scenario.scan.noise_mm)
+
+
+def scan_of(scans, noise_mm):
+    """rf.Scan (mm) of a cut's scan lines (diagrams/experiment.scan_surface)."""
     xs, ys, nom, h = [], [], [], []
-    for line in result.scans:
+    for line in scans:
         face = np.isfinite(line.commanded_m)
         xs.append(line.x_m[face])
         ys.append(line.y_at[face])  # (a scan along the path has a y per point)
         nom.append(line.commanded_m[face])
         h.append((line.machined_m if line.measured_m is None else line.measured_m)[face])
-    scan = rf.Scan(*(np.concatenate(a) * 1e3 for a in (xs, ys, nom, h)), noise_mm=cell.scenario.scan.noise_mm)
-    return wrench, joints, scan
+    return rf.Scan(*(np.concatenate(a) * 1e3 for a in (xs, ys, nom, h)), noise_mm=noise_mm)
 
 
 def cell_files(sc, result, robot, run_id, robot_ref=None):

@@ -98,6 +98,17 @@ class CellStation:
                                path=self.path, workpiece=self.workpiece, compensation=True)
         return scanned_surface(cell, np.asarray(self.times), np.asarray(self.q_link))
 
+    def scan_csv(self, scans):
+        """The machined face as a scanner outside the project measures it
+        (scan.csv's columns and noise line, no run id): ``surface()``'s scan
+        lines with the scenario's scanner noise."""
+        from robstiff_drake.diagrams.cell_record import scan_of
+        from robstiff_drake.identification import run_files as rf
+
+        scan = scan_of(scans, self.sc.scan.noise_mm)
+        return rf.scan_text(scan, None, [f"the face cut by robstiff sim-cell ({self.sc.name}), as a scanner measures "
+                                         f"it: Gaussian height noise of {self.sc.scan.noise_mm:g} mm (scan.noise_mm)"])
+
     def reference_csv(self):
         """The joint reference the compensator streams (t_s, q1_deg..q6_deg:
         the controller's angles), as `robstiff compensate --reference` reads it."""

@@ -779,14 +779,14 @@ def _slug(name):
     return name.replace(" + ", "+")
 
 
-def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=()):
+def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=(), scan=None):
     """Trace a run's surface error; with ``verify`` (run folders of
     verification cuts), decide between the candidate fixes from their scans.
     Reads only the cell files (identification/run_files.py); ``robot``: the
     run's robot, ``arm``: the controller's model of it (a callable of the
     robot: diagrams/run_arm.ArmModel).  Returns (report dict, extras:
     candidate settings texts, plan, data for the plot)."""
-    files = rf.load_run_files(run_dir)
+    files = rf.load_run_files(run_dir, scan=scan)  # (scan: a file made outside the run, diagnose-run --scan)
     cuts = [rf.load_run_files(c, names=(rf.SETTINGS, rf.SCAN)) for c in verify]
     if noise_mm is not None and not (np.isfinite(noise_mm) and noise_mm > 0):
         raise InputError(f"--noise-mm: must be a positive number (mm), got {noise_mm}")

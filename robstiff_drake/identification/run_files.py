@@ -656,12 +656,16 @@ def check_run_id(path, meta, run_id):
 READERS = {WRENCH_LOG: read_wrench_log, JOINT_LOG: read_joint_log, SETTINGS: read_settings, SCAN: read_scan}
 
 
-def load_run_files(folder, names=CELL_FILES):
+def load_run_files(folder, names=CELL_FILES, scan=None):
     """Read the cell files ``names`` of a run folder (each must carry the
-    folder's run id); RunFiles.  Never opens a ``sim_`` file."""
+    folder's run id); RunFiles.  Never opens a ``sim_`` file.  ``scan``: a
+    scan file made outside the run (a CMM's or a laser line's, no run id)
+    read instead of the folder's scan.csv."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(f"{folder}: no such run folder")
+    if scan is not None:
+        names = tuple(n for n in names if n != SCAN)
     for name in names:
         if not run_file(folder, name).is_file():
             raise InputError(f"{folder}: missing {name} (a run folder holds {', '.join(CELL_FILES)} and "
@@ -673,4 +677,6 @@ def load_run_files(folder, names=CELL_FILES):
         meta, data = READERS[name](folder / name)
         check_run_id(folder / name, meta, run_id)
         got[name] = data
+    if scan is not None:
+        got[SCAN] = read_scan(scan)[1]
     return RunFiles(folder, run_id, got[SETTINGS], got[SCAN], got.get(WRENCH_LOG), got.get(JOINT_LOG))

@@ -178,6 +178,11 @@ class RobotModel:
     # the motors' rotor inertias reflected to the joints (n^2 J_rotor, kg*m^2); None: not in the file
     # (the station then takes the rule of diagrams/station.motor_inertia)
     motor_inertia_kgm2: np.ndarray | None = None
+    # the controller's axis speed and acceleration limits (deg/s, deg/s^2,
+    # controller convention; joint_limits.speed_deg_per_s and
+    # .acceleration_deg_per_s2); None: the robot file does not give them
+    speed_limit_deg_per_s: np.ndarray | None = None
+    acceleration_limit_deg_per_s2: np.ndarray | None = None
 
     @property
     def joint_compliance_rad_per_Nm(self):
@@ -442,6 +447,8 @@ def load_robot(path=None):
         convention=convention,
         joint_map=joint_map,
         motor_inertia_kgm2=values.get("motor_inertia_kgm2"),
+        speed_limit_deg_per_s=values.get("joint_limits.speed_deg_per_s"),
+        acceleration_limit_deg_per_s2=values.get("joint_limits.acceleration_deg_per_s2"),
     )
     warnings = tuple(input_warning(w if w.startswith(str(path)) else f"{path}: {w}")
                      for w in unit_warnings + plausibility(robot))

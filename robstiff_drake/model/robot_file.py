@@ -94,6 +94,13 @@ KEYS = {
     # two turns either way: the widest working range a robot controller offers
     "joint_limits.lower_deg": Key("vector", "deg", -720.0, 720.0, N_JOINTS, names=JOINTS),
     "joint_limits.upper_deg": Key("vector", "deg", -720.0, 720.0, N_JOINTS, names=JOINTS),
+    # the controller's axis speeds and accelerations (controller convention), optional; `compensate` and
+    # `sim-cell` need them.  The fastest wrist axes of small arms turn about 1,000 deg/s; 5,000 bounds a typo
+    "joint_limits.speed_deg_per_s": Key("vector", "deg/s", 0.0, 5000.0, N_JOINTS, required=False, lo_open=True,
+                                        names=JOINTS, why="data sheets give 50-1,000 deg/s"),
+    "joint_limits.acceleration_deg_per_s2": Key("vector", "deg/s^2", 0.0, 1e5, N_JOINTS, required=False,
+                                                lo_open=True, names=JOINTS,
+                                                why="full speed in a few tens of milliseconds at most"),
     "joint_stiffness_Nm_per_rad": Key("vector", "N*m/rad", *STIFFNESS_RANGE_NM_PER_RAD, N_JOINTS, names=JOINTS,
                                       why="a small cobot's wrist ~1e3; the stiffest large-robot axis ~1e7"),
     # Reflected rotor inertias (n^2 J_rotor at the joint): above 1e4 a value is a unit slip (the largest

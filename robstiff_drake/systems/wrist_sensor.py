@@ -92,20 +92,30 @@ def add_random_inputs(builder, sensor, name="wrist_sensor"):
     return out
 
 
+# The guard re-arms on a finite sample after rejecting every sample for
+# this long (s): a genuine step of the force is taken then, as the
+# compensator process does after --sensor-timeout-ms (default 20 ms).
+GUARD_REARM_S = 0.02
+
+
 class WrenchGuard(LeafSystem):
     """Holds the last good sample: a non-finite sample, or one that jumps by
-    more than ``max_jump_N`` (force) from the last good one, is replaced by it.
+    more than ``max_jump_N`` (force) from the last good one, is replaced by
+    it; after ``rearm_s`` of rejecting every sample the guard takes the
+    next finite one (a genuine step of the force, not a spike).
 
     Input ``wrench`` (6), output ``wrench`` (6), updated at ``rate_hz``;
     output ``rejected`` (1): how many samples were rejected so far."""
 
-    def __init__(self, *, rate_hz, max_jump_N, initial_wrench=None):
+    def __init__(self, *, rate_hz, max_jump_N, initial_wrench=None, rearm_s=GUARD_REARM_S):
         super().__init__()
         self._max_jump = float(max_jump_N)
+        self._rearm = max(1, int(round(rearm_s * rate_hz)))
         self._in = self.DeclareVectorInputPort("wrench", 6)
         init = np.zeros(6) if initial_wrench is None else np.asarray(initial_wrench, dtype=float)
         self._state = self.DeclareDiscreteState(init)
         self._count = self.DeclareDiscreteState(1)
+        self._run = self.DeclareDiscreteState(1)  # samples rejected in a row
         self.DeclarePeriodicDiscreteUpdateEvent(1.0 / rate_hz, 0.0, self._update)
         self.DeclareStateOutputPort("wrench", self._state)
         self.DeclareStateOutputPort("rejected", self._count)
@@ -115,7 +125,13 @@ class WrenchGuard(LeafSystem):
         # place when the sample is good, count it when it is not
         w = self._in.Eval(context)
         held = discrete_state.get_mutable_vector(int(self._state)).get_mutable_value()
+        run = discrete_state.get_mutable_vector(int(self._run)).get_mutable_value()
         if guard_accepts(w.tolist(), held[:3].tolist(), self._max_jump):  # (model/compensator.py)
             held[:] = w
+            run[0] = 0.0
         else:
             discrete_state.get_mutable_vector(int(self._count)).get_mutable_value()[0] += 1.0
+            run[0] += 1.0
+            if run[0] > self._rearm and np.all(np.isfinite(w)):  # re-armed on the new level
+                held[:] = w
+                run[0] = 0.0

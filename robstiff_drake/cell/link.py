@@ -1,0 +1,251 @@
+"""The PC's side of a robot controller's streaming protocol (EGM, RSI,
+Stream Motion), the part they share: one UDP socket, only the configured
+controller heard, and one way out for joint targets.
+
+* ``receive(timeout_s)``: every datagram waiting (up to ``MAX_DRAIN``); a
+  datagram from any other address (or port, when ``--controller`` gives
+  one) is dropped and counted in ``strangers``, never decoded, never
+  answered; the controller's are decoded by the protocol (``decode``) and
+  returned in arrival order with their arrival times; one that does not
+  decode is counted in ``malformed``.
+* ``send_targets(message, targets_deg, envelope)``: the only way a target
+  leaves: ``safety.unsafe_reason`` first (UnsafeTarget when it refuses),
+  then the protocol's ``encode``, then to the controller.  A protocol
+  class writes ``decode`` and ``encode`` (bytes in, bytes out) and never
+  touches the socket.
+"""
+
+import ipaddress
+import select
+import socket
+import time
+from dataclasses import dataclass, field
+
+from robstiff_drake.cell.safety import UnsafeTarget, unsafe_reason
+from robstiff_drake.errors import InputError
+
+MAX_DRAIN = 256  # datagrams read per receive (a flood cannot hold the loop)
+MAX_DATAGRAM = 65536
+
+
+class MessageError(ValueError):
+    """A datagram from the controller that is not a usable message."""
+
+
+@dataclass
+class Message:
+    """One controller message: its sequence number and clock (ms), the
+    measured joint angles (deg, the controller's convention) and what the
+    answer must echo (``echo``: the protocol's own)."""
+
+    seq: int
+    tm_ms: int
+    joints_deg: list
+    echo: object = None
+    extra: dict = field(default_factory=dict)
+
+
+def split_host_port(text, default_port, what):
+    """'HOST[:PORT]' -> (host, port or ``default_port``); InputError naming the option."""
+    host, sep, port = str(text).rpartition(":")
+    if not sep:
+        host, port = str(text), None
+    if not host:
+        raise InputError(f"{what} {text!r}: expected HOST[:PORT]")
+    if port is None:
+        return host, default_port
+    try:
+        p = int(port)
+    except ValueError:
+        raise InputError(f"{what} {text!r}: port {port!r} is not a number") from None
+    if not 1 <= p <= 65535:
+        raise InputError(f"{what} {text!r}: port {p} is outside 1-65535")
+    return host, p
+
+
+def parse_controller(text, default_port=None, what="--controller"):
+    """'HOST[:PORT]' -> (IP address text, port or None); InputError naming the option."""
+    host, p = split_host_port(text, default_port, what)
+    try:
+        ip = socket.getaddrinfo(host, None, socket.AF_INET, socket.SOCK_DGRAM)[0][4][0]
+    except (socket.gaierror, UnicodeError):
+        raise InputError(f"{what} {text!r}: cannot resolve host {host!r}") from None
+    return ip, p
+
+
+def is_loopback(ip):
+    return ipaddress.ip_address(ip).is_loopback
+
+
+class PCLink:
+    """Base of the protocols' PC side.  ``listen_port``: the UDP port the
+    controller sends to (0: any, the protocol's client mode); ``controller``:
+    (IP, port or None) of the only sender heard."""
+
+    name = "controller"
+    option = "--listen-port"
+
+    def __init__(self, listen_port, controller):
+        self.controller_ip, self.controller_port = controller
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        bind_host = "127.0.0.1" if is_loopback(self.controller_ip) else ""
+        try:
+            self.sock.bind((bind_host, int(listen_port)))
+        except OSError as e:
+            self.sock.close()
+            raise InputError(f"{self.option} {listen_port}: cannot listen on UDP port {listen_port} ({e.strerror}; "
+                             "is another compensator running?)") from None
+        self.sock.setblocking(False)
+        self.port = self.sock.getsockname()[1]
+        self.reply_to = None if self.controller_port is None else (self.controller_ip, self.controller_port)
+        self.strangers = 0
+        self.stranger_example = None
+        self.malformed = 0
+        self.malformed_example = ""
+        self.sent = 0
+
+    # ------------------------------------------------------------ protocol hooks
+
+    def decode(self, data):
+        """Message of a datagram; MessageError saying what is wrong."""
+        raise NotImplementedError
+
+    def encode(self, message, targets_deg):
+        """The answer (bytes) carrying joint targets ``targets_deg`` (deg)
+        to ``message``; called only with targets that passed the check."""
+        raise NotImplementedError
+
+    def open(self):
+        """Whatever the protocol sends before the controller streams (a start request)."""
+
+    def close(self):
+        try:
+            self.sock.close()
+        except OSError:
+            pass
+
+    # ------------------------------------------------------------ receiving
+
+    def _from_controller(self, addr):
+        return addr[0] == self.controller_ip and (self.controller_port is None or addr[1] == self.controller_port)
+
+    def receive(self, timeout_s):
+        """[(Message, arrival time s on time.monotonic)] of the controller's
+        datagrams waiting, oldest first; [] after ``timeout_s`` without one."""
+        t_end = time.monotonic() + max(timeout_s, 0.0)
+        while True:
+            got = self._drain()
+            if got:
+                return got
+            left = t_end - time.monotonic()
+            if left <= 0:
+                return []
+            try:
+                select.select([self.sock], [], [], left)
+            except (OSError, ValueError):
+                return []
+
+    def _drain(self):
+        out = []
+        for _ in range(MAX_DRAIN):
+            try:
+                data, addr = self.sock.recvfrom(MAX_DATAGRAM)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                break
+            t = time.monotonic()
+            if not self._from_controller(addr):
+                self.strangers += 1
+                if self.stranger_example is None:
+                    self.stranger_example = f"{addr[0]}:{addr[1]}"
+                continue
+            try:
+                msg = self.decode(data)
+            except MessageError as e:
+                self.malformed += 1
+                self.malformed_example = str(e)
+                continue
+            if self.controller_port is None:
+                self.reply_to = addr  # the controller's own port (EGM sends from any)
+            out.append((msg, t))
+        return out
+
+    # ------------------------------------------------------------ sending
+
+    def send_targets(self, message, targets_deg, envelope):
+        """Send ``targets_deg`` (6, controller deg) as the answer to
+        ``message`` if ``safety.unsafe_reason`` takes them; else raise
+        UnsafeTarget (nothing is sent)."""
+        reason = unsafe_reason(targets_deg, envelope)
+        if reason is not None:
+            raise UnsafeTarget(reason)
+        if self.reply_to is None:
+            raise UnsafeTarget("no controller address to answer yet")
+        data = self.encode(message, targets_deg)
+        try:
+            self.sock.sendto(data, self.reply_to)
+        except OSError:
+            return False
+        self.sent += 1
+        return True
+
+    def send_control(self, data):
+        """A datagram that carries no joint target (a start or stop request)."""
+        if self.reply_to is None:
+            return False
+        try:
+            self.sock.sendto(data, self.reply_to)
+            return True
+        except OSError:
+            return False
+
+
+class ControllerSide:
+    """Base of the simulated controllers' side of a protocol: one UDP
+    socket, and the messages sent by the key their answers echo (``sent``:
+    key -> cycle k; ``answer_of`` pops it)."""
+
+    MAX_PENDING = 4096  # answers that never came are forgotten past this many
+
+    def __init__(self, bind=("127.0.0.1", 0), peer=None):
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(bind)
+        self.sock.setblocking(False)
+        self.addr = peer
+        self._sent = {}
+        self._last_k = None
+
+    def sent_as(self, key, k):
+        if len(self._sent) > self.MAX_PENDING:
+            self._sent.clear()
+        self._sent[key] = k
+        self._last_k = k
+
+    def answer_of(self, key):
+        return self._sent.pop(key, None)
+
+    def send(self, data, to=None):
+        try:
+            self.sock.sendto(data, to or self.addr)
+            return True
+        except OSError:
+            return False
+
+    def datagrams(self):
+        """The datagrams waiting, with their senders."""
+        out = []
+        while True:
+            try:
+                out.append(self.sock.recvfrom(65536))
+            except (BlockingIOError, InterruptedError, OSError):
+                return out
+
+    def wait(self, timeout_s):
+        select.select([self.sock], [], [], timeout_s)
+
+    def skip(self):
+        """A message lost on the way (the protocol's sequence number used up)."""
+
+    def close(self):
+        self.sock.close()

@@ -1,0 +1,82 @@
+"""The controller's sequence number and clock, checked message by message.
+
+Nothing a datagram says about time is trusted alone: the sequence number
+(EGM's header.seqno; RSI's IPOC and Stream Motion's sequence_no and time
+stamp likewise) and the controller's clock (ms) must advance together.
+
+* the same sequence number again: a duplicate, dropped (never answered);
+* an older one (up to ``REORDER_WINDOW`` behind): a reordered datagram,
+  dropped;
+* a jump of more than ``MAX_JUMP`` cycles forward, or further back than
+  the window: a fault (a controller restart looks like this); the session
+  takes the new numbering as its own and the reference advances by one
+  period;
+* a clock that disagrees with the sequence (its step differs from the
+  sequence's step times the period by more than ``CLOCK_TOL``): a fault;
+  the reference advances by the sequence's step times the period (the
+  clock's value is not used);
+* otherwise the reference advances by the clock's step, which is then
+  within ``MAX_JUMP`` periods (+ the tolerance): a bounded step per
+  message, whatever the datagram says.
+
+A controller whose clock does not run (every message stamped the same,
+e.g. tm = 0) is timed by its sequence numbers alone.
+"""
+
+MAX_JUMP = 5  # cycles a sequence number may skip (lost datagrams) without a fault
+REORDER_WINDOW = 64  # how far back an old datagram is dropped quietly (not a fault)
+WRAP = 2**32  # sequence numbers and clocks are uint32 on every protocol here
+
+
+def _signed(d):
+    d %= WRAP
+    return d - WRAP if d >= WRAP // 2 else d
+
+
+class SessionClock:
+    """``accept(seq, tm_ms)`` -> (verdict, dt_s): verdict "ok", "clock"
+    (answer it, with a fault), "jump" (answer it, with a fault),
+    "duplicate" or "old" (drop it); dt_s: how far the reference advances."""
+
+    def __init__(self, period_s, clock_tol_ms=None):
+        self.T = float(period_s)
+        self.T_ms = self.T * 1e3
+        # the clock may disagree with the sequence by half a period plus its
+        # own resolution (1 ms) before it is a fault
+        self.tol_ms = 0.5 * self.T_ms + 1.0 if clock_tol_ms is None else float(clock_tol_ms)
+        self.seq = None
+        self.tm = None
+        self.clock_runs = None  # unknown until two messages have come
+        self.counts = {"ok": 0, "clock": 0, "jump": 0, "duplicate": 0, "old": 0}
+
+    def accept(self, seq, tm_ms):
+        if self.seq is None:
+            self.seq, self.tm = int(seq), int(tm_ms)
+            self.counts["ok"] += 1
+            return "ok", 0.0
+        ds = _signed(int(seq) - self.seq)
+        if ds == 0:
+            self.counts["duplicate"] += 1
+            return "duplicate", 0.0
+        if -REORDER_WINDOW <= ds < 0:
+            self.counts["old"] += 1
+            return "old", 0.0
+        dtm = _signed(int(tm_ms) - self.tm)
+        if self.clock_runs is None:
+            self.clock_runs = dtm != 0
+        self.seq, self.tm = int(seq), int(tm_ms)
+        if ds < 0 or ds > MAX_JUMP:
+            self.counts["jump"] += 1
+            return "jump", self.T
+        nominal_ms = ds * self.T_ms
+        if not self.clock_runs:
+            self.counts["ok"] += 1
+            return "ok", nominal_ms * 1e-3
+        if abs(dtm - nominal_ms) > self.tol_ms:
+            self.counts["clock"] += 1
+            return "clock", nominal_ms * 1e-3
+        self.counts["ok"] += 1
+        return "ok", dtm * 1e-3
+
+    def jump_text(self, seq, previous):
+        return f"sequence number {seq} after {previous}"
