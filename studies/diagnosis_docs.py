@@ -12,6 +12,13 @@ takes the confusion study's output from a file instead of running it).  The FANU
 assignments (studies/fanuc_folds.py): without it those blocks are left as
 they were and the script says so.
 
+Every block of the page that shows commands gets its run marker
+(tests/doc_blocks.py) from MARKERS here, so the regenerated page carries
+them: the wheel test (tests/test_wheel_install.py) runs the worked example
+and skips, with the reason, the blocks that need files of a clone (tests/,
+benchmarks/) or the real data; a command block no entry matches stops the
+script.
+
 Run: python3 studies/diagnosis_docs.py [--studies [--confusion FILE]]
 """
 
@@ -28,6 +35,47 @@ ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "diagnosis.md"
 EXAMPLE = ROOT / "docs" / "diagnosis_example"
 sys.path.insert(0, str(ROOT / "tests"))
+
+
+# (a text any of a command block's commands contains, its run marker), first match wins
+CLONE = "needs {} of a clone (no wheel holds it)"
+MARKERS = (
+    ("tests/open_world.py", "run: skip " + CLONE.format("tests/open_world.py")),
+    ("tests/tracker_world.py", "run: skip " + CLONE.format("tests/tracker_world.py")),
+    ("benchmarks/", "run: skip benchmarks of a clone (minutes, timed against the machine's load)"),
+    ("fanuc.csv", "run: skip needs the real FANUC campaign (python3 tests/realdata.py fanuc fanuc.csv from a clone, "
+                  "with the data in ROBSTIFF_REALDATA)"),
+    ("robstiff synth stiffness campaign.csv", "run"),
+)
+
+
+def mark(text):
+    """The page with every command block's run marker (MARKERS) on the line
+    above its fence; a command block no entry matches stops the script."""
+    from doc_blocks import MARKER, Block
+
+    lines, out, i = text.split("\n"), [], 0
+    while i < len(lines):
+        if not lines[i].startswith("```"):
+            out.append(lines[i])
+            i += 1
+            continue
+        j = i + 1
+        while j < len(lines) and not lines[j].startswith("```"):
+            j += 1
+        b = Block("diagnosis.md", len(out) + 1, lines[i + 1:j])
+        if b.shows_commands():
+            marker = next((m for key, m in MARKERS if any(key in c for c in b.commands())), None)
+            if marker is None and not (out and MARKER.match(out[-1])):
+                raise SystemExit(f"docs/diagnosis.md:{len(out) + 1}: a command block without a run marker "
+                                 f"({b.commands()[0]}); give it one in MARKERS of studies/diagnosis_docs.py")
+            if marker is not None:
+                if out and MARKER.match(out[-1]):
+                    out.pop()
+                out.append(f"<!-- {marker} -->")
+        out.extend(lines[i:j + 1])
+        i = j + 1
+    return "\n".join(out)
 
 
 def sh(cmd, cwd, env=None):
@@ -114,7 +162,7 @@ def main():
         out = "$ python3 benchmarks/bench_diagnosis.py\n" + sh(f"python3 {ROOT}/benchmarks/bench_diagnosis.py || true", ROOT)
         out += "\n$ python3 benchmarks/bench_tracker.py\n" + sh(f"python3 {ROOT}/benchmarks/bench_tracker.py || true", ROOT)
         text = replace(text, "speed", block(out, "speed"))
-    DOC.write_text(text, encoding="utf-8")
+    DOC.write_text(mark(text), encoding="utf-8")
     print(f"wrote {DOC} and {EXAMPLE}")
 
 
