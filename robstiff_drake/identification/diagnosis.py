@@ -13,7 +13,7 @@ no Drake.
 4. A second outlier screen with the final model (rows a structured effect
    had hidden, or rows wrongly flagged at first); if the set changes, steps
    2-3 run again once.
-5. The verdict: the final model's held-out RMS against the floor
+5. The verdict (stiffness_verdict.py): the final model's held-out RMS against the floor
    (lack-of-fit test).  ``explains_data`` is true only when that test passes,
    every kept term is a named effect of physical size and the identified
    compliances are positive; false when the error is significantly above the
@@ -39,6 +39,9 @@ from robstiff_drake.identification.dictionary import DICTIONARY
 from robstiff_drake.identification.fold_spread import fold_spread
 from robstiff_drake.identification.joint_stiffness import identify
 from robstiff_drake.identification.residual_structure import residual_structure
+from robstiff_drake.identification.stiffness_verdict import ALPHA_FLOOR_ABOVE
+from robstiff_drake.identification.stiffness_verdict import carried as _carried
+from robstiff_drake.identification.stiffness_verdict import verdict as _verdict
 from robstiff_drake.identification.threads import single_blas_thread
 from robstiff_drake.identification.terms import (GAUSS_NEWTON, GRID, Context, fit_model, gauss_newton_columns,
                                                  term_columns)
@@ -158,90 +161,7 @@ def _run(robot, campaign, tool_m, rows, groups, noise_mm, terms_by_name, fold_se
     return base, ctx, floor, fold_rows, result, units, by_pose
 
 
-# A stated floor the held-out residual is significantly below (lower tail of
-# the lack-of-fit test at this level) is reported as overstated.
-ALPHA_FLOOR_ABOVE = 0.01
 MAX_LEADS = 5
-
-
-def _verdict(d, floor, lof, non_physical, discovered, implausible, structure, n_hyp, leads=(), confounded=()):
-    if non_physical:
-        head = (f"no verdict: the six springs alone need a negative compliance of joint(s) "
-                f"{', '.join(map(str, non_physical))} (non-physical)")
-        fix = [r for r in leads if r["all_positive"]]
-        if fix:
-            return None, (f"{head}; {fix[0]['name']} would make every compliance positive (held-out "
-                          f"{fix[0]['rms_mm']:.4f} mm) but was not added: {fix[0]['reason']}: the model lacks "
-                          "something that looks like it")
-        return None, f"{head}, and nothing the search tried reverses it; check the signs and units of the " \
-                     "displacements and forces"
-    if floor.sigma_mm is None:
-        return None, ("no verdict: no noise floor is known (state it with --noise-mm, or measure replicate rows: "
-                      "the same pose and load); whether the model explains the data cannot be said")
-    where = ", ".join(f"{s['variable']} ({100 * s['strength']:.0f} %)" for s in structure[:3] if s["strength"] > 0.02)
-    above = lof.p_value < nf.ALPHA_LACK_OF_FIT
-    text = (f"held-out RMS {d['rms_after']:.4f} mm against a floor of {floor.sigma_mm:.4f} mm ({floor.source}); "
-            f"lack-of-fit p = {lof.p_value:.2g}")
-    if above:
-        lead = ""
-        if leads:
-            best = leads[0]
-            conf = [c for c in confounded if best["name"] in c["terms"]]
-            lead = (f"; {best['name']} would fit more of it (held-out {best['rms_mm']:.4f} mm) but was not added: "
-                    f"{best['reason']}")
-            if conf:
-                other = next(t for t in conf[0]["terms"] if t != best["name"])
-                lead += (f"; it is confounded with {other} (correlation of the estimates "
-                         f"{conf[0]['correlation']:+.2f}): the campaign cannot separate them (robstiff plan-poses "
-                         f"--separate {best['name']},{other})")
-        trend = (f"; {', '.join(d['trends'])}: a trend along the file's order was taken out, not as a cause (the "
-                 "file has neither seq nor t_s)" if d.get("trends") else "")
-        return False, (f"the final model does NOT explain the data: {text}; {d['unexplained']:.4f} mm unexplained"
-                       + (f", strongest with: {where}" if where else "") + d.get("carried", "") + lead + trend)
-    if d.get("rivals"):
-        chosen, r = d["rivals"][0]
-        return False, (f"not established: {text}, but a trend along the file's order ({r.name}, held-out "
-                       f"{r.rms_mm:.4f} mm when {chosen} was added) fits the same residual about as well as {chosen}: "
-                       "the file has neither seq nor t_s, so a drift during the measurements cannot be told from it; "
-                       "add the measurement order or time and diagnose again")
-    if d.get("trends"):
-        return False, (f"not established: {text}, reached only with {', '.join(d['trends'])}: a trend along the "
-                       "file's order, which is not known to be the order of measurement (the file has neither seq nor "
-                       "t_s); add the measurement order or time and diagnose again")
-    better = [r for r in leads if r["rms_mm"] < (1 - selection.MIN_GAIN["dictionary"]) * d["rms_after"]]
-    if better:
-        r = better[0]
-        return False, (f"not established: {text}, but {r['name']} fits better (held-out {r['rms_mm']:.4f} mm) and "
-                       f"was not added: {r['reason']}: the data carry something that looks like it")
-    if discovered:
-        return False, (f"not established: {text}, reached only with terms found by searching {n_hyp} hypotheses "
-                       f"({', '.join(discovered)}); confirm them on a new campaign before trusting them")
-    if implausible:
-        return False, (f"not established: {text}, but only with effect(s) of implausible size "
-                       f"({', '.join(implausible)}): the data carry something else that looks like them")
-    verdict = f"the final model explains the data as far as the noise allows: {text}"
-    if floor.source == "stated" and lof.p_below < ALPHA_FLOOR_ABOVE:
-        verdict += (f"; but the residual is {floor.sigma_mm / d['rms_after']:.1f}x below the stated floor "
-                    f"(lower-tail p = {lof.p_below:.2g}): a floor that large hides any effect smaller than about "
-                    f"{floor.sigma_mm:.4f} mm, so this says little; state the instrument's noise for a displacement")
-    return True, verdict
-
-
-def _carried(terms, rms_before, rms_after, spread):
-    """'; what lowers the held-out RMS, by how much, over the folds': the
-    verdict says which terms carry the reduction and what kind they are."""
-    if not terms:
-        return "; no term of physical size was kept (the six springs are the final model)"
-    named = [t["name"] for t in terms if t["source"] == "library"]
-    found = [t["name"] for t in terms if t["source"] != "library"]
-    kinds = "; ".join(([f"named: {', '.join(named)}"] if named else [])
-                      + ([f"found in the dictionary, hypotheses to confirm: {', '.join(found)}"] if found else []))
-    out = (f"; the kept terms, all of physical size ({kinds}), lower the held-out RMS from {rms_before:.4f} to "
-           f"{rms_after:.4f} mm ({100 * (1 - rms_after / rms_before):.0f} %")
-    if spread is not None:
-        out += (f"; {100 * spread['reduction_min']:.0f}-{100 * spread['reduction_max']:.0f} % over "
-                f"{len(spread['seeds'])} fold assignments")
-    return out + ")"
 
 
 def _lead_reports(result):
