@@ -142,7 +142,11 @@ def main():
             out = sh("robstiff diagnose fanuc.csv --robot r2000ic_165f --noise-mm 0.03 2>/dev/null", tmp)
             res = json.loads(sh("robstiff diagnose fanuc.csv --robot r2000ic_165f --noise-mm 0.03 --json - "
                                 "2>/dev/null", tmp))
-            a, b = res["confounded"][0]["terms"] if res["confounded"] else ("tool_offset", "stiffness_j3")
+            # the pair the verdict names: the best lead's strongest confounding, else the strongest pair
+            lead = res["leads"][0]["name"] if res["leads"] else None
+            pairs = [c["terms"] for c in res["confounded"] if lead in c["terms"]] or \
+                [c["terms"] for c in res["confounded"]] or [("tool_offset", "stiffness_j3")]
+            a, b = pairs[0]
             out += "\n$ robstiff plan-poses 24 --robot r2000ic_165f --separate " \
                    f"{a},{b} --campaign fanuc.csv --noise-mm 0.03\n"
             plan = sh(f"robstiff plan-poses 24 --robot r2000ic_165f --separate {a},{b} --campaign fanuc.csv "
