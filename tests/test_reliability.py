@@ -530,3 +530,39 @@ def test_a_campaign_loaded_along_one_line_has_no_intervals(tmp_path):
     c.force_N[:] = np.outer(np.where(c.force_N[:, 0] < 0, -1.0, 1.0), [300.0, 0.0, 0.0])
     assert interval_support(c, ROBOT.payload.tool_point_m, 5) == [
         "every load is along one line: the rows cannot separate the joints beyond it; load in several directions"]
+
+
+@pytest.mark.parametrize("command", [
+    lambda c, d: ["table2", "--json", d / "t.json", "--plot", d / "t.png"],
+    lambda c, d: ["diagnose", c, "--json", d / "d.json", "--report", d / "d.md", "--plots", d / "views"],
+])
+def test_every_command_with_several_outputs_writes_all_or_none(capsys, tmp_path, campaign, monkeypatch, command):
+    """table2 and diagnose (like identify): a full disk at the figure leaves none of the other outputs behind
+    (they were written one by one before: t.json, d.json and d.md stayed)."""
+    import matplotlib.figure
+
+    def full(self, *a, **k):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", full)
+    out = tmp_path / "out"
+    out.mkdir()
+    code, _, err = cli(capsys, *command(campaign, out))
+    one_line_error(code, err)
+    assert "No space left on device" in err
+    assert list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize("name, code_point", [("block\x1b[2J", "U+001B"), ("two\nlines", "U+000A"),
+                                              ("bidi\u202eevil", "U+202E")])
+def test_a_scenario_name_with_control_characters_is_refused(capsys, tmp_path, name, code_point):
+    """The scenario's name is printed in titles, report lines and the replay: an escape sequence in it
+    would act on the user's terminal (it was printed raw). One line naming file, line, key and character."""
+    from robstiff_drake.paths import DIAGRAMS_DIR
+
+    text = (DIAGRAMS_DIR / "short_block.yaml").read_text(encoding="utf-8")
+    p = tmp_path / "named.yaml"
+    p.write_text(text.replace("name: short_block", "name: " + json.dumps(name)), encoding="utf-8")
+    code, _, err = cli(capsys, "simulate", p)
+    one_line_error(code, err)
+    assert "named.yaml:6" in err and "name" in err and code_point in err and "\x1b" not in err

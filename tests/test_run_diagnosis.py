@@ -216,6 +216,24 @@ def test_settings_without_the_servo_are_refused(exact_run, tmp_path, capsys):
     assert "velocity_feedforward: expected a number from 0 to 1" in _error_line(capsys, "diagnose-run", str(old))
 
 
+def test_the_servo_integral_corner_is_logged_and_read(exact_run, tmp_path):
+    """The run's compensator.yaml carries the velocity loop's integral corner (the plant's drives are PI:
+    diagnose-run's arm response needs it); a file written before it was logged reads the documented default."""
+    from robstiff_drake.identification.run_diagnosis import servo_of
+    from robstiff_drake.model.servo import ServoParameters
+
+    s = Path(exact_run) / rf.SETTINGS
+    text = s.read_text()
+    assert "    velocity_integral_hz: 7.5\n" in text
+    _, settings = rf.read_settings(s)
+    assert servo_of(settings).velocity_integral_hz == 7.5
+    old = tmp_path / rf.SETTINGS
+    old.write_text(text.replace("    velocity_integral_hz: 7.5\n", "    velocity_integral_hz: 12.0\n"))
+    assert servo_of(rf.read_settings(old)[1]).velocity_integral_hz == 12.0
+    old.write_text(text.replace("    velocity_integral_hz: 7.5\n", ""))
+    assert servo_of(rf.read_settings(old)[1]).velocity_integral_hz == ServoParameters.velocity_integral_hz
+
+
 def _error_line(capsys, *args):
     capsys.readouterr()
     code = main(list(args))
@@ -277,6 +295,13 @@ def test_a_verification_cut_must_run_a_candidate(exact_run, tmp_path, capsys):
     other.write_text(rf.settings_text(settings, "x"))
     assert "tool point" in _error_line(capsys, "simulate", str(exact_run / "sim_scenario.yaml"), "--compensator",
                                        str(other), "--out", str(tmp_path / "never"))
+    settings.tool_point_mm = rf.read_settings(exact_run / rf.SETTINGS)[1].tool_point_mm
+    settings.robot = "kr240_r2900"  # another robot's compensator, on this robot's run: refused, not run
+    other.write_text(rf.settings_text(settings, "x"))
+    err = _error_line(capsys, "simulate", str(exact_run / "sim_scenario.yaml"), "--compensator", str(other),
+                      "--out", str(tmp_path / "never"))
+    assert "compensator.robot is kr240_r2900" in err and "not the simulated robot irb6400" in err
+    assert not (tmp_path / "never").exists()
 
 
 # ---------------------------------------------------------------- formats and statistics, no simulation

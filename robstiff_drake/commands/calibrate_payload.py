@@ -2,7 +2,7 @@
 centre of mass, force and torque bias) from static readings."""
 
 
-from robstiff_drake.commands.main import parse_vector
+from robstiff_drake.commands.options import parse_vector
 from robstiff_drake.io import Warnings, check_outputs, emit_json, staged_outputs, write_atomic
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote

@@ -17,7 +17,6 @@ silent for --idle-exit-s end the run; --log DIR is written as the run goes
 (cell/run_log.py); the run ends with its health verdict.
 """
 
-import json
 import math
 import sys
 import time

@@ -6,7 +6,7 @@ whether the result explains the data against the noise floor."""
 import numpy as np
 
 from robstiff_drake.commands.identify import campaign_warnings
-from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
 from robstiff_drake.identification.confounding import CONFOUNDED_MIN
@@ -14,7 +14,7 @@ from robstiff_drake.identification.diagnosis import CANDIDATES, DICTIONARY, diag
 from robstiff_drake.identification.fold_spread import describe as describe_spread
 from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
 from robstiff_drake.identification.selection import ALPHA_ROUND, MIN_GAIN
-from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, write_atomic
+from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, staged_outputs, write_atomic
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote
 
@@ -291,13 +291,14 @@ def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=N
     check_angle_units(robot, campaign, tool_m)
     warnings.extend_from(check_signs(identify(robot, campaign, tool_m=tool_m), campaign))
     d = diagnose(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=warnings)
-    if json_out is not None:
-        emit_json(to_dict(d, campaign), json_out)
-    if report is not None:
-        write_atomic(report, format_report(d, campaign, markdown=True) + "\n")
-    if plots is not None:
-        with RunFolder(plots) as folder:
-            residual_views(d, campaign, robot, folder, tool_m)
+    with staged_outputs():  # the JSON, the report and the views, all or none
+        if json_out is not None:
+            emit_json(to_dict(d, campaign), json_out)
+        if report is not None:
+            write_atomic(report, format_report(d, campaign, markdown=True) + "\n")
+        if plots is not None:
+            with RunFolder(plots) as folder:
+                residual_views(d, campaign, robot, folder, tool_m)
     if json_out != "-":
         print(format_report(d, campaign))
     stderr = json_out == "-"

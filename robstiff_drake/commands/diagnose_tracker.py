@@ -9,7 +9,7 @@ import numpy as np
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
 from robstiff_drake.identification.tracker_diagnosis import diagnose_tracker
-from robstiff_drake.io import RunFolder, Warnings, emit_json, write_atomic
+from robstiff_drake.io import RunFolder, Warnings, emit_json, staged_outputs, write_atomic
 
 
 def _g(v, fmt=".4f"):
@@ -107,19 +107,20 @@ def run(*, data, tool_m, noise_mm, robot, json_out=None, report=None, plots_dir=
     other = read_tracker_campaign(validate, robot) if validate is not None else None
     d = diagnose_tracker(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=w, validation=other)
     rep = d.report
-    if write_robot is not None:
-        from robstiff_drake.identification.robot_writer import write_corrected_robot
+    with staged_outputs():  # the corrected robot file, the JSON, the report and the views, all or none
+        if write_robot is not None:
+            from robstiff_drake.identification.robot_writer import write_corrected_robot
 
-        err = write_corrected_robot(write_robot, robot, d.fit, rep, data, d.problem.q)
-        rep["corrected_robot"] = {"path": str(write_robot), "fk_check_mm": err * 1e3}
-    rep["warnings"] = list(w)
-    if json_out is not None:
-        emit_json(rep, json_out)
-    if report is not None:
-        write_atomic(report, format_report(rep, markdown=True) + "\n")
-    if plots_dir is not None:
-        with RunFolder(plots_dir) as folder:
-            plots(d, folder)
+            err = write_corrected_robot(write_robot, robot, d.fit, rep, data, d.problem.q)
+            rep["corrected_robot"] = {"path": str(write_robot), "fk_check_mm": err * 1e3}
+        rep["warnings"] = list(w)
+        if json_out is not None:
+            emit_json(rep, json_out)
+        if report is not None:
+            write_atomic(report, format_report(rep, markdown=True) + "\n")
+        if plots_dir is not None:
+            with RunFolder(plots_dir) as folder:
+                plots(d, folder)
     if json_out != "-":
         print(format_report(rep))
         if write_robot is not None:

@@ -4,7 +4,7 @@ rotation in the robot's base frame."""
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.commands.stiffness import parse_q_deg
 from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model import kinematics as kin

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic, staged_outputs
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote

@@ -3,10 +3,10 @@ stiffness identification, compared with random poses of the same size."""
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.identification.campaign import tool_header_line
 from robstiff_drake.errors import InputError
-from robstiff_drake.io import check_outputs, emit_json, write_atomic
+from robstiff_drake.io import check_outputs, emit_json, staged_outputs, write_atomic
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote
 
@@ -80,18 +80,19 @@ def _run_separate(*, n, separate, campaign_csv, candidates, force_N, noise_mm, t
         compliance = np.where(fit.identifiable & (c > 0), c, 1.0 / robot.joint_stiffness_Nm_per_rad)
     plan = plan_separation(robot, effects, n, campaign=campaign, compliance=compliance, n_candidate_poses=candidates,
                            force_N=force_N, noise_mm=noise_mm, tool_m=tool_m, seed=seed)
-    if out is not None:
-        write_atomic(out, separation_csv(plan, robot=robot, force_N=force_N, noise_mm=noise_mm, tool_m=tool_m))
-    rows = [{"effect": e, "parameter": name, "unit": unit,
-             "half_width_95_before": None if plan.half_width_before is None else float(plan.half_width_before[i]),
-             "half_width_95_after": float(plan.half_width_after[i])} for i, (e, name, unit) in enumerate(plan.params)]
-    res = {"n": n, "separate": list(effects), "campaign": campaign_csv, "force_N": force_N, "noise_mm": noise_mm,
-           "tool_mm": tool_m * 1e3, "parameters": rows, "correlation_before": plan.correlation_before,
-           "correlation_after": plan.correlation_after,
-           "rows": [{"q_deg": robot.controller_deg(q), "force_N": f} for q, f in zip(plan.q_rad, plan.force_N)],
-           "warnings": []}
-    if json_out is not None:
-        emit_json(res, json_out)
+    with staged_outputs():  # the plan and the JSON, both or neither
+        if out is not None:
+            write_atomic(out, separation_csv(plan, robot=robot, force_N=force_N, noise_mm=noise_mm, tool_m=tool_m))
+        rows = [{"effect": e, "parameter": name, "unit": unit,
+                 "half_width_95_before": None if plan.half_width_before is None else float(plan.half_width_before[i]),
+                 "half_width_95_after": float(plan.half_width_after[i])} for i, (e, name, unit) in enumerate(plan.params)]
+        res = {"n": n, "separate": list(effects), "campaign": campaign_csv, "force_N": force_N, "noise_mm": noise_mm,
+               "tool_mm": tool_m * 1e3, "parameters": rows, "correlation_before": plan.correlation_before,
+               "correlation_after": plan.correlation_after,
+               "rows": [{"q_deg": robot.controller_deg(q), "force_N": f} for q, f in zip(plan.q_rad, plan.force_N)],
+               "warnings": []}
+        if json_out is not None:
+            emit_json(res, json_out)
     if json_out != "-":
         a, b = effects
         src = f"{campaign_csv} plus " if campaign_csv else ""
@@ -132,20 +133,21 @@ def run(*, n, candidates=120, force_N=300.0, noise_mm=0.01, tool=None, seed=0, o
 
     plan = plan_poses(robot, n, n_candidate_poses=candidates, force_N=force_N, noise_mm=noise_mm, tool_m=tool_m,
                       seed=seed)
-    if out is not None:
-        write_atomic(out, plan_csv(plan, robot=robot, force_N=force_N, noise_mm=noise_mm, tool_m=tool_m))
-    res = {
-        "n": n, "n_poses": int(len(set(plan.pose_index.tolist()))), "force_N": force_N, "noise_mm": noise_mm,
-        "tool_mm": tool_m * 1e3, "identifiable": plan.identifiable.tolist(),
-        "rel_std_planned": [None if np.isnan(v) else float(v) for v in plan.rel_std_planned],
-        "rel_std_random_median": [None if np.isnan(v) else float(v) for v in plan.rel_std_random],
-        "d_efficiency_gain": float(np.exp((plan.logdet_planned - plan.logdet_random) / plan.identifiable.sum())),
-        "warnings": [f"joint {j + 1} is not identifiable with this tool point (the loads give it no torque); "
-                     "use a tool point off the flange axis or apply moments" for j in range(6)
-                     if not plan.identifiable[j]],
-    }
-    if json_out is not None:
-        emit_json(res, json_out)
+    with staged_outputs():  # the plan and the JSON, both or neither
+        if out is not None:
+            write_atomic(out, plan_csv(plan, robot=robot, force_N=force_N, noise_mm=noise_mm, tool_m=tool_m))
+        res = {
+            "n": n, "n_poses": int(len(set(plan.pose_index.tolist()))), "force_N": force_N, "noise_mm": noise_mm,
+            "tool_mm": tool_m * 1e3, "identifiable": plan.identifiable.tolist(),
+            "rel_std_planned": [None if np.isnan(v) else float(v) for v in plan.rel_std_planned],
+            "rel_std_random_median": [None if np.isnan(v) else float(v) for v in plan.rel_std_random],
+            "d_efficiency_gain": float(np.exp((plan.logdet_planned - plan.logdet_random) / plan.identifiable.sum())),
+            "warnings": [f"joint {j + 1} is not identifiable with this tool point (the loads give it no torque); "
+                         "use a tool point off the flange axis or apply moments" for j in range(6)
+                         if not plan.identifiable[j]],
+        }
+        if json_out is not None:
+            emit_json(res, json_out)
     if json_out != "-":
         print(f"plan: {n} measurements at {res['n_poses']} poses, {force_N:g} N loads, tool "
               f"{np.round(tool_m * 1e3, 1).tolist()} mm; predicted standard error at {noise_mm:g} mm noise")

@@ -7,7 +7,7 @@ chain, whose springs the robot file gives)."""
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.errors import InputError, SingularPoseError
 from robstiff_drake.io import check_outputs, emit_json
 from robstiff_drake.model import kinematics as kin

@@ -8,7 +8,7 @@ import textwrap
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_tool
+from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import check_outputs, save_figure_atomic
 from robstiff_drake.model import ik

@@ -10,7 +10,7 @@ import numpy as np
 
 from robstiff_drake.diagrams.sweep import check_combinations, combinations, run_sweep
 from robstiff_drake.errors import InputError
-from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic
+from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic, staged_outputs
 from robstiff_drake.paths import library_robots
 from robstiff_drake.progress import info, wrote
 
@@ -160,10 +160,11 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
     result = {"scenario": str(scenario), "robot": robot.name, "n_runs": len(rows), "n_failed": len(failed),
               "complete": not failed, "plant_step_ms": sc.plant_config.time_step * 1e3, "runs": rows,
               "warnings": list(warnings)}
-    if json_out is not None:
-        emit_json(result, json_out)
-    if plot_out is not None:
-        plot(rows, plot_out)
+    with staged_outputs():  # the JSON and the plot, both or neither
+        if json_out is not None:
+            emit_json(result, json_out)
+        if plot_out is not None:
+            plot(rows, plot_out)
     if json_out != "-":
         print(format_table(rows))
     wrote(json_out, f"{len(rows)} runs", to_stderr=json_out == "-")

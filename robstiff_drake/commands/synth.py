@@ -5,7 +5,7 @@ import sys
 
 import numpy as np
 
-from robstiff_drake.commands.main import parse_tool, parse_vector
+from robstiff_drake.commands.options import parse_tool, parse_vector
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import STDOUT, check_outputs, write_atomic
 from robstiff_drake.model.effects import EFFECTS

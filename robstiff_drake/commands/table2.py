@@ -13,7 +13,7 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.identification.campaign import D_COLS, F_COLS, read_table
 from robstiff_drake.identification.linearity import analyse_group, cartesian_diagnosis, pooled_offset
 from robstiff_drake.identification.table2_grouping import GROUPS, SPLIT_A
-from robstiff_drake.io import check_outputs, emit_json, save_figure_atomic
+from robstiff_drake.io import check_outputs, emit_json, save_figure_atomic, staged_outputs
 from robstiff_drake.paths import DATA_DIR
 from robstiff_drake.progress import wrote
 
@@ -136,11 +136,12 @@ def run(*, json_out=None, plot_out=None, data=None):
     results, F, D, rows = analyse(data or TABLE2_CSV)
     pooled = along_load(results, F, D, rows)
     diag = diagnosis(results, F, D, rows)
-    if json_out is not None:
-        emit_json({"data": str(data or TABLE2_CSV), "groups": to_dict(results), "offset_along_load": pooled,
-                   "diagnosis": diag, "warnings": []}, json_out)
-    if plot_out is not None:
-        save_figure_atomic(plot(results, F, D, rows), plot_out, dpi=100)
+    with staged_outputs():  # the JSON and the plot, both or neither
+        if json_out is not None:
+            emit_json({"data": str(data or TABLE2_CSV), "groups": to_dict(results), "offset_along_load": pooled,
+                       "diagnosis": diag, "warnings": []}, json_out)
+        if plot_out is not None:
+            save_figure_atomic(plot(results, F, D, rows), plot_out, dpi=100)
     if json_out != "-":
         print("the paper's Table 2: linearity in load, offset at zero load, repeatability (grouping of the rows by pose: "
               "see `robstiff table2 --help`)")

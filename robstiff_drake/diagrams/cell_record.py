@@ -91,12 +91,36 @@ def _robot_spec_text(sc, robot):
     return str(Path(spec or robot.source).resolve())
 
 
+def _same_robot(settings, robot, where):
+    """Refuse (InputError) settings whose ``robot`` is not the simulated one
+    (another name, or the same name with other kinematics): a verification
+    cut runs the compensator of the run's own robot."""
+    if not settings.robot:
+        return
+    from robstiff_drake.model.robot import load_robot
+    from robstiff_drake.paths import library_robots
+
+    spec = settings.robot if settings.robot in library_robots() else \
+        str(Path(settings.path or ".").parent / settings.robot)
+    try:
+        theirs = load_robot(spec)
+    except (InputError, OSError) as e:
+        raise InputError(f"{where}: compensator.robot: {settings.robot}: cannot be read ({e})") from None
+    same = theirs.name == robot.name and all(
+        np.allclose(getattr(theirs.dh, k), getattr(robot.dh, k), rtol=0, atol=1e-9)
+        for k in ("a_m", "d_m", "alpha_rad", "home_rad"))
+    if not same:
+        raise InputError(f"{where}: compensator.robot is {settings.robot} ({theirs.name}), not the simulated robot "
+                         f"{robot.name}: a verification cut runs the compensator made for this robot")
+
+
 def scenario_with_compensator(sc, settings, robot):
     """Scenario ``sc`` (its plant, path, workpiece, cutting and sensor noise)
     with the compensator of ``settings``.  The tool, cutter and payload
     calibration are the machine's: settings that differ there are refused
     (InputError), since the simulation cannot change the hardware."""
     where = settings.path or "compensator settings"
+    _same_robot(settings, robot, where)
     tool = np.asarray(robot.payload.tool_point_m) * 1e3
     if not np.allclose(settings.tool_point_mm, tool, rtol=0, atol=1e-6):
         raise InputError(f"{where}: compensator.tool.point_mm {settings.tool_point_mm} is not the simulated "

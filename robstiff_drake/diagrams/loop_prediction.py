@@ -23,7 +23,7 @@ from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (gravity_stif
     joint_model,
 )
 from robstiff_drake.diagrams.station import servo_parameters
-from robstiff_drake.diagrams.sweep import configure
+from robstiff_drake.diagrams.sweep_config import configure
 from robstiff_drake.model import ik, joint_dynamics
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, path_terms, process_stiffness

@@ -281,7 +281,7 @@ class ScanConfig:
 
 @dataclass
 class Scenario:
-    name: str = text("", max_length=200)
+    name: str = text("", max_length=200, one_line=True)
     description: str = text("")
     # The robot: a library name (`robstiff robots`) or a robot file (relative
     # to this file); empty: the IRB6400.

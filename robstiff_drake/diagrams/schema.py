@@ -65,8 +65,12 @@ def choice(default, options):
     return field(default=default, metadata=_meta("choice", options=tuple(options)))
 
 
-def text(default="", *, max_length=10000):
-    return field(default=default, metadata=_meta("text", max_length=max_length))
+def text(default="", *, max_length=10000, one_line=False):
+    """Text of at most ``max_length`` characters; without control characters
+    other than tab and line ends (``one_line``: none at all, the text is
+    printed in titles and report lines, where an escape sequence would act
+    on the user's terminal)."""
+    return field(default=default, metadata=_meta("text", max_length=max_length, one_line=one_line))
 
 
 # ---------------------------------------------------------------- parsing
@@ -213,6 +217,11 @@ class _Checker:
             self.fail(p, f"expected text, got {excerpt(value)}")
         if len(value) > m["max_length"]:
             self.fail(p, f"text longer than {m['max_length']} characters")
+        allowed = "" if m.get("one_line") else "\t\n\r"
+        for i, ch in enumerate(value):
+            if not ch.isprintable() and ch not in allowed:
+                self.fail(p, f"character {i + 1} is U+{ord(ch):04X}, a control or invisible character "
+                             f"({'one line of printable text expected' if m.get('one_line') else 'not text'})")
 
 
 def validate(schema_cls, path, text_):

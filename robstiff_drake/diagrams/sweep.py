@@ -5,7 +5,6 @@ closed-loop simulation, run on a local process pool or a Dask cluster.
 A run that fails comes back as a row that says why; the others are kept.
 """
 
-import copy
 import itertools
 import math
 import os
@@ -16,6 +15,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
+from robstiff_drake.diagrams.sweep_config import configure
 from robstiff_drake.errors import InputError
 from robstiff_drake.progress import progress as progress_bar
 
@@ -48,21 +48,6 @@ def check_combinations(sc, combos, plant_step_ms=None):
         except InputError as e:
             raise InputError(f"sweep: period {c['period_ms']:g} ms, delay {c['delay_steps']}, cutoff "
                              f"{c['cutoff_hz']:g} Hz: {e}") from None
-
-
-def configure(sc, combo, plant_step_ms=None):
-    sc = copy.deepcopy(sc)
-    sc.controller.period_ms = combo["period_ms"]
-    sc.controller.delay_steps = combo["delay_steps"]
-    sc.controller.filter.kind = "lowpass"
-    sc.controller.filter.cutoff_hz = combo["cutoff_hz"]
-    sc.controller.mode = combo["mode"]
-    if plant_step_ms:
-        sc.plant_config.time_step = plant_step_ms / 1e3
-    from robstiff_drake.diagrams.scenario import check_scenario
-
-    check_scenario(sc)
-    return sc
 
 
 _MASS_MATRICES = {}  # per process: the loop model's mass matrix at a pose

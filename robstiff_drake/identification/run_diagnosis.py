@@ -175,10 +175,11 @@ def servo_of(settings):
                          "controller's servo settings (" + ", ".join(rf.SERVO_KEYS) + ") to know when a "
                          "correction reaches the motor (docs/run_files.md)")
     v = settings.servo
+    extra = {} if "velocity_integral_hz" not in v else {"velocity_integral_hz": v["velocity_integral_hz"]}
     return ServoParameters(position_gain_per_s=v["position_gain_per_s"],
                            velocity_bandwidth_hz=v["velocity_bandwidth_hz"],
                            velocity_feedforward=v["velocity_feedforward"],
-                           interpolator_delay_s=v["interpolator_delay_ms"] / 1e3)
+                           interpolator_delay_s=v["interpolator_delay_ms"] / 1e3, **extra)
 
 
 def smoothing_hz(files, robot):

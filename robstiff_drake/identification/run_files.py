@@ -423,10 +423,13 @@ _SETTINGS_LAYOUT = {
     "servo": {"interpolator_delay_ms": ("servo.interpolator_delay_ms", "nonneg"),
               "position_gain_per_s": ("servo.position_gain_per_s", "positive"),
               "velocity_bandwidth_hz": ("servo.velocity_bandwidth_hz", "positive"),
-              "velocity_feedforward": ("servo.velocity_feedforward", ("range", 0.0, 1.0))},
+              "velocity_feedforward": ("servo.velocity_feedforward", ("range", 0.0, 1.0)),
+              "velocity_integral_hz": ("servo.velocity_integral_hz", ("range", 0.0, 100.0))},
 }
 SERVO_KEYS = tuple(_SETTINGS_LAYOUT["servo"])
-_OPTIONAL = {"lost_motion_rad", "coupling_c23_rad_per_Nm", "force_model_scale", "robot"}
+# servo.velocity_integral_hz: files written before it was logged lack it (run_diagnosis.servo_of
+# then takes model/servo.ServoParameters' default, an ASSUMPTION written there)
+_OPTIONAL = {"lost_motion_rad", "coupling_c23_rad_per_Nm", "force_model_scale", "robot", "servo.velocity_integral_hz"}
 _OPTIONAL_SECTIONS = {"servo"}  # a file without it is read (servo None); diagnose-run refuses it
 _KEY_NOTES = {
     "robot": "the robot the model belongs to: a library name or a robot file (relative to this file)",
@@ -445,7 +448,8 @@ _KEY_NOTES = {
     "tool": "the tool point in the flange frame, the cutter's diameter and the spindle speed",
     "servo": "the robot controller's joint servo (not the compensator's, and not changed by a fix): the "
              "interpolator's dead time, the position loop's gain, the velocity loop's bandwidth and the path's "
-             "velocity feed-forward (1: full); a correction gets no feed-forward",
+             "velocity feed-forward (1: full; a correction gets no feed-forward), and the velocity loop's "
+             "integral corner (optional)",
 }
 
 
@@ -490,7 +494,8 @@ def settings_text(settings, run_id, notes=()):
             lines.append(f"  # {_KEY_NOTES[key]}\n")
         if isinstance(spec, dict):
             lines.append(f"  {key}:\n")
-            lines.extend(f"    {sub}: {value(attr)}\n" for sub, (attr, _) in spec.items())
+            lines.extend(f"    {sub}: {value(attr)}\n" for sub, (attr, _) in spec.items()
+                         if attr in src or attr not in _OPTIONAL)
         else:
             lines.append(f"  {key}: {value(spec[0])}\n")
     return "".join(lines)

@@ -1,0 +1,73 @@
+"""The option values every command shares: vectors ('X,Y,Z' with their
+allowed ranges), numbers in a range, the tool point and the help texts of
+the common options.  Command modules import them from here, not from
+commands/main.py (which imports the command modules: no circle)."""
+
+import argparse
+
+from robstiff_drake.errors import InputError
+
+
+# Allowed ranges of the vector options (a tool 5 m from the flange is no
+# robot tool; a stiffness outside 1e3-1e9 N*m/rad is no robot joint).
+VECTOR_RANGES = {"--tool": (-5000.0, 5000.0, "mm"), "--com-mm": (-2000.0, 2000.0, "mm"),
+                 "--mount-rpy": (-360.0, 360.0, "deg"), "--stiffness": (1e3, 1e9, "N*m/rad"),
+                 "--work-offset": (-10000.0, 10000.0, "mm")}
+
+
+def parse_vector(text, n, what):
+    """'X,Y,Z' -> list of n floats, with an error that names the bad part
+    (and its allowed range, for the options in VECTOR_RANGES)."""
+    parts = [p.strip() for p in str(text).split(",")]
+    if len(parts) != n:
+        raise InputError(f"{what}: expected {n} comma-separated numbers, got {text!r}")
+    values = []
+    for i, p in enumerate(parts):
+        try:
+            v = float(p)
+        except ValueError:
+            raise InputError(f"{what}: component {i + 1} {p!r} is not a number") from None
+        if v != v or v in (float("inf"), float("-inf")):
+            raise InputError(f"{what}: component {i + 1} {p!r} is not finite")
+        lo, hi, unit = VECTOR_RANGES.get(what, (-float("inf"), float("inf"), ""))
+        if not lo <= v <= hi:
+            raise InputError(f"{what}: component {i + 1} {p!r} is outside the allowed range [{lo:g}, {hi:g}] {unit}")
+        values.append(v)
+    return values
+
+
+def number_in(lo, hi, unit="", integer=False):
+    """An argparse type: a finite number (whole, if ``integer``) in [lo, hi],
+    with an error that gives the range (argparse names the option)."""
+    def parse(text):
+        try:
+            v = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a {'whole number' if integer else 'number'}") from None
+        if v != v or not lo <= v <= hi:
+            raise argparse.ArgumentTypeError(f"{text} is outside the allowed range [{lo:g}, {hi:g}]"
+                                             + (f" {unit}" if unit else ""))
+        return v
+    parse.__name__ = "whole number" if integer else "number"
+    return parse
+
+
+# Ranges of the numeric options (wide enough for any real use, narrow enough
+# that a typo cannot start a run of hours or allocate more than the machine has).
+FORCE_N = number_in(1e-3, 1e5, "N")
+SEED = number_in(0, 2**32 - 1, integer=True)
+NOISE_MM = number_in(0.0, 10.0, "mm")
+
+
+def parse_tool(text):
+    """--tool 'X,Y,Z' (mm) -> the tool point in metres (numpy), None when not given."""
+    if text is None:
+        return None
+    import numpy as np
+
+    return np.array(parse_vector(text, 3, "--tool")) / 1000.0
+
+
+SCENARIO_HELP = "a scenario file, or the name of a packaged one (`robstiff examples` lists them)"
+ROBOT_HELP = "a library robot (see `robstiff robots`) or a robot file (YAML); default: irb6400"
+TOOL_DEFAULT = "the robot file's payload.tool_point_mm"
