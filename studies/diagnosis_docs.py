@@ -8,8 +8,16 @@ studies/diagnosis_confusion.py (30 campaigns per row, about half an hour),
 studies/tracker_campaigns.py and the two benchmarks, and replaces the
 ``confusion``, ``tracker_study`` and ``speed`` blocks (``--confusion FILE``
 takes the confusion study's output from a file instead of running it).  The FANUC example needs the real data
-(tests/realdata.py; ROBSTIFF_REALDATA): without it that block is left as it
-was and the script says so.
+(tests/realdata.py; ROBSTIFF_REALDATA), as does its rerun over fold
+assignments (studies/fanuc_folds.py): without it those blocks are left as
+they were and the script says so.
+
+Every block of the page that shows commands gets its run marker
+(tests/doc_blocks.py) from MARKERS here, so the regenerated page carries
+them: the wheel test (tests/test_wheel_install.py) runs the worked example
+and skips, with the reason, the blocks that need files of a clone (tests/,
+benchmarks/) or the real data; a command block no entry matches stops the
+script.
 
 Run: python3 studies/diagnosis_docs.py [--studies [--confusion FILE]]
 """
@@ -27,6 +35,47 @@ ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "diagnosis.md"
 EXAMPLE = ROOT / "docs" / "diagnosis_example"
 sys.path.insert(0, str(ROOT / "tests"))
+
+
+# (a text any of a command block's commands contains, its run marker), first match wins
+CLONE = "needs {} of a clone (no wheel holds it)"
+MARKERS = (
+    ("tests/open_world.py", "run: skip " + CLONE.format("tests/open_world.py")),
+    ("tests/tracker_world.py", "run: skip " + CLONE.format("tests/tracker_world.py")),
+    ("benchmarks/", "run: skip benchmarks of a clone (minutes, timed against the machine's load)"),
+    ("fanuc.csv", "run: skip needs the real FANUC campaign (python3 tests/realdata.py fanuc fanuc.csv from a clone, "
+                  "with the data in ROBSTIFF_REALDATA)"),
+    ("robstiff synth stiffness campaign.csv", "run"),
+)
+
+
+def mark(text):
+    """The page with every command block's run marker (MARKERS) on the line
+    above its fence; a command block no entry matches stops the script."""
+    from doc_blocks import MARKER, Block
+
+    lines, out, i = text.split("\n"), [], 0
+    while i < len(lines):
+        if not lines[i].startswith("```"):
+            out.append(lines[i])
+            i += 1
+            continue
+        j = i + 1
+        while j < len(lines) and not lines[j].startswith("```"):
+            j += 1
+        b = Block("diagnosis.md", len(out) + 1, lines[i + 1:j])
+        if b.shows_commands():
+            marker = next((m for key, m in MARKERS if any(key in c for c in b.commands())), None)
+            if marker is None and not (out and MARKER.match(out[-1])):
+                raise SystemExit(f"docs/diagnosis.md:{len(out) + 1}: a command block without a run marker "
+                                 f"({b.commands()[0]}); give it one in MARKERS of studies/diagnosis_docs.py")
+            if marker is not None:
+                if out and MARKER.match(out[-1]):
+                    out.pop()
+                out.append(f"<!-- {marker} -->")
+        out.extend(lines[i:j + 1])
+        i = j + 1
+    return "\n".join(out)
 
 
 def sh(cmd, cwd, env=None):
@@ -87,19 +136,26 @@ def main():
 
         reason = realdata.missing(realdata.FANUC)
         if reason:
-            print(f"FANUC example left as it was: {reason}")
+            print(f"FANUC example and its fold study left as they were: {reason}")
         else:
             sh(f"python3 {ROOT}/tests/realdata.py fanuc fanuc.csv", tmp, env)
             out = sh("robstiff diagnose fanuc.csv --robot r2000ic_165f --noise-mm 0.03 2>/dev/null", tmp)
             res = json.loads(sh("robstiff diagnose fanuc.csv --robot r2000ic_165f --noise-mm 0.03 --json - "
                                 "2>/dev/null", tmp))
-            a, b = res["confounded"][0]["terms"] if res["confounded"] else ("tool_offset", "stiffness_j3")
+            # the pair the verdict names: the best lead's strongest confounding, else the strongest pair
+            lead = res["leads"][0]["name"] if res["leads"] else None
+            pairs = [c["terms"] for c in res["confounded"] if lead in c["terms"]] or \
+                [c["terms"] for c in res["confounded"]] or [("tool_offset", "stiffness_j3")]
+            a, b = pairs[0]
             out += "\n$ robstiff plan-poses 24 --robot r2000ic_165f --separate " \
                    f"{a},{b} --campaign fanuc.csv --noise-mm 0.03\n"
             plan = sh(f"robstiff plan-poses 24 --robot r2000ic_165f --separate {a},{b} --campaign fanuc.csv "
                       "--noise-mm 0.03", tmp)
             out += "\n".join(plan.splitlines()[:12]) + "\n  ..."
             text = replace(text, "fanuc", block(out, "fanuc"))
+            folds = sh(f"python3 {ROOT}/studies/fanuc_folds.py 2>/dev/null", ROOT, env)
+            text = replace(text, "fanuc_folds", "<!-- generated: fanuc_folds -->\n" + folds.strip()
+                           + "\n<!-- end fanuc_folds -->")
     if args.studies:
         out = Path(args.confusion).read_text() if args.confusion else \
             sh(f"python3 {ROOT}/studies/diagnosis_confusion.py 2>/dev/null", ROOT)
@@ -110,7 +166,7 @@ def main():
         out = "$ python3 benchmarks/bench_diagnosis.py\n" + sh(f"python3 {ROOT}/benchmarks/bench_diagnosis.py || true", ROOT)
         out += "\n$ python3 benchmarks/bench_tracker.py\n" + sh(f"python3 {ROOT}/benchmarks/bench_tracker.py || true", ROOT)
         text = replace(text, "speed", block(out, "speed"))
-    DOC.write_text(text, encoding="utf-8")
+    DOC.write_text(mark(text), encoding="utf-8")
     print(f"wrote {DOC} and {EXAMPLE}")
 
 

@@ -11,6 +11,7 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
 from robstiff_drake.identification.confounding import CONFOUNDED_MIN
 from robstiff_drake.identification.diagnosis import CANDIDATES, DICTIONARY, diagnose
+from robstiff_drake.identification.fold_spread import describe as describe_spread
 from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
 from robstiff_drake.identification.selection import ALPHA_ROUND, MIN_GAIN
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, staged_outputs, write_atomic
@@ -75,6 +76,7 @@ def to_dict(d, campaign):
         "leads": d.leads,
         "confounded": d.confounded,
         "floor_check": d.floor_check,
+        "fold_spread": d.fold_spread,
         "warnings": list(d.warnings),
     })
 
@@ -95,6 +97,8 @@ def format_report(d, campaign, markdown=False):
              f"{len(campaign)} measurements" + (f" ({n_out} gross outlier row(s) left out, below)" if n_out else "")
              + "; held-out RMS (5-fold, grouped by pose) of all displacement components:",
              f"  six-spring model: {d.rms_before_mm:.4f} mm; final model: {d.rms_after_mm:.4f} mm"]
+    if d.fold_spread is not None:
+        lines.append(f"  {describe_spread(d.fold_spread)}")
     floor = ("none stated or measured" if f.sigma_mm is None else f"{f.sigma_mm:.4f} mm ({f.source})")
     if f.replicate_mm is not None:
         floor += f"; replicate rows scatter by {f.replicate_mm:.4f} mm ({f.replicate_sets} sets, {f.replicate_dof} dof)"

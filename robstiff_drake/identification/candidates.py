@@ -34,9 +34,10 @@ def _coupling(ctx):
 
 
 def _coupling_ok(v, info):
-    rho = abs(float(v[0])) / np.sqrt(info["c"][1] * info["c"][2])
-    ok = rho <= pl.COUPLING_MAX
-    return ok, f"c23 is {rho:.2f} of sqrt(c2 c3) ({'within' if ok else 'beyond'} {pl.COUPLING_MAX:g})"
+    prod = info["c"][1] * info["c"][2]
+    rho = abs(float(v[0])) / np.sqrt(prod) if prod > 0 else float("inf")
+    ok = rho <= pl.COUPLING_23_MAX
+    return ok, f"c23 is {rho:.2f} of sqrt(c2 c3) ({'within' if ok else 'beyond'} {pl.COUPLING_23_MAX:g})"
 
 
 # -- load-dependent stiffness of joints 1-3: dq_j += a_j |tau_j| tau_j / 1 kN*m

@@ -7,7 +7,12 @@ every test here treats a pose as one unit.
   * ``pose_groups``: the pose of each row (the ``pose`` column, or, without
     it, rows with identical joint angles);
   * ``folds``: K test folds, a pose's rows never split between fitting and
-    testing; the permutation has a fixed seed, so a run is reproducible;
+    testing; the permutation has a fixed seed, so a run is reproducible.
+    The poses are numbered by their joint angles (``pose_groups``), not by
+    their labels' text or the file's row order, so the folds of a campaign
+    do not change when its poses are labelled P1 or P01 or its rows are
+    sorted otherwise; ``FOLD_SEEDS`` are the assignments whose spread the
+    diagnosis reports;
   * ``clustered_wald``: are some coefficients of a least-squares fit zero?
     A Wald test with the pose-clustered (sandwich) covariance, referred to
     F(q, G - 1): valid whatever the correlation of a pose's rows;
@@ -18,18 +23,39 @@ from scipy import special
 
 K_FOLDS = 5
 FOLD_SEED = 0  # fixed: the same file always gets the same folds
+# the fold assignments over which the diagnosis reports the spread of its
+# held-out figures (one number from one assignment can move by several points)
+FOLD_SEEDS = tuple(range(10))
 MIN_POSES = 3  # fewer poses: the tests fall back to rows as units (and say so)
 Q_MATCH_DEG = 1e-6  # rows whose six angles agree to this are one pose when the file has no pose column
 
 
 def pose_groups(campaign):
-    """(N,) int group index of each row: its pose."""
+    """(N,) int group index of each row: its pose (the ``pose`` column, or,
+    without it, rows with identical joint angles).  The groups are numbered
+    in the order of their joint angles (each pose's mean angles, compared
+    joint by joint; ties, two labels at the same angles, in the order of
+    their first row), so the numbering, and with it the folds, depends on the
+    poses' values only, not on how their labels are written."""
+    q = np.asarray(campaign.q_deg, dtype=float)
     if campaign.pose is not None:
         _, idx = np.unique(np.asarray(campaign.pose, dtype=str), return_inverse=True)
-        return idx
-    key = np.round(np.asarray(campaign.q_deg) / Q_MATCH_DEG).astype(np.int64)
-    _, idx = np.unique(key, axis=0, return_inverse=True)
-    return idx.ravel()
+    else:
+        key = np.round(q / Q_MATCH_DEG).astype(np.int64)
+        _, idx = np.unique(key, axis=0, return_inverse=True)
+    idx = np.asarray(idx).ravel()
+    n = int(idx.max()) + 1 if idx.size else 0
+    counts = np.bincount(idx, minlength=n)[:, None]
+    mean_q = np.zeros((n, q.shape[1]))
+    np.add.at(mean_q, idx, q)
+    mean_q /= np.maximum(counts, 1)
+    first = np.full(n, len(idx))
+    np.minimum.at(first, idx, np.arange(len(idx)))
+    # lexsort: the last key is the primary one (q1, then q2, ..., then the first row)
+    order = np.lexsort([first] + [mean_q[:, j] for j in reversed(range(q.shape[1]))])
+    rank = np.empty(n, dtype=int)
+    rank[order] = np.arange(n)
+    return rank[idx]
 
 
 def test_groups(groups, rows):

@@ -13,7 +13,7 @@ no Drake.
 4. A second outlier screen with the final model (rows a structured effect
    had hidden, or rows wrongly flagged at first); if the set changes, steps
    2-3 run again once.
-5. The verdict: the final model's held-out RMS against the floor
+5. The verdict (stiffness_verdict.py): the final model's held-out RMS against the floor
    (lack-of-fit test).  ``explains_data`` is true only when that test passes,
    every kept term is a named effect of physical size and the identified
    compliances are positive; false when the error is significantly above the
@@ -33,11 +33,15 @@ from robstiff_drake.identification import plausibility as pl
 from robstiff_drake.identification import robust_fit, selection
 from robstiff_drake.identification.confounding import CONFOUNDED_MIN, confounded_pairs
 from robstiff_drake.identification.candidates import CANDIDATES
-from robstiff_drake.identification.cross_validation import (FOLD_SEED, K_FOLDS, MIN_POSES, pose_groups, rows_to_eq,
-                                                            splits, test_groups)
+from robstiff_drake.identification.cross_validation import (FOLD_SEED, FOLD_SEEDS, K_FOLDS, MIN_POSES, pose_groups,
+                                                            rows_to_eq, splits, test_groups)
 from robstiff_drake.identification.dictionary import DICTIONARY
+from robstiff_drake.identification.fold_spread import fold_spread
 from robstiff_drake.identification.joint_stiffness import identify
 from robstiff_drake.identification.residual_structure import residual_structure
+from robstiff_drake.identification.stiffness_verdict import ALPHA_FLOOR_ABOVE
+from robstiff_drake.identification.stiffness_verdict import carried as _carried
+from robstiff_drake.identification.stiffness_verdict import verdict as _verdict
 from robstiff_drake.identification.threads import single_blas_thread
 from robstiff_drake.identification.terms import (GAUSS_NEWTON, GRID, Context, fit_model, gauss_newton_columns,
                                                  term_columns)
@@ -82,6 +86,7 @@ class Diagnosis:
     leads: list = field(default_factory=list)  # fits, but not added: [{name, rms_mm, reason, ...}]
     confounded: list = field(default_factory=list)  # [{terms: [a, b], correlation}]
     floor_check: dict = None  # a stated floor far above the residual: {ratio, p_below, message}
+    fold_spread: dict = None  # the held-out figures over FOLD_SEEDS (identification/fold_spread.py)
 
 
 def subset(campaign, rows):
@@ -95,9 +100,9 @@ def subset(campaign, rows):
                    t_s=None if getattr(campaign, "t_s", None) is None else campaign.t_s[rows])
 
 
-def thresholds():
+def thresholds(fold_seed=FOLD_SEED):
     return {
-        "k_folds": K_FOLDS, "fold_seed": FOLD_SEED,
+        "k_folds": K_FOLDS, "fold_seed": fold_seed, "fold_seeds_spread": list(FOLD_SEEDS),
         "alpha_per_round": selection.ALPHA_ROUND,
         "per_candidate_level": "alpha_per_round / candidates tried in the round (Bonferroni)",
         "min_gain_library": selection.MIN_GAIN["library"], "min_gain_dictionary": selection.MIN_GAIN["dictionary"],
@@ -146,83 +151,17 @@ def _term_reports(ctx, result, rows, units):
     return out
 
 
-def _run(robot, campaign, tool_m, rows, groups, noise_mm, terms_by_name):
+def _run(robot, campaign, tool_m, rows, groups, noise_mm, terms_by_name, fold_seed=FOLD_SEED):
     base = identify(robot, subset(campaign, rows), tool_m=tool_m)
     ctx = Context(robot, campaign, tool_m, base.identifiable)
     floor = nf.estimate_floor(campaign, groups, rows, noise_mm)
     units, by_pose = test_groups(groups, rows)
-    fold_rows = splits(rows, units)
+    fold_rows = splits(rows, units, seed=fold_seed)
     result = selection.search(ctx, rows, fold_rows, terms_by_name, units)
     return base, ctx, floor, fold_rows, result, units, by_pose
 
 
-# A stated floor the held-out residual is significantly below (lower tail of
-# the lack-of-fit test at this level) is reported as overstated.
-ALPHA_FLOOR_ABOVE = 0.01
 MAX_LEADS = 5
-
-
-def _verdict(d, floor, lof, non_physical, discovered, implausible, structure, n_hyp, leads=(), confounded=()):
-    if non_physical:
-        head = (f"no verdict: the six springs alone need a negative compliance of joint(s) "
-                f"{', '.join(map(str, non_physical))} (non-physical)")
-        fix = [r for r in leads if r["all_positive"]]
-        if fix:
-            return None, (f"{head}; {fix[0]['name']} would make every compliance positive (held-out "
-                          f"{fix[0]['rms_mm']:.4f} mm) but was not added: {fix[0]['reason']}: the model lacks "
-                          "something that looks like it")
-        return None, f"{head}, and nothing the search tried reverses it; check the signs and units of the " \
-                     "displacements and forces"
-    if floor.sigma_mm is None:
-        return None, ("no verdict: no noise floor is known (state it with --noise-mm, or measure replicate rows: "
-                      "the same pose and load); whether the model explains the data cannot be said")
-    where = ", ".join(f"{s['variable']} ({100 * s['strength']:.0f} %)" for s in structure[:3] if s["strength"] > 0.02)
-    above = lof.p_value < nf.ALPHA_LACK_OF_FIT
-    text = (f"held-out RMS {d['rms_after']:.4f} mm against a floor of {floor.sigma_mm:.4f} mm ({floor.source}); "
-            f"lack-of-fit p = {lof.p_value:.2g}")
-    if above:
-        lead = ""
-        if leads:
-            best = leads[0]
-            conf = [c for c in confounded if best["name"] in c["terms"]]
-            lead = (f"; {best['name']} would fit more of it (held-out {best['rms_mm']:.4f} mm) but was not added: "
-                    f"{best['reason']}")
-            if conf:
-                other = next(t for t in conf[0]["terms"] if t != best["name"])
-                lead += (f"; it is confounded with {other} (correlation of the estimates "
-                         f"{conf[0]['correlation']:+.2f}): the campaign cannot separate them (robstiff plan-poses "
-                         f"--separate {best['name']},{other})")
-        trend = (f"; {', '.join(d['trends'])}: a trend along the file's order was taken out, not as a cause (the "
-                 "file has neither seq nor t_s)" if d.get("trends") else "")
-        return False, (f"the final model does NOT explain the data: {text}; {d['unexplained']:.4f} mm unexplained"
-                       + (f", strongest with: {where}" if where else "") + lead + trend)
-    if d.get("rivals"):
-        chosen, r = d["rivals"][0]
-        return False, (f"not established: {text}, but a trend along the file's order ({r.name}, held-out "
-                       f"{r.rms_mm:.4f} mm when {chosen} was added) fits the same residual about as well as {chosen}: "
-                       "the file has neither seq nor t_s, so a drift during the measurements cannot be told from it; "
-                       "add the measurement order or time and diagnose again")
-    if d.get("trends"):
-        return False, (f"not established: {text}, reached only with {', '.join(d['trends'])}: a trend along the "
-                       "file's order, which is not known to be the order of measurement (the file has neither seq nor "
-                       "t_s); add the measurement order or time and diagnose again")
-    better = [r for r in leads if r["rms_mm"] < (1 - selection.MIN_GAIN["dictionary"]) * d["rms_after"]]
-    if better:
-        r = better[0]
-        return False, (f"not established: {text}, but {r['name']} fits better (held-out {r['rms_mm']:.4f} mm) and "
-                       f"was not added: {r['reason']}: the data carry something that looks like it")
-    if discovered:
-        return False, (f"not established: {text}, reached only with terms found by searching {n_hyp} hypotheses "
-                       f"({', '.join(discovered)}); confirm them on a new campaign before trusting them")
-    if implausible:
-        return False, (f"not established: {text}, but only with effect(s) of implausible size "
-                       f"({', '.join(implausible)}): the data carry something else that looks like them")
-    verdict = f"the final model explains the data as far as the noise allows: {text}"
-    if floor.source == "stated" and lof.p_below < ALPHA_FLOOR_ABOVE:
-        verdict += (f"; but the residual is {floor.sigma_mm / d['rms_after']:.1f}x below the stated floor "
-                    f"(lower-tail p = {lof.p_below:.2g}): a floor that large hides any effect smaller than about "
-                    f"{floor.sigma_mm:.4f} mm, so this says little; state the instrument's noise for a displacement")
-    return True, verdict
 
 
 def _lead_reports(result):
@@ -306,12 +245,15 @@ def diagnose(robot, campaign, **kw):
     """Diagnose a campaign (see the module docstring).  ``tool_m``;
     ``noise_mm``: the stated 1-sigma noise of one displacement component;
     ``candidates``: names from the named library (default all);
-    ``dictionary``: search the open dictionary too; ``warnings``."""
+    ``dictionary``: search the open dictionary too; ``warnings``;
+    ``fold_seed``: the fold assignment of the search (default FOLD_SEED;
+    studies rerun the whole diagnosis over several)."""
     with single_blas_thread():
         return _diagnose(robot, campaign, **kw)
 
 
-def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None):
+def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None,
+              fold_seed=FOLD_SEED):
     w = warnings if warnings is not None else Warnings(quiet=True)
     tool_m = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
     names = list(candidates or CANDIDATES)
@@ -328,7 +270,7 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
     for attempt in range(2):
         rows = np.setdiff1d(all_rows, flagged)
         base, ctx, floor, fold_rows, result, units, by_pose = _run(robot, campaign, tool_m, rows, groups, noise_mm,
-                                                                   terms_by_name)
+                                                                   terms_by_name, fold_seed)
         resid_all = (ctx.b - result.state.full.predict()).reshape(-1, 3)
         f_m = None if floor.sigma_mm is None else floor.sigma_mm * 1e-3
         flagged2, _ = robust_fit.screen_rows(resid_all, rows, f_m, robust_fit.POST_SCREEN_SIGMAS)
@@ -377,8 +319,10 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
         w.add(f"{chosen} and {r.name} (a trend along the file's order) fit the same residual about as well; the file "
               "has no seq or t_s column to tell a drift from it")
     trends = [t.name for t in state.terms if t.trend]
+    spread = fold_spread(ctx, state.terms, rows, units)
     explains, verdict = _verdict({"rms_after": state.rms_mm, "unexplained": unexplained or 0.0, "trends": trends,
-                                  "rivals": result.rival_trends},
+                                  "rivals": result.rival_trends,
+                                  "carried": _carried(reports, result.rms_before_mm, state.rms_mm, spread)},
                                  floor, lof,
                                  non_physical, [r["name"] for r in discovered], implausible, structure,
                                  result.n_hypotheses, leads, confounded)
@@ -407,7 +351,8 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
         unexplained_mm=unexplained, outliers=outliers, stiffness_with_outliers_Nm_per_rad=k_with, terms=reports,
         discovered=discovered, dropped=result.dropped, residual_structure=structure,
         n_hypotheses=result.n_hypotheses, rows_used=rows, non_physical=non_physical, warnings=list(w),
-        thresholds=thresholds(), leads=leads, confounded=confounded, floor_check=floor_check)
+        thresholds=thresholds(fold_seed), leads=leads, confounded=confounded, floor_check=floor_check,
+        fold_spread=spread)
 
 
 __all__ = ["diagnose", "Diagnosis", "CANDIDATES", "DICTIONARY"]

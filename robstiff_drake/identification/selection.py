@@ -24,12 +24,13 @@ needs a column the file lacks, or more parameters than the data support, is
 skipped, with the reason.
 
 The model stays physical and plausible: a candidate that fits but needs a
-size beyond its physical range (identification/plausibility.py; its 95 %
-interval does not reach the range), or that drives a joint's compliance
-negative that was positive, is not added: it is kept as a *lead* (what the
-residual looks like, at a size the physics does not allow), reported with
-the reason.  The backward check never drops a term whose removal would make
-a compliance negative.
+size beyond its physical range (identification/plausibility.py, judged at
+the estimate: a 95 % interval that reaches the range does not make the
+estimate physical), or that drives a joint's compliance negative that was
+positive, is not added: it is kept as a *lead* (what the residual looks
+like, at a size the physics does not allow), reported with the reason.
+The backward check never drops a term whose removal would make a
+compliance negative.
 """
 
 from dataclasses import dataclass, field, replace
@@ -229,8 +230,9 @@ def _correlations(ctx, state, X, sl):
 
 def physical_and_plausible(ctx, t, state, coef, cov, G, sl, g=None):
     """Does the fit with term t keep the model physical (no compliance that
-    was positive turns negative) and is t's size plausible (its 95 %
-    interval reaching the range is enough)?  Returns CandidateResult fields."""
+    was positive turns negative) and is t's size plausible (its estimate
+    within the physical range; plausibility.check)?  Returns CandidateResult
+    fields."""
     nf = len(ctx.free)
     c = ctx.c_from(coef[:nf])
     negative = [int(j) + 1 for j in ctx.free if c[j] <= 0 < state.full.c[j]]
@@ -271,7 +273,7 @@ def _choose(qualified):
 
 def implausible_terms(ctx, state, rows, geq):
     """{name: reason} of the model's terms whose size at the full fit is
-    beyond the physical range (their 95 % interval not reaching it)."""
+    beyond the physical range (plausibility.check)."""
     eq = rows_to_eq(rows)
     f = state.full
     coef, cov, G, _ = clustered_cov(f.X[eq], ctx.b[eq] - f.offset[eq], geq)

@@ -20,8 +20,8 @@ Plain numpy + scipy; no Drake.
    pose-grouped folds (linearised at the declared fit, fold Gram matrices):
    an effect is added when it lowers the held-out RMS by MIN_GAIN, passes a
    pose-clustered Wald test at ALPHA / (effects tried in the round), is of
-   physical size (tracker_terms' ranges, its 95 % interval reaching them is
-   enough) and keeps every joint's compliance positive; one that fits but
+   physical size (tracker_terms' ranges, judged at the estimate: an
+   interval that merely reaches them is not enough) and keeps every joint's compliance positive; one that fits but
    is not physical or plausible is a lead.  A backward check drops what no
    longer earns its place.
 5. The final model by Gauss-Newton on all rows (a gross-error screen, then

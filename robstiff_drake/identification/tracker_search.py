@@ -7,6 +7,7 @@ joint-space residual map nested in the folds.  Plain numpy + scipy.
 import numpy as np
 from scipy import stats
 
+from robstiff_drake.identification import plausibility as pl
 from robstiff_drake.identification import residual_map as rmap
 from robstiff_drake.identification.cross_validation import wald_p
 from robstiff_drake.identification.tracker_fit import LinearCV
@@ -20,11 +21,7 @@ ALPHA = 0.01
 
 
 def _checks(b, values, half, problem, ev_info):
-    ok, why = b.plausible(values, ev_info)
-    if not ok:
-        smallest = np.sign(values) * np.maximum(np.abs(values) - half, 0.0)
-        if b.plausible(smallest, ev_info)[0]:
-            ok, why = True, why + ", but its 95 % interval reaches the physical range"
+    ok, why = pl.check(b.plausible, values, half, ev_info)  # at the point estimate
     physical = True
     if b.name == "joint_compliance":
         physical = bool(np.all(values > 0))
