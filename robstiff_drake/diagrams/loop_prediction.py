@@ -26,6 +26,7 @@ from robstiff_drake.diagrams.station import servo_parameters
 from robstiff_drake.diagrams.sweep import configure
 from robstiff_drake.model import ik, joint_dynamics
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.loop_check import payload_inertial_wrench_map
 from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, path_terms, process_stiffness
 from robstiff_drake.model.surface import envelope_heights, surface_error_stats
 
@@ -37,19 +38,6 @@ class _Cell:
 
     def __init__(self, sc, path, workpiece, force_model):
         self.scenario, self.path, self.workpiece, self.force_model = sc, path, workpiece, force_model
-
-
-def payload_inertial_wrench_map(robot, q):
-    """L (6, 6): the wrench the payload's inertia puts on the sensor, at the
-    tool point in the base frame, per joint acceleration at q (rad/s^2):
-    force -m a_com, moment -(r_com - r_tool) x m a_com - I alpha."""
-    pl = robot.payload
-    J_com = kin.jacobian(robot.dh, q, pl.com_m)
-    R = kin.frames(robot.dh, q)[6, :3, :3]
-    r = R @ (pl.com_m - pl.tool_point_m)  # tool point -> centre of mass, base frame
-    skew = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
-    force = -pl.mass_kg * J_com[:3]
-    return np.vstack([force, skew @ force - R @ pl.inertia_about_com_kg_m2 @ R.T @ J_com[3:]])
 
 
 def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sensor_feels_inertia=True):
