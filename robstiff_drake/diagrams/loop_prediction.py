@@ -26,7 +26,7 @@ from robstiff_drake.diagrams.station import servo_parameters
 from robstiff_drake.diagrams.sweep import configure
 from robstiff_drake.model import ik, joint_dynamics
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.model.loop_check import payload_inertial_wrench_map
+from robstiff_drake.model.loop_check import LoopSetup, payload_inertial_wrench_map
 from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, path_terms, process_stiffness
 from robstiff_drake.model.surface import envelope_heights, surface_error_stats
 
@@ -138,3 +138,26 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
     return {"spectral_radius": radius, "growth_per_s": growth_per_s, "engaged_s": engaged,
             "stable": bool(growth_per_s * engaged < np.log(10.0)), "surface_error_mm": stats,
             "first_order_lag_error_mm": first, "lag_s": lag}
+
+
+def scenario_loop_setup(sc, robot):
+    """model/loop_check's LoopSetup for scenario ``sc`` at its path's first
+    pose: the plant's and the compensator's stiffness, the servo, sensor
+    rate, period and delay (the scenario's delay_steps counts the
+    transport's), the filter's order (the gears' 2-3 coupling left out)."""
+    tool = robot.tool_point(where="the loop model")
+    _, _, q_ref = cell_planned_path(sc, robot, tool)
+    return LoopSetup(robot=robot, q_rad=q_ref[0], k_Nm_per_rad=model_stiffness(sc, robot), servo=servo_parameters(sc),
+                     sensor_rate_hz=sc.sensor.rate_hz, period_s=sc.controller.period_ms / 1e3,
+                     delay_steps=sc.controller.delay_steps, filter_order=sc.controller.filter.order, tool_m=tool,
+                     k_plant_Nm_per_rad=plant_stiffness(sc, robot), transport_delay_steps=0)
+
+
+def mid_pass_process_stiffness(sc):
+    """K_p (3, 3, N/m) of scenario ``sc``'s cut at mid-pass (its force
+    model's change with the tool's position, model/loop_model.process_stiffness)."""
+    _, fmodel, workpiece = cutting_setup(sc)
+    path = planned_path(sc)
+    t_mid = path.dwell_s + 0.5 * path.move_s
+    return process_stiffness(lambda p: fmodel.average_wrench(p, path.feed_direction(t_mid), workpiece),
+                             path.position(t_mid))

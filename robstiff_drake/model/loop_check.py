@@ -105,9 +105,11 @@ class LoopSetup:
     servo: object  # model.servo.ServoParameters of the controller
     sensor_rate_hz: float
     period_s: float
-    delay_steps: int  # the compensator's own; TRANSPORT_DELAY_STEPS is added
+    delay_steps: int  # the compensator's own; transport_delay_steps is added
     filter_order: int = 2
     tool_m: np.ndarray = None  # (3,) the tool point, flange frame (m); None: the robot file's, else the flange
+    k_plant_Nm_per_rad: np.ndarray = None  # (6,) the arm's own joint stiffness when it is known apart (a scenario)
+    transport_delay_steps: int = TRANSPORT_DELAY_STEPS  # a scenario's delay_steps already counts the transport's
     _arm: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -117,7 +119,8 @@ class LoopSetup:
 
     def arm(self, damping_ratio):
         """(JointModel, J, L) at the pose for one damping ratio (cached)."""
-        if damping_ratio not in self._arm:
+        key = tuple(np.broadcast_to(np.asarray(damping_ratio, dtype=float), 6).tolist())
+        if key not in self._arm:
             if "M" not in self._arm:
                 tool = self.tool_m
                 self._arm["M"] = robot_checks.mass_matrix(self.robot, self.q_rad)
@@ -125,20 +128,21 @@ class LoopSetup:
                 self._arm["J"] = kin.jacobian(self.robot.dh, self.q_rad, tool)
                 self._arm["L"] = payload_inertial_wrench_map(self.robot, self.q_rad, tool)
             M, G = self._arm["M"], self._arm["G"]
-            K = np.diag(np.asarray(self.k_Nm_per_rad, dtype=float))
-            self._arm[damping_ratio] = joint_dynamics.linear_joints(
-                M, G, K, damping_ratio, self.servo, joint_dynamics.motor_inertia(self.robot, M))
-        return self._arm[damping_ratio], self._arm["J"], self._arm["L"]
+            k = self.k_Nm_per_rad if self.k_plant_Nm_per_rad is None else self.k_plant_Nm_per_rad
+            self._arm[key] = joint_dynamics.linear_joints(M, G, np.diag(np.asarray(k, dtype=float)), np.array(key),
+                                                          self.servo, joint_dynamics.motor_inertia(self.robot, M))
+        return self._arm[key], self._arm["J"], self._arm["L"]
 
     def loop(self, filter_ba, damping_ratio):
         jm, J, L = self.arm(damping_ratio)
         return LoopModel(M=jm.M, K=jm.K, beta_s=None, J=J, C_model=1.0 / np.asarray(self.k_Nm_per_rad, dtype=float),
                          filter_ba=filter_ba, rate_hz=self.sensor_rate_hz, period_s=self.period_s,
-                         delay_steps=int(self.delay_steps) + TRANSPORT_DELAY_STEPS, sensor_inertia=L,
+                         delay_steps=int(self.delay_steps) + int(self.transport_delay_steps), sensor_inertia=L,
                          gravity_stiffness=jm.G, joints=jm)
 
     def radius(self, filter_ba, Kp, damping_ratio=MARGIN_DAMPING_RATIO):
-        """The spectral radius of the loop's period map."""
+        """The spectral radius of the loop's period map (the arm's modes at
+        ``damping_ratio``: one for all, or one per mode)."""
         return self.loop(filter_ba, damping_ratio).poles(Kp)[1]
 
     def largest_stable_cutoff_hz(self, upper_hz, modes):
