@@ -161,7 +161,8 @@ def test_the_override_runs_with_a_loud_warning(tmp_path):
 
 def test_a_stable_run_logs_its_check(tmp_path):
     pytest.importorskip("pynetft", reason="the cell tests need pynetft (pip install '.[test]')")
-    cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=1.0, stream_reference=True)
+    cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=1.0, stream_reference=True,
+                                                   extra=["--servo", "12,60,30,1", "--cutter-diameter-mm", "75"])
     assert cp.returncode == 0, cp.stderr
     assert "warning: compensate: --allow" not in cp.stderr
     with open(os.path.join(log, "summary.json")) as f:
@@ -169,3 +170,13 @@ def test_a_stable_run_logs_its_check(tmp_path):
     assert check["unstable_modes"] == [] and check["overridden"] is False
     assert max(check["spectral_radius"].values()) < 1.0  # (the default 2 Hz cutoff)
     assert check["pose"].startswith("--reference")
+    # the run folder keeps its inputs, as a simulated run's does (docs/run_files.md), and names the kept robot
+    from robstiff_drake.commands.diagnose_run import run_robot_and_file
+
+    kept = sorted(os.listdir(os.path.join(log, "inputs")))
+    assert kept == ["irb6400.yaml", "model.json", "payload.yaml", "reference.csv"], kept
+    for name in ("model.json", "payload.yaml", "reference.csv"):
+        with open(os.path.join(log, "inputs", name), "rb") as a, open(os.path.join(str(tmp_path), name), "rb") as b:
+            assert a.read() == b.read(), name
+    robot, robot_file = run_robot_and_file(log)
+    assert robot.name == "irb6400" and os.path.samefile(robot_file, os.path.join(log, "inputs", "irb6400.yaml"))

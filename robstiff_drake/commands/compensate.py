@@ -243,13 +243,16 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                     if c else "unknown")
         if log:
             from robstiff_drake.cell.settings_file import compensator_yaml
+            from robstiff_drake.diagrams.run_inputs import kept_files
 
+            kept = kept_files(robot, {"model": model, "payload": payload, "reference": reference})
             stream_log = StreamLog(log, compensator_yaml(
                 robot=robot, robot_spec=robot_yaml, k=k, cal=cal, tool_m=tool, period_ms=period_ms,
                 delay_steps=delay_steps, filter_kind=filter_kind, cutoff_hz=cutoff_hz, filter_order=filter_order,
                 sensor_rate_hz=sensor_rate_hz, max_jump_N=max_jump_N, spindle_rpm=spindle_rpm,
                 saturation_deg=saturation_deg, rate_limit_deg_per_s=rate_limit_deg_per_s, servo=servo,
-                cutter_diameter_mm=cutter_diameter_mm), f"robot {robot.name}, model {model}")
+                cutter_diameter_mm=cutter_diameter_mm, robot_ref=kept.robot), f"robot {robot.name}, model {model}",
+                inputs={rel: kept.sources[key].read_bytes() for key, rel in kept.names.items()})
         loop = CompensatorLoop(comp, link, sensor, ref, robot, settings, log=stream_log)
         where = f"{ctrl[0]}" + (f":{ctrl[1]}" if ctrl[1] else "")
         link.open()
