@@ -40,13 +40,14 @@ NOMINAL_TOLERANCE = 1e-6
 # point's distance from the sensor, whichever is longer.
 MIN_LEVER_M = 0.1
 # The force filter's default low-pass cutoff (Hz).  Not 10 Hz (the old default): the loop model
-# (model/loop_check.py) at the reference's start on the IRB 6400, 4 ms period, 1 kHz sensor, calls 10 Hz
-# unstable (spectral radius per period above 1 in air and cutting at the plant's assumed 5 % modal damping,
-# as the Drake cell diverges at 10 Hz: docs/results.md, studies/loop_stability_check.py): the sensor feeds the
-# payload's inertial force back and a filter near the arm's first mode (4.5-4.8 Hz with the drives closed) takes
-# its damping.  2 Hz: the block scenario's filter; stable with the check's 2 % damping margin (the largest such
-# cutoff there is 3.6 Hz; docs/real_cell.md gives the figures), and a 75 mm cutter entering at 20 mm/s changes
-# the force over seconds, so the lag costs little (entry error 0.036 mm simulated, docs/results.md).
+# (model/loop_check.py) at the block test's start on the IRB 6400, 4 ms period, 1 kHz sensor, calls 10 Hz
+# unstable (spectral radius per period 1.0018 in air and 1.0043 cutting at the plant's assumed 5 % modal
+# damping, 1.0047 and 1.0071 at the check's 2 %: benchmarks/bench_loop_check.py), and the Drake cell diverges
+# at 10 Hz (studies/loop_stability_check.py, docs/results.md): the sensor feeds the payload's inertial force
+# back and a filter near the arm's first mode (4.5-4.8 Hz with the drives closed) takes its damping.  2 Hz:
+# the block scenario's filter, near the least radius (0.9984 in air, 0.9983 cutting at 2 %), stable with the
+# check's margin up to 3.5 Hz there; a 75 mm cutter entering at 20 mm/s changes the force over seconds, so the
+# lag costs little (entry error 0.036 mm simulated, docs/results.md).
 DEFAULT_CUTOFF_HZ = 2.0
 SWITCH_INTERVAL_S = 0.0005
 PROTOCOL_PORTS = {"egm": None, "rsi": None, "stream-motion": 60015}  # the controller's port when not given
