@@ -145,11 +145,12 @@ class LoopSetup:
         ``damping_ratio``: one for all, or one per mode)."""
         return self.loop(filter_ba, damping_ratio).poles(Kp)[1]
 
-    def largest_stable_cutoff_hz(self, upper_hz, modes):
+    def largest_stable_cutoff_hz(self, upper_hz, modes, upper_unstable=False):
         """The largest low-pass cutoff (Hz, to CUTOFF_RESOLUTION_HZ, rounded
         down) up to ``upper_hz`` at which every process stiffness of
         ``modes`` ({name: Kp}) is stable at MARGIN_DAMPING_RATIO; None when
-        not even MIN_CUTOFF_HZ is.  Bisection: the radius grows with the
+        not even MIN_CUTOFF_HZ is (``upper_unstable``: ``upper_hz`` is known
+        unstable, not checked again).  Bisection: the radius grows with the
         cutoff once the filter lets the arm's first mode through."""
 
         def stable(f):
@@ -159,12 +160,12 @@ class LoopSetup:
         lo, hi = MIN_CUTOFF_HZ, float(upper_hz)
         if not stable(lo):
             return None
-        if stable(hi):
+        if not upper_unstable and stable(hi):
             return hi
         while hi - lo > CUTOFF_RESOLUTION_HZ / 2:
             mid = 0.5 * (lo + hi)
             lo, hi = (mid, hi) if stable(mid) else (lo, mid)
-        return float(np.floor(lo / CUTOFF_RESOLUTION_HZ + 1e-9) * CUTOFF_RESOLUTION_HZ)
+        return round(float(np.floor(lo / CUTOFF_RESOLUTION_HZ + 1e-9) * CUTOFF_RESOLUTION_HZ), 6)
 
 
 @dataclass
@@ -186,14 +187,21 @@ class Verdict:
                 "largest_stable_cutoff_hz": self.largest_stable_cutoff_hz}
 
 
+# Where the compensator's filter is not a low-pass, the search for a stable low-pass starts here (Hz).
+SEARCH_UPPER_HZ = 20.0
+
+
 def check(setup, filter_ba, modes, *, cutoff_hz=None):
     """The verdict for the compensator's filter (b, a) and the process
-    stiffnesses ``modes`` ({name: Kp (3, 3) N/m}); with ``cutoff_hz`` (a
-    low-pass) and an unstable mode, the largest stable cutoff up to it."""
+    stiffnesses ``modes`` ({name: Kp (3, 3) N/m}); with an unstable mode,
+    the largest stable low-pass cutoff up to ``cutoff_hz`` (the filter's
+    own, a low-pass of ``setup.filter_order``), or up to SEARCH_UPPER_HZ
+    (``cutoff_hz`` None: another filter)."""
     radius = {m: setup.radius(filter_ba, Kp) for m, Kp in modes.items()}
     assumed = {m: setup.radius(filter_ba, Kp, joint_dynamics.DEFAULT_MODAL_DAMPING_RATIO) for m, Kp in modes.items()}
     unstable = [m for m, r in radius.items() if not r <= STABLE_RADIUS]
     v = Verdict(radius, assumed, unstable)
     if unstable:
-        v.largest_stable_cutoff_hz = setup.largest_stable_cutoff_hz(cutoff_hz if cutoff_hz else 50.0, modes)
+        upper = min(cutoff_hz or SEARCH_UPPER_HZ, 0.45 * setup.sensor_rate_hz)
+        v.largest_stable_cutoff_hz = setup.largest_stable_cutoff_hz(upper, modes, upper_unstable=upper == cutoff_hz)
     return v
