@@ -6,6 +6,7 @@ The block test (diagrams/block_milling.yaml: IRB 6400, 4 ms period, one
 period of transport delay, 250 Hz sensor, 5 % modal damping on the plant)
 at three low-pass cutoffs.  For each:
 
+* the arm without compensation (its own least damped mode, per period);
 * the model at the path's first pose, at the plant's own damping (5 %) and
   at the check's margin (2 %), in air and cutting (the block pass's process
   stiffness at mid-pass, model/loop_model.process_stiffness: the check's
@@ -64,6 +65,10 @@ def main():
           f"deg; period {T * 1e3:g} ms, delay {sc.controller.delay_steps} period(s), sensor {sc.sensor.rate_hz:g} Hz; "
           f"plant damping {plant_damping_ratios(sc)[0]:.0%}, check margin {loop_check.MARGIN_DAMPING_RATIO:.0%}")
     print(f"cutting: K_p at mid-pass (N/mm) {np.round(modes['cutting'] / 1e3, 1).tolist()}")
+    ba = lowpass_coefficients(cutoffs[0], sc.sensor.rate_hz, sc.controller.filter.order)
+    print("without compensation (the arm and its drives): radius per period in air "
+          f"{setup.radius(ba, modes['air'], plant_damping_ratios(sc), gain=0.0):.5f} at the plant's damping, "
+          f"{setup.radius(ba, modes['air'], loop_check.MARGIN_DAMPING_RATIO, gain=0.0):.5f} at the margin's")
     print()
     print("cutoff | model radius per period, air / cutting    | check   | Drake, held in air and kicked          "
           "| Drake, block pass")

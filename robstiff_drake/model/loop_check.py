@@ -55,6 +55,7 @@ NOMINAL_PROCESS_STIFFNESS_N_PER_M = 1e3 * np.array([[0.0, -0.2, 45.1],
                                                    [0.0, 0.5, -7.7]])
 CUTOFF_RESOLUTION_HZ = 0.1  # the largest stable cutoff is given to this, rounded down
 MIN_CUTOFF_HZ = 0.1  # the search's lower end
+SEARCH_UPPER_HZ = 20.0  # its upper end where the compensator's filter is not a low-pass
 
 
 def gravity_stiffness(robot, q_rad, delta_rad=1e-6):
@@ -122,28 +123,32 @@ class LoopSetup:
         key = tuple(np.broadcast_to(np.asarray(damping_ratio, dtype=float), 6).tolist())
         if key not in self._arm:
             if "M" not in self._arm:
-                tool = self.tool_m
+                tool = self.tool_m  # (the robot file's payload: its mass, centre of mass and inertia)
                 self._arm["M"] = robot_checks.mass_matrix(self.robot, self.q_rad)
                 self._arm["G"] = gravity_stiffness(self.robot, self.q_rad)
                 self._arm["J"] = kin.jacobian(self.robot.dh, self.q_rad, tool)
                 self._arm["L"] = payload_inertial_wrench_map(self.robot, self.q_rad, tool)
             M, G = self._arm["M"], self._arm["G"]
+            # the arm's gears: the compensator's stiffness (an identified model: the best estimate there is)
             k = self.k_Nm_per_rad if self.k_plant_Nm_per_rad is None else self.k_plant_Nm_per_rad
             self._arm[key] = joint_dynamics.linear_joints(M, G, np.diag(np.asarray(k, dtype=float)), np.array(key),
                                                           self.servo, joint_dynamics.motor_inertia(self.robot, M))
         return self._arm[key], self._arm["J"], self._arm["L"]
 
-    def loop(self, filter_ba, damping_ratio):
+    def loop(self, filter_ba, damping_ratio, gain=1.0):
+        """The LoopModel (``gain`` 0: the arm and its drives without the correction)."""
         jm, J, L = self.arm(damping_ratio)
-        return LoopModel(M=jm.M, K=jm.K, beta_s=None, J=J, C_model=1.0 / np.asarray(self.k_Nm_per_rad, dtype=float),
+        return LoopModel(M=jm.M, K=jm.K, beta_s=None, J=J,
+                         C_model=float(gain) / np.asarray(self.k_Nm_per_rad, dtype=float),
                          filter_ba=filter_ba, rate_hz=self.sensor_rate_hz, period_s=self.period_s,
                          delay_steps=int(self.delay_steps) + int(self.transport_delay_steps), sensor_inertia=L,
                          gravity_stiffness=jm.G, joints=jm)
 
-    def radius(self, filter_ba, Kp, damping_ratio=MARGIN_DAMPING_RATIO):
+    def radius(self, filter_ba, Kp, damping_ratio=MARGIN_DAMPING_RATIO, gain=1.0):
         """The spectral radius of the loop's period map (the arm's modes at
-        ``damping_ratio``: one for all, or one per mode)."""
-        return self.loop(filter_ba, damping_ratio).poles(Kp)[1]
+        ``damping_ratio``: one for all, or one per mode; ``gain`` 0: without
+        the correction)."""
+        return self.loop(filter_ba, damping_ratio, gain).poles(Kp)[1]
 
     def largest_stable_cutoff_hz(self, upper_hz, modes, upper_unstable=False):
         """The largest low-pass cutoff (Hz, to CUTOFF_RESOLUTION_HZ, rounded
@@ -186,9 +191,6 @@ class Verdict:
                 "spectral_radius_assumed_damping": self.radius_assumed, "unstable_modes": self.unstable,
                 "largest_stable_cutoff_hz": self.largest_stable_cutoff_hz}
 
-
-# Where the compensator's filter is not a low-pass, the search for a stable low-pass starts here (Hz).
-SEARCH_UPPER_HZ = 20.0
 
 
 def check(setup, filter_ba, modes, *, cutoff_hz=None):
