@@ -7,7 +7,9 @@ F/T (RDT, UDP), running the chain of the simulated cell
         --robot ROBOT --model identified.json --payload payload.yaml --reference joints.csv --log run1
 
 Inputs are checked (the reference against the robot's working ranges,
-axis speeds and accelerations and the controller period), the sensor's
+axis speeds and accelerations and the controller period), the correction
+loop's stability at the start pose by the linear loop model
+(cell/loop_guard.py; --allow-unstable-loop overrides it), the sensor's
 calibration read and its stream started and the controller's first
 message awaited and checked before the loop; anything wrong there is one
 line and exit status 2.  During the loop faults are logged and ramp the
