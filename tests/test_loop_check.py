@@ -170,6 +170,7 @@ def test_a_stable_run_logs_its_check(tmp_path):
     assert check["unstable_modes"] == [] and check["overridden"] is False
     assert max(check["spectral_radius"].values()) < 1.0  # (the default 2 Hz cutoff)
     assert check["pose"].startswith("--reference")
+    np.testing.assert_allclose(check["feed_direction_xy"], [1.0, 0.0], atol=1e-6)  # the pass runs along +x
     # the run folder keeps its inputs, as a simulated run's does (docs/run_files.md), and names the kept robot
     from robstiff_drake.commands.diagnose_run import run_robot_and_file
 

@@ -84,9 +84,13 @@ class LoopGuard:
                                      sensor_rate_hz=self.rate_hz, period_s=self.period_s,
                                      delay_steps=self.delay_steps, filter_order=self.order)
         modes = {"air": np.zeros((3, 3)), "cutting": loop_check.process_stiffness_along(feed_xy)}
-        with single_blas_thread():  # (many threads on small matrices: 10x slower on a busy machine)
-            v = loop_check.check(setup, self.ba, modes,
-                                 cutoff_hz=self.cutoff_hz if self.filter_kind == "lowpass" else None)
+        try:
+            with single_blas_thread():  # (many threads on small matrices: 10x slower on a busy machine)
+                v = loop_check.check(setup, self.ba, modes,
+                                     cutoff_hz=self.cutoff_hz if self.filter_kind == "lowpass" else None)
+        except (np.linalg.LinAlgError, ValueError) as e:  # no loop to check (a mass matrix without inertia): refused
+            raise InputError(f"the correction loop cannot be checked at the start pose ({where}: "
+                             f"{_pose_text(q_ctrl_deg)} deg): {e}; check the robot file's links and payload") from None
         seconds = time.perf_counter() - t0
         self.result = dict(v.as_dict(), pose_deg=[float(x) for x in q_ctrl_deg], pose=where,
                            feed_direction_xy=None if feed_xy is None else [float(x) for x in feed_xy],
