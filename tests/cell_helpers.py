@@ -118,7 +118,7 @@ def compensate_cmd(model, payload, reference, *, egm_port, netft_port, log=None,
     cmd = [sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
            "--netft", f"127.0.0.1:{netft_port}", "--netft-http-port", str(netft_port), "--model", model,
            "--payload", payload,
-           "--wait-s", "20", "--idle-exit-s", "0.5", "--cutoff-hz", "10", "--sensor-rate-hz", "1000"]
+           "--wait-s", "20", "--idle-exit-s", "0.5", "--sensor-rate-hz", "1000"]
     if reference:
         cmd += ["--reference", reference]
     if log:

@@ -17,8 +17,11 @@ run folder (docs/run_files.md) so that ``robstiff diagnose-run`` reads it:
   joints, the computation time, the correction's age, whether a fault was
   on and whether its own target was sent;
 * ``events.csv``: every fault and event with its time;
-* ``summary.json`` at the end: the settings, the cycle figures, the
-  health verdict.
+* ``summary.json`` at the end: the settings, the loop check, the cycle
+  figures, the health verdict;
+* ``inputs/``: a copy of every file the run was made with (the robot
+  file, --model, --payload, --reference; diagrams/run_inputs.py), as a
+  simulated run folder keeps them, written at the start.
 
 The loop formats each row after its answer has left (tens of
 microseconds) into an in-memory chunk; every ``FLUSH_S`` the chunks go to
@@ -104,8 +107,9 @@ class StreamLog:
     docstring).  ``settings_text``: compensator.yaml's text without its
     run id line (written at the start)."""
 
-    def __init__(self, path, settings_text, note):
+    def __init__(self, path, settings_text, note, inputs=None):
         self.path = Path(path)
+        self.inputs = dict(inputs or {})  # {name in the folder (inputs/...): bytes}
         self.run_id = new_run_id()
         self.settings_text = settings_text
         self.note = note
@@ -131,6 +135,9 @@ class StreamLog:
         target.mkdir(parents=True)
         (target / RUN_ID_FILE).write_text(self.run_id + "\n")
         (target / "compensator.yaml").write_text(f"# run_id: {self.run_id}\n" + self.settings_text)
+        for name, data in self.inputs.items():
+            (target / name).parent.mkdir(parents=True, exist_ok=True)
+            (target / name).write_bytes(data)
         files = {}
         for name, header in FILES.items():
             f = open(target / name, "w", encoding="utf-8")
@@ -159,7 +166,8 @@ class StreamLog:
         tmp = target / ".summary.json.tmp"
         tmp.write_text(json_text(summary))
         os.replace(tmp, target / "summary.json")
-        return [RUN_ID_FILE, "compensator.yaml", *FILES, "summary.json"]
+        kept = f"inputs/ ({', '.join(Path(n).name for n in self.inputs)})" if self.inputs else None
+        return [RUN_ID_FILE, "compensator.yaml", *FILES, "summary.json"] + ([kept] if kept else [])
 
     # ------------------------------------------------------------ rows
 

@@ -24,11 +24,13 @@ def _robot_text(robot, robot_spec):
 
 def compensator_yaml(*, robot, robot_spec, k, cal, tool_m, period_ms, delay_steps, filter_kind, cutoff_hz,
                      filter_order, sensor_rate_hz, max_jump_N, spindle_rpm, saturation_deg, rate_limit_deg_per_s,
-                     servo=None, cutter_diameter_mm=None):
+                     servo=None, cutter_diameter_mm=None, robot_ref=None):
     """The text of compensator.yaml without its run-id line.  ``servo``:
     (interpolator delay ms, position gain 1/s, velocity bandwidth Hz,
     velocity feed-forward 0-1) or None; a missing servo or cutter diameter
-    is left out with a comment saying so."""
+    is left out with a comment saying so.  ``robot_ref``: how ``robot:``
+    names the robot (the run folder's kept copy, diagrams/run_inputs.py;
+    None: the library name or the robot file's absolute path)."""
     z = [0.0, 0.0, 0.0]
     payload = {"mass_kg": float(cal.mass_kg), "com_mm": [float(v) for v in (cal.com_mm or z)],
                "force_bias_N": [float(v) for v in (cal.force_bias_N or z)],
@@ -41,7 +43,7 @@ def compensator_yaml(*, robot, robot_spec, k, cal, tool_m, period_ms, delay_step
         period_ms=float(period_ms), delay_steps=int(delay_steps), filter_kind=filter_kind,
         filter_cutoff_hz=float(cutoff_hz), filter_order=int(filter_order), sensor_rate_hz=float(sensor_rate_hz),
         max_jump_N=float(max_jump_N), spindle_rpm=float(spindle_rpm), saturation_deg=float(saturation_deg),
-        rate_limit_deg_per_s=float(rate_limit_deg_per_s), robot=_robot_text(robot, robot_spec),
+        rate_limit_deg_per_s=float(rate_limit_deg_per_s), robot=robot_ref or _robot_text(robot, robot_spec),
         servo=None if servo is None else dict(zip(rf.SERVO_KEYS, (float(v) for v in servo))))
     notes = ["written by robstiff compensate at the start of its run"]
     if servo is None:

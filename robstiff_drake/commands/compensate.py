@@ -7,7 +7,9 @@ F/T (RDT, UDP), running the chain of the simulated cell
         --robot ROBOT --model identified.json --payload payload.yaml --reference joints.csv --log run1
 
 Inputs are checked (the reference against the robot's working ranges,
-axis speeds and accelerations and the controller period), the sensor's
+axis speeds and accelerations and the controller period), the correction
+loop's stability at the start pose by the linear loop model
+(cell/loop_guard.py; --allow-unstable-loop overrides it), the sensor's
 calibration read and its stream started and the controller's first
 message awaited and checked before the loop; anything wrong there is one
 line and exit status 2.  During the loop faults are logged and ramp the
@@ -25,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.errors import InputError, excerpt
-from robstiff_drake.progress import wrote
+from robstiff_drake.progress import info, wrote
 
 # How far the first joint feedback may be from the reference's start (deg)
 # before the run is refused: the robot must be brought to the path's start
@@ -38,6 +40,16 @@ NOMINAL_TOLERANCE = 1e-6
 # a force jump of --max-jump-N makes at this lever (m) or at the tool
 # point's distance from the sensor, whichever is longer.
 MIN_LEVER_M = 0.1
+# The force filter's default low-pass cutoff (Hz).  Not 10 Hz (the old default): the loop model
+# (model/loop_check.py) at the block test's start on the IRB 6400, 4 ms period, 1 kHz sensor, calls 10 Hz
+# unstable (spectral radius per period 1.0018 in air and 1.0043 cutting at the plant's assumed 5 % modal
+# damping, 1.0047 and 1.0071 at the check's 2 %: benchmarks/bench_loop_check.py), and the Drake cell diverges
+# at 10 Hz (studies/loop_stability_check.py, docs/results.md): the sensor feeds the payload's inertial force
+# back and a filter near the arm's first mode (4.5-4.8 Hz with the drives closed) takes its damping.  2 Hz:
+# the block scenario's filter, near the least radius (0.9984 in air, 0.9983 cutting at 2 %), stable with the
+# check's margin up to 3.5 Hz there; a 75 mm cutter entering at 20 mm/s changes the force over seconds, so the
+# lag costs little (entry error 0.036 mm simulated, docs/results.md).
+DEFAULT_CUTOFF_HZ = 2.0
 SWITCH_INTERVAL_S = 0.0005
 PROTOCOL_PORTS = {"egm": None, "rsi": None, "stream-motion": 60015}  # the controller's port when not given
 
@@ -153,13 +165,14 @@ def _link(protocol, listen_port, controller, period_s):
 
 
 def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, log=None, period_ms=4.0,
-        sensor_rate_hz=1000.0, filter_kind="lowpass", cutoff_hz=10.0, filter_order=2, spindle_rpm=3600.0,
+        sensor_rate_hz=1000.0, filter_kind="lowpass", cutoff_hz=DEFAULT_CUTOFF_HZ, filter_order=2, spindle_rpm=3600.0,
         max_jump_N=1000.0, max_jump_Nm=None, saturation_deg=0.5, rate_limit_deg_per_s=5.0, delay_steps=0,
         netft_counts=None, netft_units=None, netft_http_port=80, wait_s=30.0, duration_s=0.0, idle_exit_s=0.0,
         sensor_timeout_ms=20.0, rt_priority=0, controller="127.0.0.1", protocol="egm", servo=None,
-        cutter_diameter_mm=None):
+        cutter_diameter_mm=None, allow_unstable_loop=False):
     from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
     from robstiff_drake.cell.link import parse_controller
+    from robstiff_drake.cell.loop_guard import LoopGuard, feed_direction
     from robstiff_drake.cell.rdt import NetFTReader, calibration_problem, parse_host_port
     from robstiff_drake.cell.run_log import StreamLog
     from robstiff_drake.cell.safety import pose_problem
@@ -199,6 +212,15 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     except ValueError as e:
         raise InputError(f"--cutoff-hz: {e}") from None
     tool = robot.payload.tool_point_m
+    # the loop model's stability check, before any socket is opened (with --reference: at its first row; without,
+    # at the hold pose when the controller's first message gives it, before anything is sent)
+    guard = LoopGuard(robot=robot, k_Nm_per_rad=k, servo=servo, sensor_rate_hz=sensor_rate_hz, period_s=period_s,
+                      delay_steps=delay_steps, filter_kind=filter_kind, filter_ba=ba, cutoff_hz=cutoff_hz,
+                      filter_order=filter_order, allow_unstable=allow_unstable_loop)
+    if reference:
+        q_model = robot.joint_map.to_model(q_ref)
+        _say(guard.at(ref.q[0], f"--reference {Path(reference).name}'s first row",
+                      feed_direction(robot, tool, q_model)), guard)
     if max_jump_Nm is None:
         max_jump_Nm = max_jump_N * max(float(np.linalg.norm(tool)) if tool is not None else 0.0, MIN_LEVER_M)
     predictor = DeflectionPredictor(robot.dh, k, tool)
@@ -223,13 +245,16 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                     if c else "unknown")
         if log:
             from robstiff_drake.cell.settings_file import compensator_yaml
+            from robstiff_drake.diagrams.run_inputs import kept_files
 
+            kept = kept_files(robot, {"model": model, "payload": payload, "reference": reference})
             stream_log = StreamLog(log, compensator_yaml(
                 robot=robot, robot_spec=robot_yaml, k=k, cal=cal, tool_m=tool, period_ms=period_ms,
                 delay_steps=delay_steps, filter_kind=filter_kind, cutoff_hz=cutoff_hz, filter_order=filter_order,
                 sensor_rate_hz=sensor_rate_hz, max_jump_N=max_jump_N, spindle_rpm=spindle_rpm,
                 saturation_deg=saturation_deg, rate_limit_deg_per_s=rate_limit_deg_per_s, servo=servo,
-                cutter_diameter_mm=cutter_diameter_mm), f"robot {robot.name}, model {model}")
+                cutter_diameter_mm=cutter_diameter_mm, robot_ref=kept.robot), f"robot {robot.name}, model {model}",
+                inputs={rel: kept.sources[key].read_bytes() for key, rel in kept.names.items()})
         loop = CompensatorLoop(comp, link, sensor, ref, robot, settings, log=stream_log)
         where = f"{ctrl[0]}" + (f":{ctrl[1]}" if ctrl[1] else "")
         link.open()
@@ -247,6 +272,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             problem = pose_problem(robot, q0)
             if problem:
                 raise InputError(f"the hold pose (the controller's first message) is refused: {problem}")
+            _say(guard.at(q0, "the hold pose, the controller's first message"), guard)
+        if guard.warning and stream_log is not None:
+            stream_log.event(0.0, 0.0, f"warning: {guard.warning}")  # (events.csv, before the first message's)
         off = np.abs(np.asarray(q0) - ref.q[0])
         if off.max() > START_TOLERANCE_DEG:
             j = int(np.argmax(off))
@@ -276,7 +304,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                        "max_jump_Nm": max_jump_Nm, "saturation_deg": saturation_deg,
                        "rate_limit_deg_per_s": rate_limit_deg_per_s, "delay_steps": delay_steps,
                        "sensor_timeout_ms": sensor_timeout_ms},
-                   "cycles": stats, "health": h, "warnings": [h["line"]] if h["verdict"] != "good" else []}
+                   "cycles": stats, "health": h, "loop_check": guard.result,
+                   "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])}
         written = stream_log.close(summary)
         wrote(log, ", ".join(written), folder=True, to_stderr=True)
         if servo is None or cutter_diameter_mm is None:
@@ -285,6 +314,14 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                                ("tool.cutter_diameter_mm (--cutter-diameter-mm)", cutter_diameter_mm)) if v is None)
                   + "; diagnose-run needs them", file=sys.stderr)
     return 0
+
+
+def _say(line, guard):
+    """The loop check's line: a warning when --allow-unstable-loop ran an unstable loop, else information."""
+    if guard.warning:
+        print(f"robstiff: warning: compensate: {line}", file=sys.stderr, flush=True)
+    else:
+        info(f"robstiff: compensate: {line}", file=sys.stderr)
 
 
 def _realtime(priority):

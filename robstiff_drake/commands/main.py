@@ -305,8 +305,13 @@ def build_parser():
     p.add_argument("--sensor-rate-hz", type=_number_in(1.0, 20000.0, "Hz"), default=1000.0,
                    help="the Net F/T's RDT output rate, for the filter (default: %(default)s)")
     p.add_argument("--filter", dest="filter_kind", choices=["lowpass", "revolution_average", "none"], default="lowpass")
-    p.add_argument("--cutoff-hz", type=_number_in(0.01, 10000.0, "Hz"), default=10.0, help="(default: %(default)s)")
+    # (commands/compensate.DEFAULT_CUTOFF_HZ: why 2 Hz)
+    p.add_argument("--cutoff-hz", type=_number_in(0.01, 10000.0, "Hz"), default=2.0,
+                   help="low-pass cutoff (default: %(default)s; a loop the model predicts unstable is refused)")
     p.add_argument("--filter-order", type=_number_in(1, 8, integer=True), default=2)
+    p.add_argument("--allow-unstable-loop", action="store_true",
+                   help="run even when the loop model predicts the correction loop unstable at the start pose "
+                        "(a warning in the text, the log's events and summary.json)")
     p.add_argument("--spindle-rpm", type=_number_in(10.0, 60000.0, "rpm"), default=3600.0,
                    help="for --filter revolution_average (default: %(default)s)")
     p.add_argument("--max-jump-N", type=_number_in(1.0, 1e5, "N"), default=1000.0, help="(default: %(default)s)")
@@ -550,7 +555,8 @@ def _dispatch(args):
                               netft_http_port=args.netft_http_port, wait_s=args.wait_s, duration_s=args.duration_s,
                               idle_exit_s=args.idle_exit_s, sensor_timeout_ms=args.sensor_timeout_ms,
                               rt_priority=args.rt_priority, controller=args.controller, protocol=args.protocol,
-                              servo=servo, cutter_diameter_mm=args.cutter_diameter_mm)
+                              servo=servo, cutter_diameter_mm=args.cutter_diameter_mm,
+                              allow_unstable_loop=args.allow_unstable_loop)
     if args.command == "examples":
         from robstiff_drake.commands import examples
 

@@ -41,13 +41,9 @@ def natural_frequencies(plant, context, q, k_Nm_per_rad):
 
 
 def motor_inertia(robot, M):
-    """The motors' rotor inertias reflected to the joints (6,, kg*m^2): the
-    robot file's ``motor_inertia_kgm2``; a file without them: ASSUMPTION,
-    each equal to its link's inertia on the joint in M (a load-to-motor
-    inertia ratio of 1, inside the 1-5 that servo axes are sized for)."""
-    if robot.motor_inertia_kgm2 is not None:
-        return np.asarray(robot.motor_inertia_kgm2, dtype=float)
-    return np.diag(M).copy()
+    """The motors' rotor inertias reflected to the joints (6,, kg*m^2):
+    model/joint_dynamics.motor_inertia (the robot file's, or the rule there)."""
+    return joint_dynamics.motor_inertia(robot, M)
 
 
 def joint_model(controller_plant, robot, q_rad, stiffness_matrix, damping_ratios, servo):
@@ -59,10 +55,7 @@ def joint_model(controller_plant, robot, q_rad, stiffness_matrix, damping_ratios
     G = gravity_stiffness(controller_plant, ctx, np.asarray(q_rad, dtype=float))
     controller_plant.SetPositions(ctx, q_rad)
     M = controller_plant.CalcMassMatrix(ctx)
-    D = joint_dynamics.modal_damping_matrix(M, stiffness_matrix, G, damping_ratios)
-    Jm = motor_inertia(robot, M)
-    return joint_dynamics.JointModel(M=M, K=stiffness_matrix, G=G, D=D, motor_inertia_kgm2=Jm, servo=servo,
-                                     velocity_gain=servo_model.velocity_gain_Nms(servo, Jm + np.diag(M)))
+    return joint_dynamics.linear_joints(M, G, stiffness_matrix, damping_ratios, servo, motor_inertia(robot, M))
 
 
 def unstable_step_message(jm, time_step_s):

@@ -26,6 +26,7 @@ from robstiff_drake.diagrams.station import servo_parameters
 from robstiff_drake.diagrams.sweep_config import configure
 from robstiff_drake.model import ik, joint_dynamics
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.loop_check import LoopSetup, payload_inertial_wrench_map
 from robstiff_drake.model.loop_model import LoopModel, first_order_lag_s, path_terms, process_stiffness
 from robstiff_drake.model.surface import envelope_heights, surface_error_stats
 
@@ -37,19 +38,6 @@ class _Cell:
 
     def __init__(self, sc, path, workpiece, force_model):
         self.scenario, self.path, self.workpiece, self.force_model = sc, path, workpiece, force_model
-
-
-def payload_inertial_wrench_map(robot, q):
-    """L (6, 6): the wrench the payload's inertia puts on the sensor, at the
-    tool point in the base frame, per joint acceleration at q (rad/s^2):
-    force -m a_com, moment -(r_com - r_tool) x m a_com - I alpha."""
-    pl = robot.payload
-    J_com = kin.jacobian(robot.dh, q, pl.com_m)
-    R = kin.frames(robot.dh, q)[6, :3, :3]
-    r = R @ (pl.com_m - pl.tool_point_m)  # tool point -> centre of mass, base frame
-    skew = np.array([[0.0, -r[2], r[1]], [r[2], 0.0, -r[0]], [-r[1], r[0], 0.0]])
-    force = -pl.mass_kg * J_com[:3]
-    return np.vstack([force, skew @ force - R @ pl.inertia_about_com_kg_m2 @ R.T @ J_com[3:]])
 
 
 def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sensor_feels_inertia=True):
@@ -150,3 +138,26 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
     return {"spectral_radius": radius, "growth_per_s": growth_per_s, "engaged_s": engaged,
             "stable": bool(growth_per_s * engaged < np.log(10.0)), "surface_error_mm": stats,
             "first_order_lag_error_mm": first, "lag_s": lag}
+
+
+def scenario_loop_setup(sc, robot):
+    """model/loop_check's LoopSetup for scenario ``sc`` at its path's first
+    pose: the plant's and the compensator's stiffness, the servo, sensor
+    rate, period and delay (the scenario's delay_steps counts the
+    transport's), the filter's order (the gears' 2-3 coupling left out)."""
+    tool = robot.tool_point(where="the loop model")
+    _, _, q_ref = cell_planned_path(sc, robot, tool)
+    return LoopSetup(robot=robot, q_rad=q_ref[0], k_Nm_per_rad=model_stiffness(sc, robot), servo=servo_parameters(sc),
+                     sensor_rate_hz=sc.sensor.rate_hz, period_s=sc.controller.period_ms / 1e3,
+                     delay_steps=sc.controller.delay_steps, filter_order=sc.controller.filter.order, tool_m=tool,
+                     k_plant_Nm_per_rad=plant_stiffness(sc, robot), transport_delay_steps=0)
+
+
+def mid_pass_process_stiffness(sc):
+    """K_p (3, 3, N/m) of scenario ``sc``'s cut at mid-pass (its force
+    model's change with the tool's position, model/loop_model.process_stiffness)."""
+    _, fmodel, workpiece = cutting_setup(sc)
+    path = planned_path(sc)
+    t_mid = path.dwell_s + 0.5 * path.move_s
+    return process_stiffness(lambda p: fmodel.average_wrench(p, path.feed_direction(t_mid), workpiece),
+                             path.position(t_mid))

@@ -16,7 +16,7 @@ from dataclasses import replace
 import numpy as np
 from pydrake.multibody.tree import MultibodyForces
 
-from robstiff_drake.diagrams.loop_prediction import payload_inertial_wrench_map
+from robstiff_drake.model.loop_check import payload_inertial_wrench_map
 from robstiff_drake.diagrams.compliant_arm import controller_model, joint_model
 from robstiff_drake.model import joint_dynamics
 

@@ -9,7 +9,9 @@ robot's too: the library may change), the identified model
 (``model.payload_yaml``) and the G-code program (``toolpath.program``).
 The run's own files then name the copies, relative to themselves:
 ``compensator.yaml``'s ``robot:`` (a library robot keeps its name; a robot
-file becomes ``inputs/NAME.yaml``) and ``sim_scenario.yaml``'s references.
+file becomes ``inputs/NAME.yaml``) and ``sim_scenario.yaml``'s references.  ``robstiff compensate --log RUN``
+keeps the same way the robot file, the model JSON, the payload
+calibration and the joint reference it ran with.
 """
 
 import copy
@@ -44,12 +46,21 @@ def kept_inputs(sc, robot):
     --robot's or the scenario's) keeps, and under which names."""
     from robstiff_drake.diagrams.scenario import resolve
 
-    wanted = {"robot": Path(robot.source)}
+    wanted = {}
     for key in ("identified_json", "payload_yaml"):
         if getattr(sc.model, key):
             wanted[key] = resolve(sc, getattr(sc.model, key))
     if sc.toolpath.program:
         wanted["program"] = resolve(sc, sc.toolpath.program)
+    return kept_files(robot, wanted)
+
+
+def kept_files(robot, files):
+    """What a run on ``robot`` keeps of its robot file and of ``files``
+    ({key: path}; None values left out), and under which names (a run of
+    ``robstiff compensate --log`` keeps its model, payload and reference)."""
+    wanted = {"robot": Path(robot.source)}
+    wanted.update({k: Path(p) for k, p in files.items() if p is not None})
     names, taken = {}, set()
     for key, path in wanted.items():
         name = path.name

@@ -92,6 +92,29 @@ def free_modes_hz(M, K, G, motor_inertia_kgm2):
     return np.sort(np.sqrt(np.abs(w2)) / (2 * np.pi))[-6:]
 
 
+def motor_inertia(robot, M):
+    """The motors' rotor inertias reflected to the joints (6,, kg*m^2): the
+    robot file's ``motor_inertia_kgm2``; a file without them: ASSUMPTION,
+    each equal to its link's inertia on the joint in M (kg*m^2; a
+    load-to-motor inertia ratio of 1, inside the 1-5 that servo axes are
+    sized for)."""
+    if robot.motor_inertia_kgm2 is not None:
+        return np.asarray(robot.motor_inertia_kgm2, dtype=float)
+    return np.diag(M).copy()
+
+
+def linear_joints(M, G, stiffness_matrix, damping_ratios, servo, motor_inertia_kgm2):
+    """The JointModel of mass matrix M (6, 6, kg*m^2), the weight's
+    stiffness G (N*m/rad), the gears (N*m/rad), their modal damping
+    (``damping_ratios``, per mode or one for all), the motors and drives
+    (velocity loops tuned for the rigid axes)."""
+    M = np.asarray(M, dtype=float)
+    D = modal_damping_matrix(M, stiffness_matrix, G, damping_ratios)
+    Jm = np.asarray(motor_inertia_kgm2, dtype=float)
+    return JointModel(M=M, K=stiffness_matrix, G=G, D=D, motor_inertia_kgm2=Jm, servo=servo,
+                      velocity_gain=servo_model.velocity_gain_Nms(servo, Jm + np.diag(M)))
+
+
 @dataclass
 class JointModel:
     """The linear joints at one pose (see the module docstring)."""

@@ -184,18 +184,27 @@ class LoopModel:
             out[I["Z"]], out[I["buf"]], out[I["c"]], out[I["ff"]] = Z, buf.ravel(), c, ff
         return out
 
-    def period_map(self, Kp):
-        """The homogeneous map over one controller period (tick first)."""
-        Phi = np.empty((self.size, self.size))
+    def step_matrix(self, Kp, tick):
+        """(size, size): the homogeneous ``step`` (no nominal wrench, no
+        feed-forward, no path) as a matrix, at a tick or between ticks."""
+        S = np.empty((self.size, self.size))
         zero = np.zeros(6)
         for k in range(self.size):
             z = np.zeros(self.size)
             z[k] = 1.0
-            z = self.step(z, zero, Kp, True, zero)
-            for _ in range(self.N - 1):
-                z = self.step(z, zero, Kp, False, zero)
-            Phi[:, k] = z
-        return Phi
+            S[:, k] = self.step(z, zero, Kp, tick, zero)
+        return S
+
+    def period_map(self, Kp):
+        """The homogeneous map over one controller period (tick first):
+        (the step between ticks)^(N-1) (the tick's step)."""
+        return self.compose_period(self.step_matrix(Kp, True), self.step_matrix(Kp, False) if self.N > 1 else None)
+
+    def compose_period(self, S_tick, S_fast):
+        """The period map from the two step matrices (``step_matrix``)."""
+        if self.N == 1:
+            return S_tick
+        return np.linalg.matrix_power(S_fast, self.N - 1) @ S_tick
 
     def poles(self, Kp):
         """Closed-loop poles over one period (z-plane) and the spectral radius."""

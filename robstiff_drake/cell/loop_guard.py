@@ -1,0 +1,121 @@
+"""``robstiff compensate``'s check, before anything is streamed, that the
+correction loop it is about to close is stable at the start pose
+(model/loop_check.py: the linear loop model in plain numpy, in air and at
+a nominal process stiffness, with the margin of 2 % modal damping).
+
+A loop the model predicts unstable is refused in one line (exit status 2)
+naming the pose, the mode, the spectral radius and the largest
+``--cutoff-hz`` the model finds stable; ``--allow-unstable-loop`` runs it
+anyway with a warning in the text, the log's events and summary.json.
+
+Units: the pose in the controller's degrees at the interface (the
+pendant's), the model's radians inside.
+"""
+
+import time
+
+import numpy as np
+
+from robstiff_drake.errors import InputError
+from robstiff_drake.model import joint_dynamics
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model import loop_check
+from robstiff_drake.model.servo import ServoParameters
+
+# The tool point must move this far along the reference (m) for its start to have a feed direction.
+FEED_DISTANCE_M = 1e-3
+OVERRIDE = "--allow-unstable-loop"
+
+
+def servo_parameters(servo):
+    """ServoParameters from compensate's --servo (interpolator dead time ms,
+    position gain 1/s, velocity bandwidth Hz, velocity feed-forward), or the
+    scenarios' assumed IRC5 servo (diagrams/scenario.ServoConfig, with its
+    sources) when not given."""
+    from robstiff_drake.diagrams.scenario import ServoConfig
+
+    s = ServoConfig()
+    if servo is None:
+        delay_ms, kp, bw, ff = s.interpolator_delay_ms, s.position_gain_per_s, s.velocity_bandwidth_hz, \
+            s.velocity_feedforward
+    else:
+        delay_ms, kp, bw, ff = (float(v) for v in servo)
+    return ServoParameters(position_gain_per_s=kp, velocity_bandwidth_hz=bw, velocity_feedforward=ff,
+                           interpolator_delay_s=delay_ms / 1e3, velocity_integral_hz=s.velocity_integral_hz)
+
+
+def feed_direction(robot, tool_m, q_model_rad):
+    """The tool point's first horizontal motion along a reference (model
+    angles, (N, 6) rad): the unit vector (2,) from the start to the first
+    row at least FEED_DISTANCE_M away; None when it never moves."""
+    p = kin.tool_position(robot.dh, np.asarray(q_model_rad, dtype=float), tool_m)
+    d = p[:, :2] - p[0, :2]
+    far = np.nonzero(np.linalg.norm(d, axis=1) >= FEED_DISTANCE_M)[0]
+    return None if not len(far) else d[far[0]] / np.linalg.norm(d[far[0]])
+
+
+def _pose_text(q_deg):
+    return ", ".join(f"{v:.2f}" for v in q_deg)
+
+
+class LoopGuard:
+    """The check for one compensate run (its robot, model stiffness, filter
+    and timing); ``at(...)`` checks one start pose."""
+
+    def __init__(self, *, robot, k_Nm_per_rad, servo, sensor_rate_hz, period_s, delay_steps, filter_kind,
+                 filter_ba, cutoff_hz, filter_order, allow_unstable):
+        self.robot, self.k, self.servo = robot, np.asarray(k_Nm_per_rad, dtype=float), servo_parameters(servo)
+        self.rate_hz, self.period_s, self.delay_steps = float(sensor_rate_hz), float(period_s), int(delay_steps)
+        self.filter_kind, self.ba, self.cutoff_hz, self.order = filter_kind, filter_ba, cutoff_hz, int(filter_order)
+        self.allow = bool(allow_unstable)
+        self.result = None  # the last check's dict (for summary.json)
+        self.warning = None  # the override's warning line, when it ran an unstable loop
+
+    def at(self, q_ctrl_deg, where, feed_xy=None):
+        """Check the loop at the controller's joint angles ``q_ctrl_deg``
+        (``where``: which pose this is, for the message).  InputError (one
+        line) when it is predicted unstable and not overridden; returns the
+        line to print (information, or the override's warning)."""
+        from robstiff_drake.identification.threads import single_blas_thread
+
+        t0 = time.perf_counter()
+        q = self.robot.joint_map.to_model(np.radians(np.asarray(q_ctrl_deg, dtype=float)))
+        setup = loop_check.LoopSetup(robot=self.robot, q_rad=q, k_Nm_per_rad=self.k, servo=self.servo,
+                                     sensor_rate_hz=self.rate_hz, period_s=self.period_s,
+                                     delay_steps=self.delay_steps, filter_order=self.order)
+        modes = {"air": np.zeros((3, 3)), "cutting": loop_check.process_stiffness_along(feed_xy)}
+        try:
+            with single_blas_thread():  # (many threads on small matrices: 10x slower on a busy machine)
+                v = loop_check.check(setup, self.ba, modes,
+                                     cutoff_hz=self.cutoff_hz if self.filter_kind == "lowpass" else None)
+        except (np.linalg.LinAlgError, ValueError) as e:  # no loop to check (a mass matrix without inertia): refused
+            raise InputError(f"the correction loop cannot be checked at the start pose ({where}: "
+                             f"{_pose_text(q_ctrl_deg)} deg): {e}; check the robot file's links and payload") from None
+        seconds = time.perf_counter() - t0
+        self.result = dict(v.as_dict(), pose_deg=[float(x) for x in q_ctrl_deg], pose=where,
+                           feed_direction_xy=None if feed_xy is None else [float(x) for x in feed_xy],
+                           check_s=seconds, overridden=bool(v.unstable and self.allow))
+        T_ms = self.period_s * 1e3
+        if not v.unstable:
+            return (f"the correction loop is stable at the start pose ({where}) by the loop model: spectral radius "
+                    f"{v.radius['air']:.4f} in air, {v.radius['cutting']:.4f} cutting per {T_ms:g} ms period with "
+                    f"{loop_check.MARGIN_DAMPING_RATIO * 100:g} % modal damping (checked in {seconds:.2f} s)")
+        modes_text = " and ".join("in air" if m == "air" else "cutting" for m in v.unstable)
+        radii = ", ".join(f"{v.radius[m]:.4f} {'in air' if m == 'air' else 'cutting'}" for m in v.unstable)
+        assumed = ", ".join(f"{v.radius_assumed[m]:.4f}" for m in v.unstable)
+        f = v.largest_stable_cutoff_hz
+        filt = f"--cutoff-hz {self.cutoff_hz:g}" if self.filter_kind == "lowpass" else f"--filter {self.filter_kind}"
+        if f is None:
+            best = "no low-pass cutoff down to 0.1 Hz is stable"
+        elif self.filter_kind == "lowpass":
+            best = f"the largest cutoff the model finds stable is {f:g} Hz (--cutoff-hz {f:g})"
+        else:
+            best = f"the largest low-pass cutoff the model finds stable is {f:g} Hz (--filter lowpass --cutoff-hz {f:g})"
+        line = (f"the correction loop is predicted UNSTABLE {modes_text} at the start pose ({where}: "
+                f"{_pose_text(q_ctrl_deg)} deg) with {filt}: spectral radius {radii} per {T_ms:g} ms period with "
+                f"{loop_check.MARGIN_DAMPING_RATIO * 100:g} % modal damping (the check's margin; {assumed} at the assumed "
+                f"{joint_dynamics.DEFAULT_MODAL_DAMPING_RATIO * 100:g} %); {best}")
+        if not self.allow:
+            raise InputError(f"{line}; nothing was sent ({OVERRIDE} runs it anyway)")
+        self.warning = f"{OVERRIDE}: running anyway: {line}"
+        return self.warning
