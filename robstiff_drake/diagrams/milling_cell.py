@@ -23,12 +23,26 @@ from pydrake.systems.primitives import Adder, Demultiplexer, LogVectorOutput, Mu
 from pydrake.trajectories import PiecewisePolynomial
 
 from robstiff_drake.diagrams.compensator import filter_coefficients, make_compensator
-from robstiff_drake.diagrams.scenario import cutting_setup, model_stiffness, payload_calibration
+from robstiff_drake.diagrams import user_model as user_models
+from robstiff_drake.diagrams.scenario import (
+    COEFFICIENT_GROUPS,
+    cutting_setup,
+    model_cutting_setup,
+    model_stiffness,
+    payload_calibration,
+)
 from robstiff_drake.diagrams.scenario import planned_path as scenario_path
 from robstiff_drake.diagrams.station import make_milling_station
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.path import PathError, PlannedPath
+from robstiff_drake.model.arm_dynamics import ArmInertia
+from robstiff_drake.model.preview import preview_table
 from robstiff_drake.systems.predictive_wrench import PredictiveWrench
+from robstiff_drake.systems.preview_correction import PreviewCorrection, PreviewModel
+
+# How far past the path's end the preview is computed (s): the run's own
+# run-out (experiment.RUN_OUT_S) and the correction's lead, with margin.
+PREVIEW_MARGIN_S = 0.5
 
 
 @dataclass
@@ -105,16 +119,54 @@ def check_plant_step(sc, robot):
     build_station(sc, robot, q_modes_rad=q_ref[0])
 
 
-def build_compensator(sc, robot, station, *, path, workpiece):
+def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_ba):
+    """A function (kinematics, deflection model) -> PreviewCorrection: the
+    scenario's preview compensator, from the compensator's own models (its
+    stiffness, the robot file's inertias, its servo model, its force model
+    per coefficient group; model/preview.py)."""
+    ss, ctl = sc.sensor, sc.controller
+    T = ctl.period_ms / 1e3
+    servo = user_models.servo_model(sc)
+    groups = [model_cutting_setup(sc, groups=g)[1] for g in COEFFICIENT_GROUPS]
+    inertia = ArmInertia(robot)
+    um = sc._user_model if sc.model.source == "identified" else None
+    sigma = max(sc.model.identification.coefficient_error, 0.05) if um is not None else 0.05
+
+    def make(kin, deflection):
+        C = kin.joint_compliance
+        w2 = np.linalg.eigvals(np.linalg.solve(inertia.mass_matrix(q_ref[0]), np.diag(1.0 / C))).real
+        beta = 2.0 * sc.model.damping_ratio / np.sqrt(np.min(w2[w2 > 0]))
+        pm = PreviewModel(path=path, t_ref=t_ref, q_ref=q_ref, group_models=groups, workpiece=workpiece,
+                          kinematics=kin, inertia=inertia)
+        table = preview_table(pm, t_end_s=path.duration_s + PREVIEW_MARGIN_S, period_s=T, compliance=C, beta_s=beta,
+                              servo=servo, tool_m=tool_m)
+        # a correction computed at a tick reaches the robot controller's
+        # sampling of its targets after the delay line and the correction's
+        # own update (Drake's same-instant semantics: each discrete block
+        # adds a period); the measured wrench lags the model's at the same
+        # path time by the arm's dead time behind its reference and two
+        # sensor samples (sensor, guard)
+        return PreviewCorrection(table=table, deflection=deflection, filter_ba=filter_ba, rate_hz=ss.rate_hz,
+                                 period_s=T, lead_s=(ctl.delay_steps + 1) * T,
+                                 lag_s=servo.dead_time_s + 2.0 / ss.rate_hz, scale_sigma=sigma)
+
+    return make
+
+
+def build_compensator(sc, robot, station, *, path, workpiece, t_ref=None, q_ref=None):
     """The scenario's compensator: its own stiffness model, payload
-    calibration and (in predictive mode) cutting-force model."""
+    calibration and (in predictive and preview modes) cutting-force model;
+    preview mode needs the path's joint references (``t_ref``, ``q_ref``)."""
     ss, ctl = sc.sensor, sc.controller
     T = ctl.period_ms / 1e3
     cutter, _, _ = cutting_setup(sc)
     ba = filter_coefficients(ctl.filter, ss.rate_hz, cutter.spindle_rpm)
-    predictive = None
+    predictive = preview = None
+    if ctl.mode == "preview":
+        preview = preview_factory(sc, robot, path=path, workpiece=workpiece, t_ref=t_ref, q_ref=q_ref,
+                                  tool_m=station.tool_m, filter_ba=ba)
     if ctl.mode == "predictive":
-        _, model_forces, _ = cutting_setup(sc, scale=sc.model.force_model_scale)
+        _, model_forces, _ = model_cutting_setup(sc)
         # a correction computed now acts after the delay line, half a hold,
         # and the station's interpolator and servo
         lead = (ctl.delay_steps + 1.5) * T + station.command_lag_s
@@ -127,7 +179,7 @@ def build_compensator(sc, robot, station, *, path, workpiece):
         rate_hz=ss.rate_hz, filter_ba=ba, max_jump_N=ss.max_jump_N, period_s=T, delay_steps=ctl.delay_steps,
         saturation_rad=np.deg2rad(ctl.saturation_deg), rate_limit_rad_per_s=np.deg2rad(ctl.rate_limit_deg_per_s),
         calibration=payload_calibration(sc, robot), model_dh=robot.dh, model_stiffness_Nm_per_rad=model_stiffness(
-            sc, robot), tool_m=station.tool_m, predictive=predictive,
+            sc, robot), tool_m=station.tool_m, predictive=predictive, preview=preview,
         lost_motion_rad=sc.model.lost_motion_rad or None, coupling_c23_rad_per_Nm=sc.model.coupling_c23_rad_per_Nm,
         controller_plant=station.controller_plant)
 
@@ -140,7 +192,8 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
     _, fmodel, workpiece = cutting_setup(sc)
     path, t_ref, q_ref = planned_path(sc, robot, tool)
     station = build_station(sc, robot, q_modes_rad=q_ref[0], path=path)
-    comp = build_compensator(sc, robot, station, path=path, workpiece=workpiece)
+    user_models.resolve(sc, robot, q_ref[0])
+    comp = build_compensator(sc, robot, station, path=path, workpiece=workpiece, t_ref=t_ref, q_ref=q_ref)
 
     builder = DiagramBuilder()
     st = builder.AddSystem(station.diagram)

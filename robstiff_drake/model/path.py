@@ -341,14 +341,20 @@ class PlannedPath:
         self.profile = SpeedProfile(blocks, bspeeds, bstops, self.ramp_s)
         self.move_s = self.profile.duration_s
         # horizontal feed direction per element (the previous one's where an element is vertical)
+        # and the feed the chip follows (the last horizontal move's along a
+        # vertical one: a plunge or a retract makes no chip of its own speed)
         dirs, last = [], (1.0, 0.0)
-        for e in self.elements:
+        feeds, last_feed = [], None
+        for e, v in zip(self.elements, self.speeds):
             t = e.tangent(0.5 * e.length)
             n = math.hypot(t[0], t[1])
             if n > 1e-6:
                 last = (t[0] / n, t[1] / n)
+                last_feed = v
             dirs.append(last)
+            feeds.append(v if last_feed is None else last_feed)
         self._elem_dirs = dirs
+        self._elem_feeds = feeds
 
     @property
     def duration_s(self):
@@ -371,6 +377,14 @@ class PlannedPath:
     def speed(self, t):
         """Path speed at time t (m/s)."""
         return self.profile.speed(t - self.dwell_s)
+
+    def programmed_speed(self, t):
+        """The programmed speed (m/s) of the move the tool is on at time t
+        (before the start: the first move's; after the end: the last's;
+        along a vertical move, the last horizontal one's): the feed the chip
+        thickness follows (the speed ramps between moves are left out: a
+        cosine ramp of ramp_s changes it over a few mm)."""
+        return self._elem_feeds[self._element(self.arc_length(t))]
 
     def _element(self, s):
         i = bisect.bisect_right(self._s_knots, s) - 1

@@ -78,7 +78,8 @@ class MillingForceSource(LeafSystem):
     def _tooth_wrench_now(self, context):
         p = context.get_discrete_state(self._pose).value()[9:]
         t = context.get_time()
-        return self._model.tooth_wrench(t, p, self._path.feed_direction(t), self._workpiece, self._phase)
+        return self._model.tooth_wrench(t, p, self._path.feed_direction(t), self._workpiece, self._phase,
+                                        self._path.programmed_speed(t))
 
     def _calc_ripple(self, context, output):
         R = context.get_discrete_state(self._pose).value()[:9].tolist()
@@ -91,10 +92,11 @@ class MillingForceSource(LeafSystem):
         pose = self._kin.pose_only(q)
         p = pose[9:]
         u = self._path.feed_direction(t)
+        feed = self._path.programmed_speed(t)  # each move's own feed (chip thickness)
         if self._mode == "tooth":
-            w = self._model.tooth_wrench(t + self._sub_t, p, u, self._workpiece, self._phase) / len(self._sub_t)
+            w = self._model.tooth_wrench(t + self._sub_t, p, u, self._workpiece, self._phase, feed) / len(self._sub_t)
         else:
-            w = self._model.average_wrench(p, u, self._workpiece)
+            w = self._model.average_wrench(p, u, self._workpiece, feed)
         return w.tolist(), pose
 
     def _update(self, context, state):
