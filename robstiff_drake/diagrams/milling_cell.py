@@ -82,6 +82,7 @@ class MillingCell:
 
 
 _REFERENCES = {}  # IK along a path, reused by the runs of a sweep in one process
+_PREVIEWS = {}  # preview tables (model/preview.py) for a path and a compensator's model, likewise
 
 
 def planned_path(sc, robot, tool):
@@ -90,6 +91,9 @@ def planned_path(sc, robot, tool):
     p = sc.path
     try:
         path = scenario_path(sc)
+        if path.speed_overrides:  # the feed planner's: the same geometry, other timing
+            base, t_base, q_base = planned_path_without_overrides(sc, robot, tool)
+            return path, *retimed_references(base, t_base, q_base, path, p.reference_period_ms / 1e3)
         key = (path.signature(), p.reference_period_ms, robot.source, tuple(np.round(tool, 12)),
                robot.q_lower_rad.tobytes(), robot.q_upper_rad.tobytes())
         if key not in _REFERENCES:
@@ -98,6 +102,29 @@ def planned_path(sc, robot, tool):
         raise InputError(f"{sc.source}: path: {e} (robot {robot.name})") from None
     t_ref, q_ref = _REFERENCES[key]
     return path, t_ref, q_ref
+
+
+def planned_path_without_overrides(sc, robot, tool):
+    """planned_path of the scenario's program as written (no feed overrides)."""
+    saved = getattr(sc, "_feed_overrides", None)
+    sc._feed_overrides = None
+    try:
+        return planned_path(sc, robot, tool)
+    finally:
+        sc._feed_overrides = saved
+
+
+def retimed_references(base, t_base, q_base, path, dt_s):
+    """Joint references of ``path`` (the geometry of ``base``, other speeds)
+    every dt_s: the base path's IK solutions as a function of arc length (a
+    C2 cubic spline through them), at the new path's arc length."""
+    from scipy.interpolate import CubicSpline
+
+    s = np.array([base.arc_length(t) for t in t_base])
+    keep = np.r_[True, np.diff(s) > 1e-12]
+    spline = CubicSpline(s[keep], q_base[keep], axis=0)
+    ts = np.arange(0.0, path.duration_s + 0.5 * dt_s, dt_s)
+    return ts, spline(np.array([path.arc_length(t) for t in ts]))
 
 
 def build_station(sc, robot, *, q_modes_rad, path=None):
@@ -136,10 +163,18 @@ def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_
         C = kin.joint_compliance
         w2 = np.linalg.eigvals(np.linalg.solve(inertia.mass_matrix(q_ref[0]), np.diag(1.0 / C))).real
         beta = 2.0 * sc.model.damping_ratio / np.sqrt(np.min(w2[w2 > 0]))
-        pm = PreviewModel(path=path, t_ref=t_ref, q_ref=q_ref, group_models=groups, workpiece=workpiece,
-                          kinematics=kin, inertia=inertia)
-        table = preview_table(pm, t_end_s=path.duration_s + PREVIEW_MARGIN_S, period_s=T, compliance=C, beta_s=beta,
-                              servo=servo, tool_m=tool_m)
+        key = (path.signature(), T, tuple(C.tolist()), float(beta), servo, tuple(np.round(tool_m, 12)), robot.source,
+               hash(np.asarray(q_ref).tobytes()), workpiece.boxes,
+               tuple((tuple(m.Kc.tolist()), tuple(m.Ke.tolist()), m.feed_m_per_s) for m in groups))
+        table = _PREVIEWS.get(key)
+        if table is None:
+            pm = PreviewModel(path=path, t_ref=t_ref, q_ref=q_ref, group_models=groups, workpiece=workpiece,
+                              kinematics=kin, inertia=inertia, tool_m=tool_m)
+            table = preview_table(pm, t_end_s=path.duration_s + PREVIEW_MARGIN_S, period_s=T, compliance=C,
+                                  beta_s=beta, servo=servo, tool_m=tool_m)
+            if len(_PREVIEWS) >= 8:
+                del _PREVIEWS[next(iter(_PREVIEWS))]
+            _PREVIEWS[key] = table
         # a correction computed at a tick reaches the robot controller's
         # sampling of its targets after the delay line and the correction's
         # own update (Drake's same-instant semantics: each discrete block

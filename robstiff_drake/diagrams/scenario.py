@@ -623,13 +623,15 @@ def planned_path(sc):
     """The scenario's tool path (PlannedPath, SI units): through its
     waypoints, or along its G-code program; PathError if it is malformed."""
     p = sc.path
+    overrides = getattr(sc, "_feed_overrides", None)  # the feed planner's (diagrams/feed_plan.py)
     if sc.toolpath.program:
         tp = sc.toolpath
-        elements, speeds = program_elements(_program(sc).moves, tp.rapid_mm_per_s / 1e3, work_transform(tp))
+        elements, speeds, lines = program_elements(_program(sc).moves, tp.rapid_mm_per_s / 1e3, work_transform(tp),
+                                                   with_lines=True)
         return PlannedPath.from_elements(elements, speeds, np.deg2rad(p.yaw_deg), p.dwell_s, p.ramp_s,
-                                         p.zone_mm / 1e3)
+                                         p.zone_mm / 1e3, speed_overrides=overrides, lines=lines)
     return PlannedPath(np.asarray(p.waypoints_mm, dtype=float) / 1e3, p.feed_mm_per_s / 1e3, np.deg2rad(p.yaw_deg),
-                       p.dwell_s, p.ramp_s, p.zone_mm / 1e3)
+                       p.dwell_s, p.ramp_s, p.zone_mm / 1e3, speed_overrides=overrides)
 
 
 def cutting_setup(sc, scale=1.0, factors=None, groups=None):

@@ -74,8 +74,12 @@ class ArmInertia:
         _, _, c, _, _ = self._bodies[-1]
         R6, p6 = F[6, :3, :3], F[6, :3, 3]
         pc = p6 + R6 @ c
-        z, o = F[:6, :3, 2], F[:6, :3, 3]
-        return R6, np.cross(z, pc - o).T
+        z, e = F[:6, :3, 2], pc - F[:6, :3, 3]
+        J = np.empty((3, 6))  # columns z_j x (p_c - o_j)
+        J[0] = z[:, 1] * e[:, 2] - z[:, 2] * e[:, 1]
+        J[1] = z[:, 2] * e[:, 0] - z[:, 0] * e[:, 2]
+        J[2] = z[:, 0] * e[:, 1] - z[:, 1] * e[:, 0]
+        return R6, J
 
     @property
     def payload(self):

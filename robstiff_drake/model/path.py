@@ -133,22 +133,43 @@ class Corner:
         n = np.linalg.norm(t)
         return t / n if n > 0 else (d - a) / np.linalg.norm(d - a)
 
+    def trimmed(self, s0, s1):
+        """The part between arc lengths s0 and s1: the same curve (de
+        Casteljau's subdivision of the Bezier curve)."""
+        u0, u1 = self._param(s0), self._param(s1)
+
+        def split(P, u):  # (left, right) control points at parameter u
+            a, b, c, d = P
+            ab, bc, cd = a + u * (b - a), b + u * (c - b), c + u * (d - c)
+            abc, bcd = ab + u * (bc - ab), bc + u * (cd - bc)
+            m = abc + u * (bcd - abc)
+            return (a, ab, abc, m), (m, bcd, cd, d)
+
+        left, _ = split(self.P, u1) if u1 < 1.0 else (tuple(self.P), None)
+        _, mid = split(np.array(left), u0 / u1) if u0 > 0.0 and u1 > 0.0 else (None, left)
+        return Corner(*mid)
+
 
 def _turn_rad(t_in, t_out):
     c = float(np.clip(np.dot(t_in, t_out), -1.0, 1.0))
     return math.acos(c)
 
 
-def blend_corners(elements, speeds, zone_m):
+def blend_corners(elements, speeds, zone_m, provenance=False):
     """Insert a corner path at every corner between consecutive elements.
 
     Returns (elements, speeds, stop_after): ``stop_after[i]`` is True where
     the path must stop after element i (a reversal, or a sharp corner at
-    zone 0 ... which keeps full speed, as before blending: False)."""
+    zone 0 ... which keeps full speed, as before blending: False).  With
+    ``provenance``, also each output element's origin: ("move", i, s0, s1)
+    for the part s0..s1 of input element i, ("corner", i, r, r) for the
+    corner between elements i and i + 1 (from r before its end to r into
+    the next)."""
     n = len(elements)
     stops = [False] * n
     if n < 2 or zone_m < 0:
-        return list(elements), list(speeds), stops
+        tags = [("move", i, 0.0, e.length) for i, e in enumerate(elements)]
+        return (list(elements), list(speeds), stops) + ((tags,) if provenance else ())
     # zone of each corner: at most half of each neighbour's length
     zones = []
     for i in range(n - 1):
@@ -161,7 +182,7 @@ def blend_corners(elements, speeds, zone_m):
             stops[i] = True
         else:
             zones.append(min(zone_m, 0.5 * a.length, 0.5 * b.length))
-    out, out_speeds, out_stops = [], [], []
+    out, out_speeds, out_stops, tags = [], [], [], []
     for i, e in enumerate(elements):
         s0 = zones[i - 1] if i > 0 else 0.0
         s1 = e.length - (zones[i] if i < n - 1 else 0.0)
@@ -169,6 +190,7 @@ def blend_corners(elements, speeds, zone_m):
             out.append(e.trimmed(s0, s1) if (s0 > 0 or s1 < e.length) else e)
             out_speeds.append(speeds[i])
             out_stops.append(stops[i])
+            tags.append(("move", i, s0, s1))
         if i < n - 1 and zones[i] > 0:
             b = elements[i + 1]
             r = zones[i]
@@ -180,7 +202,49 @@ def blend_corners(elements, speeds, zone_m):
             out.append(Corner(p0, c1, c2, p3))
             out_speeds.append(min(speeds[i], speeds[i + 1]))
             out_stops.append(False)
-    return out, out_speeds, out_stops
+            tags.append(("corner", i, r, r))
+    return (out, out_speeds, out_stops) + ((tags,) if provenance else ())
+
+
+def split_for_speeds(elements, speeds, overrides, zone_m):
+    """The programmed elements split where speed ``overrides`` ({element
+    index: [(a, b, v m/s)]}, a..b m along the element) begin and end, each
+    part at the lower of its own speed and the override over it.  A span
+    is widened to whole parts of at least two zones from the element's ends
+    (and parts shorter than two zones join their neighbour), so every corner
+    keeps its zone: the same geometry.  Returns (elements, speeds, origins): origin
+    (i, a, b) of each part (model/feed_plan.py maps them back to the program)."""
+    out, out_v, origins = [], [], []
+    near = 2.0 * zone_m
+    short = near - 1e-9  # (a part of exactly two zones is long enough)
+    for i, (e, v) in enumerate(zip(elements, speeds)):
+        spans = (overrides or {}).get(i, [])
+        L = e.length
+        cuts = {0.0, L}
+        snapped = []
+        for a, b, w in spans:  # each span widened to whole parts of at least two zones
+            if L < 2.0 * near:
+                a, b = 0.0, L
+            a = 0.0 if a < near else min(a, L - near)
+            b = L if b > L - near else max(b, near)
+            snapped.append((a, b, w))
+            cuts |= {a, b}
+        spans = snapped
+        cuts = sorted(cuts)
+        keep = [cuts[0]]
+        for x in cuts[1:]:  # no part shorter than two zones (unless the element is)
+            if x - keep[-1] >= short or x == L:
+                keep.append(x)
+        if len(keep) > 2 and keep[-1] - keep[-2] < short:
+            del keep[-2]
+        for c0, c1 in zip(keep[:-1], keep[1:]):
+            mid = 0.5 * (c0 + c1)  # (a snapped cut moved a span's end outwards by less than two zones)
+            vv = min([v] + [o[2] for o in spans if o[0] <= mid <= o[1]])
+            whole = len(keep) == 2
+            out.append(e if whole else e.trimmed(c0, c1))
+            out_v.append(vv)
+            origins.append((i, c0, c1))
+    return out, out_v, origins
 
 
 # ---------------------------------------------------------------- speed profile
@@ -288,7 +352,8 @@ class PlannedPath:
     path this is the constant feed between two ramps that the project has
     always used."""
 
-    def __init__(self, waypoints_m, feed_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0, zone_m=0.0):
+    def __init__(self, waypoints_m, feed_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0, zone_m=0.0,
+                 speed_overrides=None):
         wp = np.asarray(waypoints_m, dtype=float).reshape(-1, 3)
         if len(wp) < 2:
             raise PathError("a path needs at least two waypoints")
@@ -298,28 +363,58 @@ class PlannedPath:
         if np.any(seg <= 0):
             raise PathError("two consecutive waypoints are the same point")
         elements = [Line(a, b) for a, b in zip(wp[:-1], wp[1:])]
-        self._setup(elements, [float(feed_m_per_s)] * len(elements), wp, yaw_rad, dwell_s, ramp_s, zone_m)
+        self._setup(elements, [float(feed_m_per_s)] * len(elements), wp, yaw_rad, dwell_s, ramp_s, zone_m,
+                    speed_overrides)
 
     @classmethod
-    def from_elements(cls, elements, speeds_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0, zone_m=0.0):
-        """A path through Line / Arc elements, each at its own speed (m/s)."""
+    def from_elements(cls, elements, speeds_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0, zone_m=0.0,
+                      speed_overrides=None, lines=None):
+        """A path through Line / Arc elements, each at its own speed (m/s);
+        ``lines``: each element's program line (for the feed advice)."""
         if not elements:
             raise PathError("a path needs at least one move")
         if any(not v > 0 for v in speeds_m_per_s):
             raise PathError("every move needs a speed > 0")
         self = cls.__new__(cls)
         wp = np.array([elements[0].point(0.0)] + [e.point(e.length) for e in elements])
-        self._setup(list(elements), [float(v) for v in speeds_m_per_s], wp, yaw_rad, dwell_s, ramp_s, zone_m)
+        self._setup(list(elements), [float(v) for v in speeds_m_per_s], wp, yaw_rad, dwell_s, ramp_s, zone_m,
+                    speed_overrides, lines)
         return self
 
-    def _setup(self, elements, speeds, waypoints, yaw_rad, dwell_s, ramp_s, zone_m):
+    def with_speed_overrides(self, overrides):
+        """The same path with the speeds lowered over parts of its programmed
+        elements ({element index: [(a, b, v m/s)]}, a..b m along it; see
+        split_for_speeds), replacing its own overrides: the feed planner's
+        adapted path (model/feed_plan.py)."""
+        out = self.__class__.__new__(self.__class__)
+        elements, speeds, waypoints, yaw, dwell, ramp, zone, _, lines = self._args
+        out._setup(elements, speeds, waypoints, yaw, dwell, ramp, zone, overrides, lines)
+        return out
+
+    def _setup(self, elements, speeds, waypoints, yaw_rad, dwell_s, ramp_s, zone_m, speed_overrides=None,
+               lines=None):
+        self._args = (elements, speeds, waypoints, yaw_rad, dwell_s, ramp_s, zone_m, speed_overrides, lines)
+        self.program_lines = list(lines) if lines is not None else None
+        self.speed_overrides = dict(speed_overrides or {})
         self.waypoints = waypoints
         self.directions = np.array([e.tangent(0.0) for e in elements])
         self.yaw = float(yaw_rad)
         self.dwell_s = float(dwell_s)
         self.zone_m = float(zone_m)
         self.feed = float(max(speeds))
-        self.elements, self.speeds, stops = blend_corners(elements, speeds, self.zone_m)
+        parts, part_speeds, origins = split_for_speeds(elements, speeds, self.speed_overrides, self.zone_m)
+        # the programmed elements' parts and their speeds: (element, from m, to m, speed m/s)
+        self.parts = [(i, c0, c1, v) for (i, c0, c1), v in zip(origins, part_speeds)]
+        self.elements, self.speeds, stops, tags = blend_corners(parts, part_speeds, self.zone_m, provenance=True)
+        # each element's origin in the programmed elements: ("move", i, s0, s1): the part s0..s1 of element i;
+        # ("corner", i, r_in, r_out): the corner between element i and the next, r before and after it
+        self.tags = []
+        for kind, j, a, b in tags:
+            i, c0, c1 = origins[j]
+            if kind == "move":
+                self.tags.append(("move", i, c0 + a, c0 + b))
+            else:
+                self.tags.append(("corner", i, a, b))
         self.lengths = np.array([e.length for e in self.elements])
         self.total_length = float(self.lengths.sum())
         self._s_knots = np.r_[0.0, np.cumsum(self.lengths)].tolist()
@@ -461,12 +556,13 @@ class PlannedPath:
 # ---------------------------------------------------------------- programs
 
 
-def program_elements(moves, rapid_m_per_s, transform):
+def program_elements(moves, rapid_m_per_s, transform, with_lines=False):
     """Elements (m, base frame) and speeds (m/s) of G-code moves
     (model/gcode.py Move, mm in the work frame).  ``transform(p_mm)`` maps
     a work-frame point (mm) to the base frame (m), a rotation about z and a
-    shift; ``rapid_m_per_s``: the speed of G0 moves."""
-    elements, speeds = [], []
+    shift; ``rapid_m_per_s``: the speed of G0 moves.  ``with_lines``: also
+    each element's program line."""
+    elements, speeds, lines = [], [], []
     for m in moves:
         p0, p1 = transform(m.start_mm), transform(m.end_mm)
         if elements:  # (an arc may end up to gcode.ARC_END_TOLERANCE_MM off its programmed end point)
@@ -481,4 +577,5 @@ def program_elements(moves, rapid_m_per_s, transform):
         else:
             elements.append(Line(p0, p1))
         speeds.append(rapid_m_per_s if m.kind == "rapid" else m.feed_mm_per_min / 60e3)
-    return elements, speeds
+        lines.append(m.line)
+    return (elements, speeds, lines) if with_lines else (elements, speeds)

@@ -202,16 +202,23 @@ class PreviewStream:
         inertia (-m a of its centre of mass, and its moment)."""
         R = np.asarray(self.m.flange_rotation(q)).reshape(3, 3)
         out = np.empty((len(GROUPS), 6))
-        r = self.tool
-        for g in range(N_FORCE_GROUPS):
-            f = R.T @ W[g, :3]
-            m = R.T @ W[g, 3:] + np.cross(r, f)
-            out[g, :3], out[g, 3:] = f, m
         mass, com = self.m.payload
-        Jc = self.m.payload_com_jacobian(q)
-        f = R.T @ (-mass * (Jc @ qdd))
-        out[-1, :3], out[-1, 3:] = f, np.cross(com, f)
+        F = np.empty((len(GROUPS), 3))
+        F[:N_FORCE_GROUPS] = W[:, :3] @ R  # R^T f per group
+        F[-1] = (-mass * (self.m.payload_com_jacobian(q) @ qdd)) @ R
+        out[:, :3] = F
+        out[:N_FORCE_GROUPS, 3:] = W[:, 3:] @ R + _cross_rows(self.tool, F[:N_FORCE_GROUPS])
+        out[-1, 3:] = _cross_rows(com, F[-1:])[0]
         return out
+
+
+def _cross_rows(r, F):
+    """r x f for each row f of F (n, 3) (numpy's cross is slow on small arrays)."""
+    out = np.empty_like(F)
+    out[:, 0] = r[1] * F[:, 2] - r[2] * F[:, 1]
+    out[:, 1] = r[2] * F[:, 0] - r[0] * F[:, 2]
+    out[:, 2] = r[0] * F[:, 1] - r[1] * F[:, 0]
+    return out
 
 
 def preview_table(model, *, t_end_s, period_s, compliance, beta_s, servo, tool_m):

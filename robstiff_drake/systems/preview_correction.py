@@ -38,7 +38,7 @@ class PreviewModel:
     group (MillingForceModel each), the workpiece, its kinematics
     (DeflectionPredictor) and inertia (model/arm_dynamics.ArmInertia)."""
 
-    def __init__(self, *, path, t_ref, q_ref, group_models, workpiece, kinematics, inertia):
+    def __init__(self, *, path, t_ref, q_ref, group_models, workpiece, kinematics, inertia, tool_m):
         self.path = path
         self._t = np.asarray(t_ref, dtype=float)
         self._q = np.asarray(q_ref, dtype=float)
@@ -47,6 +47,7 @@ class PreviewModel:
         self.kin = kinematics
         self.inertia = inertia
         self.payload = inertia.payload
+        self._tool = np.asarray(tool_m, dtype=float)
 
     def q(self, u):
         u = min(max(u, self._t[0]), self._t[-1])
@@ -70,7 +71,13 @@ class PreviewModel:
         return self.inertia.mass_matrix(q)
 
     def payload_com_jacobian(self, q):
-        return self.inertia.payload_com_jacobian(q)[1]
+        """(3, 6): from the tool point's Jacobian, z_j x (p_c - o_j) =
+        z_j x (p_t - o_j) + z_j x (p_c - p_t), p_c - p_t = R6 (c - tool)."""
+        J = np.array(self.kin.jacobian_rows(q)).T
+        R = np.asarray(self.kin.pose(q)[:9]).reshape(3, 3)
+        d = R @ (self.payload[1] - self._tool)
+        Jw = J[3:]
+        return J[:3] + np.array([Jw[1] * d[2] - Jw[2] * d[1], Jw[2] * d[0] - Jw[0] * d[2], Jw[0] * d[1] - Jw[1] * d[0]])
 
 
 class PreviewCorrection(LeafSystem):
