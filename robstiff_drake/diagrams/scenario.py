@@ -474,6 +474,11 @@ def check_scenario(sc):
     if not sc.toolpath.program and len(sc.path.waypoints_mm) < 2:
         _fail(sc, "path.waypoints_mm", f"expected at least 2 waypoints (or a toolpath.program), got "
                                        f"{len(sc.path.waypoints_mm)}")
+    tol, floor = sc.path.tolerance_mm, 2.0 * sc.scan.noise_mm
+    if 0 < tol < floor:
+        _fail(sc, "path.tolerance_mm", f"{tol:g} mm is below what the scan can verify: twice its noise, 2 x "
+                                       f"scan.noise_mm = {floor:g} mm (a surface within it could not be told from "
+                                       "one outside it)")
     if sc.model.joint_stiffness_Nm_per_rad and sc.model.identified_json:
         _fail(sc, "model.identified_json", "give model.joint_stiffness_Nm_per_rad or model.identified_json, not both")
     path = _check_sizes(sc)

@@ -295,3 +295,13 @@ def rewrite_program(text, moves, ranges_by_line):
             out.append(f"{body} F{_fmt(slow / unit)}")
         out.append(f"F{_fmt(feed / unit)}")  # the programmed feed again for what follows
     return "\n".join(out) + ("\n" if text.endswith("\n") else "")
+
+
+def check_rewritable(text):
+    """ValueError (naming the line) for a program rewrite_program cannot write:
+    incremental (G91) coordinates."""
+    for n, raw in enumerate(text.splitlines(), start=1):
+        for letter, value in _code_words(raw):
+            if letter == "G" and value.replace(".", "", 1).isdigit() and float(value) == 91:
+                raise ValueError(f"line {n}: G91 (incremental): the advised program is written for absolute (G90) "
+                                 "programs only")
