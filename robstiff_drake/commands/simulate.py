@@ -182,6 +182,8 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
     sc = load_scenario(scenario, toolpath=toolpath)
     if compensator is not None:
         _, settings = read_settings(compensator)
+        _, _, q_ref = cell_path(sc, robot, robot.tool_point(where="the closed loop"))
+        user_models.resolve(sc, robot, q_ref[0])  # (the run's own model: its payload calibration)
         sc = scenario_with_compensator(sc, settings, robot)
     if noise_seed is not None:
         sc.sensor.seed = sc.scan.seed = int(noise_seed)

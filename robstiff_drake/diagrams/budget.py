@@ -19,6 +19,8 @@ Sources, and what "removed" means (the scenario's other settings kept):
   modes sqrt(1 / EPSILON) = 5 times faster (the first at about 25 Hz
   instead of 5): the arm follows force changes and the path's
   accelerations quasi-statically (plant step 2 ms for the faster modes);
+* kinematic error (a study's controller whose kinematic model is not the
+  arm's: its path accuracy; studies/paper_reproduction.py): the arm's own;
 * scan noise: a noiseless scan (the budget's statistics are the scan's, as
   a user measures them, not the simulation's true surface).
 
@@ -52,7 +54,7 @@ FINE_PERIOD_S = 0.001  # the controller period (and plant step) of "sampling per
 
 SOURCES = ("stiffness model error", "payload and bias error", "cutting-coefficient error", "force filter lag",
            "sensor noise", "servo and interpolator lag", "sampling period and delay", "lost motion",
-           "arm dynamic response", "scan noise")
+           "arm dynamic response", "kinematic error", "scan noise")
 METRICS = ("mean", "rms", "max_abs", "pv")
 
 
@@ -74,6 +76,8 @@ def applies(sc, source):
         return bool(sc.plant.lost_motion_rad) and any(sc.plant.lost_motion_rad)
     if source == "scan noise":
         return sc.scan.noise_mm > 0
+    if source == "kinematic error":
+        return getattr(sc, "_controller_robot", None) is not None
     return True
 
 
@@ -115,6 +119,8 @@ def without(sc, robot, removed, model):
         s.model.lost_motion_rad = []
     if "scan noise" in removed:
         s.scan.noise_mm = 0.0
+    if "kinematic error" in removed:
+        s._controller_robot = None
     gravity = 1.0
     if "arm dynamic response" in removed:
         robot = scaled_robot(robot, EPSILON)

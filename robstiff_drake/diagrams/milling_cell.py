@@ -35,6 +35,7 @@ from robstiff_drake.diagrams.scenario import planned_path as scenario_path
 from robstiff_drake.diagrams.station import make_milling_station
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.path import PathError, PlannedPath
+from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.arm_dynamics import ArmInertia
 from robstiff_drake.model.preview import preview_table
 from robstiff_drake.systems.predictive_wrench import PredictiveWrench
@@ -101,7 +102,37 @@ def planned_path(sc, robot, tool):
     except PathError as e:
         raise InputError(f"{sc.source}: path: {e} (robot {robot.name})") from None
     t_ref, q_ref = _REFERENCES[key]
+    ctrl = getattr(sc, "_controller_robot", None)
+    if ctrl is not None:  # a controller whose kinematic model is not the arm's (diagrams/budget.py)
+        ckey = key + (ctrl.dh.home_rad.tobytes(), ctrl.dh.a_m.tobytes(), ctrl.dh.d_m.tobytes(),
+                      ctrl.dh.alpha_rad.tobytes())
+        if ckey not in _REFERENCES:
+            _REFERENCES[ckey] = (t_ref, references_with_kinematic_error(path, t_ref, robot, ctrl, tool))
+        t_ref, q_ref = _REFERENCES[ckey]
     return path, t_ref, q_ref
+
+
+def references_with_kinematic_error(path, t_ref, robot, ctrl, tool):
+    """The joint references a controller with the kinematic model ``ctrl``
+    (its own DH, e.g. joint zeros off by a mastering error) sends along the
+    path, the work offset touched off with the real arm at the path's
+    first point (so the part starts where it is commanded; the error grows
+    over the part, as path accuracy does)."""
+    from robstiff_drake.model import ik
+
+    q_prev, q0 = None, None
+    qs = np.empty((len(t_ref), 6))
+    shift = np.zeros(3)
+    for k, t in enumerate(t_ref):
+        q = ik.solve_for(ctrl, ik.tool_down_pose(path.position(t) - shift, path.yaw), tool, q_ref_rad=q_prev)
+        if k == 0:
+            q0 = q
+            T = kin.tool_pose(robot.dh, q, tool)
+            shift = T[:3, 3] - path.position(t)  # the real arm's offset at the first point
+            q = ik.solve_for(ctrl, ik.tool_down_pose(path.position(t) - shift, path.yaw), tool, q_ref_rad=q0)
+        qs[k] = q
+        q_prev = q
+    return qs
 
 
 def planned_path_without_overrides(sc, robot, tool):

@@ -30,6 +30,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 
 from robstiff_drake.diagrams.scenario import plant_stiffness, planned_path
@@ -101,8 +102,10 @@ class _Bench:
     """The scenario's station on its own, its inputs held: a bench to load,
     read and step the arm."""
 
-    def __init__(self, sc, robot, q0):
+    def __init__(self, sc, robot, q0, seed=0):
         sc = copy.deepcopy(sc)
+        self._seed = int(seed)
+        self._n = 0  # readings so far: each draws its sensor noise from (seed, n)
         sc.cutting.mode = "averaged"
         self.load = _ConstantLoad(Cutter(sc.cutter.diameter_mm / 1e3, int(sc.cutter.n_teeth), sc.cutter.spindle_rpm))
         from robstiff_drake.diagrams.scenario import cutting_setup
@@ -122,6 +125,8 @@ class _Bench:
     def rest_at(self, q):
         self.load.wrench = np.zeros(6)
         self.root.SetTime(0.0)
+        self._n += 1
+        self.station.diagram.SetRandomContext(self.root, RandomGenerator(self._seed * 100003 + self._n))
         self.cmd.FixValue(self.root, np.asarray(q, dtype=float))
         self.station.set_initial_state(self.root, q)
         self.sim.Initialize()
@@ -212,7 +217,7 @@ def payload_calibration_campaign(sc, robot, q0, cfg, rng_seed):
     sc_cal.sensor.torque_bias_Nm = list(np.asarray(sc.sensor.torque_bias_Nm) - drift_t)
     sc_cal.sensor.dropout_probability = sc_cal.sensor.spike_probability = 0.0
     sc_cal.sensor.seed = int(rng.integers(2**31))
-    bench = _Bench(sc_cal, robot, q0)
+    bench = _Bench(sc_cal, robot, q0, seed=rng_seed)
     q = payload_configurations(robot, cfg.payload_configurations, rng)
     readings = np.array([bench.sensor_reading(qi) for qi in q])
     camp = PayloadCampaign("simulated payload calibration", robot.controller_deg(q), readings[:, :3], readings[:, 3:],
@@ -307,7 +312,7 @@ def user_model(sc, robot, q0):
     if cfg.stiffness == "identified":
         quiet = copy.deepcopy(sc)
         quiet.sensor.noise_N = quiet.sensor.noise_Nm = 0.0  # the tracker reads the tool, not the sensor
-        bench = _Bench(quiet, robot, q0)
+        bench = _Bench(quiet, robot, q0, seed=seed)
         camp = stiffness_campaign(bench, robot, cfg, seed)
         fit = identify(robot, camp, tool_m=robot.payload.tool_point_m)
         k = np.asarray(fit.stiffness_Nm_per_rad, dtype=float)
@@ -329,12 +334,11 @@ def user_model(sc, robot, q0):
                for name, d in zip(COEFFICIENTS, draws)}
     if cfg.servo == "identified":
         if bench is None:
-            bench = _Bench(sc, robot, q0)
+            bench = _Bench(sc, robot, q0, seed=seed)
         t, y = bench.step_response(q0)
         servo, rms = fit_servo(t, y, STEP_TEST_RAD)
     else:
-        s = sc.servo
-        servo, rms = ServoModel(s.interpolator_delay_ms / 1e3, s.position_gain_per_s, s.velocity_bandwidth_hz), 0.0
+        servo, rms = _exact_servo(sc), 0.0
     model = UserModel(k, ident_ok, cal, factors, servo, rms, notes)
     _CACHE[key] = model
     try:
@@ -363,5 +367,12 @@ def servo_model(sc):
     um = getattr(sc, "_user_model", None) if sc.model.source == "identified" else None
     if um is not None:
         return um.servo
+    return _exact_servo(sc)
+
+
+def _exact_servo(sc):
+    """The scenario's servo keys as a ServoModel."""
     s = sc.servo
-    return ServoModel(s.interpolator_delay_ms / 1e3, s.position_gain_per_s, s.velocity_bandwidth_hz)
+    # the station's dead time: the interpolator's and its servo's own discrete update (one plant step)
+    return ServoModel(s.interpolator_delay_ms / 1e3 + float(sc.plant_config.time_step), s.position_gain_per_s,
+                      s.velocity_bandwidth_hz)

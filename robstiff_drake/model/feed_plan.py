@@ -98,7 +98,8 @@ def new_speed(v, error_mm, tolerance_mm, floor):
     the feed, the corner's as its square: v sqrt(SAFETY tol / error), at
     least MAX_STEP_DOWN v per step and never below ``floor``."""
     ratio = math.sqrt(SAFETY * tolerance_mm / error_mm) if error_mm > 0 else 1.0
-    return max(floor, v * min(1.0, max(MAX_STEP_DOWN, ratio)))
+    v_new = max(floor, v * min(1.0, max(MAX_STEP_DOWN, ratio)))
+    return math.floor(v_new * 60e3) / 60e3  # a whole mm/min, as the advised program writes it
 
 
 def merge_windows(spans, margin_m, length_m):
