@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robstiff_drake.model.surface import faces_over_points
+
 CAUSES = ("plunge", "corner", "entry", "exit", "overlap", "steady")
 VERTICAL_TANGENT = 0.5  # |t_z| above this: a plunge or a retract (30 deg from vertical)
 CORNER_TURN_RAD = math.radians(20.0)  # the feed direction turns more than this within half a cutter: a corner
@@ -31,23 +33,10 @@ def deepest_pass(x_m, y_m, p_m, n_up, radius_m):
     """For each point (x, y): the index of the sample (of tool points p (N, 3)
     and spindle axes n (N, 3)) whose cutter face was lowest over it, and the
     index of the first sample that covered it (-1: never covered)."""
-    from scipy.spatial import cKDTree
-
-    x = np.asarray(x_m, dtype=float)
-    y = np.asarray(y_m, dtype=float)
-    low = np.full(x.shape, np.inf)
-    deepest = np.full(x.shape, -1)
-    first = np.full(x.shape, -1)
-    if x.size == 0:
-        return deepest, first
-    tree = cKDTree(np.column_stack([x, y]))
-    hits = tree.query_ball_point(p_m[:, :2], radius_m * (1 - 1e-12))
-    for i, idx in enumerate(hits):
-        if not idx:
-            continue
-        idx = np.asarray(idx)
-        n = n_up[i]
-        z = p_m[i, 2] - (n[0] * (x[idx] - p_m[i, 0]) + n[1] * (y[idx] - p_m[i, 1])) / n[2]
+    low = np.full(np.shape(x_m), np.inf)
+    deepest = np.full(np.shape(x_m), -1)
+    first = np.full(np.shape(x_m), -1)
+    for i, idx, z in faces_over_points(x_m, y_m, p_m, n_up, radius_m):
         lower = z < low[idx]
         low[idx[lower]] = z[lower]
         deepest[idx[lower]] = i
