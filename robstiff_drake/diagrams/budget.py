@@ -128,6 +128,11 @@ def without(sc, robot, removed, model):
         s._controller_robot = None
     gravity = 1.0
     if "arm dynamic response" in removed:
+        # the compensator's payload calibration stays the real payload's (the sensor reads its weight)
+        if "payload and bias error" in removed or (um is None and not s.model.payload_yaml):
+            s._payload_calibration_override = exact_payload_calibration(sc, robot)
+        elif not s.model.payload_yaml:
+            s._payload_calibration_override = um.calibration
         robot = scaled_robot(robot, EPSILON)
         gravity = 1.0 / EPSILON
         s.plant_config.time_step = min(float(s.plant_config.time_step), FAST_STEP_S)
@@ -166,6 +171,9 @@ def run(sc, robot, *, compensation=True):
         g = np.array([0.0, 0.0, -9.81]) * gravity
         cell.station.plant.mutable_gravity_field().set_gravity_vector(g)
         cell.station.controller_plant.mutable_gravity_field().set_gravity_vector(g)
+        # the sensor at rest reads the same weight (eps m times g / eps): the payload's true mass
+        cal = cell.station.systems["true_calibration"]
+        cell.station.systems["true_calibration"] = dataclasses.replace(cal, mass_kg=cal.mass_kg * gravity)
     res = run_cut(s, rob, compensation=compensation, cell=cell)
     return measured_stats(res)
 

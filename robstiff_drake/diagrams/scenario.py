@@ -718,7 +718,12 @@ def read_payload_calibration(path):
 
 def payload_calibration(sc, robot):
     """The gravity-removal parameters: from the scenario's payload_yaml, or
-    the exact payload and sensor bias."""
+    the identified model's, or the exact payload and sensor bias (an error
+    budget's run with the arm's masses scaled keeps the real payload's:
+    ``_payload_calibration_override``, diagrams/budget.py)."""
+    override = getattr(sc, "_payload_calibration_override", None)
+    if override is not None:
+        return override
     if sc.model.payload_yaml:
         p = resolve(sc, sc.model.payload_yaml)
         if not p.is_file():
