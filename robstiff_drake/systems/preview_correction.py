@@ -25,6 +25,7 @@ DeflectionModel's, shared with the plain chain."""
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 from scipy import signal
+from scipy.interpolate import CubicSpline
 
 from robstiff_drake.model.preview import GROUPS, N_FORCE_GROUPS
 
@@ -42,6 +43,7 @@ class PreviewModel:
         self.path = path
         self._t = np.asarray(t_ref, dtype=float)
         self._q = np.asarray(q_ref, dtype=float)
+        self._spline = CubicSpline(self._t, self._q, axis=0)
         self.groups = list(group_models)
         self.wp = workpiece
         self.kin = kinematics
@@ -50,11 +52,10 @@ class PreviewModel:
         self._tool = np.asarray(tool_m, dtype=float)
 
     def q(self, u):
-        u = min(max(u, self._t[0]), self._t[-1])
-        i = min(int(np.searchsorted(self._t, u, side="right")) - 1, len(self._t) - 2)
-        i = max(i, 0)
-        a = (u - self._t[i]) / (self._t[i + 1] - self._t[i])
-        return (1.0 - a) * self._q[i] + a * self._q[i + 1]
+        """The joint reference at path time u: a C2 cubic spline through the
+        IK samples (a preview period shorter than theirs needs smooth second
+        differences), held at the ends."""
+        return self._spline(min(max(u, self._t[0]), self._t[-1]))
 
     def force_groups(self, u):
         p, d = self.path.position(u), self.path.feed_direction(u)
