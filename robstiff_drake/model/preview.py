@@ -1,0 +1,237 @@
+"""Preview compensation (beyond the paper): the correction for what the arm
+*will* do, from the planned path, the cutting-force model and a model of
+the arm's dynamics, so that the correction anticipates the arm's response
+instead of chasing the static deflection.  Plain numpy; no Drake, and
+nothing of the plant's own code: the compensator's own models only.
+
+The arm about the planned path, linearised (joint space, link side):
+
+    M(q) e'' + beta K e' + K e = J^T W - M q_p''  +  K d + beta K d'
+
+with e the link angles' deviation from the path q_p, K the compensator's
+(identified) joint stiffness, beta its stiffness-proportional damping, W
+the cutting wrench at the tool point, q_p'' the path's own acceleration
+(ArmInertia's M: the robot file's nominal inertias), and d the motor's
+offset from the path.  The motor offset that keeps e = 0 is
+
+    d = (1 + beta s)^-1 C (M q_p'' - J^T W)  -  theta_err
+
+where theta_err is the servo's own error in following the path (with
+velocity feed-forward it lags at the path's accelerations).  The robot
+controller moves the motor by a correction c sent with the path's joint
+reference, after the same dead time as the reference itself and through its
+position/velocity loops without feed-forward (ServoModel: a dead time, a
+position gain Kp and a velocity loop of bandwidth omega_v, the form of
+model/servo.py's plant but the compensator's own, identified, numbers), so
+the correction to send is the servo's inverse applied to d:
+
+    c = d + d' / Kp + d'' / (omega_v Kp)      (the dead time cancels)
+
+``PreviewStream`` computes c one sample ahead per controller cycle from
+the planned path (the joint reference, the tool point, the feed direction),
+the force model and the arm's inertia; it splits c into the parts of each
+force group (tangential, radial, axial coefficients) and of the path's
+inertia, so that a scale per group estimated during the cut (the measured
+force against the model's: see systems/preview_correction.py) scales each
+part without recomputing the preview.  It also gives the wrench the wrist
+sensor should read by the model (the cut's wrench in the sensor frame, and
+the payload's inertia), for the measured-minus-model feedback.
+
+Units: times s, angles rad, wrenches (N, N*m) at the tool point in the base
+frame unless named otherwise.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg, optimize
+
+N_FORCE_GROUPS = 3  # tangential, radial, axial coefficient groups
+GROUPS = ("tangential", "radial", "axial", "inertia")  # the parts of the preview
+MASS_MATRIX_EVERY = 10  # samples between two mass matrices (it changes slowly along a path)
+
+
+@dataclass(frozen=True)
+class ServoModel:
+    """The compensator's model of the robot controller from a joint target
+    to the motor: a dead time, then a position loop (gain Kp, 1/s) around a
+    first-order velocity loop (bandwidth, Hz), per joint; the path's
+    reference comes with velocity feed-forward, a correction without."""
+
+    dead_time_s: float
+    position_gain_per_s: float
+    velocity_bandwidth_hz: float
+
+    @property
+    def omega_v(self):
+        return 2.0 * math.pi * self.velocity_bandwidth_hz
+
+    def _continuous(self, feedforward):
+        wv, kp = self.omega_v, self.position_gain_per_s
+        A = np.array([[0.0, 1.0], [-wv * kp, -wv]])
+        B = np.array([[0.0, 0.0], [wv * kp, wv * feedforward]])
+        return A, B
+
+    def _discrete(self, step_s, feedforward):
+        A, B = self._continuous(feedforward)
+        E = linalg.expm(np.block([[A, B], [np.zeros((2, 4))]]) * step_s)
+        return E[:2, :2], E[:2, 2:]
+
+    def step_response(self, t_s):
+        """Motor angle per unit step of a target without feed-forward at t = 0."""
+        t = np.asarray(t_s, dtype=float)
+        tau = np.clip(t - self.dead_time_s, 0.0, None)
+        A, B = self._continuous(0.0)
+        w, V = np.linalg.eig(A)
+        Vi = np.linalg.inv(V)
+        b = B[:, 0]
+        # x(tau) = A^-1 (e^{A tau} - I) b
+        e = np.exp(np.outer(tau, w))  # (N, 2)
+        Ainv = np.linalg.inv(A)
+        x = np.einsum("ij,nj,jk,k->ni", V, e, Vi, b) - b[None, :]
+        return np.real(x @ Ainv.T)[:, 0]
+
+    def path_error(self, q, step_s):
+        """theta - q (N, n) of a servo following the samples q (N, n) every
+        ``step_s`` with velocity feed-forward (the dead time left out: the
+        path and the correction share it), starting at rest on q[0]."""
+        q = np.asarray(q, dtype=float)
+        v = np.gradient(q, step_s, axis=0) if len(q) > 1 else np.zeros_like(q)
+        Ad, Bd = self._discrete(step_s, 1.0)
+        x = np.stack([q[0], np.zeros(q.shape[1])])  # (2, n): theta, theta'
+        out = np.empty_like(q)
+        for k in range(len(q)):
+            out[k] = x[0] - q[k]
+            x = Ad @ x + Bd @ np.stack([q[k], v[k]])
+        return out
+
+
+def fit_servo(t_s, response, amplitude, *, guess=(0.012, 60.0, 30.0)):
+    """A ServoModel fitted (least squares) to the motor's measured response
+    ``response`` (N,) to a target step of ``amplitude`` at t = 0 (what a
+    step test through the controller's external-guidance interface records
+    from the encoders).  ``guess``: dead time s, Kp 1/s, bandwidth Hz."""
+    t = np.asarray(t_s, dtype=float)
+    y = np.asarray(response, dtype=float) / amplitude
+
+    def residual(p):
+        return ServoModel(p[0], p[1], p[2]).step_response(t) - y
+
+    fit = optimize.least_squares(residual, np.asarray(guess, dtype=float), bounds=([0.0, 1.0, 1.0], [0.5, 2000.0, 2000.0]),
+                                 x_scale=[0.01, 30.0, 30.0])
+    return ServoModel(*(float(v) for v in fit.x)), float(np.sqrt(np.mean(fit.fun ** 2)))
+
+
+class PreviewStream:
+    """One preview sample per controller cycle (path time u = k T), computed
+    from the next joint reference: push the reference at u_k and get the
+    correction parts at u_{k-2} (the derivatives need one sample on either
+    side).  ``model`` supplies the compensator's knowledge (see
+    ``PreviewModel`` in systems/preview_correction.py): ``q(u)`` the joint
+    reference, ``force_groups(u)`` the model's wrench per coefficient group
+    (3, 6) at the planned tool point, ``jacobian(q)``, ``flange_rotation(q)``
+    (row-major 9), ``mass(q)`` and ``payload_com_jacobian(q)``;
+    ``compliance`` (6,) rad/(N*m); ``beta_s`` the damping's time constant;
+    ``servo`` a ServoModel; ``tool_m`` the tool point in the sensor frame."""
+
+    def __init__(self, model, *, period_s, compliance, beta_s, servo, tool_m):
+        self.m = model
+        self.T = float(period_s)
+        self.C = np.asarray(compliance, dtype=float)
+        self.a = math.exp(-self.T / beta_s) if beta_s > 0 else 0.0
+        self.servo = servo
+        self.tool = np.asarray(tool_m, dtype=float)
+        self._Ad, self._Bd = servo._discrete(self.T, 1.0)
+        self.k = 0
+        self._q = []  # the last three references
+        self._y = np.zeros((len(GROUPS), 6))  # (1 + beta s)^-1 C (...) per group
+        self._x_servo = None
+        self._d = []  # the last three motor offsets d (4, 6)
+        self._M = None
+        self.mass_every = MASS_MATRIX_EVERY
+
+    def push(self, u_s):
+        """Push the reference at path time ``u_s`` (= k T); returns None for
+        the first two pushes, then (u, c (4, 6), sensor (4, 6)): the
+        correction's parts at u = u_s - 2 T and the model's sensor wrench
+        (sensor frame; the payload's inertia in the last row) at u."""
+        q = np.asarray(self.m.q(u_s), dtype=float)
+        self._q.append(q)
+        if len(self._q) == 1:
+            self._q.insert(0, q)  # at rest before the start
+            self._x_servo = np.stack([q, np.zeros(6)])
+        if len(self._q) > 3:
+            del self._q[0]
+        if len(self._q) < 3:
+            return None
+        q0, q1, q2 = self._q
+        j = self.k  # the sample whose acceleration is now known: u_j = u_s - T
+        u_j = u_s - self.T
+        self.k += 1
+        qdd = (q2 - 2.0 * q1 + q0) / (self.T * self.T)
+        qd = (q2 - q0) / (2.0 * self.T)
+        if self._M is None or j % self.mass_every == 0:
+            self._M = self.m.mass(q1)
+        J = self.m.jacobian(q1)
+        W = self.m.force_groups(u_j)  # (3, 6)
+        x = np.empty((len(GROUPS), 6))
+        x[:N_FORCE_GROUPS] = -(W @ J) * self.C  # -C J^T W per group
+        x[-1] = self.C * (self._M @ qdd)
+        self._y = self.a * self._y + (1.0 - self.a) * x
+        err = self._x_servo[0] - q1  # the servo's error in following the path
+        self._x_servo = self._Ad @ self._x_servo + self._Bd @ np.stack([q1, qd])
+        d = self._y.copy()
+        d[-1] -= err
+        sensor = self._sensor(q1, qdd, W)
+        self._d.append((u_j, d, sensor))
+        if len(self._d) == 1:  # at rest before the start
+            self._d.insert(0, (u_j - self.T, np.zeros_like(d), np.zeros_like(sensor)))
+        if len(self._d) > 3:
+            del self._d[0]
+        if len(self._d) < 3:
+            return None
+        (_, dm, _), (u, d0, s0), (_, dp, _) = self._d
+        kp, wv = self.servo.position_gain_per_s, self.servo.omega_v
+        c = d0 + (dp - dm) / (2.0 * self.T * kp) + (dp - 2.0 * d0 + dm) / (self.T * self.T * wv * kp)
+        return u, c, s0
+
+    def _sensor(self, q, qdd, W):
+        """The wrench the model says the sensor reads beyond the payload's
+        weight (sensor frame, 4 x 6): each force group, and the payload's
+        inertia (-m a of its centre of mass, and its moment)."""
+        R = np.asarray(self.m.flange_rotation(q)).reshape(3, 3)
+        out = np.empty((len(GROUPS), 6))
+        mass, com = self.m.payload
+        F = np.empty((len(GROUPS), 3))
+        F[:N_FORCE_GROUPS] = W[:, :3] @ R  # R^T f per group
+        F[-1] = (-mass * (self.m.payload_com_jacobian(q) @ qdd)) @ R
+        out[:, :3] = F
+        out[:N_FORCE_GROUPS, 3:] = W[:, 3:] @ R + _cross_rows(self.tool, F[:N_FORCE_GROUPS])
+        out[-1, 3:] = _cross_rows(com, F[-1:])[0]
+        return out
+
+
+def _cross_rows(r, F):
+    """r x f for each row f of F (n, 3) (numpy's cross is slow on small arrays)."""
+    out = np.empty_like(F)
+    out[:, 0] = r[1] * F[:, 2] - r[2] * F[:, 1]
+    out[:, 1] = r[2] * F[:, 0] - r[0] * F[:, 2]
+    out[:, 2] = r[0] * F[:, 1] - r[1] * F[:, 0]
+    return out
+
+
+def preview_table(model, *, t_end_s, period_s, compliance, beta_s, servo, tool_m):
+    """The preview over a whole path, on the grid u = 0, T, ..., >= t_end:
+    (u (N,), corrections (N, 4, 6), sensor wrenches (N, 4, 6)), from the
+    same per-cycle computation as PreviewStream."""
+    s = PreviewStream(model, period_s=period_s, compliance=compliance, beta_s=beta_s, servo=servo, tool_m=tool_m)
+    n = int(math.ceil(t_end_s / period_s)) + 1
+    us, cs, ss = [], [], []
+    for k in range(n + 2):
+        out = s.push(k * period_s)
+        if out is not None:
+            us.append(out[0])
+            cs.append(out[1])
+            ss.append(out[2])
+    return np.array(us), np.array(cs), np.array(ss)
