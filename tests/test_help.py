@@ -35,7 +35,7 @@ def test_every_subcommand_has_an_example_that_parses(capsys):
             assert argv[0] == "robstiff"
             args = build_parser().parse_args(vector_values_kept(argv[1:]))  # raises on a bad example
             assert " ".join([args.command] + ([args.kind] if getattr(args, "kind", None) else [])) in \
-                (name, "synth stiffness", "synth payload", "simulate")
+                (name, "synth stiffness", "synth payload", "simulate", "make-urdf")
 
 
 # the examples that run in about a second (the others simulate, identify

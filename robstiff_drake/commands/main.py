@@ -425,8 +425,8 @@ EXAMPLES = {
     "stiffness-map": "robstiff stiffness-map --robot kr240_r2900 --out kr240_map.png",
     "kg-study": "robstiff kg-study --grid 3 --json kg.json",
     "make-urdf": "robstiff make-urdf --robot irb6640 --out urdf",
-    "import-urdf": "robstiff import-urdf urdf/robstiff_irb6640/urdf/irb6640.urdf --out my_irb6640.yaml "
-                   "--template irb6640",
+    "import-urdf": "robstiff make-urdf --robot irb6640 --out urdf && robstiff import-urdf "
+                   "urdf/robstiff_irb6640/urdf/irb6640.urdf --out my_irb6640.yaml --template irb6640",
     "identify": "robstiff synth stiffness campaign.csv && robstiff identify campaign.csv --plot fit.png",
     "calibrate-payload": "robstiff synth payload payload.csv && robstiff calibrate-payload payload.csv "
                          "--yaml payload.yaml",
