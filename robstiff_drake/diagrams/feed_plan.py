@@ -22,7 +22,8 @@ import numpy as np
 
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.experiment import run_cut
-from robstiff_drake.diagrams.scenario import model_stiffness, payload_calibration, planned_path, user_model_of
+from robstiff_drake.diagrams.scenario import (model_damping_ratios, model_stiffness, payload_calibration, planned_path,
+                                              user_model_of)
 from robstiff_drake.model import feed_plan as fp
 from robstiff_drake.model import kinematics as kin
 
@@ -65,8 +66,7 @@ def twin_scenario(sc, robot, coefficient_factor):
     servo = user_models.servo_model(sc)
     h = float(sc.plant_config.time_step)
     tw.plant.joint_stiffness_Nm_per_rad = [float(v) for v in k]
-    tw.plant.modal_damping_ratio = sc.model.damping_ratio
-    tw.plant.damping_ratios = []
+    tw.plant.damping_ratios = [float(v) for v in model_damping_ratios(sc)]
     tw.plant.lost_motion_rad = list(sc.model.lost_motion_rad)
     tw.plant.coupling_c23_rad_per_Nm = sc.model.coupling_c23_rad_per_Nm
     period = sc.servo.interpolator_period_ms
@@ -74,6 +74,7 @@ def twin_scenario(sc, robot, coefficient_factor):
     tw.servo.position_gain_per_s = float(np.clip(servo.position_gain_per_s, 1.0, 1000.0))
     tw.servo.velocity_bandwidth_hz = float(np.clip(servo.velocity_bandwidth_hz, 1.0, 500.0))
     tw.servo.velocity_feedforward = 1.0
+    tw.servo.velocity_integral_hz = float(np.clip(servo.velocity_integral_hz, 0.0, 100.0))
     tw.sensor.force_bias_N = [float(v) for v in cal.force_bias_N]
     tw.sensor.torque_bias_Nm = [float(v) for v in cal.torque_bias_Nm]
     um = user_model_of(sc)

@@ -28,6 +28,7 @@ from robstiff_drake.diagrams.scenario import (
     COEFFICIENT_GROUPS,
     cutting_setup,
     model_cutting_setup,
+    model_damping_ratios,
     model_stiffness,
     payload_calibration,
 )
@@ -187,14 +188,15 @@ def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_
     servo = user_models.servo_model(sc)
     groups = [model_cutting_setup(sc, groups=g)[1] for g in COEFFICIENT_GROUPS]
     inertia = ArmInertia(robot)
+    ratios = model_damping_ratios(sc)
+    motors = inertia.motor_inertia(q_ref[0])
     um = sc._user_model if sc.model.source == "identified" else None
     sigma = max(sc.model.identification.coefficient_error, 0.05) if um is not None else 0.05
 
     def make(kin, deflection):
         C = kin.joint_compliance
-        w2 = np.linalg.eigvals(np.linalg.solve(inertia.mass_matrix(q_ref[0]), np.diag(1.0 / C))).real
-        beta = 2.0 * sc.model.damping_ratio / np.sqrt(np.min(w2[w2 > 0]))
-        key = (path.signature(), T, tuple(C.tolist()), float(beta), servo, tuple(np.round(tool_m, 12)), robot.source,
+        key = (path.signature(), T, tuple(C.tolist()), tuple(ratios), servo, tuple(motors), tuple(np.round(tool_m, 12)),
+               robot.source,
                hash(np.asarray(q_ref).tobytes()), workpiece.boxes,
                tuple((tuple(m.Kc.tolist()), tuple(m.Ke.tolist()), m.feed_m_per_s) for m in groups))
         table = _PREVIEWS.get(key)
@@ -202,7 +204,7 @@ def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_
             pm = PreviewModel(path=path, t_ref=t_ref, q_ref=q_ref, group_models=groups, workpiece=workpiece,
                               kinematics=kin, inertia=inertia, tool_m=tool_m)
             table = preview_table(pm, t_end_s=path.duration_s + PREVIEW_MARGIN_S, period_s=T, compliance=C,
-                                  beta_s=beta, servo=servo, tool_m=tool_m)
+                                  damping_ratios=ratios, servo=servo, motor_inertia_kgm2=motors, tool_m=tool_m)
             if len(_PREVIEWS) >= 8:
                 del _PREVIEWS[next(iter(_PREVIEWS))]
             _PREVIEWS[key] = table

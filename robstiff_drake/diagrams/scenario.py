@@ -308,10 +308,17 @@ class ModelConfig:
     # what `robstiff diagnose-run` adds when it finds them.
     lost_motion_rad: list[float] = vec([], (0, 6), 0.0, 0.01, "rad")
     coupling_c23_rad_per_Nm: float = num(0.0, -1e-5, 1e-5, "rad/(N*m)")
-    # Preview mode's damping of the arm's first mode (stiffness-
-    # proportional).  ASSUMPTION: 10 %, modal tests of large industrial
-    # arms report 5-15 % (the plant's true damping is not known to it).
-    damping_ratio: float = num(0.10, 0.0, 1.0, "", hi_open=True)
+    # Preview mode's damping of the arm: the modal damping ratio of each mode
+    # of the links on their gears (lowest frequency first; one number: every
+    # mode), the form of the plant's (model/joint_dynamics.py).  Empty: the
+    # ratios this scenario states for its arm (plant.damping_ratios, else
+    # plant.modal_damping_ratio), read from the file as a user reads their
+    # arm's modal test; ASSUMPTION where the file states none: the plant
+    # section's default, 5 %, the middle of the 2-10 % that modal tests of
+    # industrial arms report (source in model/joint_dynamics.py).
+    damping_ratios: list[float] = vec([], (0, 1, 6), 0.0, MAX_DAMPING_RATIO, "",
+                                      why="a structural mode past 50 % of critical is no longer a mode; modal "
+                                          "tests of industrial arms find 2-10 %")
 
 
 @dataclass
@@ -405,6 +412,10 @@ def load_scenario(path, toolpath=None, work_offset=None):
             raise InputError(str(e).split(": unknown key")[0] + ": replaced by plant.modal_damping_ratio (one "
                              "ratio for every mode) or plant.damping_ratios (one per mode): the plant's damping "
                              "is modal now, not stiffness-proportional") from None
+        if "model.damping_ratio: unknown key" in str(e):  # preview's key before its damping was modal
+            raise InputError(str(e).split(": unknown key")[0] + ": replaced by model.damping_ratios (the modal "
+                             "damping ratio of each mode, or one for every mode; empty: the plant section's "
+                             "stated ratios)") from None
         raise
     try:
         sc = yaml_load_typed(schema=Scenario, data=text_) if text_.strip() else Scenario()
@@ -651,6 +662,15 @@ def plant_damping_ratios(sc):
     if sc.plant.damping_ratios:
         return np.asarray(sc.plant.damping_ratios, dtype=float)
     return np.full(6, float(sc.plant.modal_damping_ratio))
+
+
+def model_damping_ratios(sc):
+    """(6,) the modal damping ratios the compensator's preview assumes
+    (model.damping_ratios; empty: the scenario's stated plant ratios)."""
+    r = sc.model.damping_ratios
+    if r:
+        return np.broadcast_to(np.asarray(r, dtype=float), (6,)).copy()
+    return plant_damping_ratios(sc)
 
 
 def plant_stiffness(sc, robot):

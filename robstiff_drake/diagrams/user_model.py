@@ -14,7 +14,10 @@ diagrams/station.py, through its ports only: nothing of its formulas):
   (the force model's, for predictive and preview modes);
 * the controller's servo from a step test (a small joint-target step
   through the reference port, the encoders read back), fitted by
-  model/preview.fit_servo (preview mode).
+  model/preview.fit_servo (preview mode): dead time, position gain,
+  velocity bandwidth and the velocity loop's integral corner of a rigid
+  axis (the drives' PI; the gears and links the step also moves are not
+  in that form: their share is the fit's residual).
 
 Every draw has the scenario's ``model.identification.seed``; the result is
 computed once per process for given inputs (``user_model``) and recorded
@@ -46,7 +49,7 @@ from robstiff_drake.model.preview import ServoModel, fit_servo
 
 # How the station is loaded and read (simulated time per measurement):
 LOAD_RAMP_S = 0.4  # the load comes on smoothly (no ringing to wait out)
-LOAD_HOLD_S = 0.4  # then held; the arm settles (first mode ~5 Hz, 10 % damping): within 3 um of 1.6 mm
+LOAD_HOLD_S = 0.4  # then held while the arm settles (first mode ~5 Hz; the ramped load excites little ringing)
 READ_S = 0.1  # the tracker's reading: the mean over the last 0.1 s
 PAYLOAD_READ_S = 0.2  # the sensor's reading at a calibration configuration: its mean over 0.2 s
 STEP_TEST_RAD = 1e-3  # the servo step test's target step (0.06 deg)
@@ -88,6 +91,7 @@ class UserModel:
                "servo": {"dead_time_s": self.servo.dead_time_s,
                          "position_gain_per_s": self.servo.position_gain_per_s,
                          "velocity_bandwidth_hz": self.servo.velocity_bandwidth_hz,
+                         "velocity_integral_hz": self.servo.velocity_integral_hz,
                          "fit_rms": self.servo_fit_rms}}
         if plant_k is not None:
             out["stiffness_over_plant"] = (self.joint_stiffness_Nm_per_rad / np.asarray(plant_k)).tolist()
@@ -280,7 +284,8 @@ def _to_json(m):
                        "cal": [m.calibration.mass_kg, list(m.calibration.com_mm), list(m.calibration.force_bias_N),
                                list(m.calibration.torque_bias_Nm)],
                        "factors": m.coefficient_factors,
-                       "servo": [m.servo.dead_time_s, m.servo.position_gain_per_s, m.servo.velocity_bandwidth_hz],
+                       "servo": [m.servo.dead_time_s, m.servo.position_gain_per_s, m.servo.velocity_bandwidth_hz,
+                                 m.servo.velocity_integral_hz],
                        "rms": m.servo_fit_rms, "notes": m.notes})
 
 
@@ -379,4 +384,4 @@ def _exact_servo(sc):
     s = sc.servo
     # the station's dead time: the interpolator's and its servo's own discrete update (one plant step)
     return ServoModel(s.interpolator_delay_ms / 1e3 + float(sc.plant_config.time_step), s.position_gain_per_s,
-                      s.velocity_bandwidth_hz)
+                      s.velocity_bandwidth_hz, s.velocity_integral_hz)

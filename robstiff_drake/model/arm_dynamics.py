@@ -33,6 +33,8 @@ class ArmInertia:
 
     def __init__(self, robot):
         self.dh = robot.dh
+        motors = getattr(robot, "motor_inertia_kgm2", None)
+        self._motors = None if motors is None else np.asarray(motors, dtype=float)
         self._bodies = []  # (index of the frame it moves with: link i -> i, mass, com, inertia, link frame?)
         for i, link in enumerate(robot.links[1:7], start=1):
             self._bodies.append((i, float(link.mass_kg), np.asarray(link.com_m, float), np.asarray(link.inertia_kgm2,
@@ -80,6 +82,16 @@ class ArmInertia:
         J[1] = z[:, 2] * e[:, 0] - z[:, 0] * e[:, 2]
         J[2] = z[:, 0] * e[:, 1] - z[:, 1] * e[:, 0]
         return R6, J
+
+    def motor_inertia(self, q_rad):
+        """(6,) the motors' rotor inertias reflected to the joints, kg m^2:
+        the robot file's ``motor_inertia_kgm2`` (a datasheet's figures);
+        a file without them: ASSUMPTION, each equal to its link's inertia
+        on the joint at q (a load-to-motor inertia ratio of 1, inside the
+        1-5 that servo axes are sized for)."""
+        if self._motors is not None:
+            return self._motors.copy()
+        return np.diag(self.mass_matrix(q_rad)).copy()
 
     @property
     def payload(self):

@@ -55,42 +55,67 @@ MASS_MATRIX_EVERY = 10  # samples between two mass matrices (it changes slowly a
 @dataclass(frozen=True)
 class ServoModel:
     """The compensator's model of the robot controller from a joint target
-    to the motor: a dead time, then a position loop (gain Kp, 1/s) around a
-    first-order velocity loop (bandwidth, Hz), per joint; the path's
-    reference comes with velocity feed-forward, a correction without."""
+    to the motor, per joint, the rigid axis's response (model/servo.py's
+    form, the compensator's own numbers): a dead time, then a position loop
+    (gain Kp, 1/s) around a velocity loop of bandwidth omega_v with integral
+    action (a PI: corner omega_i; 0: a proportional velocity loop),
+
+        theta'' = omega_v (e_v + omega_i z),   z' = e_v,
+        e_v = Kp (theta_ref - theta) + f_v omega_ref - theta';
+
+    the path's reference comes with velocity feed-forward (f_v = 1), a
+    correction without.  The drive's gain on the motor's velocity error is
+    K_v = omega_v J (J: the axis's rigid inertia, motor and link), so a
+    torque tau on the motor (the gear's) moves it by
+    -tau s / (K_v Kp (s + omega_i)) at the frequencies the position loop
+    holds (see PreviewStream)."""
 
     dead_time_s: float
     position_gain_per_s: float
     velocity_bandwidth_hz: float
+    velocity_integral_hz: float = 0.0
 
     @property
     def omega_v(self):
         return 2.0 * math.pi * self.velocity_bandwidth_hz
 
+    @property
+    def omega_i(self):
+        return 2.0 * math.pi * self.velocity_integral_hz
+
     def _continuous(self, feedforward):
-        wv, kp = self.omega_v, self.position_gain_per_s
-        A = np.array([[0.0, 1.0], [-wv * kp, -wv]])
-        B = np.array([[0.0, 0.0], [wv * kp, wv * feedforward]])
+        """(A (3, 3), B (3, 2)): state (theta, theta', z), input (theta_ref, omega_ref)."""
+        wv, wi, kp = self.omega_v, self.omega_i, self.position_gain_per_s
+        A = np.array([[0.0, 1.0, 0.0], [-wv * kp, -wv, wv * wi], [-kp, -1.0, 0.0]])
+        B = np.array([[0.0, 0.0], [wv * kp, wv * feedforward], [kp, feedforward]])
         return A, B
 
     def _discrete(self, step_s, feedforward):
         A, B = self._continuous(feedforward)
-        E = linalg.expm(np.block([[A, B], [np.zeros((2, 4))]]) * step_s)
-        return E[:2, :2], E[:2, 2:]
+        E = linalg.expm(np.block([[A, B], [np.zeros((2, 5))]]) * step_s)
+        return E[:3, :3], E[:3, 3:]
 
     def step_response(self, t_s):
         """Motor angle per unit step of a target without feed-forward at t = 0."""
         t = np.asarray(t_s, dtype=float)
         tau = np.clip(t - self.dead_time_s, 0.0, None)
         A, B = self._continuous(0.0)
-        w, V = np.linalg.eig(A)
-        Vi = np.linalg.inv(V)
-        b = B[:, 0]
-        # x(tau) = A^-1 (e^{A tau} - I) b
-        e = np.exp(np.outer(tau, w))  # (N, 2)
-        Ainv = np.linalg.inv(A)
-        x = np.einsum("ij,nj,jk,k->ni", V, e, Vi, b) - b[None, :]
-        return np.real(x @ Ainv.T)[:, 0]
+        aug = np.zeros((4, 4))
+        aug[:3, :3], aug[:3, 3] = A, B[:, 0]
+        out = np.zeros(len(tau))
+        on = np.flatnonzero(tau > 0)
+        if not on.size:
+            return out
+        dt = np.diff(tau[on])
+        if dt.size and np.allclose(dt, dt[0], rtol=1e-9, atol=1e-12):  # a uniform grid: one exponential's powers
+            E, Eh = linalg.expm(aug * tau[on[0]]), linalg.expm(aug * dt[0])
+            for i in on:
+                out[i] = E[0, 3]
+                E = Eh @ E
+            return out
+        for i in on:
+            out[i] = linalg.expm(aug * tau[i])[0, 3]
+        return out
 
     def path_error(self, q, step_s):
         """theta - q (N, n) of a servo following the samples q (N, n) every
@@ -99,7 +124,7 @@ class ServoModel:
         q = np.asarray(q, dtype=float)
         v = np.gradient(q, step_s, axis=0) if len(q) > 1 else np.zeros_like(q)
         Ad, Bd = self._discrete(step_s, 1.0)
-        x = np.stack([q[0], np.zeros(q.shape[1])])  # (2, n): theta, theta'
+        x = np.stack([q[0], np.zeros(q.shape[1]), np.zeros(q.shape[1])])  # (3, n): theta, theta', z
         out = np.empty_like(q)
         for k in range(len(q)):
             out[k] = x[0] - q[k]
@@ -107,19 +132,22 @@ class ServoModel:
         return out
 
 
-def fit_servo(t_s, response, amplitude, *, guess=(0.012, 60.0, 30.0)):
+def fit_servo(t_s, response, amplitude, *, guess=(0.012, 60.0, 30.0, 7.5)):
     """A ServoModel fitted (least squares) to the motor's measured response
     ``response`` (N,) to a target step of ``amplitude`` at t = 0 (what a
     step test through the controller's external-guidance interface records
-    from the encoders).  ``guess``: dead time s, Kp 1/s, bandwidth Hz."""
+    from the encoders).  ``guess``: dead time s, Kp 1/s, bandwidth Hz and
+    the velocity loop's integral corner Hz (three values: a proportional
+    velocity loop, the corner not fitted)."""
     t = np.asarray(t_s, dtype=float)
     y = np.asarray(response, dtype=float) / amplitude
+    n = len(guess)
 
     def residual(p):
-        return ServoModel(p[0], p[1], p[2]).step_response(t) - y
+        return ServoModel(*p).step_response(t) - y
 
-    fit = optimize.least_squares(residual, np.asarray(guess, dtype=float), bounds=([0.0, 1.0, 1.0], [0.5, 2000.0, 2000.0]),
-                                 x_scale=[0.01, 30.0, 30.0])
+    lo, hi, scale = [0.0, 1.0, 1.0, 0.0][:n], [0.5, 2000.0, 2000.0, 200.0][:n], [0.01, 30.0, 30.0, 5.0][:n]
+    fit = optimize.least_squares(residual, np.asarray(guess, dtype=float), bounds=(lo, hi), x_scale=scale)
     return ServoModel(*(float(v) for v in fit.x)), float(np.sqrt(np.mean(fit.fun ** 2)))
 
 
@@ -132,35 +160,55 @@ class PreviewStream:
     reference, ``force_groups(u)`` the model's wrench per coefficient group
     (3, 6) at the planned tool point, ``jacobian(q)``, ``flange_rotation(q)``
     (row-major 9), ``mass(q)`` and ``payload_com_jacobian(q)``;
-    ``compliance`` (6,) rad/(N*m); ``beta_s`` the damping's time constant;
-    ``servo`` a ServoModel; ``tool_m`` the tool point in the sensor frame."""
+    ``compliance`` (6,) rad/(N*m); ``damping_ratios`` the modal damping
+    ratio of each mode of the links on their gears (one number: every
+    mode); ``servo`` a ServoModel; ``motor_inertia_kgm2`` (6,) the motors'
+    rotor inertias reflected to the joints; ``tool_m`` the tool point in the
+    sensor frame."""
 
-    def __init__(self, model, *, period_s, compliance, beta_s, servo, tool_m):
+    def __init__(self, model, *, period_s, compliance, damping_ratios, servo, motor_inertia_kgm2, tool_m):
         self.m = model
         self.T = float(period_s)
         self.C = np.asarray(compliance, dtype=float)
-        self.a = math.exp(-self.T / beta_s) if beta_s > 0 else 0.0
+        self.zeta = np.broadcast_to(np.asarray(damping_ratios, dtype=float), (6,)).copy()
         self.servo = servo
+        self.Jm = np.asarray(motor_inertia_kgm2, dtype=float)
         self.tool = np.asarray(tool_m, dtype=float)
-        self._Ad, self._Bd = servo._discrete(self.T, 1.0)
+        self.a_i = math.exp(-servo.omega_i * self.T)  # the velocity loop's integral: a high-pass on the load
         self.k = 0
         self._q = []  # the last three references
-        self._y = np.zeros((len(GROUPS), 6))  # (1 + beta s)^-1 C (...) per group
-        self._x_servo = None
-        self._d = []  # the last three motor offsets d (4, 6)
+        self._y = np.zeros((len(GROUPS), 6))  # the gears' twist per group: (K + D s) d = f
+        self._d = []  # the last three (u, d (4, 6), f (4, 6), q'', sensor)
+        self._h = np.zeros((len(GROUPS), 6))  # the drive's load torque through the integral's high-pass
+        self._u_last = np.zeros((len(GROUPS), 6))
         self._M = None
         self.mass_every = MASS_MATRIX_EVERY
 
+    def _pose_terms(self, q):
+        """At pose q: M, the gears' twist filter over a period (Phi = e^{-D^-1 K T},
+        D the modal damping), and the drives' velocity gains K_v (6,)."""
+        M = self.m.mass(q)
+        K = 1.0 / self.C
+        Kd = np.diag(K)
+        w2, Phi = linalg.eigh(Kd, M)
+        if np.all(self.zeta > 0):
+            MP = M @ Phi
+            D = MP @ np.diag(2.0 * self.zeta * np.sqrt(np.maximum(w2, 0.0))) @ MP.T
+            Ed = linalg.expm(-np.linalg.solve(D, Kd) * self.T)
+        else:  # an undamped model: the gears twist with the load at once
+            Ed = np.zeros((6, 6))
+        Kv = self.servo.omega_v * (self.Jm + np.diag(M))
+        return M, Ed, Kv
+
     def push(self, u_s):
         """Push the reference at path time ``u_s`` (= k T); returns None for
-        the first two pushes, then (u, c (4, 6), sensor (4, 6)): the
+        the first pushes, then (u, c (4, 6), sensor (4, 6)): the
         correction's parts at u = u_s - 2 T and the model's sensor wrench
         (sensor frame; the payload's inertia in the last row) at u."""
         q = np.asarray(self.m.q(u_s), dtype=float)
         self._q.append(q)
         if len(self._q) == 1:
             self._q.insert(0, q)  # at rest before the start
-            self._x_servo = np.stack([q, np.zeros(6)])
         if len(self._q) > 3:
             del self._q[0]
         if len(self._q) < 3:
@@ -170,30 +218,32 @@ class PreviewStream:
         u_j = u_s - self.T
         self.k += 1
         qdd = (q2 - 2.0 * q1 + q0) / (self.T * self.T)
-        qd = (q2 - q0) / (2.0 * self.T)
         if self._M is None or j % self.mass_every == 0:
-            self._M = self.m.mass(q1)
+            self._M, self._Ed, self._Kv = self._pose_terms(q1)
         J = self.m.jacobian(q1)
         W = self.m.force_groups(u_j)  # (3, 6)
-        x = np.empty((len(GROUPS), 6))
-        x[:N_FORCE_GROUPS] = -(W @ J) * self.C  # -C J^T W per group
-        x[-1] = self.C * (self._M @ qdd)
-        self._y = self.a * self._y + (1.0 - self.a) * x
-        err = self._x_servo[0] - q1  # the servo's error in following the path
-        self._x_servo = self._Ad @ self._x_servo + self._Bd @ np.stack([q1, qd])
-        d = self._y.copy()
-        d[-1] -= err
+        f = np.empty((len(GROUPS), 6))  # the gears' torque that holds the link on the path, per group
+        f[:N_FORCE_GROUPS] = -(W @ J)  # -J^T W per group
+        f[-1] = self._M @ qdd
+        x = f * self.C  # the static twist
+        self._y = self._y @ self._Ed.T + x @ (np.eye(6) - self._Ed).T
         sensor = self._sensor(q1, qdd, W)
-        self._d.append((u_j, d, sensor))
+        self._d.append((u_j, self._y.copy(), f, qdd, sensor))
         if len(self._d) == 1:  # at rest before the start
-            self._d.insert(0, (u_j - self.T, np.zeros_like(d), np.zeros_like(sensor)))
+            z = np.zeros_like(f)
+            self._d.insert(0, (u_j - self.T, z, z, np.zeros(6), np.zeros_like(sensor)))
         if len(self._d) > 3:
             del self._d[0]
         if len(self._d) < 3:
             return None
-        (_, dm, _), (u, d0, s0), (_, dp, _) = self._d
-        kp, wv = self.servo.position_gain_per_s, self.servo.omega_v
-        c = d0 + (dp - dm) / (2.0 * self.T * kp) + (dp - 2.0 * d0 + dm) / (self.T * self.T * wv * kp)
+        (_, dm, _, _, _), (u, d0, f0, qdd0, s0), (_, dp, _, _, _) = self._d
+        T, kp = self.T, self.servo.position_gain_per_s
+        ddd = (dp - 2.0 * d0 + dm) / (T * T)
+        load = f0 + self.Jm * ddd  # the torque the drive must supply beyond the reference's (per group)
+        load[-1] += self.Jm * qdd0  # the motor's own inertia on the path
+        self._h = self.a_i * (self._h + load - self._u_last)
+        self._u_last = load
+        c = d0 + (dp - dm) / (2.0 * T * kp) + self._h / (self._Kv * kp)
         return u, c, s0
 
     def _sensor(self, q, qdd, W):
@@ -221,11 +271,12 @@ def _cross_rows(r, F):
     return out
 
 
-def preview_table(model, *, t_end_s, period_s, compliance, beta_s, servo, tool_m):
+def preview_table(model, *, t_end_s, period_s, compliance, damping_ratios, servo, motor_inertia_kgm2, tool_m):
     """The preview over a whole path, on the grid u = 0, T, ..., >= t_end:
     (u (N,), corrections (N, 4, 6), sensor wrenches (N, 4, 6)), from the
     same per-cycle computation as PreviewStream."""
-    s = PreviewStream(model, period_s=period_s, compliance=compliance, beta_s=beta_s, servo=servo, tool_m=tool_m)
+    s = PreviewStream(model, period_s=period_s, compliance=compliance, damping_ratios=damping_ratios, servo=servo,
+                      motor_inertia_kgm2=motor_inertia_kgm2, tool_m=tool_m)
     n = int(math.ceil(t_end_s / period_s)) + 1
     us, cs, ss = [], [], []
     for k in range(n + 2):
