@@ -11,7 +11,6 @@ import copy
 import numpy as np
 
 from robstiff_drake.commands import simulate, stiffness_map
-from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, json_text
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model import stiffness as st
@@ -84,6 +83,8 @@ def run(*, out="robstiff-out", robot_yaml=None):
                                     progress=None)  # a bar over simulated time on a terminal
     summ = simulate.summary(results, sc, warnings)
     # the bound: the compensator holding the plant's own model (what the identified model approaches)
+    from robstiff_drake.diagrams.experiment import run_cut  # (Drake: after the inputs are checked)
+
     exact = copy.deepcopy(sc)
     exact.model.source = "nominal"
     bound = run_cut(exact, robot, compensation=True)

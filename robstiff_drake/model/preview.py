@@ -241,7 +241,7 @@ class PreviewStream:
         ddd = (dp - 2.0 * d0 + dm) / (T * T)
         load = f0 + self.Jm * ddd  # the torque the drive must supply beyond the reference's (per group)
         load[-1] += self.Jm * qdd0  # the motor's own inertia on the path
-        self._h = self.a_i * (self._h + load - self._u_last)
+        self._h = self.a_i * self._h + 0.5 * (1.0 + self.a_i) * (load - self._u_last)  # (Tustin-like: a ramp's level right)
         self._u_last = load
         c = d0 + (dp - dm) / (2.0 * T * kp) + self._h / (self._Kv * kp)
         return u, c, s0
