@@ -14,8 +14,9 @@ bound).  "+ feed plan": the compensated cut on the feed planner's path
 predicts more than the tolerance).
 
     python studies/face_and_contour.py     # about 10 minutes on a quiet 2-core machine
+    python studies/face_and_contour.py --posted    # the posted program of docs/toolpaths.md, each mode
 
-prints the table of docs/results.md.
+prints the tables of docs/results.md.
 """
 
 import copy
@@ -30,6 +31,7 @@ from robstiff_drake.model.robot import load_robot
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / "diagrams" / "face_and_contour.yaml"
+POSTED = ROOT / "diagrams" / "face_contour_fanuc.yaml"
 
 
 def finishing_scenario(folder):
@@ -82,8 +84,31 @@ def table(name, base, robot):
         print("advice (identified model): no line's predicted error exceeds the tolerance")
 
 
+def posted_table(robot):
+    """The posted program of docs/toolpaths.md (diagrams/face_contour_fanuc.yaml: a Fusion 360-style Fanuc
+    post's face-and-contour job, run unchanged; its scenario's compensator is plain) through each mode."""
+    base = load_scenario(POSTED)
+    rows = [row("uncompensated", "-", base, robot, False)]
+    for mode in ("plain", "predictive", "preview"):
+        sc = copy.deepcopy(base)
+        sc.controller.mode = mode
+        rows.append(row(mode, "identified", sc, robot, True))
+    sc = copy.deepcopy(base)
+    sc.controller.mode = "preview"
+    sc.model.source = "nominal"
+    rows.append(row("preview", "exact (bound)", sc, robot, True))
+    print("\nface_contour_fanuc.nc (the posted program, unchanged; F1200, 2 mm)")
+    print("| run | compensator's model | mean (mm) | RMS (mm) | max abs (mm) | cycle time (s) |")
+    print("|---|---|---|---|---|---|")
+    for label, model, mean, rms, mx, t in rows:
+        print(f"| {label} | {model} | {mean:+.3f} | {rms:.3f} | {mx:.3f} | {t:.2f} |")
+
+
 def main():
     robot = load_robot()
+    if "--posted" in sys.argv[1:]:
+        posted_table(robot)
+        return
     table("face_and_contour.nc (F1200, 3 mm, tolerance 0.05 mm)", load_scenario(SCENARIO), robot)
     with tempfile.TemporaryDirectory() as folder:
         table("the same program as a finishing pass (F2400, 1 mm, tolerance 0.02 mm)", finishing_scenario(folder), robot)

@@ -4,28 +4,38 @@ the arm's dynamics, so that the correction anticipates the arm's response
 instead of chasing the static deflection.  Plain numpy; no Drake, and
 nothing of the plant's own code: the compensator's own models only.
 
-The arm about the planned path, linearised (joint space, link side):
+The arm about the planned path, linearised (joint space, link side), the
+form of the plant's joints (model/joint_dynamics.py) with the compensator's
+own numbers:
 
-    M(q) e'' + beta K e' + K e = J^T W - M q_p''  +  K d + beta K d'
+    M(q) q''     = K (theta - q) + D (theta' - q') + J^T W
+    J_m theta''  = tau_drive - K (theta - q) - D (theta' - q')
 
-with e the link angles' deviation from the path q_p, K the compensator's
-(identified) joint stiffness, beta its stiffness-proportional damping, W
-the cutting wrench at the tool point, q_p'' the path's own acceleration
-(ArmInertia's M: the robot file's nominal inertias), and d the motor's
-offset from the path.  The motor offset that keeps e = 0 is
+with q the link angles, theta the motors' (link-side units), K the
+compensator's (identified) joint stiffness, D its modal damping (each mode
+of the links on their gears, M against K, gets the damping ratio zeta_i:
+D = M Phi diag(2 zeta_i omega_i) Phi^T M), W the cutting wrench at the
+tool point, M the robot file's nominal inertias (ArmInertia) and J_m the
+motors' rotor inertias (the robot file's, or its stated assumption).  For
+the links to stay on the path q_p the motors must lead it by the gears'
+twist d, and the gears then carry f = M q_p'' - J^T W:
 
-    d = (1 + beta s)^-1 C (M q_p'' - J^T W)  -  theta_err
+    K d + D d' = f
 
-where theta_err is the servo's own error in following the path (with
-velocity feed-forward it lags at the path's accelerations).  The robot
-controller moves the motor by a correction c sent with the path's joint
-reference, after the same dead time as the reference itself and through its
-position/velocity loops without feed-forward (ServoModel: a dead time, a
-position gain Kp and a velocity loop of bandwidth omega_v, the form of
-model/servo.py's plant but the compensator's own, identified, numbers), so
-the correction to send is the servo's inverse applied to d:
+The robot controller moves the motor by a correction c sent with the
+path's joint reference, after the same dead time (it cancels) and through
+its position loop (gain Kp) and its velocity loop (a PI: gain K_v =
+omega_v (J_m + M_jj), the rigid axis's tuning, integral corner omega_i)
+without feed-forward; the path's own reference comes with velocity
+feed-forward and so needs no correction but for the torque the drive has
+to find.  Solving the drive's equation for c with theta = q_p + d:
 
-    c = d + d' / Kp + d'' / (omega_v Kp)      (the dead time cancels)
+    c = d + d' / Kp + s / (s + omega_i) [J_m (q_p'' + d'') + f] / (K_v Kp)
+
+the last term being the drive's own give under the torque it supplies
+(the gears' pull and the motor's inertia), which its integral action
+removes at low frequency (ServoModel: the dead time, Kp, omega_v and
+omega_i; identified from a step test: diagrams/user_model.py).
 
 ``PreviewStream`` computes c one sample ahead per controller cycle from
 the planned path (the joint reference, the tool point, the feed direction),
@@ -115,20 +125,6 @@ class ServoModel:
             return out
         for i in on:
             out[i] = linalg.expm(aug * tau[i])[0, 3]
-        return out
-
-    def path_error(self, q, step_s):
-        """theta - q (N, n) of a servo following the samples q (N, n) every
-        ``step_s`` with velocity feed-forward (the dead time left out: the
-        path and the correction share it), starting at rest on q[0]."""
-        q = np.asarray(q, dtype=float)
-        v = np.gradient(q, step_s, axis=0) if len(q) > 1 else np.zeros_like(q)
-        Ad, Bd = self._discrete(step_s, 1.0)
-        x = np.stack([q[0], np.zeros(q.shape[1]), np.zeros(q.shape[1])])  # (3, n): theta, theta', z
-        out = np.empty_like(q)
-        for k in range(len(q)):
-            out[k] = x[0] - q[k]
-            x = Ad @ x + Bd @ np.stack([q[k], v[k]])
         return out
 
 
