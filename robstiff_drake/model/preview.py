@@ -186,13 +186,13 @@ class PreviewStream:
         M = self.m.mass(q)
         K = 1.0 / self.C
         Kd = np.diag(K)
-        w2, Phi = linalg.eigh(Kd, M)
-        if np.all(self.zeta > 0):
-            MP = M @ Phi
-            D = MP @ np.diag(2.0 * self.zeta * np.sqrt(np.maximum(w2, 0.0))) @ MP.T
-            Ed = linalg.expm(-np.linalg.solve(D, Kd) * self.T)
-        else:  # an undamped model: the gears twist with the load at once
-            Ed = np.zeros((6, 6))
+        w2, Phi = linalg.eigh(Kd, M)  # Phi^T M Phi = I, Phi^T K Phi = diag(omega^2)
+        # D^-1 K = Phi diag(omega / (2 zeta)) Phi^T M: each mode's twist settles with its own rate
+        # (an undamped mode: at once)
+        w = np.sqrt(np.maximum(w2, 0.0))
+        with np.errstate(divide="ignore"):
+            rate = np.where(self.zeta > 0, w / (2.0 * np.maximum(self.zeta, 1e-300)), np.inf)
+        Ed = (Phi * np.exp(-rate * self.T)) @ Phi.T @ M
         Kv = self.servo.omega_v * (self.Jm + np.diag(M))
         return M, Ed, Kv
 
