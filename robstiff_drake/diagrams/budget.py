@@ -17,13 +17,15 @@ Sources, and what "removed" means (the scenario's other settings kept):
 * sampling period and transport delay: no delay periods, the controller
   (and the plant, and the sensor at >= 1 kHz) at 1 ms;
 * lost motion: none in the gears (nor in the compensator's model);
-* the arm's dynamic response: the arm's, the payload's and the motors'
-  masses and inertias scaled by EPSILON and gravity by 1 / EPSILON: the
-  same static loads, the modes sqrt(1 / EPSILON) = 5 times faster (the
-  first at about 25 Hz instead of 5): the arm follows force changes and the
-  path's accelerations quasi-statically (the drives' velocity gains follow
-  the inertias, so the servo's bandwidth stays; the plant's explicit step
-  then needs FAST_STEP_S for the stiffest mode, 125 Hz -> about 620 Hz);
+* the arm's dynamic response: the arm's and the payload's masses and
+  inertias scaled by EPSILON and gravity by 1 / EPSILON: the same static
+  loads, the links' modes on their gears sqrt(1 / EPSILON) = 5 times
+  faster (the first at about 25 Hz instead of 5): the arm follows force
+  changes and the path's accelerations quasi-statically; the motors' rotor
+  inertias are the drives' and stay (scaled too, the drives' loop diverged
+  in a step test at this step); the plant's explicit step then needs
+  FAST_STEP_S for the stiffest mode (125 Hz -> about 620 Hz), checked
+  converged against 0.2 ms in a step test;
 * kinematic error (a study's controller whose kinematic model is not the
   arm's: its path accuracy; studies/paper_reproduction.py): the arm's own;
 * scan noise: a noiseless scan (the budget's statistics are the scan's, as
@@ -101,8 +103,7 @@ def scaled_robot(robot, eps):
     links = tuple(dataclasses.replace(link, mass_kg=link.mass_kg * eps, inertia_kgm2=link.inertia_kgm2 * eps)
                   for link in robot.links)
     payload = dataclasses.replace(robot.payload, mass_kg=robot.payload.mass_kg * eps)
-    motors = None if robot.motor_inertia_kgm2 is None else np.asarray(robot.motor_inertia_kgm2, dtype=float) * eps
-    return dataclasses.replace(robot, links=links, payload=payload, motor_inertia_kgm2=motors)
+    return dataclasses.replace(robot, links=links, payload=payload)
 
 
 def without(sc, robot, removed, model):
