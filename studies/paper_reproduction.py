@@ -28,6 +28,7 @@ are not simulated.
 
     python studies/paper_reproduction.py            # about 10-20 minutes on a quiet 2-core machine
     python studies/paper_reproduction.py --no-budget
+    python studies/paper_reproduction.py --budget-only
 
 prints the reproduction table and each part's error budget
 (diagrams/budget.py: the block's RMS error (its compensated mean is near
@@ -102,9 +103,12 @@ def cut_stats(sc, robot, compensation):
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--no-budget", action="store_true")
+    ap.add_argument("--budget-only", action="store_true", help="only the budgets of draw 0")
     ap.add_argument("--draws", type=int, default=DRAWS)
     args = ap.parse_args(argv)
     robot = load_robot()
+    if args.budget_only:
+        return budget_tables(robot)
     print("| part | statistic | paper (mm) | draw | uncompensated (mm) | compensated (mm) | ratio to the paper |")
     print("|---|---|---|---|---|---|---|")
     summary = {}
@@ -133,6 +137,10 @@ def main(argv=None):
               f"{v[:, 1].max():.3f}); the paper {bp:g} -> {ap_:g}")
     if args.no_budget:
         return
+    budget_tables(robot)
+
+
+def budget_tables(robot):
     for name, (_, _, metric) in PAPER.items():
         metric = "rms" if metric == "mean" else metric  # (a mean near zero has no budget to split)
         b = budgets.error_budget(paper_scenario(name, robot, 0), robot, metric=metric,

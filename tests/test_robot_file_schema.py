@@ -176,14 +176,15 @@ def test_the_rigid_body_checks_agree_with_drake():
 
 
 def test_a_key_added_to_the_table_is_checked_with_its_range_and_unit(monkeypatch, tmp_path):
-    """How another change adds a key: one line in robot_file.KEYS."""
-    monkeypatch.setitem(robot_file.KEYS, "joint_limits.speed_deg_per_s",
-                        robot_file.Key("vector", "deg/s", 1.0, 1000.0, 6, required=False, names=robot_file.JOINTS))
+    """How another change adds a key: one line in robot_file.KEYS (a made-up key,
+    not one the table already has)."""
+    monkeypatch.setitem(robot_file.KEYS, "joint_limits.jerk_deg_per_s3",
+                        robot_file.Key("vector", "deg/s^3", 1.0, 1000.0, 6, required=False, names=robot_file.JOINTS))
     assert load_robot(DEFAULT_ROBOT_YAML).name == "irb6400"  # optional: files without it still load
     p = edited(tmp_path, "  upper_deg: [ 180.0,  70.0, 105.0,  300.0,  120.0,  300.0]",
                "  upper_deg: [ 180.0,  70.0, 105.0,  300.0,  120.0,  300.0]\n"
-               "  speed_deg_per_s: [100, 100, 100, 200, 5000, 200]")
-    with pytest.raises(InputError, match=rf"robot.yaml:{line_of(p, 'speed_deg_per_s')}: key "
-                                         r"'joint_limits.speed_deg_per_s': joint 5: 5000 is outside the allowed range "
-                                         r"\[1, 1000\] deg/s"):
+               "  jerk_deg_per_s3: [100, 100, 100, 200, 5000, 200]")
+    with pytest.raises(InputError, match=rf"robot.yaml:{line_of(p, 'jerk_deg_per_s3')}: key "
+                                         r"'joint_limits.jerk_deg_per_s3': joint 5: 5000 is outside the allowed range "
+                                         r"\[1, 1000\] deg/s\^3"):
         load_robot(p)
