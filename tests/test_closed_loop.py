@@ -222,6 +222,7 @@ def test_compensation_with_an_identified_model(robot, tmp_path, capsys):
     # and the nominal model on the same plant is visibly worse (the model matters)
     sc_nominal = copy.deepcopy(sc)
     sc_nominal.model.identified_json = ""
+    sc_nominal.model.source = "nominal"  # the robot file's stiffness (the default is the identified model)
     res_nominal = run_cut(sc_nominal, robot, compensation=True)
     assert abs(res_nominal.surface_error_mm["mean"]) > abs(res.surface_error_mm["mean"])
 

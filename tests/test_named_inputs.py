@@ -53,8 +53,9 @@ def refused_unchanged(capsys, folder, argv, *fragments):
 def scenario(folder, model="", robot=None, program=None):
     """A scenario in ``folder`` naming files beside it."""
     text = SHORT
-    if model:
-        text = text.replace("controller:", "model:\n" + model + "controller:")
+    if model:  # (the fixture has a model section already: the keys join it)
+        text = text.replace("\nmodel:\n", "\nmodel:\n" + model, 1) if "\nmodel:\n" in text else \
+            text.replace("controller:", "model:\n" + model + "controller:")
     if robot:
         text = text.replace("name: short_block", f"name: short_block\nrobot: {robot}")
     if program:

@@ -317,14 +317,12 @@ def _scenario(tmp_path, text, name="s.yaml"):
 
 def test_model_files_a_scenario_names_are_checked(capsys, tmp_path):
     (tmp_path / "ident.json").write_text('{"joint_stiffness_Nm_per_rad": [1.5e6, NaN, 8e5, 3e5, 3e5, 2e5]}')
-    s = _scenario(tmp_path, SHORT.read_text().replace("controller:", "model:\n  identified_json: ident.json\n"
-                                                                      "controller:"))
+    s = _scenario(tmp_path, SHORT.read_text().replace("model:\n", "model:\n  identified_json: ident.json\n"))
     code, _, err = cli(capsys, "simulate", s, "--out", tmp_path / "o")
     one_line_error(code, err)
     assert "expected six finite stiffnesses" in err
     (tmp_path / "pay.yaml").write_text("payload_calibration:\n  mass_kg: -40.0\n  com_mm: [0, 0, 180]\n")
-    s = _scenario(tmp_path, SHORT.read_text().replace("controller:", "model:\n  payload_yaml: pay.yaml\n"
-                                                                      "controller:"))
+    s = _scenario(tmp_path, SHORT.read_text().replace("model:\n", "model:\n  payload_yaml: pay.yaml\n"))
     code, _, err = cli(capsys, "simulate", s, "--out", tmp_path / "o")
     one_line_error(code, err)
     assert "pay.yaml:2: payload_calibration.mass_kg: -40 is outside the allowed range" in err

@@ -98,7 +98,7 @@ def test_alias_bombs_are_refused_in_every_user_file_under_a_memory_limit(tmp_pat
     case("merge/s.yaml", SHORT.replace("cutter:\n", "base: &b {diameter_mm: 75.0}\ncutter:\n  <<: *b\n"),
          lambda p: ["simulate", p, "--out", tmp_path / "o"], lambda p: f"{p}:")
     (tmp_path / "pay").mkdir()
-    (tmp_path / "pay" / "s.yaml").write_text(SHORT.replace("controller:", "model:\n  payload_yaml: p.yaml\ncontroller:"))
+    (tmp_path / "pay" / "s.yaml").write_text(SHORT.replace("\nmodel:\n", "\nmodel:\n  payload_yaml: p.yaml\n", 1))
     case("pay/p.yaml", PAYLOAD.replace("  com_mm: [0, 0, 180]", f"  com_mm: {b}"),
          lambda p: ["simulate", p.parent / "s.yaml", "--out", tmp_path / "o"], lambda p: f"{p}:3:")
     case("robot/r.yaml", ROBOT.replace('source: "the paper\'s Table 1 (standard DH as printed)"', f"source: {b}"),
@@ -151,7 +151,7 @@ def test_deep_nesting_is_one_line_in_every_reader(capsys, tmp_path, depth):
     _one_line(capsys, ["fk", 0, 0, 0, 0, 30, 0, "--robot", r], f"{r}:", "nested more than 64 levels deep")
     (tmp_path / "m.json").write_text('{"joint_stiffness_Nm_per_rad": ' + nested + "}")
     s2 = tmp_path / "s2.yaml"
-    s2.write_text(SHORT.replace("controller:", "model:\n  identified_json: m.json\ncontroller:"))
+    s2.write_text(SHORT.replace("\nmodel:\n", "\nmodel:\n  identified_json: m.json\n", 1))
     _one_line(capsys, ["simulate", s2, "--out", tmp_path / "o"], f"{tmp_path / 'm.json'}: nested {depth + 1} levels")
 
 

@@ -237,6 +237,17 @@ def build_parser():
                         "as one HTML file that opens in a browser without a server")
     p.add_argument("--progress", action="store_true", default=None,
                    help="show the progress bar (simulated time) even off a terminal")
+    p.add_argument("--tolerance-mm", type=_number_in(0.0, 10.0, "mm"), default=None,
+                   help="the surface tolerance the feed planner holds (replaces the scenario's path.tolerance_mm)")
+    p.add_argument("--advise", action="store_true",
+                   help="list the program lines whose predicted surface error exceeds the tolerance, with cause "
+                        "and the feed that keeps them within it")
+    p.add_argument("--advise-out", metavar="PROGRAM.nc", help="write the program with the advised feeds")
+    p.add_argument("--budget", action="store_true",
+                   help="the compensated cut's error budget: its residual by source (imperfections removed one at "
+                        "a time; docs/results.md)")
+    p.add_argument("--budget-metric", choices=["mean", "rms", "max_abs", "pv"], default="rms",
+                   help="the statistic of the measured surface error the budget decomposes (default: %(default)s)")
     _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
                          "scenario's `robot:` when it has one")
 
@@ -513,7 +524,9 @@ def _dispatch(args):
         return simulate.run(scenario=args.scenario, compensation=args.compensation, json_out=args.json,
                             out=args.out, compensator=args.compensator, noise_seed=args.noise_seed,
                             robot_yaml=args.robot, toolpath=args.toolpath, work_offset=args.work_offset,
-                            replay=args.replay, progress=args.progress)
+                            replay=args.replay, progress=args.progress, advise=args.advise,
+                            advise_out=args.advise_out, budget=args.budget, budget_metric=args.budget_metric,
+                            tolerance_mm=args.tolerance_mm)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep
 

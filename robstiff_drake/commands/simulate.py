@@ -10,6 +10,7 @@ actual tool path, the true surface): the truth that ``robstiff
 diagnose-run`` never reads.  ``--compensator SETTINGS.yaml`` runs the
 scenario's machine with another compensator (a verification cut)."""
 
+import copy
 import csv
 import io
 import shutil
@@ -25,9 +26,13 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.identification.run_files import SIM_PREFIX, joint_reference_text, read_settings
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text, write_atomic
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.progress import wrote
+from robstiff_drake.model.feed_plan import check_rewritable
+from robstiff_drake.progress import info, wrote
 
 MODES = {"on": (True,), "off": (False,), "both": (False, True)}
+# A tolerance must be at least this many times the scan's noise (1 sigma)
+# to be verifiable by the scan (the 2-sigma band of one point).
+TOLERANCE_NOISE_FACTOR = 2.0
 
 
 def label(compensation):
@@ -184,12 +189,16 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
     "X,Y,Z[,ROT_DEG]"), with the compensator of a settings file
     (``compensator``) and the sensor's and scanner's noise seeds set to
     ``noise_seed`` (a repeated cut: new noise) when given."""
+    from robstiff_drake.diagrams import user_model as user_models
     from robstiff_drake.diagrams.cell_record import scenario_with_compensator
+    from robstiff_drake.diagrams.milling_cell import planned_path as cell_path
     from robstiff_drake.diagrams.scenario import load_scenario
 
     sc = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset)
     if compensator is not None:
         _, settings = read_settings(compensator)
+        _, _, q_ref = cell_path(sc, robot, robot.tool_point(where="the closed loop"))
+        user_models.resolve(sc, robot, q_ref[0])  # (the run's own model: its payload calibration)
         sc = scenario_with_compensator(sc, settings, robot)
     if noise_seed is not None:
         sc.sensor.seed = sc.scan.seed = int(noise_seed)
@@ -197,26 +206,58 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
 
 
 def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None, compensator=None,
-             noise_seed=None, toolpath=None, work_offset=None, progress=False):
+             noise_seed=None, toolpath=None, work_offset=None, progress=False, tolerance_mm=None, extras=None):
     """Load and run; returns (scenario, results).  The robot: ``robot`` (a
     RobotModel), else --robot's ``robot_yaml``, else the scenario's own.
     Warnings about the settings and the result go to ``warnings`` (an
     io.Warnings) if given.  ``compensator``, ``noise_seed``, ``toolpath``, ``work_offset``: see load_for_run;
-    ``progress``: a bar over simulated time (experiment.run_cut)."""
+    ``progress``: a bar over simulated time (experiment.run_cut).  With a
+    tolerance (``tolerance_mm``, else the scenario's path.tolerance_mm), the
+    compensated cut runs on the feed planner's path (diagrams/feed_plan.py);
+    ``extras`` (a dict) gets the plan under "feed_plan" and the compensated
+    scenario under "compensated_scenario"."""
     if compensation not in MODES:
         raise InputError(f"simulate: --compensation must be on, off or both, got {compensation!r}")
+    from robstiff_drake.diagrams import user_model as user_models
     from robstiff_drake.diagrams.experiment import run_cut
+    from robstiff_drake.diagrams.feed_plan import plan_feeds
+    from robstiff_drake.diagrams.milling_cell import planned_path as cell_path
     from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
 
     robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset), robot_yaml)
     sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed, toolpath=toolpath,
                       work_offset=work_offset)
+    if tolerance_mm is not None:
+        check_tolerance(sc, tolerance_mm, "--tolerance-mm")
+        sc.path.tolerance_mm = float(tolerance_mm)
+    _, _, q_ref = cell_path(sc, robot, robot.tool_point(where="the closed loop"))
+    user_models.resolve(sc, robot, q_ref[0])  # the compensator's model (for the warnings too)
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot))
-    results = [run_cut(sc, robot, compensation=c, progress=progress) for c in MODES[compensation]]
+    sc_comp = sc
+    if sc.path.tolerance_mm > 0 and True in MODES[compensation]:
+        plan = plan_feeds(sc, robot)
+        sc_comp = copy.deepcopy(sc)
+        sc_comp._feed_overrides = plan.overrides
+        if extras is not None:
+            extras["feed_plan"] = plan
+        if warnings is not None and not plan.converged:
+            warnings.extend_from(plan.notes)
+    if extras is not None:
+        extras["compensated_scenario"] = sc_comp
+    results = [run_cut(sc_comp if c else sc, robot, compensation=c, progress=progress) for c in MODES[compensation]]
     if warnings is not None:
         warnings.extend_from(run_warnings(results, sc))
     return sc, results
+
+
+def check_tolerance(sc, tolerance_mm, where):
+    """Refuse a tolerance the scan cannot verify (InputError, one line)."""
+    floor = TOLERANCE_NOISE_FACTOR * sc.scan.noise_mm
+    if 0 < tolerance_mm < floor:
+        raise InputError(f"{where}: a tolerance of {tolerance_mm:g} mm is below what the scan can verify: twice its "
+                         f"noise, {TOLERANCE_NOISE_FACTOR:g} x scan.noise_mm = {floor:g} mm (a surface within it "
+                         "could not be told from one outside it)")
 
 
 def surface_csv(res, run_id=""):
@@ -305,27 +346,97 @@ def write_outputs(sc, results, robot, run, warnings=()):
     return written
 
 
+def model_description(sc, robot):
+    """What the compensator's model was (JSON): its source and, identified,
+    the numbers and seeds it came from."""
+    from robstiff_drake.diagrams.scenario import plant_stiffness, user_model_of
+
+    um = user_model_of(sc)
+    out = {"source": sc.model.source}
+    if um is not None:
+        out.update(um.describe(plant_stiffness(sc, robot)))
+    return out
+
+
+def format_feed_plan(plan, advise):
+    """The feed plan's summary (and, with ``advise``, the advice table)."""
+    inc = plan.cycle_time_s / plan.program_cycle_time_s - 1.0
+    lines = [f"feed plan (tolerance {plan.tolerance_mm:g} mm, predicted on the compensator's model): "
+             f"{plan.predicted_max_abs_mm:.3f} mm predicted as programmed, {plan.predicted_after_max_abs_mm:.3f} mm "
+             f"adapted; cycle time {plan.program_cycle_time_s:.2f} s -> {plan.cycle_time_s:.2f} s ({100 * inc:+.1f} %)"]
+    if advise:
+        if not plan.advice:
+            lines.append("advice: no program line's predicted surface error exceeds the tolerance")
+        else:
+            lines.append("advice: program lines whose predicted surface error exceeds the tolerance")
+            lines.append("   line   error (mm)   cause      feed (mm/min)   programmed")
+            for a in plan.advice:
+                lines.append(f"  {a['line']:5d}   {a['error_mm']:9.3f}    {a['cause']:9s}  {a['feed_mm_per_min']:10.0f}"
+                             f"      {a['programmed_feed_mm_per_min']:8.0f}")
+    return "\n".join(lines)
+
+
 def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None,
-        robot_yaml=None, toolpath=None, work_offset=None, replay=None, progress=None):
-    check_outputs(inputs=[scenario, compensator, toolpath], files={"--json": json_out, "--replay": replay},
+        robot_yaml=None, toolpath=None, work_offset=None, replay=None, progress=None, advise=False, advise_out=None,
+        budget=False, budget_metric="rms", tolerance_mm=None):
+    check_outputs(inputs=[scenario, compensator, toolpath], files={"--json": json_out, "--replay": replay,
+                                                                  "--advise-out": advise_out},
                   folders={"--out": out})
+    if (advise or advise_out or budget) and compensation == "off":
+        raise InputError(f"{'--budget' if budget else '--advise'} is about the compensated cut: run with "
+                         "--compensation on or both")
     from robstiff_drake.diagrams import replay as replay_3d
 
     if replay is not None and not Path(replay).exists():  # a new file: its name now, before Drake's import
         replay_3d.check_replay_path(replay)
-    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+    from robstiff_drake.diagrams import budget as budgets
+    from robstiff_drake.diagrams.feed_plan import advised_program
+    from robstiff_drake.diagrams.scenario import load_scenario, resolve, scenario_robot
 
-    robot = scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset), robot_yaml)
+    sc0 = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset)
+    if tolerance_mm is not None:
+        check_tolerance(sc0, tolerance_mm, "--tolerance-mm")
+    tol = tolerance_mm if tolerance_mm is not None else sc0.path.tolerance_mm
+    if (advise or advise_out) and not tol > 0:
+        raise InputError("--advise: no tolerance to hold: set path.tolerance_mm in the scenario or give --tolerance-mm")
+    if advise_out is not None:
+        if not sc0.toolpath.program:
+            raise InputError("--advise-out: the scenario's path is not a G-code program (toolpath.program or --toolpath)")
+        program = resolve(sc0, sc0.toolpath.program)
+        try:
+            check_rewritable(program.read_bytes().decode("utf-8-sig", errors="replace"))
+        except ValueError as e:
+            raise InputError(f"--advise-out: {program}: {e}") from None
+    robot = scenario_robot(sc0, robot_yaml)
     if replay is not None:  # an existing file: after the scenario's inputs are known (it may be one of them)
         replay_3d.check_replay_path(replay)
     meshcat = None
     if replay is not None:  # Meshcat needs its server: refuse before the simulation when it cannot start
         meshcat = replay_3d.start_meshcat()
     warnings = Warnings()
+    extras = {}
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
                            compensator=compensator, noise_seed=noise_seed, toolpath=toolpath, work_offset=work_offset,
-                           progress=progress)
+                           progress=progress, tolerance_mm=tolerance_mm, extras=extras)
     summ = summary(results, sc, warnings)
+    summ["compensator_model"] = model_description(sc, robot)
+    summ["cycle_time_s"] = {label(r.compensation): r.cell.path.duration_s for r in results}
+    plan = extras.get("feed_plan")
+    if plan is not None:
+        summ["feed_plan"] = plan.as_dict()
+        summ["cycle_time_s"]["program"] = plan.program_cycle_time_s
+    if advise:
+        summ["advice"] = plan.advice
+    budget_result = None
+    if budget:
+        budget_result = budgets.error_budget(extras["compensated_scenario"], robot, metric=budget_metric,
+                                             progress=info if progress else None)
+        summ["error_budget_mm"] = budgets.budget_json(budget_result)
+        if budget_result.get("not_removed"):
+            summ["error_budget_not_removed"] = dict(budget_result["not_removed"])
+        summ["error_budget"] = budget_result
+    if advise_out is not None:
+        write_atomic(advise_out, advised_program(sc, plan))
     with RunFolder(out) as run_folder:
         written = write_outputs(sc, results, robot, run_folder, warnings)
     summ["run_id"] = run_folder.run_id
@@ -338,8 +449,14 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
         emit_json(summ, json_out)
     if json_out != "-":
         print(format_table(summ))
+        if plan is not None:
+            print(format_feed_plan(plan, advise))
+        if budget_result is not None:
+            print(budgets.format_budget(budget_result))
     stderr = json_out == "-"  # the JSON has standard output
     wrote(out, ", ".join(written), folder=True, to_stderr=stderr)
+    if advise_out is not None:
+        wrote(advise_out, "the program with the advised feeds", to_stderr=stderr)
     if replay is not None:
         wrote(replay, f"3D replay, deflection magnified {shown['magnification']:g}x "
                       f"({summ['replay']['bytes'] / 1e6:.1f} MB; opens in a browser without a server)", to_stderr=stderr)

@@ -79,12 +79,15 @@ class Compensator:
 
 
 def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, saturation_rad, rate_limit_rad_per_s,
-                     calibration, model_dh, model_stiffness_Nm_per_rad, tool_m, predictive=None,
+                     calibration, model_dh, model_stiffness_Nm_per_rad, tool_m, predictive=None, preview=None,
                      lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0, controller_plant=None, name="compensator"):
     """The compensator diagram (see module docstring).  ``calibration``: the
     payload calibration it believes; ``model_*``: its kinematics and joint
     stiffness; ``predictive``: a function (kinematics, lead) -> PredictiveWrench
-    for predictive compensation, or None; ``controller_plant``: the
+    for predictive compensation, or None; ``preview``: a function
+    (kinematics, deflection model) -> PreviewCorrection for preview
+    compensation (its ``dq`` replaces the prediction's), or None;
+    ``controller_plant``: the
     controller's model, for the gravity torque the gears carry (needed only
     when the model has lost motion).  Inputs ``wrench``,
     ``position_measured``; output ``correction`` and the LOG_PORTS."""
@@ -123,9 +126,15 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
         process = s["predictive"].GetOutputPort("process_wrench")
     builder.Connect(process, s["prediction"].GetInputPort("process_wrench"))
     builder.Connect(s["zoh_q"].get_output_port(), s["prediction"].GetInputPort("q"))
+    dq_port = s["prediction"].GetOutputPort("dq")
+    if preview is not None:
+        s["preview"] = builder.AddNamedSystem("preview_correction", preview(kin, s["prediction"].model))
+        builder.Connect(process, s["preview"].GetInputPort("process_wrench"))
+        builder.Connect(s["zoh_q"].get_output_port(), s["preview"].GetInputPort("q"))
+        dq_port = s["preview"].GetOutputPort("dq")
     sat = saturation_rad * np.ones(6)
     s["saturation"] = builder.AddNamedSystem("saturation", Saturation(-sat, sat))
-    builder.Connect(s["prediction"].GetOutputPort("dq"), s["saturation"].get_input_port())
+    builder.Connect(dq_port, s["saturation"].get_input_port())
     last = s["saturation"].get_output_port()
     # n extra controller periods, exactly: a discrete block adds one period by
     # its own update (same-instant semantics), so n = 1 is a ZeroOrderHold and
@@ -149,7 +158,7 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     builder.ExportOutput(s["filter"].get_output_port(), "filtered_wrench")
     builder.ExportOutput(process, "process_wrench")
     builder.ExportOutput(s["zoh_q"].get_output_port(), "q_sampled")
-    builder.ExportOutput(s["prediction"].GetOutputPort("dq"), "dq")
+    builder.ExportOutput(dq_port, "dq")
     diagram = builder.Build()
     diagram.set_name(name)
     s["kinematics"] = kin

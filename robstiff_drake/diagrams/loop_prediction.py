@@ -48,6 +48,10 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
     before it was traced; kept for that comparison)."""
     sc = configure(sc, combo, plant_step_ms)
     tool = robot.tool_point(where="the loop model")
+    from robstiff_drake.diagrams import user_model
+    from robstiff_drake.diagrams.milling_cell import planned_path as cell_path
+
+    user_model.resolve(sc, robot, cell_path(sc, robot, tool)[2][0])  # the compensator's model, as the run's
     cutter, fmodel, workpiece = cutting_setup(sc)
     path = planned_path(sc)
     t_mid = path.dwell_s + 0.5 * path.move_s

@@ -23,12 +23,28 @@ from pydrake.systems.primitives import Adder, Demultiplexer, LogVectorOutput, Mu
 from pydrake.trajectories import PiecewisePolynomial
 
 from robstiff_drake.diagrams.compensator import filter_coefficients, make_compensator
-from robstiff_drake.diagrams.scenario import cutting_setup, model_stiffness, payload_calibration
+from robstiff_drake.diagrams import user_model as user_models
+from robstiff_drake.diagrams.scenario import (
+    COEFFICIENT_GROUPS,
+    cutting_setup,
+    model_cutting_setup,
+    model_damping_ratios,
+    model_stiffness,
+    payload_calibration,
+)
 from robstiff_drake.diagrams.scenario import planned_path as scenario_path
 from robstiff_drake.diagrams.station import make_milling_station
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.path import PathError, PlannedPath
+from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.arm_dynamics import ArmInertia
+from robstiff_drake.model.preview import preview_table
 from robstiff_drake.systems.predictive_wrench import PredictiveWrench
+from robstiff_drake.systems.preview_correction import PreviewCorrection, PreviewModel
+
+# How far past the path's end the preview is computed (s): the run's own
+# run-out (experiment.RUN_OUT_S) and the correction's lead, with margin.
+PREVIEW_MARGIN_S = 0.5
 
 
 @dataclass
@@ -68,6 +84,7 @@ class MillingCell:
 
 
 _REFERENCES = {}  # IK along a path, reused by the runs of a sweep in one process
+_PREVIEWS = {}  # preview tables (model/preview.py) for a path and a compensator's model, likewise
 
 
 def planned_path(sc, robot, tool):
@@ -76,6 +93,9 @@ def planned_path(sc, robot, tool):
     p = sc.path
     try:
         path = scenario_path(sc)
+        if path.speed_overrides:  # the feed planner's: the same geometry, other timing
+            base, t_base, q_base = planned_path_without_overrides(sc, robot, tool)
+            return path, *retimed_references(base, t_base, q_base, path, p.reference_period_ms / 1e3)
         key = (path.signature(), p.reference_period_ms, robot.source, tuple(np.round(tool, 12)),
                robot.q_lower_rad.tobytes(), robot.q_upper_rad.tobytes())
         if key not in _REFERENCES:
@@ -83,7 +103,60 @@ def planned_path(sc, robot, tool):
     except PathError as e:  # (a program's path: its file:line, the first that leaves the robot's reach or limits)
         raise InputError(f"{e.where or f'{sc.source}: path'}: {e} (robot {robot.name})") from None
     t_ref, q_ref = _REFERENCES[key]
+    ctrl = getattr(sc, "_controller_robot", None)
+    if ctrl is not None:  # a controller whose kinematic model is not the arm's (diagrams/budget.py)
+        ckey = key + (ctrl.dh.home_rad.tobytes(), ctrl.dh.a_m.tobytes(), ctrl.dh.d_m.tobytes(),
+                      ctrl.dh.alpha_rad.tobytes())
+        if ckey not in _REFERENCES:
+            _REFERENCES[ckey] = (t_ref, references_with_kinematic_error(path, t_ref, robot, ctrl, tool))
+        t_ref, q_ref = _REFERENCES[ckey]
     return path, t_ref, q_ref
+
+
+def references_with_kinematic_error(path, t_ref, robot, ctrl, tool):
+    """The joint references a controller with the kinematic model ``ctrl``
+    (its own DH, e.g. joint zeros off by a mastering error) sends along the
+    path, the work offset touched off with the real arm at the path's
+    first point (so the part starts where it is commanded; the error grows
+    over the part, as path accuracy does)."""
+    from robstiff_drake.model import ik
+
+    q_prev, q0 = None, None
+    qs = np.empty((len(t_ref), 6))
+    shift = np.zeros(3)
+    for k, t in enumerate(t_ref):
+        q = ik.solve_for(ctrl, ik.tool_down_pose(path.position(t) - shift, path.yaw), tool, q_ref_rad=q_prev)
+        if k == 0:
+            q0 = q
+            T = kin.tool_pose(robot.dh, q, tool)
+            shift = T[:3, 3] - path.position(t)  # the real arm's offset at the first point
+            q = ik.solve_for(ctrl, ik.tool_down_pose(path.position(t) - shift, path.yaw), tool, q_ref_rad=q0)
+        qs[k] = q
+        q_prev = q
+    return qs
+
+
+def planned_path_without_overrides(sc, robot, tool):
+    """planned_path of the scenario's program as written (no feed overrides)."""
+    saved = getattr(sc, "_feed_overrides", None)
+    sc._feed_overrides = None
+    try:
+        return planned_path(sc, robot, tool)
+    finally:
+        sc._feed_overrides = saved
+
+
+def retimed_references(base, t_base, q_base, path, dt_s):
+    """Joint references of ``path`` (the geometry of ``base``, other speeds)
+    every dt_s: the base path's IK solutions as a function of arc length (a
+    C2 cubic spline through them), at the new path's arc length."""
+    from scipy.interpolate import CubicSpline
+
+    s = np.array([base.arc_length(t) for t in t_base])
+    keep = np.r_[True, np.diff(s) > 1e-12]
+    spline = CubicSpline(s[keep], q_base[keep], axis=0)
+    ts = np.arange(0.0, path.duration_s + 0.5 * dt_s, dt_s)
+    return ts, spline(np.array([path.arc_length(t) for t in ts]))
 
 
 def build_station(sc, robot, *, q_modes_rad, path=None):
@@ -105,16 +178,63 @@ def check_plant_step(sc, robot):
     build_station(sc, robot, q_modes_rad=q_ref[0])
 
 
-def build_compensator(sc, robot, station, *, path, workpiece):
+def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_ba):
+    """A function (kinematics, deflection model) -> PreviewCorrection: the
+    scenario's preview compensator, from the compensator's own models (its
+    stiffness, the robot file's inertias, its servo model, its force model
+    per coefficient group; model/preview.py)."""
+    ss, ctl = sc.sensor, sc.controller
+    T = ctl.period_ms / 1e3
+    servo = user_models.servo_model(sc)
+    groups = [model_cutting_setup(sc, groups=g)[1] for g in COEFFICIENT_GROUPS]
+    inertia = ArmInertia(robot)
+    ratios = model_damping_ratios(sc)
+    motors = inertia.motor_inertia(q_ref[0])
+    um = sc._user_model if sc.model.source == "identified" else None
+    sigma = max(sc.model.identification.coefficient_error, 0.05) if um is not None else 0.05
+
+    def make(kin, deflection):
+        C = kin.joint_compliance
+        key = (path.signature(), T, tuple(C.tolist()), tuple(ratios), servo, tuple(motors), tuple(np.round(tool_m, 12)),
+               robot.source,
+               hash(np.asarray(q_ref).tobytes()), workpiece.boxes,
+               tuple((tuple(m.Kc.tolist()), tuple(m.Ke.tolist()), m.feed_m_per_s) for m in groups))
+        table = _PREVIEWS.get(key)
+        if table is None:
+            pm = PreviewModel(path=path, t_ref=t_ref, q_ref=q_ref, group_models=groups, workpiece=workpiece,
+                              kinematics=kin, inertia=inertia, tool_m=tool_m)
+            table = preview_table(pm, t_end_s=path.duration_s + PREVIEW_MARGIN_S, period_s=T, compliance=C,
+                                  damping_ratios=ratios, servo=servo, motor_inertia_kgm2=motors, tool_m=tool_m)
+            if len(_PREVIEWS) >= 8:
+                del _PREVIEWS[next(iter(_PREVIEWS))]
+            _PREVIEWS[key] = table
+        # a correction computed at a tick reaches the robot controller's
+        # sampling of its targets after the delay line and the correction's
+        # own update (Drake's same-instant semantics: each discrete block
+        # adds a period); the measured wrench lags the model's at the same
+        # path time by the arm's dead time behind its reference and two
+        # sensor samples (sensor, guard)
+        return PreviewCorrection(table=table, deflection=deflection, filter_ba=filter_ba, rate_hz=ss.rate_hz,
+                                 period_s=T, lead_s=(ctl.delay_steps + 1) * T,
+                                 lag_s=servo.dead_time_s + 2.0 / ss.rate_hz, scale_sigma=sigma)
+
+    return make
+
+
+def build_compensator(sc, robot, station, *, path, workpiece, t_ref=None, q_ref=None):
     """The scenario's compensator: its own stiffness model, payload
-    calibration and (in predictive mode) cutting-force model."""
+    calibration and (in predictive and preview modes) cutting-force model;
+    preview mode needs the path's joint references (``t_ref``, ``q_ref``)."""
     ss, ctl = sc.sensor, sc.controller
     T = ctl.period_ms / 1e3
     cutter, _, _ = cutting_setup(sc)
     ba = filter_coefficients(ctl.filter, ss.rate_hz, cutter.spindle_rpm)
-    predictive = None
+    predictive = preview = None
+    if ctl.mode == "preview":
+        preview = preview_factory(sc, robot, path=path, workpiece=workpiece, t_ref=t_ref, q_ref=q_ref,
+                                  tool_m=station.tool_m, filter_ba=ba)
     if ctl.mode == "predictive":
-        _, model_forces, _ = cutting_setup(sc, scale=sc.model.force_model_scale)
+        _, model_forces, _ = model_cutting_setup(sc)
         # a correction computed now acts after the delay line, half a hold,
         # and the station's interpolator and servo
         lead = (ctl.delay_steps + 1.5) * T + station.command_lag_s
@@ -127,7 +247,7 @@ def build_compensator(sc, robot, station, *, path, workpiece):
         rate_hz=ss.rate_hz, filter_ba=ba, max_jump_N=ss.max_jump_N, period_s=T, delay_steps=ctl.delay_steps,
         saturation_rad=np.deg2rad(ctl.saturation_deg), rate_limit_rad_per_s=np.deg2rad(ctl.rate_limit_deg_per_s),
         calibration=payload_calibration(sc, robot), model_dh=robot.dh, model_stiffness_Nm_per_rad=model_stiffness(
-            sc, robot), tool_m=station.tool_m, predictive=predictive,
+            sc, robot), tool_m=station.tool_m, predictive=predictive, preview=preview,
         lost_motion_rad=sc.model.lost_motion_rad or None, coupling_c23_rad_per_Nm=sc.model.coupling_c23_rad_per_Nm,
         controller_plant=station.controller_plant)
 
@@ -140,7 +260,8 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
     _, fmodel, workpiece = cutting_setup(sc)
     path, t_ref, q_ref = planned_path(sc, robot, tool)
     station = build_station(sc, robot, q_modes_rad=q_ref[0], path=path)
-    comp = build_compensator(sc, robot, station, path=path, workpiece=workpiece)
+    user_models.resolve(sc, robot, q_ref[0])
+    comp = build_compensator(sc, robot, station, path=path, workpiece=workpiece, t_ref=t_ref, q_ref=q_ref)
 
     builder = DiagramBuilder()
     st = builder.AddSystem(station.diagram)

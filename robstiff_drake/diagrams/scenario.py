@@ -162,6 +162,14 @@ class PathConfig:
     dwell_s: float = num(0.2, 0.0, 60.0, "s")  # at the first waypoint before the feed starts
     ramp_s: float = num(0.5, 0.0, 60.0, "s")  # cosine speed-up from rest to the feed (and slow-down at the end)
     reference_period_ms: float = num(4.0, 0.1, 100.0, "ms")  # IK samples of the joint references
+    # The surface tolerance the planner holds (model/feed_plan.py): where the
+    # predicted compensated error of a move exceeds it, the move's feed is
+    # lowered (as CAM feed-rate optimisation does), down to
+    # min_feed_fraction of the programmed feed.  0: no adaptation.  It must
+    # be at least twice the scan's noise (scan.noise_mm, 1 sigma): below
+    # that, the scan cannot tell a surface within it from one outside it.
+    tolerance_mm: float = num(0.0, 0.0, 10.0, "mm")
+    min_feed_fraction: float = num(0.25, 0.01, 1.0, "", why="a feed cut to 1 % is a stop, not a feed")
 
 
 @dataclass
@@ -221,7 +229,11 @@ class ControllerConfig:
     # "plain": the paper's compensator (the measured force, filtered and
     # delayed); "predictive": the model's force where the correction will act,
     # plus the filtered measured residual (see systems/predictive_wrench.py)
-    mode: str = choice("plain", ("plain", "predictive"))
+    # "preview": the predictive model through the arm's dynamics (the
+    # model's modes, servo and delays): the correction anticipates the arm's
+    # response to the force and to the path's accelerations
+    # (model/preview.py, systems/preview_correction.py)
+    mode: str = choice("plain", ("plain", "predictive", "preview"))
     # a robot controller's interpolation/position cycle: 0.1 ms (a fast CNC) to 1 s (useless for compensation)
     period_ms: float = num(4.0, 0.1, 1000.0, "ms")
     delay_steps: int = num(1, 0, 100, "periods", integer=True)
@@ -231,8 +243,56 @@ class ControllerConfig:
 
 
 @dataclass
+class IdentificationConfig:
+    """How the compensator's model is made when ``model.source`` is
+    "identified": what a user would have (diagrams/user_model.py), each
+    part on the scenario's own simulated cell.  Sizes and their sources:
+    docs/assumptions.md."""
+
+    # Joint stiffness: "identified" from a stiffness campaign (plan-poses
+    # loads on the cell, read by a laser tracker) or "exact" (the plant's).
+    stiffness: str = choice("identified", ("identified", "exact"))
+    measurements: int = num(40, 6, 500, "", integer=True)
+    load_N: float = num(300.0, 10.0, 5000.0, "N")  # the paper's Table 2: 180-360 N
+    # ASSUMPTION: 0.02 mm per coordinate, 1 sigma: a laser tracker's MPE
+    # (Leica AT960/AT500: 15 um + 6 um/m transverse) at 2-3 m is 27-33 um,
+    # typical results half of that; each displacement is two readings.
+    tracker_noise_mm: float = num(0.02, 0.0, 1.0, "mm")
+    # Payload and sensor bias: "calibrated" at configurations like the
+    # paper's (the wrist sensor's own readings, with its noise) or "exact".
+    payload: str = choice("calibrated", ("calibrated", "exact"))
+    payload_configurations: int = num(15, 4, 200, "", integer=True)  # the paper: 15
+    # The bias's drift between the calibration and the cut, 1 sigma per
+    # axis.  ASSUMPTION: a strain-gauge force transducer's zero moves by up
+    # to 0.05 % of its rated force per 10 K (HBM); a 2500 N six-axis sensor
+    # warmed 10-20 K by the spindle: 1.3-2.5 N; 0.1 N*m likewise.
+    bias_drift_N: float = num(2.0, 0.0, 100.0, "N")
+    bias_drift_Nm: float = num(0.1, 0.0, 10.0, "N*m")
+    # Cutting coefficients (predictive and preview modes): "perturbed", each
+    # off by a uniform draw within +-coefficient_error, or "exact".
+    # ASSUMPTION: 20 %: coefficients from a handbook or another batch of
+    # the alloy, another insert grade or a worn edge (issue 20).
+    coefficients: str = choice("perturbed", ("perturbed", "exact"))
+    coefficient_error: float = num(0.2, 0.0, 0.9, "")
+    # The controller's servo (preview mode): "identified" from a step test
+    # of the joint targets, or "exact" (the scenario's servo keys).
+    servo: str = choice("identified", ("identified", "exact"))
+    seed: int = num(20, 0, 2**32 - 1, "", integer=True)  # of every draw above
+
+
+@dataclass
 class ModelConfig:
     """What the compensator believes (the plant is the truth)."""
+
+    # "identified": what a user would have (model.identification: stiffness
+    # from a simulated campaign, a calibrated payload and bias, cutting
+    # coefficients off by a realistic amount, an identified servo);
+    # "nominal": the robot file's stiffness and the scenario's exact payload,
+    # bias, coefficients and servo (with a nominal plant: the perfect-model
+    # bound).  The keys below (joint_stiffness_Nm_per_rad, identified_json,
+    # payload_yaml) override their part of either.
+    source: str = choice("identified", ("identified", "nominal"))
+    identification: IdentificationConfig = field(default_factory=IdentificationConfig)
 
     # Joint stiffness (N*m/rad); empty: the robot file's nominal.
     joint_stiffness_Nm_per_rad: list[float] = vec([], (0, 6), *STIFFNESS_RANGE_NM_PER_RAD, "N*m/rad")
@@ -248,6 +308,17 @@ class ModelConfig:
     # what `robstiff diagnose-run` adds when it finds them.
     lost_motion_rad: list[float] = vec([], (0, 6), 0.0, 0.01, "rad")
     coupling_c23_rad_per_Nm: float = num(0.0, -1e-5, 1e-5, "rad/(N*m)")
+    # Preview mode's damping of the arm: the modal damping ratio of each mode
+    # of the links on their gears (lowest frequency first; one number: every
+    # mode), the form of the plant's (model/joint_dynamics.py).  Empty: the
+    # ratios this scenario states for its arm (plant.damping_ratios, else
+    # plant.modal_damping_ratio), read from the file as a user reads their
+    # arm's modal test; ASSUMPTION where the file states none: the plant
+    # section's default, 5 %, the middle of the 2-10 % that modal tests of
+    # industrial arms report (source in model/joint_dynamics.py).
+    damping_ratios: list[float] = vec([], (0, 1, 6), 0.0, MAX_DAMPING_RATIO, "",
+                                      why="a structural mode past 50 % of critical is no longer a mode; modal "
+                                          "tests of industrial arms find 2-10 %")
 
 
 @dataclass
@@ -341,6 +412,10 @@ def load_scenario(path, toolpath=None, work_offset=None):
             raise InputError(str(e).split(": unknown key")[0] + ": replaced by plant.modal_damping_ratio (one "
                              "ratio for every mode) or plant.damping_ratios (one per mode): the plant's damping "
                              "is modal now, not stiffness-proportional") from None
+        if "model.damping_ratio: unknown key" in str(e):  # preview's key before its damping was modal
+            raise InputError(str(e).split(": unknown key")[0] + ": replaced by model.damping_ratios (the modal "
+                             "damping ratio of each mode, or one for every mode; empty: the plant section's "
+                             "stated ratios)") from None
         raise
     try:
         sc = yaml_load_typed(schema=Scenario, data=text_) if text_.strip() else Scenario()
@@ -448,6 +523,11 @@ def check_scenario(sc):
     if not sc.toolpath.program and len(sc.path.waypoints_mm) < 2:
         _fail(sc, "path.waypoints_mm", f"expected at least 2 waypoints (or a toolpath.program), got "
                                        f"{len(sc.path.waypoints_mm)}")
+    tol, floor = sc.path.tolerance_mm, 2.0 * sc.scan.noise_mm
+    if 0 < tol < floor:
+        _fail(sc, "path.tolerance_mm", f"{tol:g} mm is below what the scan can verify: twice its noise, 2 x "
+                                       f"scan.noise_mm = {floor:g} mm (a surface within it could not be told from "
+                                       "one outside it)")
     if sc.model.joint_stiffness_Nm_per_rad and sc.model.identified_json:
         _fail(sc, "model.identified_json", "give model.joint_stiffness_Nm_per_rad or model.identified_json, not both")
     if sc.toolpath.program:
@@ -531,8 +611,16 @@ def resolve(sc, relative):
     return (Path(sc.source).parent / relative) if sc.source else Path(relative)
 
 
+def user_model_of(sc):
+    """The identified model a run resolved for ``sc`` (diagrams/user_model.py
+    sets it before the compensator is built), or None (``model.source:
+    nominal``, or not resolved: then the nominal parts stand in)."""
+    return getattr(sc, "_user_model", None) if sc.model.source == "identified" else None
+
+
 def model_stiffness(sc, robot):
-    """The compensator's joint stiffness (N*m/rad)."""
+    """The compensator's joint stiffness (N*m/rad): the scenario's explicit
+    model keys, else the identified model's, else the robot file's nominal."""
     if sc.model.joint_stiffness_Nm_per_rad:
         return np.asarray(sc.model.joint_stiffness_Nm_per_rad, dtype=float)
     if sc.model.identified_json:
@@ -543,6 +631,9 @@ def model_stiffness(sc, robot):
             _fail(sc, "model.identified_json", f"{p} has no joint_stiffness_Nm_per_rad (write it with `robstiff "
                                                "identify DATA.csv --json OUT`)")
         return checked_joint_stiffness(doc["joint_stiffness_Nm_per_rad"], where=str(p))
+    um = user_model_of(sc)
+    if um is not None:
+        return um.joint_stiffness_Nm_per_rad
     return robot.joint_stiffness_Nm_per_rad
 
 
@@ -573,6 +664,15 @@ def plant_damping_ratios(sc):
     return np.full(6, float(sc.plant.modal_damping_ratio))
 
 
+def model_damping_ratios(sc):
+    """(6,) the modal damping ratios the compensator's preview assumes
+    (model.damping_ratios; empty: the scenario's stated plant ratios)."""
+    r = sc.model.damping_ratios
+    if r:
+        return np.broadcast_to(np.asarray(r, dtype=float), (6,)).copy()
+    return plant_damping_ratios(sc)
+
+
 def plant_stiffness(sc, robot):
     if sc.plant.joint_stiffness_Nm_per_rad:
         return np.asarray(sc.plant.joint_stiffness_Nm_per_rad, dtype=float)
@@ -583,6 +683,7 @@ def planned_path(sc):
     """The scenario's tool path (PlannedPath, SI units): through its
     waypoints, or along its G-code program; PathError if it is malformed."""
     p = sc.path
+    overrides = getattr(sc, "_feed_overrides", None)  # the feed planner's (diagrams/feed_plan.py)
     if sc.toolpath.program:
         tp = sc.toolpath
         prog = _program(sc)
@@ -590,22 +691,44 @@ def planned_path(sc):
                                                                 program_setup.work_transform(tp))
         return PlannedPath.from_elements(elements, speeds, np.deg2rad(p.yaw_deg), p.dwell_s + prog.dwell_before_s,
                                          p.ramp_s, p.zone_mm / 1e3, stops=stops, dwells_s=dwells,
-                                         tags=[f"{prog.path}:{m.line}" for m in moves])
+                                         tags=[f"{prog.path}:{m.line}" for m in moves],
+                                         speed_overrides=overrides, lines=[m.line for m in moves])
     return PlannedPath(np.asarray(p.waypoints_mm, dtype=float) / 1e3, p.feed_mm_per_s / 1e3, np.deg2rad(p.yaw_deg),
-                       p.dwell_s, p.ramp_s, p.zone_mm / 1e3)
+                       p.dwell_s, p.ramp_s, p.zone_mm / 1e3, speed_overrides=overrides)
 
 
-def cutting_setup(sc, scale=1.0):
+def cutting_setup(sc, scale=1.0, factors=None, groups=None):
     """(cutter, force model, workpiece) of the scenario; ``scale`` multiplies
-    every coefficient (a compensator's model that is off by that factor)."""
+    every coefficient (a compensator's model that is off by that factor),
+    ``factors`` ({coefficient name: factor}) each one; ``groups``: keep
+    only these coefficients (names), the others 0 (a group's share)."""
     cutter = Cutter(sc.cutter.diameter_mm / 1e3, int(sc.cutter.n_teeth), sc.cutter.spindle_rpm)
     c = sc.cutting
     s, sa = c.tangential_radial_scale * scale, c.axial_scale * scale
-    coeffs = CuttingCoefficients(c.Ktc_N_per_mm2 * s, c.Krc_N_per_mm2 * s, c.Kac_N_per_mm2 * sa,
-                                 c.Kte_N_per_mm * s, c.Kre_N_per_mm * s, c.Kae_N_per_mm * sa)
+    f = dict(factors or {})
+    values = {"Ktc_N_per_mm2": c.Ktc_N_per_mm2 * s, "Krc_N_per_mm2": c.Krc_N_per_mm2 * s,
+              "Kac_N_per_mm2": c.Kac_N_per_mm2 * sa, "Kte_N_per_mm": c.Kte_N_per_mm * s,
+              "Kre_N_per_mm": c.Kre_N_per_mm * s, "Kae_N_per_mm": c.Kae_N_per_mm * sa}
+    values = {k: v * f.get(k, 1.0) * (1.0 if groups is None or k in groups else 0.0) for k, v in values.items()}
+    coeffs = CuttingCoefficients(**values)
     model = MillingForceModel(cutter, coeffs, sc.path.feed_mm_per_s / 1e3)
     workpiece = Workpiece.from_boxes(np.asarray(sc.workpiece.boxes_mm, dtype=float) / 1e3)
     return cutter, model, workpiece
+
+
+# The force model's coefficients by group (preview mode scales each group
+# by what the cut shows): tangential, radial, axial.
+COEFFICIENT_GROUPS = (("Ktc_N_per_mm2", "Kte_N_per_mm"), ("Krc_N_per_mm2", "Kre_N_per_mm"),
+                      ("Kac_N_per_mm2", "Kae_N_per_mm"))
+
+
+def model_cutting_setup(sc, groups=None):
+    """(cutter, force model, workpiece) as the compensator models the cut:
+    the scenario's coefficients times model.force_model_scale and, with an
+    identified model, each coefficient's error factor."""
+    um = user_model_of(sc)
+    return cutting_setup(sc, scale=sc.model.force_model_scale,
+                         factors=um.coefficient_factors if um is not None else None, groups=groups)
 
 
 def exact_payload_calibration(sc, robot):
@@ -649,12 +772,20 @@ def read_payload_calibration(path, named_by=None):
 
 def payload_calibration(sc, robot):
     """The gravity-removal parameters: from the scenario's payload_yaml, or
-    the exact payload and sensor bias."""
+    the identified model's, or the exact payload and sensor bias (an error
+    budget's run with the arm's masses scaled keeps the real payload's:
+    ``_payload_calibration_override``, diagrams/budget.py)."""
+    override = getattr(sc, "_payload_calibration_override", None)
+    if override is not None:
+        return override
     if sc.model.payload_yaml:
         p = resolve(sc, sc.model.payload_yaml)
         if not p.is_file():
             _fail(sc, "model.payload_yaml", f"no such file {p}")
         return read_payload_calibration(p, f"model.payload_yaml of {sc.source or 'the scenario'}")
+    um = user_model_of(sc)
+    if um is not None:
+        return um.calibration
     return exact_payload_calibration(sc, robot)
 
 

@@ -108,27 +108,47 @@ class MillingForceModel:
         self.c_f = cutter.feed_per_tooth_m(feed_m_per_s)
         # Revolution average: rows (f_u, f_v, f_z, m_u, m_v, m_z) of the
         # per-tooth wrench per metre of depth as coefficients of the basis
-        # (1, c, s, c s, c^2), c = cos theta, s = sin theta; times N / (2 pi).
-        (Ktc, Krc, Kac), (Kte, Kre, Kae) = self.Kc * self.c_f, self.Ke
+        # (1, c, s, c s, c^2), c = cos theta, s = sin theta; times N / (2 pi):
+        # the edge part, and the cutting part per metre of feed per tooth.
+        Kt, Kr, Ka = self.Kc
+        (Kte, Kre, Kae) = self.Ke
         R = cutter.radius_m
-        basis = np.array([
-            [0.0, -Kre, -Kte, -Ktc, -Krc],   # f_u = -k_t s - k_r c
-            [0.0, Kte, -Kre, -Krc, Ktc],     # f_v = k_t c - k_r s
-            [Kae, Kac, 0.0, 0.0, 0.0],       # f_z = k_a
-            [0.0, 0.0, R * Kae, R * Kac, 0.0],  # m_u = R s f_z
-            [0.0, -R * Kae, 0.0, 0.0, -R * Kac],  # m_v = -R c f_z
-            [R * Kte, R * Ktc, 0.0, 0.0, 0.0],  # m_z = R k_t (the cutting torque)
-        ]) * (cutter.n_teeth / (2 * np.pi))
-        self._basis = [tuple(float(v) for v in row) for row in basis]
+        n = cutter.n_teeth / (2 * np.pi)
+        edge = np.array([
+            [0.0, -Kre, -Kte, 0.0, 0.0],     # f_u = -k_t s - k_r c
+            [0.0, Kte, -Kre, 0.0, 0.0],      # f_v = k_t c - k_r s
+            [Kae, 0.0, 0.0, 0.0, 0.0],       # f_z = k_a
+            [0.0, 0.0, R * Kae, 0.0, 0.0],   # m_u = R s f_z
+            [0.0, -R * Kae, 0.0, 0.0, 0.0],  # m_v = -R c f_z
+            [R * Kte, 0.0, 0.0, 0.0, 0.0],   # m_z = R k_t (the cutting torque)
+        ]) * n
+        cut = np.array([
+            [0.0, 0.0, 0.0, -Kt, -Kr],
+            [0.0, 0.0, 0.0, -Kr, Kt],
+            [0.0, Ka, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, R * Ka, 0.0],
+            [0.0, 0.0, 0.0, 0.0, -R * Ka],
+            [0.0, R * Kt, 0.0, 0.0, 0.0],
+        ]) * n
+        self._edge, self._cut = edge, cut
+        self._basis = self._basis_at(self.c_f)
 
-    def _per_tooth(self, theta_cos, theta_sin, c_xy, z_b, u, workpiece):
+    def _basis_at(self, c_f):
+        return [tuple(float(v) for v in row) for row in self._edge + c_f * self._cut]
+
+    def chip_per_tooth_m(self, feed_m_per_s=None):
+        """The feed per tooth (m) at ``feed_m_per_s`` (None: the model's own feed)."""
+        return self.c_f if feed_m_per_s is None else self.cutter.feed_per_tooth_m(feed_m_per_s)
+
+    def _per_tooth(self, theta_cos, theta_sin, c_xy, z_b, u, workpiece, c_f=None):
         """Force and moment (about the tool point) for teeth at the given angles,
         summed; (3,), (3,)."""
-        (fu, fv, fz, mu, mv, mz), a = self._tooth_terms(theta_cos, theta_sin, c_xy, z_b, u, workpiece)
+        (fu, fv, fz, mu, mv, mz), a = self._tooth_terms(theta_cos, theta_sin, c_xy, z_b, u, workpiece, c_f)
         return np.array([fu.sum(), fv.sum(), fz.sum()]), np.array([mu.sum(), mv.sum(), mz.sum()]), a
 
-    def _tooth_terms(self, theta_cos, theta_sin, c_xy, z_b, u, workpiece):
-        """((f_u, f_v, f_z, m_u, m_v, m_z) per tooth angle, depth a per tooth)."""
+    def _tooth_terms(self, theta_cos, theta_sin, c_xy, z_b, u, workpiece, c_f=None):
+        """((f_u, f_v, f_z, m_u, m_v, m_z) per tooth angle, depth a per tooth);
+        ``c_f``: the feed per tooth (m), None: the model's own."""
         R = self.cutter.radius_m
         v = np.array([-u[1], u[0]])
         tip = c_xy[None, :] + R * (theta_cos[:, None] * u[None, :] + theta_sin[:, None] * v[None, :])
@@ -136,7 +156,7 @@ class MillingForceModel:
         inside = ((tip[:, None, 0] >= workpiece.x_m[None, :, 0]) & (tip[:, None, 0] <= workpiece.x_m[None, :, 1])
                   & (tip[:, None, 1] >= workpiece.y_m[None, :, 0]) & (tip[:, None, 1] <= workpiece.y_m[None, :, 1]))
         depth = np.where(inside, workpiece.top_m[None, :] - z_b, 0.0).max(axis=1)
-        h = self.c_f * theta_cos
+        h = (self.c_f if c_f is None else c_f) * theta_cos
         a = np.where((h > 0) & (depth > 0), depth, 0.0)
         Ft = self.Kc[0] * a * h + self.Ke[0] * a
         Fr = self.Kc[1] * a * h + self.Ke[1] * a
@@ -156,27 +176,29 @@ class MillingForceModel:
     def _to_base(vec_uvz, u):
         return np.array([vec_uvz[0] * u[0] - vec_uvz[1] * u[1], vec_uvz[0] * u[1] + vec_uvz[1] * u[0], vec_uvz[2]])
 
-    def tooth_wrench(self, t_s, tool_point_m, feed_dir_xy, workpiece, phase_rad=0.0):
+    def tooth_wrench(self, t_s, tool_point_m, feed_dir_xy, workpiece, phase_rad=0.0, feed_m_per_s=None):
         """Wrench (force N, moment N*m about the tool point), base frame, on
         the tool at time t with the teeth at their angles then.  With an
         array of times, the sum over them (divide by their number for the
-        mean)."""
+        mean).  ``feed_m_per_s``: the feed (chip thickness) there; None: the
+        model's."""
         u = np.asarray(feed_dir_xy, dtype=float)
         base = phase_rad - self.cutter.spindle_rad_per_s * np.atleast_1d(t_s)  # clockwise from above
         theta = (base[:, None] + 2 * np.pi * np.arange(self.cutter.n_teeth) / self.cutter.n_teeth).ravel()
         F, M, _ = self._per_tooth(np.cos(theta), np.sin(theta), np.asarray(tool_point_m[:2]), tool_point_m[2], u,
-                                  workpiece)
+                                  workpiece, self.chip_per_tooth_m(feed_m_per_s))
         return np.concatenate([self._to_base(F, u), self._to_base(M, u)])
 
-    def tooth_wrenches(self, t_s, tool_point_m, feed_dir_xy, workpiece, phase_rad=0.0):
+    def tooth_wrenches(self, t_s, tool_point_m, feed_dir_xy, workpiece, phase_rad=0.0, feed_m_per_s=None):
         """(n, 6): the wrench of ``tooth_wrench`` at each of the times ``t_s``
-        (n,), one row each (one vectorised evaluation)."""
+        (n,), one row each (one vectorised evaluation); ``feed_m_per_s`` as
+        there."""
         u = np.asarray(feed_dir_xy, dtype=float)
         n_t, n = np.size(t_s), self.cutter.n_teeth
         base = phase_rad - self.cutter.spindle_rad_per_s * np.atleast_1d(t_s)
         theta = (base[:, None] + 2 * np.pi * np.arange(n) / n).ravel()
         terms, _ = self._tooth_terms(np.cos(theta), np.sin(theta), np.asarray(tool_point_m[:2]), tool_point_m[2], u,
-                                     workpiece)
+                                     workpiece, self.chip_per_tooth_m(feed_m_per_s))
         fu, fv, fz, mu, mv, mz = (x.reshape(n_t, n).sum(axis=1) for x in terms)
         return np.column_stack([fu * u[0] - fv * u[1], fu * u[1] + fv * u[0], fz,
                                 mu * u[0] - mv * u[1], mu * u[1] + mv * u[0], mz])
@@ -222,9 +244,11 @@ class MillingForceModel:
                     out.append((ta, tb, depth))
         return out
 
-    def average_wrench(self, tool_point_m, feed_dir_xy, workpiece):
+    def average_wrench(self, tool_point_m, feed_dir_xy, workpiece, feed_m_per_s=None):
         """Wrench (force N, moment N*m about the tool point, base frame) averaged
-        over one spindle revolution, integrated exactly over the engaged arcs."""
+        over one spindle revolution, integrated exactly over the engaged arcs.
+        ``feed_m_per_s``: the feed there (the chip thickness follows it);
+        None: the model's own feed."""
         S0 = S1 = S2 = S3 = S4 = 0.0
         for ta, tb, a in self.lead_intervals(tool_point_m, feed_dir_xy, workpiece):
             sa, ca, sb, cb = math.sin(ta), math.cos(ta), math.sin(tb), math.cos(tb)
@@ -234,7 +258,9 @@ class MillingForceModel:
             S2 += a * (ca - cb)
             S3 += a * 0.5 * (sb * sb - sa * sa)
             S4 += a * 0.5 * ((tb - ta) + sb * cb - sa * ca)
-        w = [b0 * S0 + b1 * S1 + b2 * S2 + b3 * S3 + b4 * S4 for b0, b1, b2, b3, b4 in self._basis]
+        basis = self._basis if feed_m_per_s is None or feed_m_per_s == self.feed_m_per_s else \
+            self._basis_at(self.cutter.feed_per_tooth_m(feed_m_per_s))
+        w = [b0 * S0 + b1 * S1 + b2 * S2 + b3 * S3 + b4 * S4 for b0, b1, b2, b3, b4 in basis]
         u0, u1 = float(feed_dir_xy[0]), float(feed_dir_xy[1])
         return np.array([w[0] * u0 - w[1] * u1, w[0] * u1 + w[1] * u0, w[2],
                          w[3] * u0 - w[4] * u1, w[3] * u1 + w[4] * u0, w[5]])

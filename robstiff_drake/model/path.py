@@ -148,13 +148,29 @@ class Corner:
         n = np.linalg.norm(t)
         return t / n if n > 0 else (d - a) / np.linalg.norm(d - a)
 
+    def trimmed(self, s0, s1):
+        """The part between arc lengths s0 and s1: the same curve (de
+        Casteljau's subdivision of the Bezier curve)."""
+        u0, u1 = self._param(s0), self._param(s1)
+
+        def split(P, u):  # (left, right) control points at parameter u
+            a, b, c, d = P
+            ab, bc, cd = a + u * (b - a), b + u * (c - b), c + u * (d - c)
+            abc, bcd = ab + u * (bc - ab), bc + u * (cd - bc)
+            m = abc + u * (bcd - abc)
+            return (a, ab, abc, m), (m, bcd, cd, d)
+
+        left, _ = split(self.P, u1) if u1 < 1.0 else (tuple(self.P), None)
+        _, mid = split(np.array(left), u0 / u1) if u0 > 0.0 and u1 > 0.0 else (None, left)
+        return Corner(*mid)
+
 
 def _turn_rad(t_in, t_out):
     c = float(np.clip(np.dot(t_in, t_out), -1.0, 1.0))
     return math.acos(c)
 
 
-def blend_corners(elements, speeds, zone_m, forced_stops=None):
+def blend_corners(elements, speeds, zone_m, forced_stops=None, provenance=False):
     """Insert a corner path at every corner between consecutive elements.
 
     ``forced_stops[i]``: the path must stop after element i (an exact stop
@@ -163,11 +179,15 @@ def blend_corners(elements, speeds, zone_m, forced_stops=None):
     the path must stop after element k (a reversal, or a forced stop; a
     sharp corner at zone 0 keeps full speed, as before blending: False);
     ``source[k]``: the index of the input element that element k is part
-    of (a corner path: the element it leaves)."""
+    of (a corner path: the element it leaves).  With ``provenance``, also
+    each output element's origin: ("move", i, s0, s1) for the part s0..s1
+    of input element i, ("corner", i, r, r) for the corner between
+    elements i and i + 1 (from r before its end to r into the next)."""
     n = len(elements)
     stops = list(forced_stops) if forced_stops is not None else [False] * n
     if n < 2 or zone_m < 0:
-        return list(elements), list(speeds), stops, list(range(n))
+        origins = [("move", i, 0.0, e.length) for i, e in enumerate(elements)]
+        return (list(elements), list(speeds), stops, list(range(n))) + ((origins,) if provenance else ())
     # zone of each corner: at most half of each neighbour's length
     zones = []
     for i in range(n - 1):
@@ -180,7 +200,7 @@ def blend_corners(elements, speeds, zone_m, forced_stops=None):
             stops[i] = True
         else:
             zones.append(min(zone_m, 0.5 * a.length, 0.5 * b.length))
-    out, out_speeds, out_stops, source = [], [], [], []
+    out, out_speeds, out_stops, source, origins = [], [], [], [], []
     for i, e in enumerate(elements):
         s0 = zones[i - 1] if i > 0 else 0.0
         s1 = e.length - (zones[i] if i < n - 1 else 0.0)
@@ -189,6 +209,7 @@ def blend_corners(elements, speeds, zone_m, forced_stops=None):
             out_speeds.append(speeds[i])
             out_stops.append(stops[i])
             source.append(i)
+            origins.append(("move", i, s0, s1))
         if i < n - 1 and zones[i] > 0:
             b = elements[i + 1]
             r = zones[i]
@@ -201,7 +222,49 @@ def blend_corners(elements, speeds, zone_m, forced_stops=None):
             out_speeds.append(min(speeds[i], speeds[i + 1]))
             out_stops.append(False)
             source.append(i)
-    return out, out_speeds, out_stops, source
+            origins.append(("corner", i, r, r))
+    return (out, out_speeds, out_stops, source) + ((origins,) if provenance else ())
+
+
+def split_for_speeds(elements, speeds, overrides, zone_m):
+    """The programmed elements split where speed ``overrides`` ({element
+    index: [(a, b, v m/s)]}, a..b m along the element) begin and end, each
+    part at the lower of its own speed and the override over it.  A span
+    is widened to whole parts of at least two zones from the element's ends
+    (and parts shorter than two zones join their neighbour), so every corner
+    keeps its zone: the same geometry.  Returns (elements, speeds, origins): origin
+    (i, a, b) of each part (model/feed_plan.py maps them back to the program)."""
+    out, out_v, origins = [], [], []
+    near = 2.0 * zone_m
+    short = near - 1e-9  # (a part of exactly two zones is long enough)
+    for i, (e, v) in enumerate(zip(elements, speeds)):
+        spans = (overrides or {}).get(i, [])
+        L = e.length
+        cuts = {0.0, L}
+        snapped = []
+        for a, b, w in spans:  # each span widened to whole parts of at least two zones
+            if L < 2.0 * near:
+                a, b = 0.0, L
+            a = 0.0 if a < near else min(a, L - near)
+            b = L if b > L - near else max(b, near)
+            snapped.append((a, b, w))
+            cuts |= {a, b}
+        spans = snapped
+        cuts = sorted(cuts)
+        keep = [cuts[0]]
+        for x in cuts[1:]:  # no part shorter than two zones (unless the element is)
+            if x - keep[-1] >= short or x == L:
+                keep.append(x)
+        if len(keep) > 2 and keep[-1] - keep[-2] < short:
+            del keep[-2]
+        for c0, c1 in zip(keep[:-1], keep[1:]):
+            mid = 0.5 * (c0 + c1)  # (a snapped cut moved a span's end outwards by less than two zones)
+            vv = min([v] + [o[2] for o in spans if o[0] <= mid <= o[1]])
+            whole = len(keep) == 2
+            out.append(e if whole else e.trimmed(c0, c1))
+            out_v.append(vv)
+            origins.append((i, c0, c1))
+    return out, out_v, origins
 
 
 # ---------------------------------------------------------------- speed profile
@@ -313,7 +376,8 @@ class PlannedPath:
     path this is the constant feed between two ramps that the project has
     always used."""
 
-    def __init__(self, waypoints_m, feed_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0, zone_m=0.0):
+    def __init__(self, waypoints_m, feed_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0, zone_m=0.0,
+                 speed_overrides=None):
         wp = np.asarray(waypoints_m, dtype=float).reshape(-1, 3)
         if len(wp) < 2:
             raise PathError("a path needs at least two waypoints")
@@ -323,16 +387,19 @@ class PlannedPath:
         if np.any(seg <= 0):
             raise PathError("two consecutive waypoints are the same point")
         elements = [Line(a, b) for a, b in zip(wp[:-1], wp[1:])]
-        self._setup(elements, [float(feed_m_per_s)] * len(elements), wp, yaw_rad, dwell_s, ramp_s, zone_m)
+        self._setup(elements, [float(feed_m_per_s)] * len(elements), wp, yaw_rad, dwell_s, ramp_s, zone_m,
+                    speed_overrides=speed_overrides)
 
     @classmethod
     def from_elements(cls, elements, speeds_m_per_s, yaw_rad=0.0, dwell_s=0.0, ramp_s=0.0, zone_m=0.0, *,
-                      stops=None, dwells_s=None, tags=None):
+                      stops=None, dwells_s=None, tags=None, speed_overrides=None, lines=None):
         """A path through Line / Arc elements, each at its own speed (m/s).
         ``stops[i]``: the path comes to rest after element i (an exact
         stop: no zone there); ``dwells_s[i]``: and rests there that long
         (s); ``tags[i]``: where element i comes from (a program's
-        "file:line"), named by the errors of joint_references."""
+        "file:line"), named by the errors of joint_references;
+        ``lines[i]``: element i's program line (for the feed advice);
+        ``speed_overrides``: see with_speed_overrides."""
         if not elements:
             raise PathError("a path needs at least one move")
         if any(not v > 0 for v in speeds_m_per_s):
@@ -343,25 +410,61 @@ class PlannedPath:
         dwells = [float(d) for d in dwells_s] if dwells_s is not None else [0.0] * n
         stops = [bool(x) or d > 0 for x, d in zip(stops if stops is not None else [False] * n, dwells)]
         self._setup(list(elements), [float(v) for v in speeds_m_per_s], wp, yaw_rad, dwell_s, ramp_s, zone_m,
-                    stops, dwells, tags)
+                    stops, dwells, tags, speed_overrides, lines)
         return self
 
+    def with_speed_overrides(self, overrides):
+        """The same path with the speeds lowered over parts of its programmed
+        elements ({element index: [(a, b, v m/s)]}, a..b m along it; see
+        split_for_speeds), replacing its own overrides: the feed planner's
+        adapted path (model/feed_plan.py)."""
+        out = self.__class__.__new__(self.__class__)
+        a = dict(self._args)
+        a["speed_overrides"] = overrides
+        out._setup(**a)
+        return out
+
     def _setup(self, elements, speeds, waypoints, yaw_rad, dwell_s, ramp_s, zone_m, forced_stops=None, dwells=None,
-               tags=None):
+               tags=None, speed_overrides=None, lines=None):
+        self._args = dict(elements=elements, speeds=speeds, waypoints=waypoints, yaw_rad=yaw_rad, dwell_s=dwell_s,
+                          ramp_s=ramp_s, zone_m=zone_m, forced_stops=forced_stops, dwells=dwells, tags=tags,
+                          speed_overrides=speed_overrides, lines=lines)
+        # the programmed elements and their speeds (m/s), before the feed planner's overrides
+        self.programmed_elements = list(elements)
+        self.programmed_speeds = list(speeds)
+        self.program_lines = list(lines) if lines is not None else None
+        self.speed_overrides = dict(speed_overrides or {})
         self.waypoints = waypoints
         self.directions = np.array([e.tangent(0.0) for e in elements])
         self.yaw = float(yaw_rad)
         self.dwell_s = float(dwell_s)
         self.zone_m = float(zone_m)
         self.feed = float(max(speeds))
-        self.elements, self.speeds, stops, source = blend_corners(elements, speeds, self.zone_m, forced_stops)
+        parts, part_speeds, part_of = split_for_speeds(elements, speeds, self.speed_overrides, self.zone_m)
+        # the programmed elements' parts and their speeds: (element, from m, to m, speed m/s)
+        self.parts = [(i, c0, c1, v) for (i, c0, c1), v in zip(part_of, part_speeds)]
+        # an element's exact stop and dwell belong to its last part
+        last_part = {i: j for j, (i, _c0, _c1) in enumerate(part_of)}
+        part_stops = [bool(forced_stops[i]) and last_part[i] == j if forced_stops is not None else False
+                      for j, (i, _c0, _c1) in enumerate(part_of)]
+        self.elements, self.speeds, stops, source, blended = blend_corners(parts, part_speeds, self.zone_m,
+                                                                           part_stops, provenance=True)
         # a dwell belongs to the last piece of its element (a stop: no corner path follows it)
-        last_piece = {i: k for k, i in enumerate(source)}
+        last_piece = {part_of[j][0]: k for k, j in enumerate(source)}
         self._dwells = [0.0] * len(self.elements)
         for i, d in enumerate(dwells or ()):
             if d > 0:
                 self._dwells[last_piece[i]] = d
-        self.tags = [tags[i] for i in source] if tags is not None else None
+        self.tags = [tags[part_of[j][0]] for j in source] if tags is not None else None
+        # each element's origin in the programmed elements: ("move", i, s0, s1): the part s0..s1 of element i;
+        # ("corner", i, r_in, r_out): the corner between element i and the next, r before and after it
+        self.origins = []
+        for kind, j, a, b in blended:
+            i, c0, c1 = part_of[j]
+            if kind == "move":
+                self.origins.append(("move", i, c0 + a, c0 + b))
+            else:
+                self.origins.append(("corner", i, a, b))
         self.lengths = np.array([e.length for e in self.elements])
         self.total_length = float(self.lengths.sum())
         self._s_knots = np.r_[0.0, np.cumsum(self.lengths)].tolist()
@@ -385,14 +488,20 @@ class PlannedPath:
         self.profile = SpeedProfile(blocks, bspeeds, bstops, self.ramp_s, bdwells)
         self.move_s = self.profile.duration_s
         # horizontal feed direction per element (the previous one's where an element is vertical)
+        # and the feed the chip follows (the last horizontal move's along a
+        # vertical one: a plunge or a retract makes no chip of its own speed)
         dirs, last = [], (1.0, 0.0)
-        for e in self.elements:
+        feeds, last_feed = [], None
+        for e, v in zip(self.elements, self.speeds):
             t = e.tangent(0.5 * e.length)
             n = math.hypot(t[0], t[1])
             if n > 1e-6:
                 last = (t[0] / n, t[1] / n)
+                last_feed = v
             dirs.append(last)
+            feeds.append(v if last_feed is None else last_feed)
         self._elem_dirs = dirs
+        self._elem_feeds = feeds
 
     @property
     def duration_s(self):
@@ -415,6 +524,14 @@ class PlannedPath:
     def speed(self, t):
         """Path speed at time t (m/s)."""
         return self.profile.speed(t - self.dwell_s)
+
+    def programmed_speed(self, t):
+        """The programmed speed (m/s) of the move the tool is on at time t
+        (before the start: the first move's; after the end: the last's;
+        along a vertical move, the last horizontal one's): the feed the chip
+        thickness follows (the speed ramps between moves are left out: a
+        cosine ramp of ramp_s changes it over a few mm)."""
+        return self._elem_feeds[self._element(self.arc_length(t))]
 
     def _element(self, s):
         i = bisect.bisect_right(self._s_knots, s) - 1

@@ -48,18 +48,16 @@ def surface_error_stats(err_m):
     }
 
 
-def envelope_heights_at(x_m, y_m, p_m, n_up, radius_m, top_m):
-    """Height (m) of the surface at scan points (x_m[i], y_m[i]) anywhere
-    (not only along a line of constant y): the lowest cutter face that
-    covered each point, or ``top_m`` (scalar or per point) where none did.
-    Same geometry as ``envelope_heights``."""
+def faces_over_points(x_m, y_m, p_m, n_up, radius_m):
+    """For each sample i of tool points p (N, 3) and spindle axes n (N, 3)
+    whose cutter face covers some of the points (x_m[j], y_m[j]): (i, the
+    indices j it covers, the face's heights there (m)).  A generator."""
     from scipy.spatial import cKDTree
 
     x = np.asarray(x_m, dtype=float)
     y = np.asarray(y_m, dtype=float)
-    h = np.full(x.shape, np.inf)
     if x.size == 0:
-        return np.minimum(h, top_m)
+        return
     tree = cKDTree(np.column_stack([x, y]))
     hits = tree.query_ball_point(p_m[:, :2], radius_m * (1 - 1e-12))
     for i, idx in enumerate(hits):
@@ -67,6 +65,15 @@ def envelope_heights_at(x_m, y_m, p_m, n_up, radius_m, top_m):
             continue
         idx = np.asarray(idx)
         n = n_up[i]
-        z = p_m[i, 2] - (n[0] * (x[idx] - p_m[i, 0]) + n[1] * (y[idx] - p_m[i, 1])) / n[2]
+        yield i, idx, p_m[i, 2] - (n[0] * (x[idx] - p_m[i, 0]) + n[1] * (y[idx] - p_m[i, 1])) / n[2]
+
+
+def envelope_heights_at(x_m, y_m, p_m, n_up, radius_m, top_m):
+    """Height (m) of the surface at scan points (x_m[i], y_m[i]) anywhere
+    (not only along a line of constant y): the lowest cutter face that
+    covered each point, or ``top_m`` (scalar or per point) where none did.
+    Same geometry as ``envelope_heights``."""
+    h = np.full(np.shape(x_m), np.inf)
+    for _, idx, z in faces_over_points(x_m, y_m, p_m, n_up, radius_m):
         h[idx] = np.minimum(h[idx], z)
     return np.minimum(h, top_m)

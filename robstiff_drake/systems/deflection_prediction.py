@@ -43,6 +43,11 @@ class DeflectionPrediction(LeafSystem):
         self.DeclareVectorOutputPort("tool_wrench", 6, lambda c, o: o.SetFromVector(self._tool_wrench(c)[0]),
                                      prerequisites_of_calc=deps)
 
+    @property
+    def model(self):
+        """Its arithmetic (model/compensator.DeflectionModel)."""
+        return self._model
+
     def _tool_wrench(self, context):
         """(the wrench at the tool point, base frame, as a list; q)."""
         q = self._q.Eval(context)

@@ -101,7 +101,8 @@ class MillingForceSource(LeafSystem):
         if hit.size:
             return context.get_discrete_state(self._inst).value()[6 * hit[0]:6 * hit[0] + 6]
         p = context.get_discrete_state(self._pose).value()[9:]
-        return self._model.tooth_wrench(t, p, self._path.feed_direction(t), self._workpiece, self._phase)
+        return self._model.tooth_wrench(t, p, self._path.feed_direction(t), self._workpiece, self._phase,
+                                        self._path.programmed_speed(t))
 
     def _calc_ripple(self, context, output):
         R = context.get_discrete_state(self._pose).value()[:9].tolist()
@@ -115,13 +116,15 @@ class MillingForceSource(LeafSystem):
         pose = self._kin.pose_only(q)
         p = pose[9:]
         u = self._path.feed_direction(t)
+        feed = self._path.programmed_speed(t)  # each move's own feed (chip thickness)
         inst = None
         if self._mode == "tooth":
             n = len(self._sub_t)
-            rows = self._model.tooth_wrenches(np.r_[t + self._sub_t, instants], p, u, self._workpiece, self._phase)
+            rows = self._model.tooth_wrenches(np.r_[t + self._sub_t, instants], p, u, self._workpiece, self._phase,
+                                              feed)
             w, inst = rows[:n].sum(axis=0) / n, rows[n:]
         else:
-            w = self._model.average_wrench(p, u, self._workpiece)
+            w = self._model.average_wrench(p, u, self._workpiece, feed)
         return w.tolist(), pose, inst
 
     def _update(self, context, state):

@@ -1,0 +1,261 @@
+"""The error budget of a compensated cut: how much of its residual each
+imperfection makes, found by removing the imperfections one at a time
+(``simulate --budget``).
+
+Sources, and what "removed" means (the scenario's other settings kept):
+
+* stiffness model error: the compensator holds the plant's joint stiffness;
+* payload and bias error: the exact payload and the sensor's bias of the cut;
+* cutting-coefficient error (predictive, preview): the plant's coefficients;
+* force filter lag: no force filter (on a plant whose modes are lightly
+  damped the loop without its filter feeds the sensor's reading of the
+  payload's inertia back at the arm's first mode and rings: the budget
+  then says so and leaves the filter in; see NOT_REMOVABLE);
+* sensor noise: a noiseless sensor;
+* servo and interpolator lag: no interpolator dead time, a 1000 1/s
+  position loop around a 500 Hz velocity loop;
+* sampling period and transport delay: no delay periods, the controller
+  (and the plant, and the sensor at >= 1 kHz) at 1 ms;
+* lost motion: none in the gears (nor in the compensator's model);
+* the arm's dynamic response: the arm's and the payload's masses and
+  inertias scaled by EPSILON and gravity by 1 / EPSILON: the same static
+  loads, the links' modes on their gears sqrt(1 / EPSILON) = 5 times
+  faster (the first at about 25 Hz instead of 5): the arm follows force
+  changes and the path's accelerations quasi-statically; the motors' rotor
+  inertias are the drives' and stay (scaled too, the drives' loop diverged
+  in a step test at this step); the plant's explicit step then needs
+  FAST_STEP_S for the stiffest mode (125 Hz -> about 620 Hz), checked
+  converged against 0.2 ms in a step test;
+* kinematic error (a study's controller whose kinematic model is not the
+  arm's: its path accuracy; studies/paper_reproduction.py): the arm's own;
+* scan noise: a noiseless scan (the budget's statistics are the scan's, as
+  a user measures them, not the simulation's true surface).
+
+Interactions.  Removing two sources together is not the sum of removing
+each (a filter's lag matters less once the delays are gone; without the
+filter and the delays the loop feeds the payload's inertia back and
+rings), so no split of the total into sources is exact.  The budget gives
+each source its one-at-a-time share: the realistic cut's residual less
+the residual with that source alone removed (the question a user asks:
+what would fixing this one thing buy me).  It reports the floor (every
+source removed: what no compensation of these sources can remove) and the
+interaction: total - floor - the sum of the shares, the part no single
+source owns.  Shares + interaction + floor = total exactly; the shares
+alone account for the total less the floor within 10 % when the
+interaction is smaller than that, and the interaction line says when it
+is not.  (Removing the sources cumulatively, in an order and its reverse,
+was tried first: it passes through states no cell would run, such as no
+filter and no delay with the full arm, where the loop rings, and gave
+shares of +-0.1 mm that cancelled.)
+"""
+
+import copy
+import dataclasses
+
+import numpy as np
+
+from robstiff_drake.diagrams import user_model as user_models
+from robstiff_drake.diagrams.experiment import run_cut
+from robstiff_drake.diagrams.milling_cell import build_milling_cell, planned_path
+from robstiff_drake.diagrams.scenario import plant_stiffness, exact_payload_calibration
+from robstiff_drake.model.surface import surface_error_stats
+
+EPSILON = 0.04  # the mass scale of "the arm's dynamic response removed"
+FAST_STEP_S = 0.0004  # the plant step with the faster modes (stable at EPSILON: omega h < 2 at about 620 Hz)
+FINE_PERIOD_S = 0.001  # the controller period (and plant step) of "sampling period removed"
+
+SOURCES = ("stiffness model error", "payload and bias error", "cutting-coefficient error", "force filter lag",
+           "sensor noise", "servo and interpolator lag", "sampling period and delay", "lost motion",
+           "arm dynamic response", "kinematic error", "scan noise")
+METRICS = ("mean", "rms", "max_abs", "pv")
+# Sources whose removal can leave a loop that rings rather than a better cut: a run without one whose largest
+# error exceeds RINGING_FACTOR times the real cut's is reported as not removable (and kept in the floor)
+NOT_REMOVABLE = {"force filter lag": "without its force filter the loop feeds the sensor's reading of the payload's "
+                                     "inertia back at the arm's first mode and rings"}
+RINGING_FACTOR = 2.0
+
+
+def applies(sc, source):
+    """Whether ``source`` is an imperfection of this scenario at all."""
+    ident = sc.model.source == "identified"
+    if source == "stiffness model error":
+        return ident or bool(sc.model.joint_stiffness_Nm_per_rad) or bool(sc.model.identified_json) or \
+            bool(sc.plant.joint_stiffness_Nm_per_rad)
+    if source == "payload and bias error":
+        return ident or bool(sc.model.payload_yaml)
+    if source == "cutting-coefficient error":
+        return sc.controller.mode != "plain" and (ident or sc.model.force_model_scale != 1.0)
+    if source == "force filter lag":
+        return sc.controller.filter.kind != "none"
+    if source == "sensor noise":
+        return sc.sensor.noise_N > 0 or sc.sensor.noise_Nm > 0
+    if source == "lost motion":
+        return bool(sc.plant.lost_motion_rad) and any(sc.plant.lost_motion_rad)
+    if source == "scan noise":
+        return sc.scan.noise_mm > 0
+    if source == "kinematic error":
+        return getattr(sc, "_controller_robot", None) is not None
+    return True
+
+
+def scaled_robot(robot, eps):
+    """The robot with every link's and the payload's mass and inertia times ``eps``."""
+    links = tuple(dataclasses.replace(link, mass_kg=link.mass_kg * eps, inertia_kgm2=link.inertia_kgm2 * eps)
+                  for link in robot.links)
+    payload = dataclasses.replace(robot.payload, mass_kg=robot.payload.mass_kg * eps)
+    return dataclasses.replace(robot, links=links, payload=payload)
+
+
+def without(sc, robot, removed, model):
+    """(scenario, robot, gravity scale) of ``sc`` with the sources ``removed``;
+    ``model`` the identified model of the full scenario (kept, with the
+    removed parts made exact)."""
+    s = copy.deepcopy(sc)
+    um = None if model is None else dataclasses.replace(model)
+    if "stiffness model error" in removed:
+        s.model.joint_stiffness_Nm_per_rad = [float(v) for v in plant_stiffness(sc, robot)]
+        s.model.identified_json = ""
+    if "payload and bias error" in removed:
+        s.model.payload_yaml = ""
+        if um is not None:
+            um.calibration = exact_payload_calibration(sc, robot)
+    if "cutting-coefficient error" in removed:
+        s.model.force_model_scale = 1.0
+        if um is not None:
+            um.coefficient_factors = {k: 1.0 for k in um.coefficient_factors}
+    if "force filter lag" in removed:
+        s.controller.filter.kind = "none"
+    if "sensor noise" in removed:
+        s.sensor.noise_N = s.sensor.noise_Nm = 0.0
+    if "servo and interpolator lag" in removed:
+        s.servo.interpolator_delay_ms = 0.0
+        s.servo.position_gain_per_s = 1000.0
+        s.servo.velocity_bandwidth_hz = 500.0
+    if "lost motion" in removed:
+        s.plant.lost_motion_rad = []
+        s.model.lost_motion_rad = []
+    if "scan noise" in removed:
+        s.scan.noise_mm = 0.0
+    if "kinematic error" in removed:
+        s._controller_robot = None
+    gravity = 1.0
+    if "arm dynamic response" in removed:
+        # the compensator's payload calibration stays the real payload's (the sensor reads its weight)
+        if "payload and bias error" in removed or (um is None and not s.model.payload_yaml):
+            s._payload_calibration_override = exact_payload_calibration(sc, robot)
+        elif not s.model.payload_yaml:
+            s._payload_calibration_override = um.calibration
+        robot = scaled_robot(robot, EPSILON)
+        gravity = 1.0 / EPSILON
+        s.plant_config.time_step = min(float(s.plant_config.time_step), FAST_STEP_S)
+    if "sampling period and delay" in removed:
+        s.controller.delay_steps = 0
+        s.plant_config.time_step = min(float(s.plant_config.time_step), FINE_PERIOD_S)
+        s.controller.period_ms = FINE_PERIOD_S * 1e3
+        s.servo.interpolator_period_ms = FINE_PERIOD_S * 1e3
+        s.sensor.rate_hz = max(s.sensor.rate_hz, 1.0 / FINE_PERIOD_S)
+    # (the interpolator's hold is at least a plant step; a finer plant step keeps the controller's cycle)
+    s.servo.interpolator_period_ms = max(s.servo.interpolator_period_ms, float(s.plant_config.time_step) * 1e3)
+    s.controller.period_ms = max(s.controller.period_ms, float(s.plant_config.time_step) * 1e3)
+    s._user_model_pinned = um
+    # the compensator's servo model, identified again on a plant whose servo changed
+    s._reidentify_servo = um is not None and bool({"servo and interpolator lag", "sampling period and delay",
+                                                   "arm dynamic response"} & set(removed))
+    return s, robot, gravity
+
+
+def measured_stats(res):
+    """Surface-error statistics (mm) of what the scan measures (its noise in)."""
+    err = np.concatenate([line.measured_error_m[np.isfinite(line.measured_error_m)] for line in res.scans])
+    return surface_error_stats(err)
+
+
+def run(sc, robot, *, compensation=True):
+    """One compensated cut of a budget scenario (``without``'s output):
+    measured statistics (mm)."""
+    s, rob, gravity = sc
+    if getattr(s, "_reidentify_servo", False):  # keep the identified parts, identify the servo anew
+        _, _, q_ref = planned_path(s, rob, rob.tool_point(where="the error budget"))
+        fresh = user_models.user_model(_servo_only(s), rob, q_ref[0])
+        s._user_model_pinned = dataclasses.replace(s._user_model_pinned, servo=fresh.servo,
+                                                   servo_fit_rms=fresh.servo_fit_rms)
+    cell = build_milling_cell(s, rob, compensation=compensation)
+    if gravity != 1.0:
+        g = np.array([0.0, 0.0, -9.81]) * gravity
+        cell.station.plant.mutable_gravity_field().set_gravity_vector(g)
+        cell.station.controller_plant.mutable_gravity_field().set_gravity_vector(g)
+        # the sensor at rest reads the same weight (eps m times g / eps): the payload's true mass
+        cal = cell.station.systems["true_calibration"]
+        cell.station.systems["true_calibration"] = dataclasses.replace(cal, mass_kg=cal.mass_kg * gravity)
+    res = run_cut(s, rob, compensation=compensation, cell=cell)
+    return measured_stats(res)
+
+
+def _servo_only(sc):
+    """A scenario whose identification makes only the servo model (the other
+    parts come from the full scenario's model)."""
+    s = copy.deepcopy(sc)
+    ident = s.model.identification
+    ident.stiffness, ident.payload, ident.coefficients, ident.servo = "exact", "exact", "exact", "identified"
+    return s
+
+
+def error_budget(sc, robot, *, metric="rms", sources=None, progress=None):
+    """The budget of scenario ``sc``'s compensated cut: a dict with
+    ``contributions`` ({source: mm}, one at a time), ``total``, ``floor``
+    (every source removed), ``interaction`` (total - floor - the sum of the
+    contributions), ``metric``, ``sources`` and the number of runs.
+    ``progress(text)``: called after each run."""
+    if metric not in METRICS:
+        raise ValueError(f"metric must be one of {METRICS}")
+    _, _, q_ref = planned_path(sc, robot, robot.tool_point(where="the error budget"))
+    model = user_models.resolve(sc, robot, q_ref[0])
+    active = [s for s in (sources or SOURCES) if applies(sc, s)]
+    runs = []
+
+    def stats_without(removed):
+        stats = run(without(sc, robot, frozenset(removed), model), robot)
+        runs.append(sorted(removed))
+        if progress:
+            progress(f"budget: {len(runs)} of {len(active) + 2} runs; removed: {', '.join(sorted(removed)) or 'nothing'}")
+        return stats
+
+    full = stats_without(())
+    total = full[metric]
+    contributions, not_removed = {}, {}
+    for src in active:
+        st = stats_without([src])
+        if src in NOT_REMOVABLE and st["max_abs"] > RINGING_FACTOR * full["max_abs"]:
+            not_removed[src] = (f"{NOT_REMOVABLE[src]} (max abs {st['max_abs']:.3f} mm without it, "
+                                f"{full['max_abs']:.3f} mm with it); its share stays in the floor")
+            continue
+        contributions[src] = float(total - st[metric])
+    kept = [src for src in active if src not in not_removed]
+    floor = stats_without(kept)[metric]
+    interaction = float(total - floor - sum(contributions.values()))
+    return {"metric": metric, "total": float(total), "floor": float(floor), "contributions": contributions,
+            "interaction": interaction, "runs": len(runs), "sources": kept, "not_removed": not_removed}
+
+
+def budget_json(b):
+    """``error_budget_mm`` for the JSON: {source: share, "interaction": ...,
+    "all removed": floor, "total": total}."""
+    out = {s: v for s, v in b["contributions"].items()}
+    out["interaction"] = b["interaction"]
+    out["all removed"] = b["floor"]
+    out["total"] = b["total"]
+    return out
+
+
+def format_budget(b):
+    lines = [f"error budget of the compensated cut ({b['metric']} of the measured surface error, mm; each source's "
+             "share: the residual less the residual with that source alone removed)",
+             "  source                           share"]
+    for s in sorted(b["contributions"], key=lambda k: -abs(b["contributions"][k])):
+        lines.append(f"  {s:30s} {b['contributions'][s]:+8.4f}")
+    lines.append(f"  {'interaction (no single source)':30s} {b['interaction']:+8.4f}")
+    lines.append(f"  {'every source removed (floor)':30s} {b['floor']:+8.4f}")
+    lines.append(f"  {'total':30s} {b['total']:+8.4f}")
+    for src, why in b.get("not_removed", {}).items():
+        lines.append(f"  not removed: {src}: {why}")
+    return "\n".join(lines)
