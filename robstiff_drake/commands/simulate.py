@@ -147,7 +147,9 @@ def summary(results, sc, warnings=()):
     cw = res0.logs["cutting_wrench"][1]
     mid = cw[len(cw) // 2]
     out["cutting_wrench_at_mid_pass"] = {"force_N": mid[:3], "moment_Nm": mid[3:]}
-    out["natural_frequencies_hz"] = res0.cell.natural_frequencies_hz
+    out["natural_frequencies_hz"] = res0.cell.natural_frequencies_hz  # motors held
+    f, z = res0.cell.closed_loop_modes  # the arm's first three (the drives' own modes are above them)
+    out["drives_closed_modes"] = [{"frequency_hz": float(a), "damping_ratio": float(b)} for a, b in zip(f[:3], z[:3])]
     out["plant_time_step_s"] = res0.cell.plant_time_step_s
     out["transport_delay_s"] = res0.cell.transport_delay_s
     errs = out["surface_error_mm"]
@@ -165,7 +167,9 @@ def format_table(summ):
     lines.append(f"cutting force at mid-pass (N, base frame): ({f[0]:.0f}, {f[1]:.0f}, {f[2]:.0f}); spindle power up "
                  f"to {summ['spindle_power_W'] / 1e3:.2f} kW (rating {summ['spindle_rating_W'] / 1e3:.2f} kW)")
     lines.append("first natural frequencies at the start pose (Hz): "
-                 + ", ".join(f"{v:.1f}" for v in summ["natural_frequencies_hz"]))
+                 + ", ".join(f"{v:.1f}" for v in summ["natural_frequencies_hz"]) + " (motors held); with the drives "
+                 "closed " + ", ".join(f"{m['frequency_hz']:.1f} ({100 * m['damping_ratio']:.1f} %)"
+                                       for m in summ["drives_closed_modes"]))
     lines.append(simulated_line(summ["runs"]))
     return "\n".join(lines)
 

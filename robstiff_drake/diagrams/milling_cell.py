@@ -75,6 +75,10 @@ class MillingCell:
         return self.station.natural_frequencies_hz
 
     @property
+    def closed_loop_modes(self):
+        return self.station.closed_loop_modes
+
+    @property
     def damping_ratios(self):
         return self.station.damping_ratios
 
