@@ -29,7 +29,8 @@ OVERRIDE = "--allow-unstable-loop"
 
 def servo_parameters(servo):
     """ServoParameters from compensate's --servo (interpolator dead time ms,
-    position gain 1/s, velocity bandwidth Hz, velocity feed-forward), or the
+    position gain 1/s, velocity bandwidth Hz, velocity feed-forward and,
+    optionally, the velocity loop's integral corner Hz), or the
     scenarios' assumed IRC5 servo (diagrams/scenario.ServoConfig, with its
     sources) when not given."""
     from robstiff_drake.diagrams.scenario import ServoConfig
@@ -38,10 +39,12 @@ def servo_parameters(servo):
     if servo is None:
         delay_ms, kp, bw, ff = s.interpolator_delay_ms, s.position_gain_per_s, s.velocity_bandwidth_hz, \
             s.velocity_feedforward
+        ki = s.velocity_integral_hz
     else:
-        delay_ms, kp, bw, ff = (float(v) for v in servo)
+        delay_ms, kp, bw, ff = (float(v) for v in servo[:4])
+        ki = float(servo[4]) if len(servo) > 4 else s.velocity_integral_hz
     return ServoParameters(position_gain_per_s=kp, velocity_bandwidth_hz=bw, velocity_feedforward=ff,
-                           interpolator_delay_s=delay_ms / 1e3, velocity_integral_hz=s.velocity_integral_hz)
+                           interpolator_delay_s=delay_ms / 1e3, velocity_integral_hz=ki)
 
 
 def feed_direction(robot, tool_m, q_model_rad):
