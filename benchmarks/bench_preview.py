@@ -2,18 +2,20 @@
 cycle, as `compensate` would run it with the path streaming in: one new
 preview sample (model/preview.PreviewStream.push: the joint reference one
 horizon ahead, the force model's three coefficient groups at the planned
-tool point, the Jacobian, every tenth sample the arm's inertia and the
-gears' modal damping filter (an eigen-decomposition and a matrix
-exponential), the drive's inverse) and the correction's own tick (systems/preview_correction:
+tool point, the Jacobian, every tenth sample the arm's inertia and, on
+the next one, the gears' modal damping filter (an eigen-decomposition),
+the drive's inverse) and the correction's own tick (systems/preview_correction:
 the measurement-chain replica over the period's sensor samples, the force
 scales' Kalman update, the bracket's deflection and the table lookup),
 beside the plain compensator's per-cycle chain (model/compensator.
 Compensator.tick) measured in the same run.
 
-Target: median <= 500 us per cycle (an eighth of the 4 ms cycle).
-Prints the medians, the ratio to the plain chain, the preview's 99th
-percentile and largest cycle, and PASS/FAIL on the median (exit status 1
-on FAIL).  Quote the load average (uptime) beside the figures.  Run: python3 benchmarks/bench_preview.py
+Target: median <= 500 us per cycle (an eighth of the 4 ms cycle), on
+every kind of cycle: the plain ones, the ones that compute the mass
+matrix and the ones after them that compute its modes (the refresh is
+spread over two cycles).  Prints the medians, the ratio to the plain
+chain, the preview's 99th percentile and largest cycle, and PASS/FAIL on
+the worst kind's median (exit status 1 on FAIL).  Quote the load average (uptime) beside the figures.  Run: python3 benchmarks/bench_preview.py
 """
 
 import argparse
@@ -113,13 +115,17 @@ def main():
     print(f"  preview: one new sample + the correction's tick      {tp:8.1f} us")
     print(f"  plain chain (4 sensor samples + tick)                {tr:8.1f} us")
     print(f"  ratio preview / plain: {tp / tr:.2f}")
-    refresh = [p for c, p in enumerate(preview) if (n + c - 1) % MASS_MATRIX_EVERY == 0]
-    print(f"  preview, the cycles that also refresh the mass matrix and the gears' modal filter (one in "
-          f"{MASS_MATRIX_EVERY}): median {median_us(refresh):.1f} us")
+    mass = [p for c, p in enumerate(preview) if (n + c - 1) % MASS_MATRIX_EVERY == 0]
+    modes = [p for c, p in enumerate(preview) if (n + c - 1) % MASS_MATRIX_EVERY == 1]
+    print(f"  preview, the cycles that also compute the mass matrix (one in {MASS_MATRIX_EVERY}): median "
+          f"{median_us(mass):.1f} us; the cycles after them (its modes and the gears' modal filter): median "
+          f"{median_us(modes):.1f} us")
     print(f"  preview's 99th percentile {np.percentile(preview, 99) * 1e6:.1f} us, largest {max(preview) * 1e6:.1f} us "
           "(on a shared machine: the scheduler's preemptions)")
-    ok = tp <= TARGET_US
-    print(f"  target <= {TARGET_US:.0f} us: {'PASS' if ok else 'FAIL'}")
+    worst = max(tp, median_us(mass), median_us(modes))
+    ok = worst <= TARGET_US
+    print(f"  target <= {TARGET_US:.0f} us on every kind of cycle (the worst kind's median {worst:.1f} us): "
+          f"{'PASS' if ok else 'FAIL'}")
     return 0 if ok else 1
 
 

@@ -23,11 +23,6 @@ import numpy as np
 from robstiff_drake.model import kinematics as kin
 
 
-def _rot_z(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
 class ArmInertia:
     """M(q) (6x6, kg m^2) of a robot (its ``dh``, ``links`` 0..6 and ``payload``)."""
 
@@ -41,32 +36,37 @@ class ArmInertia:
                                                                                                   float), True))
         pl = robot.payload
         self._bodies.append((6, float(pl.mass_kg), np.asarray(pl.com_m, float), pl.inertia_about_com_kg_m2, False))
-
-    def _body_frame(self, F, q, i, in_link_frame):
-        """(R, p) of the frame a body's data is given in: link i's URDF frame
-        (DH frame i-1 turned by joint i), or DH frame 6 (the payload)."""
-        if not in_link_frame:
-            return F[6, :3, :3], F[6, :3, 3]
-        T = F[i - 1]
-        return T[:3, :3] @ _rot_z(q[i - 1] + self.dh.home_rad[i - 1]), T[:3, 3]
+        n = len(self._bodies)
+        self._stack = {  # the bodies as arrays, for mass_matrix
+            "prev": np.array([i - 1 if in_link else 0 for i, _, _, _, in_link in self._bodies]),
+            "in_link": np.array([in_link for *_, in_link in self._bodies]),
+            "mass": np.array([m for _, m, _, _, _ in self._bodies]),
+            "com": np.array([c for _, _, c, _, _ in self._bodies]).reshape(n, 3),
+            "inertia": np.array([np.asarray(I, float) for _, _, _, I, _ in self._bodies]).reshape(n, 3, 3),
+            "mask": np.array([[j < i for j in range(6)] for i, *_ in self._bodies], dtype=float),
+        }
 
     def mass_matrix(self, q_rad):
-        """M(q) (6x6) at model angles q (6,)."""
+        """M(q) (6x6) at model angles q (6,): every body at once (the
+        preview compensator refreshes it in its real-time cycle)."""
         q = np.asarray(q_rad, dtype=float)
         F = kin.frames(self.dh, q)
         z = F[:6, :3, 2]  # joint j's axis: z of frame j-1
         o = F[:6, :3, 3]
-        M = np.zeros((6, 6))
-        for i, m, c, I, in_link in self._bodies:
-            R, p = self._body_frame(F, q, i, in_link)
-            pc = p + R @ c
-            Jv = np.zeros((3, 6))
-            Jw = np.zeros((3, 6))
-            Jv[:, :i] = np.cross(z[:i], pc - o[:i]).T
-            Jw[:, :i] = z[:i].T
-            Iw = R @ I @ R.T
-            M += m * Jv.T @ Jv + Jw.T @ Iw @ Jw
-        return M
+        b = self._stack
+        # each body's frame: link i's (DH frame i-1 turned by joint i) or DH frame 6 (the payload)
+        a = q + np.asarray(self.dh.home_rad, dtype=float)
+        c, s = np.cos(a), np.sin(a)
+        Rz = np.zeros((6, 3, 3))
+        Rz[:, 0, 0], Rz[:, 0, 1], Rz[:, 1, 0], Rz[:, 1, 1], Rz[:, 2, 2] = c, -s, s, c, 1.0
+        R = np.where(b["in_link"][:, None, None], F[b["prev"], :3, :3] @ Rz[b["prev"]], F[6, :3, :3])
+        p = np.where(b["in_link"][:, None], F[b["prev"], :3, 3], F[6, :3, 3])
+        pc = p + np.einsum("bij,bj->bi", R, b["com"])
+        Jv = np.cross(z[None, :, :], pc[:, None, :] - o[None, :, :]) * b["mask"][:, :, None]  # (body, joint, 3)
+        Jw = z[None, :, :] * b["mask"][:, :, None]
+        Iw = R @ b["inertia"] @ R.transpose(0, 2, 1)
+        return (np.einsum("b,bjk,blk->jl", b["mass"], Jv, Jv)
+                + np.einsum("bjk,bkn,bln->jl", Jw, Iw, Jw))
 
     def payload_com_jacobian(self, q_rad):
         """(R6 (3x3), Jacobian (3x6) of the payload's centre of mass): its

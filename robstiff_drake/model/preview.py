@@ -178,12 +178,17 @@ class PreviewStream:
         self._h = np.zeros((len(GROUPS), 6))  # the drive's load torque through the integral's high-pass
         self._u_last = np.zeros((len(GROUPS), 6))
         self._M = None
+        self._M_next = None  # a mass matrix whose modes the next sample computes
         self.mass_every = MASS_MATRIX_EVERY
 
     def _pose_terms(self, q):
-        """At pose q: M, the gears' twist filter over a period (Phi = e^{-D^-1 K T},
-        D the modal damping), and the drives' velocity gains K_v (6,)."""
-        M = self.m.mass(q)
+        """At pose q: M, the gears' twist filter over a period and the
+        drives' velocity gains (``_modal_terms``)."""
+        return self._modal_terms(self.m.mass(q))
+
+    def _modal_terms(self, M):
+        """For mass matrix M: (M, the gears' twist filter over a period (Phi =
+        e^{-D^-1 K T}, D the modal damping), the drives' velocity gains K_v (6,))."""
         K = 1.0 / self.C
         Kd = np.diag(K)
         w2, Phi = linalg.eigh(Kd, M)  # Phi^T M Phi = I, Phi^T K Phi = diag(omega^2)
@@ -195,6 +200,20 @@ class PreviewStream:
         Ed = (Phi * np.exp(-rate * self.T)) @ Phi.T @ M
         Kv = self.servo.omega_v * (self.Jm + np.diag(M))
         return M, Ed, Kv
+
+    def _refresh(self, j, q):
+        """The pose terms along the path, their cost spread over two cycles
+        so that no cycle carries both: the mass matrix at sample j (every
+        ``mass_every``-th), its modes and filter at the next one (the pose
+        terms then lag the path by one period, 4 ms: the inertia changes
+        over tens of ms)."""
+        if self._M is None:
+            self._M, self._Ed, self._Kv = self._pose_terms(q)
+        elif j % self.mass_every == 0:
+            self._M_next = self.m.mass(q)
+        elif self._M_next is not None:
+            self._M, self._Ed, self._Kv = self._modal_terms(self._M_next)
+            self._M_next = None
 
     def push(self, u_s):
         """Push the reference at path time ``u_s`` (= k T); returns None for
@@ -214,8 +233,7 @@ class PreviewStream:
         u_j = u_s - self.T
         self.k += 1
         qdd = (q2 - 2.0 * q1 + q0) / (self.T * self.T)
-        if self._M is None or j % self.mass_every == 0:
-            self._M, self._Ed, self._Kv = self._pose_terms(q1)
+        self._refresh(j, q1)
         J = self.m.jacobian(q1)
         W = self.m.force_groups(u_j)  # (3, 6)
         f = np.empty((len(GROUPS), 6))  # the gears' torque that holds the link on the path, per group
