@@ -91,6 +91,7 @@ class CompensatorLoop:
         self.t_start = self.t_last_msg = None
         self.t_last_answer = 0.0
         self.pending_reseed = False
+        self.reseed_candidate = None  # the first finite record while pending_reseed (the wrench, 6)
         self.saturated = False
         self.last_sent = None
         self.ended_by = "interrupt"
@@ -184,9 +185,18 @@ class CompensatorLoop:
                 self.log.wrench(t0 + span * (i + 1) / n_rec if span > 0 else t0 + 1e-6 * (i + 1), w)
             self.last_raw = list(w)
             if finite and self.pending_reseed:
-                comp.reseed(list(w))
-                self.pending_reseed = False
-                self.fault_off("sensor", "sensor: valid records again; guard and filter restarted on the new reading")
+                # the chain restarts on a new level only when two records in a row agree on it (within the
+                # guard's jumps): the first record after a silence or a step may itself be a spike
+                cand = self.reseed_candidate
+                if cand is not None and all(abs(a - b) <= comp.max_jump_N for a, b in zip(w[:3], cand[:3])) \
+                        and all(abs(a - b) <= lim for a, b in zip(w[3:], cand[3:])):
+                    comp.reseed(list(w))
+                    self.pending_reseed = False
+                    self.reseed_candidate = None
+                    self.fault_off("sensor", "sensor: valid records again; guard and filter restarted on the new "
+                                             "reading")
+                else:
+                    self.reseed_candidate = list(w)
             if finite and not self.pending_reseed and (abs(w[3] - comp.held[3]) > lim or abs(w[4] - comp.held[4]) > lim
                                                         or abs(w[5] - comp.held[5]) > lim):
                 self.n.moment_spikes += 1
@@ -212,6 +222,8 @@ class CompensatorLoop:
             # the guard has refused every sample for a while: the force really changed, or the sensor is bad
             self.fault_on("sensor", f"sensor: the guard rejected every sample for {to * 1e3:.0f} ms (a jump of more "
                                     f"than {comp.max_jump_N:g} N or {lim:g} N*m)")
+            if not self.pending_reseed:
+                self.reseed_candidate = None
             self.pending_reseed = True
             self.t_sensor_rejecting = None
         # silence counts while the controller streams: after a gap in the controller's messages (this PC
@@ -221,6 +233,8 @@ class CompensatorLoop:
             invalid = self.t_sensor_invalid is not None and self.t_sensor_invalid >= self.t_sensor_good
             what = "invalid records (status flags, NaN or clipped), then none" if invalid else "no record"
             self.fault_on("sensor", f"sensor: {what} for {to * 1e3:.0f} ms")
+            if not self.pending_reseed:
+                self.reseed_candidate = None  # (kept while it waits: the next record may agree with it)
             self.pending_reseed = True
         if n_rec:
             self.t_logged = max(self.t_session, t0 + 1e-6 * n_rec)
