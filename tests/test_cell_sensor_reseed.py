@@ -1,7 +1,8 @@
 """compensate's chain after a sensor silence or a step: it restarts on a new level only when two records in a row
 agree on it.  Before, the first finite record after the fault was taken whatever it was: a moment spike arriving
-first after a silence seeded the chain on 2000 N*m (tests/test_cell_attacks.py's moment-spike run once sent a
-target 0.19 deg off the reference in a full suite, where the fake sensor's thread can fall silent for 20 ms)."""
+first after a silence seeded the chain on 2000 N*m.  (tests/test_cell_attacks.py's moment-spike run once sent a
+target 0.19 deg off the reference in a full suite; this is a way that can happen if the fake sensor's thread
+falls silent for 20 ms under load, not a confirmed account of that run.)"""
 
 import io
 import math
