@@ -45,6 +45,7 @@ from robstiff_drake.cell.reference import Reference  # noqa: F401 (the loop's re
 from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_problem
 from robstiff_drake.cell.session import SessionClock
 from robstiff_drake.errors import InputError, Terminated
+from robstiff_drake.model.compensator import guard_accepts
 
 # The correction may move by at most this many controller periods' worth
 # of its rate limit in one answer, whatever the time since the last one.
@@ -52,6 +53,12 @@ MAX_STEP_PERIODS = 2.0
 CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
 STALE_PERIODS = 3.0
 MALFORMED_FIRST = 25  # unusable datagrams from the controller before its first good one: refused at once  # a correction computed from a wrench older than this many periods is stale
+
+
+def _moments_within(w, ref, lim_Nm):
+    """Whether every moment of wrench ``w`` is within ``lim_Nm`` (N*m) of
+    ``ref``'s (the force part is model/compensator.guard_accepts')."""
+    return abs(w[3] - ref[3]) <= lim_Nm and abs(w[4] - ref[4]) <= lim_Nm and abs(w[5] - ref[5]) <= lim_Nm
 
 
 @dataclass
@@ -188,8 +195,7 @@ class CompensatorLoop:
                 # the chain restarts on a new level only when two records in a row agree on it (within the
                 # guard's jumps): the first record after a silence or a step may itself be a spike
                 cand = self.reseed_candidate
-                if cand is not None and all(abs(a - b) <= comp.max_jump_N for a, b in zip(w[:3], cand[:3])) \
-                        and all(abs(a - b) <= lim for a, b in zip(w[3:], cand[3:])):
+                if cand is not None and guard_accepts(w, cand, comp.max_jump_N) and _moments_within(w, cand, lim):
                     comp.reseed(list(w))
                     self.pending_reseed = False
                     self.reseed_candidate = None
@@ -197,8 +203,7 @@ class CompensatorLoop:
                                              "reading")
                 else:
                     self.reseed_candidate = list(w)
-            if finite and not self.pending_reseed and (abs(w[3] - comp.held[3]) > lim or abs(w[4] - comp.held[4]) > lim
-                                                        or abs(w[5] - comp.held[5]) > lim):
+            if finite and not self.pending_reseed and not _moments_within(w, comp.held, lim):
                 self.n.moment_spikes += 1
                 if self.n.moment_spikes <= 5 or self.n.moment_spikes % 1000 == 0:
                     self.event(f"sensor: a moment jumped more than {lim:g} N*m from the last good sample: refused "
