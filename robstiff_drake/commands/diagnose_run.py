@@ -86,11 +86,15 @@ def format_report(rep):
     else:
         lines.append(f"the loop's tracking error: {lag['status']}")
     if rep["causes"]:
-        lines.append("cause traced: " + ", then ".join(f"{c['name']} ({_params(c['params'])}; changes the surface "
-                                                        f"by {c['size_mm']:.4f} mm rms)" for c in rep["causes"]))
+        traced = ", then ".join(f"{c['name']} ({_params(c['params'])}; changes the surface by {c['size_mm']:.4f} "
+                                "mm rms)" for c in rep["causes"])
         if rep["also_consistent_with"]:
-            lines.append("as good on this run (their fits differ by less than the noise floor): "
-                         + ", ".join(rep["also_consistent_with"]))
+            # several causes fit alike: the best fit is not a verdict
+            lines.append(f"cause not decided: the best fit is {traced}; as good on this run (their fits differ by "
+                         f"less than the noise floor): {', '.join(rep['also_consistent_with'])}; verification "
+                         "cuts decide")
+        else:
+            lines.append("cause traced: " + traced)
     else:
         lines.append("no cause named")
     verdict = "explains the data (the residual is consistent with the noise floor)" if rep["explains_data"] else \

@@ -12,14 +12,9 @@ from scipy.optimize import least_squares
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification import run_files as rf
 from robstiff_drake.identification import scan_statistics as ss
-from robstiff_drake.identification.run_signals import DAMPING_RATIO, GRID_HZ, gear_law_deviation, signals_at
+from robstiff_drake.identification.run_signals import GRID_HZ, gear_law_deviation
 
 
-# The damping's profile (``profile_damping``): the ratios tried, and its likelihood interval (chi-square, one
-# parameter, 95 %: the fit's residual sum of squares within 3.84 noise floors squared, per effective point,
-# of the best).
-DAMPING_GRID = np.array([0.02, 0.03, 0.05, 0.07, 0.10, 0.15, 0.20])
-DAMPING_CHI2 = 3.84
 ALPHA = 1e-3  # per test; about 10 causes are tried per round
 SIZE_FACTOR = 1.0  # a named cause changes the surface by at least this many noise floors (RMS)
 MAX_CAUSES = 2
@@ -28,6 +23,13 @@ EXPLAIN_ALPHA = 0.01  # the residual is consistent with the floor unless chi2 sa
 NO_DATA = 0.1  # of the floor: what a parameter must move the surface by over its range to be kept
 LOOP = "loop_lag"  # the loop's tracking error: always in the model, its fix offered when it matters
 NOISE_DISAGREE = 2.0  # warn when the stated and the estimated noise differ by more than this factor
+# ASSUMPTION: a constant error of the sensor's force reading after gravity removal is within 20 N per axis: a
+# strain-gauge sensor's zero drift is about 0.05 % of its rated force per 10 K (HBM), 2.5 N for a 2,500 N sensor
+# warmed 20 K; a payload calibrated 1 kg off reads 10 N off; beyond that a user would have re-zeroed the sensor
+FORCE_BIAS_N = 20.0
+# ASSUMPTION: a direction of the force bias that moves the face less than a tenth as much as the one that moves it
+# most is confounded with it on this pass (its estimate would be the noise's): it is not fitted
+BIAS_DIRECTION_TOL = 0.1
 ALIKE = 1.0  # causes whose mean-square residuals differ by less than ALIKE x floor^2 are alike
 
 
@@ -48,6 +50,10 @@ class Candidate:
     columns: np.ndarray  # (n, k): dz (m) per unit parameter (SI)
     params: list
     what: str
+    # where the fitted parameters are combinations of physical ones (only those the run can see): the physical
+    # parameters = basis @ the fitted ones, named basis_names (SI), as reported
+    basis: np.ndarray = None
+    basis_names: tuple = ()
 
 
 def loop_lag_ms(sig):
@@ -102,9 +108,41 @@ def candidates(sig):
     out.append(Candidate("joint_coupling", _along(sig, gear_law_deviation(*law, None, 1.0))[:, None],
                          [Param("c23", "rad/(N*m)", 1.0, -c23, c23)],
                          "a joint 2-3 coupling beyond the model's (of the total torque)"))
+    if sig.tau_per_sensor_force is not None:
+        out.append(_force_bias(Jz, c, sig.tau_per_sensor_force))
     out.append(Candidate("setup_offset", -np.ones((len(sig.t_s), 1)), [Param("offset", "mm", 1e3, -1e-3, 1e-3)],
                          "a constant: tool length or workpiece height (+ = cut more)"))
     return out
+
+
+def _force_bias(Jz, c, tau_per_force):
+    """The force_bias candidate: the compensator corrected for a force the
+    cut did not exert, so the arm sits off by what the model's compliance
+    makes of it.  On a pass whose orientation hardly changes, the sensor's
+    three axes move the face almost alike: only the directions of the bias
+    the run can see (singular values of the three columns within
+    BIAS_DIRECTION_TOL of the largest) are fitted, each along its unit
+    direction; the bias reported is their sum (the smallest bias that
+    explains the face)."""
+    X = -np.einsum("nj,nja->na", Jz * c, tau_per_force)
+    _, S, Vt = np.linalg.svd(X, full_matrices=False)
+    seen = S >= BIAS_DIRECTION_TOL * S[0] if S[0] > 0 else np.zeros(3, bool)
+    basis = Vt[seen].T if seen.any() else np.eye(3)
+    where = "; ".join("(" + ", ".join(f"{v:+.2f}" for v in basis[:, i]) + ")" for i in range(basis.shape[1]))
+    return Candidate("force_bias", X @ basis,
+                     [Param(f"F{i + 1}", "N", 1.0, -FORCE_BIAS_N, FORCE_BIAS_N) for i in range(basis.shape[1])],
+                     "a constant error of the sensor's force reading after gravity removal (its bias drifted since "
+                     "it was calibrated, or the payload's weight is off); this run sees it along the sensor-frame "
+                     f"direction(s) {where}", basis, ("Fx", "Fy", "Fz"))
+
+
+def _physical(c, k, theta):
+    """{name: SI value} of a cause's fitted parameters (kept indices k)."""
+    if c.basis is None:
+        return {c.params[i].name: float(v) for i, v in zip(k, theta)}
+    full = np.zeros(len(c.params))
+    full[list(k)] = theta
+    return dict(zip(c.basis_names, (c.basis @ full).tolist()))
 
 
 class Envelope:
@@ -311,48 +349,6 @@ def noise_floor(scan, segs, stated_mm, warnings):
     return floor, source, stated, estimated
 
 
-def profile_damping(run_ctx, arm, scan, cutter_mm, y, floor_m, stats_ctx, model):
-    """The gears' modal damping ratio that the run's face decides: the
-    causes of ``model`` (a Fit: the loop's tracking error and the named
-    causes) refitted with the arm's response at each ratio of DAMPING_GRID
-    (the arm's own motion error and the loop's response ring more or less);
-    the interval of ratios whose fit is within DAMPING_CHI2 noise floors
-    squared (per effective point) of the best.  A dict: ratio (None when the
-    interval covers the whole grid: the face does not decide it), interval,
-    the fits' rms (mm) per ratio, source, used."""
-    rss, residuals = [], []
-    for z in DAMPING_GRID:
-        sig = signals_at(run_ctx, arm, z)
-        env = Envelope(scan, sig, cutter_mm)
-        by_name = {c.name: c for c in candidates(sig)}
-        causes = [by_name[c.name] for c in model.causes]
-        r = (fit_model(env, causes, model.keep, y).residual if causes else env.surface(np.zeros_like(sig.t_s)) - y)
-        residuals.append(r)
-        rss.append(float(r @ r))
-    rss = np.array(rss)
-    i = int(np.argmin(rss))
-    n_eff, _ = ss.effective_points(residuals[i] * 1e3, stats_ctx["segs"], stats_ctx["length_mm"], cutter_mm)
-    chi2 = (rss - rss[i]) / floor_m**2 * n_eff / y.size
-    inside = chi2 <= DAMPING_CHI2
-    lo, hi = float(DAMPING_GRID[inside].min()), float(DAMPING_GRID[inside].max())
-    # a fit that leaves more than the noise says the model lacks something: the damping would take its place
-    explained = ss.consistent_with_floor(residuals[i] * 1e3, floor_m * 1e3, n_eff, EXPLAIN_ALPHA)
-    decided = explained and not (lo == DAMPING_GRID[0] and hi == DAMPING_GRID[-1])
-    ratio = float(DAMPING_GRID[i]) if decided else None
-    if decided:
-        source = "estimated from the run (the fit to the face at each ratio)"
-    elif not explained:
-        source = (f"assumed ({DAMPING_RATIO:g}): the run does not decide it (the best fit, at {DAMPING_GRID[i]:g}, "
-                  f"leaves {rms(residuals[i]) * 1e3:.4f} mm, more than the noise: the model lacks something the "
-                  "damping would stand in for)")
-    else:
-        source = (f"assumed ({DAMPING_RATIO:g}): the run does not decide it (every ratio from {lo:g} to {hi:g} fits "
-                  "the face as well)")
-    return {"ratio": ratio, "interval": [lo, hi], "grid": DAMPING_GRID.tolist(),
-            "rms_mm": (np.sqrt(rss / y.size) * 1e3).tolist(), "used": ratio if decided else DAMPING_RATIO,
-            "source": source}
-
-
 def trace(env, cands, y, floor_m, stats_ctx, base):
     """Forward selection of causes on top of ``base`` (the loop's tracking
     error: always in the model); returns (rounds, final Fit)."""
@@ -405,6 +401,10 @@ def cause_params(fit):
     """{cause name: {param (unit): value}} of a fit."""
     out = {}
     for c, k, sl in zip(fit.causes, fit.keep, fit.slices()):
+        if c.basis is not None:  # physical parameters, in the unit of the fitted ones
+            out[c.name] = {f"{n} ({c.params[0].unit})": v * c.params[0].scale
+                           for n, v in _physical(c, k, fit.theta[sl]).items()}
+            continue
         out[c.name] = {f"{c.params[i].name} ({c.params[i].unit})": float(v * c.params[i].scale)
                        for i, v in zip(k, fit.theta[sl])}
     return out
@@ -413,5 +413,5 @@ def cause_params(fit):
 def si_params(fit):
     out = {}
     for c, k, sl in zip(fit.causes, fit.keep, fit.slices()):
-        out[c.name] = {c.params[i].name: float(v) for i, v in zip(k, fit.theta[sl])}
+        out[c.name] = _physical(c, k, fit.theta[sl])
     return out

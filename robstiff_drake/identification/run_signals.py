@@ -61,6 +61,9 @@ class RunSignals:
     damping_ratio: float  # the gears' modal damping ratio the model used
     smooth_hz: float  # the load's smoothing
     damping: dict = None  # estimate_damping's result (None: the ratio was given)
+    # (n, 6, 3) N*m per N: the generalized force of a unit force in the sensor's frame (x, y, z), about the
+    # sensor origin, at the arm's pose: what a bias of the sensor's force reading adds to tau_Nm
+    tau_per_sensor_force: np.ndarray = None
 
 
 def _fill_dropouts(t, w, path):
@@ -217,7 +220,23 @@ def run_context(files, robot, arm):
             "grid": grid, "q_nom": q_nom, "tau": tau_f[k], "g": arm.gravity_torques(q_nom),
             "g0": arm.gravity_torques(q_j[:1] - c_j[:1])[0], "tau_i": arm.inertia_torques(q_nom, v, a),
             "velocity_terms": _resample(tf, grid, arm.inertia_torques(q_nom, v, np.zeros_like(a))),
-            "corr": _resample(grid, t_j, _lowpass(c_j, 1.0 / float(np.median(np.diff(t_j))), cutoff))}
+            "corr": _resample(grid, t_j, _lowpass(c_j, 1.0 / float(np.median(np.diff(t_j))), cutoff)),
+            "tau_per_sensor_force": _tau_per_sensor_force(robot, s, q_nom, J[k], tool)}
+
+
+def _tau_per_sensor_force(robot, settings, q, J, tool_m):
+    """(n, 6, 3) N*m per N: J^T of a unit force along each axis of the
+    sensor's frame (applied at the sensor origin, the flange's), as the
+    compensator's gravity removal passes a bias of the sensor's force
+    reading on: at the tool point in the base frame, the force rotated into
+    the base and its moment about the tool point."""
+    R_mount = PayloadCalibration(**settings.payload).arrays()[4]
+    Rs = kin.frames(robot.dh, q)[:, 6, :3, :3] @ R_mount  # base <- sensor
+    r_b = Rs @ (R_mount.T @ tool_m)  # the tool point from the sensor origin, base frame
+    f = Rs  # (n, 3, 3): column a is the unit force along sensor axis a, base frame
+    m = -np.cross(r_b[:, :, None], f, axis=1)  # about the tool point: -(r x f)
+    W = np.concatenate([f, m], axis=1)  # (n, 6, 3)
+    return np.einsum("nrj,nra->nja", J, W)
 
 
 def signals_at(ctx, arm, damping_ratio, damping=None):
@@ -236,7 +255,8 @@ def signals_at(ctx, arm, damping_ratio, damping=None):
     dz_loop = dz[k, 0] + dz[k, 1] + np.einsum("nj,nj->n", Jg[:, 2, :], believed)
     return RunSignals(x["grid"], x["q_nom"], x["corr"], x["W_f"][k], x["tau"], x["g"], x["tau_i"], x["g0"],
                       Jg[:, 2, :], kin.tool_position(x["robot"].dh, x["q_nom"], x["tool"]), x["c"], model_dq,
-                      dz[k, 2], dz_loop, x["servo"], damping_ratio, x["cutoff"], damping)
+                      dz[k, 2], dz_loop, x["servo"], damping_ratio, x["cutoff"], damping,
+                      x["tau_per_sensor_force"])
 
 
 def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost_motion_rad, coupling_c23):
