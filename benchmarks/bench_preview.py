@@ -11,11 +11,13 @@ departure check, two table lookups), beside the plain chain alone
 (model/compensator.Compensator: sensor samples + tick) measured in the
 same run on the same cycles.
 
-Target: every cycle <= 500 us (an eighth of the 4 ms cycle): PASS/FAIL on
-the preview's 99th percentile (exit status 1 on FAIL); the median, the
-largest cycle and the ratio to the plain chain are printed beside it, and
-the table's precomputation time.  The largest cycle on a shared machine
-is the scheduler's (quote the load average, `uptime`, beside the figures).
+Target: every cycle's computation <= 500 us (an eighth of the 4 ms
+cycle): PASS/FAIL on the preview's 99th percentile and largest cycle in
+the thread's CPU time (exit status 1 on FAIL; on a shared machine the wall
+clock's tails are the scheduler giving the core to other jobs, which no
+code here changes).  Printed beside it: median, p99 and max in CPU time and
+on the wall clock, for the preview and the plain chain, their ratio, and
+the table's precomputation time.  Quote the load average (`uptime`).
 Run: python3 benchmarks/bench_preview.py [--job diagrams/face_and_contour.yaml]
 """
 
@@ -27,7 +29,8 @@ import time
 
 import numpy as np
 
-from robstiff_drake.cell.preview_table import PreviewDeflection, build_plan, load_job
+from robstiff_drake.cell.preview_job import build_plan, load_job
+from robstiff_drake.cell.preview_table import PreviewDeflection
 from robstiff_drake.model.compensator import Compensator
 from robstiff_drake.model.filters import lowpass_coefficients
 from robstiff_drake.model.payload import PayloadCalibration
@@ -57,7 +60,7 @@ class _Loop:
 
 def chain(robot, tool, ba):
     kin = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool)
-    cal = PayloadCalibration(mass_kg=40.0, com_mm=[0.0, 0.0, 180.0], force_bias_N=[0.0] * 3,
+    cal = PayloadCalibration(mass_kg=0.0, com_mm=[0.0, 0.0, 180.0], force_bias_N=[0.0] * 3,
                              torque_bias_Nm=[0.0] * 3, sensor_mount_rpy_deg=[0.0] * 3)
     return Compensator(predictor=kin, calibration=cal, tool_m=tool, filter_ba=ba, max_jump_N=1000.0,
                        saturation_rad=math.radians(0.5), rate_limit_rad_per_s=math.radians(5.0), delay_steps=0,
@@ -86,44 +89,54 @@ def main():
     rng = np.random.default_rng(0)
     k0 = int(round(k0_s / PERIOD_S))
     n = min(args.cycles, len(plan.u) - k0 - 1)
-    t_prev, t_plain = [], []
+    t_prev, t_plain, c_prev, c_plain = [], [], [], []
     for c in range(n):
         k = k0 + c
         t = k * PERIOD_S
         q_deg = plan.q_plan_deg[k].tolist()
         q = robot.joint_map.to_model(np.radians(q_deg)).tolist()
-        samples = [(rng.normal(size=6) * 10.0).tolist() for _ in range(int(RATE_HZ * PERIOD_S))]
+        # the sensor reads the job's model wrench (as the cut it describes would) and noise
+        w_model = plan.replica[k].sum(axis=0)
+        samples = [(w_model + rng.normal(size=6) * 10.0).tolist() for _ in range(int(RATE_HZ * PERIOD_S))]
         loop.t_session, loop.q_deg = t, q_deg
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.thread_time()
         for w in samples:
             comp.sensor_sample(w)
         preview.update(loop, _Msg(int(round(t * 1e3))))
         corr = comp.tick(q, PERIOD_S)
         preview.sent(np.degrees(G_inv @ np.asarray(corr)).tolist())
         t_prev.append(time.perf_counter() - start)
-        start = time.perf_counter()
+        c_prev.append(time.thread_time() - cpu)
+        start, cpu = time.perf_counter(), time.thread_time()
         for w in samples:
             plain.sensor_sample(w)
         corr = plain.tick(q, PERIOD_S)
         np.degrees(G_inv @ np.asarray(corr)).tolist()
         t_plain.append(time.perf_counter() - start)
+        c_plain.append(time.thread_time() - cpu)
 
     us = 1e6
-    mp, mr = statistics.median(t_prev) * us, statistics.median(t_plain) * us
-    p99p, p99r = np.percentile(t_prev, 99) * us, np.percentile(t_plain, 99) * us
+
+    def row(name, x):
+        return f"  {name:<50} {statistics.median(x) * us:8.1f} {np.percentile(x, 99) * us:8.1f} {max(x) * us:8.1f}"
+
     print(f"preview table of {args.job}: {len(plan.u)} cycles ({plan.u[-1]:.2f} s of path) computed in {t_plan:.2f} s "
           "before the stream starts")
-    print(f"per 4 ms cycle over {n} cycles of the cut (us):        median      p99      max")
-    print(f"  preview (compensate --mode preview)              {mp:8.1f} {p99p:8.1f} {max(t_prev) * us:8.1f}")
-    print(f"  plain chain (4 sensor samples + tick), reference {mr:8.1f} {p99r:8.1f} {max(t_plain) * us:8.1f}")
-    print(f"  ratio preview / plain: median {mp / mr:.2f}, p99 {p99p / p99r:.2f}")
+    print(f"per 4 ms cycle over {n} cycles of the cut (us):          median      p99      max")
+    print(row("preview (compensate --mode preview), CPU time", c_prev))
+    print(row("plain chain (4 sensor samples + tick), CPU time", c_plain))
+    print(row("preview, wall clock (with the scheduler's pauses)", t_prev))
+    print(row("plain chain, wall clock", t_plain))
+    r = [statistics.median(c_prev) / statistics.median(c_plain), np.percentile(c_prev, 99) / np.percentile(c_plain, 99),
+         statistics.median(t_prev) / statistics.median(t_plain)]
+    print(f"  ratio preview / plain: CPU median {r[0]:.2f}, CPU p99 {r[1]:.2f}, wall median {r[2]:.2f}")
     if not preview.active or loop.events:
         print(f"  the preview stopped during the benchmark ({loop.events}): FAIL")
         return 1
-    ok = p99p <= TARGET_US
-    over = sum(1 for x in t_prev if x * us > TARGET_US)
-    print(f"  target <= {TARGET_US:.0f} us per cycle: p99 {p99p:.1f} us, {over} of {n} cycles over (on a shared "
-          f"machine: the scheduler's preemptions): {'PASS' if ok else 'FAIL'}")
+    p99, top = np.percentile(c_prev, 99) * us, max(c_prev) * us
+    ok = p99 <= TARGET_US and top <= TARGET_US
+    print(f"  target <= {TARGET_US:.0f} us of computation in every cycle (CPU time: the wall clock's tails on a shared "
+          f"machine are other jobs'): p99 {p99:.1f} us, max {top:.1f} us: {'PASS' if ok else 'FAIL'}")
     return 0 if ok else 1
 
 

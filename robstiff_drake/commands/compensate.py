@@ -205,7 +205,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     ctrl = parse_controller(controller, PROTOCOL_PORTS[protocol])
     period_s = period_ms / 1e3
     if job is not None:
-        from robstiff_drake.cell.preview_table import load_job
+        from robstiff_drake.cell.preview_job import load_job
 
         sc_job, robot = load_job(job, robot_yaml, period_s=period_s)
     else:
@@ -222,7 +222,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         raise InputError(f"--cutoff-hz: {e}") from None
     plan = None
     if job is not None:
-        from robstiff_drake.cell.preview_table import job_reference
+        from robstiff_drake.cell.preview_job import job_reference
 
         def given():
             wait_for_file(reference, wait_s)
