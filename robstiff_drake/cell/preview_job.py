@@ -96,7 +96,7 @@ def build_plan(sc, robot, k_Nm_per_rad, *, period_s, filter_ba, rate_hz, delay_s
     q_plan = np.column_stack([np.interp(at, t_ref, q_deg[:, j]) for j in range(6)])
     v_ref = np.gradient(q_deg, t_ref, axis=0) if len(t_ref) > 1 else np.zeros_like(q_deg)
     v_plan = np.column_stack([np.interp(at, t_ref, v_ref[:, j]) for j in range(6)])
-    return PreviewPlan(u=u, c=c, replica=replica, q_plan_deg=q_plan, v_plan_deg_per_s=v_plan, t_ref_s=t_ref,
+    return PreviewPlan(u=u, c=c, replica=replica, sensor=s, q_plan_deg=q_plan, v_plan_deg_per_s=v_plan, t_ref_s=t_ref,
                        q_ref_deg=q_deg, period_s=T, lead_s=int(delay_steps) * T, lag_s=lag, expected_lag_s=expected,
                        servo=servo, seconds=time.perf_counter() - t0)
 

@@ -72,6 +72,7 @@ class PreviewPlan:
     u: np.ndarray
     c: np.ndarray
     replica: np.ndarray
+    sensor: np.ndarray  # (N, 4, 6) the model's sensor wrench per part before the filter (model/preview.py's)
     q_plan_deg: np.ndarray
     v_plan_deg_per_s: np.ndarray
     t_ref_s: np.ndarray  # the reference's rows (s) and angles (controller deg): what is streamed
