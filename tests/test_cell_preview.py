@@ -89,6 +89,7 @@ def test_preview_over_the_protocols_runs_inside_the_limits(pair):
     res, summary, _, joints, err = pair["preview"]
     print(err)
     assert summary["mode"] == "preview" and summary["preview"]["table_rows"] > 1000, summary
+    assert "short_block.yaml)" in err.split("inputs/ (")[-1]  # the job is kept in the log's inputs/, as the model and payload are
     pv = summary["preview"]
     # no preview fault during the cut: at most the table's end (after the pass and its run-out)
     assert pv["fallback"] is None or "table ended" in pv["fallback"]["why"], pv
@@ -161,7 +162,7 @@ def test_preview_falls_back_to_plain_when_the_plan_no_longer_holds(tmp_path, cas
     log = tmp_path / "log"
     try:
         p = subprocess.run(compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=str(log),
-                                          extra=["--mode", "preview", "--job", SHORT, "--duration-s", "1.5"]),
+                                          extra=["--mode", "preview", "--job", SHORT, "--duration-s", "4"]),
                            cwd=ROOT, capture_output=True, text=True, timeout=240)
     finally:
         net.stop = True
@@ -178,7 +179,7 @@ def test_preview_falls_back_to_plain_when_the_plan_no_longer_holds(tmp_path, cas
     corr = np.column_stack([joints[f"corr{j}_deg"] for j in range(1, 7)])
     assert np.max(np.abs(corr)) <= 0.5 + 1e-9
     if case == "force":  # plain from then on: the correction follows the measured force's deflection
-        assert 0.25 < pv["fallback"]["t_s"] < 0.6, pv
+        assert 0.3 < pv["fallback"]["t_s"] < 0.8, pv  # (the 2 Hz filter crosses the bound, then 0.1 s)
         late = corr[joints["t_s"] > joints["t_s"][-1] - 0.2]
         print("fallback at", pv["fallback"]["t_s"], "s; the last 0.2 s's largest correction", np.max(np.abs(late)),
               "deg; run to", joints["t_s"][-1], "s")

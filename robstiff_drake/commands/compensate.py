@@ -275,7 +275,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             from robstiff_drake.cell.settings_file import compensator_yaml
             from robstiff_drake.diagrams.run_inputs import kept_files
 
-            kept = kept_files(robot, {"model": model, "payload": payload, "reference": reference})
+            kept = kept_files(robot, {"model": model, "payload": payload, "reference": reference, "job": job})
             stream_log = StreamLog(log, compensator_yaml(
                 robot=robot, robot_spec=robot_yaml, k=k, cal=cal, tool_m=tool, period_ms=period_ms,
                 delay_steps=delay_steps, filter_kind=filter_kind, cutoff_hz=cutoff_hz, filter_order=filter_order,
