@@ -3,8 +3,9 @@ SCENARIO.yaml`): the whole preview computed before any socket opens, so
 that each controller cycle does only the force scales' update and a table
 lookup.
 
-Before the loop (cell/preview_job.py's ``build_plan``): the job's planned path (its program,
-tool and path section, the robot file's IK every reference period) is the
+Before the loop (cell/preview_job.py's ``build_plan``): the job's planned
+path (its program, tool and path section, the robot file's IK every
+reference period) is the
 joint reference; model/preview.PreviewStream runs over the whole path with
 the compensator's own numbers (the identified stiffness of --model, the
 robot file's inertias, the job's modal damping, the job's servo or
@@ -12,7 +13,9 @@ robot file's inertias, the job's modal damping, the job's servo or
 group's correction c_g(u) and the wrench the sensor should read; that
 wrench is passed through the measurement chain's filter once, offline
 (systems/preview_correction.PreviewCorrection does this per cycle in the
-Drake cell: the same filter, input and lag, so the same numbers).
+Drake cell: the same filter, input and lag), and the force scales' Kalman
+gains are computed along the table (``scale_gains``): the same numbers as
+the block's, cycle by cycle (tests/test_preview_table.py).
 
 Per cycle (``PreviewDeflection``, the plain chain's deflection model with
 the preview added; model/compensator.Compensator's saturation, delay line,
@@ -23,8 +26,8 @@ rate limit and fault ramp are untouched):
 
 with R the filtered model wrench (the table's), s_g the Kalman estimate of
 each group's scale (systems/preview_correction's update, numbers and
-limits), t the session's time (the reference's), lead the compensator's
-own delay line.
+limits, with the row's precomputed gain), t the session's time (the
+reference's; the nearest row), lead the compensator's own delay line.
 
 Preview faults fall back to plain compensation for the rest of the run
 (the correction moves from the preview's to the plain chain's at the rate
