@@ -78,9 +78,11 @@ class CompensatorLoop:
     """The loop over a controller link (cell/link.PCLink) and a sensor
     reader (cell/rdt.NetFTReader, or stand-ins with the same methods)."""
 
-    def __init__(self, compensator, link, sensor, reference, robot, settings, *, log=None, out=sys.stderr):
+    def __init__(self, compensator, link, sensor, reference, robot, settings, *, log=None, out=sys.stderr,
+                 preview=None):
         self.comp, self.link, self.sensor, self.ref, self.robot, self.s = (compensator, link, sensor, reference,
                                                                             robot, settings)
+        self.preview = preview  # cell/preview_table.PreviewDeflection (the chain's model) or None: plain
         self.log = log  # run_log.StreamLog or None
         self.out = out
         self.n = Counters()
@@ -302,6 +304,8 @@ class CompensatorLoop:
         self.t_session += dt
         self._feedback(msg.joints_deg, t_arr)
         self._read_sensor(t_arr)
+        if self.preview is not None:
+            self.preview.update(self, msg)
         active = not self.faults
         corr = self.comp.tick(self.q, min(dt, MAX_STEP_PERIODS * self.s.period_s), active)
         if any(abs(d) >= s for d, s in zip(self.comp.dq, self._sat)):
@@ -319,6 +323,8 @@ class CompensatorLoop:
             corr_deg = [math.degrees(c) for c in corr]
         else:
             corr_deg = np.degrees(self._Ginv @ np.asarray(corr)).tolist()
+        if self.preview is not None:
+            self.preview.sent(corr_deg)
         ref_deg, m1, mf = self.ref.at(self.t_session)
         target = [r + c for r, c in zip(ref_deg, corr_deg)]
         env = Envelope(self._lo, self._hi, tuple(ref_deg), tuple(c + m for c, m in zip(self._clamp, m1)),

@@ -51,6 +51,10 @@ MIN_LEVER_M = 0.1
 # lag costs little (entry error 0.036 mm simulated, docs/results.md).
 DEFAULT_CUTOFF_HZ = 2.0
 SWITCH_INTERVAL_S = 0.0005
+# ASSUMPTION: --mode preview stops previewing (plain from then on) when the measured force departs from the
+# job's model by more than --preview-force-bound-N plus this fraction of the model's force (its scales may
+# learn 0.3-2.0 times the coefficients: systems/preview_correction.SCALE_LIMITS).
+FORCE_BOUND_FRACTION = 0.5
 PROTOCOL_PORTS = {"egm": None, "rsi": None, "stream-motion": 60015}  # the controller's port when not given
 
 
@@ -169,7 +173,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         max_jump_N=1000.0, max_jump_Nm=None, saturation_deg=0.5, rate_limit_deg_per_s=5.0, delay_steps=0,
         netft_counts=None, netft_units=None, netft_http_port=80, wait_s=30.0, duration_s=0.0, idle_exit_s=0.0,
         sensor_timeout_ms=20.0, rt_priority=0, controller="127.0.0.1", protocol="egm", servo=None,
-        cutter_diameter_mm=None, allow_unstable_loop=False):
+        cutter_diameter_mm=None, allow_unstable_loop=False, mode="plain", job=None, preview_sync_ms=25.0,
+        preview_force_bound_N=150.0):
     from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
     from robstiff_drake.cell.link import parse_controller
     from robstiff_drake.cell.loop_guard import LoopGuard, feed_direction
@@ -183,7 +188,12 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     from robstiff_drake.model.realtime import DeflectionPredictor
     from robstiff_drake.model.robot import load_robot
 
-    check_outputs(inputs=[model, payload, reference, robot_yaml], folders={"--log": log})
+    check_outputs(inputs=[model, payload, reference, robot_yaml, job], folders={"--log": log})
+    if mode == "preview" and job is None:
+        raise InputError("--mode preview needs --job SCENARIO.yaml (the job's program, tool, cutting model and "
+                         "servo: the preview's plan)")
+    if job is not None and mode != "preview":
+        raise InputError(f"--job {job} is read only with --mode preview (plain compensation needs no plan)")
     if netft_counts is not None or netft_units is not None:
         if netft_counts is None or netft_units is None:
             raise InputError("--netft-counts and --netft-units go together (the counts per force and per torque "
@@ -194,32 +204,50 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                              f"{','.join(netft_units)}: {problem}")
     ctrl = parse_controller(controller, PROTOCOL_PORTS[protocol])
     period_s = period_ms / 1e3
-    robot = load_robot(robot_yaml)
+    if job is not None:
+        from robstiff_drake.cell.preview_job import load_job
+
+        sc_job, robot = load_job(job, robot_yaml, period_s=period_s)
+    else:
+        robot = load_robot(robot_yaml)
     k = read_model(model, robot)
     try:
         cal = read_payload_calibration(payload)
     except RecursionError:
         raise InputError(f"--payload {payload}: nested too deeply to be a payload calibration") from None
-    if reference:
-        wait_for_file(reference, wait_s)
-        t_ref, q_ref = read_reference(reference, robot, period_s)
-        ref = Reference(t_ref, np.degrees(q_ref), period_s=period_s)
-    else:
-        ref = Reference(period_s=period_s)
     host, port = parse_host_port(netft)
     try:
         ba = filter_coefficients(filter_kind, cutoff_hz, filter_order, sensor_rate_hz, spindle_rpm)
     except ValueError as e:
         raise InputError(f"--cutoff-hz: {e}") from None
+    plan = None
+    if job is not None:
+        from robstiff_drake.cell.preview_job import job_reference
+
+        def given():
+            wait_for_file(reference, wait_s)
+            return read_reference(reference, robot, period_s)
+
+        plan, t_ref, q_ref = job_reference(sc_job, robot, k, job=job, reference=reference, read_reference=given,
+                                           period_s=period_s, filter_ba=ba, rate_hz=sensor_rate_hz,
+                                           delay_steps=delay_steps, servo=servo)
+        ref = Reference(t_ref, np.degrees(q_ref), period_s=period_s)
+    elif reference:
+        wait_for_file(reference, wait_s)
+        t_ref, q_ref = read_reference(reference, robot, period_s)
+        ref = Reference(t_ref, np.degrees(q_ref), period_s=period_s)
+    else:
+        ref = Reference(period_s=period_s)
     tool = robot.payload.tool_point_m
     # the loop model's stability check, before any socket is opened (with --reference: at its first row; without,
     # at the hold pose when the controller's first message gives it, before anything is sent)
     guard = LoopGuard(robot=robot, k_Nm_per_rad=k, servo=servo, sensor_rate_hz=sensor_rate_hz, period_s=period_s,
                       delay_steps=delay_steps, filter_kind=filter_kind, filter_ba=ba, cutoff_hz=cutoff_hz,
                       filter_order=filter_order, allow_unstable=allow_unstable_loop)
-    if reference:
+    if ref.q is not None:
         q_model = robot.joint_map.to_model(q_ref)
-        _say(guard.at(ref.q[0], f"--reference {Path(reference).name}'s first row",
+        what = f"--job {Path(job).name}'s path" if job and not reference else f"--reference {Path(reference).name}"
+        _say(guard.at(ref.q[0], f"{what}'s first row",
                       feed_direction(robot, tool, q_model)), guard)
     if max_jump_Nm is None:
         max_jump_Nm = max_jump_N * max(float(np.linalg.norm(tool)) if tool is not None else 0.0, MIN_LEVER_M)
@@ -247,7 +275,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             from robstiff_drake.cell.settings_file import compensator_yaml
             from robstiff_drake.diagrams.run_inputs import kept_files
 
-            kept = kept_files(robot, {"model": model, "payload": payload, "reference": reference})
+            kept = kept_files(robot, {"model": model, "payload": payload, "reference": reference, "job": job})
             stream_log = StreamLog(log, compensator_yaml(
                 robot=robot, robot_spec=robot_yaml, k=k, cal=cal, tool_m=tool, period_ms=period_ms,
                 delay_steps=delay_steps, filter_kind=filter_kind, cutoff_hz=cutoff_hz, filter_order=filter_order,
@@ -255,7 +283,14 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                 saturation_deg=saturation_deg, rate_limit_deg_per_s=rate_limit_deg_per_s, servo=servo,
                 cutter_diameter_mm=cutter_diameter_mm, robot_ref=kept.robot), f"robot {robot.name}, model {model}",
                 inputs={rel: kept.sources[key].read_bytes() for key, rel in kept.names.items()})
-        loop = CompensatorLoop(comp, link, sensor, ref, robot, settings, log=stream_log)
+        preview = None
+        if plan is not None:
+            from robstiff_drake.cell.preview_table import PreviewDeflection
+
+            preview = comp.model = PreviewDeflection(comp.model, plan, sync_s=preview_sync_ms / 1e3,
+                                                     force_bound_N=preview_force_bound_N,
+                                                     force_bound_fraction=FORCE_BOUND_FRACTION)
+        loop = CompensatorLoop(comp, link, sensor, ref, robot, settings, log=stream_log, preview=preview)
         where = f"{ctrl[0]}" + (f":{ctrl[1]}" if ctrl[1] else "")
         link.open()
         print(f"robstiff: compensate: sensor {host}:{port} streaming (calibration {cal_text}); waiting for "
@@ -278,7 +313,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         off = np.abs(np.asarray(q0) - ref.q[0])
         if off.max() > START_TOLERANCE_DEG:
             j = int(np.argmax(off))
-            raise InputError(f"--reference {reference}: the robot is {off[j]:.3f} deg from the reference's start on "
+            raise InputError(f"{f'--job {job}' if job and not reference else f'--reference {reference}'}: the robot is "
+                             f"{off[j]:.3f} deg from the reference's start on "
                              f"joint {j + 1} (at most {START_TOLERANCE_DEG:g}); move it there before streaming starts")
         loop.run(first)
         _restore_gc(gc_frozen)
@@ -293,6 +329,14 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
           f"{stats['fault_onsets']} faults; {stats['strangers_dropped']} datagrams from strangers dropped",
           file=sys.stderr)
     h = stats["health"]
+    if loop.preview is not None:
+        pv = loop.preview.summary()
+        fb = pv["fallback"]
+        until = "to the end" if fb is None else f"until t = {fb['t_s']:.3f} s ({fb['why']})"
+        print(f"robstiff: compensate: preview {until}; force scales "
+              f"{', '.join(f'{v:.2f}' for v in pv['force_scales'])}; the arm's offset from the plan at most "
+              f"{pv['max_plan_offset_ms']:.1f} ms; the force's departure from the model at most "
+              f"{pv['max_force_departure_N']:.0f} N", file=sys.stderr)
     print(f"robstiff: {'warning: ' if h['verdict'] != 'good' else ''}compensate: {h['line']}", file=sys.stderr)
     if stream_log is not None:
         summary = {"command": "compensate", "protocol": protocol, "listen_port": link.port, "controller": where,
@@ -304,6 +348,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                        "max_jump_Nm": max_jump_Nm, "saturation_deg": saturation_deg,
                        "rate_limit_deg_per_s": rate_limit_deg_per_s, "delay_steps": delay_steps,
                        "sensor_timeout_ms": sensor_timeout_ms},
+                   "mode": mode, "job": str(job) if job else None,
+                   "preview": loop.preview.summary() if loop.preview is not None else None,
                    "cycles": stats, "health": h, "loop_check": guard.result,
                    "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])}
         written = stream_log.close(summary)

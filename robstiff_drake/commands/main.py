@@ -313,6 +313,19 @@ def build_parser():
                                                              "(default: hold the first position)")
     p.add_argument("--log", metavar="DIR", help="stream the run's logs into a run folder (diagnose-run reads it)")
     p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=4.0, help="controller cycle (default: %(default)s)")
+    p.add_argument("--mode", choices=["plain", "preview"], default="plain",
+                   help="plain: the measured force's deflection (the paper's chain); preview: also the job's planned "
+                        "path through the arm's dynamics, computed before the stream starts (needs --job; "
+                        "docs/real_cell.md) (default: %(default)s)")
+    p.add_argument("--job", metavar="SCENARIO.yaml",
+                   help="--mode preview's job: its path or program, tool, cutting model, servo and damping; its "
+                        "planned path is the joint reference (a --reference given too must be that path)")
+    p.add_argument("--preview-sync-ms", type=_number_in(1.0, 1000.0, "ms"), default=25.0,
+                   help="the preview falls back to plain when the controller's clock or the arm's feedback is "
+                        "more than this behind or ahead of the job's plan (default: %(default)s)")
+    p.add_argument("--preview-force-bound-N", type=_number_in(1.0, 1e5, "N"), default=150.0,
+                   help="the preview falls back to plain when the measured force departs from the job's model by "
+                        "more than this plus half the model's force for 0.1 s (default: %(default)s)")
     p.add_argument("--sensor-rate-hz", type=_number_in(1.0, 20000.0, "Hz"), default=1000.0,
                    help="the Net F/T's RDT output rate, for the filter (default: %(default)s)")
     p.add_argument("--filter", dest="filter_kind", choices=["lowpass", "revolution_average", "none"], default="lowpass")
@@ -569,7 +582,9 @@ def _dispatch(args):
                               idle_exit_s=args.idle_exit_s, sensor_timeout_ms=args.sensor_timeout_ms,
                               rt_priority=args.rt_priority, controller=args.controller, protocol=args.protocol,
                               servo=servo, cutter_diameter_mm=args.cutter_diameter_mm,
-                              allow_unstable_loop=args.allow_unstable_loop)
+                              allow_unstable_loop=args.allow_unstable_loop, mode=args.mode, job=args.job,
+                              preview_sync_ms=args.preview_sync_ms,
+                              preview_force_bound_N=args.preview_force_bound_N)
     if args.command == "examples":
         from robstiff_drake.commands import examples
 
