@@ -369,7 +369,7 @@ def test_the_lag_free_sensor_reads_the_cut_and_the_weight_not_the_inertia(robot)
     milling = cell.station.systems["milling"]
     mc = milling.GetMyMutableContextFromRoot(sim.get_mutable_context())
     cut = np.array([120.0, -250.0, 80.0, 3.0, -2.0, 1.5])
-    mc.get_mutable_discrete_state(int(milling._w)).SetFromVector(cut)  # the milling source's held wrench (tool point, base)
+    mc.get_mutable_discrete_state(int(milling._w)).SetFromVector(cut)  # its held wrench (tool point, base)
     w, q1 = reading(cell, sim)
     w = w - (cell.station.reading_at_rest(q1) - bias)
     back = cell.compensator.systems["prediction"].tool_wrench_of(w.tolist(), q1)

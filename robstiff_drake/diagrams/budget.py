@@ -226,7 +226,8 @@ def error_budget(sc, robot, *, metric="rms", sources=None, ordered=True, progres
     forward and reverse cumulative removals; it and the floor sum to the
     total), ``forward``/``reverse`` (each order's steps) and ``order_spread``
     (half their difference); ``ringing`` ({run: max abs mm}, runs whose
-    loop rings), ``metric``, ``sources``, ``runs``.  ``progress(text)``:
+    loop rings), ``run_stats`` ({run: METRICS}), ``metric``, ``sources``,
+    ``runs``.  ``progress(text)``:
     called after each run."""
     if metric not in METRICS:
         raise ValueError(f"metric must be one of {METRICS}")
@@ -265,6 +266,8 @@ def error_budget(sc, robot, *, metric="rms", sources=None, ordered=True, progres
     out["ringing"] = {", ".join(sorted(k)) or "nothing": float(v["max_abs"]) for k, v in done.items()
                       if v["max_abs"] > limit}
     out["runs"] = len(done)
+    # every run's statistics, by what it removed (for a split by another metric without running again)
+    out["run_stats"] = {", ".join(sorted(k)) or "nothing": {m: float(v[m]) for m in METRICS} for k, v in done.items()}
     return out
 
 
@@ -296,7 +299,8 @@ def format_budget(b):
              "  one at a time: the residual less the residual with that source alone removed"]
     if ordered:
         lines.append("  ordered: the mean of the source's step when the sources are removed cumulatively in "
-                     "the listed order and in the reverse order (+- half their difference); sums exactly")
+                     "this order and in its reverse (+- half their difference); sums exactly")
+        lines.append(f"    order: {', '.join(b['sources'])}")
         lines.append(f"  {'source':30s} {'one at a time':>13s} {'ordered':>9s} {'+-':>7s}")
     else:
         lines.append(f"  {'source':30s} {'one at a time':>13s}")
@@ -314,6 +318,9 @@ def format_budget(b):
     lines.append(f"  {'total':30s} {b['total']:+13.4f}" + (f" {b['total']:+9.4f}" if ordered else ""))
     if frac is not None:
         lines.append(f"  the one-at-a-time interaction is {100 * frac:.0f} % of total - floor")
+        if ordered:
+            spread = sum(b["order_spread"].values()) / abs(b["total"] - b["floor"])
+            lines.append(f"  the ordered shares' +- sum to {100 * spread:.0f} % of total - floor")
     for run_, mx in b.get("ringing", {}).items():
         lines.append(f"  rings: the run with {run_} removed (max abs {mx:.3f} mm): its share is not of the cut's error")
     return "\n".join(lines)
