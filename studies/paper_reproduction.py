@@ -26,9 +26,9 @@ spread; the budgets are of the first draw.  The paper names its robot's
 path accuracy as the floor of its compensated block test; thermal errors
 are not simulated.
 
-    python studies/paper_reproduction.py            # about 10-20 minutes on a quiet 2-core machine
-    python studies/paper_reproduction.py --no-budget
+    python studies/paper_reproduction.py --no-budget  # about 10-20 minutes on a quiet 2-core machine
     python studies/paper_reproduction.py --budget-only [--part block] [--part "cylinder head"]
+    python studies/paper_reproduction.py              # both (the budgets: 28 + 25 cuts, 20-40 minutes each)
 
 prints the reproduction table and each part's error budget
 (diagrams/budget.py: the block's RMS error (its compensated mean is near
