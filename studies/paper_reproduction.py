@@ -26,9 +26,9 @@ spread; the budgets are of the first draw.  The paper names its robot's
 path accuracy as the floor of its compensated block test; thermal errors
 are not simulated.
 
-    python studies/paper_reproduction.py            # about 10-20 minutes on a quiet 2-core machine
-    python studies/paper_reproduction.py --no-budget
-    python studies/paper_reproduction.py --budget-only
+    python studies/paper_reproduction.py --no-budget  # about 10-20 minutes on a quiet 2-core machine
+    python studies/paper_reproduction.py --budget-only [--part block] [--part "cylinder head"]
+    python studies/paper_reproduction.py              # both (the budgets: 28 + 25 cuts, 20-40 minutes each)
 
 prints the reproduction table and each part's error budget
 (diagrams/budget.py: the block's RMS error (its compensated mean is near
@@ -105,10 +105,12 @@ def main(argv=None):
     ap.add_argument("--no-budget", action="store_true")
     ap.add_argument("--budget-only", action="store_true", help="only the budgets of draw 0")
     ap.add_argument("--draws", type=int, default=DRAWS)
+    ap.add_argument("--part", choices=sorted(PAPER), action="append",
+                    help="only this part's budget (with --budget-only; repeatable)")
     args = ap.parse_args(argv)
     robot = load_robot()
     if args.budget_only:
-        return budget_tables(robot)
+        return budget_tables(robot, args.part)
     print("| part | statistic | paper (mm) | draw | uncompensated (mm) | compensated (mm) | ratio to the paper |")
     print("|---|---|---|---|---|---|---|")
     summary = {}
@@ -140,8 +142,10 @@ def main(argv=None):
     budget_tables(robot)
 
 
-def budget_tables(robot):
+def budget_tables(robot, parts=None):
     for name, (_, _, metric) in PAPER.items():
+        if parts and name not in parts:
+            continue
         metric = "rms" if metric == "mean" else metric  # (a mean near zero has no budget to split)
         b = budgets.error_budget(paper_scenario(name, robot, 0), robot, metric=metric,
                                  progress=lambda t: print("  " + t, file=sys.stderr, flush=True))

@@ -295,11 +295,14 @@ def test_the_identified_model_is_what_a_user_would_have(robot):
 
 def test_the_budget_accounts_for_the_total_and_finds_the_dominant_source(robot, tmp_path):
     """A short block pass (plain compensation) on a plant whose joint 3 is
-    25 % softer than the compensator's model: the shares of the sources,
-    their interaction and the floor (every source removed) add up to the
-    total; the stiffness model's error is the largest share, more than half
-    of what the sources make together; a source whose removal makes the
-    loop ring (the force filter, on this plant) is named, not charged."""
+    25 % softer than the compensator's model: the one-at-a-time shares,
+    their interaction and the floor add up to the total; the ordered
+    attribution (forward and reverse cumulative removal) and the floor sum
+    to the total exactly, each order on its own too; the stiffness model's
+    error is the largest share in both, more than half of what the sources
+    make together; and the force filter's lag is removable: with the
+    lag-free measurement of the cutting wrench no run rings (deleting the
+    filter instead made this loop ring, feeding the payload's inertia back)."""
     from robstiff_drake.diagrams.budget import error_budget
 
     text = (ROOT / "tests" / "data" / "short_block.yaml").read_text().replace(
@@ -308,12 +311,66 @@ def test_the_budget_accounts_for_the_total_and_finds_the_dominant_source(robot, 
     sc = load_scenario(tmp_path / "soft.yaml")
     sources = ("stiffness model error", "force filter lag", "sensor noise")
     b = error_budget(sc, robot, metric="mean", sources=sources)
-    # without its force filter the plain loop rings on this plant (5 % modal damping, the sensor reading the
-    # payload's inertia): the budget says so and keeps the filter in, rather than charging it a negative share
-    assert set(b["not_removed"]) == {"force filter lag"} and "rings" in b["not_removed"]["force filter lag"]
-    assert set(b["contributions"]) == {"stiffness model error", "sensor noise"}
+    assert b["ringing"] == {} and b["runs"] == 7
+    assert set(b["contributions"]) == set(b["attribution"]) == set(sources)
     assert abs(sum(b["contributions"].values()) + b["interaction"] + b["floor"] - b["total"]) < 1e-12
+    assert abs(sum(b["attribution"].values()) + b["floor"] - b["total"]) < 1e-12
+    for order in ("forward", "reverse"):
+        assert abs(sum(b[order].values()) - (b["total"] - b["floor"])) < 1e-12
+    assert b["forward"]["stiffness model error"] == b["contributions"]["stiffness model error"]  # its first step
+    assert b["reverse"]["sensor noise"] == b["contributions"]["sensor noise"]
     assert abs(b["interaction"]) < 0.5 * abs(b["total"] - b["floor"])
-    share = b["contributions"]
-    assert share["stiffness model error"] > 0.5 * (b["total"] - b["floor"])
-    assert share["stiffness model error"] == max(share.values())
+    for share in (b["contributions"], b["attribution"]):
+        assert share["stiffness model error"] > 0.5 * (b["total"] - b["floor"])
+        assert share["stiffness model error"] == max(share.values())
+
+
+def test_the_lag_free_sensor_reads_the_cut_and_the_weight_not_the_inertia(robot):
+    """The error budget's "force filter lag removed": a sensor whose sample is
+    the payload's weight, the sensor's bias and the cutting wrench, without
+    the payload's inertia.  At rest it reads what the plant's weld reaction
+    (the real sensor) reads; with the arm swinging the real sensor reads
+    the payload's inertia too and the lag-free one does not; a cutting
+    wrench comes back through the compensator's own (independent) frame
+    change as the wrench put on the tool."""
+    from robstiff_drake.diagrams.milling_cell import build_milling_cell, make_simulator
+
+    sc = load_scenario(ROOT / "tests" / "data" / "short_block.yaml")
+    sc.sensor.noise_N = sc.sensor.noise_Nm = 0.0
+    lag_free = copy.deepcopy(sc)
+    lag_free._lag_free_cutting_sensor = True
+    lag_free.controller.filter.kind = "none"
+    cells = [build_milling_cell(s, robot, compensation=False) for s in (sc, lag_free)]
+    sims = [make_simulator(c) for c in cells]
+    bias = np.r_[sc.sensor.force_bias_N, sc.sensor.torque_bias_Nm]
+
+    def reading(cell, sim):
+        """(the sensor's noise- and bias-free reading, the link angles)"""
+        sensor = cell.station.systems["sensor"]
+        q = cell.station.plant.GetPositions(cell.station.plant.GetMyContextFromRoot(sim.get_context()))
+        return np.array(sensor.true_wrench(sensor.GetMyContextFromRoot(sim.get_context()))), q
+
+    h = cells[0].plant_time_step_s
+    for sim in sims:
+        sim.AdvanceTo(5 * h)  # (the plant's reaction forces come from its steps) at rest before the block
+    (real, q), (free, _) = (reading(c, s) for c, s in zip(cells, sims))
+    np.testing.assert_allclose(free, real, atol=0.05)  # at rest: the weight, both
+    np.testing.assert_allclose(free + bias, cells[1].station.reading_at_rest(q), atol=1e-9)
+    for cell, sim in zip(cells, sims):  # swing the arm: link velocities, off its gears' equilibrium
+        plant = cell.station.plant
+        pc = plant.GetMyMutableContextFromRoot(sim.get_mutable_context())
+        plant.SetPositions(pc, plant.GetPositions(pc) + np.deg2rad([0.05, -0.05, 0.05, 0.1, -0.1, 0.1]))
+        plant.SetVelocities(pc, np.deg2rad([2.0, -3.0, 3.0, 5.0, -5.0, 5.0]))
+        sim.AdvanceTo(6 * h)
+    (real, _), (free, q1) = (reading(c, s) for c, s in zip(cells, sims))
+    np.testing.assert_allclose(free + bias, cells[1].station.reading_at_rest(q1), atol=1e-9)
+    assert np.max(np.abs(real[:3] - free[:3])) > 20.0, real - free  # the payload's inertia: the real sensor's
+    cell, sim = cells[1], sims[1]
+    milling = cell.station.systems["milling"]
+    mc = milling.GetMyMutableContextFromRoot(sim.get_mutable_context())
+    cut = np.array([120.0, -250.0, 80.0, 3.0, -2.0, 1.5])
+    mc.get_mutable_discrete_state(int(milling._w)).SetFromVector(cut)  # its held wrench (tool point, base)
+    w, q1 = reading(cell, sim)
+    w = w - (cell.station.reading_at_rest(q1) - bias)
+    back = cell.compensator.systems["prediction"].tool_wrench_of(w.tolist(), q1)
+    np.testing.assert_allclose(back, cut, atol=1e-6)

@@ -245,7 +245,7 @@ def build_parser():
     p.add_argument("--advise-out", metavar="PROGRAM.nc", help="write the program with the advised feeds")
     p.add_argument("--budget", action="store_true",
                    help="the compensated cut's error budget: its residual by source (imperfections removed one at "
-                        "a time; docs/results.md)")
+                        "a time, and cumulatively in an order and its reverse; docs/results.md)")
     p.add_argument("--budget-metric", choices=["mean", "rms", "max_abs", "pv"], default="rms",
                    help="the statistic of the measured surface error the budget decomposes (default: %(default)s)")
     _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "

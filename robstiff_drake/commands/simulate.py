@@ -436,8 +436,10 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
         budget_result = budgets.error_budget(extras["compensated_scenario"], robot, metric=budget_metric,
                                              progress=info if progress else None)
         summ["error_budget_mm"] = budgets.budget_json(budget_result)
-        if budget_result.get("not_removed"):
-            summ["error_budget_not_removed"] = dict(budget_result["not_removed"])
+        summ["error_budget_one_at_a_time_mm"] = dict(budget_result["contributions"],
+                                                     interaction=budget_result["interaction"])
+        if budget_result.get("ringing"):
+            summ["error_budget_ringing"] = dict(budget_result["ringing"])
         summ["error_budget"] = budget_result
     if advise_out is not None:
         write_atomic(advise_out, advised_program(sc, plan))

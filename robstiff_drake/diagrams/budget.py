@@ -7,10 +7,17 @@ Sources, and what "removed" means (the scenario's other settings kept):
 * stiffness model error: the compensator holds the plant's joint stiffness;
 * payload and bias error: the exact payload and the sensor's bias of the cut;
 * cutting-coefficient error (predictive, preview): the plant's coefficients;
-* force filter lag: no force filter (on a plant whose modes are lightly
-  damped the loop without its filter feeds the sensor's reading of the
-  payload's inertia back at the arm's first mode and rings: the budget
-  then says so and leaves the filter in; see NOT_REMOVABLE);
+* force filter lag: the compensator reads the cutting wrench without lag:
+  its wrist sensor is replaced by one whose samples (the sensor's rate,
+  bias and noise) are the plant's true cutting wrench and the payload's
+  static weight at the arm's pose, without the payload's inertia
+  (systems/wrist_sensor.LagFreeCuttingSensor), and there is no force
+  filter.  (Deleting the filter alone is not a removal of its lag: the
+  plain loop then feeds the sensor's reading of the payload's inertia back
+  at the arm's first mode and rings, 72-119 mm on the paper's cuts; the
+  filter is there for that as much as for the noise.  Its noise is then
+  unfiltered: what the filter did for the noise stays with the filter's
+  share, not the noise's);
 * sensor noise: a noiseless sensor;
 * servo and interpolator lag: no interpolator dead time, a 1000 1/s
   position loop around a 500 Hz velocity loop;
@@ -31,22 +38,32 @@ Sources, and what "removed" means (the scenario's other settings kept):
 * scan noise: a noiseless scan (the budget's statistics are the scan's, as
   a user measures them, not the simulation's true surface).
 
-Interactions.  Removing two sources together is not the sum of removing
-each (a filter's lag matters less once the delays are gone; without the
-filter and the delays the loop feeds the payload's inertia back and
-rings), so no split of the total into sources is exact.  The budget gives
-each source its one-at-a-time share: the realistic cut's residual less
-the residual with that source alone removed (the question a user asks:
-what would fixing this one thing buy me).  It reports the floor (every
-source removed: what no compensation of these sources can remove) and the
-interaction: total - floor - the sum of the shares, the part no single
-source owns.  Shares + interaction + floor = total exactly; the shares
-alone account for the total less the floor within 10 % when the
-interaction is smaller than that, and the interaction line says when it
-is not.  (Removing the sources cumulatively, in an order and its reverse,
-was tried first: it passes through states no cell would run, such as no
-filter and no delay with the full arm, where the loop rings, and gave
-shares of +-0.1 mm that cancelled.)
+Interactions and the attribution.  Removing two sources together is not
+the sum of removing each (a filter's lag matters less once the delays are
+gone), so one-at-a-time shares do not add up to the total.  The budget
+gives two answers, side by side:
+
+* one at a time: each source's share is the realistic cut's residual less
+  the residual with that source alone removed (what fixing this one thing
+  buys); the floor is the residual with every source removed; the
+  interaction, total - floor - the sum of the shares, is what no single
+  source owns.
+* ordered (the attribution): the sources are removed cumulatively in the
+  order of SOURCES and again in the reverse order; each source's share is
+  the mean of what removing it took off the residual in the two orders:
+  the Shapley value estimated over these two orderings (an ordering and its
+  reverse: each source is once early and once late).  Each order's steps
+  sum to total - floor exactly, so the shares and the floor sum to the
+  total exactly; what the two orders disagree on (half their difference,
+  ``order_spread``) is the attribution's uncertainty from the
+  interactions.
+
+Costs: one at a time n + 2 runs; the ordered attribution 2 (n - 2) more
+(its first steps are one-at-a-time runs).  (A first version removed the
+sources cumulatively when "force filter lag removed" still meant deleting
+the filter: states with no filter and no delays rang, and the shares came
+out +-0.1 mm and cancelled.  With the lag-free measurement no removal
+rings on the scenarios measured; a run that does is named, RINGING_FACTOR.)
 """
 
 import copy
@@ -68,10 +85,8 @@ SOURCES = ("stiffness model error", "payload and bias error", "cutting-coefficie
            "sensor noise", "servo and interpolator lag", "sampling period and delay", "lost motion",
            "arm dynamic response", "kinematic error", "scan noise")
 METRICS = ("mean", "rms", "max_abs", "pv")
-# Sources whose removal can leave a loop that rings rather than a better cut: a run without one whose largest
-# error exceeds RINGING_FACTOR times the real cut's is reported as not removable (and kept in the floor)
-NOT_REMOVABLE = {"force filter lag": "without its force filter the loop feeds the sensor's reading of the payload's "
-                                     "inertia back at the arm's first mode and rings"}
+# A run whose largest error exceeds RINGING_FACTOR times the real cut's is named in the budget (``ringing``):
+# its loop rings rather than cutting better, and a share involving it is not a share of the cut's error
 RINGING_FACTOR = 2.0
 
 
@@ -123,8 +138,9 @@ def without(sc, robot, removed, model):
         s.model.force_model_scale = 1.0
         if um is not None:
             um.coefficient_factors = {k: 1.0 for k in um.coefficient_factors}
-    if "force filter lag" in removed:
+    if "force filter lag" in removed:  # a lag-free measurement of the cutting wrench, no filter (module docstring)
         s.controller.filter.kind = "none"
+        s._lag_free_cutting_sensor = True
     if "sensor noise" in removed:
         s.sensor.noise_N = s.sensor.noise_Nm = 0.0
     if "servo and interpolator lag" in removed:
@@ -187,6 +203,8 @@ def run(sc, robot, *, compensation=True):
         # the sensor at rest reads the same weight (eps m times g / eps): the payload's true mass
         cal = cell.station.systems["true_calibration"]
         cell.station.systems["true_calibration"] = dataclasses.replace(cal, mass_kg=cal.mass_kg * gravity)
+        if getattr(s, "_lag_free_cutting_sensor", False):  # its weight: eps m at gravity g / eps
+            cell.station.systems["sensor"].set_payload(cal, g)
     res = run_cut(s, rob, compensation=compensation, cell=cell)
     return measured_stats(res)
 
@@ -200,62 +218,109 @@ def _servo_only(sc):
     return s
 
 
-def error_budget(sc, robot, *, metric="rms", sources=None, progress=None):
-    """The budget of scenario ``sc``'s compensated cut: a dict with
-    ``contributions`` ({source: mm}, one at a time), ``total``, ``floor``
-    (every source removed), ``interaction`` (total - floor - the sum of the
-    contributions), ``metric``, ``sources`` and the number of runs.
-    ``progress(text)``: called after each run."""
+def error_budget(sc, robot, *, metric="rms", sources=None, ordered=True, progress=None):
+    """The budget of scenario ``sc``'s compensated cut (module docstring), a
+    dict: ``total``, ``floor`` (every source removed), ``contributions``
+    ({source: mm}, one at a time), ``interaction`` (total - floor - their
+    sum); with ``ordered``: ``attribution`` ({source: mm}, the mean of the
+    forward and reverse cumulative removals; it and the floor sum to the
+    total), ``forward``/``reverse`` (each order's steps) and ``order_spread``
+    (half their difference); ``ringing`` ({run: max abs mm}, runs whose
+    loop rings), ``run_stats`` ({run: METRICS}), ``metric``, ``sources``,
+    ``runs``.  ``progress(text)``:
+    called after each run."""
     if metric not in METRICS:
         raise ValueError(f"metric must be one of {METRICS}")
     _, _, q_ref = planned_path(sc, robot, robot.tool_point(where="the error budget"))
     model = user_models.resolve(sc, robot, q_ref[0])
-    active = [s for s in (sources or SOURCES) if applies(sc, s)]
-    runs = []
+    active = [s for s in SOURCES if s in (sources or SOURCES) and applies(sc, s)]
+    n_runs = len(active) + 2 + (2 * max(len(active) - 2, 0) if ordered else 0)
+    done = {}
 
     def stats_without(removed):
-        stats = run(without(sc, robot, frozenset(removed), model), robot)
-        runs.append(sorted(removed))
-        if progress:
-            progress(f"budget: {len(runs)} of {len(active) + 2} runs; removed: {', '.join(sorted(removed)) or 'nothing'}")
-        return stats
+        key = frozenset(removed)
+        if key not in done:
+            done[key] = run(without(sc, robot, key, model), robot)
+            if progress:
+                progress(f"budget: {len(done)} of {n_runs} runs; removed: {', '.join(sorted(key)) or 'nothing'}")
+        return done[key]
 
     full = stats_without(())
-    total = full[metric]
-    contributions, not_removed = {}, {}
-    for src in active:
-        st = stats_without([src])
-        if src in NOT_REMOVABLE and st["max_abs"] > RINGING_FACTOR * full["max_abs"]:
-            not_removed[src] = (f"{NOT_REMOVABLE[src]} (max abs {st['max_abs']:.3f} mm without it, "
-                                f"{full['max_abs']:.3f} mm with it); its share stays in the floor")
-            continue
-        contributions[src] = float(total - st[metric])
-    kept = [src for src in active if src not in not_removed]
-    floor = stats_without(kept)[metric]
-    interaction = float(total - floor - sum(contributions.values()))
-    return {"metric": metric, "total": float(total), "floor": float(floor), "contributions": contributions,
-            "interaction": interaction, "runs": len(runs), "sources": kept, "not_removed": not_removed}
+    total = float(full[metric])
+    contributions = {src: float(total - stats_without([src])[metric]) for src in active}
+    floor = float(stats_without(active)[metric])
+    out = {"metric": metric, "total": total, "floor": floor, "contributions": contributions,
+           "interaction": float(total - floor - sum(contributions.values())), "sources": active}
+    if ordered:
+        steps = {}
+        for name, order in (("forward", active), ("reverse", active[::-1])):
+            prev, steps[name] = total, {}
+            for k, src in enumerate(order):
+                now = float(stats_without(order[:k + 1])[metric])
+                steps[name][src] = prev - now
+                prev = now
+        out.update(forward=steps["forward"], reverse=steps["reverse"],
+                   attribution={src: 0.5 * (steps["forward"][src] + steps["reverse"][src]) for src in active},
+                   order_spread={src: 0.5 * abs(steps["forward"][src] - steps["reverse"][src]) for src in active})
+    limit = RINGING_FACTOR * full["max_abs"]
+    out["ringing"] = {", ".join(sorted(k)) or "nothing": float(v["max_abs"]) for k, v in done.items()
+                      if v["max_abs"] > limit}
+    out["runs"] = len(done)
+    # every run's statistics, by what it removed (for a split by another metric without running again)
+    out["run_stats"] = {", ".join(sorted(k)) or "nothing": {m: float(v[m]) for m in METRICS} for k, v in done.items()}
+    return out
+
+
+def interaction_fraction(b):
+    """The one-at-a-time interaction as a fraction of total - floor (the
+    budget's 10 % target); None when total - floor is zero."""
+    span = b["total"] - b["floor"]
+    return None if span == 0 else abs(b["interaction"]) / abs(span)
 
 
 def budget_json(b):
-    """``error_budget_mm`` for the JSON: {source: share, "interaction": ...,
-    "all removed": floor, "total": total}."""
-    out = {s: v for s, v in b["contributions"].items()}
-    out["interaction"] = b["interaction"]
+    """``error_budget_mm`` for the JSON: {source: share, "all removed":
+    floor, "total": total}, the shares the ordered attribution's (they and
+    the floor sum to the total) or, without it, the one-at-a-time shares
+    with their "interaction"."""
+    if "attribution" in b:
+        out = dict(b["attribution"])
+    else:
+        out = dict(b["contributions"])
+        out["interaction"] = b["interaction"]
     out["all removed"] = b["floor"]
     out["total"] = b["total"]
     return out
 
 
 def format_budget(b):
-    lines = [f"error budget of the compensated cut ({b['metric']} of the measured surface error, mm; each source's "
-             "share: the residual less the residual with that source alone removed)",
-             "  source                           share"]
-    for s in sorted(b["contributions"], key=lambda k: -abs(b["contributions"][k])):
-        lines.append(f"  {s:30s} {b['contributions'][s]:+8.4f}")
-    lines.append(f"  {'interaction (no single source)':30s} {b['interaction']:+8.4f}")
-    lines.append(f"  {'every source removed (floor)':30s} {b['floor']:+8.4f}")
-    lines.append(f"  {'total':30s} {b['total']:+8.4f}")
-    for src, why in b.get("not_removed", {}).items():
-        lines.append(f"  not removed: {src}: {why}")
+    ordered = "attribution" in b
+    lines = [f"error budget of the compensated cut ({b['metric']} of the measured surface error, mm)",
+             "  one at a time: the residual less the residual with that source alone removed"]
+    if ordered:
+        lines.append("  ordered: the mean of the source's step when the sources are removed cumulatively in "
+                     "this order and in its reverse (+- half their difference); sums exactly")
+        lines.append(f"    order: {', '.join(b['sources'])}")
+        lines.append(f"  {'source':30s} {'one at a time':>13s} {'ordered':>9s} {'+-':>7s}")
+    else:
+        lines.append(f"  {'source':30s} {'one at a time':>13s}")
+    key = b["attribution"] if ordered else b["contributions"]
+    for s in sorted(key, key=lambda k: -abs(key[k])):
+        row = f"  {s:30s} {b['contributions'][s]:+13.4f}"
+        if ordered:
+            row += f" {b['attribution'][s]:+9.4f} {b['order_spread'][s]:7.4f}"
+        lines.append(row)
+    lines.append(f"  {'interaction (no single source)':30s} {b['interaction']:+13.4f}" +
+                 (f" {0.0:+9.4f}" if ordered else ""))
+    frac = interaction_fraction(b)
+    lines.append(f"  {'every source removed (floor)':30s} {b['floor']:+13.4f}" +
+                 (f" {b['floor']:+9.4f}" if ordered else ""))
+    lines.append(f"  {'total':30s} {b['total']:+13.4f}" + (f" {b['total']:+9.4f}" if ordered else ""))
+    if frac is not None:
+        lines.append(f"  the one-at-a-time interaction is {100 * frac:.0f} % of total - floor")
+        if ordered:
+            spread = sum(b["order_spread"].values()) / abs(b["total"] - b["floor"])
+            lines.append(f"  the ordered shares' +- sum to {100 * spread:.0f} % of total - floor")
+    for run_, mx in b.get("ringing", {}).items():
+        lines.append(f"  rings: the run with {run_} removed (max abs {mx:.3f} mm): its share is not of the cut's error")
     return "\n".join(lines)

@@ -23,6 +23,11 @@ hardware_sim station and of the manipulation station):
              measure), plant_state (12), cutting_wrench (6: the truth, tool
              point, base frame)
 
+(The error budget's "force filter lag removed" builds the station with a
+LagFreeCuttingSensor in the wrist sensor's place: its samples are the true
+cutting wrench and the payload's weight, with the sensor's bias and noise,
+and none of the payload's inertia; diagrams/budget.py.)
+
 The gear carries the total torque: gravity, inertia and the cut.  The
 controller compensates the static gravity deflection with its own model (as
 a robot with ABB's absolute-accuracy option does, calibrated for the arm);
@@ -63,7 +68,7 @@ from robstiff_drake.model.payload import payload_wrench
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.servo import ServoParameters
 from robstiff_drake.systems.milling_force import MillingForceSource
-from robstiff_drake.systems.wrist_sensor import WristForceSensor, add_random_inputs
+from robstiff_drake.systems.wrist_sensor import LagFreeCuttingSensor, WristForceSensor, add_random_inputs
 
 
 def servo_parameters(sc):
@@ -219,18 +224,27 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
 
     # the wrist sensor across the flange-spindle weld
     ss = sc.sensor
-    sensor = builder.AddNamedSystem("wrist_sensor", WristForceSensor(
-        weld_joint_index=plant.GetJointByName("sensor_weld").index(), rate_hz=ss.rate_hz,
-        force_bias_N=ss.force_bias_N, torque_bias_Nm=ss.torque_bias_Nm, noise_N=ss.noise_N, noise_Nm=ss.noise_Nm,
-        dropout_probability=ss.dropout_probability, spike_probability=ss.spike_probability, spike_N=ss.spike_N,
-        tooth_ripple=sc.cutting.mode == "tooth"))
-    builder.Connect(plant.get_reaction_forces_output_port(), sensor.GetInputPort("reaction_forces"))
-    if sc.cutting.mode == "tooth":
+    lag_free = bool(getattr(sc, "_lag_free_cutting_sensor", False))  # (the error budget's; LagFreeCuttingSensor)
+    common = dict(weld_joint_index=plant.GetJointByName("sensor_weld").index(), rate_hz=ss.rate_hz,
+                  force_bias_N=ss.force_bias_N, torque_bias_Nm=ss.torque_bias_Nm, noise_N=ss.noise_N,
+                  noise_Nm=ss.noise_Nm, dropout_probability=ss.dropout_probability,
+                  spike_probability=ss.spike_probability, spike_N=ss.spike_N)
+    if lag_free:
+        sensor = builder.AddNamedSystem("wrist_sensor", LagFreeCuttingSensor(
+            tool_m=tool, payload=exact_payload_calibration(sc, robot), **common))
+    else:
+        sensor = builder.AddNamedSystem("wrist_sensor", WristForceSensor(
+            tooth_ripple=sc.cutting.mode == "tooth", **common))
+        builder.Connect(plant.get_reaction_forces_output_port(), sensor.GetInputPort("reaction_forces"))
+    if sc.cutting.mode == "tooth" and not lag_free:
         builder.Connect(milling.GetOutputPort("ripple_sensor"), sensor.GetInputPort("ripple"))
     add_random_inputs(builder, sensor)
 
     pose = builder.AddNamedSystem("tool_pose", ToolPose(fk))
     builder.Connect(q_link, pose.get_input_port())
+    if lag_free:
+        builder.Connect(milling.GetOutputPort("wrench"), sensor.GetInputPort("cutting_wrench"))
+        builder.Connect(pose.get_output_port(), sensor.GetInputPort("tool_pose"))
 
     builder.ExportInput(arm["position_command"], "position_command")
     builder.ExportInput(arm["velocity_command"], "velocity_command")

@@ -11,6 +11,8 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.primitives import RandomSource
 
 from robstiff_drake.model.compensator import guard_accepts
+from robstiff_drake.model.realtime import rotate_transposed
+from robstiff_drake.model.wrench_frames import to_sensor_frame
 
 
 class WristForceSensor(LeafSystem):
@@ -135,3 +137,46 @@ class WrenchGuard(LeafSystem):
             if run[0] > self._rearm and np.all(np.isfinite(w)):  # re-armed on the new level
                 held[:] = w
                 run[0] = 0.0
+
+
+class LagFreeCuttingSensor(WristForceSensor):
+    """A wrist sensor that reads the cutting wrench without the payload's
+    inertia: what the error budget's "force filter lag removed" gives the
+    compensator (diagrams/budget.py), with no force filter after it.
+
+    Each sample (at ``rate_hz``, as the real sensor) is the plant's true
+    cutting wrench (input ``cutting_wrench``: force N, moment N*m about the
+    tool point, base frame) moved to the sensor frame, plus the payload's
+    static weight at the arm's pose (input ``tool_pose``: the flange
+    rotation and the tool point, base frame, from the link angles; the
+    payload of ``set_payload``), plus the real sensor's bias and noise.  So
+    the measurement has the real sensor's sampling, bias and noise, and none
+    of the payload's inertia (which the real sensor reads while the arm
+    vibrates) and no filter lag."""
+
+    def __init__(self, *, tool_m, payload, gravity_m_per_s2=(0.0, 0.0, -9.81), **kw):
+        self._tool_m = tuple(float(v) for v in tool_m)
+        super().__init__(**kw)
+        self._cut = self.DeclareVectorInputPort("cutting_wrench", 6)
+        self._pose = self.DeclareVectorInputPort("tool_pose", 12)
+        self.set_payload(payload, gravity_m_per_s2)
+
+    def set_payload(self, payload, gravity_m_per_s2=(0.0, 0.0, -9.81)):
+        """The payload whose weight the samples carry: ``payload`` a
+        PayloadCalibration (its mass and centre of mass; its bias is not
+        used: the sensor's own is added), ``gravity_m_per_s2`` the plant's
+        gravity (base frame)."""
+        self._mass_kg = float(payload.mass_kg)
+        self._com_m = [float(v) / 1000.0 for v in (payload.com_mm or (0.0, 0.0, 0.0))]
+        self._g = [float(v) for v in gravity_m_per_s2]
+
+    def true_wrench(self, context):
+        pose = self._pose.Eval(context).tolist()
+        R = pose[:9]
+        w = to_sensor_frame(R, self._tool_m, self._cut.Eval(context).tolist())
+        # the payload's weight in the sensor frame (= DH frame 6), about the sensor origin
+        gx, gy, gz = rotate_transposed(R, self._g)
+        fx, fy, fz = self._mass_kg * gx, self._mass_kg * gy, self._mass_kg * gz
+        cx, cy, cz = self._com_m
+        return [w[0] + fx, w[1] + fy, w[2] + fz, w[3] + cy * fz - cz * fy, w[4] + cz * fx - cx * fz,
+                w[5] + cx * fy - cy * fx]
