@@ -26,7 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from run_diagnosis_cases import _quiet, diagnose
+from run_diagnosis_cases import _quiet, diagnose, nominal_model
 
 from robstiff_drake.paths import DIAGRAMS_DIR, REPO_ROOT
 
@@ -53,7 +53,7 @@ RUNS = [
 
 def scenario_text(source, mode, noise_mm):
     """The source scenario with the controller's mode and the scan's noise set."""
-    text = Path(SOURCES[source]).read_text()
+    text = nominal_model(Path(SOURCES[source]).read_text())  # the compensator is the plant
     text = text.replace("controller:\n", f"controller:\n  mode: {mode}\n", 1) if "  mode: plain" not in text \
         else text.replace("  mode: plain", f"  mode: {mode}", 1)
     return text.replace("scan:\n", f"scan:\n  noise_mm: {noise_mm}\n", 1)

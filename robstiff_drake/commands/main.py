@@ -248,6 +248,11 @@ def build_parser():
                         "a time, and cumulatively in an order and its reverse; docs/results.md)")
     p.add_argument("--budget-metric", choices=["mean", "rms", "max_abs", "pv"], default="rms",
                    help="the statistic of the measured surface error the budget decomposes (default: %(default)s)")
+    p.add_argument("--budget-split", choices=["ordered", "one-at-a-time"], default="ordered",
+                   help="ordered: the shares of removing the sources cumulatively in an order and its reverse "
+                        "beside one at a time (3n - 2 cuts for n sources; they sum to the total); one-at-a-time: "
+                        "only those (n + 2 cuts; what no single source owns is the interaction) "
+                        "(default: %(default)s)")
     _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
                          "scenario's `robot:` when it has one")
 
@@ -538,7 +543,7 @@ def _dispatch(args):
                             out=args.out, compensator=args.compensator, noise_seed=args.noise_seed,
                             robot_yaml=args.robot, toolpath=args.toolpath, work_offset=args.work_offset,
                             replay=args.replay, progress=args.progress, advise=args.advise,
-                            advise_out=args.advise_out, budget=args.budget, budget_metric=args.budget_metric,
+                            advise_out=args.advise_out, budget=args.budget, budget_metric=args.budget_metric, budget_split=args.budget_split,
                             tolerance_mm=args.tolerance_mm)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep

@@ -382,7 +382,7 @@ def format_feed_plan(plan, advise):
 
 def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None,
         robot_yaml=None, toolpath=None, work_offset=None, replay=None, progress=None, advise=False, advise_out=None,
-        budget=False, budget_metric="rms", tolerance_mm=None):
+        budget=False, budget_metric="rms", budget_split="ordered", tolerance_mm=None):
     check_outputs(inputs=[scenario, compensator, toolpath], files={"--json": json_out, "--replay": replay,
                                                                   "--advise-out": advise_out},
                   folders={"--out": out})
@@ -434,7 +434,7 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
     budget_result = None
     if budget:
         budget_result = budgets.error_budget(extras["compensated_scenario"], robot, metric=budget_metric,
-                                             progress=info if progress else None)
+                                             ordered=budget_split == "ordered", progress=info if progress else None)
         summ["error_budget_mm"] = budgets.budget_json(budget_result)
         summ["error_budget_one_at_a_time_mm"] = dict(budget_result["contributions"],
                                                      interaction=budget_result["interaction"])
