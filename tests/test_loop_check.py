@@ -39,7 +39,7 @@ def test_the_nominal_process_stiffness_is_the_block_pass(block):
 
 
 def test_the_numpy_arm_is_drakes(block):
-    """The check's mass matrix and weight stiffness (robot_checks, numpy)
+    """The check's mass matrix and weight stiffness (arm_dynamics, numpy)
     are those of Drake's plant at the block's start pose."""
     from robstiff_drake.diagrams.compliant_arm import controller_model, gravity_stiffness
     from robstiff_drake.diagrams.loop_prediction import scenario_loop_setup

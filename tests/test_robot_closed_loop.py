@@ -65,13 +65,14 @@ def test_the_run_folder_holds_the_controllers_angles(fanuc_run):
     controller's; read back with the robot they put the tool on the
     commanded path (within the arm's deflection), and the run's settings
     name the robot."""
-    from robstiff_drake.identification import run_files as rf
+    from robstiff_drake.identification import run_logs as rl
+    from robstiff_drake.identification import run_settings as rs
 
     _, out, _ = fanuc_run
     robot = load_robot("r2000ic_165f")
     assert yaml.safe_load((out / "sim_scenario.yaml").read_text())["robot"] == "r2000ic_165f"
-    assert rf.read_settings(out / "compensator.yaml")[1].robot == "r2000ic_165f"
-    _, log = rf.read_joint_log(out / "joint_log.csv")
+    assert rs.read_settings(out / "compensator.yaml")[1].robot == "r2000ic_165f"
+    _, log = rl.read_joint_log(out / "joint_log.csv")
     path_q = robot.joint_rad(log.q_deg) - robot.model_delta_rad(log.correction_deg)
     p = kin.tool_position(robot.dh, path_q, robot.payload.tool_point_m)
     lines = [ln for ln in (out / "sim_timeseries_compensated.csv").read_text().splitlines() if not ln.startswith("#")]

@@ -16,7 +16,11 @@ import pytest
 from robstiff_drake.commands.diagnose_run import run_robot
 from robstiff_drake.commands.main import main
 from robstiff_drake.diagrams.run_arm import ArmModel
+from robstiff_drake.errors import InputError
 from robstiff_drake.identification import run_files as rf
+from robstiff_drake.identification import run_logs as rl
+from robstiff_drake.identification import run_settings as rs
+from robstiff_drake.identification import run_tables as rt
 from robstiff_drake.identification import run_verification as rv
 from robstiff_drake.identification import scan_statistics as ss
 from robstiff_drake.identification.run_diagnosis import run_signals
@@ -59,7 +63,7 @@ def verify(tmp_path, run_dir, rep, capsys):
                      str(run_dir / "diagnosis" / c["settings"]), "--noise-seed", str(100 + i), "--out", str(cut)]) == 0
         cuts.append(cut)
     for folder in [run_dir, *cuts]:
-        for f in folder.glob(f"{rf.SIM_PREFIX}*"):
+        for f in folder.glob(f"{rt.SIM_PREFIX}*"):
             f.unlink()
     return diagnose(run_dir, capsys, "--verify", *map(str, cuts))
 
@@ -194,7 +198,7 @@ def test_the_known_part_is_what_the_machine_did(exact_run):
 def test_only_the_cell_files_are_read(exact_run, tmp_path, capsys):
     bare = tmp_path / "cell"  # what a real cell has: the four files and the run id
     bare.mkdir()
-    for name in (*rf.CELL_FILES, "RUN_ID"):
+    for name in (*rt.CELL_FILES, "RUN_ID"):
         shutil.copy(exact_run / name, bare / name)
     a, b = diagnose(exact_run, capsys), diagnose(bare, capsys)
     assert a["rms_after_mm"] == b["rms_after_mm"] and a["causes"] == b["causes"] == []
@@ -205,10 +209,10 @@ def test_only_the_cell_files_are_read(exact_run, tmp_path, capsys):
 def test_settings_without_the_servo_are_refused(exact_run, tmp_path, capsys):
     old = tmp_path / "old"
     shutil.copytree(exact_run, old)
-    s = old / rf.SETTINGS
+    s = old / rt.SETTINGS
     text = s.read_text()
     s.write_text(text[:text.index("  # the robot controller's joint servo")])
-    _, settings = rf.read_settings(s)  # a file written before the servo section is still read
+    _, settings = rs.read_settings(s)  # a file written before the servo section is still read
     assert settings.servo is None
     err = _error_line(capsys, "diagnose-run", str(old))
     assert "compensator.yaml: compensator: no 'servo' section" in err and "interpolator_delay_ms" in err
@@ -222,16 +226,16 @@ def test_the_servo_integral_corner_is_logged_and_read(exact_run, tmp_path):
     from robstiff_drake.identification.run_diagnosis import servo_of
     from robstiff_drake.model.servo import ServoParameters
 
-    s = Path(exact_run) / rf.SETTINGS
+    s = Path(exact_run) / rt.SETTINGS
     text = s.read_text()
     assert "    velocity_integral_hz: 7.5\n" in text
-    _, settings = rf.read_settings(s)
+    _, settings = rs.read_settings(s)
     assert servo_of(settings).velocity_integral_hz == 7.5
-    old = tmp_path / rf.SETTINGS
+    old = tmp_path / rt.SETTINGS
     old.write_text(text.replace("    velocity_integral_hz: 7.5\n", "    velocity_integral_hz: 12.0\n"))
-    assert servo_of(rf.read_settings(old)[1]).velocity_integral_hz == 12.0
+    assert servo_of(rs.read_settings(old)[1]).velocity_integral_hz == 12.0
     old.write_text(text.replace("    velocity_integral_hz: 7.5\n", ""))
-    assert servo_of(rf.read_settings(old)[1]).velocity_integral_hz == ServoParameters.velocity_integral_hz
+    assert servo_of(rs.read_settings(old)[1]).velocity_integral_hz == ServoParameters.velocity_integral_hz
 
 
 def _error_line(capsys, *args):
@@ -246,7 +250,7 @@ def _error_line(capsys, *args):
 def test_a_mixed_run_folder_is_refused(exact_run, tmp_path, capsys):
     mixed = tmp_path / "mixed"
     shutil.copytree(exact_run, mixed)
-    scan = mixed / rf.SCAN
+    scan = mixed / rt.SCAN
     scan.write_text(scan.read_text().replace("# run_id: ", "# run_id: 0", 1))
     err = _error_line(capsys, "diagnose-run", str(mixed))
     assert "scan.csv, line 1" in err and "mixes files of different runs" in err
@@ -257,7 +261,7 @@ def test_a_mixed_run_folder_is_refused(exact_run, tmp_path, capsys):
 def test_bad_cell_files_get_one_line_with_file_line_and_column(exact_run, tmp_path, capsys):
     bad = tmp_path / "bad"
     shutil.copytree(exact_run, bad)
-    w = bad / rf.WRENCH_LOG
+    w = bad / rt.WRENCH_LOG
     lines = w.read_text().splitlines()
     header = next(i for i, ln in enumerate(lines) if ln.startswith("t_s"))
     cells = lines[header + 3].split(",")
@@ -266,8 +270,8 @@ def test_bad_cell_files_get_one_line_with_file_line_and_column(exact_run, tmp_pa
     w.write_text("\n".join(lines) + "\n")
     err = _error_line(capsys, "diagnose-run", str(bad))
     assert f"wrench_log.csv, line {header + 4}, column 3" in err and "'abc' is not a number" in err
-    shutil.copy(exact_run / rf.WRENCH_LOG, w)
-    s = bad / rf.SETTINGS
+    shutil.copy(exact_run / rt.WRENCH_LOG, w)
+    s = bad / rt.SETTINGS
     text = s.read_text()
     s.write_text(text.replace("    cutoff_hz:", "    cutof_hz:"))
     n = next(i for i, ln in enumerate(text.splitlines(), 1) if "cutoff_hz" in ln)
@@ -277,27 +281,27 @@ def test_bad_cell_files_get_one_line_with_file_line_and_column(exact_run, tmp_pa
     assert "compensator.period_ms: must be > 0" in _error_line(capsys, "diagnose-run", str(bad))
     s.write_text(text + "plant:\n  damping_ratio: 0.1\n")
     assert "unknown top-level key 'plant'" in _error_line(capsys, "diagnose-run", str(bad))
-    shutil.copy(exact_run / rf.SETTINGS, s)
-    (bad / rf.JOINT_LOG).unlink()
+    shutil.copy(exact_run / rt.SETTINGS, s)
+    (bad / rt.JOINT_LOG).unlink()
     assert "missing joint_log.csv" in _error_line(capsys, "diagnose-run", str(bad))
     assert "no such run folder" in _error_line(capsys, "diagnose-run", str(tmp_path / "nope"))
 
 
 def test_a_verification_cut_must_run_a_candidate(exact_run, tmp_path, capsys):
-    _, settings = rf.read_settings(exact_run / rf.SETTINGS)
+    _, settings = rs.read_settings(exact_run / rt.SETTINGS)
     settings.joint_stiffness_Nm_per_rad = [v * 1.1 for v in settings.joint_stiffness_Nm_per_rad]
     other = tmp_path / "other.yaml"
-    other.write_text(rf.settings_text(settings, "x"))
+    other.write_text(rs.settings_text(settings, "x"))
     cut = simulate(tmp_path, PREDICTIVE, "cut", "--compensator", str(other), "--noise-seed", "7")
     err = _error_line(capsys, "diagnose-run", str(exact_run), "--verify", str(cut), "--out", str(tmp_path / "d"))
     assert "none of the candidate fixes" in err
     settings.tool_point_mm = [0.0, 0.0, 300.0]
-    other.write_text(rf.settings_text(settings, "x"))
+    other.write_text(rs.settings_text(settings, "x"))
     assert "tool point" in _error_line(capsys, "simulate", str(exact_run / "sim_scenario.yaml"), "--compensator",
                                        str(other), "--out", str(tmp_path / "never"))
-    settings.tool_point_mm = rf.read_settings(exact_run / rf.SETTINGS)[1].tool_point_mm
+    settings.tool_point_mm = rs.read_settings(exact_run / rt.SETTINGS)[1].tool_point_mm
     settings.robot = "kr240_r2900"  # another robot's compensator, on this robot's run: refused, not run
-    other.write_text(rf.settings_text(settings, "x"))
+    other.write_text(rs.settings_text(settings, "x"))
     err = _error_line(capsys, "simulate", str(exact_run / "sim_scenario.yaml"), "--compensator", str(other),
                       "--out", str(tmp_path / "never"))
     assert "compensator.robot is kr240_r2900" in err and "not the simulated robot irb6400" in err
@@ -312,17 +316,17 @@ def test_the_writers_and_readers_round_trip(tmp_path):
     t = np.arange(50) * 1e-3
     w = rng.normal(size=(50, 6)) * 100
     w[7] = np.nan  # a dropout
-    settings = rf.CompensatorSettings(
+    settings = rs.CompensatorSettings(
         [1.5e6, 1.1e6, 8e5, 3e5, 3e5, 2e5], {"mass_kg": 40.0, "com_mm": [0.0, 0.0, 180.0],
                                              "force_bias_N": [3.0, -2.0, 5.0], "torque_bias_Nm": [0.2, -0.1, 0.05],
                                              "sensor_mount_rpy_deg": [0.0, 0.0, 1e-5]}, [0.0, 0.0, 350.0], 75.0,
         mode="predictive", delay_steps=2, lost_motion_rad=[1e-5, 0, 0, 0, 0, 0], coupling_c23_rad_per_Nm=-3e-8,
         servo={"interpolator_delay_ms": 18.0, "position_gain_per_s": 60.0, "velocity_bandwidth_hz": 30.0,
                "velocity_feedforward": 1.0})
-    scan = rf.Scan(np.arange(30.0), np.full(30, 15.0), np.full(30, 700.0), 700.0 + rng.normal(size=30) * 3e-3, 0.003)
-    files = {rf.WRENCH_LOG: rf.wrench_log_text(rf.WrenchLog(t, w), "r1"),
-             rf.JOINT_LOG: rf.joint_log_text(rf.JointLog(t, rng.normal(size=(50, 6)), rng.normal(size=(50, 6))), "r1"),
-             rf.SETTINGS: rf.settings_text(settings, "r1"), rf.SCAN: rf.scan_text(scan, "r1")}
+    scan = rl.Scan(np.arange(30.0), np.full(30, 15.0), np.full(30, 700.0), 700.0 + rng.normal(size=30) * 3e-3, 0.003)
+    files = {rt.WRENCH_LOG: rl.wrench_log_text(rl.WrenchLog(t, w), "r1"),
+             rt.JOINT_LOG: rl.joint_log_text(rl.JointLog(t, rng.normal(size=(50, 6)), rng.normal(size=(50, 6))), "r1"),
+             rt.SETTINGS: rs.settings_text(settings, "r1"), rt.SCAN: rl.scan_text(scan, "r1")}
     for name, text in files.items():
         (tmp_path / name).write_text(text)
     (tmp_path / "RUN_ID").write_text("r1\n")
@@ -330,18 +334,18 @@ def test_the_writers_and_readers_round_trip(tmp_path):
     assert got.run_id == "r1" and got.settings.same_as(settings) and got.settings.delay_steps == 2
     assert got.settings.servo["interpolator_delay_ms"] == 18.0
     settings.servo = None  # a file without the servo section reads back without it, and is not the same
-    assert not got.settings.same_as(settings) and rf.read_settings(_written(tmp_path, settings))[1].servo is None
+    assert not got.settings.same_as(settings) and rs.read_settings(_written(tmp_path, settings))[1].servo is None
     assert np.isnan(got.wrench.wrench[7]).all() and np.allclose(got.wrench.wrench[8], w[8], rtol=1e-6)
     assert got.scan.noise_mm == 0.003 and np.allclose(got.scan.height_mm, scan.height_mm, atol=1e-6)
     # times must increase: the error names the row
-    (tmp_path / rf.JOINT_LOG).write_text(files[rf.JOINT_LOG].replace("\n0.002,", "\n0.0005,", 1))
-    with pytest.raises(rf.InputError, match=r"joint_log.csv, line \d+, column 1: t_s 0.0005 is not after"):
+    (tmp_path / rt.JOINT_LOG).write_text(files[rt.JOINT_LOG].replace("\n0.002,", "\n0.0005,", 1))
+    with pytest.raises(InputError, match=r"joint_log.csv, line \d+, column 1: t_s 0.0005 is not after"):
         rf.load_run_files(tmp_path)
 
 
 def _written(folder, settings):
     p = folder / "settings_only.yaml"
-    p.write_text(rf.settings_text(settings, "r1"))
+    p.write_text(rs.settings_text(settings, "r1"))
     return p
 
 
@@ -392,7 +396,7 @@ def test_the_mean_square_difference_has_the_noise_standard_error():
 def _scan(error_mm, rng, sigma=0.003):
     x = np.arange(0.0, 120.0, 0.5)
     e = np.broadcast_to(error_mm, x.shape) + rng.normal(0, sigma, x.size)
-    return rf.Scan(x, np.zeros_like(x), np.full(x.size, 700.0), 700.0 - e)
+    return rl.Scan(x, np.zeros_like(x), np.full(x.size, 700.0), 700.0 - e)
 
 
 def test_the_cuts_decide_only_beyond_the_noise():

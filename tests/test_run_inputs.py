@@ -16,7 +16,7 @@ import yaml
 
 from robstiff_drake.commands.diagnose_run import run_robot
 from robstiff_drake.commands.main import main
-from robstiff_drake.identification import run_files as rf
+from robstiff_drake.identification import run_settings as rs
 from robstiff_drake.paths import MODELS_DIR, scenario_file
 
 # the KR 210's joint springs (N*m/rad): not the KR 240's, so a run that read the library's file would show it
@@ -53,7 +53,7 @@ def moved_run(tmp_path_factory):
 def test_the_run_folder_keeps_the_users_robot_file_and_names_the_copy(moved_run):
     kept = moved_run / "inputs" / "kr210_r2700.yaml"
     assert yaml.safe_load(kept.read_text())["joint_stiffness_Nm_per_rad"] == KR210_STIFFNESS
-    assert rf.read_settings(moved_run / "compensator.yaml")[1].robot == "inputs/kr210_r2700.yaml"
+    assert rs.read_settings(moved_run / "compensator.yaml")[1].robot == "inputs/kr210_r2700.yaml"
     assert yaml.safe_load((moved_run / "sim_scenario.yaml").read_text())["robot"] == "inputs/kr210_r2700.yaml"
     assert run_robot(moved_run).joint_stiffness_Nm_per_rad.tolist() == KR210_STIFFNESS
 
@@ -65,7 +65,7 @@ def test_diagnose_run_needs_nothing_but_the_folder(moved_run, capsys, tmp_path):
     assert rep["run_id"] == (moved_run / "RUN_ID").read_text().strip()
     # a candidate fix names the same robot file, relative to where the candidate is written
     for cand in (tmp_path / "d1" / "candidates").glob("*/compensator.yaml"):
-        robot = rf.read_settings(cand)[1].robot
+        robot = rs.read_settings(cand)[1].robot
         assert (cand.parent / robot).resolve() == (moved_run / "inputs" / "kr210_r2700.yaml").resolve()
     # --robot: the same file elsewhere agrees; another robot is refused, naming both
     mine = tmp_path / "my_copy.yaml"

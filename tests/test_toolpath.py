@@ -17,7 +17,8 @@ import pytest
 from robstiff_drake.diagrams.scenario import load_scenario, planned_path
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.gcode import read_program
-from robstiff_drake.model.path import Corner, PlannedPath
+from robstiff_drake.model.path import PlannedPath
+from robstiff_drake.model.path_elements import Corner
 from robstiff_drake.model.program_path import program_elements
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -190,7 +191,7 @@ def test_straight_path_is_unchanged_by_the_rewrite():
 
 
 def test_speed_changes_are_smooth_ramps_in_the_faster_move():
-    from robstiff_drake.model.path import Line
+    from robstiff_drake.model.path_elements import Line
 
     els = [Line([0, 0, 0.7], [0.1, 0, 0.7]), Line([0.1, 0, 0.7], [0.3, 0, 0.7]), Line([0.3, 0, 0.7], [0.4, 0, 0.7])]
     path = PlannedPath.from_elements(els, [0.01, 0.04, 0.01], ramp_s=0.5)

@@ -10,7 +10,9 @@ import numpy as np
 
 from robstiff_drake.identification.run_diagnosis import diagnose_run
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.run_files import SETTINGS, load_run_files, read_settings, run_file, settings_text
+from robstiff_drake.identification.run_files import load_run_files
+from robstiff_drake.identification.run_settings import read_settings, settings_text
+from robstiff_drake.identification.run_tables import SETTINGS, run_file
 from robstiff_drake.identification.run_folder_checks import check_run
 from robstiff_drake.identification.run_verification import plan_markdown
 from robstiff_drake.identification.scan_statistics import along_mm, segments

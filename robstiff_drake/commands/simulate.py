@@ -23,7 +23,9 @@ import numpy as np
 # bad argument is refused before that import (as fast as --help).
 from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, run_warnings
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.run_files import SIM_PREFIX, joint_reference_text, read_settings
+from robstiff_drake.identification.run_logs import joint_reference_text
+from robstiff_drake.identification.run_settings import read_settings
+from robstiff_drake.identification.run_tables import SIM_PREFIX
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text, write_atomic
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.feed_plan import check_rewritable

@@ -34,7 +34,9 @@ from robstiff_drake.diagrams.scenario import (
     robot_spec,
 )
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification import run_files as rf
+from robstiff_drake.identification import run_logs as rl
+from robstiff_drake.identification import run_settings as rs
+from robstiff_drake.identification import run_tables as rt
 
 
 def _payload_dict(cal):
@@ -49,7 +51,7 @@ def compensator_settings(sc, robot, robot_ref=None):
     """The compensator of scenario ``sc`` as CompensatorSettings; ``robot_ref``:
     how its ``robot:`` names the robot (default: the scenario's own)."""
     c = sc.controller
-    return rf.CompensatorSettings(
+    return rs.CompensatorSettings(
         joint_stiffness_Nm_per_rad=[float(v) for v in model_stiffness(sc, robot)],
         payload=_payload_dict(payload_calibration(sc, robot)),
         tool_point_mm=[float(v) for v in np.asarray(robot.payload.tool_point_m) * 1e3],
@@ -73,7 +75,7 @@ def servo_settings(sc):
     input changed at the same instant is seen one period later), its delay
     line holds it ``servo.interpolator_delay_ms``, and the servo's discrete
     update adds one plant step."""
-    out = {k: float(getattr(sc.servo, k)) for k in rf.SERVO_KEYS}
+    out = {k: float(getattr(sc.servo, k)) for k in rs.SERVO_KEYS}
     out["interpolator_delay_ms"] += float(sc.servo.interpolator_period_ms) + plant_step_s(sc) * 1e3
     return out
 
@@ -175,7 +177,7 @@ def cell_logs(result):
     # which holds it one sensor period: time-stamp it when it was taken
     dt = 1.0 / result.cell.scenario.sensor.rate_hz
     keep = t >= dt - 1e-12
-    wrench = rf.WrenchLog(t[keep] - dt, w[keep])
+    wrench = rl.WrenchLog(t[keep] - dt, w[keep])
     tc, corr = result.logs["correction"]
     cell = result.cell
     # a logger sees the state before the discrete updates at its own instant: the correction it records
@@ -186,12 +188,12 @@ def cell_logs(result):
     q_ref = np.column_stack([np.interp(tc, cell.q_ref_times, cell.q_ref[:, j]) for j in range(6)])
     corr = corr if result.compensation else np.zeros_like(corr)
     robot = cell.robot
-    joints = rf.JointLog(tc, robot.controller_deg(q_ref + corr), robot.controller_delta_deg(corr))
+    joints = rl.JointLog(tc, robot.controller_deg(q_ref + corr), robot.controller_delta_deg(corr))
     return wrench, joints, scan_of(result.scans, cell.scenario.scan.noise_mm)
 
 
 def scan_of(scans, noise_mm):
-    """rf.Scan (mm) of a cut's scan lines (diagrams/experiment.scan_surface)."""
+    """rl.Scan (mm) of a cut's scan lines (diagrams/experiment.scan_surface)."""
     xs, ys, nom, h = [], [], [], []
     for line in scans:
         face = np.isfinite(line.commanded_m)
@@ -199,7 +201,7 @@ def scan_of(scans, noise_mm):
         ys.append(line.y_at[face])  # (a scan along the path has a y per point)
         nom.append(line.commanded_m[face])
         h.append((line.machined_m if line.measured_m is None else line.measured_m)[face])
-    return rf.Scan(*(np.concatenate(a) * 1e3 for a in (xs, ys, nom, h)), noise_mm=noise_mm)
+    return rl.Scan(*(np.concatenate(a) * 1e3 for a in (xs, ys, nom, h)), noise_mm=noise_mm)
 
 
 def cell_files(sc, result, robot, run_id, robot_ref=None):
@@ -213,8 +215,8 @@ def cell_files(sc, result, robot, run_id, robot_ref=None):
     sim_scan = (f"In this simulated run: Gaussian height noise of {sc.scan.noise_mm:g} mm (1 sigma, scan.noise_mm, "
                 f"seed {sc.scan.seed}) on the simulated face; nominal_mm is the envelope of the programmed pass.")
     return {
-        rf.WRENCH_LOG: rf.wrench_log_text(wrench, run_id, [note, sim_wrench]),
-        rf.JOINT_LOG: rf.joint_log_text(joints, run_id, [note]),
-        rf.SETTINGS: rf.settings_text(compensator_settings(sc, robot, robot_ref), run_id, [note]),
-        rf.SCAN: rf.scan_text(scan, run_id, [note, sim_scan]),
+        rt.WRENCH_LOG: rl.wrench_log_text(wrench, run_id, [note, sim_wrench]),
+        rt.JOINT_LOG: rl.joint_log_text(joints, run_id, [note]),
+        rt.SETTINGS: rs.settings_text(compensator_settings(sc, robot, robot_ref), run_id, [note]),
+        rt.SCAN: rl.scan_text(scan, run_id, [note, sim_scan]),
     }

@@ -8,7 +8,7 @@ import numpy as np
 
 from robstiff_drake.diagrams.milling_cell import build_milling_cell, make_simulator, tool_wrench_log
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.model.path import Line
+from robstiff_drake.model.path_elements import Line
 from robstiff_drake.model.spindle import spindle_power_W, spindle_torque_Nm
 from robstiff_drake.model.surface import envelope_heights, envelope_heights_at, surface_error_stats
 from robstiff_drake.progress import simulation_bar, time_monitor

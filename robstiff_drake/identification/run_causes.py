@@ -10,7 +10,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification import run_files as rf
+from robstiff_drake.identification import run_tables as rt
 from robstiff_drake.identification import scan_statistics as ss
 from robstiff_drake.identification.run_signals import GRID_HZ, gear_law_deviation
 
@@ -332,7 +332,7 @@ def noise_floor(scan, segs, stated_mm, warnings):
     estimated = ss.noise_from_scan(scan.error_mm, segs)
     stated, source = stated_mm, "stated (--noise-mm)"
     if stated is None and scan.noise_mm is not None:
-        stated, source = scan.noise_mm, f"stated ({rf.SCAN} noise_mm)"
+        stated, source = scan.noise_mm, f"stated ({rt.SCAN} noise_mm)"
     if stated is None:
         if estimated is None:
             raise InputError(f"{scan.path}: too few neighbouring points to estimate the scan's noise; "

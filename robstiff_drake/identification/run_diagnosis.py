@@ -78,6 +78,7 @@ import numpy as np
 
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification import run_files as rf
+from robstiff_drake.identification import run_tables as rt
 from robstiff_drake.identification import run_verification as rv
 from robstiff_drake.identification import scan_statistics as ss
 from robstiff_drake.identification.run_causes import (
@@ -169,7 +170,7 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=(), scan=None):
     robot: diagrams/run_arm.ArmModel).  Returns (report dict, extras:
     candidate settings texts, plan, data for the plot)."""
     files = rf.load_run_files(run_dir, scan=scan)  # (scan: a file made outside the run, diagnose-run --scan)
-    cuts = [rf.load_run_files(c, names=(rf.SETTINGS, rf.SCAN)) for c in verify]
+    cuts = [rf.load_run_files(c, names=(rt.SETTINGS, rt.SCAN)) for c in verify]
     if noise_mm is not None and not (np.isfinite(noise_mm) and noise_mm > 0):
         raise InputError(f"--noise-mm: must be a positive number (mm), got {noise_mm}")
     warnings = []
@@ -180,7 +181,7 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=(), scan=None):
     run_ctx = run_context(files, robot, model_of_arm)
     sig = signals_at(run_ctx, model_of_arm, DAMPING_RATIO)
     env = Envelope(scan, sig, D)
-    if env.covered.sum() < rf.MIN_ROWS[rf.SCAN]:
+    if env.covered.sum() < rt.MIN_ROWS[rt.SCAN]:
         raise InputError(f"{scan.path}: only {int(env.covered.sum())} scan points lie under the logged pass "
                          f"(cutter {D:g} mm): the scan and the logs are not of the same cut")
     if not env.covered.all():
@@ -268,7 +269,7 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=(), scan=None):
             if same is not None:  # the same compensator change: one cut cannot tell these apart
                 entry["same_settings_as"] = same
             elif changes:
-                rel = f"candidates/{_slug(name)}/{rf.SETTINGS}"
+                rel = f"candidates/{_slug(name)}/{rt.SETTINGS}"
                 entry["settings"] = rel
                 cand_settings.append((name, s))
                 plan_rows.append((name, rel, "; ".join(changes)))

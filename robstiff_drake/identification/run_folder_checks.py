@@ -19,7 +19,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.run_files import MIN_ROWS, SCAN
+from robstiff_drake.identification.run_tables import MIN_ROWS, SCAN
 from robstiff_drake.model import kinematics as kin
 
 GRAVITY_M_PER_S2 = 9.81

@@ -11,7 +11,7 @@ from scipy import signal
 
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification import arm_response
-from robstiff_drake.identification import run_files as rf
+from robstiff_drake.identification import run_settings as rs
 from robstiff_drake.identification.arm_response import SEGMENT_S, STEP_S, delayed
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.joint_dynamics import DEFAULT_MODAL_DAMPING_RATIO
@@ -96,7 +96,7 @@ def servo_of(settings):
     file does not state it)."""
     if settings.servo is None:
         raise InputError(f"{settings.path}: compensator: no 'servo' section; diagnose-run needs the robot "
-                         "controller's servo settings (" + ", ".join(rf.SERVO_KEYS) + ") to know when a "
+                         "controller's servo settings (" + ", ".join(rs.SERVO_KEYS) + ") to know when a "
                          "correction reaches the motor (docs/run_files.md)")
     v = settings.servo
     extra = {} if "velocity_integral_hz" not in v else {"velocity_integral_hz": v["velocity_integral_hz"]}

@@ -4,6 +4,7 @@ nominal dynamic model), the payload on the flange, and nothing of the
 plant's own code.  Plain numpy.
 
     M(q) = sum over bodies b of  m_b J_v,b^T J_v,b + J_w,b^T R_b I_b R_b^T J_w,b
+    tau_g(q) = sum over bodies b of  m_b J_v,b^T g
 
 with J_v,b the Jacobian of body b's centre of mass and J_w,b of its
 rotation (only the joints before it move it).  Link i's frame is DH frame
@@ -12,8 +13,12 @@ payload hangs on the flange (DH frame 6).  Velocity-product (Coriolis)
 terms are left out: at machining feeds (tens of mm/s) they are 1e-4 of
 the inertial terms of a corner.
 
-Tested against Drake's CalcMassMatrix of the robot file's plant
-(tests/test_preview.py).
+The same bodies give the joint torques of gravity.  The one numpy model of
+the arm's rigid bodies: the preview compensator, the loop check and the
+robot file's plausibility checks (model/robot_checks.py) all use it.
+Tested against Drake's CalcMassMatrix and CalcGravityGeneralizedForces of
+the robot file's plant for every library robot
+(tests/test_robot_file_schema.py, tests/test_preview.py).
 
 Units: q in rad (model angles), lengths m, masses kg, inertias kg m^2.
 """
@@ -21,6 +26,8 @@ Units: q in rad (model angles), lengths m, masses kg, inertias kg m^2.
 import numpy as np
 
 from robstiff_drake.model import kinematics as kin
+
+GRAVITY_M_PER_S2 = 9.81
 
 
 class ArmInertia:
@@ -46,9 +53,10 @@ class ArmInertia:
             "mask": np.array([[j < i for j in range(6)] for i, *_ in self._bodies], dtype=float),
         }
 
-    def mass_matrix(self, q_rad):
-        """M(q) (6x6) at model angles q (6,): every body at once (the
-        preview compensator refreshes it in its real-time cycle)."""
+    def _com_jacobians(self, q_rad):
+        """(R (body, 3, 3): each body's frame in the base frame; Jv, Jw
+        (body, joint, 3): the Jacobians of its centre of mass and of its
+        rotation) at model angles q (6,), every body at once."""
         q = np.asarray(q_rad, dtype=float)
         F = kin.frames(self.dh, q)
         z = F[:6, :3, 2]  # joint j's axis: z of frame j-1
@@ -64,9 +72,22 @@ class ArmInertia:
         pc = p + np.einsum("bij,bj->bi", R, b["com"])
         Jv = np.cross(z[None, :, :], pc[:, None, :] - o[None, :, :]) * b["mask"][:, :, None]  # (body, joint, 3)
         Jw = z[None, :, :] * b["mask"][:, :, None]
+        return R, Jv, Jw
+
+    def mass_matrix(self, q_rad):
+        """M(q) (6x6) at model angles q (6,): every body at once (the
+        preview compensator refreshes it in its real-time cycle)."""
+        R, Jv, Jw = self._com_jacobians(q_rad)
+        b = self._stack
         Iw = R @ b["inertia"] @ R.transpose(0, 2, 1)
         return (np.einsum("b,bjk,blk->jl", b["mass"], Jv, Jv)
                 + np.einsum("bjk,bkn,bln->jl", Jw, Iw, Jw))
+
+    def gravity_torques(self, q_rad):
+        """Joint torques (6,), N*m, that gravity (GRAVITY_M_PER_S2 along the
+        base frame's -z) exerts on the links and the payload at model angles q (rad)."""
+        _, Jv, _ = self._com_jacobians(q_rad)
+        return -GRAVITY_M_PER_S2 * np.einsum("b,bj->j", self._stack["mass"], Jv[:, :, 2])
 
     def payload_com_jacobian(self, q_rad):
         """(R6 (3x3), Jacobian (3x6) of the payload's centre of mass): its

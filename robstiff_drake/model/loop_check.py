@@ -3,8 +3,8 @@ loop model (model/loop_model.py) of the arm at one pose, its drives, the
 wrist sensor (which also feels the payload's inertia), the force filter,
 the controller period and delays, and the compensator's deflection model,
 in plain numpy: the mass matrix and the weight's stiffness from
-model/robot_checks.py (the rigid-body quantities Drake's plant gives,
-tests/test_robot_files.py), no Drake.
+model/arm_dynamics.py (the rigid-body quantities Drake's plant gives,
+tests/test_robot_file_schema.py), no Drake.
 
 Two modes: in air (no process stiffness) and cutting (a nominal process
 stiffness, ``NOMINAL_PROCESS_STIFFNESS_N_PER_M``, turned to the feed).
@@ -31,7 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from robstiff_drake.model import joint_dynamics, robot_checks
+from robstiff_drake.model import joint_dynamics
+from robstiff_drake.model.arm_dynamics import ArmInertia
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.filters import lowpass_coefficients
 from robstiff_drake.model.loop_model import LoopModel
@@ -60,14 +61,14 @@ SEARCH_UPPER_HZ = 20.0  # its upper end where the compensator's filter is not a 
 
 def gravity_stiffness(robot, q_rad, delta_rad=1e-6):
     """d tau_gravity / dq (6, 6, N*m/rad) at model angles q, by central
-    differences of robot_checks.gravity_torques."""
+    differences of arm_dynamics.ArmInertia.gravity_torques."""
     q = np.asarray(q_rad, dtype=float)
+    arm = ArmInertia(robot)
     G = np.empty((6, 6))
     for k in range(6):
         e = np.zeros(6)
         e[k] = delta_rad
-        G[:, k] = (robot_checks.gravity_torques(robot, q + e) - robot_checks.gravity_torques(robot, q - e)) / (
-            2 * delta_rad)
+        G[:, k] = (arm.gravity_torques(q + e) - arm.gravity_torques(q - e)) / (2 * delta_rad)
     return G
 
 
@@ -124,7 +125,7 @@ class LoopSetup:
         if key not in self._arm:
             if "M" not in self._arm:
                 tool = self.tool_m  # (the robot file's payload: its mass, centre of mass and inertia)
-                self._arm["M"] = robot_checks.mass_matrix(self.robot, self.q_rad)
+                self._arm["M"] = ArmInertia(self.robot).mass_matrix(self.q_rad)
                 self._arm["G"] = gravity_stiffness(self.robot, self.q_rad)
                 self._arm["J"] = kin.jacobian(self.robot.dh, self.q_rad, tool)
                 self._arm["L"] = payload_inertial_wrench_map(self.robot, self.q_rad, tool)

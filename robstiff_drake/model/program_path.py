@@ -1,13 +1,13 @@
 """A G-code program's moves (model/gcode.py) as the planned path's
-elements (model/path.py): lines and arcs in the robot's base frame, with
-the program's feeds, exact stops and dwells.  Plain numpy; no Drake."""
+elements (model/path_elements.py): lines and arcs in the robot's base
+frame, with the program's feeds, exact stops and dwells.  Plain numpy; no Drake."""
 
 import math
 
 import numpy as np
 
 from robstiff_drake.model.gcode_moves import PLANES
-from robstiff_drake.model.path import Arc, Line
+from robstiff_drake.model.path_elements import Arc, Line
 
 def program_pieces(moves, rapid_m_per_s, transform):
     """Elements (m, base frame), speeds (m/s), exact stops and dwells (s)

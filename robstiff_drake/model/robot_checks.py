@@ -6,18 +6,15 @@ arm up (a stiffness written in kN*m/rad).  ``plausibility`` returns one-line
 warnings and raises InputError for the impossible.
 
 The rigid-body quantities (joint-space mass matrix, gravity torques) are
-computed here in plain numpy from the canonical chain (model/kinematics.py)
-and the URDF link frames (model/description.py: link i's frame is DH frame
-i-1 turned by joint i); tests/test_robot_files.py checks them against
-Drake's MultibodyPlant.
+model/arm_dynamics.ArmInertia's (plain numpy; tests/test_robot_file_schema.py
+checks them against Drake's MultibodyPlant).
 """
 
 import numpy as np
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.arm_dynamics import ArmInertia
 
-GRAVITY_M_PER_S2 = 9.81
 # Densities a link's mass over its shape's volume can have (kg/m^3): a
 # robot link is a hollow casting or weldment with motors and gears inside;
 # the library's arms lie at 1,200-3,200.  Below 50 is lighter than any
@@ -41,64 +38,10 @@ MAX_GRAVITY_SAG_RAD = 0.1
 MIN_COM_MARGIN_M = 0.1
 
 
-def _rot_z4(theta):
-    c, s = np.cos(theta), np.sin(theta)
-    T = np.eye(4)
-    T[:2, :2] = [[c, -s], [s, c]]
-    return T
-
-
-def bodies(robot, q_rad):
-    """(mass kg, centre of mass m (3,), inertia about it kg m^2 (3, 3), world
-    pose of its frame (4, 4), number of joints that move it) of the six
-    moving links and the payload at model angles ``q_rad``."""
-    T = kin.frames(robot.dh, q_rad)
-    theta = np.asarray(q_rad, dtype=float) + robot.dh.home_rad
-    out = []
-    for i, link in enumerate(robot.links[1:]):
-        out.append((link.mass_kg, link.com_m, link.inertia_kgm2, T[i] @ _rot_z4(theta[i]), i + 1))
-    pl = robot.payload
-    out.append((pl.mass_kg, pl.com_m, pl.inertia_about_com_kg_m2, T[6], 6))
-    return T, out
-
-
-def _com_jacobians(T, frame, com, n):
-    """Linear and angular Jacobians (3, 6) of a body's centre of mass."""
-    p = frame[:3, :3] @ com + frame[:3, 3]
-    Jv, Jw = np.zeros((3, 6)), np.zeros((3, 6))
-    for j in range(n):
-        z, o = T[j, :3, 2], T[j, :3, 3]
-        Jw[:, j] = z
-        Jv[:, j] = np.cross(z, p - o)
-    return Jv, Jw
-
-
-def mass_matrix(robot, q_rad):
-    """Joint-space mass matrix (6, 6) at model angles ``q_rad`` (rad), kg m^2."""
-    T, bs = bodies(robot, q_rad)
-    M = np.zeros((6, 6))
-    for m, com, inertia, frame, n in bs:
-        Jv, Jw = _com_jacobians(T, frame, com, n)
-        R = frame[:3, :3]
-        M += m * Jv.T @ Jv + Jw.T @ (R @ inertia @ R.T) @ Jw
-    return M
-
-
-def gravity_torques(robot, q_rad):
-    """Joint torques (N*m) gravity exerts at model angles ``q_rad`` (rad)."""
-    T, bs = bodies(robot, q_rad)
-    g = np.array([0.0, 0.0, -GRAVITY_M_PER_S2])
-    tau = np.zeros(6)
-    for m, com, _, frame, n in bs:
-        Jv, _ = _com_jacobians(T, frame, com, n)
-        tau += m * Jv.T @ g
-    return tau
-
-
 def first_modes_hz(robot, q_rad):
     """Undamped natural frequencies (Hz) of the joint springs at ``q_rad``
     (motors held), ascending."""
-    M = mass_matrix(robot, q_rad)
+    M = ArmInertia(robot).mass_matrix(q_rad)
     w2 = np.linalg.eigvals(np.linalg.solve(M, np.diag(robot.joint_stiffness_Nm_per_rad))).real
     return np.sort(np.sqrt(np.maximum(w2, 0.0))) / (2 * np.pi)
 
@@ -187,7 +130,7 @@ def plausibility(robot):
     when its joints could not hold the arm up (see MAX_GRAVITY_SAG_RAD)."""
     out = link_warnings(robot)
     q, where = reference_pose(robot)
-    sag = np.abs(gravity_torques(robot, q)) / robot.joint_stiffness_Nm_per_rad
+    sag = np.abs(ArmInertia(robot).gravity_torques(q)) / robot.joint_stiffness_Nm_per_rad
     j = int(np.argmax(sag))
     if sag[j] > MAX_GRAVITY_SAG_RAD:
         raise InputError(f"{robot.source}: key 'joint_stiffness_Nm_per_rad': joint {j + 1}: "
