@@ -170,6 +170,10 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         netft_counts=None, netft_units=None, netft_http_port=80, wait_s=30.0, duration_s=0.0, idle_exit_s=0.0,
         sensor_timeout_ms=20.0, rt_priority=0, controller="127.0.0.1", protocol="egm", servo=None,
         cutter_diameter_mm=None, allow_unstable_loop=False):
+    from robstiff_drake.io import check_outputs
+
+    # before the heavy imports (scipy, Drake): a wrong --log is refused at once
+    check_outputs(inputs=[model, payload, reference, robot_yaml], folders={"--log": log})
     from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
     from robstiff_drake.cell.link import parse_controller
     from robstiff_drake.cell.loop_guard import LoopGuard, feed_direction
@@ -177,13 +181,11 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     from robstiff_drake.cell.run_log import StreamLog
     from robstiff_drake.cell.safety import pose_problem
     from robstiff_drake.diagrams.scenario import read_payload_calibration
-    from robstiff_drake.io import check_outputs
     from robstiff_drake.model.compensator import Compensator
     from robstiff_drake.model.filters import filter_coefficients
     from robstiff_drake.model.realtime import DeflectionPredictor
     from robstiff_drake.model.robot import load_robot
 
-    check_outputs(inputs=[model, payload, reference, robot_yaml], folders={"--log": log})
     if netft_counts is not None or netft_units is not None:
         if netft_counts is None or netft_units is None:
             raise InputError("--netft-counts and --netft-units go together (the counts per force and per torque "
