@@ -141,6 +141,27 @@ def test_validation_file(capsys, tmp_path):
     assert v["data"] == str(b) and v["n_measurements"] == 200
     assert v["error_3d_mm_reregistered"]["after"]["mean"] < 2 * MEAN3D
     assert v["error_3d_mm"]["after"]["mean"] < 0.2 * v["error_3d_mm"]["before"]["mean"]
+    assert not [m for m in rep["warnings"] if "--validate" in m], rep["warnings"]
+
+
+def test_a_validation_file_that_repeats_the_campaign_warns(capsys, tmp_path):
+    """--validate with the campaign itself (or rows of it) is legal but no
+    independent check: a warning in the text and the JSON."""
+    robot = load_robot("irb6400")
+    text = tw.make_tracker_campaign(robot, 31, n=150, noise_mm=NOISE).csv_text
+    a = tmp_path / "a.csv"
+    a.write_text(text)
+    lines = text.splitlines()
+    header = [i for i, line in enumerate(lines) if line.startswith("q1")][0]
+    b = tmp_path / "b.csv"
+    b.write_text("\n".join(lines[:header + 1] + lines[header + 1:header + 41]) + "\n")
+    code = main(["diagnose", str(a), "--noise-mm", str(NOISE), "--validate", str(b), "--json", "-"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    rep = json.loads(out)
+    warned = [m for m in rep["warnings"] if "--validate" in m]
+    assert warned and "40 of its 40 rows are rows of" in warned[0] and "not independent" in warned[0], rep["warnings"]
+    assert "warning: --validate" in err
 
 
 def test_a_tracker_export_reads_as_the_plain_file(tmp_path):

@@ -100,11 +100,28 @@ def plots(d, folder):
     return ["error_vs_joint_angles.png"]
 
 
+def shared_rows(campaign, other):
+    """How many of ``other``'s rows are rows of ``campaign``: the same joint
+    angles (to 1e-6 deg) and measured point (to 1e-6 mm)."""
+    def rows(c):
+        unit = c.pos_unit_mm if c.pos_unit_mm is not None else 1.0
+        return [tuple(np.round(np.r_[c.q_deg[i], c.pos[i] * unit], 6)) for i in range(len(c))]
+
+    mine = set(rows(campaign))
+    return sum(r in mine for r in rows(other))
+
+
 def run(*, data, tool_m, noise_mm, robot, json_out=None, report=None, plots_dir=None, validate=None,
         write_robot=None, warnings=None):
     w = warnings if warnings is not None else Warnings()
     campaign = read_tracker_campaign(data, robot)
     other = read_tracker_campaign(validate, robot) if validate is not None else None
+    if other is not None:
+        n_shared = shared_rows(campaign, other)
+        if n_shared:
+            w.add(f"--validate {validate}: {n_shared} of its {len(other)} rows are rows of {data} (the same joint "
+                  "angles and measured point): the validation is not independent of the fit; validate on poses "
+                  "measured apart from the campaign")
     d = diagnose_tracker(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=w, validation=other)
     rep = d.report
     with staged_outputs():  # the corrected robot file, the JSON, the report and the views, all or none
