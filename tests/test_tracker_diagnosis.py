@@ -282,3 +282,19 @@ def test_applied_loads_give_every_loaded_joints_stiffness(capsys, tmp_path):
     tried = {r["name"] for rnd in rep["rounds"] for r in rnd}
     assert {"load:lost_motion", "load:backlash_j2", "load:force_crosstalk"} <= tried
     np.testing.assert_allclose(rep["joint_stiffness_Nm_per_rad"][:5], world.true["k_Nm_per_rad"][:5], rtol=0.05)
+
+
+def test_every_output_of_a_tracker_diagnosis_has_its_wrote_line(capsys, tmp_path):
+    """As the stiffness diagnosis: a "wrote" line for the corrected robot
+    file, the JSON and the report (the tracker's run printed none for the
+    JSON and the report)."""
+    robot = load_robot("irb6400")
+    a = _write(tmp_path, tw.make_tracker_campaign(robot, 31, n=150, noise_mm=NOISE), "a.csv")
+    outs = [tmp_path / "corrected.yaml", tmp_path / "d.json", tmp_path / "r.md"]
+    code = main(["diagnose", str(a), "--noise-mm", str(NOISE), "--write-robot", str(outs[0]), "--json", str(outs[1]),
+                 "--report", str(outs[2])])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    for p in outs:
+        assert p.exists() and f"wrote {p}" in out, (p, out[-800:])
+    assert f"wrote {outs[0]}: the corrected robot file" in out

@@ -10,6 +10,7 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
 from robstiff_drake.identification.tracker_diagnosis import diagnose_tracker
 from robstiff_drake.io import RunFolder, Warnings, emit_json, staged_outputs, write_atomic
+from robstiff_drake.progress import wrote
 
 
 def _g(v, fmt=".4f"):
@@ -140,9 +141,13 @@ def run(*, data, tool_m, noise_mm, robot, json_out=None, report=None, plots_dir=
                 plots(d, folder)
     if json_out != "-":
         print(format_report(rep))
-        if write_robot is not None:
-            print(f"corrected robot file written to {write_robot} (its forward kinematics reproduce the fitted model "
-                  f"to {rep['corrected_robot']['fk_check_mm']:.2g} mm)")
+    stderr = json_out == "-"  # a "wrote" line for every output, as the stiffness diagnosis gives
+    if write_robot is not None:
+        wrote(write_robot, "the corrected robot file (its forward kinematics reproduce the fitted model to "
+                           f"{rep['corrected_robot']['fk_check_mm']:.2g} mm)", to_stderr=stderr)
+    wrote(json_out, to_stderr=stderr)
+    wrote(report, "the report (Markdown)", to_stderr=stderr)
+    wrote(plots_dir, "the residual views, one PNG each", folder=True, to_stderr=stderr)
     return 0
 
 
