@@ -137,7 +137,13 @@ UserYamlLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _
 def load_yaml(text, source):
     """(document, {key path tuple: line}) of a user's YAML text (see the
     module docstring); UserFileError naming ``source``, line and column."""
-    loader = UserYamlLoader(text, source)
+    try:
+        loader = UserYamlLoader(text, source)  # PyYAML checks the characters here
+    except yaml.reader.ReaderError as e:  # a raw control character (ESC, NUL, ...) anywhere in the file
+        pos = e.position
+        line, col = text.count("\n", 0, pos) + 1, pos - (text.rfind("\n", 0, pos) + 1) + 1
+        raise UserFileError(f"{source}:{line}: column {col}: character U+{e.character:04X}, a control character "
+                            "a YAML file cannot hold; remove it") from None
     try:
         doc = loader.get_single_data()
     except yaml.YAMLError as e:

@@ -30,6 +30,13 @@ CASES = [  # (argv, a part of the error line, modules that must not be imported)
      "no such scenario file", ("pydrake", "scipy")),
     (["compensate", "--egm-port", "6510", "--netft", "127.0.0.1", "--model", "missing.json", "--payload", "p.yaml"],
      "--model missing.json: cannot read", ("pydrake", "scipy")),
+    (["compensate", "--egm-port", "6510", "--netft", "127.0.0.1", "--model", "a_file.txt", "--payload", "a_file.txt",
+      "--log", "."], "--log .: the folder holds an input of the command", ("pydrake", "scipy")),
+    (["compensate", "--egm-port", "6510", "--netft", "127.0.0.1", "--model", "a_file.txt", "--payload", "a_file.txt",
+      "--cutoff-hz", "600"], "--cutoff-hz: cutoff 600 Hz must be between 0 and the Nyquist rate 500 Hz",
+     ("pydrake", "scipy")),
+    (["compensate", "--egm-port", "6510", "--netft", "127.0.0.1", "--model", "a_file.txt", "--payload", "a_file.txt",
+      "--servo", "12,17,60,0.9,7.5,3"], "--servo: expected 4 or 5 comma-separated numbers", ("pydrake", "scipy")),
     (["demo", "--robot", "no_such_robot"], "not a library robot", ("pydrake", "scipy")),
     (["demo", "--out", "a_file.txt"], "is a file, not a folder", ("pydrake",)),
     (["diagnose-run", "no_such_run"], "no such run folder", ("pydrake", "scipy")),
@@ -53,3 +60,30 @@ def test_bad_input_is_refused_before_the_heavy_imports(tmp_path, argv, message, 
     err = proc.stderr.strip().splitlines()
     assert result["code"] == 2 and len(err) == 1 and message in err[0], (proc.stderr, result)
     assert not set(not_imported) & set(result["heavy"]), f"imported {result['heavy']} before refusing {argv}"
+
+
+def test_another_robots_compensator_is_refused_before_the_path_is_computed(tmp_path, capsys, monkeypatch):
+    """simulate --compensator with a compensator made for another robot was
+    refused only after the path's joint reference and the scenario's
+    identified model were computed (50 s on a loaded machine): now before."""
+    from robstiff_drake.commands.main import main
+    from robstiff_drake.diagrams import milling_cell, user_model
+    from robstiff_drake.identification import run_files as rf
+
+    def too_late(*args, **kwargs):
+        raise AssertionError("the path was computed before the compensator's robot was checked")
+
+    monkeypatch.setattr(milling_cell, "planned_path", too_late)
+    monkeypatch.setattr(user_model, "resolve", too_late)
+    payload = {"mass_kg": 40.0, "com_mm": [0.0, 0.0, 180.0], "force_bias_N": [0.0] * 3, "torque_bias_Nm": [0.0] * 3,
+               "sensor_mount_rpy_deg": [0.0] * 3}
+    settings = rf.CompensatorSettings(joint_stiffness_Nm_per_rad=[1e6] * 6, payload=payload,
+                                      tool_point_mm=[0.0, 0.0, 350.0], cutter_diameter_mm=75.0, filter_cutoff_hz=2.0,
+                                      robot="kr240_r2900")
+    other = tmp_path / "compensator.yaml"
+    other.write_text(rf.settings_text(settings, "x"), encoding="utf-8")
+    code = main(["simulate", "short_block", "--compensator", str(other), "--out", str(tmp_path / "never")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "compensator.robot is kr240_r2900" in err and "not the simulated robot irb6400" in err, err
+    assert not (tmp_path / "never").exists()

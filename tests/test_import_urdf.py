@@ -106,3 +106,29 @@ def test_a_balancing_cylinder_that_mimics_a_joint_is_left_out(tmp_path, capsys):
     assert code == 0, err
     q = np.zeros(6)
     assert np.abs(kin.tool_position(load_robot(str(out)).dh, q) - kin.tool_position(shipped.dh, q)).max() < 1e-12
+
+
+@pytest.mark.parametrize("file_name", ['q"uote.urdf', "back\\slash.urdf", "new\nline.urdf", "é ü.urdf"])
+def test_any_urdf_file_name_gives_a_robot_file(tmp_path, capsys, file_name):
+    """The URDF's file name is written into the robot file (its comment and
+    'source:'): a quote, a backslash, a newline or accents in it used to make
+    the file unreadable (an error naming a temporary file)."""
+    urdf, _ = made_urdf(tmp_path, "irb6400")
+    renamed = urdf.with_name(file_name)
+    urdf.rename(renamed)
+    out = tmp_path / "named.yaml"
+    code, _, err = run(capsys, "import-urdf", renamed, "--out", out)
+    assert code == 0, err
+    import yaml
+
+    assert yaml.safe_load(out.read_text(encoding="utf-8"))["source"] == f"imported from {file_name}"
+    load_robot(str(out))
+
+
+@pytest.mark.parametrize("name", ["a: b", "#x", "it's", "x\ny", "9lives"])
+def test_a_bad_name_is_refused_naming_the_option(tmp_path, capsys, name):
+    urdf, _ = made_urdf(tmp_path, "irb6400")
+    code, _, err = run(capsys, "import-urdf", urdf, "--out", tmp_path / "x.yaml", "--name", name)
+    assert code == 2 and err.count("\n") == 1, err
+    assert "--name" in err and "letters, digits and _" in err and "tmp" not in err.split("--name")[0], err
+    assert not (tmp_path / "x.yaml").exists()

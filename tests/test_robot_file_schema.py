@@ -104,6 +104,11 @@ def test_every_number_is_checked_against_its_range_and_unit(capsys, tmp_path, ol
     ("  lower_deg: [-180.0, -70.0, -28.0, -300.0, -120.0, -300.0]\n  upper_deg: [ 180.0,  70.0, 105.0,  300.0,  120.0,  300.0]",
      "  lower_deg: [-3.14, -1.22, -0.49, -5.24, -2.09, -5.24]\n  upper_deg: [3.14, 1.22, 1.83, 5.24, 2.09, 5.24]",
      "are these radians? (write degrees)"),
+    # axis speeds in rad/s (1.75 rad/s = 100 deg/s): 1.75 deg/s is in the range but no robot's axis
+    ("  speed_deg_per_s: [100.0, 90.0, 90.0, 170.0, 140.0, 190.0]",
+     "  speed_deg_per_s: [1.75, 1.57, 1.57, 2.97, 2.44, 3.32]",
+     "key 'joint_limits.speed_deg_per_s': every axis speed is at most 3.32 deg/s: data sheets give 50-1,000 deg/s; "
+     "are these rad/s? (write deg/s)"),
     # kN*m/rad: joints 4-6 fall below the range; here all are within it and the sag decides
     (K_LINE, "joint_stiffness_Nm_per_rad: [1.5e3, 1.1e3, 1.0e3, 1.0e3, 1.0e3, 1.0e3]",
      "under its own weight at the reference machining pose: no arm holds itself so softly; are the stiffnesses in "

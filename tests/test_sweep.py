@@ -230,3 +230,23 @@ def test_loop_model_needs_the_payload_inertia_at_a_resonance(robot, tmp_path):
     blind = loop_prediction.predict(sc, robot, combo, sensor_feels_inertia=False)
     assert blind["spectral_radius"] < 1.0
     assert max(blind["surface_error_mm"]["entry_max_abs"], blind["surface_error_mm"]["exit_max_abs"]) < 0.1 * sim
+
+
+@pytest.mark.parametrize("key, content, message", [
+    ("identified_json", "q1,q2\n1,2\n", "not a JSON file"),
+    ("identified_json", '{"joint_stiffness_Nm_per_rad": [1, 2]}', "expected six finite stiffnesses"),
+    ("payload_yaml", "payload_calibration: [1, 2]\n", "m.txt"),
+])
+def test_a_broken_model_file_named_by_the_scenario_is_refused_before_any_run(capsys, tmp_path, key, content,
+                                                                             message):
+    """A scenario whose model.identified_json or model.payload_yaml cannot be
+    read ran every combination and failed each (exit 0, a JSON of failed
+    rows); it is one line and exit 2 before any run, as simulate does."""
+    (tmp_path / "m.txt").write_text(content)
+    sc = tmp_path / "s.yaml"
+    sc.write_text(SHORT.read_text().replace("  source: nominal\n", f"  source: identified\n  {key}: m.txt\n", 1))
+    out = tmp_path / "x.json"
+    code, _, err = cli(capsys, "sweep", sc, "--period-ms", "4", "--json", out, "--workers", "1", "--no-predict")
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1 and message in err, err
+    assert not out.exists()

@@ -141,6 +141,27 @@ def test_validation_file(capsys, tmp_path):
     assert v["data"] == str(b) and v["n_measurements"] == 200
     assert v["error_3d_mm_reregistered"]["after"]["mean"] < 2 * MEAN3D
     assert v["error_3d_mm"]["after"]["mean"] < 0.2 * v["error_3d_mm"]["before"]["mean"]
+    assert not [m for m in rep["warnings"] if "--validate" in m], rep["warnings"]
+
+
+def test_a_validation_file_that_repeats_the_campaign_warns(capsys, tmp_path):
+    """--validate with the campaign itself (or rows of it) is legal but no
+    independent check: a warning in the text and the JSON."""
+    robot = load_robot("irb6400")
+    text = tw.make_tracker_campaign(robot, 31, n=150, noise_mm=NOISE).csv_text
+    a = tmp_path / "a.csv"
+    a.write_text(text)
+    lines = text.splitlines()
+    header = [i for i, line in enumerate(lines) if line.startswith("q1")][0]
+    b = tmp_path / "b.csv"
+    b.write_text("\n".join(lines[:header + 1] + lines[header + 1:header + 41]) + "\n")
+    code = main(["diagnose", str(a), "--noise-mm", str(NOISE), "--validate", str(b), "--json", "-"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    rep = json.loads(out)
+    warned = [m for m in rep["warnings"] if "--validate" in m]
+    assert warned and "40 of its 40 rows are rows of" in warned[0] and "not independent" in warned[0], rep["warnings"]
+    assert "warning: --validate" in err
 
 
 def test_a_tracker_export_reads_as_the_plain_file(tmp_path):
@@ -261,3 +282,19 @@ def test_applied_loads_give_every_loaded_joints_stiffness(capsys, tmp_path):
     tried = {r["name"] for rnd in rep["rounds"] for r in rnd}
     assert {"load:lost_motion", "load:backlash_j2", "load:force_crosstalk"} <= tried
     np.testing.assert_allclose(rep["joint_stiffness_Nm_per_rad"][:5], world.true["k_Nm_per_rad"][:5], rtol=0.05)
+
+
+def test_every_output_of_a_tracker_diagnosis_has_its_wrote_line(capsys, tmp_path):
+    """As the stiffness diagnosis: a "wrote" line for the corrected robot
+    file, the JSON and the report (the tracker's run printed none for the
+    JSON and the report)."""
+    robot = load_robot("irb6400")
+    a = _write(tmp_path, tw.make_tracker_campaign(robot, 31, n=150, noise_mm=NOISE), "a.csv")
+    outs = [tmp_path / "corrected.yaml", tmp_path / "d.json", tmp_path / "r.md"]
+    code = main(["diagnose", str(a), "--noise-mm", str(NOISE), "--write-robot", str(outs[0]), "--json", str(outs[1]),
+                 "--report", str(outs[2])])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    for p in outs:
+        assert p.exists() and f"wrote {p}" in out, (p, out[-800:])
+    assert f"wrote {outs[0]}: the corrected robot file" in out

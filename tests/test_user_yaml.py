@@ -204,3 +204,18 @@ def test_time_to_refuse_a_bomb_does_not_grow_with_its_levels(tmp_path):
             load_yaml(f"a: {bomb(levels)}\n", "b.yaml")
         times.append(time.perf_counter() - t0)
     assert max(times) < 0.5, times
+
+
+@pytest.mark.parametrize("char", ["\x1b", "\x00", "\x07", "\x7f"])
+def test_a_raw_control_character_is_one_line_with_its_place(capsys, tmp_path, char):
+    """A raw control byte in a YAML file (an escape sequence pasted from a
+    terminal) was a PyYAML traceback: it is one line naming the file, line,
+    column and character, in a robot file and a scenario alike."""
+    r = tmp_path / "r.yaml"
+    r.write_text(ROBOT.replace("name: irb6400", f"name: irb{char}6400", 1), encoding="utf-8")
+    line_no = ROBOT.splitlines().index("name: irb6400") + 1
+    _one_line(capsys, ["fk", 0, 0, 0, 0, 30, 0, "--robot", r], f"{r}:{line_no}: column 10: character U+{ord(char):04X}")
+    s = tmp_path / "s.yaml"
+    s.write_text(SHORT.replace("name: short_block", f'name: "a{char}b"', 1), encoding="utf-8")
+    _one_line(capsys, ["simulate", s, "--out", tmp_path / "o"], f"{s}:", f"character U+{ord(char):04X}")
+    assert not (tmp_path / "o").exists()

@@ -175,6 +175,15 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         sensor_timeout_ms=20.0, rt_priority=0, controller="127.0.0.1", protocol="egm", servo=None,
         cutter_diameter_mm=None, allow_unstable_loop=False, mode="plain", job=None, preview_sync_ms=25.0,
         preview_force_bound_N=150.0):
+    from robstiff_drake.io import check_outputs
+
+    # before the heavy imports (scipy, Drake): a wrong --log or a missing --job is refused at once
+    check_outputs(inputs=[model, payload, reference, robot_yaml, job], folders={"--log": log})
+    if mode == "preview" and job is None:
+        raise InputError("--mode preview needs --job SCENARIO.yaml (the job's program, tool, cutting model and "
+                         "servo: the preview's plan)")
+    if job is not None and mode != "preview":
+        raise InputError(f"--job {job} is read only with --mode preview (plain compensation needs no plan)")
     from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
     from robstiff_drake.cell.link import parse_controller
     from robstiff_drake.cell.loop_guard import LoopGuard, feed_direction
@@ -182,18 +191,11 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     from robstiff_drake.cell.run_log import StreamLog
     from robstiff_drake.cell.safety import pose_problem
     from robstiff_drake.diagrams.scenario import read_payload_calibration
-    from robstiff_drake.io import check_outputs
     from robstiff_drake.model.compensator import Compensator
     from robstiff_drake.model.filters import filter_coefficients
     from robstiff_drake.model.realtime import DeflectionPredictor
     from robstiff_drake.model.robot import load_robot
 
-    check_outputs(inputs=[model, payload, reference, robot_yaml, job], folders={"--log": log})
-    if mode == "preview" and job is None:
-        raise InputError("--mode preview needs --job SCENARIO.yaml (the job's program, tool, cutting model and "
-                         "servo: the preview's plan)")
-    if job is not None and mode != "preview":
-        raise InputError(f"--job {job} is read only with --mode preview (plain compensation needs no plan)")
     if netft_counts is not None or netft_units is not None:
         if netft_counts is None or netft_units is None:
             raise InputError("--netft-counts and --netft-units go together (the counts per force and per torque "

@@ -10,6 +10,7 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
 from robstiff_drake.identification.tracker_diagnosis import diagnose_tracker
 from robstiff_drake.io import RunFolder, Warnings, emit_json, staged_outputs, write_atomic
+from robstiff_drake.progress import wrote
 
 
 def _g(v, fmt=".4f"):
@@ -100,11 +101,28 @@ def plots(d, folder):
     return ["error_vs_joint_angles.png"]
 
 
+def shared_rows(campaign, other):
+    """How many of ``other``'s rows are rows of ``campaign``: the same joint
+    angles (to 1e-6 deg) and measured point (to 1e-6 mm)."""
+    def rows(c):
+        unit = c.pos_unit_mm if c.pos_unit_mm is not None else 1.0
+        return [tuple(np.round(np.r_[c.q_deg[i], c.pos[i] * unit], 6)) for i in range(len(c))]
+
+    mine = set(rows(campaign))
+    return sum(r in mine for r in rows(other))
+
+
 def run(*, data, tool_m, noise_mm, robot, json_out=None, report=None, plots_dir=None, validate=None,
         write_robot=None, warnings=None):
     w = warnings if warnings is not None else Warnings()
     campaign = read_tracker_campaign(data, robot)
     other = read_tracker_campaign(validate, robot) if validate is not None else None
+    if other is not None:
+        n_shared = shared_rows(campaign, other)
+        if n_shared:
+            w.add(f"--validate {validate}: {n_shared} of its {len(other)} rows are rows of {data} (the same joint "
+                  "angles and measured point): the validation is not independent of the fit; validate on poses "
+                  "measured apart from the campaign")
     d = diagnose_tracker(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=w, validation=other)
     rep = d.report
     with staged_outputs():  # the corrected robot file, the JSON, the report and the views, all or none
@@ -123,9 +141,13 @@ def run(*, data, tool_m, noise_mm, robot, json_out=None, report=None, plots_dir=
                 plots(d, folder)
     if json_out != "-":
         print(format_report(rep))
-        if write_robot is not None:
-            print(f"corrected robot file written to {write_robot} (its forward kinematics reproduce the fitted model "
-                  f"to {rep['corrected_robot']['fk_check_mm']:.2g} mm)")
+    stderr = json_out == "-"  # a "wrote" line for every output, as the stiffness diagnosis gives
+    if write_robot is not None:
+        wrote(write_robot, "the corrected robot file (its forward kinematics reproduce the fitted model to "
+                           f"{rep['corrected_robot']['fk_check_mm']:.2g} mm)", to_stderr=stderr)
+    wrote(json_out, to_stderr=stderr)
+    wrote(report, "the report (Markdown)", to_stderr=stderr)
+    wrote(plots_dir, "the residual views, one PNG each", folder=True, to_stderr=stderr)
     return 0
 
 

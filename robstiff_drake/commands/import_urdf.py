@@ -4,12 +4,14 @@ file's kinematics against Drake's plant of the URDF (the flange at random
 configurations inside the limits) and its links' masses and inertias
 against the URDF's, in the base frame."""
 
+import json
+
 import numpy as np
 
-from robstiff_drake.errors import InputError
+from robstiff_drake.errors import InputError, excerpt, one_line
 from robstiff_drake.io import check_outputs, write_atomic
 from robstiff_drake.model import kinematics as kin
-from robstiff_drake.model.robot import N_JOINTS, load_robot
+from robstiff_drake.model.robot import N_JOINTS, NAME_RE, load_robot
 from robstiff_drake.progress import info
 from robstiff_drake.robot_import import box_of, read_urdf
 
@@ -31,7 +33,7 @@ def robot_file_text(imp, template, urdf_path, name):
         a_rows, alpha_rows = a, alpha
     t = template
     lines = [
-        f"# Imported from {urdf_path} (sha256 {imp.digest[:16]}) by `robstiff import-urdf`:",
+        f"# Imported from {one_line(urdf_path)} (sha256 {imp.digest[:16]}) by `robstiff import-urdf`:",
         "# the kinematic table from its joint axes, the links' masses and inertias moved into",
         "# the robot file's link frames, the joint limits.  The joint angles are the URDF's (no",
         "# controller block): check them against your controller's (docs/your_robot.md).",
@@ -40,7 +42,7 @@ def robot_file_text(imp, template, urdf_path, name):
         f"name: {name}",
         "manufacturer: \"-\"",
         f"model: {imp.name}",
-        f"source: \"imported from {urdf_path.name}\"",
+        f"source: {json.dumps('imported from ' + urdf_path.name)}",  # any file name: a quoted YAML scalar
         f"convention: {imp.convention}",
         "dh:",
         f"  d_mm: {_row(d, 1e3)}",
@@ -51,7 +53,7 @@ def robot_file_text(imp, template, urdf_path, name):
         f"  lower_deg: {_row(np.rad2deg(imp.lower_rad))}",
         f"  upper_deg: {_row(np.rad2deg(imp.upper_rad))}",
         "# ASSUMPTION: a URDF holds no joint stiffness, motor inertias, machining payload or",
-        f"# workspace: these are {t.name}'s ({t.source}).  Identify your robot's stiffness",
+        f"# workspace: these are {t.name}'s ({one_line(t.source)}).  Identify your robot's stiffness",
         "# (robstiff identify), and set its motors, payload and workspace here.",
         f"joint_stiffness_Nm_per_rad: {_row(t.joint_stiffness_Nm_per_rad)}",
     ]
@@ -133,6 +135,9 @@ def run(*, urdf, out, template=None, name=None):
 
     urdf_path = Path(urdf)
     check_outputs(inputs=[urdf_path], files={"--out": out})
+    if name is not None and not NAME_RE.fullmatch(name):
+        raise InputError(f"--name {excerpt(name)}: use letters, digits and _ only, starting with a letter (it names "
+                         "files and the URDF)")
     imp = read_urdf(urdf_path)
     tpl = load_robot(template)
     text = robot_file_text(imp, tpl, urdf_path, name or imp.name)

@@ -10,7 +10,7 @@ import re
 import signal
 import sys
 
-from robstiff_drake.errors import InputError, Terminated, one_line
+from robstiff_drake.errors import InputError, Terminated, excerpt, one_line
 
 
 class _UsageError(InputError):
@@ -568,12 +568,18 @@ def _dispatch(args):
         if units is not None and len(units) != 2:
             raise InputError(f"--netft-units: expected FORCE,TORQUE (e.g. N,N-mm), got {args.netft_units!r}")
         n_servo = 5 if args.servo and args.servo.count(",") == 4 else 4
+        if args.servo and args.servo.count(",") not in (3, 4):
+            raise InputError(f"--servo: expected 4 or 5 comma-separated numbers (DELAY_MS,KP,BW_HZ,FF[,KI_HZ]), got "
+                             f"{excerpt(args.servo)}")
         servo = parse_vector(args.servo, n_servo, "--servo") if args.servo else None
         if servo is not None and (min(servo[:3]) <= 0 or not 0 <= servo[3] <= 1 or servo[0] > 1000
                                   or (n_servo == 5 and not 0 <= servo[4] <= 100)):
             raise InputError(f"--servo {args.servo}: expected a dead time in (0, 1000] ms, a gain > 0 1/s, a "
                              "bandwidth > 0 Hz, a feed-forward in [0, 1] and, optionally, an integral corner "
                              "in [0, 100] Hz")
+        if args.filter_kind == "lowpass" and not args.cutoff_hz < 0.5 * args.sensor_rate_hz:
+            raise InputError(f"--cutoff-hz: cutoff {args.cutoff_hz:g} Hz must be between 0 and the Nyquist rate "
+                             f"{0.5 * args.sensor_rate_hz:g} Hz (half --sensor-rate-hz)")
         if args.listen_port is None and args.protocol != "stream-motion":
             raise InputError(f"--listen-port (--egm-port) is required for --controller-protocol {args.protocol}")
         return compensate.run(listen_port=args.listen_port or 0, netft=args.netft, robot_yaml=args.robot,

@@ -196,13 +196,15 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
     (``compensator``) and the sensor's and scanner's noise seeds set to
     ``noise_seed`` (a repeated cut: new noise) when given."""
     from robstiff_drake.diagrams import user_model as user_models
-    from robstiff_drake.diagrams.cell_record import scenario_with_compensator
+    from robstiff_drake.diagrams.cell_record import check_same_robot, scenario_with_compensator
     from robstiff_drake.diagrams.milling_cell import planned_path as cell_path
     from robstiff_drake.diagrams.scenario import load_scenario
 
     sc = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset)
     if compensator is not None:
         _, settings = read_settings(compensator)
+        # another robot's compensator is refused before the path and the model are computed (was 50 s)
+        check_same_robot(settings, robot, settings.path or "compensator settings")
         _, _, q_ref = cell_path(sc, robot, robot.tool_point(where="the closed loop"))
         user_models.resolve(sc, robot, q_ref[0])  # (the run's own model: its payload calibration)
         sc = scenario_with_compensator(sc, settings, robot)

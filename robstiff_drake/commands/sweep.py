@@ -139,7 +139,7 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
         raise InputError(f"sweep: --plant-step-ms must be > 0, got {plant_step_ms}")
     # Drake comes with these: after the checks of the arguments above
     from robstiff_drake.diagrams.milling_cell import check_plant_step
-    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+    from robstiff_drake.diagrams.scenario import load_scenario, model_stiffness, payload_calibration, scenario_robot
 
     sc = load_scenario(scenario)
     plant_step_ms = plant_step_ms or shortest_period_step(sc, periods_ms, json_out)
@@ -149,6 +149,12 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
     check_combinations(sc, combos, plant_step_ms)
     robot = scenario_robot(sc, robot_yaml)
     check_plant_step(sc, robot)
+    # the files the scenario names for the compensator's model (model.identified_json, payload_yaml) read once,
+    # here: a broken one is refused (exit 2) before any run, not found in every run (exit 0, every row failed)
+    if sc.model.identified_json:
+        model_stiffness(sc, robot)
+    if sc.model.payload_yaml:
+        payload_calibration(sc, robot)
     spec = None if robot_yaml is None else str(robot_yaml if robot_yaml in library_robots() else
                                                 Path(robot_yaml).resolve())
     rows = run_sweep(Path(scenario), combos, workers=workers, scheduler=scheduler, plant_step_ms=plant_step_ms,

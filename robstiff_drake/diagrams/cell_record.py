@@ -93,7 +93,7 @@ def _robot_spec_text(sc, robot):
     return str(Path(spec or robot.source).resolve())
 
 
-def _same_robot(settings, robot, where):
+def check_same_robot(settings, robot, where):
     """Refuse (InputError) settings whose ``robot`` is not the simulated one
     (another name, or the same name with other kinematics): a verification
     cut runs the compensator of the run's own robot."""
@@ -122,7 +122,7 @@ def scenario_with_compensator(sc, settings, robot):
     calibration are the machine's: settings that differ there are refused
     (InputError), since the simulation cannot change the hardware."""
     where = settings.path or "compensator settings"
-    _same_robot(settings, robot, where)
+    check_same_robot(settings, robot, where)
     tool = np.asarray(robot.payload.tool_point_m) * 1e3
     if not np.allclose(settings.tool_point_mm, tool, rtol=0, atol=1e-6):
         raise InputError(f"{where}: compensator.tool.point_mm {settings.tool_point_mm} is not the simulated "

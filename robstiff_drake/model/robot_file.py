@@ -304,6 +304,11 @@ def check_units(values):
     if limits.max() <= MAX_RADIAN_LIMIT:
         fail("joint_limits.lower_deg", f"every joint limit is within +-{limits.max():g}: a 6-axis arm's working "
                                        "ranges span tens to hundreds of degrees; are these radians? (write degrees)")
+    if "joint_limits.speed_deg_per_s" in values:
+        speeds = np.abs(values["joint_limits.speed_deg_per_s"])
+        if speeds.max() <= MAX_RADIAN_LIMIT:
+            fail("joint_limits.speed_deg_per_s", f"every axis speed is at most {speeds.max():g} deg/s: data sheets "
+                                                 "give 50-1,000 deg/s; are these rad/s? (write deg/s)")
     sizes = []
     for link in values["links"]:
         if "box_mm" in link:
