@@ -132,6 +132,24 @@ def _replace_atomic(path, write):
 
 
 @contextmanager
+def _signals_held():
+    """SIGINT and SIGTERM held (delivered when the block ends) in the main
+    thread, where the platform allows it."""
+    import signal
+    import threading
+
+    held = {signal.SIGINT, signal.SIGTERM}
+    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+@contextmanager
 def staged_outputs():
     """Inside this block (of a command: main's command_scope), files written
     with write_atomic / save_figure_atomic / emit_json go to temporary files
@@ -145,11 +163,12 @@ def staged_outputs():
     command.staged = staged = []
     try:
         yield
-        for tmp, target, path in staged:
-            try:
-                os.replace(tmp, target)
-            except OSError as e:
-                raise _write_error(path, e) from None
+        with _signals_held():  # a Ctrl-C between two renames would leave some of the outputs new, some old
+            for tmp, target, path in staged:
+                try:
+                    os.replace(tmp, target)
+                except OSError as e:
+                    raise _write_error(path, e) from None
     finally:
         command.staged = None
         for tmp, _, _ in staged:

@@ -295,3 +295,21 @@ def test_absolute_arc_centres():
     assert a.center_mm == b.center_mm == (5.0, 0.0)
     c = read_program("G0 X10 Y0 Z10\nF100\nG90.1 G2 X20 Y0 I15 J0\n", "p.nc").moves[0]
     assert c.center_mm == (15.0, 0.0)
+
+
+def test_a_program_without_units_is_read_in_mm_with_a_warning():
+    """An inch program with no G20 would cut 25.4 x too small: the run says
+    so (the scenario's warnings), not the reader's own list."""
+    from types import SimpleNamespace
+
+    from robstiff_drake.diagrams.toolpath import program_warnings
+
+    bare = read_program(HEAD + "G1 X5\n", "p.nc")
+    assert not bare.units_stated and bare.warnings == []
+    (w,) = program_warnings(SimpleNamespace(_program=bare))
+    assert w.startswith("p.nc: no G20 or G21 before the first move") and "25.4" in w
+    for units in ("G21\n", "G20\n"):
+        p = read_program(units + HEAD + "G1 X5\n", "p.nc")
+        assert p.units_stated and program_warnings(SimpleNamespace(_program=p)) == []
+    late = read_program(HEAD + "G1 X5\nG21\nG1 X6\n", "p.nc")  # stated only after the first move
+    assert not late.units_stated

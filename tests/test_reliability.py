@@ -564,3 +564,22 @@ def test_a_scenario_name_with_control_characters_is_refused(capsys, tmp_path, na
     code, _, err = cli(capsys, "simulate", p)
     one_line_error(code, err)
     assert "named.yaml:6" in err and "name" in err and code_point in err and "\x1b" not in err
+
+
+def test_a_signal_during_the_outputs_commit_waits_for_its_end():
+    """staged_outputs renames its files with SIGINT/SIGTERM held: a Ctrl-C
+    arrives after the last rename, never between two."""
+    import os
+    import signal
+
+    from robstiff_drake.io import _signals_held
+
+    seen = []
+    old = signal.signal(signal.SIGTERM, lambda *_: seen.append("TERM"))
+    try:
+        with _signals_held():
+            os.kill(os.getpid(), signal.SIGTERM)
+            seen.append("inside")
+        assert seen == ["inside", "TERM"]
+    finally:
+        signal.signal(signal.SIGTERM, old)

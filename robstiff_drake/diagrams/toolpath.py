@@ -158,6 +158,11 @@ def program_warnings(sc):
     if prog is None:
         return []
     out = list(prog.warnings)
+    if not prog.units_stated:
+        # a controller starts in the units its parameters set (mm in most shops, inches in some): a program that
+        # does not say is read as mm here; an inch program would then cut 25.4 x too small and feed as slowly
+        out.append(f"{prog.path}: no G20 or G21 before the first move: read in millimetres (an inch program would "
+                   "come out 25.4 x too small); put G21 (or G20) in the program's first lines")
     feeds, speeds = feeds_and_speeds(prog)
     if len(feeds) > 1:
         out.append(f"toolpath.program: {len(feeds)} cutting feeds ({', '.join(f'F{f:g}' for f in sorted(feeds))} "

@@ -33,7 +33,7 @@ class CompensatorSettings:
     period_ms: float = 4.0
     delay_steps: int = 1
     filter_kind: str = "lowpass"  # "lowpass", "revolution_average" or "none"
-    filter_cutoff_hz: float = 10.0
+    filter_cutoff_hz: float = 2.0  # as `compensate --cutoff-hz` (10 Hz is unstable at realistic damping: docs/cli.md)
     filter_order: int = 2
     sensor_rate_hz: float = 1000.0
     max_jump_N: float = 1000.0

@@ -64,6 +64,7 @@ class Program:
     tool_diameter_mm: float = None
     tool_line: int = None
     dwell_before_s: float = 0.0
+    units_stated: bool = True  # a G20 or G21 before the first move (else read as mm: diagrams/toolpath warns)
 
     def feeds_mm_per_min(self):
         """The distinct feeds of the cutting moves (G1/G2/G3), in order of first use."""
@@ -107,7 +108,7 @@ def read_program(text, path="program", *, decimal_point="calculator", block_dele
         raise InputError(f"{path}: no motion from a known point (G0, G1, G2 or G3 after X, Y and Z are set) in "
                          "the program")
     return Program(st.moves, str(path), st.moves[0].start_mm, st.warnings, st.tool_number, st.tool_diameter_mm,
-                   st.tool_line, st.dwell_before_s)
+                   st.tool_line, st.dwell_before_s, st.units_before_first_move)
 
 
 def decode_program(raw, path):

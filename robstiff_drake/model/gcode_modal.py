@@ -56,6 +56,7 @@ class ProgramState:
         self.program_number = None
         self.content = False  # a block with words has been read
         self.moves = []
+        self.units_before_first_move = False  # a G20 / G21 came before the first move
         self.warnings = []
         self.dwell_before_s = 0.0
         self.ended = False
@@ -181,6 +182,7 @@ class ProgramState:
                 self.plane = _PLANE_OF[key]
             elif key in ("G20", "G21"):
                 self.scale = MM_PER_INCH if key == "G20" else 1.0
+                self.units_before_first_move = self.units_before_first_move or not self.moves
             elif key in ("G90", "G91"):
                 self.absolute = key == "G90"
             elif key in ("G90.1", "G91.1"):
