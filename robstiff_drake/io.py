@@ -133,20 +133,23 @@ def _replace_atomic(path, write):
 
 @contextmanager
 def _signals_held():
-    """SIGINT and SIGTERM held (delivered when the block ends) in the main
-    thread, where the platform allows it."""
+    """SIGINT and SIGTERM held in the block: their handlers run when it ends
+    (in the main thread; elsewhere, as they come)."""
     import signal
     import threading
 
-    held = {signal.SIGINT, signal.SIGTERM}
-    if not hasattr(signal, "pthread_sigmask") or threading.current_thread() is not threading.main_thread():
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    pending = []
+    old = {s: signal.signal(s, lambda signum, _frame: pending.append(signum)) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for s, h in old.items():
+            signal.signal(s, h)
+        for s in pending:
+            signal.raise_signal(s)
 
 
 @contextmanager
