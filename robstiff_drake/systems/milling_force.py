@@ -3,6 +3,8 @@ tool position against the workpiece (the process loop), applied to the
 spindle body as a spatial force, so the flange-spindle weld carries it and
 the wrist sensor feels it as it would on a real cell."""
 
+import math
+
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
@@ -13,6 +15,17 @@ from robstiff_drake.model.wrench_frames import to_sensor_frame
 
 # The most instants a tooth-resolved update tabulates (its own, the sensor's samples, its end).
 MAX_INSTANTS = 8
+
+
+def _arange(start, stop, step):
+    """list(np.arange(start, stop, step)) for floats, value for value
+    (numpy's fill: start, start + step, then start + i * (the second minus
+    the first)), without numpy's cost for a few values."""
+    n = max(0, math.ceil((stop - start) / step))
+    if n <= 2:
+        return [start, start + step][:n]
+    delta = (start + step) - start
+    return [start, start + step] + [start + i * delta for i in range(2, n)]
 
 
 class MillingForceSource(LeafSystem):
@@ -98,12 +111,12 @@ class MillingForceSource(LeafSystem):
         update's own instant if it is on the sensor's grid, the sensor's grid
         and the period's end), as times, at most MAX_INSTANTS."""
         T = self._sensor_period
-        k = np.floor(t / T + 1e-9)
+        k = math.floor(t / T + 1e-9)
         first = k * T + T
-        ins = list(np.arange(first, t + self._period + 1e-12, T)) + [t + self._period]
+        ins = _arange(first, t + self._period + 1e-12, T) + [t + self._period]
         if abs(t - k * T) < 1e-9:  # the sensor samples at the update's own instant, after it
             ins.append(t)
-        return np.unique(np.round(ins, 12))[:MAX_INSTANTS]
+        return np.array(sorted({round(v, 12) for v in ins})[:MAX_INSTANTS])
 
     def _instant(self, context):
         """The index of this instant in the update's table, or None."""
@@ -146,8 +159,8 @@ class MillingForceSource(LeafSystem):
         inst = None
         if self._mode == "tooth":
             n = len(self._sub_t)
-            rows = self._model.tooth_wrenches(np.r_[t + self._sub_t, instants], p, u, self._workpiece, self._phase,
-                                              feed)
+            rows = self._model.tooth_wrenches(np.concatenate((t + self._sub_t, instants)), p, u, self._workpiece,
+                                              self._phase, feed)
             w, inst = rows[:n].sum(axis=0) / n, rows[n:]
         else:
             w = self._model.average_wrench(p, u, self._workpiece, feed)
