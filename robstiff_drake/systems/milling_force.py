@@ -75,7 +75,7 @@ class MillingForceSource(LeafSystem):
         self._period = float(period_s)
         self._sensor_period = float(sensor_period_s or period_s)
         self._q = self.DeclareVectorInputPort("q", 6)
-        # held: flange rotation (9) and tool point (3); the period's wrench
+        # held: flange rotation (9) and tool point (3; tooth mode only, where it is read); the period's wrench
         # (base frame, at the tool point) and the spatial force list
         self._pose = self.DeclareDiscreteState(12)
         self._w = self.DeclareDiscreteState(6)
@@ -101,9 +101,10 @@ class MillingForceSource(LeafSystem):
                                          prerequisites_of_calc=now | {self.discrete_state_ticket(self._w)})
 
     def _spatial_force(self, w):
-        """The wrench w (list: force, moment about the tool point, base frame)
+        """The wrench w (6: force, moment about the tool point, base frame)
         on the spindle at the tool point (the state copies it when set)."""
-        self._applied.F_Bq_W = SpatialForce(np.array(w[3:]), np.array(w[:3]))
+        w = np.asarray(w, dtype=float)
+        self._applied.F_Bq_W = SpatialForce(w[3:], w[:3])
         return self._applied
 
     def _read_offsets(self, t):
@@ -152,6 +153,11 @@ class MillingForceSource(LeafSystem):
         """(wrench over the period starting at t as a list, pose, the
         instantaneous wrenches at ``instants`` (tooth mode; (k, 6))): the
         pose is the flange rotation (row-major 9) and the tool point (3), m."""
+        w, pose, inst = self._step(t, q, instants)
+        return w.tolist(), pose, inst
+
+    def _step(self, t, q, instants=()):
+        """step_wrench with the wrench as an array."""
         pose = self._kin.pose_only(q)
         p = pose[9:]
         u = self._path.feed_direction(t)
@@ -164,22 +170,22 @@ class MillingForceSource(LeafSystem):
             w, inst = rows[:n].sum(axis=0) / n, rows[n:]
         else:
             w = self._model.average_wrench(p, u, self._workpiece, feed)
-        return w.tolist(), pose, inst
+        return w, pose, inst
 
     def _update(self, context, state):
         q = self._q.Eval(context)
         t = context.get_time()
         instants = self._read_offsets(t) if self._mode == "tooth" else ()
-        w, pose, inst = self.step_wrench(t, q, instants)
+        w, pose, inst = self._step(t, q, instants)
         discrete = state.get_mutable_discrete_state()
-        discrete.set_value(int(self._pose), np.array(pose))
-        discrete.set_value(int(self._w), np.array(w))
+        discrete.set_value(int(self._w), w)
         if inst is not None:
+            discrete.set_value(int(self._pose), np.array(pose))  # (read between updates in tooth mode only)
             times = np.full(MAX_INSTANTS, np.nan)
             times[:len(instants)] = instants
             values = np.zeros((MAX_INSTANTS, 12))
             values[:len(inst), :6] = inst
-            w_held, R = np.array(w), list(pose[:9])
+            w_held, R = w, list(pose[:9])
             for i, row in enumerate(inst):
                 values[i, 6:] = self._ripple(R, row, w_held)
             discrete.set_value(int(self._inst), values.ravel())
