@@ -147,7 +147,8 @@ class MillingForceSource(LeafSystem):
             output.SetFromVector(context.get_discrete_state(self._inst).value()[12 * i + 6:12 * i + 12])
             return
         R = context.get_discrete_state(self._pose).value()[:9].tolist()
-        output.SetFromVector(self._ripple(R, self._tooth_wrench_now(context), context.get_discrete_state(self._w).value()))
+        held = context.get_discrete_state(self._w).value()
+        output.SetFromVector(self._ripple(R, self._tooth_wrench_now(context), held))
 
     def step_wrench(self, t, q, instants=()):
         """(wrench over the period starting at t as a list, pose, the
