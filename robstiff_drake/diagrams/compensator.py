@@ -3,10 +3,16 @@ built apart from the station and connected to its ports, as a controller is
 to hardware:
 
     wrench (6, the wrist sensor's raw samples, sensor frame)
-      -> WrenchGuard -> force filter (LinearSystem) -> ZOH(T) -> GravityRemoval
-      -> [PredictiveWrench] -> DeflectionPrediction -> Saturation
-      -> delay (n periods) -> RateLimitedCorrection(T) -> correction (6, rad)
+      -> WrenchGuard -> force filter (LinearSystem) -> ZOH(T) -> gravity removal
+      -> [PredictiveWrench] -> deflection prediction -> saturation
+      -> delay (n periods) -> rate-limited correction (T) -> correction (6, rad)
     position_measured (6, the controller's reported joint angles) -> ZOH(T)
+
+Everything after the filter runs once per controller period and only hands
+values on, so it is one block, systems/compensator_tick.CompensatorTick
+(one call into Python per tick, the separate blocks' timing exactly); a
+predictive or preview predictor, or a model with lost motion, stays a block
+of its own between the tick's samples and its saturation.
 
 It sees what a controller sees: the joint angles the robot controller
 reports (motor encoders, through its gravity model) and the wrist sensor;
@@ -26,20 +32,14 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.systems.controllers import InverseDynamics
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import (
-    ConstantVectorSource,
-    DiscreteTimeDelay,
-    Multiplexer,
-    Saturation,
-    ZeroOrderHold,
-)
+from pydrake.systems.primitives import ConstantVectorSource, Multiplexer
 
-from robstiff_drake.model.realtime import DeflectionPredictor
-from robstiff_drake.systems.deflection_prediction import DeflectionPrediction
+from robstiff_drake.model.compensator import DeflectionModel
 from robstiff_drake.model.filters import filter_coefficients as model_filter_coefficients
+from robstiff_drake.model.realtime import DeflectionPredictor
+from robstiff_drake.systems.compensator_tick import CompensatorTick
+from robstiff_drake.systems.deflection_prediction import DeflectionPrediction
 from robstiff_drake.systems.force_filter import filter_system, group_delay_s, steady_state
-from robstiff_drake.systems.gravity_removal import GravityRemoval
-from robstiff_drake.systems.reference_correction import RateLimitedCorrection
 from robstiff_drake.systems.wrist_sensor import WrenchGuard
 
 # The compensator's signals a cell may log, exported by name.
@@ -74,8 +74,7 @@ class Compensator:
         s["guard"].GetMyMutableContextFromRoot(root_context).get_mutable_discrete_state(0).SetFromVector(wrench)
         filt = s["filter"]
         filt.GetMyMutableContextFromRoot(root_context).SetDiscreteState(steady_state(filt, wrench))
-        s["zoh_w"].GetMyMutableContextFromRoot(root_context).SetDiscreteState(wrench)
-        s["zoh_q"].GetMyMutableContextFromRoot(root_context).SetDiscreteState(q)
+        s["tick"].set_sample(s["tick"].GetMyMutableContextFromRoot(root_context), wrench, q)
 
 
 def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, saturation_rad, rate_limit_rad_per_s,
@@ -98,66 +97,57 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     s["guard"] = builder.AddNamedSystem("wrench_guard", WrenchGuard(rate_hz=rate_hz, max_jump_N=max_jump_N))
     s["filter"] = builder.AddNamedSystem("force_filter", filter_system(*filter_ba, rate_hz))
     builder.Connect(s["guard"].GetOutputPort("wrench"), s["filter"].get_input_port())
-    s["zoh_w"] = builder.AddNamedSystem("sample_wrench", ZeroOrderHold(T, 6))
-    s["zoh_q"] = builder.AddNamedSystem("sample_q", ZeroOrderHold(T, 6))
-    builder.Connect(s["filter"].get_output_port(), s["zoh_w"].get_input_port())
-    s["gravity_removal"] = builder.AddNamedSystem("gravity_removal", GravityRemoval(calibration=calibration,
-                                                                                     kinematics=kin))
-    builder.Connect(s["zoh_w"].get_output_port(), s["gravity_removal"].GetInputPort("wrench"))
-    builder.Connect(s["zoh_q"].get_output_port(), s["gravity_removal"].GetInputPort("q"))
     lost = lost_motion_rad if lost_motion_rad and any(lost_motion_rad) else None
-    s["prediction"] = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
-        predictor=kin, tool_m=tool_m, mount_rpy_deg=calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0),
-        lost_motion_rad=lost, coupling_c23_rad_per_Nm=coupling_c23_rad_per_Nm))
-    if lost is not None:  # the gravity torque the gears carry, from the controller's model
-        zeros = builder.AddNamedSystem("zero_velocity", ConstantVectorSource(np.zeros(6)))
-        q_state = builder.AddNamedSystem("sampled_q_as_state", Multiplexer([6, 6]))
-        builder.Connect(s["zoh_q"].get_output_port(), q_state.get_input_port(0))
-        builder.Connect(zeros.get_output_port(), q_state.get_input_port(1))
-        s["static_torque"] = builder.AddNamedSystem("static_torque", InverseDynamics(
-            controller_plant, InverseDynamics.InverseDynamicsMode.kGravityCompensation))
-        builder.Connect(q_state.get_output_port(), s["static_torque"].get_input_port_estimated_state())
-        builder.Connect(s["static_torque"].get_output_port(), s["prediction"].GetInputPort("static_torque"))
-    process = s["gravity_removal"].get_output_port()
-    if predictive is not None:
-        s["predictive"] = builder.AddNamedSystem("predictive_wrench", predictive(kin))
-        builder.Connect(process, s["predictive"].GetInputPort("process_wrench"))
-        builder.Connect(s["zoh_q"].get_output_port(), s["predictive"].GetInputPort("q"))
-        process = s["predictive"].GetOutputPort("process_wrench")
-    builder.Connect(process, s["prediction"].GetInputPort("process_wrench"))
-    builder.Connect(s["zoh_q"].get_output_port(), s["prediction"].GetInputPort("q"))
-    dq_port = s["prediction"].GetOutputPort("dq")
-    if preview is not None:
-        s["preview"] = builder.AddNamedSystem("preview_correction", preview(kin, s["prediction"].model))
-        builder.Connect(process, s["preview"].GetInputPort("process_wrench"))
-        builder.Connect(s["zoh_q"].get_output_port(), s["preview"].GetInputPort("q"))
-        dq_port = s["preview"].GetOutputPort("dq")
-    sat = saturation_rad * np.ones(6)
-    s["saturation"] = builder.AddNamedSystem("saturation", Saturation(-sat, sat))
-    builder.Connect(dq_port, s["saturation"].get_input_port())
-    last = s["saturation"].get_output_port()
-    # n extra controller periods, exactly: a discrete block adds one period by
-    # its own update (same-instant semantics), so n = 1 is a ZeroOrderHold and
-    # n >= 2 a DiscreteTimeDelay of n - 1 samples (tested).
-    if delay_steps == 1:
-        s["delay"] = builder.AddNamedSystem("transport_delay", ZeroOrderHold(T, 6))
-    elif delay_steps >= 2:
-        s["delay"] = builder.AddNamedSystem("transport_delay", DiscreteTimeDelay(T, delay_steps - 1, 6))
-    if "delay" in s:
-        builder.Connect(last, s["delay"].get_input_port())
-        last = s["delay"].get_output_port()
-    s["correction"] = builder.AddNamedSystem("reference_correction", RateLimitedCorrection(
-        period_s=T, rate_limit_rad_per_s=rate_limit_rad_per_s))
-    builder.Connect(last, s["correction"].get_input_port())
+    model = DeflectionModel(kin, tool_m, calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0), lost,
+                            coupling_c23_rad_per_Nm)
+    # one block per tick: sample, gravity removal, [prediction], saturation, delay, correction
+    # (systems/compensator_tick.py); a predictor with its own inputs or state stays its own block
+    separate = predictive is not None or preview is not None or lost is not None
+    tick = s["tick"] = builder.AddNamedSystem("compensator_tick", CompensatorTick(
+        period_s=T, calibration=calibration, kinematics=kin, deflection=None if separate else model,
+        saturation_rad=saturation_rad, delay_steps=delay_steps, rate_limit_rad_per_s=rate_limit_rad_per_s))
+    builder.Connect(s["filter"].get_output_port(), tick.GetInputPort("wrench"))
+    q_sampled = tick.GetOutputPort("q_sampled")
+    process = tick.GetOutputPort("process_wrench")
+    if not separate:
+        s["prediction"] = tick
+        dq_port = tick.GetOutputPort("dq")
+    else:
+        s["prediction"] = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
+            predictor=kin, tool_m=tool_m, mount_rpy_deg=calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0),
+            lost_motion_rad=lost, coupling_c23_rad_per_Nm=coupling_c23_rad_per_Nm))
+        if lost is not None:  # the gravity torque the gears carry, from the controller's model
+            zeros = builder.AddNamedSystem("zero_velocity", ConstantVectorSource(np.zeros(6)))
+            q_state = builder.AddNamedSystem("sampled_q_as_state", Multiplexer([6, 6]))
+            builder.Connect(q_sampled, q_state.get_input_port(0))
+            builder.Connect(zeros.get_output_port(), q_state.get_input_port(1))
+            s["static_torque"] = builder.AddNamedSystem("static_torque", InverseDynamics(
+                controller_plant, InverseDynamics.InverseDynamicsMode.kGravityCompensation))
+            builder.Connect(q_state.get_output_port(), s["static_torque"].get_input_port_estimated_state())
+            builder.Connect(s["static_torque"].get_output_port(), s["prediction"].GetInputPort("static_torque"))
+        if predictive is not None:
+            s["predictive"] = builder.AddNamedSystem("predictive_wrench", predictive(kin))
+            builder.Connect(process, s["predictive"].GetInputPort("process_wrench"))
+            builder.Connect(q_sampled, s["predictive"].GetInputPort("q"))
+            process = s["predictive"].GetOutputPort("process_wrench")
+        builder.Connect(process, s["prediction"].GetInputPort("process_wrench"))
+        builder.Connect(q_sampled, s["prediction"].GetInputPort("q"))
+        dq_port = s["prediction"].GetOutputPort("dq")
+        if preview is not None:
+            s["preview"] = builder.AddNamedSystem("preview_correction", preview(kin, s["prediction"].model))
+            builder.Connect(process, s["preview"].GetInputPort("process_wrench"))
+            builder.Connect(q_sampled, s["preview"].GetInputPort("q"))
+            dq_port = s["preview"].GetOutputPort("dq")
+        builder.Connect(dq_port, tick.GetInputPort("dq"))
 
     builder.ExportInput(s["guard"].GetInputPort("wrench"), "wrench")
-    builder.ExportInput(s["zoh_q"].get_input_port(), "position_measured")
-    builder.ExportOutput(s["correction"].get_output_port(), "correction")
+    builder.ExportInput(tick.GetInputPort("q"), "position_measured")
+    builder.ExportOutput(tick.GetOutputPort("correction"), "correction")
     builder.ExportOutput(s["guard"].GetOutputPort("wrench"), "guarded_wrench")
     builder.ExportOutput(s["guard"].GetOutputPort("rejected"), "rejected")
     builder.ExportOutput(s["filter"].get_output_port(), "filtered_wrench")
     builder.ExportOutput(process, "process_wrench")
-    builder.ExportOutput(s["zoh_q"].get_output_port(), "q_sampled")
+    builder.ExportOutput(q_sampled, "q_sampled")
     builder.ExportOutput(dq_port, "dq")
     diagram = builder.Build()
     diagram.set_name(name)

@@ -199,9 +199,15 @@ class MillingForceModel:
         theta = (base[:, None] + 2 * np.pi * np.arange(n) / n).ravel()
         terms, _ = self._tooth_terms(np.cos(theta), np.sin(theta), np.asarray(tool_point_m[:2]), tool_point_m[2], u,
                                      workpiece, self.chip_per_tooth_m(feed_m_per_s))
-        fu, fv, fz, mu, mv, mz = (x.reshape(n_t, n).sum(axis=1) for x in terms)
-        return np.column_stack([fu * u[0] - fv * u[1], fu * u[1] + fv * u[0], fz,
-                                mu * u[0] - mv * u[1], mu * u[1] + mv * u[0], mz])
+        fu, fv, fz, mu, mv, mz = np.array(terms).reshape(6, n_t, n).sum(axis=2)  # (each row's teeth)
+        out = np.empty((n_t, 6))
+        out[:, 0] = fu * u[0] - fv * u[1]
+        out[:, 1] = fu * u[1] + fv * u[0]
+        out[:, 2] = fz
+        out[:, 3] = mu * u[0] - mv * u[1]
+        out[:, 4] = mu * u[1] + mv * u[0]
+        out[:, 5] = mz
+        return out
 
     def lead_intervals(self, tool_point_m, feed_dir_xy, workpiece):
         """The leading half of the cutter (theta in [-pi/2, pi/2]) split where a

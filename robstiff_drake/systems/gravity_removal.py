@@ -1,7 +1,11 @@
 """Gravity removal: subtracts the payload's weight (and the sensor's bias)
 from the filtered wrench, for any robot configuration, with the parameters
 that `robstiff calibrate-payload` identifies.  The arithmetic is
-model/compensator.GravityRemover's (shared with the compensator process)."""
+model/compensator.GravityRemover's (shared with the compensator process).
+
+The compensator diagram runs this inside its one block per tick
+(systems/compensator_tick.py); this block alone is the reference that one
+is tested against, bit for bit (tests/test_compensator_tick.py)."""
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem

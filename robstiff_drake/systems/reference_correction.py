@@ -1,7 +1,11 @@
 """Joint-reference correction: the next joint target is the path reference
 plus a correction that cancels the predicted deflection, updated once per
 controller period, with a rate limit (the saturation is Drake's Saturation
-block in front of it, and the transport delay a DiscreteTimeDelay)."""
+block in front of it, and the transport delay a DiscreteTimeDelay).
+
+The compensator diagram runs this inside its one block per tick
+(systems/compensator_tick.py); this block alone is the reference that one
+is tested against, bit for bit (tests/test_compensator_tick.py)."""
 
 import math
 

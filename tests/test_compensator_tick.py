@@ -1,0 +1,123 @@
+"""The compensator's tick block (systems/compensator_tick.py) against the
+separate blocks it replaces (two ZeroOrderHolds, GravityRemoval,
+DeflectionPrediction, Saturation, the transport delay, RateLimitedCorrection)
+in one simulation: the same outputs, bit for bit, for every delay, with NaN
+and saturated deflections on the way."""
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import DiscreteTimeDelay, Saturation, ZeroOrderHold
+
+from robstiff_drake.model.compensator import DeflectionModel
+from robstiff_drake.model.payload import PayloadCalibration
+from robstiff_drake.model.realtime import DeflectionPredictor
+from robstiff_drake.systems.compensator_tick import CompensatorTick
+from robstiff_drake.systems.deflection_prediction import DeflectionPrediction
+from robstiff_drake.systems.gravity_removal import GravityRemoval
+from robstiff_drake.systems.reference_correction import RateLimitedCorrection
+
+T = 0.004
+Q0 = np.deg2rad([5.0, 15.0, 20.0, 10.0, 50.0, -20.0])
+
+
+class Signals(LeafSystem):
+    """Time-varying wrench and joint angles (changing between ticks too); the
+    wrench is NaN on one stretch (a fault that reaches the correction) and
+    large on another (the saturation acts)."""
+
+    def __init__(self):
+        super().__init__()
+        self.DeclareVectorOutputPort("wrench", 6, self._w)
+        self.DeclareVectorOutputPort("q", 6, lambda c, o: o.SetFromVector(
+            Q0 + 0.01 * np.sin(37.0 * c.get_time() + np.arange(6))))
+
+    def _w(self, context, out):
+        t = context.get_time()
+        w = np.array([300.0, -250.0, 60.0, 5.0, -3.0, 20.0]) * np.sin(11.0 * t + np.arange(6))
+        if 0.05 <= t < 0.06:
+            w[:] = np.nan
+        if 0.1 <= t < 0.12:
+            w *= 400.0
+        out.SetFromVector(w)
+
+
+@pytest.mark.parametrize("delay_steps", [0, 1, 3])
+def test_the_tick_is_the_separate_blocks_exactly(robot, delay_steps):
+    tool = robot.payload.tool_point_m
+    cal = PayloadCalibration(mass_kg=40.0, com_mm=[5.0, -3.0, 180.0], force_bias_N=[2, -1, 3],
+                             torque_bias_Nm=[0.1, 0.0, -0.2])
+    kin = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad * 1.1, tool)
+    sat, rate = 2e-4, 0.05
+    b = DiagramBuilder()
+    src = b.AddSystem(Signals())
+    w, q = src.GetOutputPort("wrench"), src.GetOutputPort("q")
+    # the separate blocks
+    zw, zq = b.AddSystem(ZeroOrderHold(T, 6)), b.AddSystem(ZeroOrderHold(T, 6))
+    b.Connect(w, zw.get_input_port())
+    b.Connect(q, zq.get_input_port())
+    grav = b.AddSystem(GravityRemoval(calibration=cal, kinematics=kin))
+    b.Connect(zw.get_output_port(), grav.GetInputPort("wrench"))
+    b.Connect(zq.get_output_port(), grav.GetInputPort("q"))
+    pred = b.AddSystem(DeflectionPrediction(predictor=kin, tool_m=tool))
+    b.Connect(grav.get_output_port(), pred.GetInputPort("process_wrench"))
+    b.Connect(zq.get_output_port(), pred.GetInputPort("q"))
+    satb = b.AddSystem(Saturation(-sat * np.ones(6), sat * np.ones(6)))
+    b.Connect(pred.GetOutputPort("dq"), satb.get_input_port())
+    last = satb.get_output_port()
+    if delay_steps:
+        delay = b.AddSystem(ZeroOrderHold(T, 6) if delay_steps == 1 else DiscreteTimeDelay(T, delay_steps - 1, 6))
+        b.Connect(last, delay.get_input_port())
+        last = delay.get_output_port()
+    corr = b.AddSystem(RateLimitedCorrection(period_s=T, rate_limit_rad_per_s=rate))
+    b.Connect(last, corr.get_input_port())
+    # the tick
+    tick = b.AddSystem(CompensatorTick(period_s=T, calibration=cal, kinematics=kin,
+                                       deflection=DeflectionModel(kin, tool), saturation_rad=sat,
+                                       delay_steps=delay_steps, rate_limit_rad_per_s=rate))
+    b.Connect(w, tick.GetInputPort("wrench"))
+    b.Connect(q, tick.GetInputPort("q"))
+    diagram = b.Build()
+    sim = Simulator(diagram)
+    ctx = sim.get_mutable_context()
+    moved = nan_held = 0
+    for k in range(1, 60):
+        sim.AdvanceTo(k * T + 0.3 * T)
+        pairs = [(zw.get_output_port(), tick.GetOutputPort("wrench_sampled")),
+                 (zq.get_output_port(), tick.GetOutputPort("q_sampled")),
+                 (grav.get_output_port(), tick.GetOutputPort("process_wrench")),
+                 (pred.GetOutputPort("dq"), tick.GetOutputPort("dq")),
+                 (corr.get_output_port(), tick.GetOutputPort("correction"))]
+        for a, b_ in pairs:
+            x = a.Eval(a.get_system().GetMyContextFromRoot(ctx))
+            y = b_.Eval(tick.GetMyContextFromRoot(ctx))
+            np.testing.assert_array_equal(x, y)  # bit for bit, NaN where NaN
+        c = tick.GetOutputPort("correction").Eval(tick.GetMyContextFromRoot(ctx))
+        moved += bool(np.any(c != 0))
+        dq = tick.GetOutputPort("dq").Eval(tick.GetMyContextFromRoot(ctx))
+        nan_held += bool(np.isnan(dq).any())
+    assert moved > 30 and nan_held >= 2  # the correction moved, and NaN went through (and was held off)
+    # the correction saturates: it never passes the saturation
+    assert np.all(np.abs(tick.GetOutputPort("correction").Eval(tick.GetMyContextFromRoot(ctx))) <= sat)
+
+
+def test_set_sample_is_what_the_holds_would_give(robot):
+    tool = robot.payload.tool_point_m
+    cal = PayloadCalibration(mass_kg=40.0, com_mm=[5.0, -3.0, 180.0])
+    kin = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool)
+    tick = CompensatorTick(period_s=T, calibration=cal, kinematics=kin, deflection=DeflectionModel(kin, tool),
+                           saturation_rad=1e-3, delay_steps=1, rate_limit_rad_per_s=0.1)
+    grav = GravityRemoval(calibration=cal, kinematics=kin)
+    pred = DeflectionPrediction(predictor=kin, tool_m=tool)
+    w = np.array([100.0, -50.0, 400.0, 3.0, -2.0, 1.0])
+    ctx = tick.CreateDefaultContext()
+    tick.set_sample(ctx, w, Q0)
+    gc, pc = grav.CreateDefaultContext(), pred.CreateDefaultContext()
+    grav.GetInputPort("wrench").FixValue(gc, w)
+    grav.GetInputPort("q").FixValue(gc, Q0)
+    p = grav.get_output_port().Eval(gc)
+    pred.GetInputPort("process_wrench").FixValue(pc, p)
+    pred.GetInputPort("q").FixValue(pc, Q0)
+    np.testing.assert_array_equal(tick.GetOutputPort("process_wrench").Eval(ctx), p)
+    np.testing.assert_array_equal(tick.GetOutputPort("dq").Eval(ctx), pred.GetOutputPort("dq").Eval(pc))
