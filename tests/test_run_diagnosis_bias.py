@@ -77,3 +77,18 @@ def test_a_cut_is_verified_only_against_the_candidates_cut():
     assert both["status"] == "verified"
     alone = _verified_fix(_report(["a"]), _verdict(["a"], "a"))
     assert alone["status"] == "verified"
+
+
+def test_a_preview_run_is_refused_by_diagnose_run_with_the_reason(tmp_path, capsys):
+    """A preview run's own compensator.yaml is read (mode: preview), and
+    diagnose-run says in one line why it cannot predict that loop, instead
+    of calling the file's mode a mistake."""
+    from robstiff_drake.commands.main import main
+    from robstiff_drake.identification.run_files import load_run_files
+
+    run_dir = simulate(tmp_path, PREDICTIVE.replace("  mode: predictive\n", "  mode: preview\n", 1), "preview")
+    assert load_run_files(run_dir).settings.mode == "preview"
+    capsys.readouterr()
+    assert main(["diagnose-run", str(run_dir)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "mode: preview" in err[0] and "plain or predictive" in err[0], err

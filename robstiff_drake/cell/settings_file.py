@@ -24,7 +24,7 @@ def _robot_text(robot, robot_spec):
 
 def compensator_yaml(*, robot, robot_spec, k, cal, tool_m, period_ms, delay_steps, filter_kind, cutoff_hz,
                      filter_order, sensor_rate_hz, max_jump_N, spindle_rpm, saturation_deg, rate_limit_deg_per_s,
-                     servo=None, cutter_diameter_mm=None, robot_ref=None):
+                     servo=None, cutter_diameter_mm=None, robot_ref=None, mode="plain"):
     """The text of compensator.yaml without its run-id line.  ``servo``:
     (interpolator delay ms, position gain 1/s, velocity bandwidth Hz,
     velocity feed-forward 0-1) or None; a missing servo or cutter diameter
@@ -39,7 +39,7 @@ def compensator_yaml(*, robot, robot_spec, k, cal, tool_m, period_ms, delay_step
     s = rf.CompensatorSettings(
         joint_stiffness_Nm_per_rad=[float(v) for v in k], payload=payload,
         tool_point_mm=[float(v) for v in np.asarray(tool_m) * 1e3],
-        cutter_diameter_mm=float(cutter_diameter_mm) if cutter_diameter_mm else 1.0, mode="plain",
+        cutter_diameter_mm=float(cutter_diameter_mm) if cutter_diameter_mm else 1.0, mode=mode,
         period_ms=float(period_ms), delay_steps=int(delay_steps), filter_kind=filter_kind,
         filter_cutoff_hz=float(cutoff_hz), filter_order=int(filter_order), sensor_rate_hz=float(sensor_rate_hz),
         max_jump_N=float(max_jump_N), spindle_rpm=float(spindle_rpm), saturation_deg=float(saturation_deg),

@@ -283,7 +283,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                 delay_steps=delay_steps, filter_kind=filter_kind, cutoff_hz=cutoff_hz, filter_order=filter_order,
                 sensor_rate_hz=sensor_rate_hz, max_jump_N=max_jump_N, spindle_rpm=spindle_rpm,
                 saturation_deg=saturation_deg, rate_limit_deg_per_s=rate_limit_deg_per_s, servo=servo,
-                cutter_diameter_mm=cutter_diameter_mm, robot_ref=kept.robot), f"robot {robot.name}, model {model}",
+                cutter_diameter_mm=cutter_diameter_mm, robot_ref=kept.robot, mode=mode), f"robot {robot.name}, model {model}",
                 inputs={rel: kept.sources[key].read_bytes() for key, rel in kept.names.items()})
         preview = None
         if plan is not None:

@@ -177,6 +177,12 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=(), scan=None):
     settings, scan = files.settings, files.scan
     D = settings.cutter_diameter_mm
     servo_of(settings)  # refused before any computation when the file does not state it
+    if settings.mode == "preview":
+        # the preview's correction comes from its own model of the arm's dynamics along the planned path, which
+        # the run folder does not hold: its tracking error cannot be predicted from the logs
+        raise InputError(f"{settings.path}: compensator.mode: preview: diagnose-run predicts the loop of plain and "
+                         "predictive compensation only; cut the same pass with mode: plain or predictive to "
+                         "diagnose it")
     model_of_arm = arm(robot)
     run_ctx = run_context(files, robot, model_of_arm)
     sig = signals_at(run_ctx, model_of_arm, DAMPING_RATIO)

@@ -29,7 +29,7 @@ class CompensatorSettings:
     payload: dict  # mass_kg, com_mm, force_bias_N, torque_bias_Nm, sensor_mount_rpy_deg
     tool_point_mm: list  # the tool point (centre of the cutter's face) in the flange frame
     cutter_diameter_mm: float
-    mode: str = "plain"  # "plain" or "predictive"
+    mode: str = "plain"  # "plain", "predictive" or "preview"
     period_ms: float = 4.0
     delay_steps: int = 1
     filter_kind: str = "lowpass"  # "lowpass", "revolution_average" or "none"
@@ -83,7 +83,7 @@ class CompensatorSettings:
 # ("choice", options), ("vector", n, "positive" | "nonneg" | "any"), "number"
 _SETTINGS_LAYOUT = {
     "robot": ("robot", "text"),
-    "mode": ("mode", ("choice", ("plain", "predictive"))),
+    "mode": ("mode", ("choice", ("plain", "predictive", "preview"))),
     "period_ms": ("period_ms", "positive"),
     "delay_steps": ("delay_steps", "int>=0"),
     "saturation_deg": ("saturation_deg", "positive"),
@@ -117,7 +117,7 @@ _OPTIONAL_SECTIONS = {"servo"}  # a file without it is read (servo None); diagno
 _KEY_NOTES = {
     "robot": "the robot the model belongs to: a library name or a robot file (relative to this file)",
     "mode": "plain: the measured force, filtered and delayed; predictive: the force model ahead plus the "
-            "filtered measured residual",
+            "filtered measured residual; preview: the planned path through the arm's dynamics too",
     "period_ms": "the controller's cycle",
     "delay_steps": "controller periods between the wrench sample and the correction",
     "saturation_deg": "largest correction per joint",
