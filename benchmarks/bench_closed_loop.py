@@ -31,7 +31,8 @@ from pydrake.systems.primitives import ConstantVectorSource
 
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.milling_cell import build_milling_cell
-from robstiff_drake.diagrams.scenario import load_scenario, plant_damping_ratios
+from robstiff_drake.diagrams.scenario import load_scenario
+from robstiff_drake.diagrams.scenario_models import plant_damping_ratios
 from robstiff_drake.diagrams.station import add_compliant_arm, gravity_holding_torque, servo_parameters, set_drives_at_rest
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import DIAGRAMS_DIR

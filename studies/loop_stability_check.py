@@ -29,7 +29,8 @@ import numpy as np
 
 from robstiff_drake.diagrams.hold_response import hold_response
 from robstiff_drake.diagrams.loop_prediction import mid_pass_process_stiffness, scenario_loop_setup
-from robstiff_drake.diagrams.scenario import load_scenario, plant_damping_ratios, scenario_robot
+from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+from robstiff_drake.diagrams.scenario_models import plant_damping_ratios
 from robstiff_drake.model import loop_check
 from robstiff_drake.model.filters import lowpass_coefficients
 from robstiff_drake.paths import DIAGRAMS_DIR

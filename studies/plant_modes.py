@@ -12,7 +12,8 @@ oscillating mode), and the damping ratio each motors-held mode gets
 import numpy as np
 
 from robstiff_drake.diagrams.milling_cell import planned_path
-from robstiff_drake.diagrams.scenario import load_scenario, plant_damping_ratios, plant_stiffness, scenario_robot
+from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+from robstiff_drake.diagrams.scenario_models import plant_damping_ratios, plant_stiffness
 from robstiff_drake.diagrams.station import controller_model, joint_model, servo_parameters
 from robstiff_drake.model import joint_dynamics as jd
 from robstiff_drake.paths import DIAGRAMS_DIR, library_robots

@@ -18,7 +18,8 @@ from pydrake.systems.primitives import (
 from pydrake.trajectories import PiecewisePolynomial
 
 from robstiff_drake.diagrams.run_arm import ArmModel
-from robstiff_drake.diagrams.scenario import load_scenario, plant_damping_ratios, scenario_robot
+from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+from robstiff_drake.diagrams.scenario_models import plant_damping_ratios
 from robstiff_drake.diagrams.station import (
     add_compliant_arm,
     gravity_holding_torque,

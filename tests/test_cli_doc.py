@@ -129,7 +129,7 @@ def _scenario_leaves(cls, prefix=""):
 
 
 def test_every_scenario_key_is_in_the_scenario_table_with_its_default():
-    from robstiff_drake.diagrams.scenario import Scenario
+    from robstiff_drake.diagrams.scenario_schema import Scenario
 
     lines = _doc_lines()
     start = lines.index("## Scenario files")

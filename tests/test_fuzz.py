@@ -22,7 +22,8 @@ from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
 from robstiff_drake.commands.main import main
-from robstiff_drake.diagrams.scenario import Scenario, load_scenario
+from robstiff_drake.diagrams.scenario import load_scenario
+from robstiff_drake.diagrams.scenario_schema import Scenario
 from robstiff_drake.diagrams.schema import check_object
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification import synth

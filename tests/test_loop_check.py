@@ -62,7 +62,7 @@ def test_the_model_verdict_agrees_with_the_drake_cell(block):
     (measured: -1.34 against -1.30, +0.27 against +0.31)."""
     from robstiff_drake.diagrams.hold_response import hold_response
     from robstiff_drake.diagrams.loop_prediction import scenario_loop_setup
-    from robstiff_drake.diagrams.scenario import plant_damping_ratios
+    from robstiff_drake.diagrams.scenario_models import plant_damping_ratios
 
     sc, robot = block
     setup = scenario_loop_setup(sc, robot)

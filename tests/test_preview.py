@@ -12,7 +12,8 @@ import pytest
 
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.feed_plan import advised_program, plan_feeds
-from robstiff_drake.diagrams.scenario import load_scenario, plant_stiffness, planned_path
+from robstiff_drake.diagrams.scenario import load_scenario, planned_path
+from robstiff_drake.diagrams.scenario_models import plant_stiffness
 from robstiff_drake.model.arm_dynamics import ArmInertia
 from robstiff_drake.model.gcode import read_program_file
 from robstiff_drake.model.preview import ServoModel, fit_servo
@@ -174,7 +175,7 @@ def test_the_preview_inverts_the_plants_drive():
 def test_the_chip_follows_each_moves_feed():
     """Half the feed: the same edge force, half the cutting part (the force
     model's chip thickness follows the move's own programmed feed)."""
-    from robstiff_drake.diagrams.scenario import cutting_setup
+    from robstiff_drake.diagrams.scenario_models import cutting_setup
 
     sc = load_scenario(ROOT / "diagrams" / "block_milling.yaml")
     _, m, wp = cutting_setup(sc)

@@ -21,7 +21,8 @@ from scipy import linalg, signal
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.loop_prediction import gravity_stiffness
 from robstiff_drake.diagrams.milling_cell import build_milling_cell, check_plant_step, make_simulator
-from robstiff_drake.diagrams.scenario import load_scenario, plant_damping_ratios
+from robstiff_drake.diagrams.scenario import load_scenario
+from robstiff_drake.diagrams.scenario_models import plant_damping_ratios
 from robstiff_drake.diagrams.station import (
     add_compliant_arm,
     gravity_holding_torque,

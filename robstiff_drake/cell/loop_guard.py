@@ -31,9 +31,9 @@ def servo_parameters(servo):
     """ServoParameters from compensate's --servo (interpolator dead time ms,
     position gain 1/s, velocity bandwidth Hz, velocity feed-forward and,
     optionally, the velocity loop's integral corner Hz), or the
-    scenarios' assumed IRC5 servo (diagrams/scenario.ServoConfig, with its
+    scenarios' assumed IRC5 servo (diagrams/scenario_schema.ServoConfig, with its
     sources) when not given."""
-    from robstiff_drake.diagrams.scenario import ServoConfig
+    from robstiff_drake.diagrams.scenario_schema import ServoConfig
 
     s = ServoConfig()
     if servo is None:

@@ -53,7 +53,7 @@ def build_plan(sc, robot, k_Nm_per_rad, *, period_s, filter_ba, rate_hz, delay_s
     function for progress lines; ``bar``: a function (total) -> progress
     bar (shown when the table takes more than a second)."""
     from robstiff_drake.diagrams.milling_cell import planned_path
-    from robstiff_drake.diagrams.scenario import COEFFICIENT_GROUPS, model_cutting_setup, model_damping_ratios
+    from robstiff_drake.diagrams.scenario_models import COEFFICIENT_GROUPS, model_cutting_setup, model_damping_ratios
     from robstiff_drake.model.arm_dynamics import ArmInertia
     from robstiff_drake.model.realtime import DeflectionPredictor
     from robstiff_drake.systems.preview_correction import PreviewModel

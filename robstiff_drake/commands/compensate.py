@@ -69,7 +69,7 @@ def _json_doc(path, what):
 def read_model(path, robot):
     """The compensator's joint stiffness (N*m/rad) from `robstiff identify
     --json`'s file; InputError if it is not one, or is for another robot."""
-    from robstiff_drake.diagrams.scenario import checked_joint_stiffness, numbers
+    from robstiff_drake.diagrams.scenario_models import checked_joint_stiffness, numbers
 
     doc = _json_doc(path, "--model")
     if not isinstance(doc, dict) or "joint_stiffness_Nm_per_rad" not in doc:
@@ -190,7 +190,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     from robstiff_drake.cell.rdt import NetFTReader, calibration_problem, parse_host_port
     from robstiff_drake.cell.run_log import StreamLog
     from robstiff_drake.cell.safety import pose_problem
-    from robstiff_drake.diagrams.scenario import read_payload_calibration
+    from robstiff_drake.diagrams.scenario_models import read_payload_calibration
     from robstiff_drake.model.compensator import Compensator
     from robstiff_drake.model.filters import filter_coefficients
     from robstiff_drake.model.realtime import DeflectionPredictor

@@ -230,7 +230,8 @@ def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warn
     from robstiff_drake.diagrams.experiment import run_cut
     from robstiff_drake.diagrams.feed_plan import plan_feeds
     from robstiff_drake.diagrams.milling_cell import planned_path as cell_path
-    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot, scenario_warnings
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+    from robstiff_drake.diagrams.scenario_models import scenario_warnings
 
     robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset), robot_yaml)
     sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed, toolpath=toolpath,
@@ -293,7 +294,8 @@ def scenario_text(sc, run_id="", kept=None):
     from pydrake.common.yaml import yaml_dump_typed
 
     from robstiff_drake.diagrams.run_inputs import scenario_as_kept
-    from robstiff_drake.diagrams.scenario import Scenario, resolve, robot_spec
+    from robstiff_drake.diagrams.scenario import resolve, robot_spec
+    from robstiff_drake.diagrams.scenario_schema import Scenario
 
     if kept is not None:
         sc = scenario_as_kept(sc, kept)
@@ -357,7 +359,7 @@ def write_outputs(sc, results, robot, run, warnings=()):
 def model_description(sc, robot):
     """What the compensator's model was (JSON): its source and, identified,
     the numbers and seeds it came from."""
-    from robstiff_drake.diagrams.scenario import plant_stiffness, user_model_of
+    from robstiff_drake.diagrams.scenario_models import plant_stiffness, user_model_of
 
     um = user_model_of(sc)
     out = {"source": sc.model.source}

@@ -139,7 +139,8 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
         raise InputError(f"sweep: --plant-step-ms must be > 0, got {plant_step_ms}")
     # Drake comes with these: after the checks of the arguments above
     from robstiff_drake.diagrams.milling_cell import check_plant_step
-    from robstiff_drake.diagrams.scenario import load_scenario, model_stiffness, payload_calibration, scenario_robot
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+    from robstiff_drake.diagrams.scenario_models import model_stiffness, payload_calibration
 
     sc = load_scenario(scenario)
     plant_step_ms = plant_step_ms or shortest_period_step(sc, periods_ms, json_out)

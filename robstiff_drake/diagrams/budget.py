@@ -74,7 +74,7 @@ import numpy as np
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.milling_cell import build_milling_cell, planned_path
-from robstiff_drake.diagrams.scenario import plant_stiffness, exact_payload_calibration
+from robstiff_drake.diagrams.scenario_models import exact_payload_calibration, plant_stiffness
 from robstiff_drake.model.surface import surface_error_stats
 
 EPSILON = 0.04  # the mass scale of "the arm's dynamic response removed"

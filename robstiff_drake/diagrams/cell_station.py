@@ -31,7 +31,7 @@ from pydrake.systems.primitives import LogVectorOutput
 
 from robstiff_drake.diagrams.experiment import RUN_OUT_S, scanned_surface
 from robstiff_drake.diagrams.milling_cell import build_station, planned_path
-from robstiff_drake.diagrams.scenario import cutting_setup
+from robstiff_drake.diagrams.scenario_models import cutting_setup
 from robstiff_drake.identification.run_logs import joint_reference_text
 
 

@@ -22,8 +22,10 @@ import numpy as np
 
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.experiment import run_cut
-from robstiff_drake.diagrams.scenario import (model_damping_ratios, model_stiffness, payload_calibration, planned_path,
-                                              user_model_of)
+from robstiff_drake.diagrams.scenario import planned_path
+from robstiff_drake.diagrams.scenario_models import (
+    model_damping_ratios, model_stiffness, payload_calibration, user_model_of
+)
 from robstiff_drake.model import feed_plan as fp
 from robstiff_drake.model import kinematics as kin
 

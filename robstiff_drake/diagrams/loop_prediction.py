@@ -9,13 +9,9 @@ import numpy as np
 from robstiff_drake.diagrams.experiment import ScanLine, material_top, zone_stats
 from robstiff_drake.diagrams.compensator import filter_coefficients
 from robstiff_drake.diagrams.milling_cell import planned_path as cell_planned_path
-from robstiff_drake.diagrams.scenario import (
-    cutting_setup,
-    model_stiffness,
-    planned_path,
-    plant_damping_ratios,
-    plant_step_s,
-    plant_stiffness,
+from robstiff_drake.diagrams.scenario import planned_path, plant_step_s
+from robstiff_drake.diagrams.scenario_models import (
+    cutting_setup, model_stiffness, plant_damping_ratios, plant_stiffness
 )
 from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (gravity_stiffness: its old home)
     controller_model,

@@ -24,13 +24,8 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from robstiff_drake.diagrams.compensator import filter_coefficients, make_compensator
 from robstiff_drake.diagrams import user_model as user_models
-from robstiff_drake.diagrams.scenario import (
-    COEFFICIENT_GROUPS,
-    cutting_setup,
-    model_cutting_setup,
-    model_damping_ratios,
-    model_stiffness,
-    payload_calibration,
+from robstiff_drake.diagrams.scenario_models import (
+    COEFFICIENT_GROUPS, cutting_setup, model_cutting_setup, model_damping_ratios, model_stiffness, payload_calibration
 )
 from robstiff_drake.diagrams.scenario import planned_path as scenario_path
 from robstiff_drake.diagrams.station import make_milling_station

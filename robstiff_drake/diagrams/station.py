@@ -44,12 +44,8 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Demultiplexer
 
-from robstiff_drake.diagrams.scenario import (
-    exact_payload_calibration,
-    plant_damping_ratios,
-    plant_step_s,
-    plant_stiffness,
-)
+from robstiff_drake.diagrams.scenario import plant_step_s
+from robstiff_drake.diagrams.scenario_models import exact_payload_calibration, plant_damping_ratios, plant_stiffness
 from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (the arm's helpers, imported from here too)
     add_compliant_arm,
     controller_model,

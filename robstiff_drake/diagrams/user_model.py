@@ -36,7 +36,8 @@ import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 
-from robstiff_drake.diagrams.scenario import plant_stiffness, planned_path
+from robstiff_drake.diagrams.scenario import planned_path
+from robstiff_drake.diagrams.scenario_models import plant_stiffness
 from robstiff_drake.diagrams.station import make_milling_station
 from robstiff_drake.identification.campaign import PayloadCampaign, StiffnessCampaign
 from robstiff_drake.identification.joint_stiffness import identify
@@ -112,7 +113,7 @@ class _Bench:
         self._n = 0  # readings so far: each draws its sensor noise from (seed, n)
         sc.cutting.mode = "averaged"
         self.load = _ConstantLoad(Cutter(sc.cutter.diameter_mm / 1e3, int(sc.cutter.n_teeth), sc.cutter.spindle_rpm))
-        from robstiff_drake.diagrams.scenario import cutting_setup
+        from robstiff_drake.diagrams.scenario_models import cutting_setup
 
         _, _, workpiece = cutting_setup(sc)
         path = planned_path(sc)
@@ -388,7 +389,7 @@ def user_model(sc, robot, q0):
         cal, pnotes = payload_calibration_campaign(sc, robot, q0, cfg, seed)
         notes["payload_calibration"] = dict(pnotes, configurations=cfg.payload_configurations)
     else:
-        from robstiff_drake.diagrams.scenario import exact_payload_calibration
+        from robstiff_drake.diagrams.scenario_models import exact_payload_calibration
 
         cal = exact_payload_calibration(sc, robot)
     rng = np.random.default_rng([seed, 3])
@@ -413,7 +414,7 @@ def user_model(sc, robot, q0):
 
 def resolve(sc, robot, q0):
     """Set the scenario's identified model (``model.source: identified``)
-    for the functions of diagrams/scenario.py that give the compensator's
+    for the functions of diagrams/scenario_models.py that give the compensator's
     model (model_stiffness, payload_calibration, model_cutting_setup);
     returns it (None with ``model.source: nominal``)."""
     if sc.model.source != "identified":
