@@ -6,6 +6,19 @@ import pytest
 from robstiff_drake.model.robot import load_robot
 
 
+# Tests that run `compensate` against a simulated controller and sensor in real time on 127.0.0.1: their
+# timing is the machine's, so the README's test command runs them first, alone (`-m realtime`), and the rest
+# on both cores (`-n 2 -m "not realtime"`, pytest-xdist).
+REALTIME_FILES = {"test_cell_attacks.py", "test_cell_io.py", "test_cell_protocols.py", "test_cell_sensor_reseed.py",
+                  "test_cell_preview.py", "test_sim_cell.py"}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.path.name in REALTIME_FILES:
+            item.add_marker(pytest.mark.realtime)
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _urdf_cache(tmp_path_factory):
     """Generated URDFs go to a temporary folder, not the user's cache."""
