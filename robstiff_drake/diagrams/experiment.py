@@ -59,6 +59,12 @@ class RunResult:
     wall_seconds: float
     cell: object = None
     spindle: dict = None  # power_W_max, power_W_mean (while cutting), torque_Nm_max
+    cpu_seconds: float = None  # the process's CPU time (all its threads) in the simulation alone
+
+    @property
+    def realtime_factor_cpu(self):
+        """Simulated s per CPU s of the simulation alone (None if not measured)."""
+        return self.sim_seconds / self.cpu_seconds if self.cpu_seconds else None
 
     @property
     def realtime_factor(self):
@@ -235,15 +241,15 @@ def run_cut(sc, robot, *, compensation=True, cell=None, progress=False):
         monitor = time_monitor(bar, t_end)
         if monitor is not None:
             sim.set_monitor(monitor)
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         sim.AdvanceTo(t_end)
-        wall = time.perf_counter() - t0
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     root = sim.get_context()
     logs = {name: signal.read(root) for name, signal in cell.loggers.items()}
     logs["tool_wrench"] = tool_wrench_log(cell, logs)
     t, x = logs["state"]
     scans, stats = scanned_surface(cell, t, x[:, :6])
-    return RunResult(compensation, logs, scans, stats, t_end, wall, cell, spindle_load(cell, logs))
+    return RunResult(compensation, logs, scans, stats, t_end, wall, cell, spindle_load(cell, logs), cpu)
 
 
 def spindle_load(cell, logs):
