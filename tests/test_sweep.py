@@ -40,6 +40,28 @@ def test_sweep_cli_rows_and_plot(capsys, tmp_path):
     assert plain[24.0]["surface_error_mm"]["entry_max_abs"] > plain[4.0]["surface_error_mm"]["entry_max_abs"]
     assert png.read_bytes()[:4] == b"\x89PNG"
     assert "period" in text and "predictive" in text
+    # before any run, what is about to run: 2 periods x 1 delay x 1 cutoff x 2 modes on 2 processes
+    first = text.splitlines()[0]
+    assert first.startswith("sweep: 4 closed-loop runs (2 period(s) x 1 delay(s) x 1 cutoff(s) x 2 mode(s))"), first
+    assert "on 2 local process(es)" in first
+
+
+def test_the_plan_line_counts_runs_and_simulated_time():
+    """The line a sweep prints before it starts: the number of runs, the
+    simulated seconds each (the scenario's path and its run-out) and in
+    all, and where they run."""
+    from robstiff_drake.commands.sweep import plan_line
+    from robstiff_drake.diagrams.experiment import RUN_OUT_S
+    from robstiff_drake.diagrams.scenario import planned_path
+
+    sc = load_scenario(SHORT)
+    combos = combinations([4, 8, 16, 32], [0, 1], [2, 5], ["plain", "predictive"])
+    each = planned_path(sc).duration_s + RUN_OUT_S
+    line = plan_line(sc, combos, [4, 8, 16, 32], [0, 1], [2, 5], ["plain", "predictive"], 3, None)
+    assert line.startswith("sweep: 32 closed-loop runs (4 period(s) x 2 delay(s) x 2 cutoff(s) x 2 mode(s)), ")
+    assert f"{each:.1f} s simulated each, {32 * each / 60:.1f} min simulated in all, on 3 local process(es)" in line
+    assert "on the Dask cluster at tcp://h:8786" in plan_line(sc, combos, [4], [0], [2], ["plain"], None,
+                                                              "tcp://h:8786")
 
 
 def test_failed_run_is_a_row(tmp_path):

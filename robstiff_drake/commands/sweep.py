@@ -158,6 +158,8 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
         payload_calibration(sc, robot)
     spec = None if robot_yaml is None else str(robot_yaml if robot_yaml in library_robots() else
                                                 Path(robot_yaml).resolve())
+    info(plan_line(sc, combos, periods_ms, delay_steps, cutoffs_hz, mode_list, workers, scheduler),
+         file=sys.stderr if json_out == "-" else None)
     rows = run_sweep(Path(scenario), combos, workers=workers, scheduler=scheduler, plant_step_ms=plant_step_ms,
                      progress=progress, predict=predict, robot_spec=spec)
     warnings = Warnings()
@@ -177,6 +179,24 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
     wrote(json_out, f"{len(rows)} runs", to_stderr=json_out == "-")
     wrote(plot_out, to_stderr=json_out == "-")
     return 0
+
+
+def plan_line(sc, combos, periods_ms, delay_steps, cutoffs_hz, modes, workers, scheduler):
+    """What the sweep is about to run, in one line: how many closed-loop
+    runs, of how much simulated time each, on how many processes (a sweep
+    of a thousand runs takes hours; the user should know before it starts)."""
+    import os
+
+    from robstiff_drake.diagrams.experiment import RUN_OUT_S
+    from robstiff_drake.diagrams.scenario import planned_path
+
+    each_s = planned_path(sc).duration_s + RUN_OUT_S
+    n = len(combos)
+    where = (f"on the Dask cluster at {scheduler}" if scheduler else
+             f"on {min(workers or os.cpu_count() or 1, n)} local process(es) (--workers)")
+    return (f"sweep: {n} closed-loop run{'s' if n != 1 else ''} ({len(periods_ms)} period(s) x {len(delay_steps)} "
+            f"delay(s) x {len(cutoffs_hz)} cutoff(s) x {len(modes)} mode(s)), {each_s:.1f} s simulated each, "
+            f"{n * each_s / 60:.1f} min simulated in all, {where}")
 
 
 def shortest_period_step(sc, periods_ms, json_out=None):
