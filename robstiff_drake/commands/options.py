@@ -1,9 +1,10 @@
 """The option values every command shares: vectors ('X,Y,Z' with their
 allowed ranges), numbers in a range, the tool point and the help texts of
 the common options.  Command modules import them from here, not from
-commands/main.py (which imports the command modules: no circle)."""
+commands/main.py or commands/parser.py (main imports the command modules: no circle)."""
 
 import argparse
+import re
 
 from robstiff_drake.errors import InputError
 
@@ -71,3 +72,25 @@ def parse_tool(text):
 SCENARIO_HELP = "a scenario file, or the name of a packaged one (`robstiff examples` lists them)"
 ROBOT_HELP = "a library robot (see `robstiff robots`) or a robot file (YAML); default: irb6400"
 TOOL_DEFAULT = "the robot file's payload.tool_point_mm"
+
+
+def vector_values_kept(argv):
+    """argv with a negative vector value joined to its option
+    (``--tool -10,0,350`` -> ``--tool=-10,0,350``): argparse takes a value
+    that starts with '-' and is not a plain number for an option."""
+    out, i = [], 0
+    argv = list(argv)
+    while i < len(argv):
+        a = argv[i]
+        if a == "--":
+            return out + argv[i:]
+        if a in VECTOR_RANGES and i + 1 < len(argv) and _NEGATIVE_LIST.match(argv[i + 1]):
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(a)
+        i += 1
+    return out
+
+
+_NEGATIVE_LIST = re.compile(r"^-\s*(\d|\.\d|inf|nan)", re.IGNORECASE)
