@@ -58,3 +58,33 @@ def test_full_slot_engagement_and_direction():
     # out of the material: nothing
     assert not MODEL.average_wrench([0.0, 0.0, 0.004], (1.0, 0.0), wp).any()
     assert MODEL.engagement([0.0, 0.0, 0.004], (1.0, 0.0), wp) == (0.0, 0.0)
+
+
+@pytest.mark.parametrize("few_boxes", [8, 0])
+def test_the_vectorised_tooth_wrenches_are_the_tooth_wrench_at_each_instant(monkeypatch, few_boxes):
+    """tooth_wrenches (the simulation's, summed in the average's basis, box
+    by box or all boxes at once) against tooth_wrench (each tooth's force
+    and lever, summed) at each instant: overlapping boxes of different
+    heights, random positions, feed directions and feeds, a zero feed among
+    them (no chip: no force), to round-off."""
+    import robstiff_drake.model.milling as milling
+
+    monkeypatch.setattr(milling, "FEW_BOXES", few_boxes)
+    rng = np.random.default_rng(7)
+    wp = Workpiece.from_boxes([[0.00, 0.10, -0.02, 0.03, 0.003],
+                               [0.04, 0.07, 0.00, 0.06, 0.005],
+                               [0.09, 0.15, -0.05, 0.00, 0.002]])
+    engaged = 0
+    for k in range(60):
+        t = rng.uniform(0, 1) + np.arange(17) * 1e-4
+        p = np.array([rng.uniform(-0.03, 0.18), rng.uniform(-0.07, 0.08), rng.uniform(-0.001, 0.004)])
+        a = rng.uniform(0, 2 * np.pi)
+        u = (np.cos(a), np.sin(a))
+        feed = 0.0 if k % 10 == 0 else rng.uniform(0.005, 0.05)
+        rows = MODEL.tooth_wrenches(t, p, u, wp, 0.3, feed)
+        each = np.array([MODEL.tooth_wrench(tk, p, u, wp, 0.3, feed) for tk in t])
+        np.testing.assert_allclose(rows, each, rtol=0, atol=1e-12 * max(1.0, np.abs(each).max()))
+        if feed == 0.0:
+            assert not np.any(rows)
+        engaged += np.abs(each[:, :3]).max() > 10
+    assert engaged >= 20

@@ -98,6 +98,10 @@ class Workpiece:
                      zip(self.x_m.tolist(), self.y_m.tolist(), self.top_m.tolist()))
 
 
+# Up to this many workpiece boxes, tooth_wrenches tests the tips box by box (fewer array operations).
+FEW_BOXES = 8
+
+
 class MillingForceModel:
     """Wrench on the tool for a cutter position, in either mode."""
 
@@ -192,21 +196,53 @@ class MillingForceModel:
     def tooth_wrenches(self, t_s, tool_point_m, feed_dir_xy, workpiece, phase_rad=0.0, feed_m_per_s=None):
         """(n, 6): the wrench of ``tooth_wrench`` at each of the times ``t_s``
         (n,), one row each (one vectorised evaluation); ``feed_m_per_s`` as
-        there."""
-        u = np.asarray(feed_dir_xy, dtype=float)
-        n_t, n = np.size(t_s), self.cutter.n_teeth
-        base = phase_rad - self.cutter.spindle_rad_per_s * np.atleast_1d(t_s)
-        theta = (base[:, None] + 2 * np.pi * np.arange(n) / n).ravel()
-        terms, _ = self._tooth_terms(np.cos(theta), np.sin(theta), np.asarray(tool_point_m[:2]), tool_point_m[2], u,
-                                     workpiece, self.chip_per_tooth_m(feed_m_per_s))
-        fu, fv, fz, mu, mv, mz = np.array(terms).reshape(6, n_t, n).sum(axis=2)  # (each row's teeth)
+        there.  Each tooth's wrench in (u, v, z) is its depth a times a
+        linear form in (1, c, s, c s, c^2) of its angle (the basis of
+        ``average_wrench``, c = cos theta, s = sin theta), so the teeth of
+        each row are summed in that basis and turned into wrenches by one
+        product: the same numbers as ``tooth_wrench`` to round-off, with a
+        third of its array operations (this runs every plant step of a
+        tooth-resolved simulation)."""
+        u0, u1 = float(feed_dir_xy[0]), float(feed_dir_xy[1])
+        n = self.cutter.n_teeth
+        t = np.atleast_1d(np.asarray(t_s, dtype=float))
+        n_t = t.size
+        theta = ((phase_rad - self.cutter.spindle_rad_per_s * t)[:, None] + 2 * np.pi * np.arange(n) / n).ravel()
+        c, s = np.cos(theta), np.sin(theta)
+        R = self.cutter.radius_m
+        x = float(tool_point_m[0]) + R * (c * u0 - s * u1)  # the tooth tips (tooth_wrench's tip)
+        y = float(tool_point_m[1]) + R * (c * u1 + s * u0)
+        z_b = float(tool_point_m[2])
+        # the highest uncut top above the cutter bottom under each tip: box by box for a few boxes, all at
+        # once (tips x boxes) for many
+        if len(workpiece.boxes) <= FEW_BOXES:
+            depth = np.zeros(theta.shape)
+            for x0, x1, y0, y1, top in workpiece.boxes:
+                if top > z_b:
+                    np.maximum(depth, np.where((x >= x0) & (x <= x1) & (y >= y0) & (y <= y1), top - z_b, 0.0),
+                               out=depth)
+        else:
+            X, Y = x[:, None], y[:, None]
+            inside = ((X >= workpiece.x_m[None, :, 0]) & (X <= workpiece.x_m[None, :, 1])
+                      & (Y >= workpiece.y_m[None, :, 0]) & (Y <= workpiece.y_m[None, :, 1]))
+            depth = np.maximum(np.where(inside, workpiece.top_m[None, :] - z_b, 0.0).max(axis=1), 0.0)
+        c_f = self.chip_per_tooth_m(feed_m_per_s)
+        a = np.where(c > 0, depth, 0.0) if c_f > 0 else np.zeros(theta.shape)  # engaged: chip h = c_f c > 0
+        phi = np.empty((5, theta.size))
+        phi[0] = a
+        phi[1] = a * c
+        phi[2] = a * s
+        phi[3] = phi[1] * s
+        phi[4] = phi[1] * c
+        # per row: (6, 5) per-tooth basis (average_wrench's without its n / (2 pi)) times the teeth's sums
+        w = ((self._edge + c_f * self._cut) * (2 * np.pi / n)) @ phi.reshape(5, n_t, n).sum(axis=2)
         out = np.empty((n_t, 6))
-        out[:, 0] = fu * u[0] - fv * u[1]
-        out[:, 1] = fu * u[1] + fv * u[0]
-        out[:, 2] = fz
-        out[:, 3] = mu * u[0] - mv * u[1]
-        out[:, 4] = mu * u[1] + mv * u[0]
-        out[:, 5] = mz
+        out[:, 0] = w[0] * u0 - w[1] * u1
+        out[:, 1] = w[0] * u1 + w[1] * u0
+        out[:, 2] = w[2]
+        out[:, 3] = w[3] * u0 - w[4] * u1
+        out[:, 4] = w[3] * u1 + w[4] * u0
+        out[:, 5] = w[5]
         return out
 
     def lead_intervals(self, tool_point_m, feed_dir_xy, workpiece):
