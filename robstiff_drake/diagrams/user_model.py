@@ -26,11 +26,8 @@ docs/assumptions.md.
 """
 
 import copy
-import hashlib
-import json
 import math
 import warnings
-from dataclasses import dataclass, field
 
 import numpy as np
 from pydrake.common import RandomGenerator
@@ -39,6 +36,7 @@ from pydrake.systems.analysis import Simulator
 from robstiff_drake.diagrams.scenario import planned_path
 from robstiff_drake.diagrams.scenario_models import plant_stiffness
 from robstiff_drake.diagrams.station import make_milling_station
+from robstiff_drake.diagrams.user_model_record import UserModel, disk_path, from_json, signature, to_json
 from robstiff_drake.identification.campaign import PayloadCampaign, StiffnessCampaign
 from robstiff_drake.identification.joint_stiffness import identify
 from robstiff_drake.identification.payload import calibrate
@@ -67,37 +65,6 @@ class _ConstantLoad:
 
     def average_wrench(self, tool_point_m, feed_dir_xy, workpiece, feed_m_per_s=None):
         return self.wrench.copy()
-
-
-@dataclass
-class UserModel:
-    """The compensator's model as a user would have it (see module docstring)."""
-
-    joint_stiffness_Nm_per_rad: np.ndarray
-    stiffness_identifiable: np.ndarray
-    calibration: PayloadCalibration
-    coefficient_factors: dict  # {coefficient name: factor on the scenario's value}
-    servo: ServoModel
-    servo_fit_rms: float
-    notes: dict = field(default_factory=dict)
-
-    def describe(self, plant_k=None):
-        """The model as JSON-ready numbers (with its ratio to the plant's stiffness)."""
-        out = {"joint_stiffness_Nm_per_rad": self.joint_stiffness_Nm_per_rad.tolist(),
-               "stiffness_identifiable": self.stiffness_identifiable.tolist(),
-               "payload": {"mass_kg": self.calibration.mass_kg, "com_mm": list(self.calibration.com_mm),
-                           "force_bias_N": list(self.calibration.force_bias_N),
-                           "torque_bias_Nm": list(self.calibration.torque_bias_Nm)},
-               "cutting_coefficient_factors": dict(self.coefficient_factors),
-               "servo": {"dead_time_s": self.servo.dead_time_s,
-                         "position_gain_per_s": self.servo.position_gain_per_s,
-                         "velocity_bandwidth_hz": self.servo.velocity_bandwidth_hz,
-                         "velocity_integral_hz": self.servo.velocity_integral_hz,
-                         "fit_rms": self.servo_fit_rms}}
-        if plant_k is not None:
-            out["stiffness_over_plant"] = (self.joint_stiffness_Nm_per_rad / np.asarray(plant_k)).tolist()
-        out.update(self.notes)
-        return out
 
 
 COEFFICIENTS = ("Ktc_N_per_mm2", "Krc_N_per_mm2", "Kac_N_per_mm2", "Kte_N_per_mm", "Kre_N_per_mm", "Kae_N_per_mm")
@@ -288,69 +255,7 @@ def payload_calibration_campaign(sc, robot, q0, cfg, rng_seed):
                  "payload_fit_rms_N": fit.rms_force_N, "payload_fit_rms_Nm": fit.rms_torque_Nm}
 
 
-def _signature(sc, robot):
-    """What the user model depends on (a cache key)."""
-    ident = sc.model.identification
-    motors = robot.motor_inertia_kgm2
-    keys = [robot.source, tuple(np.round(plant_stiffness(sc, robot), 6)), sc.plant.modal_damping_ratio,
-            tuple(sc.plant.damping_ratios), None if motors is None else tuple(np.asarray(motors, dtype=float)),
-            tuple(sc.plant.lost_motion_rad), sc.plant.coupling_c23_rad_per_Nm, float(sc.plant_config.time_step),
-            tuple(sc.sensor.force_bias_N), tuple(sc.sensor.torque_bias_Nm), sc.sensor.noise_N, sc.sensor.noise_Nm,
-            sc.sensor.rate_hz, sc.servo.interpolator_delay_ms, sc.servo.interpolator_period_ms,
-            sc.servo.position_gain_per_s, sc.servo.velocity_bandwidth_hz, sc.servo.velocity_feedforward,
-            sc.servo.velocity_integral_hz]
-    keys += [(f.name, getattr(ident, f.name)) for f in ident.__dataclass_fields__.values()]
-    return tuple(keys)
-
-
-_CACHE = {}
-# The modules whose code the model depends on (the plant it is measured on,
-# the identification): a change in any makes the files cached on disk stale.
-_CODE = ("robstiff_drake.diagrams.station", "robstiff_drake.diagrams.compliant_arm", "robstiff_drake.model.joint_dynamics",
-         "robstiff_drake.systems.gear_transmission",
-         "robstiff_drake.model.transmission", "robstiff_drake.model.servo", "robstiff_drake.systems.milling_force",
-         "robstiff_drake.systems.wrist_sensor", "robstiff_drake.plant", "robstiff_drake.model.description",
-         "robstiff_drake.identification.joint_stiffness", "robstiff_drake.identification.payload",
-         "robstiff_drake.identification.pose_planning", "robstiff_drake.model.preview", __name__)
-
-
-def _code_hash():
-    import importlib
-    import inspect
-
-    h = hashlib.sha256()
-    for name in _CODE:
-        try:
-            h.update(inspect.getsource(importlib.import_module(name)).encode())
-        except (OSError, TypeError, ImportError):
-            h.update(name.encode())
-    return h.hexdigest()[:16]
-
-
-def _disk_path(key):
-    from robstiff_drake.plant import cache_dir
-
-    digest = hashlib.sha256(repr((key, _code_hash())).encode()).hexdigest()[:24]
-    return cache_dir() / f"user-model-{digest}.json"
-
-
-def _to_json(m):
-    return json.dumps({"k": m.joint_stiffness_Nm_per_rad.tolist(), "ok": m.stiffness_identifiable.tolist(),
-                       "cal": [m.calibration.mass_kg, list(m.calibration.com_mm), list(m.calibration.force_bias_N),
-                               list(m.calibration.torque_bias_Nm)],
-                       "factors": m.coefficient_factors,
-                       "servo": [m.servo.dead_time_s, m.servo.position_gain_per_s, m.servo.velocity_bandwidth_hz,
-                                 m.servo.velocity_integral_hz],
-                       "rms": m.servo_fit_rms, "notes": m.notes})
-
-
-def _from_json(text):
-    d = json.loads(text)
-    m, com, bf, bt = d["cal"]
-    cal = PayloadCalibration(mass_kg=m, com_mm=com, force_bias_N=bf, torque_bias_Nm=bt,
-                             sensor_mount_rpy_deg=[0.0, 0.0, 0.0])
-    return UserModel(np.array(d["k"], dtype=float), np.array(d["ok"], dtype=bool), cal, dict(d["factors"]),
-                     ServoModel(*d["servo"]), float(d["rms"]), dict(d["notes"]))
+_CACHE = {}  # the process's user models, by their inputs (user_model_record.signature)
 
 
 def user_model(sc, robot, q0):
@@ -359,12 +264,12 @@ def user_model(sc, robot, q0):
     keyed by the inputs and the code it depends on: the seeds fix every
     draw, so a cached model is the one a new computation would give).
     ``q0``: the path's first joint angles (the modes the damping is set at)."""
-    key = _signature(sc, robot)
+    key = signature(sc, robot)
     if key in _CACHE:
         return _CACHE[key]
-    disk = _disk_path(key)
+    disk = disk_path(key)
     try:
-        _CACHE[key] = _from_json(disk.read_text())
+        _CACHE[key] = from_json(disk.read_text())
         return _CACHE[key]
     except (OSError, ValueError, KeyError, TypeError):
         pass
@@ -406,7 +311,7 @@ def user_model(sc, robot, q0):
     model = UserModel(k, ident_ok, cal, factors, servo, rms, notes)
     _CACHE[key] = model
     try:
-        write_atomic(disk, _to_json(model))
+        write_atomic(disk, to_json(model))
     except OSError:
         pass  # (no cache on disk: computed again next time)
     return model
