@@ -10,7 +10,8 @@ identification/table2_grouping.py (printed by ``robstiff table2 --help``).
 import numpy as np
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.campaign import D_COLS, F_COLS, read_table
+from robstiff_drake.identification.campaign import D_COLS, F_COLS
+from robstiff_drake.identification.measurement_table import read_table
 from robstiff_drake.identification.linearity import analyse_group, cartesian_diagnosis, pooled_offset
 from robstiff_drake.identification.table2_grouping import GROUPS, SPLIT_A
 from robstiff_drake.io import check_outputs, emit_json, save_figure_atomic, staged_outputs

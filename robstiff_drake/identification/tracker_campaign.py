@@ -25,7 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.campaign import Q_COLS, check_joint_limits, read_table, read_tool_header
+from robstiff_drake.identification.campaign import Q_COLS, check_joint_limits, read_tool_header
+from robstiff_drake.identification.measurement_table import read_table
 
 XYZ = ("x", "y", "z")
 F_COLS = ("fx", "fy", "fz")
@@ -127,7 +128,7 @@ def _scale(table, name, units, kinds):
 def is_tracker_file(path):
     """Whether a measurement file is an absolute-position campaign (x, y, z
     columns and no dx, dy, dz): from its header row only."""
-    from robstiff_drake.identification.campaign import decode_text
+    from robstiff_drake.identification.measurement_table import decode_text
 
     raw, _ = decode_text(path)
     for line in raw.splitlines():
