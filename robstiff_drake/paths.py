@@ -86,3 +86,11 @@ def unknown_scenario(text):
     """The one line for a scenario that is neither a file nor a packaged name."""
     return (f"{text}: no such scenario file, and no packaged scenario of that name (packaged: "
             f"{', '.join(packaged_scenarios())}; `robstiff examples --copy DIR` copies them to edit)")
+
+
+def replay_name_problem(path):
+    """What is wrong with ``path`` as the name of a 3D replay (an HTML
+    file), or None."""
+    if not str(path).lower().endswith((".html", ".htm")):
+        return f"--replay {path}: the replay is an HTML file; give a name ending in .html"
+    return None

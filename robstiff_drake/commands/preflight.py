@@ -15,7 +15,7 @@ import os
 from pathlib import Path
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.paths import find_scenario, library_robots, unknown_scenario
+from robstiff_drake.paths import find_scenario, library_robots, replay_name_problem, unknown_scenario
 
 NO_FILE = os.strerror(2)  # "No such file or directory", as the readers word it
 
@@ -51,10 +51,21 @@ def check_robot(spec):
         raise InputError(f"--robot {text}: not a library robot ({', '.join(library_robots())}) and not a YAML file")
 
 
+def check_replay_name(path):
+    """--replay: the replay is an HTML file: refuse another suffix (InputError)."""
+    problem = replay_name_problem(path)
+    if problem:
+        raise InputError(problem)
+
+
 def check_inputs(args):
-    """Refuse a command line whose input files do not exist; replace a
-    scenario's name by its packaged file (see the module docstring)."""
+    """Refuse a command line whose input files do not exist, or a new
+    replay's name that is not HTML; replace a scenario's name by its
+    packaged file (see the module docstring)."""
     command = getattr(args, "command", None)
+    replay = getattr(args, "replay", None) if command == "simulate" else None
+    if replay is not None and not os.path.lexists(replay):  # (an existing file: simulate checks it is no input)
+        check_replay_name(replay)
     for attr in DATA_FILES.get(command, ()):
         path = getattr(args, attr, None)
         if path is not None and _missing(path):

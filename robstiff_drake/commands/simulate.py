@@ -395,10 +395,12 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
     if (advise or advise_out or budget) and compensation == "off":
         raise InputError(f"{'--budget' if budget else '--advise'} is about the compensated cut: run with "
                          "--compensation on or both")
+    if replay is not None and not Path(replay).exists():  # a new file: its name now, before Drake's import
+        from robstiff_drake.commands.preflight import check_replay_name
+
+        check_replay_name(replay)
     from robstiff_drake.diagrams import replay as replay_3d
 
-    if replay is not None and not Path(replay).exists():  # a new file: its name now, before Drake's import
-        replay_3d.check_replay_path(replay)
     from robstiff_drake.diagrams import budget as budgets
     from robstiff_drake.diagrams.feed_plan import advised_program
     from robstiff_drake.diagrams.scenario import load_scenario, resolve, scenario_robot

@@ -38,6 +38,7 @@ import numpy as np
 from robstiff_drake.errors import InputError
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.description import make_urdf
+from robstiff_drake.paths import replay_name_problem
 
 TARGET_MAGNIFIED_M = 0.15  # the largest magnified tool-point deviation shown, about
 WORKPIECE_DEPTH_M = 0.05  # drawn depth of the workpiece boxes (the scenario gives their tops only)
@@ -82,8 +83,9 @@ def start_meshcat(port=None):
 
 def check_replay_path(path):
     """The replay is an HTML file: refuse another suffix (InputError)."""
-    if not str(path).lower().endswith((".html", ".htm")):
-        raise InputError(f"--replay {path}: the replay is an HTML file; give a name ending in .html")
+    problem = replay_name_problem(path)
+    if problem:
+        raise InputError(problem)
 
 
 def nice_factor(x):
