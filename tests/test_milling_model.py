@@ -60,6 +60,32 @@ def test_full_slot_engagement_and_direction():
     assert MODEL.engagement([0.0, 0.0, 0.004], (1.0, 0.0), wp) == (0.0, 0.0)
 
 
+WP3 = Workpiece.from_boxes([[0.00, 0.10, -0.02, 0.03, 0.003],
+                            [0.04, 0.07, 0.00, 0.06, 0.005],
+                            [0.09, 0.15, -0.05, 0.00, 0.002]])
+
+
+def test_tip_depths_box_by_box_and_all_at_once_agree_with_a_loop_over_tips():
+    """The depth of cut under each tip, both ways tip_depths computes it,
+    against a plain loop over tips and boxes (the highest top above the
+    cutter bottom among the boxes holding the tip, else 0)."""
+    import robstiff_drake.model.milling as milling
+
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(-0.03, 0.18, 400), rng.uniform(-0.07, 0.08, 400)
+    for z_b in (-0.001, 0.0025, 0.004, 0.006):
+        want = np.array([max([top - z_b for x0, x1, y0, y1, top in WP3.boxes
+                              if x0 <= xi <= x1 and y0 <= yi <= y1 and top > z_b], default=0.0)
+                         for xi, yi in zip(x, y)])
+        for few in (8, 0):
+            old, milling.FEW_BOXES = milling.FEW_BOXES, few
+            try:
+                np.testing.assert_array_equal(milling.tip_depths(x, y, z_b, WP3), want)
+            finally:
+                milling.FEW_BOXES = old
+        assert np.any(want > 0) or z_b > 0.005
+
+
 @pytest.mark.parametrize("few_boxes", [8, 0])
 def test_the_vectorised_tooth_wrenches_are_the_tooth_wrench_at_each_instant(monkeypatch, few_boxes):
     """tooth_wrenches (the simulation's, summed in the average's basis, box
@@ -71,9 +97,7 @@ def test_the_vectorised_tooth_wrenches_are_the_tooth_wrench_at_each_instant(monk
 
     monkeypatch.setattr(milling, "FEW_BOXES", few_boxes)
     rng = np.random.default_rng(7)
-    wp = Workpiece.from_boxes([[0.00, 0.10, -0.02, 0.03, 0.003],
-                               [0.04, 0.07, 0.00, 0.06, 0.005],
-                               [0.09, 0.15, -0.05, 0.00, 0.002]])
+    wp = WP3
     engaged = 0
     for k in range(60):
         t = rng.uniform(0, 1) + np.arange(17) * 1e-4

@@ -98,8 +98,25 @@ class Workpiece:
                      zip(self.x_m.tolist(), self.y_m.tolist(), self.top_m.tolist()))
 
 
-# Up to this many workpiece boxes, tooth_wrenches tests the tips box by box (fewer array operations).
+# Up to this many workpiece boxes, tip_depths tests the tips box by box (fewer array operations).
 FEW_BOXES = 8
+
+
+def tip_depths(x, y, z_b, workpiece):
+    """The axial depth of cut (m, >= 0) under tooth tips at (x, y) (arrays,
+    m) for a cutter bottom at z_b: the highest uncut box top above it, 0
+    where no box is.  Box by box for a few boxes, all at once (tips x boxes)
+    for many."""
+    if len(workpiece.boxes) <= FEW_BOXES:
+        depth = np.zeros(np.shape(x))
+        for x0, x1, y0, y1, top in workpiece.boxes:
+            if top > z_b:
+                np.maximum(depth, np.where((x >= x0) & (x <= x1) & (y >= y0) & (y <= y1), top - z_b, 0.0), out=depth)
+        return depth
+    X, Y = x[:, None], y[:, None]
+    inside = ((X >= workpiece.x_m[None, :, 0]) & (X <= workpiece.x_m[None, :, 1])
+              & (Y >= workpiece.y_m[None, :, 0]) & (Y <= workpiece.y_m[None, :, 1]))
+    return np.maximum(np.where(inside, workpiece.top_m[None, :] - z_b, 0.0).max(axis=1), 0.0)
 
 
 class MillingForceModel:
@@ -156,10 +173,7 @@ class MillingForceModel:
         R = self.cutter.radius_m
         v = np.array([-u[1], u[0]])
         tip = c_xy[None, :] + R * (theta_cos[:, None] * u[None, :] + theta_sin[:, None] * v[None, :])
-        # axial depth under each tooth: the highest uncut box top above the cutter bottom
-        inside = ((tip[:, None, 0] >= workpiece.x_m[None, :, 0]) & (tip[:, None, 0] <= workpiece.x_m[None, :, 1])
-                  & (tip[:, None, 1] >= workpiece.y_m[None, :, 0]) & (tip[:, None, 1] <= workpiece.y_m[None, :, 1]))
-        depth = np.where(inside, workpiece.top_m[None, :] - z_b, 0.0).max(axis=1)
+        depth = tip_depths(tip[:, 0], tip[:, 1], z_b, workpiece)  # axial depth under each tooth
         h = (self.c_f if c_f is None else c_f) * theta_cos
         a = np.where((h > 0) & (depth > 0), depth, 0.0)
         Ft = self.Kc[0] * a * h + self.Ke[0] * a
@@ -213,19 +227,7 @@ class MillingForceModel:
         x = float(tool_point_m[0]) + R * (c * u0 - s * u1)  # the tooth tips (tooth_wrench's tip)
         y = float(tool_point_m[1]) + R * (c * u1 + s * u0)
         z_b = float(tool_point_m[2])
-        # the highest uncut top above the cutter bottom under each tip: box by box for a few boxes, all at
-        # once (tips x boxes) for many
-        if len(workpiece.boxes) <= FEW_BOXES:
-            depth = np.zeros(theta.shape)
-            for x0, x1, y0, y1, top in workpiece.boxes:
-                if top > z_b:
-                    np.maximum(depth, np.where((x >= x0) & (x <= x1) & (y >= y0) & (y <= y1), top - z_b, 0.0),
-                               out=depth)
-        else:
-            X, Y = x[:, None], y[:, None]
-            inside = ((X >= workpiece.x_m[None, :, 0]) & (X <= workpiece.x_m[None, :, 1])
-                      & (Y >= workpiece.y_m[None, :, 0]) & (Y <= workpiece.y_m[None, :, 1]))
-            depth = np.maximum(np.where(inside, workpiece.top_m[None, :] - z_b, 0.0).max(axis=1), 0.0)
+        depth = tip_depths(x, y, z_b, workpiece)
         c_f = self.chip_per_tooth_m(feed_m_per_s)
         a = np.where(c > 0, depth, 0.0) if c_f > 0 else np.zeros(theta.shape)  # engaged: chip h = c_f c > 0
         phi = np.empty((5, theta.size))
