@@ -264,7 +264,7 @@ def user_model(sc, robot, q0):
     keyed by the inputs and the code it depends on: the seeds fix every
     draw, so a cached model is the one a new computation would give).
     ``q0``: the path's first joint angles (the modes the damping is set at)."""
-    key = signature(sc, robot)
+    key = signature(sc, robot, q0)
     if key in _CACHE:
         return _CACHE[key]
     disk = disk_path(key)

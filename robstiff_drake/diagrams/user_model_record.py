@@ -5,6 +5,7 @@ disk (keyed by the inputs it depends on and the code that made it)."""
 import hashlib
 import json
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -44,12 +45,23 @@ class UserModel:
         return out
 
 
+def _robot_file_digest(robot):
+    """The robot file's content (a digest): an edited file (masses, limits,
+    payload) is another arm, though its path is the same."""
+    try:
+        return hashlib.sha256(Path(robot.source).read_bytes()).hexdigest()[:16]
+    except (OSError, ValueError):
+        return None  # (a robot made in memory: its path names it)
 
-def signature(sc, robot):
-    """What the user model depends on (a cache key)."""
+
+def signature(sc, robot, q0):
+    """What the user model depends on (a cache key): the scenario's plant,
+    sensor, servo and identification settings, the robot file (path and
+    content) and the start pose ``q0`` (rad) the bench rests and steps at."""
     ident = sc.model.identification
     motors = robot.motor_inertia_kgm2
-    keys = [robot.source, tuple(np.round(plant_stiffness(sc, robot), 6)), sc.plant.modal_damping_ratio,
+    keys = [robot.source, _robot_file_digest(robot), tuple(np.round(np.asarray(q0, dtype=float), 12)),
+            tuple(np.round(plant_stiffness(sc, robot), 6)), sc.plant.modal_damping_ratio,
             tuple(sc.plant.damping_ratios), None if motors is None else tuple(np.asarray(motors, dtype=float)),
             tuple(sc.plant.lost_motion_rad), sc.plant.coupling_c23_rad_per_Nm, float(sc.plant_config.time_step),
             tuple(sc.sensor.force_bias_N), tuple(sc.sensor.torque_bias_Nm), sc.sensor.noise_N, sc.sensor.noise_Nm,
