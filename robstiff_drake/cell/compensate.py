@@ -42,7 +42,7 @@ import numpy as np
 
 from robstiff_drake.cell.health import Counters, verdict
 from robstiff_drake.cell.reference import Reference  # noqa: F401 (the loop's reference; commands import it here)
-from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_problem
+from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_problem, supervision_tolerances
 from robstiff_drake.cell.session import SessionClock
 from robstiff_drake.errors import InputError, Terminated
 from robstiff_drake.model.compensator import guard_accepts
@@ -53,6 +53,10 @@ MAX_STEP_PERIODS = 2.0
 CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
 STALE_PERIODS = 3.0
 MALFORMED_FIRST = 25  # unusable datagrams from the controller before its first good one: refused at once  # a correction computed from a wrench older than this many periods is stale
+
+
+def _fmt(q_deg):
+    return "(" + ", ".join(f"{v:.3f}" for v in q_deg) + ")" if q_deg else "?"
 
 
 def _moments_within(w, ref, lim_Nm):
@@ -110,6 +114,7 @@ class CompensatorLoop:
         self._lo = tuple(np.degrees(robot.q_lower_rad).tolist())
         self._hi = tuple(np.degrees(robot.q_upper_rad).tolist())
         self._clamp = clamp_deg(robot, settings.saturation_deg).tolist()
+        self._supervision = supervision_tolerances(robot, settings.period_s)  # axis speeds and accelerations
         self._sat = [math.radians(settings.saturation_deg)] * 6
 
     # ------------------------------------------------------------ events
@@ -269,6 +274,11 @@ class CompensatorLoop:
     def _session(self, msg):
         """The clock's verdict; False: drop the message unanswered."""
         prev = self.clock.seq
+        if msg.extra.get("new_session"):
+            # the controller restarted its session (RSI: a new RSI_MOVECORR): its corrections count from the
+            # pose it stands at now; the link learnt that start, the correction ramps to zero, then up again
+            self.fault_on("sequence", f"{self.link.name}: a new session (sequence number {msg.seq} after {prev}); "
+                                      f"its start {_fmt(msg.extra.get('start_deg'))} deg learnt again")
         v, dt = self.clock.accept(msg.seq, msg.tm_ms)
         if v == "duplicate":
             self.n.duplicates += 1
@@ -328,7 +338,7 @@ class CompensatorLoop:
         ref_deg, m1, mf = self.ref.at(self.t_session)
         target = [r + c for r, c in zip(ref_deg, corr_deg)]
         env = Envelope(self._lo, self._hi, tuple(ref_deg), tuple(c + m for c, m in zip(self._clamp, m1)),
-                       tuple(self.q_deg), tuple(c + m for c, m in zip(self._clamp, mf)))
+                       tuple(self.q_deg), tuple(c + m for c, m in zip(self._clamp, mf)), *self._supervision)
         sent = self._send(msg, target, env)
         t_done = time.monotonic()
         age = t_done - self.latest_sample_time if self.latest_sample_time is not None else float("nan")

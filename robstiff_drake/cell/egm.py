@@ -86,6 +86,11 @@ class EgmLink(PCLink):
         m.planned.joints.joints.extend(float(v) for v in targets_deg)
         return m.SerializeToString()
 
+    def commanded_deg(self, message, data):
+        m = self.pb2.EgmSensor()
+        m.ParseFromString(data)
+        return list(m.planned.joints.joints)  # EGMRunJoint: absolute joint targets
+
 
 class ControllerLink(ControllerSide):
     """The controller's side (a simulated IRC5): sends EgmRobot to the

@@ -9,10 +9,13 @@ controller heard, and one way out for joint targets.
   returned in arrival order with their arrival times; one that does not
   decode is counted in ``malformed``.
 * ``send_targets(message, targets_deg, envelope)``: the only way a target
-  leaves: ``safety.unsafe_reason`` first (UnsafeTarget when it refuses),
-  then the protocol's ``encode``, then to the controller.  A protocol
-  class writes ``decode`` and ``encode`` (bytes in, bytes out) and never
-  touches the socket.
+  leaves: the protocol's ``encode``, then the pose the controller will
+  command on reading those bytes (``commanded_deg``: for RSI its start plus
+  the corrections, for EGM and Stream Motion the absolute targets decoded)
+  through ``safety.unsafe_reason`` and ``safety.motion_reason`` (its step
+  from the poses commanded before; UnsafeTarget when either refuses), then
+  to the controller.  A protocol class writes ``decode``, ``encode`` and
+  ``commanded_deg`` (bytes in, bytes out) and never touches the socket.
 """
 
 import ipaddress
@@ -21,7 +24,7 @@ import socket
 import time
 from dataclasses import dataclass, field
 
-from robstiff_drake.cell.safety import UnsafeTarget, unsafe_reason
+from robstiff_drake.cell.safety import UnsafeTarget, motion_reason, unsafe_reason
 from robstiff_drake.errors import InputError
 
 MAX_DRAIN = 256  # datagrams read per receive (a flood cannot hold the loop)
@@ -103,6 +106,10 @@ class PCLink:
         self.malformed = 0
         self.malformed_example = ""
         self.sent = 0
+        # the poses the controller was told to command (deg), newest last (two
+        # kept: its step and the change of its step); a new session of the
+        # protocol (RSI's restart) starts them again from its start
+        self.commanded = []
 
     # ------------------------------------------------------------ protocol hooks
 
@@ -114,6 +121,17 @@ class PCLink:
         """The answer (bytes) carrying joint targets ``targets_deg`` (deg)
         to ``message``; called only with targets that passed the check."""
         raise NotImplementedError
+
+    def commanded_deg(self, message, data):
+        """The joint angles (deg, 6) the controller will command when it
+        reads ``data``, the answer to ``message`` (the protocol's reading of
+        its own bytes)."""
+        raise NotImplementedError
+
+    def answer_problem(self, message, envelope):
+        """None when the link may answer ``message``; else why not (a
+        protocol's own check that it knows what the controller will do)."""
+        return None
 
     def open(self):
         """Whatever the protocol sends before the controller streams (a start request)."""
@@ -175,19 +193,28 @@ class PCLink:
 
     def send_targets(self, message, targets_deg, envelope):
         """Send ``targets_deg`` (6, controller deg) as the answer to
-        ``message`` if ``safety.unsafe_reason`` takes them; else raise
+        ``message`` if the pose the controller will command from it passes
+        ``safety.unsafe_reason`` and ``safety.motion_reason``; else raise
         UnsafeTarget (nothing is sent)."""
-        reason = unsafe_reason(targets_deg, envelope)
+        reason = unsafe_reason(targets_deg, envelope)  # (before encoding: a NaN or 1e300 never reaches a codec)
+        if reason is not None:
+            raise UnsafeTarget(reason)
+        reason = self.answer_problem(message, envelope)
         if reason is not None:
             raise UnsafeTarget(reason)
         if self.reply_to is None:
             raise UnsafeTarget("no controller address to answer yet")
         data = self.encode(message, targets_deg)
+        commanded = self.commanded_deg(message, data)
+        reason = unsafe_reason(commanded, envelope) or motion_reason(commanded, envelope, self.commanded)
+        if reason is not None:
+            raise UnsafeTarget(f"{reason} (the pose the controller would command)")
         try:
             self.sock.sendto(data, self.reply_to)
         except OSError:
             return False
         self.sent += 1
+        self.commanded = self.commanded[-1:] + [list(commanded)]
         return True
 
     def send_control(self, data):

@@ -22,16 +22,43 @@ configuration names the elements used here.  Nothing is copied.
 
 The PC streams the whole path as corrections from the start position
 (as EGMRunJoint streams it): AK = target - start, the start being the
-first message's AIPos.  The session clock is the IPOC: sequence number
+setpoint (ASPos; AIPos when the controller sends no setpoints) of the
+session's first message, as ROS-Industrial's kuka_rsi_hw_interface takes
+its initial positions.  The session clock is the IPOC: sequence number
 IPOC / period, clock IPOC (ms).
+
+A restart.  When the controller starts RSI again (a new RSI_MOVECORR) its
+corrections count from the pose it stands at then, and its IPOC jumps (a
+new epoch).  A message whose IPOC is further from the last than the session
+check's window (more than ``session.MAX_JUMP`` periods ahead, or more than
+``session.REORDER_WINDOW`` behind) starts a new session: the start is learnt
+again from that message, the message says so (``extra["new_session"]``) and
+the loop ramps the correction to zero and then up again from zero; a late
+datagram of the session before is dropped (counted as malformed).  Every
+answer is checked on the pose the controller will command, its start plus
+the AK decoded from the answer's bytes (``commanded_deg``), and the
+controller's setpoint must be its start plus one of the recent corrections
+sent (``answer_problem``): a setpoint that is not says the PC's start is not
+the controller's, and nothing more is answered.  ASSUMPTION: lost datagrams
+that make the IPOC skip more than the window while the controller keeps its
+session look like a restart; the setpoint check then refuses from the next
+message on (the one answer in between is the residual risk, bounded by the
+controller's own axis-speed supervision).
 """
 
+import re
 import xml.etree.ElementTree as ET
+from collections import deque
 
 from robstiff_drake.cell.link import ControllerSide, Message, MessageError, PCLink
+from robstiff_drake.cell.session import MAX_JUMP, REORDER_WINDOW
 
 MAX_BYTES = 4096  # a Rob datagram is a few hundred bytes
 AXES = tuple(f"A{j}" for j in range(1, 7))
+# an IPOC: the controller's time stamp (ms), ASCII digits only, at most 19 of
+# them (below 2**63: no float overflow, no sign, no other script's digits)
+_IPOC = re.compile(r"[0-9]{1,19}\Z", re.ASCII)
+RECENT_CORRECTIONS = 64  # the answers (4 ms each: 0.26 s) a controller's setpoint may still reflect
 
 
 def _parse(data, root_tag):
@@ -62,10 +89,12 @@ def _axes(root, tag):
 
 def _ipoc(root):
     el = root.find("IPOC")
-    try:
-        return int(el.text.strip())
-    except (AttributeError, ValueError):
-        raise MessageError("no <IPOC> time stamp") from None
+    text = (el.text or "").strip() if el is not None else None
+    if text is None:
+        raise MessageError("no <IPOC> time stamp")
+    if not _IPOC.match(text):
+        raise MessageError(f"<IPOC> {text[:24]!r}: not a time stamp (1 to 19 ASCII digits)")
+    return int(text)
 
 
 def decode_rob(data):
@@ -103,21 +132,74 @@ class RsiLink(PCLink):
         super().__init__(port, controller)
         self.period_ms = period_s * 1e3
         self.start_deg = None
+        self.session = 0  # RSI sessions seen (a restart starts another)
+        self.last_seq = None  # the newest IPOC / period of this session
+        self.previous_seq = None  # ... of the session before
+        self._aks = deque(maxlen=RECENT_CORRECTIONS)  # corrections sent in this session (deg), newest last
+
+    def _new_session(self, here_deg, seq):
+        self.previous_seq = self.last_seq
+        self.start_deg = list(here_deg)  # RSI_MOVECORR's start: corrections are from here
+        self.session += 1
+        self.last_seq = seq
+        self._aks.clear()
+        self.commanded = [list(here_deg)] * 2  # at its start the controller stands still there
 
     def decode(self, data):
-        ipoc, actual, _ = decode_rob(data)
+        ipoc, actual, setpoint = decode_rob(data)
+        here = setpoint if setpoint is not None else actual
+        seq = int(round(ipoc / self.period_ms))
+        new = False
         if self.start_deg is None:
-            self.start_deg = list(actual)  # RSI_MOVECORR's start: corrections are from here
-        return Message(int(round(ipoc / self.period_ms)), ipoc, actual, echo=ipoc)
+            self._new_session(here, seq)
+        else:
+            ds = seq - self.last_seq
+            if -REORDER_WINDOW <= ds <= MAX_JUMP:
+                self.last_seq = max(self.last_seq, seq)
+            elif self.previous_seq is not None and abs(seq - self.previous_seq) <= REORDER_WINDOW:
+                raise MessageError(f"IPOC {ipoc}: a late datagram of the RSI session before the restart")
+            else:
+                self._new_session(here, seq)
+                new = True
+        extra = {"session": self.session, "setpoint_deg": setpoint, "new_session": new,
+                 "start_deg": list(self.start_deg)}
+        return Message(seq, ipoc, actual, echo=ipoc, extra=extra)
 
     def encode(self, message, targets_deg):
         return encode_sen(message.echo, [t - s for t, s in zip(targets_deg, self.start_deg)])
+
+    def commanded_deg(self, message, data):
+        _, ak = decode_sen(data)
+        self._last_ak = ak
+        return [s + a for s, a in zip(self.start_deg, ak)]  # AXISCORR, absolute: the start plus AK
+
+    def send_targets(self, message, targets_deg, envelope):
+        sent = super().send_targets(message, targets_deg, envelope)
+        if sent:
+            self._aks.append(self._last_ak)
+        return sent
+
+    def answer_problem(self, message, envelope):
+        if message.extra.get("session", self.session) != self.session:
+            return "a message of the RSI session before the controller's restart (its answer would use the new start)"
+        sp = message.extra.get("setpoint_deg")
+        if sp is None:
+            return None
+        tol = envelope.step_tol_deg or envelope.reference_tol_deg
+        start = self.start_deg
+        for ak in [[0.0] * 6, *reversed(self._aks)]:
+            if all(abs(p - (s + a)) <= t + 1e-6 for p, s, a, t in zip(sp, start, ak, tol)):
+                return None
+        err = max(range(6), key=lambda j: min(abs(sp[j] - start[j] - a[j]) for a in [[0.0] * 6, *self._aks]))
+        return (f"RSI: the controller's setpoint q{err + 1} {sp[err]:.4f} deg is not its start {start[err]:.4f} plus "
+                "any correction sent: the controller counts from another start than the PC's; not answered")
 
 
 class RsiControllerLink(ControllerSide):
     """The controller's side (a simulated KRC): sends <Rob> to the PC at
     ``host:port`` every cycle and reads the <Sen> answers (targets = start +
-    AK, the start being the axis angles of its first message)."""
+    AK, the start being the setpoint of its first message, and again after
+    ``restart``)."""
 
     name = "RSI"
 
@@ -129,7 +211,7 @@ class RsiControllerLink(ControllerSide):
 
     def send_state(self, k, joints_deg, planned_deg, tm_ms, bad_type=False):
         if self.start is None:
-            self.start = list(joints_deg)
+            self.start = list(planned_deg)  # RSI_MOVECORR's start: the setpoint it stands at
         ipoc = self.ipoc0 + int(round(tm_ms))
         self.sent_as(ipoc, k)
         return self.send(b"<Rob Type='KUKA'/>" if bad_type else encode_rob(ipoc, joints_deg, planned_deg))

@@ -15,7 +15,15 @@ A target (six joint angles, deg) may be sent only when
   controller period;
 * it is within ``measured_tol_deg`` of where the arm is (the controller's
   joint feedback): the same, plus the reference's motion over the time the
-  servo takes to follow a target (``FOLLOW_S``).
+  servo takes to follow a target (``FOLLOW_S``);
+* (when the envelope gives the axis limits) it is within one period's axis
+  speed (``step_tol_deg``) of the pose the controller commands now, and
+  its step changes by at most ``accel_tol_deg`` from the last one (the
+  controller's motion supervision, ``SUPERVISION_ACCEL``).
+
+The target checked is the pose the controller will command: the link
+decodes its own answer as the controller reads it (for RSI its start plus
+the axis corrections AK, after any restart; cell/link.PCLink.send_targets).
 
 ``unsafe_reason`` says which rule a target breaks (None: it may be sent).
 No protocol encodes a target without it: a protocol class only turns
@@ -42,6 +50,13 @@ WIRE_EPS_DEG = 1e-6
 # controller period: rows written with a few digits (0.004 as 0.0039999)
 # are not refused for that.
 TIME_EPS_S = 1e-6
+# ASSUMPTION: a controller's motion supervision lets a streamed target
+# change its step (a held cycle, then two steps) up to this many times the
+# robot file's acceleration limit (a lost datagram at machining feeds is
+# within it) and stops the robot beyond (a hold of tens of ms, then a jump:
+# a jerk no servo should follow).  The simulated controller
+# (cell/sim_cell.py) stops at the same bound.
+SUPERVISION_ACCEL = 10.0
 
 
 class UnsafeTarget(Exception):
@@ -58,6 +73,44 @@ class Envelope:
     reference_tol_deg: tuple
     measured_deg: tuple
     measured_tol_deg: tuple
+    # the controller's motion supervision (None: not checked): the largest step
+    # from the pose it commands now in one period (deg, its axis speeds times the
+    # period), and the largest change of that step (deg, SUPERVISION_ACCEL times
+    # its acceleration limits times the period squared)
+    step_tol_deg: tuple = None
+    accel_tol_deg: tuple = None
+
+
+def supervision_tolerances(robot, period_s):
+    """(step_tol_deg, accel_tol_deg) of an Envelope for ``robot``'s axis
+    speeds and accelerations at ``period_s`` (None, None without them)."""
+    v, a = robot.speed_limit_deg_per_s, robot.acceleration_limit_deg_per_s2
+    step = None if v is None else tuple((np.asarray(v, dtype=float) * period_s).tolist())
+    acc = None if a is None else tuple((SUPERVISION_ACCEL * np.asarray(a, dtype=float) * period_s**2).tolist())
+    return step, acc
+
+
+def motion_reason(target_deg, env, previous_deg):
+    """None when ``target_deg`` after ``previous_deg`` (the poses the
+    controller commanded, newest last; deg) keeps within the envelope's
+    step and acceleration tolerances; else why not."""
+    if not previous_deg or env.step_tol_deg is None:
+        return None
+    p1 = previous_deg[-1]
+    for j in range(6):
+        d = abs(target_deg[j] - p1[j])
+        if not d <= env.step_tol_deg[j] + WIRE_EPS_DEG:
+            return (f"q{j + 1} target {target_deg[j]:.4f} deg is {d:.4f} deg from the pose the controller commands "
+                    f"now ({p1[j]:.4f}); one period at the axis speed allows {env.step_tol_deg[j]:.4f}")
+    if env.accel_tol_deg is None or len(previous_deg) < 2:
+        return None
+    p2 = previous_deg[-2]
+    for j in range(6):
+        a = abs(target_deg[j] - 2.0 * p1[j] + p2[j])
+        if not a <= env.accel_tol_deg[j] + WIRE_EPS_DEG:
+            return (f"q{j + 1} target {target_deg[j]:.4f} deg changes the controller's step by {a:.4f} deg in one "
+                    f"period; its acceleration supervision allows {env.accel_tol_deg[j]:.4f}")
+    return None
 
 
 def unsafe_reason(target_deg, env):

@@ -28,15 +28,10 @@ import numpy as np
 
 from robstiff_drake.cell.egm import ControllerLink
 from robstiff_drake.cell.rdt import DEFAULT_COUNTS_PER_UNIT, RDTServer
+from robstiff_drake.cell.safety import SUPERVISION_ACCEL  # the controller's motion supervision (cell/safety.py)
 
 SPIN_S = 0.0005  # spin (do not sleep) for the last part of each cycle
 TRANSPORT_DELAY_CYCLES = 0
-# ASSUMPTION: a controller's motion supervision lets a streamed target
-# change its step (a held cycle, then two steps) up to this many times the
-# robot file's acceleration limit (a lost datagram at machining feeds is
-# within it) and stops the robot beyond (a hold of tens of ms, then a jump:
-# a jerk no servo should follow).
-SUPERVISION_ACCEL = 10.0
 
 
 @dataclass

@@ -89,6 +89,9 @@ class StreamMotionLink(PCLink):
     def encode(self, message, targets_deg):
         return encode_command(message.echo, targets_deg)
 
+    def commanded_deg(self, message, data):
+        return decode_command(data)[1]  # absolute joint targets (float64)
+
     def open(self):
         self.send_control(_HEAD.pack(START, VERSION))
 
