@@ -445,3 +445,24 @@ def test_the_documented_example_runs_as_written(tmp_path):
     assert summary["spindle_power_W"] > 1000.0  # it cut the block (about 3 kW: 3 mm deep, 50 mm wide)
     assert summary["surface_error_mm"]["uncompensated"]["max_abs"] > 0.005  # and the arm deflected
     assert open(tmp_path / "my_program.nc").read() == program  # the input is untouched
+
+
+@pytest.mark.parametrize("program, line, words", [
+    # a rapid plunge written in a G43 line while G0 is modal, the position already known
+    (PLATE_PROGRAM.format(extra="").replace("G0 X-110. Y-40.\nG43 Z15. H1\nG0 Z5.",
+                                            "N50 G0 X-60. Y-40. Z15.\nN55 G43 Z-2. H1"), 9, "a rapid move (G0) to "
+                                                                                         "(-60, -40, -2)"),
+    # the same with Z unknown until the G43 line: the start point itself is in the plate's corner
+    (PLATE_PROGRAM.format(extra="").replace("G0 X-110. Y-40.\nG43 Z15. H1\nG0 Z5.",
+                                            "N50 G0 X-60. Y-40.\nN55 G43 Z-2. H1"), 9, "the program starts at "
+                                                                                     "(-60, -40, -2)"),
+    # a program whose first move starts 2 mm inside uncut stock
+    (PLATE_PROGRAM.format(extra="").replace("G0 X-110. Y-40.\nG43 Z15. H1\nG0 Z5.\nG1 Z-2. F300.",
+                                            "G0 X0 Y0 Z-2.\nG1 Y-40. F300."), 8, "the program starts at (0, 0, -2)"),
+], ids=["g43-rapid", "g43-start", "start-in-stock"])
+def test_every_rapid_and_the_start_point_are_checked_against_the_stock(tmp_path, program, line, words):
+    f, prog = scenario_with_program(tmp_path, program)
+    with pytest.raises(InputError) as e:
+        load_scenario(f)
+    msg = str(e.value)
+    assert msg.startswith(f"{prog}:{line}: {words}") and "a crash on a machine" in msg and "\n" not in msg, msg

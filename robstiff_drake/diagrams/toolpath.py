@@ -140,6 +140,16 @@ def check_stock(sc, prog):
     """InputError at the first move that runs the cutter into uncut stock
     (a rapid, or a feed with the spindle stopped)."""
     check = StockCheck(sc.workpiece.boxes_mm, sc.cutter.diameter_mm / 2, work_transform_mm(sc.toolpath))
+    hit = check.start_offence(prog.start_mm)
+    if hit is not None:
+        p, k, depth = hit
+        start = ", ".join(f"{v:g}" for v in prog.start_mm)
+        where = f"{prog.path}:{prog.start_line}" if prog.start_line else prog.path
+        raise InputError(f"{where}: the program starts at ({start}) (the first point it fixes in X, Y and Z, by "
+                         f"whatever motion word is modal), {depth:.3g} mm below the top of workpiece box {k + 1} "
+                         f"where nothing has been cut (at base-frame X {p[0]:.6g}, Y {p[1]:.6g}, Z {p[2]:.6g} mm): the "
+                         "cutter would be brought there through the stock, a crash on a machine; start above the "
+                         "workpiece (a G0 to a safe Z first)")
     hit = check.first_offence(prog.moves)
     if hit is None:
         return

@@ -65,6 +65,7 @@ class Program:
     tool_line: int = None
     dwell_before_s: float = 0.0
     units_stated: bool = True  # a G20 or G21 before the first move (else read as mm: diagrams/toolpath warns)
+    start_line: int = None  # the line that fixed the start point (its last unknown axis)
 
     def feeds_mm_per_min(self):
         """The distinct feeds of the cutting moves (G1/G2/G3), in order of first use."""
@@ -108,7 +109,7 @@ def read_program(text, path="program", *, decimal_point="calculator", block_dele
         raise InputError(f"{path}: no motion from a known point (G0, G1, G2 or G3 after X, Y and Z are set) in "
                          "the program")
     return Program(st.moves, str(path), st.moves[0].start_mm, st.warnings, st.tool_number, st.tool_diameter_mm,
-                   st.tool_line, st.dwell_before_s, st.units_before_first_move)
+                   st.tool_line, st.dwell_before_s, st.units_before_first_move, st.start_line)
 
 
 def decode_program(raw, path):

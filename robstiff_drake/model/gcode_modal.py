@@ -53,6 +53,7 @@ class ProgramState:
         self.tool_comments = {}  # T -> (D in program units, line)
         self.tool_diameter_mm = None
         self.first_cut_line = None
+        self.start_line = None  # the line whose move fixed the last of X, Y and Z (the program's start)
         self.program_number = None
         self.content = False  # a block with words has been read
         self.moves = []
@@ -346,6 +347,8 @@ class ProgramState:
             if g not in (0, 1):
                 self.fail(line, f"{word}: an arc before the program has set X, Y and Z", g_word)
             self.pos = end
+            if None not in end:
+                self.start_line = line  # (the line that fixed the start: the tool was brought there somehow)
             return
         if g != 0 and self.feed is None:
             self.fail(line, f"{word} without a feed: no F word before this line", g_word)

@@ -70,6 +70,13 @@ class StockCheck:
         self._cut_points = np.empty((0, 3))
         self._sampled = 0
 
+    def start_offence(self, start_mm):
+        """(base-frame point (3,), box index, depth mm) when the program's
+        start point (work frame, mm) is inside a box's stock (no cut before
+        it), or None: the tool was brought there by moves the program does
+        not show, through the stock."""
+        return self._into_uncut(self.to_base(np.asarray(start_mm, dtype=float).reshape(1, 3)))
+
     def first_offence(self, moves):
         """(move, base-frame point (3,), box index, depth mm) of the first
         offending move, or None."""
