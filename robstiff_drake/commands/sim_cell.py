@@ -79,6 +79,7 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
     # in lockstep the pass may run slower than real time: allow ten times it
     run_s = wait_s + station.t_end * (10.0 if lockstep else 1.0) + 5.0
     warnings = Warnings()
+    th = None
     try:
         th = threading.Thread(target=net.run, daemon=True,
                               args=(run_s, robot.joint_map.to_controller(station.q_ref[0])))
@@ -91,6 +92,12 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
                 net.stop = True
             th.join(0.05)
     finally:
+        # (a signal or an error here: the network thread ends its tick before its sockets close and before
+        # the interpreter exits; closed under it, its select raised on fd -1, and Drake's simulator torn
+        # down mid-step aborted the process)
+        net.stop = True
+        if th is not None:
+            th.join(10.0)
         net.close()
     if not station.times:
         raise InputError(f"sim-cell: no compensator answered the {link.name} messages sent to {host}:{port} within "
