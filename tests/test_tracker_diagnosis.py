@@ -298,3 +298,24 @@ def test_every_output_of_a_tracker_diagnosis_has_its_wrote_line(capsys, tmp_path
     for p in outs:
         assert p.exists() and f"wrote {p}" in out, (p, out[-800:])
     assert f"wrote {outs[0]}: the corrected robot file" in out
+
+
+def test_a_pose_column_that_names_every_row_one_pose_is_refused(capsys, tmp_path):
+    """Every row under one pose id (before: a reshape ValueError in the
+    residual map): one line naming the row whose angles contradict the id."""
+    world = tw.make_tracker_campaign(load_robot("irb6400"), 51, n=60)
+    lines = world.csv_text.splitlines()
+    head = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    text = "\n".join(lines[:head] + [lines[head] + ",pose"] + [line + ",P1" for line in lines[head + 1:]]) + "\n"
+    path = tmp_path / "one_pose.csv"
+    path.write_text(text)
+    code = main(["diagnose", str(path)])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"{path}:{head + 3}: pose 'P1' has q" in err and "a pose id names one pose" in err, err
+    # ids that each name one pose (a pose measured twice shares its id) are read
+    rows = [f"{line},P{i}" for i, line in enumerate(lines[head + 1:])]
+    path.write_text("\n".join(lines[:head] + [lines[head] + ",pose"] + rows + [rows[0]]) + "\n")
+    from robstiff_drake.identification.tracker_campaign import read_tracker_campaign as read
+
+    assert len(read(path, load_robot("irb6400")).pose) == len(rows) + 1

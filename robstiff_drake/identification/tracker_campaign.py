@@ -52,6 +52,11 @@ _NAMES = [
 UNIT_KIND = {**{q: ANGLE_UNITS for q in Q_COLS}, **{c: POS_UNITS for c in XYZ}, **{c: FORCE_UNITS for c in F_COLS},
              "t_s": TIME_UNITS, "temp_c": TEMP_UNITS}
 MIN_POSES = 4  # fewer distinct poses cannot register the instrument's frame (6 unknowns) and test it
+# A pose id names one pose: its rows (measured there again, or under a load)
+# have the same commanded joint angles, their encoders within a few
+# hundredths of a degree.  Rows of one id further apart than this are two
+# poses under one name (the folds would hold them out together).
+POSE_SPREAD_DEG = 1.0
 
 
 def split_unit(cell):
@@ -176,10 +181,33 @@ def read_tracker_campaign(path, robot):
     if distinct < MIN_POSES:
         raise InputError(f"{table.path}: {distinct} distinct pose(s); registering the instrument's frame to the "
                          f"robot (6 unknowns) and testing it needs at least {MIN_POSES}")
+    _check_pose_ids(table, q)
     return TrackerCampaign(path=table.path, q_deg=q, pos=pos, pos_unit_mm=pos_unit_mm, force_N=forces, t_s=t,
                            temp_c=temp, seq=table.numeric.get("seq"), pose=table.text.get("pose"),
                            lines=table.lines, comments=table.comments, units=dict(ren.units),
                            tool_mm=read_tool_header(path))
+
+
+def _check_pose_ids(table, q):
+    """InputError when the ``pose`` column names fewer than MIN_POSES poses,
+    or one id covers rows whose joint angles differ by more than
+    POSE_SPREAD_DEG (naming the row's line and the id's first line)."""
+    labels = table.text.get("pose")
+    if labels is None:
+        return
+    labels = [str(v) for v in labels]
+    first = {}
+    for i, name in enumerate(labels):
+        j = first.setdefault(name, i)
+        d = np.abs(q[i] - q[j])
+        if d.max() > POSE_SPREAD_DEG:
+            k = int(np.argmax(d))
+            raise InputError(f"{table.path}:{table.lines[i]}: pose {name!r} has q{k + 1} = {q[i, k]:g} deg here, "
+                             f"{d[k]:.3g} deg from its first row (line {table.lines[j]}): a pose id names one pose "
+                             "(rows measured there again); give each pose its own id, or leave the pose column out")
+    if len(first) < MIN_POSES:
+        raise InputError(f"{table.path}: the pose column names {len(first)} pose(s); registering the instrument's "
+                         f"frame and holding poses out to test it needs at least {MIN_POSES}")
 
 
 def spread(points):
