@@ -107,3 +107,34 @@ def test_table2_analysis(capsys, tmp_path):
     assert pooled["pooled_mm"] == pytest.approx(0.0448, abs=5e-4)
     assert 0.01 < pooled["p_value"] < 0.05
     assert (tmp_path / "t2.png").exists()
+
+
+def _with_forces_along(path, out, direction):
+    """The campaign at ``path`` with every force turned onto ``direction`` (its magnitude kept)."""
+    lines = path.read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    cols = lines[head].split(",")
+    fi = [cols.index(c) for c in ("fx", "fy", "fz")]
+    u = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    rows = []
+    for line in lines[head + 1:]:
+        c = line.split(",")
+        f = np.linalg.norm([float(c[i]) for i in fi])
+        for i, v in zip(fi, u * f):
+            c[i] = f"{v:.6g}"
+        rows.append(",".join(c))
+    out.write_text("\n".join(lines[:head + 1] + rows) + "\n")
+    return out
+
+
+@pytest.mark.parametrize("direction", [(1, 1, 1), (1, -1, 0.5)])
+def test_collinear_forces_never_give_a_negative_stiffness_marked_identifiable(capsys, tmp_path, direction):
+    """Every force along one line (a synthetic campaign's forces turned
+    onto one direction): before, identify exited 0 with joints 3 and 4 (or 1
+    and 3) negative and marked identifiable; now it refuses in one line."""
+    data = tmp_path / "c.csv"
+    assert cli(capsys, "synth", "stiffness", data, "--n", 120, "--seed", 3, "--tool", "0,0,350")[0] == 0
+    bad = _with_forces_along(data, tmp_path / "collinear.csv", direction)
+    code, out, err = cli(capsys, "identify", bad, "--json", "-")
+    assert code == 2 and len(err.strip().splitlines()) == 1, (code, err)
+    assert "along one line" in err and "negative compliance for joint" in err, err

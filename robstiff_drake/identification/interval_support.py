@@ -44,6 +44,14 @@ def tool_looks_like_metres(tool_m):
     return 0.0 < d_mm < MIN_TOOL_MM
 
 
+def one_load_line(wrench):
+    """Whether every wrench (N, 6) is along one line (one load direction)."""
+    W = np.asarray(wrench, dtype=float)
+    W = W / np.maximum(np.linalg.norm(W, axis=1, keepdims=True), 1e-300)
+    s = np.linalg.svd(W, compute_uv=False)
+    return len(s) < 2 or s[1] <= ONE_LINE_REL * s[0]
+
+
 def interval_support(campaign, tool_m, n_identified):
     """Why the campaign's intervals cannot be trusted (list of phrases;
     empty when they can).  ``n_identified``: joints the fit identified."""
@@ -58,10 +66,7 @@ def interval_support(campaign, tool_m, n_identified):
     elif poses <= n_identified:
         reasons.append(f"{poses} poses for {n_identified} identified joints: errors shared by a pose's rows leave "
                        "no degree of freedom to estimate them; measure at more poses than joints")
-    W = np.asarray(campaign.wrench, dtype=float)
-    W = W / np.maximum(np.linalg.norm(W, axis=1, keepdims=True), 1e-300)
-    s = np.linalg.svd(W, compute_uv=False)
-    if len(s) < 2 or s[1] <= ONE_LINE_REL * s[0]:
+    if one_load_line(campaign.wrench):
         reasons.append("every load is along one line: the rows cannot separate the joints beyond it; load in "
                        "several directions")
     return reasons

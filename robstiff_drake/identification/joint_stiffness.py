@@ -15,6 +15,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from robstiff_drake.errors import InputError
+from robstiff_drake.identification.interval_support import one_load_line
 from robstiff_drake.model import kinematics as kin
 
 # A joint whose (nominal-scaled) regressor column is below this fraction of
@@ -134,6 +135,13 @@ def check_signs(fit, campaign):
         raise InputError(f"{campaign.path}: every identifiable joint needs a negative compliance: the displacements "
                          "dx,dy,dz look sign-flipped (they must be loaded minus unloaded, in the base frame, in the "
                          "direction the tool moved)")
+    if neg and one_load_line(campaign.wrench):
+        # one load direction cannot tell a joint's spring from the others' beyond it: a negative one is the
+        # design's artefact (or the data's), never an identified stiffness
+        ks = ", ".join(f"joint {j + 1} at {1.0 / fit.compliance_rad_per_Nm[j]:.3g} N*m/rad" for j in neg)
+        raise InputError(f"{campaign.path}: every load (fx, fy, fz, and moments) is along one line and the fit "
+                         f"needs a negative compliance for {ks}: a campaign with one load direction cannot separate "
+                         "the joints; load in several directions (robstiff plan-poses)")
     return [f"joint {j + 1}: negative identified compliance (non-physical); the data or the model are wrong for this "
             "joint" for j in neg]
 
