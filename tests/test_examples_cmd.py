@@ -119,3 +119,23 @@ def test_the_example_campaigns_are_what_their_command_makes(tmp_path, monkeypatc
 
     assert [same(x) for x in again] == [same(x) for x in lines], \
         f"examples/{name} is not what `{made_with}` makes now; remake it (cd examples && {made_with})"
+
+
+def test_examples_copy_writes_only_inside_the_folder(tmp_path, capsys, monkeypatch):
+    """A symbolic link inside DIR (DIR/scenarios -> elsewhere) is refused
+    (before: 17 files written where it pointed); an empty DIR is refused
+    (before: the files went into the current folder)."""
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    dest = tmp_path / "cell"
+    dest.mkdir()
+    (dest / "scenarios").symlink_to(outside, target_is_directory=True)
+    code, _, err = run(capsys, "examples", "--copy", dest)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "is a symbolic link to" in err, err
+    assert list(outside.iterdir()) == [] and sorted(p.name for p in dest.iterdir()) == ["scenarios"]
+    here = tmp_path / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    code, _, err = run(capsys, "examples", "--copy", "")
+    assert code == 2 and "an empty folder name" in err, err
+    assert list(here.iterdir()) == []

@@ -56,11 +56,31 @@ def listing(files):
     return "\n".join(lines)
 
 
+def _linked_folder(dest, files):
+    """The first folder inside ``dest`` that a copied file would go through
+    and that is a symbolic link (or not a folder), or None: the copy writes
+    only inside DIR, never where a link inside it points."""
+    for rel in files:
+        for parent in reversed(Path(rel).parents[:-1]):
+            p = dest / parent
+            if os.path.islink(p) or (os.path.lexists(p) and not p.is_dir()):
+                return p
+    return None
+
+
 def _check_target(dest, files):
+    if not str(dest).strip():
+        raise InputError("examples --copy '': an empty folder name; give the folder to copy into (e.g. "
+                         "`--copy robstiff-examples`)")
     if dest.exists() and not dest.is_dir():
         raise InputError(f"examples --copy {dest}: is a file, not a folder")
     if os.path.lexists(dest) and not dest.exists():
         raise InputError(f"examples --copy {dest}: a symbolic link to {os.readlink(dest)}, which does not exist")
+    linked = _linked_folder(dest, files) if dest.exists() else None
+    if linked is not None:
+        what = f"a symbolic link to {os.readlink(linked)}" if os.path.islink(linked) else "not a folder"
+        raise InputError(f"examples --copy {dest}: {linked} is {what}; the copy writes only inside {dest}: remove it "
+                         "or choose another folder")
     clash = [rel for rel in files if os.path.lexists(dest / rel)]
     if clash:
         more = f" (and {len(clash) - 1} more)" if len(clash) > 1 else ""
@@ -84,6 +104,9 @@ def _move_in(tmp, dest, files):
     replacing anything; on a failure take back what was moved."""
     moved, made = [], []
     try:
+        if _linked_folder(dest, files) is not None:  # (a link made since the check)
+            raise NotADirectoryError(0, "a symbolic link inside the folder; the copy writes only inside it",
+                                     str(_linked_folder(dest, files)))
         for rel in files:
             target = dest / rel
             for parent in reversed(target.relative_to(dest).parents[:-1]):
@@ -106,6 +129,8 @@ def _move_in(tmp, dest, files):
 
 def copy_files(dest, files):
     """Copy ``files`` ({relative path: source}) into the folder ``dest``."""
+    if not str(dest).strip():
+        _check_target(dest, files)
     dest = Path(dest)
     _check_target(dest, files)
     new = not dest.exists()
