@@ -138,3 +138,31 @@ def test_collinear_forces_never_give_a_negative_stiffness_marked_identifiable(ca
     code, out, err = cli(capsys, "identify", bad, "--json", "-")
     assert code == 2 and len(err.strip().splitlines()) == 1, (code, err)
     assert "along one line" in err and "negative compliance for joint" in err, err
+
+
+def test_half_the_rows_in_kn_warn_of_a_unit_mix(capsys, tmp_path):
+    """Every other row's forces written in kN in the N columns: before, no
+    warning; now a warning naming the rows, in the text and the JSON."""
+    data = tmp_path / "c.csv"
+    assert cli(capsys, "synth", "stiffness", data, "--n", 120, "--seed", 3, "--tool", "0,0,350")[0] == 0
+    lines = data.read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    fi = [lines[head].split(",").index(c) for c in ("fx", "fy", "fz")]
+    rows = []
+    for n, line in enumerate(lines[head + 1:]):
+        c = line.split(",")
+        if n % 2:
+            for i in fi:
+                c[i] = f"{float(c[i]) / 1000:.6g}"
+        rows.append(",".join(c))
+    mixed = tmp_path / "mixed.csv"
+    mixed.write_text("\n".join(lines[:head + 1] + rows) + "\n")
+    code, out, err = cli(capsys, "identify", mixed, "--json", "-")
+    assert code == 0, err
+    res = json.loads(out)
+    mix = [w for w in res["warnings"] if "a unit mix?" in w]
+    assert mix and "60 rows move 1e+03 x more" in mix[0] and f"lines {head + 3}, {head + 5}," in mix[0], mix
+    assert "a unit mix?" in err
+    # the file as written (one unit) gives no such warning
+    code, out, _ = cli(capsys, "identify", data, "--json", "-")
+    assert not any("unit mix" in w for w in json.loads(out)["warnings"])

@@ -195,6 +195,7 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
     warnings.extend_from(campaign_warnings(campaign))
     check_angle_units(robot, campaign, tool_m)
     fit = identify(robot, campaign, tool_m=tool_m, robust=robust)
+    warnings.extend_from(fit.input_warnings)
     warnings.extend_from(check_signs(fit, campaign))
     if fit.condition_number > 1e4:
         warnings.add(f"condition number {fit.condition_number:.3g}: the poses and loads barely separate the joints; "

@@ -27,7 +27,8 @@ def study(robot, *, grid=5, force_N=500.0, payload_kg=150.0, show_progress=None)
     """The study's numbers as a dict (see module docstring); a progress bar
     over the cases (``show_progress``: as progress.progress's ``enabled``)."""
     tool = robot.tool_point(where="kg-study")
-    points, qs = ik.workspace_poses(robot, grid, tool)
+    with progress(grid**3, show_progress, "kg-study: the workspace's poses (IK)", unit="points") as ik_bar:
+        points, qs = ik.workspace_poses(robot, grid, tool, on_point=lambda: ik_bar.update(1))
     if len(qs) == 0:
         raise InputError("kg-study: no pose of the workspace box is reachable")
     cases = {

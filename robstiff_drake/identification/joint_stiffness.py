@@ -64,6 +64,7 @@ class StiffnessFit:
     robust: bool
     outlier_rows: list = field(default_factory=list)
     predicted_mm: np.ndarray | None = None
+    input_warnings: list = field(default_factory=list)  # what the data look like (a unit mix), one line each
 
 
 def regressor(dh, q_rad, wrench, tool_m=None):
@@ -94,6 +95,40 @@ def check_displacement_units(campaign, predicted_nominal_mm):
             f"{campaign.path}: displacements dx,dy,dz look like micrometres, not mm: median |d| = "
             f"{np.median(meas[use]):.3g}, the nominal model predicts {np.median(pred[use]):.3g} mm for these loads"
         )
+
+
+# Rows whose measured displacement per predicted one sits this many decades
+# apart from the other rows' (a gap in the sorted ratios; noise spreads them by
+# well under one) are in another unit: forces in kN among N, or mm among um.
+UNIT_GAP_DECADES = 1.5
+UNIT_GROUP_MIN = 3  # rows on each side of the gap (and 5 % of the rows)
+
+
+def unit_mix_warning(campaign, predicted_nominal_mm):
+    """A warning (one line) when the rows fall into two groups whose
+    measured displacement per nominal prediction differ by more than
+    UNIT_GAP_DECADES decades (half the rows with forces in kN, say), or
+    None."""
+    meas = np.linalg.norm(campaign.disp_mm, axis=1)
+    pred = np.linalg.norm(predicted_nominal_mm, axis=1)
+    use = np.flatnonzero((pred > 1e-6 * max(pred.max(), 1e-300)) & (meas > 0))
+    if len(use) < 2 * UNIT_GROUP_MIN:
+        return None
+    r = np.log10(meas[use] / pred[use])
+    order = np.argsort(r)
+    gaps = np.diff(r[order])
+    k = int(np.argmax(gaps))
+    low, high = order[: k + 1], order[k + 1:]
+    need = max(UNIT_GROUP_MIN, int(np.ceil(0.05 * len(use))))
+    if gaps[k] < UNIT_GAP_DECADES or len(low) < need or len(high) < need:
+        return None
+    factor = 10 ** (np.median(r[high]) - np.median(r[low]))
+    few = high if len(high) <= len(low) else low
+    lines = sorted(int(campaign.lines[use[i]]) if hasattr(campaign, "lines") else int(use[i]) + 1 for i in few)
+    shown = ", ".join(map(str, lines[:6])) + (f" and {len(lines) - 6} more" if len(lines) > 6 else "")
+    return (f"{campaign.path}: a unit mix? {len(high)} rows move {factor:.3g} x more per predicted displacement than "
+            f"the other {len(low)} (lines {shown}): forces in kN among N (or displacements in um among mm); the fit "
+            "mixes them; write every row in one unit")
 
 
 # A file whose angles all lie within +-pi is tested as radians too: if the
@@ -188,7 +223,9 @@ def identify(robot, campaign, *, tool_m=None, robust=False, use_rotations=True):
     W = campaign.wrench
     A_d, A_r = regressor(robot.dh, q, W, tool_m)
     pred_nom_mm = (A_d @ c_nom) * 1e3
-    check_displacement_units(campaign, pred_nom_mm)
+    mix = unit_mix_warning(campaign, pred_nom_mm)
+    if mix is None:  # (a mix moves the median: the test of one unit would blame the displacements)
+        check_displacement_units(campaign, pred_nom_mm)
 
     n = len(campaign)
     b_d = campaign.disp_mm.reshape(-1) * 1e-3  # m
@@ -295,4 +332,5 @@ def identify(robot, campaign, *, tool_m=None, robust=False, use_rotations=True):
         robust=robust,
         outlier_rows=outliers,
         predicted_mm=predicted,
+        input_warnings=[mix] if mix else [],
     )

@@ -261,11 +261,12 @@ def tool_down_pose(p_m, yaw_rad=0.0):
     return T
 
 
-def workspace_poses(robot, n_per_axis, tool_m, box=None):
+def workspace_poses(robot, n_per_axis, tool_m, box=None, on_point=None):
     """Joint angles (rad) for a grid of tool points in the machining box with
     the spindle axis down, each solved by IK within the joint limits and
     warm-started from its neighbour.  Returns (points_m (N, 3), q_rad (N, 6));
-    points that cannot be reached are left out."""
+    points that cannot be reached are left out.  ``on_point()``: called after
+    each grid point (a progress bar's step)."""
     ws = robot.workspace
     xs, ys, zs = (np.linspace(lo, hi, n_per_axis) for lo, hi in (box or (ws.x_m, ws.y_m, ws.z_m)))
     points, qs = [], []
@@ -273,6 +274,8 @@ def workspace_poses(robot, n_per_axis, tool_m, box=None):
     for x in xs:
         for y in ys:
             for z in zs:
+                if on_point is not None:
+                    on_point()
                 try:
                     q = solve_for(robot, tool_down_pose([x, y, z]), tool_m, q_ref_rad=q_ref)
                 except IKError:
