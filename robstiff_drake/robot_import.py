@@ -30,6 +30,7 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.dh_from_axes import dh_from_axes
 from robstiff_drake.model.robot import DH, N_JOINTS, NAME_RE
+from robstiff_drake.urdf_checks import check_urdf
 
 FLANGE_FRAMES = ("tool0", "flange")  # ROS-Industrial's tool frame (z out of the flange), make-urdf's
 PAYLOAD_BODY = "spindle"
@@ -78,6 +79,7 @@ def _stripped_urdf(path):
         _fail(f"{path}:{line}", f"column {col + 1}: not well-formed XML ({str(e).split(':')[0]})")
     if root.tag != "robot":
         _fail(path, f"not a URDF (its top element is <{root.tag}>, not <robot>)")
+    check_urdf(path, raw, root)  # the numbers Drake would raise on, or replace (a bad inertia by 1 kg)
     for parent in root.iter():
         for child in list(parent):
             if child.tag in DROPPED:

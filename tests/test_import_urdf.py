@@ -132,3 +132,45 @@ def test_a_bad_name_is_refused_naming_the_option(tmp_path, capsys, name):
     assert code == 2 and err.count("\n") == 1, err
     assert "--name" in err and "letters, digits and _" in err and "tmp" not in err.split("--name")[0], err
     assert not (tmp_path / "x.yaml").exists()
+
+
+def _line_of(path, needle):
+    return next(i for i, line in enumerate(path.read_text().splitlines(), 1) if needle in line)
+
+
+@pytest.mark.parametrize("edit, needle, message", [
+    # before: ValueError (a traceback)
+    ((r'(<joint name="joint_2"[^>]*>.*?)<axis xyz="0 0 1"/>', r'\1<axis xyz="nan 0 1"/>'), 'xyz="nan 0 1"',
+     "joint 'joint_2': <axis xyz>"),
+    # before: LinAlgError
+    ((r'(<joint name="joint_3"[^>]*>.*?)<origin xyz="[^"]*"', r'\1<origin xyz="1e300 0 0"'), 'xyz="1e300 0 0"',
+     "joint 'joint_3': <origin xyz '1e300 0 0'>: more than 100 m"),
+    # before: exit 1, Drake's "Failure at ... joint.h:159"
+    ((r'(<joint name="joint_2"[^>]*>.*?)<limit lower="[^"]*" upper="[^"]*"',
+      r'\1<limit lower="1.0" upper="-1.0"'), 'lower="1.0" upper="-1.0"', "the lower limit is above the upper"),
+    # before: written as 1 kg, Drake's warning the only trace
+    ((r'<mass value="220"/>', '<mass value="-220"/>'), 'value="-220"', "a negative mass"),
+    ((r'ixx="2.4750000000000001"', 'ixx="40.0"'), 'ixx="40.0"', "are no rigid body's"),
+    ((r'ixx="2.4750000000000001"', 'ixx="-2.5"'), 'ixx="-2.5"', "are no rigid body's"),
+], ids=["nan-axis", "huge-origin", "lower-above-upper", "negative-mass", "triangle-inertia", "negative-inertia"])
+def test_hostile_urdf_numbers_are_one_line_naming_the_line(tmp_path, capsys, edit, needle, message):
+    urdf, _ = made_urdf(tmp_path, "irb6400")
+    src = _edit(urdf, *edit, tmp_path)
+    code, _, err = run(capsys, "import-urdf", src, "--out", tmp_path / "x.yaml")
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"{src}:{_line_of(src, needle)}: " in err and message in err, err
+    assert not (tmp_path / "x.yaml").exists()
+
+
+def test_deep_nesting_and_xacro_are_refused(tmp_path, capsys):
+    urdf, _ = made_urdf(tmp_path, "irb6400")
+    deep = _edit(urdf, r"(<robot [^>]*>)", r"\1" + "<a>" * 5000 + "</a>" * 5000, tmp_path)  # before: RecursionError
+    code, _, err = run(capsys, "import-urdf", deep, "--out", tmp_path / "x.yaml")
+    assert code == 2 and err.count("\n") == 1 and "nested 33 deep" in err, err
+    xacro = tmp_path / "x.urdf"
+    xacro.write_text(urdf.read_text().replace("<robot ", '<robot xmlns:xacro="http://www.ros.org/wiki/xacro" ', 1)
+                     .replace('<link name="wrist">', '<xacro:include filename="more.xacro"/><link name="wrist">', 1))
+    code, _, err = run(capsys, "import-urdf", xacro, "--out", tmp_path / "x.yaml")  # before: the include dropped
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"{xacro}:{_line_of(xacro, 'xacro:include')}: <xacro:include>: a xacro macro" in err, err
+    assert not (tmp_path / "x.yaml").exists()
