@@ -127,6 +127,8 @@ def test_rsi_restart_with_a_new_start_pose_and_ipoc_epoch(tmp_path, amplitude_de
     assert "RSI: a new session" in err, err[-2000:]
     if amplitude_deg < 20.0:
         assert len(answered) == len(poses) == 350, f"the compensator stopped answering at message {len(answered)}:\n{err}"
+        after = err[err.index("RSI: a new session"):]
+        assert "compensating again" in after, err[-2000:]  # ramped to zero, then up again from zero
     else:
         assert len(answered) < 210 and "acceleration supervision allows" in err, err[-2000:]
 
