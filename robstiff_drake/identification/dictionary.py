@@ -220,7 +220,8 @@ def _coupling(j, k):
     def plausible(v, info):
         r = abs(rho(v, info))
         ok = r <= pl.COUPLING_MAX
-        return ok, f"coupling {r:.2f} of sqrt(cj ck) ({'within' if ok else 'beyond'} {pl.COUPLING_MAX:g})"
+        pd = f"; {pl.NON_PHYSICAL}: the compliance matrix is not positive definite" if r >= 1 else ""
+        return ok, f"coupling {r:.2f} of sqrt(cj ck) ({'within' if ok else 'beyond'} {pl.COUPLING_MAX:g}{pd})"
 
     return Term(f"coupling_j{j + 1}{k + 1}", "dictionary", LINEAR, [("rho", "x sqrt(cj ck) nominal", 1.0)],
                 columns=columns, describe=describe, plausible=plausible,
