@@ -74,6 +74,7 @@ class SetupCampaign:
     kind: str
     campaign: StiffnessCampaign
     declared_tool_m: np.ndarray
+    comments: list  # the file's comment lines (tests/open_world.py's to_csv writes them)
 
 
 def make_campaign(kind, seed, *, n=N_ROWS, noise_mm=NOISE_MM):
@@ -106,4 +107,4 @@ def make_campaign(kind, seed, *, n=N_ROWS, noise_mm=NOISE_MM):
     camp = StiffnessCampaign(f"setup_errors_{kind}", model.controller_deg(q_cmd), reported, np.zeros((n, 3)), disp_mm,
                              None, pose, np.arange(1, n + 1, dtype=float), np.arange(n) + 4, comments, False,
                              tool_mm=DECLARED_TOOL_M * 1e3)
-    return SetupCampaign(kind, camp, DECLARED_TOOL_M.copy())
+    return SetupCampaign(kind, camp, DECLARED_TOOL_M.copy(), comments)

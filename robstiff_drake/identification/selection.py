@@ -23,27 +23,12 @@ from the model's (rank) is "not identifiable" and never selected; one that
 needs a column the file lacks, or more parameters than the data support, is
 skipped, with the reason.
 
-A typical size is a prior, not a veto.  A candidate whose estimate lies
-beyond its typical range (identification/plausibility.py, judged at the
-estimate) is added only on decisive evidence (``decisive``): its F-test and
-its pose-clustered test both at P_DECISIVE or below, a held-out RMS lower on
-every fold with the mean gain FOLD_SPREAD_FACTOR times the folds' spread,
-EXCESS_EXPLAINED of the held-out residual's variance above the noise floor
-taken out (it is THE explanation of what is left, as a wrong tool point or
-an untared sensor is, not one more term that fits part of a residual many
-times the noise; without a floor nothing is decisive), and its estimate not
-confounded (|r| >= CONFOUNDED_MIN) with a kept term.  A correlation with a
-joint's stiffness does not stop it (a tool point along the flange's axis
-trades off against the wrist's stiffness in most campaigns): it is reported
-(``confounded`` of the diagnosis) with the plan that separates them.  Among the candidates that qualify it then pays
-PRIOR_PENALTY on its held-out RMS per decade its size lies beyond the range, so that an explanation of typical size
-that fits about as well is preferred.  The report names what a kept term
-beyond its typical size implies (identification/findings.py).  A candidate
-that needs a sign physics forbids (a negative compliance, a compliance
-matrix that is not positive definite), or that drives a joint's
-compliance negative that was positive, is never added whatever the
-evidence.  What fits but is not added is kept as a *lead*, reported with
-the reason.  The backward check applies the same rule at the final fit and
+A typical size is a prior, not a veto (identification/priors.py): a
+candidate beyond its typical range is added only on decisive evidence and
+pays a penalty in the choice; one that needs a sign physics forbids, or
+that drives a joint's compliance negative that was positive, is never
+added.  What fits but is not added is kept as a *lead*, reported with the
+reason.  The backward check applies the same rule at the final fit and
 never drops a term whose removal would make a compliance negative.
 """
 
@@ -55,7 +40,8 @@ from scipy import special
 from scipy import stats
 
 from robstiff_drake.identification import plausibility as pl
-from robstiff_drake.identification.confounding import CONFOUNDED_MIN, correlation, design_covariance
+from robstiff_drake.identification.confounding import correlation, design_covariance
+from robstiff_drake.identification.priors import decisive, final_evidence, refusal, score
 from robstiff_drake.identification.cross_validation import clustered_cov, clustered_wald, rows_to_eq, wald_p
 from robstiff_drake.identification.terms import GAUSS_NEWTON, GRID, fit_model, held_out, rms_mm, term_columns
 from robstiff_drake.progress import progress
@@ -68,15 +54,6 @@ MAX_LIBRARY = 3
 MAX_TERMS = 5
 RANK_TOL = 1e-6
 GN_CANDIDATE_ITER = 3  # Gauss-Newton steps for a candidate (the selected model is iterated to convergence)
-# Decisive evidence for a size beyond the typical: both tests at this level (about 5 sigma)
-P_DECISIVE = 1e-6
-# ... and the held-out gain over the folds: lower on every fold, its mean this many times the folds' spread
-FOLD_SPREAD_FACTOR = 2.0
-# ... and the share of the held-out residual's variance above the noise floor it takes out
-EXCESS_EXPLAINED = 0.75
-# the prior's weight in the choice: a term beyond its typical size competes with its held-out RMS raised by this
-# fraction per decade of its size beyond the range (plausibility.excess)
-PRIOR_PENALTY = 0.10
 
 
 @dataclass
@@ -283,51 +260,6 @@ def _fits(r, current_rms, m):
             and r.p_grouped < ALPHA_ROUND / max(m, 1))
 
 
-def fold_consistent(gains):
-    """Lower on every fold, the mean gain FOLD_SPREAD_FACTOR times the folds' spread (sample sd)."""
-    g = np.asarray(gains, dtype=float)
-    return bool(len(g) > 1 and np.all(g > 0) and np.mean(g) >= FOLD_SPREAD_FACTOR * np.std(g, ddof=1))
-
-
-def confounded_with(correlations):
-    """(name, r) of the strongest correlation at CONFOUNDED_MIN or above, else None."""
-    strong = [(k, v) for k, v in (correlations or {}).items() if abs(v) >= CONFOUNDED_MIN]
-    return max(strong, key=lambda kv: abs(kv[1])) if strong else None
-
-
-def excess_explained(rms_from, rms_to, floor_mm):
-    """Share of the held-out residual's variance above the noise floor that
-    going from ``rms_from`` to ``rms_to`` (mm) takes out (nan without a floor
-    or without an excess)."""
-    if floor_mm is None or rms_from <= floor_mm:
-        return float("nan")
-    return 1.0 - max(rms_to**2 - floor_mm**2, 0.0) / (rms_from**2 - floor_mm**2)
-
-
-def decisive(r, current_rms, floor_mm):
-    """Is the evidence for a candidate beyond its typical size decisive (module
-    docstring)?  ``current_rms``: the held-out RMS (mm) without it; ``floor_mm``:
-    the noise floor (None: unknown).  Returns (bool, why not)."""
-    if floor_mm is None:
-        return False, "beyond its typical size, and with no noise floor known the evidence cannot be judged decisive"
-    share = excess_explained(current_rms, r.rms_mm, floor_mm)
-    if not share >= EXCESS_EXPLAINED:
-        return False, (f"beyond its typical size, and it takes out only {100 * max(share, 0):.0f} % of the residual "
-                       f"above the noise floor ({100 * EXCESS_EXPLAINED:.0f} % needed for a size beyond the typical)")
-    if not (r.p_value <= P_DECISIVE and r.p_grouped <= P_DECISIVE):
-        return False, (f"beyond its typical size, and its tests are not decisive (F-test p = {r.p_value:.2g}, "
-                       f"pose-clustered p = {r.p_grouped:.2g}; {P_DECISIVE:g} needed)")
-    if r.fold_gains is not None and not fold_consistent(r.fold_gains):
-        g = r.fold_gains
-        return False, (f"beyond its typical size, and its held-out gain is not clear of the folds' spread "
-                       f"({100 * np.min(g):.0f} to {100 * np.max(g):.0f} % over the folds)")
-    conf = confounded_with({k: v for k, v in (r.correlations or {}).items() if not k.startswith("stiffness_j")})
-    if conf:
-        return False, (f"beyond its typical size, and confounded with {conf[0]} (correlation of the estimates "
-                       f"{conf[1]:+.2f}): the data cannot tell the two apart")
-    return True, ""
-
-
 def _qualifies(r, current_rms, m, floor_mm=None):
     if not _fits(r, current_rms, m) or r.physical is False or r.forbidden:
         return False
@@ -340,27 +272,12 @@ def leads(r, current_rms, m, floor_mm=None):
     return _fits(r, current_rms, m) and not _qualifies(r, current_rms, m, floor_mm)
 
 
-def refusal(r, current_rms, floor_mm):
-    """Why a lead was not added, in words."""
-    if r.physical is False or r.forbidden:
-        return r.plausibility
-    why = decisive(r, current_rms, floor_mm)[1]
-    return f"{r.plausibility}; {why}" if why else r.plausibility
-
-
-def _score(r):
-    """Held-out RMS with the prior's penalty for a size beyond the typical."""
-    if r.plausible is not False:
-        return r.rms_mm
-    return r.rms_mm * (1 + PRIOR_PENALTY * max(np.log10(min(r.excess, 1e6)), 0.0))
-
-
 def _choose(qualified):
     lib = [r for r in qualified if r.source == "library"]
     dic = [r for r in qualified if r.source == "dictionary"]
-    best_lib = min(lib, key=_score) if lib else None
-    best_dic = min(dic, key=_score) if dic else None
-    if best_lib and (best_dic is None or _score(best_lib) <= (1 + NAMED_PREFERENCE) * _score(best_dic)):
+    best_lib = min(lib, key=score) if lib else None
+    best_dic = min(dic, key=score) if dic else None
+    if best_lib and (best_dic is None or score(best_lib) <= (1 + NAMED_PREFERENCE) * score(best_dic)):
         return best_lib
     return best_dic
 
@@ -392,28 +309,6 @@ def _dropped_lead(rounds, name, why, refused=None):
                                   forbidden=pl.forbidden(why), refusal=f"{why}; {refused or ''} (at the final fit; "
                                   "dropped)" if refused else why + " (at the final fit; dropped)")
     raise KeyError(name)
-
-
-def final_evidence(ctx, state, without, p_grouped, name, rows, folds):
-    """A kept term judged at the final fit as ``decisive`` judges a candidate:
-    a CandidateResult-like record of its F-test (the model against the model
-    without it), pose-clustered p, per-fold gains and correlations."""
-    f = state.full
-    eq = rows_to_eq(rows)
-    sl = f.slices[name]
-    pe, n_eq = sl.stop - sl.start, len(eq)
-    df2 = n_eq - f.X.shape[1]
-    F = ((without.rss - state.rss) / pe) / (state.rss / df2) if state.rss > 0 and df2 > 0 else np.inf
-    p = float(special.fdtrc(pe, df2, F)) if np.isfinite(F) else 0.0
-    gains = np.array([1 - rms_mm(state.resid[rows_to_eq(te)]) / max(rms_mm(without.resid[rows_to_eq(te)]), 1e-300)
-                      for _, te in folds])
-    cov = design_covariance(f.X[eq])
-    idx = np.arange(sl.start, sl.stop)
-    corr = {f"stiffness_j{j + 1}": correlation(cov, idx, [i]) for i, j in enumerate(ctx.free)}
-    corr.update({other: correlation(cov, idx, np.arange(s.start, s.stop)) for other, s in f.slices.items()
-                 if other != name})
-    return CandidateResult(name, "", "ok", rms_mm=state.rms_mm, p_value=p, p_grouped=p_grouped, fold_gains=gains,
-                           correlations=corr)
 
 
 @dataclass
