@@ -18,7 +18,6 @@ Run: python3 studies/setup_findings.py [--only synth|drake|fanuc]
 import argparse
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -43,45 +42,63 @@ def _kept(d):
     return ", ".join(t["name"] + (" (beyond typical)" if t.get("beyond_typical") else "") for t in d.terms) or "none"
 
 
-def _line(label, d, expected, seconds):
-    ok = (expected is None and not d.terms) or (expected is not None and [t["name"] for t in d.terms] == [expected])
-    findings = [t["finding"] for t in d.terms if t.get("finding")]
-    print(f"{label:34s} before {d.rms_before_mm:.4f}  after {d.rms_after_mm:.4f} mm "
-          f"({d.rms_after_mm / NOISE_MM:.2f}x noise)  kept: {_kept(d)}  {'RIGHT' if ok else 'WRONG'}  "
-          f"explains {d.explains_data}  [{seconds:.0f} s]")
-    for f in findings:
-        print(f"    finding: {f}")
+def _alternatives(d):
     for a in getattr(d, "alternatives", []) or []:
-        print(f"    alternative: {a}")
+        tag = "kept" if a["kept"] else ("beyond typical, not picked" if a["beyond_typical"] else "not picked")
+        conf = f"; confounded with {a['confounded_with']} (r {a['correlation']:+.2f})" if a.get("confounded_with") \
+            else ""
+        print(f"    side by side: {a['held_out_mm']:.4f} mm  {' + '.join(a['terms']) or 'six springs'} ({tag}{conf})")
+
+
+def _line(label, d, expected, tally):
+    ok = (expected is None and not d.terms) or (expected is not None and [t["name"] for t in d.terms] == [expected])
+    within = d.rms_after_mm <= 1.25 * NOISE_MM
+    tally.append((ok, within))
+    print(f"{label:38s} before {d.rms_before_mm:.4f}  after {d.rms_after_mm:.4f} mm "
+          f"({d.rms_after_mm / NOISE_MM:.2f}x noise)  kept: {_kept(d)}  {'RIGHT' if ok else 'WRONG'}  "
+          f"explains {d.explains_data}")
+    for t in d.terms:
+        if t.get("finding"):
+            print(f"    finding: {t['finding']}")
+    _alternatives(d)
     if not d.terms and d.leads:
         print(f"    lead: {d.leads[0]['name']} {d.leads[0]['rms_mm']:.4f} mm: {d.leads[0]['reason']}")
-    return ok, d.rms_after_mm <= 1.25 * NOISE_MM
+
+
+def _summary(tally):
+    print(f"named right: {sum(ok for ok, _ in tally)}/{len(tally)}; after <= 1.25x the noise: "
+          f"{sum(w for _, w in tally)}/{len(tally)}")
 
 
 def synth_cases(robot, seeds):
-    print(f"synthetic (identification/synth.py), seeds {seeds}:")
+    print(f"synthetic (identification/synth.py, the library's effect formulas), seeds {seeds}:")
+    tally = []
     for label, params, expected in SYNTH_CASES:
         for seed in seeds:
             c = synth.stiffness_campaign(robot, n=120, noise_mm=NOISE_MM, seed=seed, effect_params=params)
-            t0 = time.perf_counter()
-            d = diagnose(robot, c.to_campaign(), noise_mm=NOISE_MM)
-            _line(f"{label} (seed {seed})", d, expected, time.perf_counter() - t0)
+            _line(f"{label} (seed {seed})", diagnose(robot, c.to_campaign(), noise_mm=NOISE_MM), expected, tally)
+    _summary(tally)
 
 
 def drake_cases(robot, seeds):
     import setup_errors as se
 
+    from robstiff_drake.errors import InputError
+    from robstiff_drake.identification.joint_stiffness import identify
+
     print(f"Drake plant (tests/setup_errors.py), seeds {seeds}:")
+    tally = []
     for kind in se.KINDS:
         for seed in seeds:
             c = se.make_campaign(kind, seed)
-            t0 = time.perf_counter()
             try:
+                identify(robot, c.campaign, tool_m=c.declared_tool_m)  # the command's input checks
                 d = diagnose(robot, c.campaign, tool_m=c.declared_tool_m, noise_mm=NOISE_MM)
-            except Exception as e:  # noqa: BLE001  (a refused input is a result here)
-                print(f"{kind} (seed {seed}): {type(e).__name__}: {e}")
+            except InputError as e:  # refused before the diagnosis: the message is the finding
+                print(f"{kind} (seed {seed}): refused (exit 2): {str(e).split(': ', 1)[1]}")
                 continue
-            _line(f"{kind} (seed {seed})", d, se.EXPECTED[kind], time.perf_counter() - t0)
+            _line(f"{kind} (seed {seed})", d, se.EXPECTED[kind], tally)
+    _summary(tally)
 
 
 def fanuc():
@@ -97,13 +114,10 @@ def fanuc():
         path = realdata.fanuc_campaign_csv(Path(tmp) / "fanuc.csv")
         campaign = read_stiffness_campaign(str(path), robot)
         tool = campaign_tool_m(campaign, robot, None, None)
-        t0 = time.perf_counter()
         d = diagnose(robot, campaign, tool_m=tool, noise_mm=0.03)
     print(f"FANUC R-2000iC (noise 0.03 mm stated): before {d.rms_before_mm:.4f}, after {d.rms_after_mm:.4f} mm "
-          f"({100 * (1 - d.rms_after_mm / d.rms_before_mm):.0f} % lower); kept: {_kept(d)} "
-          f"[{time.perf_counter() - t0:.0f} s]")
-    for a in getattr(d, "alternatives", []) or []:
-        print(f"    alternative: {a}")
+          f"({100 * (1 - d.rms_after_mm / d.rms_before_mm):.0f} % lower); kept: {_kept(d)}")
+    _alternatives(d)
     for r in d.leads[:3]:
         print(f"    lead: {r['name']} {r['rms_mm']:.4f} mm: {r['reason']}")
     print(f"    verdict: {d.verdict}")

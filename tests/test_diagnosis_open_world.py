@@ -158,7 +158,7 @@ def test_a_size_beyond_the_typical_on_decisive_evidence_is_a_finding(robot):
     w = Warnings(quiet=True)
     d = diagnose(robot, c.to_campaign(), noise_mm=NOISE, warnings=w)
     (t,) = d.terms
-    assert t["name"] == "tool_offset" and t["beyond_typical"] is True and "beyond the physical bound" in \
+    assert t["name"] == "tool_offset" and t["beyond_typical"] is True and "beyond the typical bound" in \
         t["plausibility"]
     assert "declared tool point" in t["finding"] and "tool_mm" in t["finding"]
     assert d.rms_after_mm <= 1.25 * NOISE and d.explains_data is True and "setup finding" in d.verdict

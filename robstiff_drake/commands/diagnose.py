@@ -110,8 +110,8 @@ def format_report(d, campaign, markdown=False):
     for t in d.terms:
         if t["source"] == "library":
             lines.append(f"  {t['name']}: {t['description']}; " + (
-                f"typical size ({t['prior_size']}): {t['plausibility']}" if not t["beyond_typical"] else
-                f"BEYOND its typical size ({t['prior_size']}), kept on decisive evidence: {t['plausibility']}"))
+                f"typical size: {t['plausibility']}" if not t["beyond_typical"] else
+                f"BEYOND its typical size, {t['prior_size']}; kept on decisive evidence: {t['plausibility']}"))
     setup = [t for t in d.terms if t["beyond_typical"]]
     if setup:
         lines.append("setup findings (what a size beyond the typical implies; check these first):")

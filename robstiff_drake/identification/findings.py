@@ -16,7 +16,7 @@ import numpy as np
 from robstiff_drake.identification import plausibility as pl
 from robstiff_drake.identification.dictionary_loads import CROSSTALK_MAX, HISTORY_SHARE_MAX, PERIODIC_DRIFT_MAX_M
 
-LOST = f"<= {pl.LOST_MOTION_MAX_RAD * 1e6:.0f} urad (3 arc-min: a worn reducer)"
+LOST = f"<= {pl.LOST_MOTION_MAX_RAD * 1e6:.0f} urad (3 arc-min; beyond it a reducer is worn)"
 RATIO = f"compliance positive and within {pl.COMPLIANCE_RATIO_MAX:g}x over the campaign (reducer torsion curves)"
 
 # term name (or the prefix of a per-joint family) -> its typical range, in words

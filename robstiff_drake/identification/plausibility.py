@@ -126,11 +126,11 @@ def within(value, upper, what, unit, scale, lower=None):
     if lower is None:
         worst = float(np.max(np.abs(value)))
         ok = worst <= upper
-        return ok, (f"{what} {worst * scale:.3g} {unit} {'within' if ok else 'beyond'} the physical bound "
+        return ok, (f"{what} {worst * scale:.3g} {unit} {'within' if ok else 'beyond'} the typical bound "
                     f"{upper * scale:.3g} {unit}")
     ok = bool(np.all((value >= lower) & (value <= upper)))
     sign = f" ({NON_PHYSICAL}: negative)" if lower == 0 and np.any(value < 0) else ""
-    return ok, (f"{what} {np.round(value * scale, 4).tolist()} {unit} {'within' if ok else 'outside'} the physical "
+    return ok, (f"{what} {np.round(value * scale, 4).tolist()} {unit} {'within' if ok else 'outside'} the typical "
                 f"range [{lower * scale:g}, {upper * scale:g}] {unit}{sign}")
 
 
@@ -161,7 +161,7 @@ def check(plausible, values, half_width, info):
         return True, why
     smallest = np.sign(v) * np.maximum(np.abs(v) - np.asarray(half_width, dtype=float), 0.0)
     if plausible(smallest, info)[0]:
-        return False, why + " (its 95 % interval reaches the physical range, but the fit needs the size beyond it)"
+        return False, why + " (its 95 % interval reaches the typical range, but the fit needs the size beyond it)"
     return False, why
 
 

@@ -6,7 +6,7 @@ Such a candidate is added only on decisive evidence (``decisive``):
   * its nested F-test and its pose-clustered test both at P_DECISIVE or
     below (about 5 sigma);
   * a held-out RMS lower on every fold, the mean gain FOLD_SPREAD_FACTOR
-    times the folds' spread;
+    times its standard error over the folds (their spread / sqrt(folds));
   * EXCESS_EXPLAINED of the held-out residual's variance above the noise
     floor taken out: it is THE explanation of what is left, as a wrong tool
     point or an untared sensor is, not one more term that fits part of a
@@ -34,8 +34,8 @@ from robstiff_drake.identification.terms import rms_mm
 
 # Decisive evidence for a size beyond the typical: both tests at this level (about 5 sigma)
 P_DECISIVE = 1e-6
-# ... and the held-out gain over the folds: lower on every fold, its mean this many times the folds' spread
-FOLD_SPREAD_FACTOR = 2.0
+# ... and the held-out gain over the folds: lower on every fold, its mean this many times its standard error
+FOLD_SPREAD_FACTOR = 3.0
 # ... and the share of the held-out residual's variance above the noise floor it takes out
 EXCESS_EXPLAINED = 0.75
 # the prior's weight in the choice: a term beyond its typical size competes with its held-out RMS raised by this
@@ -56,9 +56,11 @@ class Evidence:
 
 
 def fold_consistent(gains):
-    """Lower on every fold, the mean gain FOLD_SPREAD_FACTOR times the folds' spread (sample sd)."""
+    """Lower on every fold, the mean gain FOLD_SPREAD_FACTOR times its
+    standard error over the folds (sample sd / sqrt(folds))."""
     g = np.asarray(gains, dtype=float)
-    return bool(len(g) > 1 and np.all(g > 0) and np.mean(g) >= FOLD_SPREAD_FACTOR * np.std(g, ddof=1))
+    return bool(len(g) > 1 and np.all(g > 0)
+                and np.mean(g) >= FOLD_SPREAD_FACTOR * np.std(g, ddof=1) / np.sqrt(len(g)))
 
 
 def confounded_with(correlations):

@@ -71,7 +71,7 @@ class CandidateResult:
     values: np.ndarray = None  # SI
     grid: float = None
     physical: bool = None  # the fit with it keeps every positive compliance positive (None: not checked)
-    plausible: bool = None  # its size is within the physical range (None: not checked)
+    plausible: bool = None  # its size is within the typical range (None: not checked)
     plausibility: str = ""
     negative_joints: list = field(default_factory=list)  # 1-based joints it drives negative
     all_positive: bool = None  # with it every free joint's compliance is positive
@@ -237,7 +237,7 @@ def _correlations(ctx, state, X, sl):
 def physical_and_plausible(ctx, t, state, coef, cov, G, sl, g=None):
     """Does the fit with term t keep the model physical (no compliance that
     was positive turns negative) and is t's size plausible (its estimate
-    within the physical range; plausibility.check)?  Returns CandidateResult
+    within the typical range; plausibility.check)?  Returns CandidateResult
     fields."""
     nf = len(ctx.free)
     c = ctx.c_from(coef[:nf])
