@@ -112,3 +112,15 @@ def test_without_a_noise_floor_a_size_beyond_the_typical_is_not_kept(robot, made
     assert "tool_offset" not in [t["name"] for t in d.terms]
     lead = {r["name"]: r for r in d.leads}["tool_offset"]
     assert "no noise floor" in lead["reason"] and lead["forbidden"] is False
+
+
+def test_every_term_has_a_typical_range_and_a_finding():
+    # a term the search may keep beyond its typical size says what that range is and what to check
+    from robstiff_drake.identification.candidates import CANDIDATES
+    from robstiff_drake.identification.dictionary import DICTIONARY
+    from robstiff_drake.identification.findings import finding, prior_size
+
+    for name, t in {**CANDIDATES, **DICTIONARY}.items():
+        assert prior_size(name), name
+        text = finding(name, np.full(len(t.params), 1e-3), {}, "beyond")
+        assert ": " in text and not text.startswith("beyond its typical size"), (name, text)  # what, then the check

@@ -127,6 +127,15 @@ def finding(name, values, info, why):
     if name in ("lost_motion",) or name.startswith(("backlash_j", "hysteresis_j", "play_j")):
         return (f"{'joints 1-3' if name == 'lost_motion' else _joint(name)}: lost motion beyond a worn reducer's: a "
                 "loose joint (gear preload, bearing) or a brake that slips: check the joint")
+    if name == "joint_coupling" or name.startswith("coupling_j"):
+        return ("the joints' deflections are coupled more than a drive through a rod or the structure gives: a "
+                "loose joint or a worn drive between them: check the rod's, the gearboxes' and the bearings' mountings")
+    if name in ("load_dependent_stiffness", "posture_dependent_stiffness", "load_size_compliance") or \
+            name.startswith(("nonlinear_stiffness_j", "angle_compliance_j", "load_size_compliance_j",
+                             "load_history_j")):
+        who = _joint(name) if "_j" in name else "a joint"
+        return (f"{who}'s compliance varies more than a reducer's torsion curve allows: a loose joint (a gear's "
+                "preload, a bearing), a brake that slips or a balancer out of adjustment: check the joint")
     if name == "geometric_stiffness":
         return "the loads' lever arms differ from the model's: check the tool point and the load's point of action"
     return f"beyond its typical size ({why}): check the joint or the setup it names"
