@@ -144,6 +144,7 @@ def main():
         if want("setup"):
             out = sh(f"python3 {ROOT}/studies/setup_findings.py --only synth --seeds 1 2 3 2>/dev/null", ROOT, env)
             out += sh(f"python3 {ROOT}/studies/setup_findings.py --only drake --seeds 1 2 3 2>/dev/null", ROOT, env)
+            out += sh(f"python3 {ROOT}/studies/setup_findings.py --only beyond --seeds 1 2>/dev/null", ROOT, env)
             text = replace(text, "setup", block(out, "setup"))
         if want("tracker"):
             sh(f"python3 {ROOT}/tests/tracker_world.py irb6400 7 3000 tracker.csv", tmp, env)

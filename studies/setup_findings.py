@@ -12,7 +12,13 @@ library's effect formulas, model/effects.py) and, for the setup mistakes, by
 Drake's MultibodyPlant (tests/setup_errors.py; shares no code with the
 diagnosis).
 
-Run: python3 studies/setup_findings.py [--only synth|drake|fanuc]
+``--only beyond``: the other named effects beyond their typical sizes
+(synth), and out-of-library effects of tests/open_world.py with their
+ranges moved beyond the typical (a measured point 300 mm off, a frame turned
+10 deg, a foundation at 5e6 N*m/rad, lost motion and play of 1.2-2 mrad,
+crosstalk of 10 %, a periodic drift of 0.1 mm).
+
+Run: python3 studies/setup_findings.py [--only synth|drake|fanuc|beyond]
 """
 
 import argparse
@@ -101,6 +107,54 @@ def drake_cases(robot, seeds):
     _summary(tally)
 
 
+BEYOND = {  # (label, effect params (SI)) of the named library beyond their typical sizes
+    "force frame turned 8 deg": {"force_frame_rotation": {"phi_rad": np.array([0.3, -0.2, 1.0]) / np.linalg.norm(
+        [0.3, -0.2, 1.0]) * np.deg2rad(8)}},
+    "drift 8 um per measurement": {"drift": {"v_m_per_step": np.array([6e-6, -4e-6, 3e-6])}},
+    "lost motion 1.2 mrad": {"lost_motion": {"b_rad": np.array([1.2e-3, 0.4e-3, 0.6e-3, 0, 0, 0])}},
+    "tool point 60 mm off along x": {"tool_offset": {"delta_m": np.array([0.06, 0.0, 0.0])}},
+    "force bias 40 N": {"force_bias": {"bias_N": np.array([0.0, 30.0, -26.0])}},
+}
+# tests/open_world.py's (and open_world_loads.py's) ranges moved beyond the typical: (module, name, range)
+OPEN_BEYOND = {"point_offset": ("open_world", "POINT_OFFSET_RANGE_M", (0.28, 0.32)),
+               "frame": ("open_world", "FRAME_RANGE_DEG", (9.0, 11.0)),
+               "base": ("open_world", "BASE_K_RANGE", (4e6, 6e6)),
+               "wrist_lost_motion": ("open_world", "LOST_MOTION_RANGE_RAD", (1.5e-3, 2e-3)),
+               "hysteresis": ("open_world", "HYSTERESIS_RANGE_RAD", (1.2e-3, 1.5e-3)),
+               "crosstalk": ("open_world_loads", "CROSSTALK_RANGE", (0.10, 0.12)),
+               "periodic_drift": ("open_world_loads", "PERIODIC_AMPLITUDE_RANGE_M", (100e-6, 120e-6))}
+
+
+def beyond(robot, seeds):
+    import importlib
+
+    import open_world as ow
+
+    print(f"named effects beyond their typical size (synth), seeds {seeds}:")
+    tally = []
+    for label, params in BEYOND.items():
+        expected = next(iter(params))
+        for seed in seeds:
+            c = synth.stiffness_campaign(robot, n=120, noise_mm=NOISE_MM, seed=seed, effect_params=params)
+            _line(f"{label} (seed {seed})", diagnose(robot, c.to_campaign(), noise_mm=NOISE_MM), expected, tally)
+    _summary(tally)
+    print("out of the library, beyond the typical (tests/open_world.py's Drake plant, 700 N), seed 1:")
+    tally = []
+    for kind, (module, name, rng) in OPEN_BEYOND.items():
+        mod = importlib.import_module(module)
+        old = getattr(mod, name)
+        setattr(mod, name, rng)
+        try:
+            c = ow.make_campaign(kind, 1, size_range=(30.0, 40.0))  # the size capped at the range: beyond the typical
+        finally:
+            setattr(mod, name, old)
+        d = diagnose(robot, c.campaign, tool_m=ow.TOOL_M, noise_mm=NOISE_MM)
+        tally.append((True, d.rms_after_mm <= 1.25 * NOISE_MM))
+        print(f"{kind:38s} before {d.rms_before_mm:.4f}  after {d.rms_after_mm:.4f} mm "
+              f"({d.rms_after_mm / NOISE_MM:.2f}x noise)  kept: {_kept(d)}  explains {d.explains_data}")
+    print(f"after <= 1.25x the noise: {sum(w for _, w in tally)}/{len(tally)}")
+
+
 def fanuc():
     import realdata
     from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
@@ -125,7 +179,7 @@ def fanuc():
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", choices=["synth", "drake", "fanuc"])
+    ap.add_argument("--only", choices=["synth", "drake", "fanuc", "beyond"])
     ap.add_argument("--seeds", type=int, nargs="+", default=[1])
     args = ap.parse_args()
     robot = load_robot()
@@ -135,6 +189,8 @@ def main():
         drake_cases(robot, args.seeds)
     if args.only in (None, "fanuc"):
         fanuc()
+    if args.only in (None, "beyond"):
+        beyond(robot, args.seeds)
 
 
 if __name__ == "__main__":
