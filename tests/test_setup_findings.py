@@ -90,7 +90,8 @@ def test_millimetres_read_as_metres_are_refused_with_the_check(capsys, robot, tm
     assert "millimetres read as metres" in err and "(dx)" in err
     # loads of 15 N: the displacements within the reader's range, still 1000x what the model predicts
     small = replace(c.campaign, force_N=c.campaign.force_N * 0.05, disp_mm=c.campaign.disp_mm * 0.05)
-    with pytest.raises(InputError, match="look like millimetres read as metres; check the units of dx,dy,dz"):
+    with pytest.raises(InputError, match=r"look like millimetres read as metres \(or micrometres\), not mm: .*"
+                                         r"\(the readings are \d+x that\); check the units of dx,dy,dz"):
         identify(robot, small, tool_m=c.declared_tool_m)
 
 

@@ -89,10 +89,10 @@ def check_displacement_units(campaign, predicted_nominal_mm):
         raise InputError(f"{campaign.path}: displacements dx,dy,dz look like metres, not mm: {said} (the readings are "
                          f"1/{1 / ratio:.3g} of that); check the units of dx,dy,dz (the file holds mm)")
     if ratio > 50:
-        # 1000x: a reading in mm taken for metres somewhere before the file, then written in mm
-        mm_as_m = ": the displacements look like millimetres read as metres" if 300 <= ratio <= 3000 else ""
-        raise InputError(f"{campaign.path}: displacements dx,dy,dz look like micrometres, not mm: {said} (the readings "
-                         f"are {ratio:.3g}x that){mm_as_m}; check the units of dx,dy,dz (the file holds mm)")
+        # about 1000x: a reading in mm taken for metres somewhere before the file, then written in mm
+        what = "millimetres read as metres (or micrometres)" if 300 <= ratio <= 3000 else "micrometres"
+        raise InputError(f"{campaign.path}: displacements dx,dy,dz look like {what}, not mm: {said} (the readings "
+                         f"are {ratio:.3g}x that); check the units of dx,dy,dz (the file holds mm)")
 
 
 # A file whose angles all lie within +-pi is tested as radians too: if the
