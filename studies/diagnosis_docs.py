@@ -19,7 +19,11 @@ and skips, with the reason, the blocks that need files of a clone (tests/,
 benchmarks/) or the real data; a command block no entry matches stops the
 script.
 
-Run: python3 studies/diagnosis_docs.py [--studies [--confusion FILE]]
+``--only NAMES`` (comma-separated block names) regenerates those blocks
+alone; the setup-mistake table (``setup``) comes from
+studies/setup_findings.py.
+
+Run: python3 studies/diagnosis_docs.py [--studies [--confusion FILE]] [--only NAMES]
 """
 
 import argparse
@@ -114,28 +118,44 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--studies", action="store_true", help="also run the studies and benchmarks (slow)")
     ap.add_argument("--confusion", metavar="FILE", help="with --studies: diagnosis_confusion.py's output, already run")
+    ap.add_argument("--only", help="comma-separated generated blocks to regenerate (default: all)")
     args = ap.parse_args()
+    only = set(args.only.split(",")) if args.only else None
+
+    def want(name):
+        return only is None or name in only
+
     text = DOC.read_text(encoding="utf-8")
     env = dict(os.environ, PYTHONPATH=str(ROOT / "tests") + os.pathsep + os.environ.get("PYTHONPATH", ""))
     with tempfile.TemporaryDirectory() as tmp:
-        text = replace(text, "worked", block(worked_example(tmp), "worked"))
-        sh(f"python3 {ROOT}/tests/open_world.py hysteresis 5 hyst.csv", tmp, env)
-        text = replace(text, "open_world", block(sh("robstiff diagnose hyst.csv --noise-mm 0.01 2>/dev/null", tmp),
-                                                 "open_world"))
-        sh("robstiff synth stiffness quiet.csv --seed 5", tmp)
-        out = sh("robstiff diagnose quiet.csv --noise-mm 0.1 --json - 2>/dev/null", tmp)
         import json
 
-        res = json.loads(out)
-        text = replace(text, "floor", block(f"verdict: {res['verdict']}\nfloor_check: {json.dumps(res['floor_check'])}",
-                                            "floor"))
-        sh(f"python3 {ROOT}/tests/tracker_world.py irb6400 7 3000 tracker.csv", tmp, env)
-        text = replace(text, "tracker", block(sh("robstiff diagnose tracker.csv --noise-mm 0.03 --write-robot "
-                                                  "irb6400_corrected.yaml 2>/dev/null", tmp), "tracker"))
+        if want("worked"):
+            text = replace(text, "worked", block(worked_example(tmp), "worked"))
+        if want("open_world"):
+            sh(f"python3 {ROOT}/tests/open_world.py hysteresis 5 hyst.csv", tmp, env)
+            text = replace(text, "open_world", block(sh("robstiff diagnose hyst.csv --noise-mm 0.01 2>/dev/null",
+                                                        tmp), "open_world"))
+        if want("floor"):
+            sh("robstiff synth stiffness quiet.csv --seed 5", tmp)
+            res = json.loads(sh("robstiff diagnose quiet.csv --noise-mm 0.1 --json - 2>/dev/null", tmp))
+            text = replace(text, "floor", block(f"verdict: {res['verdict']}\nfloor_check: "
+                                                f"{json.dumps(res['floor_check'])}", "floor"))
+        if want("setup"):
+            out = sh(f"python3 {ROOT}/studies/setup_findings.py --only synth --seeds 1 2 3 2>/dev/null", ROOT, env)
+            out += sh(f"python3 {ROOT}/studies/setup_findings.py --only drake --seeds 1 2 3 2>/dev/null", ROOT, env)
+            out += sh(f"python3 {ROOT}/studies/setup_findings.py --only beyond --seeds 1 2>/dev/null", ROOT, env)
+            text = replace(text, "setup", block(out, "setup"))
+        if want("tracker"):
+            sh(f"python3 {ROOT}/tests/tracker_world.py irb6400 7 3000 tracker.csv", tmp, env)
+            text = replace(text, "tracker", block(sh("robstiff diagnose tracker.csv --noise-mm 0.03 --write-robot "
+                                                      "irb6400_corrected.yaml 2>/dev/null", tmp), "tracker"))
         import realdata
 
         reason = realdata.missing(realdata.FANUC)
-        if reason:
+        if not (want("fanuc") or want("fanuc_folds")):
+            pass
+        elif reason:
             print(f"FANUC example and its fold study left as they were: {reason}")
         else:
             sh(f"python3 {ROOT}/tests/realdata.py fanuc fanuc.csv", tmp, env)

@@ -59,14 +59,40 @@ def test_diagnosis_is_honest(capsys, fanuc):
     assert all(name in res["verdict"] for name in kept)
     if any(t["source"] == "dictionary" for t in res["terms"]):
         assert "hypotheses" in res["verdict"]
-    # the implausible tool offset that fits is a lead, with its confounding said
+    # the tool offset beyond its typical size that fits is a lead, with its confounding said
     lead = {r["name"]: r for r in res["leads"]}
     assert "tool_offset" in lead and lead["tool_offset"]["plausible"] is False
+    assert lead["tool_offset"]["forbidden"] is False and "residual above the noise floor" in lead["tool_offset"]["reason"]
     assert all(set(c) == {"terms", "correlation"} and abs(c["correlation"]) >= 0.8 for c in res["confounded"])
     assert any("tool_offset" in c["terms"] for c in res["confounded"]), res["confounded"]
     assert "not added" in res["verdict"] and "confounded" in res["verdict"]
     # and names the measurements that would separate the pair
     assert "plan-poses N --separate tool_offset," in res["verdict"], res["verdict"]
+
+
+def test_the_confounded_explanations_are_shown_side_by_side(capsys, fanuc):
+    # a tool point 163 mm off, or the measured point 214 mm off the loaded point, would fit more of the residual,
+    # but each trades off against joint 5's stiffness and none takes out most of what is above the floor: the
+    # kept model and the alternatives side by side, with their held-out RMS and the plan that separates them;
+    # none is picked
+    res, _ = _json(capsys, ["diagnose", str(fanuc), "--robot", realdata.FANUC_ROBOT, "--noise-mm", NOISE_MM])
+    assert all("prior_size" in t and t["beyond_typical"] is False and "finding" not in t for t in res["terms"])
+    alts = res["alternatives"]
+    assert alts[0]["kept"] is True and alts[0]["held_out_mm"] == res["rms_after_mm"]
+    assert alts[0]["terms"] == [t["name"] for t in res["terms"]]
+    by = {a["terms"][-1]: a for a in alts[1:]}
+    assert all(a["kept"] is False and a["held_out_mm"] < res["rms_after_mm"] for a in alts[1:])
+    tool = by["tool_offset"]
+    assert tool["beyond_typical"] and "declared tool point" in tool["finding"]
+    assert tool["confounded_with"].startswith("stiffness_j") and abs(tool["correlation"]) >= 0.8
+    assert f"--separate tool_offset,{tool['confounded_with']}" in tool["plan"]
+    assert "measured_point_offset" in by
+    kept = {t["name"] for t in res["terms"]}
+    assert not kept & {"tool_offset", "measured_point_offset"}
+    code = main(["diagnose", str(fanuc), "--robot", realdata.FANUC_ROBOT, "--noise-mm", NOISE_MM])
+    out, _ = capsys.readouterr()
+    assert code == 0 and "cannot decide between (none is picked" in out and "plan-poses 24 --separate tool_offset," \
+        in out
 
 
 def test_the_answer_does_not_depend_on_how_the_poses_are_labelled(capsys, fanuc, tmp_path):

@@ -11,6 +11,7 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
 from robstiff_drake.identification.confounding import CONFOUNDED_MIN
 from robstiff_drake.identification.diagnosis import CANDIDATES, DICTIONARY, diagnose
+from robstiff_drake.identification.findings import describe_alternatives
 from robstiff_drake.identification.fold_spread import describe as describe_spread
 from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
 from robstiff_drake.identification.selection import ALPHA_ROUND, MIN_GAIN
@@ -55,7 +56,8 @@ def to_dict(d, campaign):
         "joint_stiffness_with_outliers_Nm_per_rad": d.stiffness_with_outliers_Nm_per_rad,
         "selected_effects": d.selected,
         "discovered": [{k: t[k] for k in ("name", "description", "params", "ci95", "rms_gain_mm", "plausible",
-                                          "plausibility")} for t in d.discovered],
+                                          "plausibility", "prior_size", "beyond_typical", "finding") if k in t}
+                       for t in d.discovered],
         "terms": d.terms,
         "dropped": d.dropped,
         "residual_structure": d.residual_structure,
@@ -75,6 +77,7 @@ def to_dict(d, campaign):
         "non_physical_joints": d.non_physical,
         "leads": d.leads,
         "confounded": d.confounded,
+        "alternatives": d.alternatives,
         "floor_check": d.floor_check,
         "fold_spread": d.fold_spread,
         "warnings": list(d.warnings),
@@ -106,19 +109,25 @@ def format_report(d, campaign, markdown=False):
     lines.append("effects added from the named library: " + (", ".join(d.selected) if d.selected else "none"))
     for t in d.terms:
         if t["source"] == "library":
-            lines.append(f"  {t['name']}: {t['description']}; "
-                         f"{'plausible' if t['plausible'] else 'IMPLAUSIBLE'}: {t['plausibility']}")
+            lines.append(f"  {t['name']}: {t['description']}; " + (
+                f"typical size: {t['plausibility']}" if not t["beyond_typical"] else
+                f"BEYOND its typical size, {t['prior_size']}; kept on decisive evidence: {t['plausibility']}"))
+    setup = [t for t in d.terms if t["beyond_typical"]]
+    if setup:
+        lines.append("setup findings (what a size beyond the typical implies; check these first):")
+        lines += [f"  {t['name']}: {t['finding']}" for t in setup]
     lines.append("terms discovered beyond the library: " + ("none" if not d.discovered else ""))
     for t in d.discovered:
         ci = "; ".join(f"{k} in [{lo:.4g}, {hi:.4g}]" for k, (lo, hi) in t["ci95"].items())
         lines += [f"  {t['name']}: {t['description']}",
                   f"    95 % interval (pose-clustered): {ci}",
-                  f"    {'plausible' if t['plausible'] else 'IMPLAUSIBLE'}: {t['plausibility']}; "
+                  f"    {'typical size' if t['plausible'] else 'BEYOND its typical size'}: {t['plausibility']}; "
                   f"held-out RMS {t['rms_gain_mm']:.4f} mm lower with it"]
     if d.dropped:
         lines.append("dropped by the backward check: " + ", ".join(d.dropped))
     if d.leads:
-        lines.append("fit the residual but not added (not physical or not plausible):")
+        lines.append("fit the residual but not added (a sign physics forbids, or a size beyond the typical without "
+                     "decisive evidence):")
         lines += [f"  {r['name']} (round {r['round']}, held-out {r['rms_mm']:.4f} mm): {r['reason']}" for r in d.leads]
     lines.append("confounded (correlation of the estimates, fitted together; |r| >= "
                  f"{CONFOUNDED_MIN:g}): " + ("none" if not d.confounded else ", ".join(
@@ -126,6 +135,7 @@ def format_report(d, campaign, markdown=False):
     if d.confounded:
         a, b = d.confounded[0]["terms"]
         lines.append(f"  to separate them: robstiff plan-poses N --separate {a},{b} [--campaign DATA.csv]")
+    lines += describe_alternatives(d.alternatives)
     where = [s for s in d.residual_structure if s["strength"] > 0.02][:5]
     lines.append("where the remaining residual lives: " + (", ".join(
         f"{s['variable']} ({100 * s['strength']:.0f} % of it, {s['rms_mm']:.4f} mm)" for s in where)

@@ -37,7 +37,8 @@ def _coupling_ok(v, info):
     prod = info["c"][1] * info["c"][2]
     rho = abs(float(v[0])) / np.sqrt(prod) if prod > 0 else float("inf")
     ok = rho <= pl.COUPLING_23_MAX
-    return ok, f"c23 is {rho:.2f} of sqrt(c2 c3) ({'within' if ok else 'beyond'} {pl.COUPLING_23_MAX:g})"
+    pd = f"; {pl.NON_PHYSICAL}: the compliance matrix is not positive definite" if rho >= 1 else ""
+    return ok, f"c23 is {rho:.2f} of sqrt(c2 c3) ({'within' if ok else 'beyond'} {pl.COUPLING_23_MAX:g}{pd})"
 
 
 # -- load-dependent stiffness of joints 1-3: dq_j += a_j |tau_j| tau_j / 1 kN*m

@@ -30,7 +30,7 @@ from scipy import stats
 
 from robstiff_drake.identification import noise_floor as nf
 from robstiff_drake.identification import plausibility as pl
-from robstiff_drake.identification import robust_fit, selection
+from robstiff_drake.identification import findings, robust_fit, selection
 from robstiff_drake.identification.confounding import CONFOUNDED_MIN, confounded_pairs
 from robstiff_drake.identification.candidates import CANDIDATES
 from robstiff_drake.identification.cross_validation import (FOLD_SEED, FOLD_SEEDS, K_FOLDS, MIN_POSES, pose_groups,
@@ -44,7 +44,7 @@ from robstiff_drake.identification.stiffness_verdict import carried as _carried
 from robstiff_drake.identification.stiffness_verdict import verdict as _verdict
 from robstiff_drake.identification.threads import single_blas_thread
 from robstiff_drake.identification.terms import (GAUSS_NEWTON, GRID, Context, fit_model, gauss_newton_columns,
-                                                 term_columns)
+                                                 held_out, rms_mm, term_columns)
 from robstiff_drake.io import Warnings
 
 # kept for callers of the earlier interface
@@ -87,6 +87,7 @@ class Diagnosis:
     confounded: list = field(default_factory=list)  # [{terms: [a, b], correlation}]
     floor_check: dict = None  # a stated floor far above the residual: {ratio, p_below, message}
     fold_spread: dict = None  # the held-out figures over FOLD_SEEDS (identification/fold_spread.py)
+    alternatives: list = field(default_factory=list)  # explanations the data cannot decide between (findings.py)
 
 
 def subset(campaign, rows):
@@ -140,6 +141,7 @@ def _term_reports(ctx, result, rows, units):
         sl = fit.slices[t.name]
         hw = half[sl]
         ok, why = pl.check_term(t, v, hw, info)
+        beyond = not ok and t.plausible is not None
         params = {f"{n} ({u})": float(x * s) for (n, u, s), x in zip(t.params, v)}
         ci = {f"{n} ({u})": [float((x - h) * s), float((x + h) * s)] for (n, u, s), x, h in zip(t.params, v, hw)}
         if t.kind == GRID:
@@ -147,7 +149,10 @@ def _term_reports(ctx, result, rows, units):
             params[f"{n} ({u})"] = float(info["g"] * s)
         out.append({"name": t.name, "source": t.source, "description": t.describe(v, info), "params": params,
                     "ci95": ci, "rms_gain_mm": float(result.rms_without_mm.get(t.name, np.nan) - result.state.rms_mm),
-                    "plausible": bool(ok), "plausibility": why})
+                    "plausible": bool(ok), "plausibility": why, "prior_size": findings.prior_size(t.name),
+                    "beyond_typical": bool(beyond)})
+        if beyond:
+            out[-1]["finding"] = findings.finding(t.name, v, {**info, "tool_m": ctx.tool}, why)
     return out
 
 
@@ -157,7 +162,7 @@ def _run(robot, campaign, tool_m, rows, groups, noise_mm, terms_by_name, fold_se
     floor = nf.estimate_floor(campaign, groups, rows, noise_mm)
     units, by_pose = test_groups(groups, rows)
     fold_rows = splits(rows, units, seed=fold_seed)
-    result = selection.search(ctx, rows, fold_rows, terms_by_name, units)
+    result = selection.search(ctx, rows, fold_rows, terms_by_name, units, floor.sigma_mm)
     return base, ctx, floor, fold_rows, result, units, by_pose
 
 
@@ -176,8 +181,23 @@ def _lead_reports(result):
     out = out[:MAX_LEADS]
     return [{"name": r.name, "source": r.source, "round": rnd + 1, "rms_mm": r.rms_mm, "params": r.params,
              "physical": r.physical, "plausible": r.plausible, "all_positive": r.all_positive,
-             "reason": r.plausibility} for rnd, r in out], \
+             "forbidden": bool(r.forbidden or r.physical is False), "reason": r.refusal or r.plausibility}
+            for rnd, r in out], \
         [r for _, r in out]
+
+
+def _rivals(ctx, state, rows, fold_rows, lead_results, terms_by_name):
+    """[(lead, held-out RMS mm, SI values)] of the leads beyond their typical
+    size (not forbidden), each refitted with the final model."""
+    out = []
+    eq = rows_to_eq(rows)
+    for r in lead_results:
+        if r.forbidden or r.physical is False or r.plausible is not False:
+            continue
+        terms = state.terms + [terms_by_name[r.name]]
+        resid, _ = held_out(ctx, terms, fold_rows)
+        out.append((r, rms_mm(resid[eq]), fit_model(ctx, terms, rows).values[r.name]))
+    return out
 
 
 def _lead_columns(ctx, t, c, r):
@@ -298,10 +318,11 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
               "share their pose's unloaded reading, so the held-out error is optimistic")
     reports = _term_reports(ctx, result, rows, units)
     discovered = [r for r in reports if r["source"] == "dictionary"]
-    implausible = [r["name"] for r in reports if not r["plausible"]]
+    setup = [f"{r['name']}: {r['finding']}" for r in reports if r["beyond_typical"]]
     for r in reports:
-        if not r["plausible"]:
-            w.add(f"{r['name']} fits the residual but needs an implausible size: {r['plausibility']}")
+        if r["beyond_typical"]:
+            w.add(f"{r['name']} is kept beyond its typical size ({r['plausibility']}) on decisive evidence: "
+                  f"{r['finding']}")
     lof = None
     if floor.sigma_mm is not None:
         lof = nf.lack_of_fit(state.resid, fit.X, fold_rows, rows, units, floor)
@@ -315,6 +336,9 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
     for r in leads:
         w.add(f"{r['name']} fits the residual (held-out {r['rms_mm']:.4f} mm) but was not added: {r['reason']}")
     confounded = _confounded(ctx, fit, rows, lead_results + [r for _, r in result.rival_trends], terms_by_name)
+    alternatives = findings.alternatives([t.name for t in state.terms], state.rms_mm,
+                                         _rivals(ctx, state, rows, fold_rows, lead_results, terms_by_name),
+                                         confounded, ctx.tool)
     for chosen, r in result.rival_trends:
         w.add(f"{chosen} and {r.name} (a trend along the file's order) fit the same residual about as well; the file "
               "has no seq or t_s column to tell a drift from it")
@@ -324,7 +348,7 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
                                   "rivals": result.rival_trends,
                                   "carried": _carried(reports, result.rms_before_mm, state.rms_mm, spread)},
                                  floor, lof,
-                                 non_physical, [r["name"] for r in discovered], implausible, structure,
+                                 non_physical, [r["name"] for r in discovered], setup, structure,
                                  result.n_hypotheses, leads, confounded)
     if non_physical:
         w.add(verdict)
@@ -352,7 +376,7 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
         discovered=discovered, dropped=result.dropped, residual_structure=structure,
         n_hypotheses=result.n_hypotheses, rows_used=rows, non_physical=non_physical, warnings=list(w),
         thresholds=thresholds(fold_seed), leads=leads, confounded=confounded, floor_check=floor_check,
-        fold_spread=spread)
+        fold_spread=spread, alternatives=alternatives)
 
 
 __all__ = ["diagnose", "Diagnosis", "CANDIDATES", "DICTIONARY"]

@@ -43,7 +43,7 @@ Every term carries its plausibility check (identification/plausibility.py).
 import numpy as np
 
 from robstiff_drake.identification import plausibility as pl
-from robstiff_drake.identification.terms import BILINEAR, GRID, LINEAR, Term, stack
+from robstiff_drake.identification.terms import BILINEAR, GAUSS_NEWTON, GRID, LINEAR, Term, stack
 
 BACKLASH_TAU0_FRACTIONS = (0.01, 0.02, 0.05, 0.1, 0.2, 0.4)  # transition torque / largest |tau_j| of the campaign
 HYSTERESIS_FRICTION_FRACTIONS = (0.0, 0.01, 0.02, 0.05, 0.1, 0.2)  # torque that moves a held joint / largest |tau_j|
@@ -220,7 +220,8 @@ def _coupling(j, k):
     def plausible(v, info):
         r = abs(rho(v, info))
         ok = r <= pl.COUPLING_MAX
-        return ok, f"coupling {r:.2f} of sqrt(cj ck) ({'within' if ok else 'beyond'} {pl.COUPLING_MAX:g})"
+        pd = f"; {pl.NON_PHYSICAL}: the compliance matrix is not positive definite" if r >= 1 else ""
+        return ok, f"coupling {r:.2f} of sqrt(cj ck) ({'within' if ok else 'beyond'} {pl.COUPLING_MAX:g}{pd})"
 
     return Term(f"coupling_j{j + 1}{k + 1}", "dictionary", LINEAR, [("rho", "x sqrt(cj ck) nominal", 1.0)],
                 columns=columns, describe=describe, plausible=plausible,
@@ -299,9 +300,22 @@ def _compliance_term(name, text, columns, upper, unit="rad/(N*m)"):
 # -------------------------------------------------------------- measurement
 
 
-def _frame_rotation(ctx, c):
+def _rotation(phi):
+    """Rotation matrix of the rotation vector phi (rad), Rodrigues."""
+    a = float(np.linalg.norm(phi))
+    if a < 1e-15:
+        return np.eye(3)
+    k = np.asarray(phi, dtype=float) / a
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(a) * K + (1 - np.cos(a)) * K @ K
+
+
+def _frame_rotation(ctx, c, phi):
+    """The springs' displacements read in a frame turned by phi: R(phi) d - d,
+    exact in the angle (a frame from the cell drawings can be off by
+    degrees, where the small-angle form phi x d leaves a residual)."""
     d = ctx.from_dq(c * ctx.tau)
-    return stack([np.cross(np.eye(3)[k], d) for k in range(3)])
+    return (d @ _rotation(phi).T - d).reshape(-1)
 
 
 def _point_offset(ctx, c):
@@ -319,7 +333,7 @@ def _drift2(ctx):
     return stack([np.outer(s**2, np.eye(3)[k]) for k in range(3)])
 
 
-def _vec_term(name, kind, params, text, columns, bound, scale, unit, needs=None, total=None):
+def _vec_term(name, kind, params, text, columns, bound, scale, unit, needs=None, total=None, **kw):
     def describe(v, info):
         return f"{text}: " + ", ".join(f"{n} = {x * s:.3g} {u}" for (n, u, s), x in zip(params, v))
 
@@ -328,7 +342,7 @@ def _vec_term(name, kind, params, text, columns, bound, scale, unit, needs=None,
         return pl.within([size], bound, text if not total else "total over the campaign", unit, scale)
 
     return Term(name, "dictionary", kind, params, columns=columns, describe=describe, plausible=plausible,
-                needs=needs)
+                needs=needs, **kw)
 
 
 def build_dictionary():
@@ -346,9 +360,9 @@ def build_dictionary():
         *[_compliance_term(f"{link}_bending", f"the {link.replace('_', ' ')} bends", _bending(link),
                            pl.LINK_BENDING_COMPLIANCE_MAX) for link in LINKS],
         _compliance_term("lower_arm_torsion", "the lower arm twists", _torsion, pl.LINK_BENDING_COMPLIANCE_MAX),
-        _vec_term("measurement_frame_rotation", BILINEAR, [(f"phi_{a}", "mrad", 1e3) for a in "xyz"],
-                  "displacements measured in a frame turned against the base", _frame_rotation,
-                  pl.FRAME_ROTATION_MAX_RAD, 1e3, "mrad"),
+        _vec_term("measurement_frame_rotation", GAUSS_NEWTON, [(f"phi_{a}", "mrad", 1e3) for a in "xyz"],
+                  "displacements measured in a frame turned against the base", None,
+                  pl.FRAME_ROTATION_MAX_RAD, 1e3, "mrad", effect=_frame_rotation, step=(1e-3, 1e-3, 1e-3)),
         _vec_term("measured_point_offset", BILINEAR, [(f"delta_{a}", "mm", 1e3) for a in "xyz"],
                   "the measured point is off the loaded point (flange frame)", _point_offset,
                   pl.POINT_OFFSET_MAX_M, 1e3, "mm"),

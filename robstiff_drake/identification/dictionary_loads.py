@@ -102,7 +102,7 @@ def _load_history(j):
 
     def plausible(v, info):
         if info["c"][j] <= 0:
-            return False, f"joint {j + 1}'s compliance is not positive"
+            return False, f"joint {j + 1}'s compliance is not positive ({pl.NON_PHYSICAL})"
         share = max(abs(v[0]), abs(v[2])) / info["c"][j]
         ok = share <= HISTORY_SHARE_MAX
         if not ok:

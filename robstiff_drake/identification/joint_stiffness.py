@@ -85,16 +85,16 @@ def check_displacement_units(campaign, predicted_nominal_mm):
     if not np.any(use) or np.median(meas[use]) == 0:
         return
     ratio = np.median(meas[use]) / np.median(pred[use])
+    said = (f"median |d| = {np.median(meas[use]):.3g}, the nominal model predicts {np.median(pred[use]):.3g} mm for "
+            "these loads")
     if ratio < 0.02:
-        raise InputError(
-            f"{campaign.path}: displacements dx,dy,dz look like metres, not mm: median |d| = "
-            f"{np.median(meas[use]):.3g}, the nominal model predicts {np.median(pred[use]):.3g} mm for these loads"
-        )
+        raise InputError(f"{campaign.path}: displacements dx,dy,dz look like metres, not mm: {said} (the readings are "
+                         f"1/{1 / ratio:.3g} of that); check the units of dx,dy,dz (the file holds mm)")
     if ratio > 50:
-        raise InputError(
-            f"{campaign.path}: displacements dx,dy,dz look like micrometres, not mm: median |d| = "
-            f"{np.median(meas[use]):.3g}, the nominal model predicts {np.median(pred[use]):.3g} mm for these loads"
-        )
+        # about 1000x: a reading in mm taken for metres somewhere before the file, then written in mm
+        what = "millimetres read as metres (or micrometres)" if 300 <= ratio <= 3000 else "micrometres"
+        raise InputError(f"{campaign.path}: displacements dx,dy,dz look like {what}, not mm: {said} (the readings "
+                         f"are {ratio:.3g}x that); check the units of dx,dy,dz (the file holds mm)")
 
 
 # Rows whose measured displacement per predicted one sits this many decades

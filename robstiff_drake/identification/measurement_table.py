@@ -150,8 +150,9 @@ def _numeric_column(path, data, cells, col, name, limits, decimal_comma=False):
         bad = np.flatnonzero(~((arr >= lo) & (arr <= hi)))
         if bad.size:
             r = int(bad[0])
+            hint = "" if unit != "mm" else ": millimetres read as metres, then written in mm, are 1000x too large"
             raise InputError(f"{path}:{data[r][0]}, column {col + 1} ({name}): {values[r].strip()} is outside the "
-                             f"plausible range [{lo:g}, {hi:g}] {unit} (other units?)")
+                             f"plausible range [{lo:g}, {hi:g}] {unit} (other units?){hint}")
     return arr
 
 

@@ -1,8 +1,12 @@
-"""Physical ranges for the sizes the diagnosis may find, with the reasoning
-behind each.  A term (named or discovered) whose fitted size falls outside
-its range is reported as implausible: it fits the residual, but not as the
-physical effect it is named after, so the data carry something else that
-looks like it.  Plain numpy.
+"""Typical ranges for the sizes the diagnosis may find, with the reasoning
+behind each, and the signs physics forbids.  A range is a prior, not a veto
+(identification/selection.py): a term whose fitted size falls outside its
+range counts against it, and it is kept only on decisive evidence, then
+reported as what the size implies, most often a setup mistake (a tool point
+not declared, a sensor not tared; identification/findings.py).  A sign
+physics forbids (a negative compliance, a compliance matrix that is not
+positive definite) is refused whatever the evidence: its reason says
+"non-physical" (``forbidden``).  Plain numpy.
 
 Every number here is an engineering bound, not a measured property of one
 robot: where it stands in for a missing fact, the comment says so.
@@ -105,17 +109,29 @@ FORCE_FRAME_MAX_RAD = 0.1
 GEOMETRIC_FACTOR_RANGE = (0.0, 3.0)
 
 
+NON_PHYSICAL = "non-physical"
+
+
+def forbidden(reason):
+    """Does a plausibility reason say the size is forbidden by physics (not
+    only beyond its typical range)?"""
+    return NON_PHYSICAL in (reason or "")
+
+
 def within(value, upper, what, unit, scale, lower=None):
-    """(ok, reason) for |value| <= upper (or lower <= value <= upper)."""
+    """(ok, reason) for |value| <= upper (or lower <= value <= upper); with
+    ``lower`` 0 a negative value is non-physical (a negative compliance or
+    factor)."""
     value = np.asarray(value, dtype=float)
     if lower is None:
         worst = float(np.max(np.abs(value)))
         ok = worst <= upper
-        return ok, (f"{what} {worst * scale:.3g} {unit} {'within' if ok else 'beyond'} the physical bound "
+        return ok, (f"{what} {worst * scale:.3g} {unit} {'within' if ok else 'beyond'} the typical bound "
                     f"{upper * scale:.3g} {unit}")
     ok = bool(np.all((value >= lower) & (value <= upper)))
-    return ok, (f"{what} {np.round(value * scale, 4).tolist()} {unit} {'within' if ok else 'outside'} the physical "
-                f"range [{lower * scale:g}, {upper * scale:g}] {unit}")
+    sign = f" ({NON_PHYSICAL}: negative)" if lower == 0 and np.any(value < 0) else ""
+    return ok, (f"{what} {np.round(value * scale, 4).tolist()} {unit} {'within' if ok else 'outside'} the typical "
+                f"range [{lower * scale:g}, {upper * scale:g}] {unit}{sign}")
 
 
 def compliance_ratio(c0, dc):
@@ -123,7 +139,7 @@ def compliance_ratio(c0, dc):
     c = c0 + np.asarray(dc, dtype=float)
     lo, hi = float(np.min(c)), float(np.max(c))
     if lo <= 0:
-        return False, "needs a negative compliance at some rows (non-physical)"
+        return False, f"needs a negative compliance at some rows ({NON_PHYSICAL})"
     ok = hi / lo <= COMPLIANCE_RATIO_MAX
     return ok, (f"compliance varies {hi / lo:.2f}x over the campaign ({'within' if ok else 'beyond'} the "
                 f"{COMPLIANCE_RATIO_MAX:g}x of reducer torsion curves)")
@@ -145,8 +161,27 @@ def check(plausible, values, half_width, info):
         return True, why
     smallest = np.sign(v) * np.maximum(np.abs(v) - np.asarray(half_width, dtype=float), 0.0)
     if plausible(smallest, info)[0]:
-        return False, why + " (its 95 % interval reaches the physical range, but the fit needs the size beyond it)"
+        return False, why + " (its 95 % interval reaches the typical range, but the fit needs the size beyond it)"
     return False, why
+
+
+def excess(plausible, values, info, iterations=30):
+    """How far beyond its typical range a size is: 1 / the largest factor s
+    in (0, 1] with ``plausible(s * values, info)`` ok (bisection on log s);
+    1 when it is within, inf when no shrinking makes it so."""
+    v = np.asarray(values, dtype=float)
+    if plausible(v, info)[0]:
+        return 1.0
+    lo, hi = -12.0, 0.0  # log10 s: plausible at lo, not at hi
+    if not plausible(v * 10.0**lo, info)[0]:
+        return float("inf")
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        if plausible(v * 10.0**mid, info)[0]:
+            lo = mid
+        else:
+            hi = mid
+    return float(10.0**-lo)
 
 
 def check_term(term, values, half_width, info):

@@ -23,14 +23,13 @@ from the model's (rank) is "not identifiable" and never selected; one that
 needs a column the file lacks, or more parameters than the data support, is
 skipped, with the reason.
 
-The model stays physical and plausible: a candidate that fits but needs a
-size beyond its physical range (identification/plausibility.py, judged at
-the estimate: a 95 % interval that reaches the range does not make the
-estimate physical), or that drives a joint's compliance negative that was
-positive, is not added: it is kept as a *lead* (what the residual looks
-like, at a size the physics does not allow), reported with the reason.
-The backward check never drops a term whose removal would make a
-compliance negative.
+A typical size is a prior, not a veto (identification/priors.py): a
+candidate beyond its typical range is added only on decisive evidence and
+pays a penalty in the choice; one that needs a sign physics forbids, or
+that drives a joint's compliance negative that was positive, is never
+added.  What fits but is not added is kept as a *lead*, reported with the
+reason.  The backward check applies the same rule at the final fit and
+never drops a term whose removal would make a compliance negative.
 """
 
 from dataclasses import dataclass, field, replace
@@ -42,6 +41,7 @@ from scipy import stats
 
 from robstiff_drake.identification import plausibility as pl
 from robstiff_drake.identification.confounding import correlation, design_covariance
+from robstiff_drake.identification.priors import decisive, final_evidence, refusal, score
 from robstiff_drake.identification.cross_validation import clustered_cov, clustered_wald, rows_to_eq, wald_p
 from robstiff_drake.identification.terms import GAUSS_NEWTON, GRID, fit_model, held_out, rms_mm, term_columns
 from robstiff_drake.progress import progress
@@ -71,11 +71,15 @@ class CandidateResult:
     values: np.ndarray = None  # SI
     grid: float = None
     physical: bool = None  # the fit with it keeps every positive compliance positive (None: not checked)
-    plausible: bool = None  # its size is within the physical range (None: not checked)
+    plausible: bool = None  # its size is within the typical range (None: not checked)
     plausibility: str = ""
     negative_joints: list = field(default_factory=list)  # 1-based joints it drives negative
     all_positive: bool = None  # with it every free joint's compliance is positive
     correlations: dict = field(default_factory=dict)  # joint or term -> correlation of the estimates, fitted together
+    forbidden: bool = None  # needs a sign physics forbids (never added)
+    fold_gains: np.ndarray = None  # per fold: 1 - its held-out RMS / the current model's
+    refusal: str = ""  # why a candidate that fits was not added (a lead)
+    excess: float = 1.0  # how many times its typical range its size is (plausibility.excess)
 
 
 class Projection:
@@ -183,6 +187,8 @@ def evaluate(ctx, rows, folds, gidx, state, t, gain_needed):
             pred = best[1] + fk.offset[te]
         resid[te] = ctx.b[te] - pred
     rms = rms_mm(resid[eq])
+    fold_gains = np.array([1 - rms_mm(resid[rows_to_eq(te)]) / max(rms_mm(state.resid[rows_to_eq(te)]), 1e-300)
+                           for _, te in folds])
     # all rows: parameters, F-test, BIC and (if it can qualify) the pose-clustered Wald test
     geq = np.repeat(gidx, 3)
     if t.kind == GAUSS_NEWTON:
@@ -214,7 +220,7 @@ def evaluate(ctx, rows, folds, gidx, state, t, gain_needed):
     dbic = n_eq * np.log(rss1 / state.rss) + pe * np.log(n_eq) if state.rss > 0 and rss1 > 0 else float("nan")
     params = {lab: float(v * s) for lab, (_, _, s), v in zip(_label(t), t.params, values)}
     return CandidateResult(t.name, t.source, "ok", "", rms, float(F), p, float(dbic), p_grouped, params,
-                           np.asarray(values), g_best, **checks)
+                           np.asarray(values), g_best, fold_gains=fold_gains, **checks)
 
 
 def _correlations(ctx, state, X, sl):
@@ -231,7 +237,7 @@ def _correlations(ctx, state, X, sl):
 def physical_and_plausible(ctx, t, state, coef, cov, G, sl, g=None):
     """Does the fit with term t keep the model physical (no compliance that
     was positive turns negative) and is t's size plausible (its estimate
-    within the physical range; plausibility.check)?  Returns CandidateResult
+    within the typical range; plausibility.check)?  Returns CandidateResult
     fields."""
     nf = len(ctx.free)
     c = ctx.c_from(coef[:nf])
@@ -242,8 +248,10 @@ def physical_and_plausible(ctx, t, state, coef, cov, G, sl, g=None):
     if negative:
         why = (f"with it the compliance of joint(s) {', '.join(map(str, negative))} turns negative (non-physical)"
                + (f"; {why}" if why else ""))
+    forbid = bool(negative) or (not ok and pl.forbidden(why))
+    beyond = pl.excess(t.plausible, coef[sl], {"ctx": ctx, "c": c, "g": g}) if not ok and not forbid else 1.0
     return {"physical": not negative, "plausible": bool(ok), "plausibility": why, "negative_joints": negative,
-            "all_positive": bool(np.all(c[ctx.free] > 0))}
+            "all_positive": bool(np.all(c[ctx.free] > 0)), "forbidden": forbid, "excess": beyond}
 
 
 def _fits(r, current_rms, m):
@@ -252,28 +260,31 @@ def _fits(r, current_rms, m):
             and r.p_grouped < ALPHA_ROUND / max(m, 1))
 
 
-def _qualifies(r, current_rms, m):
-    return _fits(r, current_rms, m) and r.physical is not False and r.plausible is not False
+def _qualifies(r, current_rms, m, floor_mm=None):
+    if not _fits(r, current_rms, m) or r.physical is False or r.forbidden:
+        return False
+    return r.plausible is not False or decisive(r, current_rms, floor_mm)[0]
 
 
-def leads(r, current_rms, m):
-    """A candidate that fits but is not physical or not plausible."""
-    return _fits(r, current_rms, m) and (r.physical is False or r.plausible is False)
+def leads(r, current_rms, m, floor_mm=None):
+    """A candidate that fits but is not added: forbidden by physics, or
+    beyond its typical size without decisive evidence."""
+    return _fits(r, current_rms, m) and not _qualifies(r, current_rms, m, floor_mm)
 
 
 def _choose(qualified):
     lib = [r for r in qualified if r.source == "library"]
     dic = [r for r in qualified if r.source == "dictionary"]
-    best_lib = min(lib, key=lambda r: r.rms_mm) if lib else None
-    best_dic = min(dic, key=lambda r: r.rms_mm) if dic else None
-    if best_lib and (best_dic is None or best_lib.rms_mm <= (1 + NAMED_PREFERENCE) * best_dic.rms_mm):
+    best_lib = min(lib, key=score) if lib else None
+    best_dic = min(dic, key=score) if dic else None
+    if best_lib and (best_dic is None or score(best_lib) <= (1 + NAMED_PREFERENCE) * score(best_dic)):
         return best_lib
     return best_dic
 
 
 def implausible_terms(ctx, state, rows, geq):
     """{name: reason} of the model's terms whose size at the full fit is
-    beyond the physical range (plausibility.check)."""
+    beyond the typical range or forbidden (plausibility.check)."""
     eq = rows_to_eq(rows)
     f = state.full
     coef, cov, G, _ = clustered_cov(f.X[eq], ctx.b[eq] - f.offset[eq], geq)
@@ -288,12 +299,15 @@ def implausible_terms(ctx, state, rows, geq):
     return out
 
 
-def _dropped_lead(rounds, name, why):
-    """(round, result) of a term added in an earlier round and dropped as implausible at the final fit."""
+def _dropped_lead(rounds, name, why, refused=None):
+    """(round, result) of a term added in an earlier round and dropped at the final fit (forbidden, or beyond its
+    typical size without decisive evidence there)."""
     for i, rnd in enumerate(rounds):
         for r in rnd:
             if r.name == name:
-                return i, replace(r, plausible=False, plausibility=why + " (at the final fit; dropped)")
+                return i, replace(r, plausible=False, plausibility=why + " (at the final fit; dropped)",
+                                  forbidden=pl.forbidden(why), refusal=f"{why}; {refused or ''} (at the final fit; "
+                                  "dropped)" if refused else why + " (at the final fit; dropped)")
     raise KeyError(name)
 
 
@@ -310,7 +324,7 @@ class SearchResult:
     rival_trends: list = field(default_factory=list)  # [(term chosen, trend CandidateResult fitting as well)]
 
 
-def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found, rivals):
+def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found, rivals, floor_mm=None):
     """Forward steps from ``state`` until no candidate qualifies; returns the
     state and the number of hypotheses tested."""
     n_tried = 0
@@ -331,8 +345,11 @@ def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added
         rounds.append(results)
         m = sum(r.status == "ok" for r in results)
         n_tried += m
-        found += [(len(rounds) - 1, r) for r in results if leads(r, state.rms_mm, m)]
-        qualified = [r for r in results if _qualifies(r, state.rms_mm, m)]
+        for r in results:
+            if leads(r, state.rms_mm, m, floor_mm):
+                r.refusal = refusal(r, state.rms_mm, floor_mm)
+                found.append((len(rounds) - 1, r))
+        qualified = [r for r in results if _qualifies(r, state.rms_mm, m, floor_mm)]
         best = _choose(qualified)
         if best is None:
             break
@@ -346,7 +363,7 @@ def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added
     return state, n_tried
 
 
-def _backward(ctx, rows, folds, gidx, state, rounds, dropped, found):
+def _backward(ctx, rows, folds, gidx, state, rounds, dropped, found, floor_mm=None):
     """The backward check (module docstring).  Returns (state, {kept term:
     held-out RMS without it}, names dropped as implausible)."""
     geq = np.repeat(gidx, 3)
@@ -359,7 +376,16 @@ def _backward(ctx, rows, folds, gidx, state, rounds, dropped, found):
             p, _, _ = clustered_wald(state.full.X[eq], ctx.b[eq] - state.full.offset[eq], geq,
                                      state.full.slices[t.name])
             trial[t.name] = (s, p, 1 - state.rms_mm / s.rms_mm)
-        implausible = implausible_terms(ctx, state, rows, geq)
+        implausible, refused = implausible_terms(ctx, state, rows, geq), {}
+        for name in list(implausible):  # beyond its typical size: kept on decisive evidence at the final fit
+            if pl.forbidden(implausible[name]):
+                continue
+            ok, why = decisive(final_evidence(ctx, state, trial[name][0], trial[name][1], name, rows, folds),
+                               trial[name][0].rms_mm, floor_mm)
+            if ok:
+                implausible.pop(name)
+            else:
+                refused[name] = why
         n = len(state.terms)
         weak = [(name not in implausible, gain, name) for name, (s, p, gain) in trial.items()
                 if (name in implausible or (n > 1 and (p > ALPHA_ROUND / n or gain < MIN_KEEP_GAIN)))
@@ -369,7 +395,7 @@ def _backward(ctx, rows, folds, gidx, state, rounds, dropped, found):
         name = min(weak)[2]
         dropped.append(name)
         if name in implausible:
-            found.append(_dropped_lead(rounds, name, implausible[name]))
+            found.append(_dropped_lead(rounds, name, implausible[name], refused.get(name)))
             gone.append(name)
         state = trial[name][0]
     return state, {}, gone
@@ -378,19 +404,21 @@ def _backward(ctx, rows, folds, gidx, state, rounds, dropped, found):
 MAX_RESTARTS = 3  # forward searches resumed after the backward check dropped an implausible term
 
 
-def search(ctx, rows, folds, terms_by_name, groups):
+def search(ctx, rows, folds, terms_by_name, groups, floor_mm=None):
     """Forward selection over ``terms_by_name`` (library and dictionary), then
     the backward check; when that drops a term as implausible at the final
     fit, the forward search resumes without it.  ``groups`` (N,): the units
-    of the clustered tests."""
+    of the clustered tests; ``floor_mm``: the noise floor (None: unknown; then
+    no size beyond the typical is kept)."""
     gidx = np.unique(np.asarray(groups)[rows], return_inverse=True)[1]
     state = model_state(ctx, [], rows, folds, gidx)
     rms_before = state.rms_mm
     rounds, added, dropped, found, banned, n_tried, rivals = [], [], [], [], set(), 0, []
     for _ in range(MAX_RESTARTS + 1):
-        state, n = _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found, rivals)
+        state, n = _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found, rivals,
+                            floor_mm)
         n_tried += n
-        state, without, gone = _backward(ctx, rows, folds, gidx, state, rounds, dropped, found)
+        state, without, gone = _backward(ctx, rows, folds, gidx, state, rounds, dropped, found, floor_mm)
         if not gone:
             break
         banned |= set(gone)

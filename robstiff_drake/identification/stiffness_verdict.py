@@ -20,8 +20,11 @@ from robstiff_drake.identification import selection
 ALPHA_FLOOR_ABOVE = 0.01
 
 
-def verdict(d, floor, lof, non_physical, discovered, implausible, structure, n_hyp, leads=(), confounded=()):
-    """(explains_data, the verdict's text): True, False or None (no verdict)."""
+def verdict(d, floor, lof, non_physical, discovered, setup, structure, n_hyp, leads=(), confounded=()):
+    """(explains_data, the verdict's text): True, False or None (no verdict).
+    ``setup``: the findings of the kept terms beyond their typical size
+    ("name: finding"), said with the verdict."""
+    said = f"; setup finding{'s' if len(setup) > 1 else ''}: {'; '.join(setup)}" if setup else ""
     if non_physical:
         head = (f"no verdict: the six springs alone need a negative compliance of joint(s) "
                 f"{', '.join(map(str, non_physical))} (non-physical)")
@@ -51,7 +54,7 @@ def verdict(d, floor, lof, non_physical, discovered, implausible, structure, n_h
         trend = (f"; {', '.join(d['trends'])}: a trend along the file's order was taken out, not as a cause (the "
                  "file has neither seq nor t_s)" if d.get("trends") else "")
         return False, (f"the final model does NOT explain the data: {text}; {d['unexplained']:.4f} mm unexplained"
-                       + (f", strongest with: {where}" if where else "") + d.get("carried", "") + lead + trend)
+                       + (f", strongest with: {where}" if where else "") + d.get("carried", "") + said + lead + trend)
     if d.get("rivals"):
         chosen, r = d["rivals"][0]
         return False, (f"not established: {text}, but a trend along the file's order ({r.name}, held-out "
@@ -70,12 +73,8 @@ def verdict(d, floor, lof, non_physical, discovered, implausible, structure, n_h
                        + decides([r["name"]], confounded))
     if discovered:
         return False, (f"not established: {text}, reached only with terms found by searching {n_hyp} hypotheses "
-                       f"({', '.join(discovered)})" + decides(discovered, confounded))
-    if implausible:
-        return False, (f"not established: {text}, but only with effect(s) of implausible size "
-                       f"({', '.join(implausible)}): the data carry something else that looks like them"
-                       + decides(implausible, confounded))
-    out = f"the final model explains the data as far as the noise allows: {text}"
+                       f"({', '.join(discovered)})" + said + decides(discovered, confounded))
+    out = f"the final model explains the data as far as the noise allows: {text}{said}"
     if floor.source == "stated" and lof.p_below < ALPHA_FLOOR_ABOVE:
         out += (f"; but the residual is {floor.sigma_mm / d['rms_after']:.1f}x below the stated floor "
                     f"(lower-tail p = {lof.p_below:.2g}): a floor that large hides any effect smaller than about "
@@ -90,9 +89,12 @@ def carried(terms, rms_before, rms_after, spread):
         return "; no term of physical size was kept (the six springs are the final model)"
     named = [t["name"] for t in terms if t["source"] == "library"]
     found = [t["name"] for t in terms if t["source"] != "library"]
+    beyond = [t["name"] for t in terms if t.get("beyond_typical")]
     kinds = "; ".join(([f"named: {', '.join(named)}"] if named else [])
-                      + ([f"found in the dictionary, hypotheses to confirm: {', '.join(found)}"] if found else []))
-    out = (f"; the kept terms, all of physical size ({kinds}), lower the held-out RMS from {rms_before:.4f} to "
+                      + ([f"found in the dictionary, hypotheses to confirm: {', '.join(found)}"] if found else [])
+                      + ([f"beyond the typical size on decisive evidence: {', '.join(beyond)}"] if beyond else []))
+    size = "all of physical size" if not beyond else "physical in sign"
+    out = (f"; the kept terms, {size} ({kinds}), lower the held-out RMS from {rms_before:.4f} to "
            f"{rms_after:.4f} mm ({100 * (1 - rms_after / rms_before):.0f} %")
     if spread is not None:
         out += (f"; {100 * spread['reduction_min']:.0f}-{100 * spread['reduction_max']:.0f} % over "
