@@ -62,6 +62,9 @@ def _dispatch(args):
             return synth.run_stiffness(out=args.out, n=args.n, loads_per_pose=args.loads_per_pose,
                                        force_N=args.force_N, noise_mm=args.noise_mm, seed=args.seed, tool=args.tool,
                                        effects=args.effect, stiffness=args.stiffness, robot_yaml=args.robot)
+        if args.kind == "tracker":
+            return synth.run_tracker(out=args.out, n=args.n, noise_mm=args.noise_mm, seed=args.seed,
+                                     export=args.export, robot_yaml=args.robot)
         return synth.run_payload(out=args.out, n=args.n, mass_kg=args.mass_kg, com=args.com_mm,
                                  noise_N=args.noise_N, noise_Nm=args.noise_Nm, seed=args.seed, robot_yaml=args.robot)
     if args.command == "diagnose":
@@ -93,7 +96,7 @@ def _dispatch(args):
                             robot_yaml=args.robot, toolpath=args.toolpath, work_offset=args.work_offset,
                             replay=args.replay, progress=args.progress, advise=args.advise,
                             advise_out=args.advise_out, budget=args.budget, budget_metric=args.budget_metric, budget_split=args.budget_split,
-                            tolerance_mm=args.tolerance_mm)
+                            tolerance_mm=args.tolerance_mm, stock=args.stock)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep
 

@@ -129,6 +129,8 @@ class Payload:
     mass_kg: float
     com_m: np.ndarray
     tool_point_m: np.ndarray | None
+    # the laser tracker's target on the flange (payload.measured_point_mm, written by diagnose --write-robot); None
+    measured_point_m: np.ndarray | None = None
 
     # ASSUMPTION: the payload's shape is a solid cylinder along the spindle
     # axis, 120 mm in radius and twice its centre of mass's distance from
@@ -418,7 +420,9 @@ def load_robot(path=None):
     links = _links(values)
     payload = Payload(mass_kg=values["payload.mass_kg"], com_m=values["payload.com_mm"] / 1000.0,
                       tool_point_m=(values["payload.tool_point_mm"] / 1000.0 if "payload.tool_point_mm" in values
-                                    else None))
+                                    else None),
+                      measured_point_m=(values["payload.measured_point_mm"] / 1000.0
+                                        if "payload.measured_point_mm" in values else None))
     box = {}
     for key in ("x_mm", "y_mm", "z_mm"):
         lo_hi = values[f"machining_workspace.{key}"] / 1000.0
