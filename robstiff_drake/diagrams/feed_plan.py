@@ -203,8 +203,9 @@ def plan_feeds(sc, robot, tolerance_mm=None):
     largest, _, windows = min(tried, key=lambda t: (t[0], t[1]))
     adopted = bool(windows) and largest < largest0
     rejected = None
-    if windows and not adopted:
-        rejected = (min(t[0] for t in tried[1:]) if len(tried) > 1 else largest, len(tried) - 1)
+    if not adopted:
+        if len(tried) > 1:  # slower feeds were tried and none was predicted better
+            rejected = (min(t[0] for t in tried[1:]), len(tried) - 1)
         windows, largest = [], largest0
     overrides = fp.line_ranges(path0, windows)
     adapted = path0.with_speed_overrides(overrides)

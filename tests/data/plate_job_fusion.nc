@@ -2,7 +2,8 @@
 O2001 (PLATE JOB)
 (A user's job as a generic Fanuc post of Fusion 360 writes it: a 120 x 80)
 (mm plate, program zero at its front-left corner on the top face; two face)
-(passes at Z-1, then a contour at Z-2 with a G2 half circle.)
+(passes at Z-1, then a contour at Z-2 with a G2 half circle round the)
+(plate's right end.)
 (T1 D=75. CR=0. - ZMIN=-2. - FACE MILL)
 N10 G90 G94 G17 G49 G40 G80
 N15 G21
@@ -26,10 +27,11 @@ M01
 N90 G0 X0. Y0.
 N95 G0 Z5.
 N100 G1 Z-2. F300.
-N105 X100. F1200.
-N110 G2 X100. Y80. R40.
-N115 G1 X0.
-N120 G0 Z15.
+N105 Y80. F1200.
+N110 X100.
+N115 G2 X100. Y0. R40.
+N120 G1 X0.
+N122 G0 Z15.
 N125 M9
 N130 M5
 N135 G28 G91 Z0.
