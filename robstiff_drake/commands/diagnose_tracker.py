@@ -4,6 +4,8 @@ the effects found, the corrected robot file (``--write-robot``) and the
 test on a second file (``--validate``).  See
 identification/tracker_diagnosis.py."""
 
+from pathlib import Path
+
 import numpy as np
 
 from robstiff_drake.errors import InputError
@@ -129,7 +131,11 @@ def run(*, data, tool_m, noise_mm, robot, json_out=None, report=None, plots_dir=
     d = diagnose_tracker(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=w, validation=other)
     rep = d.report
     # the robot the campaign was diagnosed with, named in the report's first line (the default one said so)
-    rep["robot"] = {"name": robot.name, "file": str(robot.source), "default": not robot_given}
+    from robstiff_drake.paths import MODELS_DIR
+
+    library = Path(robot.source).resolve().parent == MODELS_DIR.resolve()
+    rep["robot"] = {"name": robot.name, "file": "the library's" if library else str(robot.source),
+                    "default": not robot_given}
     with staged_outputs():  # the corrected robot file, the JSON, the report and the views, all or none
         if write_robot is not None:
             from robstiff_drake.identification.robot_writer import write_corrected_robot

@@ -44,7 +44,8 @@ def _dispatch(args):
     if args.command == "import-urdf":
         from robstiff_drake.commands import import_urdf
 
-        return import_urdf.run(urdf=args.urdf, out=args.out, template=args.template, name=args.name)
+        return import_urdf.run(urdf=args.urdf, out=args.out, template=args.template, name=args.name,
+                               controller_map=args.controller_map)
     if args.command == "identify":
         from robstiff_drake.commands import identify
 

@@ -107,6 +107,10 @@ def build_parser():
                    help="library robot or robot file whose joint stiffness, motor inertias, payload and workspace "
                         "the new file takes (a URDF has none; default: irb6400)")
     p.add_argument("--name", default=None, help="the robot's name in the file (default: the URDF's, cleaned)")
+    p.add_argument("--controller-map", metavar="template|S1,..,S6:O1,..,O6", default=None,
+                   help="the controller's joint angles: 'template' takes the template's controller block, or the "
+                        "signs (+-1) and offsets (deg) with the URDF's angle = sign x the controller's + offset "
+                        "(default: none, the URDF's angles)")
 
     p = _add_campaign_command(sub, "identify", "joint stiffness from a stiffness campaign (least squares, Eq. 8)",
                               "result")

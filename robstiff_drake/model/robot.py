@@ -256,6 +256,11 @@ class RobotModel:
                 )
         return self.joint_rad(q)
 
+    @property
+    def title(self):
+        """'KUKA KR 240 R2900-2': the maker and model, without an unknown ('-') maker; else the name."""
+        return " ".join(v for v in (self.manufacturer, self.model) if v and v != "-") or self.name
+
     def tool_point(self, tool_m=None, where="this command"):
         """``tool_m`` (m) when given, else the robot file's tool point; an
         InputError naming the file and key when neither is there."""
