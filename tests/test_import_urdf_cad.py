@@ -9,7 +9,6 @@ absorbed, one line naming the joint, its line and what to change."""
 import re
 
 import numpy as np
-import pytest
 
 from robstiff_drake.commands.main import main
 from robstiff_drake.commands.make_urdf import wanted_files

@@ -10,6 +10,8 @@ import math
 import numpy as np
 
 from robstiff_drake.errors import InputError
+from robstiff_drake.model.feed_plan import _move_length_mm as move_length_mm
+from robstiff_drake.model.feed_plan import _point as point_along
 
 # A junction of two cutting moves turning more than this is a corner: the
 # path's acceleration jumps there (zone blending rounds it but the arm's
@@ -61,19 +63,12 @@ def _tangent(m, frac):
 
 
 def _point(m, frac):
-    s, e = np.asarray(m.start_mm, dtype=float), np.asarray(m.end_mm, dtype=float)
-    if m.kind != "arc" or m.plane != "XY":
-        return s + (e - s) * frac
-    cx, cy = m.center_mm
-    a = math.atan2(s[1] - cy, s[0] - cx) + m.sweep_rad() * frac
-    r = m.radius_mm
-    return np.array([cx + r * math.cos(a), cy + r * math.sin(a), s[2] + (e[2] - s[2]) * frac])
+    """The point (mm, work frame) a fraction of a move's length along it (model/feed_plan's)."""
+    return point_along(m, frac)
 
 
 def _length(m):
-    if m.kind == "arc" and m.plane == "XY":
-        return math.hypot(m.radius_mm * m.sweep_rad(), m.end_mm[2] - m.start_mm[2])
-    return math.dist(m.start_mm, m.end_mm)
+    return move_length_mm(m)
 
 
 def _block_numbers(sc):
