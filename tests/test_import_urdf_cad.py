@@ -93,3 +93,13 @@ def test_beyond_a_cad_offset_is_one_plain_line(tmp_path, capsys):
     code, _, err = run(capsys, "import-urdf", urdf, "--out", tmp_path / "x.yaml")
     assert code == 2 and err.count("\n") == 1, err
     assert "joint 1 ('joint_1', line" in err and "12 mm" in err and "<origin" in err, err
+
+
+def test_the_title_has_no_unknown_maker(tmp_path, capsys):
+    """An imported file's maker is '-': its title is the model alone (not '- kr240_r2900')."""
+    urdf, _ = cad_urdf(tmp_path)
+    out = tmp_path / "kr.yaml"
+    assert run(capsys, "import-urdf", urdf, "--out", out)[0] == 0
+    robot = load_robot(str(out))
+    assert robot.manufacturer == "-" and robot.title == robot.model == "kr240_r2900"
+    assert load_robot("kr240_r2900").title == "KUKA KR 240 R2900-2"

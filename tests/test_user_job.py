@@ -168,3 +168,29 @@ def test_the_users_job_is_not_made_worse_by_compensation():
     off, on = (r.surface_error_mm for r in results)
     assert abs(on["mean"]) <= abs(off["mean"]) and on["rms"] <= off["rms"], (off, on)
     assert not any("made the surface worse" in x for x in w), list(w)
+
+
+def test_a_worse_cut_says_why_at_corners():
+    """The line appended to 'compensation made the surface worse' on a job
+    with corners: the path's dynamics and the servo, not force deflection,
+    and what would help (preview under the plain mode); nothing without a
+    program."""
+    from robstiff_drake.diagrams.job_checks import worse_reason
+
+    sc = _load(work_offset=CORNER_OFFSET)
+    why = worse_reason(sc, sc._program)
+    assert "the path's own dynamics and the servo's lag, not force deflection" in why
+    assert "controller.mode: preview" in why and "path.zone_mm" in why
+    sc.controller.mode = "preview"
+    assert "controller.mode: preview" not in worse_reason(sc, sc._program)
+    assert worse_reason(sc, None) == ""
+
+
+def test_a_bad_stock_is_one_line_before_anything_runs(capsys, tmp_path):
+    from robstiff_drake.commands.main import main
+
+    code = main(["simulate", str(MACHINE), "--toolpath", str(JOB), "--stock", "0,10,5,1,703", "--out",
+                 str(tmp_path / "run")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err.count("\n") == 0 and "--stock" in err and "Y0 < Y1" in err, err
+    assert not (tmp_path / "run").exists()
