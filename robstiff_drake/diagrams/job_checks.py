@@ -127,7 +127,10 @@ def coverage_warning(sc, prog, transform_mm):
     share = float(w[over].sum() / w[cut].sum())
     if share >= MIN_SHARE_OVER_WORKPIECE:
         return None
-    lo, hi = p[cut].min(axis=0), p[cut].max(axis=0)
+    ends = transform_mm(np.array([e for m in moves for e in (m.start_mm, m.end_mm)], dtype=float))
+    ends = ends[ends[:, 2] < boxes[:, 4].max()]  # the moves' ends at depth, for the extent (samples are midpoints)
+    pts = np.vstack([p[cut], ends]) if len(ends) else p[cut]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
     bx0, bx1, by0, by1 = boxes[:, 0].min(), boxes[:, 1].max(), boxes[:, 2].min(), boxes[:, 3].max()
     return (f"{prog.path}: only {100 * share:.0f} % of the program's cutting length lies over the workpiece: its cuts "
             f"span X {lo[0]:.6g}..{hi[0]:.6g}, Y {lo[1]:.6g}..{hi[1]:.6g} mm, the workpiece X {bx0:g}..{bx1:g}, "
