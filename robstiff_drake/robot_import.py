@@ -281,8 +281,11 @@ def _base_correction(path, text, plant, joint1, notes):
     off = p - z * np.dot(p, z)  # the axis' nearest point to the origin
     if tilt < 1e-7 and np.hypot(*off[:2]) < 1e-9:
         return None
-    if abs(z[0]) < 1e-9 and tilt > ABSORB_DEG:  # a modified DH base row reaches an axis through the x axis
-        return None
+    if abs(z[0]) < 1e-9:  # an axis at right angles to the base x axis that meets it: a modified DH base row
+        k = -p[1] / z[1] if abs(z[1]) > 1e-9 else -p[2] / z[2]
+        hit = p + k * z
+        if abs(hit[1]) < 1e-9 and abs(hit[2]) < 1e-9:
+            return None
     ez = np.array([0.0, 0.0, 1.0 if z[2] >= 0 else -1.0])
     R = _turn_onto(z, ez)
     q = R @ p

@@ -89,10 +89,15 @@ def test_an_explicit_controller_map(tmp_path, capsys):
 
 
 def test_beyond_a_cad_offset_is_one_plain_line(tmp_path, capsys):
-    urdf, _ = cad_urdf(tmp_path, shift_xyz="0.012 0 0", tool0=False)
+    urdf, _ = cad_urdf(tmp_path, shift_xyz="0.005 0.011 0", tool0=False)
     code, _, err = run(capsys, "import-urdf", urdf, "--out", tmp_path / "x.yaml")
     assert code == 2 and err.count("\n") == 1, err
-    assert "joint 1 ('joint_1', line" in err and "12 mm" in err and "<origin" in err, err
+    assert "joint 1 ('joint_1', line" in err and "12.1 mm" in err and "<origin" in err, err
+    # an axis that meets the base x axis is a modified DH base row, however far: no correction, no refusal
+    urdf, shipped = cad_urdf(tmp_path, shift_xyz="0.012 0 0", tilt_rpy="0 -0 0", tool0=False)
+    code, out, err = run(capsys, "import-urdf", urdf, "--out", tmp_path / "y.yaml")
+    assert code == 0 and "absorbed" not in out + err, out + err
+    assert load_robot(str(tmp_path / "y.yaml")).convention == "modified_dh"
 
 
 def test_the_title_has_no_unknown_maker(tmp_path, capsys):
