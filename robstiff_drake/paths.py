@@ -6,7 +6,8 @@ The repository keeps them in its top-level folders; pyproject.toml maps
 those into the package:  models/ -> robstiff_drake.models (robot files),
 diagrams/ -> robstiff_drake.scenarios (scenario files), data/ ->
 robstiff_drake.data (published tables), examples/ ->
-robstiff_drake.examples (example measurement campaigns).
+robstiff_drake.examples (example measurement campaigns), docs/ ->
+robstiff_drake.docs (the documentation's pages).
 
 Light on purpose (no numpy, no Drake): the command line resolves a
 scenario's name here before any heavy import.
@@ -44,6 +45,17 @@ def examples_dir():
 
         raise InputError("the example campaigns are not installed with this package (an editable install older than "
                          "examples/): reinstall it, pip install -e . in the clone") from None
+
+
+def docs_dir():
+    """The documentation's folder (docs/ in the repository), as examples_dir."""
+    try:
+        return _package_dir("robstiff_drake.docs")
+    except ModuleNotFoundError:
+        from robstiff_drake.errors import InputError
+
+        raise InputError("the documentation is not installed with this package (an editable install older than "
+                         "its docs package): reinstall it, pip install -e . in the clone") from None
 
 
 def library_robots():

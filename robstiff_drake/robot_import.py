@@ -59,6 +59,8 @@ class ImportedRobot:
     flange_frame: str
     digest: str
     instance_name: str
+    # what the import absorbed of a CAD export's offsets (one line each, for the file's comments and the report)
+    notes: list = None
 
 
 def _fail(path, what):
@@ -145,16 +147,13 @@ def read_urdf(path):
     """The URDF at ``path`` as an ImportedRobot (InputError, one line, when
     it is unreadable or no six-joint serial arm a robot file describes)."""
     text, name, digest = _stripped_urdf(path)
-    plant = MultibodyPlant(0.0)
-    try:
-        (instance,) = Parser(plant).AddModelsFromString(text, "urdf")
-        roots = _root_links(text)
-        if roots and roots[0] != "world":
-            plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(roots[0], instance))
-        plant.Finalize()
-    except RuntimeError as e:
-        _fail(path, "Drake's URDF parser: " + " ".join(str(e).split())[:300])
+    notes = []
+    plant, instance = _plant(path, text)
     joints, link_of = _chain(path, plant)
+    X_base = _base_correction(path, text, plant, joints[0], notes)
+    if X_base is not None:  # the URDF's base frame a little off joint 1's axis: the robot file's base on it
+        plant, instance = _plant(path, text, X_base)
+        joints, link_of = _chain(path, plant)
     ctx = plant.CreateDefaultContext()
     W = plant.world_frame()
     points, dirs, lower, upper = [], [], [], []
@@ -170,11 +169,21 @@ def read_urdf(path):
         upper.append(hi)
     flange = next((f for f in FLANGE_FRAMES if plant.HasFrameNamed(f)), None)
     X_WF = plant.CalcRelativeTransform(ctx, W, plant.GetFrameByName(flange) if flange else joints[-1].frame_on_child())
+    R_WF = _flange_convention(X_WF.rotation().matrix(), dirs[-1], flange, notes)
     try:
-        convention, d, a, alpha, home, (alpha0, a0) = dh_from_axes(points, dirs, X_WF.rotation().matrix(),
-                                                                   X_WF.translation())
+        convention, d, a, alpha, home, (alpha0, a0) = dh_from_axes(points, dirs, R_WF, X_WF.translation())
     except ValueError as e:
-        _fail(path, f"{e}")
+        snapped = _snap_flange(R_WF, dirs[-1])
+        if snapped is None:
+            _fail(path, _plain(e, path, joints, flange))
+        R_WF, residual_deg = snapped
+        try:
+            convention, d, a, alpha, home, (alpha0, a0) = dh_from_axes(points, dirs, R_WF, X_WF.translation())
+        except ValueError:
+            _fail(path, _plain(e, path, joints, flange))
+        notes.append(f"the flange frame '{flange}' is turned {residual_deg:.3g} deg off joint 6's axis (a CAD "
+                     "export's rounding): the robot file's flange has its z axis along the axis (its origin is the "
+                     "URDF's)")
     base = None
     if convention == "modified_dh":
         base = np.eye(4)
@@ -223,7 +232,133 @@ def read_urdf(path):
     return ImportedRobot(name=_clean_name(name), convention=convention, dh=dh, dh_rows=(d, a, alpha, home, alpha0, a0),
                          lower_rad=np.array(lower), upper_rad=np.array(upper), links=links, payload=pl, plant=plant,
                          flange_frame=flange or joints[-1].frame_on_child().name(), digest=digest,
-                         instance_name=plant.GetModelInstanceName(instance))
+                         instance_name=plant.GetModelInstanceName(instance), notes=notes)
+
+
+# A CAD export's base frame off joint 1's axis, and a flange frame off joint
+# 6's, by up to this much are absorbed (the robot file's base put on the axis,
+# its flange's z along it) and said; beyond, the URDF is refused naming the
+# joint and its line.  5 mm / 1 deg: what a model placed by hand in CAD is
+# off by; more is a different design, not a rounding.
+ABSORB_MM, ABSORB_DEG = 5.0, 1.0
+
+
+def _plant(path, text, X_base=None):
+    """Drake's plant of the URDF's text, its root welded to the world (at
+    ``X_base``, 4x4, when given: the robot file's base frame)."""
+    from pydrake.math import RigidTransform
+
+    plant = MultibodyPlant(0.0)
+    try:
+        (instance,) = Parser(plant).AddModelsFromString(text, "urdf")
+        roots = _root_links(text)
+        if roots and roots[0] != "world":
+            X = RigidTransform() if X_base is None else RigidTransform(X_base)
+            plant.WeldFrames(plant.world_frame(), plant.GetFrameByName(roots[0], instance), X)
+        plant.Finalize()
+    except RuntimeError as e:
+        _fail(path, "Drake's URDF parser: " + " ".join(str(e).split())[:300])
+    return plant, instance
+
+
+def _turn_onto(a, b):
+    """The smallest rotation (3x3) that turns unit vector a onto b."""
+    v, c = np.cross(a, b), float(np.dot(a, b))
+    if np.linalg.norm(v) < 1e-15:
+        return np.eye(3)
+    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + K + K @ K / (1.0 + c)
+
+
+def _base_correction(path, text, plant, joint1, notes):
+    """None when joint 1's axis is the base's z axis (or one a DH base row
+    reaches); else the transform (4x4) of the base frame onto it, when it is
+    within ABSORB_MM / ABSORB_DEG (said in ``notes``); else an InputError
+    naming joint 1 and its line."""
+    ctx = plant.CreateDefaultContext()
+    X = plant.CalcRelativeTransform(ctx, plant.world_frame(), joint1.frame_on_child())
+    p, z = X.translation(), X.rotation().matrix() @ joint1.revolute_axis()
+    z = z / np.linalg.norm(z)
+    tilt = float(np.degrees(np.arccos(min(1.0, abs(z[2])))))
+    off = p - z * np.dot(p, z)  # the axis' nearest point to the origin
+    if tilt < 1e-7 and np.hypot(*off[:2]) < 1e-9:
+        return None
+    if abs(z[0]) < 1e-9:  # an axis at right angles to the base x axis that meets it: a modified DH base row
+        k = -p[1] / z[1] if abs(z[1]) > 1e-9 else -p[2] / z[2]
+        hit = p + k * z
+        if abs(hit[1]) < 1e-9 and abs(hit[2]) < 1e-9:
+            return None
+    ez = np.array([0.0, 0.0, 1.0 if z[2] >= 0 else -1.0])
+    R = _turn_onto(z, ez)
+    q = R @ p
+    t = -np.array([q[0], q[1], 0.0])
+    shift_mm = float(np.hypot(t[0], t[1]) * 1e3)
+    where = _joint_line(path, joint1.name())
+    if tilt > ABSORB_DEG or shift_mm > ABSORB_MM:
+        _fail(path, f"joint 1 ('{joint1.name()}'{where}) turns about an axis {shift_mm:.3g} mm from the base frame's "
+                    f"origin and {tilt:.3g} deg from its z axis, more than a CAD export's offset ({ABSORB_MM:g} mm, "
+                    f"{ABSORB_DEG:g} deg): a robot file's base frame has z along joint 1's axis; change that joint's "
+                    "<origin xyz=... rpy=...> (or the base link's) to put the axis there")
+    notes.append(f"joint 1's axis ('{joint1.name()}'{where}) is {shift_mm:.3g} mm from the URDF's base frame origin "
+                 f"(x {-t[0] * 1e3:+.3g}, y {-t[1] * 1e3:+.3g} mm) and {tilt:.3g} deg from its z axis: the robot "
+                 "file's base frame is on the axis; positions in the URDF's base frame differ by this offset")
+    out = np.eye(4)
+    out[:3, :3], out[:3, 3] = R, t
+    return out
+
+
+def _flange_convention(R, z6, flange, notes):
+    """The flange frame with its z axis out of the flange: ROS-Industrial's
+    KUKA URDFs put tool0's x axis along joint 6 (KUKA's own flange frame);
+    that frame is read turned (z = its x, x = -its z) and said in ``notes``."""
+    z6 = np.asarray(z6, dtype=float) / np.linalg.norm(z6)
+    if flange is None or abs(np.dot(R[:, 0], z6)) < np.cos(np.radians(ABSORB_DEG)) or \
+            abs(np.dot(R[:, 2], z6)) > np.sin(np.radians(ABSORB_DEG)):
+        return R
+    M = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # columns: -z, y, x of the frame
+    notes.append(f"the flange frame '{flange}' has its x axis along joint 6 (the KUKA convention of ROS-Industrial's "
+                 "URDFs): the robot file's flange frame has z along it (z = its x, x = minus its z)")
+    return R @ M
+
+
+def _snap_flange(R, z6):
+    """(the flange frame turned so its z axis is along joint 6's, the angle
+    in deg) when it is within ABSORB_DEG of it; None otherwise."""
+    z6 = np.asarray(z6, dtype=float) / np.linalg.norm(z6)
+    zf = R[:, 2]
+    target = z6 if np.dot(zf, z6) >= 0 else -z6
+    angle = float(np.degrees(np.arccos(min(1.0, abs(np.dot(zf, z6))))))
+    if angle > ABSORB_DEG or angle < 1e-12:
+        return None
+    return _turn_onto(zf, target) @ R, angle
+
+
+def _joint_line(path, name):
+    """', line N' of a joint's element in the URDF file, or ''."""
+    try:
+        text = Path(path).read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return ""
+    for n, line in enumerate(text.splitlines(), start=1):
+        if re.search(rf'<joint\s+name\s*=\s*["\']{re.escape(name)}["\']', line):
+            return f", line {n}"
+    return ""
+
+
+def _plain(error, path, joints, flange):
+    """dh_from_axes' reason, said of the URDF: which joint and what to change."""
+    msg = str(error)
+    m = re.search(r"joint (\d)'s axis", msg)
+    if "flange" in msg:
+        return (f"the flange frame '{flange or joints[-1].name()}' cannot be a robot file's flange: {msg}; its z axis "
+                "(or, as ROS-Industrial's KUKA URDFs, its x axis) must run along joint 6's axis: change the "
+                f"<origin rpy=...> of the joint that places '{flange or 'the flange'}'")
+    if m:
+        j = joints[int(m.group(1)) - 1]
+        return (f"joint {m.group(1)} ('{j.name()}'{_joint_line(path, j.name())}): {msg}; change its <origin> or "
+                "<axis> (a robot file's kinematics are Denavit-Hartenberg rows: each axis at a right angle to the "
+                "common normal from the one before, or parallel to it)")
+    return msg
 
 
 def _root_links(text):

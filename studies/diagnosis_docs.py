@@ -45,7 +45,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 CLONE = "needs {} of a clone (no wheel holds it)"
 MARKERS = (
     ("tests/open_world.py", "run: skip " + CLONE.format("tests/open_world.py")),
-    ("tests/tracker_world.py", "run: skip " + CLONE.format("tests/tracker_world.py")),
+    ("robstiff synth tracker", "run: skip a 3000-pose tracker diagnosis (a minute or more)"),
     ("benchmarks/", "run: skip benchmarks of a clone (minutes, timed against the machine's load)"),
     ("fanuc.csv", "run: skip needs the real FANUC campaign (python3 tests/realdata.py fanuc fanuc.csv from a clone, "
                   "with the data in ROBSTIFF_REALDATA)"),
@@ -147,7 +147,7 @@ def main():
             out += sh(f"python3 {ROOT}/studies/setup_findings.py --only beyond --seeds 1 2>/dev/null", ROOT, env)
             text = replace(text, "setup", block(out, "setup"))
         if want("tracker"):
-            sh(f"python3 {ROOT}/tests/tracker_world.py irb6400 7 3000 tracker.csv", tmp, env)
+            sh("robstiff synth tracker tracker.csv --n 3000 --seed 7", tmp, env)
             text = replace(text, "tracker", block(sh("robstiff diagnose tracker.csv --noise-mm 0.03 --write-robot "
                                                       "irb6400_corrected.yaml 2>/dev/null", tmp), "tracker"))
         import realdata

@@ -117,7 +117,8 @@ def test_corrected_robot_file_reproduces_the_fit(capsys, tmp_path):
         q_ctrl = np.random.default_rng(5).uniform(np.rad2deg(robot.q_lower_rad) * 0.5,
                                                   np.rad2deg(robot.q_upper_rad) * 0.5, size=(50, 6))
         want = kin.tool_position(perturbed_dh(robot.dh, d.fit.geo), robot.joint_rad(q_ctrl), d.fit.u)
-        got = kin.tool_position(new.dh, new.joint_rad(q_ctrl), new.payload.tool_point_m)
+        got = kin.tool_position(new.dh, new.joint_rad(q_ctrl), new.payload.measured_point_m)
+        np.testing.assert_allclose(new.payload.tool_point_m, robot.payload.tool_point_m, atol=0)  # kept
         assert np.max(np.abs(got - want)) < 1e-9
         assert "held-out" in out.read_text().lower() and str(data) in out.read_text()
         # every command takes it like any robot file

@@ -91,7 +91,7 @@ def run(*, out="robstiff-out", robot_yaml=None):
     summ["surface_error_mm"]["exact model"] = bound.surface_error_mm
     summ["compensator_model"] = simulate.model_description(sc, robot)
     expl = cut_more_explanation(results[0], robot)
-    print(f"== the paper's block-milling test (Table 3), simulated: {robot.manufacturer} {robot.model} ==")
+    print(f"== the paper's block-milling test (Table 3), simulated: {robot.title} ==")
     print(simulate.format_table(summ))
     print(IDENTIFIED_NOTE)
     print()

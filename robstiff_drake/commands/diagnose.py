@@ -294,7 +294,7 @@ def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=N
     if tracker:
         return diagnose_tracker.run(data=data, tool_m=parse_tool(tool), noise_mm=noise_mm, robot=robot,
                                     json_out=json_out, report=report, plots_dir=plots, validate=validate,
-                                    write_robot=write_robot, warnings=warnings)
+                                    write_robot=write_robot, warnings=warnings, robot_given=robot_yaml is not None)
     campaign = read_stiffness_campaign(data, robot)
     tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), warnings)
     warnings.extend_from(campaign_warnings(campaign))

@@ -4,6 +4,8 @@ the effects found, the corrected robot file (``--write-robot``) and the
 test on a second file (``--validate``).  See
 identification/tracker_diagnosis.py."""
 
+from pathlib import Path
+
 import numpy as np
 
 from robstiff_drake.errors import InputError
@@ -20,8 +22,11 @@ def _g(v, fmt=".4f"):
 def format_report(rep, markdown=False):
     h = "## " if markdown else ""
     e = rep["error_3d_mm"]
-    lines = [f"# Tracker campaign diagnosis of {rep['data']}" if markdown else f"diagnosis of {rep['data']} "
-             "(absolute positions)", "",
+    r = rep.get("robot")
+    with_robot = "" if r is None else (f" with the robot {r['name']} ({r['file']}"
+                                       + ("; the default: no --robot given" if r["default"] else "") + ")")
+    lines = [(f"# Tracker campaign diagnosis of {rep['data']}" if markdown else f"diagnosis of {rep['data']} "
+              "(absolute positions)") + with_robot, "",
              f"{rep['n_measurements']} measured poses" + (f" ({len(rep['outliers'])} gross outlier row(s) left out)"
                                                           if rep["outliers"] else "")
              + f"; 3D error held out ({e['held_out']}):",
@@ -113,7 +118,7 @@ def shared_rows(campaign, other):
 
 
 def run(*, data, tool_m, noise_mm, robot, json_out=None, report=None, plots_dir=None, validate=None,
-        write_robot=None, warnings=None):
+        write_robot=None, warnings=None, robot_given=True):
     w = warnings if warnings is not None else Warnings()
     campaign = read_tracker_campaign(data, robot)
     other = read_tracker_campaign(validate, robot) if validate is not None else None
@@ -125,6 +130,12 @@ def run(*, data, tool_m, noise_mm, robot, json_out=None, report=None, plots_dir=
                   "measured apart from the campaign")
     d = diagnose_tracker(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=w, validation=other)
     rep = d.report
+    # the robot the campaign was diagnosed with, named in the report's first line (the default one said so)
+    from robstiff_drake.paths import MODELS_DIR
+
+    library = Path(robot.source).resolve().parent == MODELS_DIR.resolve()
+    rep["robot"] = {"name": robot.name, "file": "the library's" if library else str(robot.source),
+                    "default": not robot_given}
     with staged_outputs():  # the corrected robot file, the JSON, the report and the views, all or none
         if write_robot is not None:
             from robstiff_drake.identification.robot_writer import write_corrected_robot

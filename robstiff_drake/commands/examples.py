@@ -15,13 +15,14 @@ import tempfile
 from pathlib import Path
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.paths import DIAGRAMS_DIR, MODELS_DIR, examples_dir
+from robstiff_drake.paths import DIAGRAMS_DIR, MODELS_DIR, docs_dir, examples_dir
 from robstiff_drake.progress import info
 
 # (folder in the copy, packaged folder, file patterns)
 GROUPS = (("scenarios", lambda: DIAGRAMS_DIR, ("*.yaml", "*.nc")),
           ("robots", lambda: MODELS_DIR, ("*.yaml",)),
-          ("campaigns", examples_dir, ("*.csv",)))
+          ("campaigns", examples_dir, ("*.csv",)),
+          ("docs", docs_dir, ("*.md", "*.png")))
 
 
 def packaged_files():
@@ -46,11 +47,22 @@ def listing(files):
     lines = []
     for folder, _, _ in GROUPS:
         names = [rel for rel in files if rel.startswith(folder + "/")]
+        if folder == "docs":
+            pages = [rel for rel in names if rel.endswith(".md")]
+            lines.append(f"docs ({len(pages)} pages, {len(names) - len(pages)} figures): "
+                         + ", ".join(files[rel].name for rel in pages))
+            continue
+        if folder == "scenarios":  # the scenarios, then the G-code programs they read
+            programs = [rel for rel in names if rel.endswith(".nc")]
+            names = [rel for rel in names if not rel.endswith(".nc")]
         lines.append(f"{folder} ({len(names)}):")
         for rel in names:
             src = files[rel]
             what = _first_line(src) if folder == "scenarios" and src.suffix == ".yaml" else ""
             lines.append(f"  {src.name:34s} {what}".rstrip())
+        if folder == "scenarios":
+            lines.append(f"G-code programs the scenarios read ({len(programs)}, in scenarios/):")
+            lines += [f"  {files[rel].name}" for rel in programs]
     lines.append("a packaged scenario runs by its name (`robstiff simulate block_milling`), a robot by its name "
                  "(`--robot kr240_r2900`); `robstiff examples --copy DIR` copies them all to edit")
     return "\n".join(lines)
@@ -169,9 +181,10 @@ def run(*, copy=None):
     dest = copy
     counts = {folder: sum(rel.startswith(folder + "/") for rel in files) for folder, _, _ in GROUPS}
     programs = sum(rel.endswith(".nc") for rel in files)
+    pages = sum(rel.startswith("docs/") and rel.endswith(".md") for rel in files)
     shown = Path(dest)
     info(f"wrote {shown}/: README.md, scenarios/ ({counts['scenarios'] - programs} scenarios, {programs} G-code "
          f"program{'s' if programs != 1 else ''}), robots/ ({counts['robots']} robot files), campaigns/ "
-         f"({counts['campaigns']} campaigns)")
+         f"({counts['campaigns']} campaigns), docs/ ({pages} pages)")
     info(f"next: robstiff simulate {shown / 'scenarios' / 'block_milling.yaml'} --out run1")
     return 0

@@ -17,6 +17,7 @@ EXAMPLES = {
     "synth": "robstiff synth stiffness campaign.csv --n 60 --effect lost_motion=0.05",
     "synth stiffness": "robstiff synth stiffness campaign.csv --n 60 --effect lost_motion=0.05",
     "synth payload": "robstiff synth payload payload.csv --mass-kg 120 --com-mm -10,0,250",
+    "synth tracker": "robstiff synth tracker tracker.csv --n 300 --seed 1",
     "diagnose": "robstiff synth stiffness campaign.csv --effect lost_motion && robstiff diagnose campaign.csv "
                 "--plots views",
     "diagnose-run": "robstiff simulate block_milling --out cut1 && robstiff diagnose-run cut1",

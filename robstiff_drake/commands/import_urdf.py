@@ -23,9 +23,43 @@ def _row(values, scale=1.0):
     return "[" + ", ".join(f"{v * scale:.17g}" for v in values) + "]"
 
 
-def robot_file_text(imp, template, urdf_path, name):
+def parse_controller_map(text, template):
+    """``--controller-map``: "template" (the template's controller block)
+    or "S1,..,S6:O1,..,O6" (signs +-1, offsets deg: the URDF's angle is
+    sign * the controller's + offset) -> (sign list, offset_deg list), or
+    None without the option."""
+    if text is None:
+        return None
+    if text.strip() == "template":
+        jm = template.joint_map
+        if jm.coupling:
+            raise InputError(f"--controller-map template: {template.name}'s controller block has a coupling, which "
+                             "import-urdf does not copy; write the controller block into the file by hand")
+        return [float(v) for v in jm.sign], [float(v) for v in np.rad2deg(jm.offset_rad)]
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise InputError(f"--controller-map {excerpt(text)}: expected 'template' or S1,..,S6:O1,..,O6 (signs +-1, "
+                         "offsets in deg: the URDF's angle = sign x the controller's + offset)")
+    out = []
+    for what, part in zip(("signs", "offsets"), parts):
+        try:
+            values = [float(v) for v in part.split(",")]
+        except ValueError:
+            raise InputError(f"--controller-map: the {what} {excerpt(part)} are not {N_JOINTS} numbers") from None
+        if len(values) != N_JOINTS or not all(np.isfinite(values)):
+            raise InputError(f"--controller-map: the {what} {excerpt(part)} are not {N_JOINTS} numbers")
+        out.append(values)
+    if any(v not in (-1.0, 1.0) for v in out[0]):
+        raise InputError(f"--controller-map: the signs {excerpt(parts[0])} must each be 1 or -1")
+    if any(abs(v) > 360.0 for v in out[1]):
+        raise InputError(f"--controller-map: the offsets {excerpt(parts[1])} must be within +-360 deg")
+    return out[0], out[1]
+
+
+def robot_file_text(imp, template, urdf_path, name, controller=None):
     """The robot file (YAML text) of an ImportedRobot, the rest from
-    ``template`` (a RobotModel)."""
+    ``template`` (a RobotModel); ``controller``: (sign, offset_deg) of the
+    controller block, None for none."""
     d, a, alpha, home, alpha0, a0 = imp.dh_rows
     if imp.convention == "modified_dh":  # rows (alpha_{i-1}, a_{i-1}, d_i, theta_i)
         a_rows, alpha_rows = np.r_[a0, a[:5]], np.r_[alpha0, alpha[:5]]
@@ -35,10 +69,15 @@ def robot_file_text(imp, template, urdf_path, name):
     lines = [
         f"# Imported from {one_line(urdf_path)} (sha256 {imp.digest[:16]}) by `robstiff import-urdf`:",
         "# the kinematic table from its joint axes, the links' masses and inertias moved into",
-        "# the robot file's link frames, the joint limits.  The joint angles are the URDF's (no",
-        "# controller block): check them against your controller's (docs/your_robot.md).",
+        "# the robot file's link frames, the joint limits.  The model's joint angles are the URDF's;"]
+    lines += (["# no controller block: check them against your controller's (docs/your_robot.md), or",
+               "# give import-urdf --controller-map."] if controller is None else
+              ["# the controller block maps the controller's angles to them (--controller-map)."])
+    lines += [
         f"# The flange is the URDF's frame '{imp.flange_frame}'.  Each link's box is a stand-in: the",
-        "# solid box of its inertia (the URDF's meshes are not read).",
+        "# solid box of its inertia (the URDF's meshes are not read)."]
+    lines += [f"# Absorbed: {one_line(n)}" for n in (imp.notes or [])]
+    lines += [
         f"name: {name}",
         "manufacturer: \"-\"",
         f"model: {imp.name}",
@@ -49,9 +88,18 @@ def robot_file_text(imp, template, urdf_path, name):
         f"  a_mm: {_row(a_rows, 1e3)}",
         f"  alpha_deg: {_row(np.rad2deg(alpha_rows))}",
         f"  home_deg: {_row(np.rad2deg(home))}",
-        "joint_limits:",
-        f"  lower_deg: {_row(np.rad2deg(imp.lower_rad))}",
-        f"  upper_deg: {_row(np.rad2deg(imp.upper_rad))}",
+    ]
+    lower, upper = np.rad2deg(imp.lower_rad), np.rad2deg(imp.upper_rad)
+    if controller is not None:
+        lines += ["controller:", f"  sign: {_row(controller[0])}", f"  offset_deg: {_row(controller[1])}"]
+        sign, offset = np.asarray(controller[0]), np.asarray(controller[1])
+        # the limits in the controller's angles (the URDF's angle = sign x the controller's + offset)
+        lower, upper = np.minimum((lower - offset) * sign, (upper - offset) * sign), \
+            np.maximum((lower - offset) * sign, (upper - offset) * sign)
+    lines += [
+        "joint_limits:" + ("  # the controller's angles" if controller is not None else ""),
+        f"  lower_deg: {_row(lower)}",
+        f"  upper_deg: {_row(upper)}",
         "# ASSUMPTION: a URDF holds no joint stiffness, motor inertias, machining payload or",
         f"# workspace: these are {t.name}'s ({one_line(t.source)}).  Identify your robot's stiffness",
         "# (robstiff identify), and set its motors, payload and workspace here.",
@@ -130,7 +178,21 @@ def check_against_urdf(imp, robot, n=20):
     return worst_fk, worst_I
 
 
-def run(*, urdf, out, template=None, name=None):
+def template_agreement_mm(robot, template, n=20):
+    """The largest distance (mm) between the flanges of ``robot`` and
+    ``template`` at the same controller angles inside both's limits: how
+    well a template's controller map fits the imported arm (0 for the same
+    robot)."""
+    lo = np.maximum(robot.q_lower_rad, template.q_lower_rad)
+    hi = np.minimum(robot.q_upper_rad, template.q_upper_rad)
+    if np.any(lo >= hi):
+        return None
+    q = np.random.default_rng(0).uniform(lo, hi, size=(n, N_JOINTS))
+    return float(np.max(np.linalg.norm(kin.tool_position(robot.dh, robot.joint_map.to_model(q))
+                                       - kin.tool_position(template.dh, template.joint_map.to_model(q)), axis=1)) * 1e3)
+
+
+def run(*, urdf, out, template=None, name=None, controller_map=None):
     from pathlib import Path
 
     urdf_path = Path(urdf)
@@ -138,9 +200,10 @@ def run(*, urdf, out, template=None, name=None):
     if name is not None and not NAME_RE.fullmatch(name):
         raise InputError(f"--name {excerpt(name)}: use letters, digits and _ only, starting with a letter (it names "
                          "files and the URDF)")
-    imp = read_urdf(urdf_path)
     tpl = load_robot(template)
-    text = robot_file_text(imp, tpl, urdf_path, name or imp.name)
+    controller = parse_controller_map(controller_map, tpl)
+    imp = read_urdf(urdf_path)
+    text = robot_file_text(imp, tpl, urdf_path, name or imp.name, controller)
     # the file is read back and checked before it is written (a failed check leaves nothing behind)
     import tempfile
 
@@ -153,7 +216,17 @@ def run(*, urdf, out, template=None, name=None):
         raise InputError(f"{out}: the robot file made from the URDF misses its flange by {fk * 1e3:.3g} mm and its "
                          f"inertia by {inertia:.3g} (relative); nothing written: please report this URDF")
     write_atomic(Path(out), text)
+    for note in imp.notes or []:
+        info(f"absorbed: {note}")
     info(f"wrote {out}: {imp.convention}, flange within {fk * 1e3:.2g} mm of the URDF's, mass and inertia about the "
          f"base within {inertia:.2g} (relative), at 20 configurations; joint stiffness, motors and workspace from "
          f"{tpl.name}")
+    if controller_map is not None and controller_map.strip() == "template":
+        agree = template_agreement_mm(robot, tpl)
+        info(f"controller map from {tpl.name}: " + ("no controller angles inside both's limits" if agree is None else
+             f"at the same controller angles its flange and {tpl.name}'s are within {agree:.3g} mm"
+             + ("" if agree < 1.0 else f" (another arm, or another zero than {tpl.name}'s: check the map)")))
+    elif controller_map is None:
+        info("the joint angles are the URDF's: give --controller-map (template, or the signs and offsets) for your "
+             "controller's")
     return 0

@@ -44,7 +44,8 @@ def _dispatch(args):
     if args.command == "import-urdf":
         from robstiff_drake.commands import import_urdf
 
-        return import_urdf.run(urdf=args.urdf, out=args.out, template=args.template, name=args.name)
+        return import_urdf.run(urdf=args.urdf, out=args.out, template=args.template, name=args.name,
+                               controller_map=args.controller_map)
     if args.command == "identify":
         from robstiff_drake.commands import identify
 
@@ -62,6 +63,9 @@ def _dispatch(args):
             return synth.run_stiffness(out=args.out, n=args.n, loads_per_pose=args.loads_per_pose,
                                        force_N=args.force_N, noise_mm=args.noise_mm, seed=args.seed, tool=args.tool,
                                        effects=args.effect, stiffness=args.stiffness, robot_yaml=args.robot)
+        if args.kind == "tracker":
+            return synth.run_tracker(out=args.out, n=args.n, noise_mm=args.noise_mm, seed=args.seed,
+                                     export=args.export, robot_yaml=args.robot)
         return synth.run_payload(out=args.out, n=args.n, mass_kg=args.mass_kg, com=args.com_mm,
                                  noise_N=args.noise_N, noise_Nm=args.noise_Nm, seed=args.seed, robot_yaml=args.robot)
     if args.command == "diagnose":
@@ -93,7 +97,7 @@ def _dispatch(args):
                             robot_yaml=args.robot, toolpath=args.toolpath, work_offset=args.work_offset,
                             replay=args.replay, progress=args.progress, advise=args.advise,
                             advise_out=args.advise_out, budget=args.budget, budget_metric=args.budget_metric, budget_split=args.budget_split,
-                            tolerance_mm=args.tolerance_mm)
+                            tolerance_mm=args.tolerance_mm, stock=args.stock)
     if args.command == "sweep":
         from robstiff_drake.commands import sweep
 

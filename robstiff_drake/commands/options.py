@@ -74,6 +74,10 @@ ROBOT_HELP = "a library robot (see `robstiff robots`) or a robot file (YAML); de
 TOOL_DEFAULT = "the robot file's payload.tool_point_mm"
 
 
+# other options whose value may start with a minus sign (import-urdf's "-1,1,1,-1,1,-1:0,-90,90,0,0,0")
+NEGATIVE_LIST_OPTIONS = {"--controller-map"}
+
+
 def vector_values_kept(argv):
     """argv with a negative vector value joined to its option
     (``--tool -10,0,350`` -> ``--tool=-10,0,350``): argparse takes a value
@@ -84,7 +88,8 @@ def vector_values_kept(argv):
         a = argv[i]
         if a == "--":
             return out + argv[i:]
-        if a in VECTOR_RANGES and i + 1 < len(argv) and _NEGATIVE_LIST.match(argv[i + 1]):
+        if (a in VECTOR_RANGES or a in NEGATIVE_LIST_OPTIONS) and i + 1 < len(argv) and \
+                _NEGATIVE_LIST.match(argv[i + 1]):
             out.append(f"{a}={argv[i + 1]}")
             i += 2
             continue

@@ -107,6 +107,10 @@ def build_parser():
                    help="library robot or robot file whose joint stiffness, motor inertias, payload and workspace "
                         "the new file takes (a URDF has none; default: irb6400)")
     p.add_argument("--name", default=None, help="the robot's name in the file (default: the URDF's, cleaned)")
+    p.add_argument("--controller-map", metavar="template|S1,..,S6:O1,..,O6", default=None,
+                   help="the controller's joint angles: 'template' takes the template's controller block, or the "
+                        "signs (+-1) and offsets (deg) with the URDF's angle = sign x the controller's + offset "
+                        "(default: none, the URDF's angles)")
 
     p = _add_campaign_command(sub, "identify", "joint stiffness from a stiffness campaign (least squares, Eq. 8)",
                               "result")
@@ -146,6 +150,18 @@ def build_parser():
     s.add_argument("--noise-N", type=_number_in(0.0, 1000.0, "N"), default=1.0, help="(default: %(default)s N)")
     s.add_argument("--noise-Nm", type=_number_in(0.0, 100.0, "N*m"), default=0.1, help="(default: %(default)s N*m)")
     s.add_argument("--seed", type=SEED, default=0)
+    _add_robot_option(s)
+    s = kinds.add_parser("tracker", help="a laser-tracker campaign (joint angles, measured x, y, z) made by Drake's "
+                                         "plant of a perturbed arm")
+    s.add_argument("out", metavar="OUT.csv", help="the campaign file ('-' for stdout)")
+    s.add_argument("--n", type=_number_in(20, 100000, integer=True), default=300,
+                   help="measured poses (default: %(default)s)")
+    s.add_argument("--noise-mm", type=_number_in(0.0, 1.0, "mm"), default=0.03,
+                   help="the tracker's noise sigma per component (default: %(default)s mm)")
+    s.add_argument("--seed", type=SEED, default=0, help="draws the arm's errors, the tracker's place and the poses")
+    s.add_argument("--export", action="store_true",
+                   help="write it as a tracker's software exports it (';', decimal commas, units in the header, a "
+                        "point id, an uncertainty, a timestamp)")
     _add_robot_option(s)
 
     p = _add_campaign_command(sub, "diagnose", "which effect the six-spring model lacks explains a campaign's residual",
@@ -217,6 +233,9 @@ def build_parser():
     p.add_argument("--work-offset", metavar="X,Y,Z[,ROT_DEG]",
                    help="where the program's zero is in the robot's base frame (mm), and its turn about the base z "
                         "axis (deg): replaces toolpath.work_offset_mm (and work_rotation_deg)")
+    p.add_argument("--stock", metavar="X0,X1,Y0,Y1,TOP",
+                   help="the workpiece: one block from X0 to X1 and Y0 to Y1, its top at TOP (mm, the robot's base "
+                        "frame): replaces workpiece.boxes_mm")
     p.add_argument("--compensator", metavar="SETTINGS.yaml",
                    help="run the scenario's machine with this compensator (a compensator.yaml, e.g. a candidate "
                         "fix of diagnose-run): a verification cut")

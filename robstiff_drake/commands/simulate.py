@@ -21,7 +21,8 @@ import numpy as np
 
 # Drake comes with the diagrams' modules, imported where they are used: a
 # bad argument is refused before that import (as fast as --help).
-from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, run_warnings
+from robstiff_drake.diagrams.job_checks import job_warnings, worse_reason
+from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, WORSE_PREFIX, run_warnings
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.run_logs import joint_reference_text
 from robstiff_drake.identification.run_settings import read_settings
@@ -189,10 +190,11 @@ def simulated_line(runs):
     return f"simulated {sim} {per}({names}) in {wall} s wall ({factor:.1f}x real time)"
 
 
-def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath=None, work_offset=None):
+def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath=None, work_offset=None, stock=None):
     """The scenario to simulate: from its file (its path replaced by the
     G-code program ``toolpath`` when given, placed by ``work_offset``,
-    "X,Y,Z[,ROT_DEG]"), with the compensator of a settings file
+    "X,Y,Z[,ROT_DEG]", its workpiece replaced by ``stock``, "X0,X1,Y0,Y1,TOP"),
+    with the compensator of a settings file
     (``compensator``) and the sensor's and scanner's noise seeds set to
     ``noise_seed`` (a repeated cut: new noise) when given."""
     from robstiff_drake.diagrams import user_model as user_models
@@ -200,7 +202,7 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
     from robstiff_drake.diagrams.milling_cell import planned_path as cell_path
     from robstiff_drake.diagrams.scenario import load_scenario
 
-    sc = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset)
+    sc = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset, stock=stock)
     if compensator is not None:
         _, settings = read_settings(compensator)
         # another robot's compensator is refused before the path and the model are computed (was 50 s)
@@ -214,11 +216,13 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
 
 
 def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warnings=None, compensator=None,
-             noise_seed=None, toolpath=None, work_offset=None, progress=False, tolerance_mm=None, extras=None):
+             noise_seed=None, toolpath=None, work_offset=None, progress=False, tolerance_mm=None, extras=None,
+             stock=None):
     """Load and run; returns (scenario, results).  The robot: ``robot`` (a
     RobotModel), else --robot's ``robot_yaml``, else the scenario's own.
     Warnings about the settings and the result go to ``warnings`` (an
-    io.Warnings) if given.  ``compensator``, ``noise_seed``, ``toolpath``, ``work_offset``: see load_for_run;
+    io.Warnings) if given.  ``compensator``, ``noise_seed``, ``toolpath``, ``work_offset``, ``stock``: see
+    load_for_run;
     ``progress``: a bar over simulated time (experiment.run_cut).  With a
     tolerance (``tolerance_mm``, else the scenario's path.tolerance_mm), the
     compensated cut runs on the feed planner's path (diagrams/feed_plan.py);
@@ -233,30 +237,33 @@ def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warn
     from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
     from robstiff_drake.diagrams.scenario_models import scenario_warnings
 
-    robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset), robot_yaml)
+    robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset, stock=stock),
+                                    robot_yaml)
     sc = load_for_run(scenario, robot, compensator=compensator, noise_seed=noise_seed, toolpath=toolpath,
-                      work_offset=work_offset)
+                      work_offset=work_offset, stock=stock)
     if tolerance_mm is not None:
         check_tolerance(sc, tolerance_mm, "--tolerance-mm")
         sc.path.tolerance_mm = float(tolerance_mm)
     _, _, q_ref = cell_path(sc, robot, robot.tool_point(where="the closed loop"))
     user_models.resolve(sc, robot, q_ref[0])  # the compensator's model (for the warnings too)
     if warnings is not None:
-        warnings.extend_from(scenario_warnings(sc, robot))
+        warnings.extend_from(scenario_warnings(sc, robot) + job_warnings(sc))
     sc_comp = sc
     if sc.path.tolerance_mm > 0 and True in MODES[compensation]:
         plan = plan_feeds(sc, robot)
-        sc_comp = copy.deepcopy(sc)
-        sc_comp._feed_overrides = plan.overrides
+        if plan.adopted:  # only a plan predicted to improve on the program as written slows the cut
+            sc_comp = copy.deepcopy(sc)
+            sc_comp._feed_overrides = plan.overrides
         if extras is not None:
             extras["feed_plan"] = plan
-        if warnings is not None and not plan.converged:
+        if warnings is not None:
             warnings.extend_from(plan.notes)
     if extras is not None:
         extras["compensated_scenario"] = sc_comp
     results = [run_cut(sc_comp if c else sc, robot, compensation=c, progress=progress) for c in MODES[compensation]]
     if warnings is not None:
-        warnings.extend_from(run_warnings(results, sc))
+        warnings.extend_from([w + worse_reason(sc, getattr(sc, "_program", None)) if w.startswith(WORSE_PREFIX) else w
+                              for w in run_warnings(results, sc)])
     return sc, results
 
 
@@ -369,26 +376,37 @@ def model_description(sc, robot):
 
 
 def format_feed_plan(plan, advise):
-    """The feed plan's summary (and, with ``advise``, the advice table)."""
+    """The feed plan's summary (and, with ``advise``, the advice table:
+    each row's block number N when the program has them, and its line)."""
     inc = plan.cycle_time_s / plan.program_cycle_time_s - 1.0
-    lines = [f"feed plan (tolerance {plan.tolerance_mm:g} mm, predicted on the compensator's model): "
-             f"{plan.predicted_max_abs_mm:.3f} mm predicted as programmed, {plan.predicted_after_max_abs_mm:.3f} mm "
-             f"adapted; cycle time {plan.program_cycle_time_s:.2f} s -> {plan.cycle_time_s:.2f} s ({100 * inc:+.1f} %)"]
+    if plan.adopted or not plan.windows and plan.converged:
+        lines = [f"feed plan (tolerance {plan.tolerance_mm:g} mm, predicted on the compensator's model): "
+                 f"{plan.predicted_max_abs_mm:.3f} mm predicted as programmed, {plan.predicted_after_max_abs_mm:.3f} "
+                 f"mm adapted; cycle time {plan.program_cycle_time_s:.2f} s -> {plan.cycle_time_s:.2f} s "
+                 f"({100 * inc:+.1f} %)"]
+    else:
+        lines = [f"feed plan (tolerance {plan.tolerance_mm:g} mm, predicted on the compensator's model): "
+                 f"{plan.predicted_max_abs_mm:.3f} mm predicted as programmed; no slower feed predicted better: "
+                 f"not used (the program's own feeds, cycle time {plan.program_cycle_time_s:.2f} s)"]
     if advise:
         if not plan.advice:
             lines.append("advice: no program line's predicted surface error exceeds the tolerance")
         else:
-            lines.append("advice: program lines whose predicted surface error exceeds the tolerance")
-            lines.append("   line   error (mm)   cause      feed (mm/min)   programmed")
+            head = ("advice: program lines whose predicted surface error exceeds the tolerance" if plan.adopted else
+                    "advice: program lines whose predicted surface error exceeds the tolerance (no slower feed "
+                    "helps: the feed column is the program's)")
+            lines.append(head)
+            lines.append("  block (line)   error (mm)   cause      feed (mm/min)   programmed")
             for a in plan.advice:
-                lines.append(f"  {a['line']:5d}   {a['error_mm']:9.3f}    {a['cause']:9s}  {a['feed_mm_per_min']:10.0f}"
+                where = f"{a['block']} ({a['line']})" if a.get("block") else f"({a['line']})"
+                lines.append(f"  {where:12s}   {a['error_mm']:9.3f}    {a['cause']:9s}  {a['feed_mm_per_min']:10.0f}"
                              f"      {a['programmed_feed_mm_per_min']:8.0f}")
     return "\n".join(lines)
 
 
 def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", compensator=None, noise_seed=None,
         robot_yaml=None, toolpath=None, work_offset=None, replay=None, progress=None, advise=False, advise_out=None,
-        budget=False, budget_metric="rms", budget_split="ordered", tolerance_mm=None):
+        budget=False, budget_metric="rms", budget_split="ordered", tolerance_mm=None, stock=None):
     check_outputs(inputs=[scenario, compensator, toolpath], files={"--json": json_out, "--replay": replay,
                                                                   "--advise-out": advise_out},
                   folders={"--out": out})
@@ -405,7 +423,7 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
     from robstiff_drake.diagrams.feed_plan import advised_program
     from robstiff_drake.diagrams.scenario import load_scenario, resolve, scenario_robot
 
-    sc0 = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset)
+    sc0 = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset, stock=stock)
     if tolerance_mm is not None:
         check_tolerance(sc0, tolerance_mm, "--tolerance-mm")
     tol = tolerance_mm if tolerance_mm is not None else sc0.path.tolerance_mm
@@ -416,7 +434,7 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
             raise InputError("--advise-out: the scenario's path is not a G-code program (toolpath.program or --toolpath)")
         program = resolve(sc0, sc0.toolpath.program)
         try:
-            check_rewritable(program.read_bytes().decode("utf-8-sig", errors="replace"))
+            check_rewritable(program.read_bytes().decode("utf-8-sig", errors="replace"), sc0._program.moves)
         except ValueError as e:
             raise InputError(f"--advise-out: {program}: {e}") from None
     robot = scenario_robot(sc0, robot_yaml)
@@ -429,7 +447,7 @@ def run(*, scenario, compensation="both", json_out=None, out="robstiff-out", com
     extras = {}
     sc, results = simulate(scenario=scenario, compensation=compensation, robot=robot, warnings=warnings,
                            compensator=compensator, noise_seed=noise_seed, toolpath=toolpath, work_offset=work_offset,
-                           progress=progress, tolerance_mm=tolerance_mm, extras=extras)
+                           progress=progress, tolerance_mm=tolerance_mm, extras=extras, stock=stock)
     summ = summary(results, sc, warnings)
     summ["compensator_model"] = model_description(sc, robot)
     summ["cycle_time_s"] = {label(r.compensation): r.cell.path.duration_s for r in results}

@@ -95,7 +95,7 @@ def make_map(robot, *, tool_m, force_N=500.0, resolution=41):
     fig.colorbar(im, ax=axes, label=label, shrink=0.8, extend="max" if over else "neither")
     fig.legend(handles=_key_handles(over), loc="outside lower center", ncol=4, fontsize=9, facecolor="0.8",
                framealpha=1.0)
-    name = " ".join(v for v in (robot.manufacturer, robot.model) if v and v != "-") or robot.name
+    name = robot.title
     fig.suptitle("\n".join(textwrap.wrap(f"{name}: stiffness map (conventional model, spindle axis down)", 90)))
     return fig, {"top_view": top, "side_view": side, "xs_m": xs, "ys_m": ys, "zs_m": zs}
 

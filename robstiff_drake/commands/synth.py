@@ -1,5 +1,6 @@
-"""``robstiff synth stiffness|payload OUT.csv``: virtual measurement
-campaigns from the model (see identification/synth.py)."""
+"""``robstiff synth stiffness|payload|tracker OUT.csv``: virtual
+measurement campaigns from the model (see identification/synth.py); the
+tracker's from Drake's plant of a perturbed arm (diagrams/tracker_world.py)."""
 
 import sys
 
@@ -96,4 +97,22 @@ def run_payload(*, out, n=15, mass_kg=None, com=None, noise_N=1.0, noise_Nm=0.1,
                                seed=seed)
     _write(out, synth.payload_csv(c, noise_N=noise_N, noise_Nm=noise_Nm, seed=seed))
     info(f"wrote {out}: {n} configurations, payload {c.mass_kg:g} kg", file=_info(out))
+    return 0
+
+
+def run_tracker(*, out, n=300, noise_mm=0.03, seed=0, export=False, robot_yaml=None):
+    """A laser-tracker campaign of the robot file's arm as Drake's plant of a
+    perturbed copy measures it (diagrams/tracker_world.py: its joint offsets,
+    link lengths and twists, stiffness, the tracker's place, drift and
+    noise drawn from ``seed``)."""
+    check_outputs(inputs=[robot_yaml], files={"OUT.csv": out})
+    robot = load_robot(robot_yaml)
+    from robstiff_drake.diagrams.tracker_world import make_tracker_campaign  # Drake: after the checks
+
+    c = make_tracker_campaign(robot, seed, n=n, noise_mm=noise_mm, extra_columns=export)
+    _write(out, c.csv_text)
+    info(f"wrote {out}: {c.n} poses of a perturbed {robot.name} measured by a tracker (noise {noise_mm:g} mm); "
+         f"planted: {', '.join(c.true['effects'])}; the target "
+         + ", ".join(f"{v:.3f}" for v in c.true["tool_mm"]) + " mm on the flange (the file's guess in its "
+         "'# tool_mm:' line)", file=_info(out))
     return 0

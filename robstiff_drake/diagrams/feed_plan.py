@@ -46,13 +46,16 @@ class FeedPlan:
     notes: list = field(default_factory=list)
     line_ranges: dict = field(default_factory=dict)  # {program line: [(from mm, to mm along its move, feed mm/min)]}
     overrides: dict = field(default_factory=dict)  # {programmed element: [(a m, b m, speed m/s)]} (model/path.py)
+    # the plan is used (its windows slow the compensated cut) only when its prediction improves on the program's
+    adopted: bool = False
+    predicted_errors_as_programmed: list = field(default_factory=list)  # [(s m, |error| mm, cause)] beyond tolerance
 
     def as_dict(self):
         return {"tolerance_mm": self.tolerance_mm, "predicted_max_abs_mm": self.predicted_max_abs_mm,
                 "predicted_after_max_abs_mm": self.predicted_after_max_abs_mm,
                 "program_cycle_time_s": self.program_cycle_time_s, "cycle_time_s": self.cycle_time_s,
                 "cycle_time_increase": self.cycle_time_s / self.program_cycle_time_s - 1.0,
-                "iterations": self.iterations, "converged": self.converged,
+                "iterations": self.iterations, "converged": self.converged, "adopted": self.adopted,
                 "slowed": [{"from_mm": w.s0 * 1e3, "to_mm": w.s1 * 1e3, "feed_mm_per_min": w.speed * 60e3,
                             "error_mm": w.error_mm, "cause": w.cause} for w in self.windows],
                 "notes": list(self.notes)}
@@ -167,14 +170,18 @@ def plan_feeds(sc, robot, tolerance_mm=None):
     converged = False
     it = 0
     factors = coefficient_bounds(sc)
-    for it in range(1, MAX_ITERATIONS + 1):
+    tried = []  # (largest predicted |error| mm, iteration, windows): every set of windows the twin ran
+    for it in range(1, MAX_ITERATIONS + 2):
         # both ends of the coefficients' uncertainty first, then the end that was worse
         errs, largest, worst = predicted_errors(sc, robot, fp.line_ranges(path0, windows), tol, factors)
         factors = (worst,)
+        tried.append((largest, it, windows))
         if first is None:
             first, largest0 = errs, largest
         if not errs:
             converged = True
+            break
+        if it > MAX_ITERATIONS:  # the last windows predicted, not changed again
             break
         spans = fp.merge_windows([(s, s, e, c) for s, e, c in errs], margin, path0.total_length)
         path_now = path0.with_speed_overrides(fp.line_ranges(path0, windows))
@@ -190,6 +197,16 @@ def plan_feeds(sc, robot, tolerance_mm=None):
         if not new:
             break
         windows = _combine(windows, new)
+    # the plan is the windows whose prediction was the best; none (the program as written) unless that improves on
+    # the program's own prediction: a slower feed also changes the path's dynamics (a corner taken at another
+    # speed rings the arm differently), so a plan can be predicted worse than the program it adapts
+    largest, _, windows = min(tried, key=lambda t: (t[0], t[1]))
+    adopted = bool(windows) and largest < largest0
+    rejected = None
+    if not adopted:
+        if len(tried) > 1:  # slower feeds were tried and none was predicted better
+            rejected = (min(t[0] for t in tried[1:]), len(tried) - 1)
+        windows, largest = [], largest0
     overrides = fp.line_ranges(path0, windows)
     adapted = path0.with_speed_overrides(overrides)
     # the advice: each slowed stretch with the worst error and cause predicted there for the program as written
@@ -197,30 +214,56 @@ def plan_feeds(sc, robot, tolerance_mm=None):
         inside = [(e, c) for s, e, c in (first or []) if w.s0 <= s <= w.s1]
         if inside:
             w.error_mm, w.cause = max(inside)
-    advice = fp.advice_rows(path0, windows, lambda w: min(path0.speeds[path0._element(s)]
-                                                            for s in np.linspace(w.s0, w.s1, 12)))
+    def programmed(w):
+        return min(path0.speeds[path0._element(s)] for s in np.linspace(w.s0, w.s1, 12))
+
+    shown = windows
+    if rejected is not None:  # the lines beyond the tolerance as programmed, at their own feeds (nothing adopted)
+        shown = [fp.Window(a, b, 0.0, e, c) for a, b, e, c in
+                 fp.merge_windows([(s, s, e, c) for s, e, c in first], margin, path0.total_length)]
+        shown = [fp.Window(w.s0, w.s1, programmed(w), w.error_mm, w.cause) for w in shown]
+    advice = fp.advice_rows(path0, shown, programmed)
+    if path0.program_lines is not None:  # each row's block (sequence) number as the program writes it, if any
+        numbers = fp.block_numbers(_program_text(sc))
+        for row in advice:
+            row["block"] = numbers.get(row["line"])
     ranges = {}  # each program line's parts as the adapted path runs them
     if path0.program_lines is not None:
         slowed = {i for i, *_ in adapted.parts if len([p for p in adapted.parts if p[0] == i]) > 1}
         slowed |= {i for i, a, b, v in adapted.parts if v < path0.programmed_speeds[i] - 1e-12}
         for i in sorted(slowed):
             ranges[path0.program_lines[i]] = [(a * 1e3, b * 1e3, v * 60e3) for j, a, b, v in adapted.parts if j == i]
-    notes = [] if converged else [f"the predicted error stays above {tol:g} mm where the feed reached its floor "
-                                  f"({sc.path.min_feed_fraction:g} of the programmed, path.min_feed_fraction)"]
+    notes = []
+    if rejected is not None:
+        notes.append(f"feed plan not used: the slower feeds tried ({rejected[1]} set(s)) were predicted to leave "
+                     f"{rejected[0]:.3f} mm at best, no better than the program as written ({largest0:.3f} mm): the "
+                     "error there is the path's own dynamics and the servo's lag (at corners and arcs), which a "
+                     "lower feed does not remove; the program runs at its own feeds"
+                     + (" (controller.mode: preview anticipates them)" if sc.controller.mode != "preview" else ""))
+    elif not converged:
+        notes.append(f"the predicted error stays above {tol:g} mm where the feed reached its floor "
+                     f"({sc.path.min_feed_fraction:g} of the programmed, path.min_feed_fraction)")
     return FeedPlan(tol, windows, advice, float(largest0 or 0.0), float(largest or 0.0), path0.duration_s,
-                    adapted.duration_s, it, converged, notes, ranges, overrides)
+                    adapted.duration_s, it, converged, notes, ranges, overrides, adopted,
+                    predicted_errors_as_programmed=list(first or []))
 
 
 def advised_program(sc, plan):
     """The scenario's program text with the plan's feeds (model/feed_plan.
     rewrite_program); ValueError for a program it cannot rewrite."""
-    from pathlib import Path
-
-    from robstiff_drake.diagrams.scenario import _program, resolve
+    from robstiff_drake.diagrams.scenario import _program
 
     program = _program(sc)
-    text = Path(resolve(sc, sc.toolpath.program)).read_bytes().decode("utf-8-sig", errors="replace")
-    return fp.rewrite_program(text, program.moves, plan.line_ranges)
+    return fp.rewrite_program(_program_text(sc), program.moves, plan.line_ranges)
+
+
+def _program_text(sc):
+    """The text of the scenario's G-code program."""
+    from pathlib import Path
+
+    from robstiff_drake.diagrams.scenario import resolve
+
+    return Path(resolve(sc, sc.toolpath.program)).read_bytes().decode("utf-8-sig", errors="replace")
 
 
 def _combine(old, new):

@@ -19,6 +19,7 @@ SMALL_DEFLECTION_MM = 2.0
 NO_EFFECT_SHARE = 0.9
 # Compensated worse than uncompensated by more than this factor (RMS).
 WORSE_FACTOR = 1.05
+WORSE_PREFIX = "compensation made the surface worse"
 
 
 def run_warnings(results, sc):
@@ -59,7 +60,7 @@ def run_warnings(results, sc):
         b = by_label["compensated"].surface_error_mm
         if a and b:
             if b["rms"] > WORSE_FACTOR * a["rms"]:
-                out.append(f"compensation made the surface worse: RMS {b['rms']:.3f} mm with it against "
+                out.append(f"{WORSE_PREFIX}: RMS {b['rms']:.3f} mm with it against "
                            f"{a['rms']:.3f} mm without (mean {b['mean']:+.3f} against {a['mean']:+.3f} mm)")
             elif b["rms"] > NO_EFFECT_SHARE * a["rms"]:
                 out.append(f"compensation removed less than {100 * (1 - NO_EFFECT_SHARE):.0f} % of the surface error "

@@ -42,13 +42,15 @@ MAX_FILTER_TAPS = 5000
 MAX_SCAN_POINTS = 2_000_000
 
 
-def load_scenario(path, toolpath=None, work_offset=None):
+def load_scenario(path, toolpath=None, work_offset=None, stock=None):
     """Read and check a scenario file; InputError (one line naming the file,
     line, key and allowed range) on anything wrong, before anything is built.
     ``toolpath``: a G-code program that replaces the scenario's path (the
     command line's --toolpath, relative to the working folder);
     ``work_offset``: the command line's --work-offset "X,Y,Z[,ROT_DEG]"
-    (mm, deg), replacing toolpath.work_offset_mm (and work_rotation_deg)."""
+    (mm, deg), replacing toolpath.work_offset_mm (and work_rotation_deg);
+    ``stock``: the command line's --stock "X0,X1,Y0,Y1,TOP" (mm, base
+    frame), one box replacing workpiece.boxes_mm."""
     from pydrake.common.yaml import yaml_load_typed
 
     path = Path(path)
@@ -82,6 +84,11 @@ def load_scenario(path, toolpath=None, work_offset=None):
         sc.toolpath.work_offset_mm = offset
         if rotation is not None:
             sc.toolpath.work_rotation_deg = rotation
+    if stock is not None:
+        from robstiff_drake.diagrams.scenario_schema import MAX_COORD_MM
+
+        sc.workpiece.boxes_mm = [program_setup.parse_stock(stock, MAX_COORD_MM)]
+    sc._work_offset_given = work_offset is not None
     for key, named in named_files(sc).items():
         note_input(named, f"{key} of {path}")
     apply_program(sc)

@@ -47,6 +47,28 @@ def parse_work_offset(text, toolpath_cls):
     return values[:3], (values[3] if len(values) == 4 else None)
 
 
+def parse_stock(text, max_coord_mm):
+    """``--stock X0,X1,Y0,Y1,TOP`` (mm, base frame) -> one workpiece box
+    [x0, x1, y0, y1, top] (InputError naming the bad part)."""
+    parts = [p.strip() for p in str(text).split(",")]
+    names = ("X0", "X1", "Y0", "Y1", "TOP")
+    if len(parts) != 5:
+        raise InputError(f"--stock: expected X0,X1,Y0,Y1,TOP (mm, the robot's base frame), got {text!r}")
+    values = []
+    for name, p in zip(names, parts):
+        try:
+            v = float(p)
+        except ValueError:
+            raise InputError(f"--stock: {name} {p!r} is not a number") from None
+        if not (math.isfinite(v) and abs(v) <= max_coord_mm):
+            raise InputError(f"--stock: {name} {p!r} is outside the allowed range [{-max_coord_mm:g}, "
+                             f"{max_coord_mm:g}] mm")
+        values.append(v)
+    if not (values[0] < values[1] and values[2] < values[3]):
+        raise InputError(f"--stock: X0 < X1 and Y0 < Y1 are needed (the block's corners), got {text!r}")
+    return values
+
+
 def work_transform(tp):
     """program point (mm, work frame) -> base frame (m): the work offset
     and a rotation about z (toolpath section ``tp``)."""

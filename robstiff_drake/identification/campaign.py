@@ -84,7 +84,8 @@ def check_joint_limits(table, robot):
         if bad.size:
             r = bad[0]
             raise InputError(f"{table.where(r, name)}: {v[r]:g} deg is outside the joint limit "
-                             f"[{lo[j]:g}, {hi[j]:g}] deg")
+                             f"[{lo[j]:g}, {hi[j]:g}] deg of the robot {robot.name} ({robot.source}); another "
+                             "robot's campaign? (give its robot file with --robot)")
 
 
 # Plausible sizes of a measured value; beyond these the file is in other

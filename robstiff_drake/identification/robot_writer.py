@@ -92,7 +92,9 @@ def corrected_text(robot, source_text, fit, k_Nm_per_rad, provenance):
         new = _replace_line(text, "beta_deg", [0.0] * 6)
         inline &= new is not None
         text = new if new is not None else text
-    new = _replace_line(text, "tool_point_mm", tool, after="com_mm")
+    # the tracker's target has its own key: the machining tool point (tool_point_mm) stays as it was
+    new = _replace_line(text, "measured_point_mm", tool,
+                        after="tool_point_mm" if re.search(r"^[ \t]*tool_point_mm:", text, re.M) else "com_mm")
     inline &= new is not None
     text = new if new is not None else text
     new = _replace_line(text, "joint_stiffness_Nm_per_rad", k)
@@ -102,7 +104,7 @@ def corrected_text(robot, source_text, fit, k_Nm_per_rad, provenance):
         doc["dh"].update(rows)
         if "beta_deg" not in rows:
             doc["dh"].pop("beta_deg", None)
-        doc["payload"]["tool_point_mm"] = tool
+        doc["payload"]["measured_point_mm"] = tool
         doc["joint_stiffness_Nm_per_rad"] = k
         text = yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
         provenance = provenance + ["the original's comments are in its own file (this one was re-emitted by PyYAML)"]
@@ -121,7 +123,8 @@ def provenance_lines(data, robot, report, corrections):
              "Kept: " + (", ".join(report["selected_effects"]) or "nothing") + "; written here: "
              + ", ".join(corrections)
              + ". Effects of the instrument or the session (drift, thermal) are in the diagnosis's report, not here.",
-             "tool_point_mm is the measured point (the tracker's target) on the flange."]
+             "measured_point_mm is the measured point (the tracker's target) on the flange; tool_point_mm, the "
+             "machining tool point, is the original's."]
     return lines
 
 
@@ -135,7 +138,7 @@ def check(path, robot_fit, fit, q_rad):
     new = load_robot(str(path))
     want = kin.tool_position(perturbed_dh(robot_fit.dh, fit.geo), q_rad, fit.u)
     got = kin.tool_position(new.dh, new.joint_map.to_model(robot_fit.joint_map.to_controller(q_rad)),
-                            new.payload.tool_point_m)
+                            new.payload.measured_point_m)
     err = float(np.max(np.abs(got - want)))
     if err > CHECK_TOL_M:
         raise InputError(f"{path}: the corrected robot file's kinematics differ from the fitted model's by "
@@ -153,7 +156,7 @@ def write_corrected_robot(out, robot, fit, report, data, q_rad):
     if np.any(fit.geo):
         names = sorted({GEOM[j] for k in range(6) for j in range(5) if fit.geo[k, j]}, key=GEOM.index)
         corrections.append("the chain's " + ", ".join(names))
-    corrections += ["tool_point_mm"]
+    corrections += ["measured_point_mm"]
     if "joint_compliance" in report["selected_effects"]:
         corrections.append("joint_stiffness_Nm_per_rad (the sag's)")
     text = corrected_text(robot, source_text, fit, report["joint_stiffness_Nm_per_rad"],

@@ -78,7 +78,10 @@ def _tool_guess_m(campaign, robot, tool_m):
         return np.asarray(tool_m, float)
     if campaign.tool_mm is not None:
         return np.asarray(campaign.tool_mm, float) / 1e3
-    return robot.payload.tool_point_m if robot.payload.tool_point_m is not None else np.zeros(3)
+    pl = robot.payload
+    if getattr(pl, "measured_point_m", None) is not None:  # a corrected file's tracker target (--write-robot)
+        return pl.measured_point_m
+    return pl.tool_point_m if pl.tool_point_m is not None else np.zeros(3)
 
 
 def _declared_fit(problem, robot, rows, guess):
@@ -151,7 +154,7 @@ def _prepare(robot, campaign, tool_m, w):
     q = robot.joint_rad(campaign.q_deg)
     nominal_mm = kin.tool_position(robot.dh, q, guess) * 1e3
     unit = position_scale(campaign, nominal_mm)
-    if "x" in campaign.units:
+    if "x" in campaign.units and unit != 1.0:  # only a conversion is worth a line (a header in mm is not)
         w.add(f"{campaign.path}: positions read in {campaign.units['x']} (from the header) and converted to mm")
     check_geometry(campaign.path, campaign.pos * unit)
     problem = Problem(robot, campaign.q_deg, campaign.pos * unit / 1e3, force_N=campaign.force_N, t_s=campaign.t_s,

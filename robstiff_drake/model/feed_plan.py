@@ -242,26 +242,49 @@ def _strip_parens(text):
 WORD = re.compile(r"([A-Za-z])\s*([-+]?[0-9]*\.?[0-9]*)")
 
 
+def _distance_modes(text):
+    """[(line, words, absolute)] of each program line: its words without
+    comments and whether the distance mode after it is absolute (G90) or
+    incremental (G91).  A posted program's ``G28 G91 Z0.`` sets G91 until
+    the next G90, as on the control."""
+    out, absolute = [], True
+    for n, raw in enumerate(text.splitlines(), start=1):
+        words = _code_words(raw)
+        for letter, value in words:
+            if letter == "G" and value.replace(".", "", 1).isdigit() and float(value) in (90.0, 91.0):
+                absolute = float(value) == 90.0
+        out.append((n, words, absolute))
+    return out
+
+
+def block_numbers(text):
+    """{program line: 'N70'} of the lines that carry a block (sequence) number."""
+    out = {}
+    for n, words, _ in _distance_modes(text):
+        number = next((v for letter, v in words if letter == "N" and v), None)
+        if number is not None:
+            out[n] = f"N{number}"
+    return out
+
+
 def rewrite_program(text, moves, ranges_by_line):
     """The program ``text`` with the advised feeds: each line of
     ``ranges_by_line`` ({line: [(a_mm, b_mm, feed mm/min)]}: its move's
     parts, covering it) replaced by the same move in those parts at their
     feeds (absolute coordinates, the program's units), the modal feed
     restored after; a line with other words than motion ones (M, S, T...)
-    keeps them and is slowed whole.  Raises ValueError for incremental (G91)
-    programs.  Returns the new text."""
+    keeps them and is slowed whole.  Every other line is written as it is
+    (a posted program's G28 G91 Z0., G43 H, M6, M8/M9, M01).  A rewritten
+    line in incremental mode (G91) cannot be split in absolute words:
+    ValueError naming it.  Returns the new text."""
     by_line = {m.line: m for m in moves}
     lines = text.splitlines()
     out = []
     unit = 1.0  # mm per program unit (G20: 25.4)
-    for n, raw in enumerate(lines, start=1):
-        words = _code_words(raw)
+    for (n, words, absolute), raw in zip(_distance_modes(text), lines):
         for letter, value in words:
             if letter == "G" and value.replace(".", "", 1).isdigit():
                 g = float(value)
-                if g == 91:
-                    raise ValueError(f"line {n}: G91 (incremental): the advised program is written for absolute "
-                                     "(G90) programs only")
                 if g == 20:
                     unit = 25.4
                 elif g == 21:
@@ -269,6 +292,9 @@ def rewrite_program(text, moves, ranges_by_line):
         if n not in ranges_by_line or n not in by_line or by_line[n].kind == "rapid":
             out.append(raw)
             continue
+        if not absolute:
+            raise ValueError(f"line {n}: a cutting move in incremental coordinates (G91) to slow: the advised "
+                             "program splits moves in absolute (G90) coordinates only")
         move = by_line[n]
         spans = ranges_by_line[n]
         feed = move.feed_mm_per_min
@@ -287,11 +313,17 @@ def rewrite_program(text, moves, ranges_by_line):
     return "\n".join(out) + ("\n" if text.endswith("\n") else "")
 
 
-def check_rewritable(text):
-    """ValueError (naming the line) for a program rewrite_program cannot write:
-    incremental (G91) coordinates."""
-    for n, raw in enumerate(text.splitlines(), start=1):
-        for letter, value in _code_words(raw):
-            if letter == "G" and value.replace(".", "", 1).isdigit() and float(value) == 91:
-                raise ValueError(f"line {n}: G91 (incremental): the advised program is written for absolute (G90) "
-                                 "programs only")
+def check_rewritable(text, moves=None):
+    """ValueError (naming the line) for a program rewrite_program may not be
+    able to write: a cutting move (G1, G2, G3 line of ``moves``, the
+    program as read) in incremental coordinates (G91).  A G91 that only a
+    G28 return uses (a posted program's ``G28 G91 Z0.``, then G90) is fine."""
+    cutting = None if moves is None else {m.line for m in moves if m.kind != "rapid"}
+    for n, words, absolute in _distance_modes(text):
+        if absolute or not any(letter in "XYZIJKR" for letter, _ in words):
+            continue
+        if any(letter == "G" and value.replace(".", "", 1).isdigit() and float(value) == 28 for letter, value in words):
+            continue  # G28's intermediate point: the robot's program leaves the return out
+        if cutting is None or n in cutting:
+            raise ValueError(f"line {n}: a cutting move in incremental coordinates (G91): the advised program "
+                             "splits moves in absolute (G90) coordinates only")

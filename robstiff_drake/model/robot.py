@@ -129,6 +129,8 @@ class Payload:
     mass_kg: float
     com_m: np.ndarray
     tool_point_m: np.ndarray | None
+    # the laser tracker's target on the flange (payload.measured_point_mm, written by diagnose --write-robot); None
+    measured_point_m: np.ndarray | None = None
 
     # ASSUMPTION: the payload's shape is a solid cylinder along the spindle
     # axis, 120 mm in radius and twice its centre of mass's distance from
@@ -253,6 +255,11 @@ class RobotModel:
                     f"[{lo[i]:g}, {hi[i]:g}] deg of {self.name} ({self.source})"
                 )
         return self.joint_rad(q)
+
+    @property
+    def title(self):
+        """'KUKA KR 240 R2900-2': the maker and model, without an unknown ('-') maker; else the name."""
+        return " ".join(v for v in (self.manufacturer, self.model) if v and v != "-") or self.name
 
     def tool_point(self, tool_m=None, where="this command"):
         """``tool_m`` (m) when given, else the robot file's tool point; an
@@ -418,7 +425,9 @@ def load_robot(path=None):
     links = _links(values)
     payload = Payload(mass_kg=values["payload.mass_kg"], com_m=values["payload.com_mm"] / 1000.0,
                       tool_point_m=(values["payload.tool_point_mm"] / 1000.0 if "payload.tool_point_mm" in values
-                                    else None))
+                                    else None),
+                      measured_point_m=(values["payload.measured_point_mm"] / 1000.0
+                                        if "payload.measured_point_mm" in values else None))
     box = {}
     for key in ("x_mm", "y_mm", "z_mm"):
         lo_hi = values[f"machining_workspace.{key}"] / 1000.0

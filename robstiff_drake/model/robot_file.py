@@ -127,6 +127,9 @@ KEYS = {
     "payload.com_mm": Key("vector", "mm", -2000.0, 2000.0, 3, names=XYZ),
     # as --tool: a tool 5 m from the flange is no robot tool
     "payload.tool_point_mm": Key("vector", length=3, required=False, names=XYZ, **LENGTH),
+    # the point a laser tracker measured on the flange (its target), as `diagnose --write-robot` fits it; the
+    # machining tool point (tool_point_mm) is another point: the diagnosis of a tracker campaign starts from this one
+    "payload.measured_point_mm": Key("vector", length=3, required=False, names=XYZ, **LENGTH),
     "machining_workspace": Key("section"),
     "machining_workspace.x_mm": Key("vector", "mm", -MAX_CELL_MM, MAX_CELL_MM, 2, names=("min", "max")),
     "machining_workspace.y_mm": Key("vector", "mm", -MAX_CELL_MM, MAX_CELL_MM, 2, names=("min", "max")),
