@@ -23,6 +23,7 @@ from pydrake.systems.primitives import Adder, Demultiplexer, LogVectorOutput, Mu
 from pydrake.trajectories import PiecewisePolynomial
 
 from robstiff_drake.diagrams.compensator import filter_coefficients, make_compensator
+from robstiff_drake.diagrams import reference_cache
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.scenario_models import (
     COEFFICIENT_GROUPS, cutting_setup, model_cutting_setup, model_damping_ratios, model_stiffness, payload_calibration
@@ -88,7 +89,8 @@ _PREVIEWS = {}  # preview tables (model/preview.py) for a path and a compensator
 
 def planned_path(sc, robot, tool):
     """(PlannedPath, times, joint references) of the scenario's path; the IK
-    is done once per process for a given path, robot file and tool."""
+    is done once per process for a given path, robot file and tool, and
+    kept on disk (diagrams/reference_cache.py)."""
     p = sc.path
     try:
         path = scenario_path(sc)
@@ -98,7 +100,7 @@ def planned_path(sc, robot, tool):
         key = (path.signature(), p.reference_period_ms, robot.source, tuple(np.round(tool, 12)),
                robot.q_lower_rad.tobytes(), robot.q_upper_rad.tobytes())
         if key not in _REFERENCES:
-            _REFERENCES[key] = path.joint_references(robot, tool, p.reference_period_ms / 1e3)
+            _REFERENCES[key] = reference_cache.joint_references(path, robot, tool, p.reference_period_ms / 1e3)
     except PathError as e:  # (a program's path: its file:line, the first that leaves the robot's reach or limits)
         raise InputError(f"{e.where or f'{sc.source}: path'}: {e} (robot {robot.name})") from None
     t_ref, q_ref = _REFERENCES[key]
