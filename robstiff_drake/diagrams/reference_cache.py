@@ -38,13 +38,15 @@ def _code_hash():
     return h.digest()
 
 
-def key(path, robot, tool_m, dt_s, q_start=None):
-    """The hex digest naming the references of these inputs."""
+def key(path, robot, tool_m, dt_s, q_start=None, points_m=None):
+    """The hex digest naming the references of these inputs (``points_m``:
+    the path's tool points at ik_path.sample_times, when known)."""
     from robstiff_drake.model.path import MIN_JACOBIAN_CONDITION
 
     h = hashlib.sha256(_code_hash())
-    ts = np.arange(0.0, path.duration_s + 0.5 * dt_s, dt_s)
-    h.update(np.ascontiguousarray(path.positions(ts), dtype=float).tobytes())
+    if points_m is None:
+        points_m = path.positions(ik_path.sample_times(path, dt_s))
+    h.update(np.ascontiguousarray(points_m, dtype=float).tobytes())
     h.update(np.array([path.yaw, dt_s, MIN_JACOBIAN_CONDITION], dtype=float).tobytes())
     h.update(np.asarray(np.zeros(3) if tool_m is None else tool_m, dtype=float).tobytes())
     h.update(b"-" if q_start is None else np.asarray(q_start, dtype=float).tobytes())
@@ -68,8 +70,9 @@ def joint_references(path, robot, tool_m, dt_s, q_start=None):
     from robstiff_drake.io import write_atomic
     from robstiff_drake.plant import cache_dir
 
+    points = path.positions(ik_path.sample_times(path, dt_s))
     try:
-        file = cache_dir() / f"joint-references-{key(path, robot, tool_m, dt_s, q_start)}.npz"
+        file = cache_dir() / f"joint-references-{key(path, robot, tool_m, dt_s, q_start, points)}.npz"
     except InputError:  # no writable cache folder: the IK as usual
         file = None
     if file is not None:
@@ -80,7 +83,7 @@ def joint_references(path, robot, tool_m, dt_s, q_start=None):
                 return ts, qs
         except (OSError, ValueError, KeyError, EOFError):
             pass
-    ts, qs = ik_path.joint_references(path, robot, tool_m, dt_s, q_start)
+    ts, qs = ik_path.joint_references(path, robot, tool_m, dt_s, q_start, points_m=points)
     if file is not None:
         buf = io.BytesIO()
         np.savez(buf, t_s=ts, q_rad=qs)

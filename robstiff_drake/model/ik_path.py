@@ -229,15 +229,21 @@ def _tool_down_poses(points_m, yaw_rad):
     return T
 
 
-def joint_references(path, robot, tool_m, dt_s, q_start=None):
+def sample_times(path, dt_s):
+    """The reference's times (s): every dt_s from 0 to the path's end."""
+    return np.arange(0.0, path.duration_s + 0.5 * dt_s, dt_s)
+
+
+def joint_references(path, robot, tool_m, dt_s, q_start=None, points_m=None):
     """model/path.PlannedPath.joint_references (the same answers, the same
     PathError at the same first sample), vectorised: (times (N,), q (N, 6)
-    rad) along the path every dt_s."""
+    rad) along the path every dt_s.  ``points_m``: the tool points at
+    ``sample_times`` when the caller has them already."""
     from robstiff_drake.model.path import MIN_JACOBIAN_CONDITION, PathError
     from robstiff_drake.model.stiffness import describe_singularity, singular_joints
 
-    ts = np.arange(0.0, path.duration_s + 0.5 * dt_s, dt_s)
-    p = path.positions(ts)
+    ts = sample_times(path, dt_s)
+    p = path.positions(ts) if points_m is None else np.asarray(points_m, dtype=float)
     tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
 
     def where(k):
