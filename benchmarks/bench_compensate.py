@@ -86,46 +86,54 @@ def in_process_us(robot, repeats=3000):
     return statistics.median(t_pred), statistics.median(t_chain)
 
 
+def _loopback_link(protocol):
+    """(the controller's socket on 127.0.0.1, the loop's link of
+    ``protocol`` answering it, the hold pose in controller deg)."""
+    import socket
+
+    from robstiff_drake.cell import rsi, stream_motion
+    from robstiff_drake.cell.egm import EgmLink
+
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    ctrl = ("127.0.0.1", sock.getsockname()[1])
+    link = {"egm": lambda: EgmLink(0, ctrl), "rsi": lambda: rsi.RsiLink(0, ctrl, 0.004),
+            "stream-motion": lambda: stream_motion.StreamMotionLink(0, ctrl)}[protocol]()
+    link.reply_to = ctrl
+    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
+    link.start_deg = q0
+    return sock, link, q0
+
+
+class _HoldSensor:
+    """A sensor whose four records per 4 ms message all read ``w``."""
+
+    def __init__(self, w):
+        self.w = w
+
+    def drain(self):
+        now = time.monotonic()
+        return [(self.w, now, 0, False)] * 4
+
+
 def in_process_cycle_us(robot, protocol, repeats=1000):
     """(median, p99 us) of one whole message in-process: the session check,
     the sensor's 4 records through the guards, the chain, the target check,
     the protocol's encoding and a UDP send to a sink on 127.0.0.1, and the
     log's row formatting (cell/compensate.CompensatorLoop.cycle), without
     this machine's scheduling between two processes."""
-    import socket
-
-    from robstiff_drake.cell import rsi, stream_motion
     from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
-    from robstiff_drake.cell.egm import EgmLink
     from robstiff_drake.cell.link import Message
     from robstiff_drake.cell.run_log import StreamLog
 
-    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sink.bind(("127.0.0.1", 0))
-    ctrl = ("127.0.0.1", sink.getsockname()[1])
-    link = {"egm": lambda: EgmLink(0, ctrl), "rsi": lambda: rsi.RsiLink(0, ctrl, 0.004),
-            "stream-motion": lambda: stream_motion.StreamMotionLink(0, ctrl)}[protocol]()
-    link.reply_to = ctrl
-    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
-    link.start_deg = q0
-    tool = robot.payload.tool_point_m
+    sink, link, q0 = _loopback_link(protocol)
     w = h.hold_wrench(robot, np.radians(q0))(0.0).tolist()
-
-    class Sensor:
-        def drain(self):
-            now = time.monotonic()
-            return [(w, now, 0, False)] * 4
-
-    comp = Compensator(predictor=DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool),
-                       calibration=h.calibration(robot), tool_m=tool,
-                       filter_ba=filter_coefficients("lowpass", 10.0, 2, 1000.0, 3600.0), max_jump_N=1000.0,
-                       saturation_rad=math.radians(0.5), rate_limit_rad_per_s=math.radians(5.0), delay_steps=0,
-                       initial_wrench=w)
+    comp = h.hold_compensator(robot, w)
     ref = Reference(period_s=0.004)
     ref.hold(q0)
     with tempfile.TemporaryDirectory() as tmp:
         log = StreamLog(os.path.join(tmp, "log"), "compensator: {}\n", "bench")
-        loop = CompensatorLoop(comp, link, Sensor(), ref, robot, LoopSettings(max_jump_Nm=350.0), log=log,
+        loop = CompensatorLoop(comp, link, _HoldSensor(w), ref, robot, LoopSettings(max_jump_Nm=350.0), log=log,
                                out=open(os.devnull, "w"))
         loop.run_start(Message(1, 0, q0, echo=1), time.monotonic())
         us = []
@@ -161,21 +169,12 @@ def stage_breakdown_us(robot, protocol, repeats=1000):
     with each part timed (the instance's methods wrapped).  Returns
     {stage: (median us, p99 us)} and (median, p99) of the whole message,
     arrival to answer (the part the controller waits for)."""
-    import socket
-
     from robstiff_drake.cell import rsi, stream_motion
     from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
-    from robstiff_drake.cell.egm import ControllerLink, EgmLink
+    from robstiff_drake.cell.egm import ControllerLink
     from robstiff_drake.cell.run_log import StreamLog
 
-    ctrl_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    ctrl_sock.bind(("127.0.0.1", 0))
-    ctrl = ("127.0.0.1", ctrl_sock.getsockname()[1])
-    link = {"egm": lambda: EgmLink(0, ctrl), "rsi": lambda: rsi.RsiLink(0, ctrl, 0.004),
-            "stream-motion": lambda: stream_motion.StreamMotionLink(0, ctrl)}[protocol]()
-    link.reply_to = ctrl
-    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
-    link.start_deg = q0
+    ctrl_sock, link, q0 = _loopback_link(protocol)
     addr = ("127.0.0.1", link.sock.getsockname()[1])
     egm = ControllerLink("127.0.0.1", 0) if protocol == "egm" else None
 
@@ -186,19 +185,8 @@ def stage_breakdown_us(robot, protocol, repeats=1000):
             return rsi.encode_rob(1_000_000 + 4 * k, q0, q0)
         return stream_motion.encode_status(k, (k - 1) * 4, q0)
 
-    tool = robot.payload.tool_point_m
     w = h.hold_wrench(robot, np.radians(q0))(0.0).tolist()
-
-    class Sensor:
-        def drain(self):
-            now = time.monotonic()
-            return [(w, now, 0, False)] * 4
-
-    comp = Compensator(predictor=DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool),
-                       calibration=h.calibration(robot), tool_m=tool,
-                       filter_ba=filter_coefficients("lowpass", 10.0, 2, 1000.0, 3600.0), max_jump_N=1000.0,
-                       saturation_rad=math.radians(0.5), rate_limit_rad_per_s=math.radians(5.0), delay_steps=0,
-                       initial_wrench=w)
+    comp = h.hold_compensator(robot, w)
     ref = Reference(period_s=0.004)
     ref.hold(q0)
     spent = {name: [] for name in STAGES}
@@ -216,7 +204,7 @@ def stage_breakdown_us(robot, protocol, repeats=1000):
     total = []
     with tempfile.TemporaryDirectory() as tmp:
         log = StreamLog(os.path.join(tmp, "log"), "compensator: {}\n", "bench")
-        loop = CompensatorLoop(comp, link, Sensor(), ref, robot, LoopSettings(max_jump_Nm=350.0), log=log,
+        loop = CompensatorLoop(comp, link, _HoldSensor(w), ref, robot, LoopSettings(max_jump_Nm=350.0), log=log,
                                out=open(os.devnull, "w"))
         ctrl_sock.sendto(datagram(1), addr)
         loop.run_start(*link.receive(1.0)[-1])

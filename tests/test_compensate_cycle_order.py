@@ -2,16 +2,11 @@
 sensor records' rows are formatted once the target has been sent, with
 the same times and values as the records the chain took (in order)."""
 
-import math
-
 import numpy as np
 
 import cell_helpers as h
 from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
 from robstiff_drake.cell.link import Message
-from robstiff_drake.model.compensator import Compensator
-from robstiff_drake.model.filters import filter_coefficients
-from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.robot import load_robot
 
 Q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
@@ -55,13 +50,8 @@ class Sensor:
 
 def test_the_records_rows_are_written_after_the_answer_in_order():
     robot = load_robot()
-    tool = robot.payload.tool_point_m
     w = h.hold_wrench(robot, np.radians(Q0))(0.0).tolist()
-    comp = Compensator(predictor=DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool),
-                       calibration=h.calibration(robot), tool_m=tool,
-                       filter_ba=filter_coefficients("lowpass", 10.0, 2, 1000.0, 3600.0), max_jump_N=1000.0,
-                       saturation_rad=math.radians(0.5), rate_limit_rad_per_s=math.radians(5.0), delay_steps=0,
-                       initial_wrench=w)
+    comp = h.hold_compensator(robot, w)
     ref = Reference(period_s=0.004)
     ref.hold(Q0)
     calls, records = [], []

@@ -15,8 +15,6 @@ cannot be written is skipped.  Files go in plant.cache_dir()
 """
 
 import hashlib
-import importlib
-import inspect
 import io
 
 import numpy as np
@@ -28,22 +26,14 @@ CODE = ("robstiff_drake.model.ik", "robstiff_drake.model.ik_path", "robstiff_dra
         "robstiff_drake.model.robot", "robstiff_drake.model.stiffness", __name__)
 
 
-def _code_hash():
-    h = hashlib.sha256()
-    for name in CODE:
-        try:
-            h.update(inspect.getsource(importlib.import_module(name)).encode())
-        except (OSError, TypeError, ImportError):
-            h.update(name.encode())
-    return h.digest()
-
-
 def key(path, robot, tool_m, dt_s, q_start=None, points_m=None):
     """The hex digest naming the references of these inputs (``points_m``:
     the path's tool points at ik_path.sample_times, when known)."""
     from robstiff_drake.model.path import MIN_JACOBIAN_CONDITION
 
-    h = hashlib.sha256(_code_hash())
+    from robstiff_drake.plant import code_digest
+
+    h = hashlib.sha256(code_digest(CODE).encode())
     if points_m is None:
         points_m = path.positions(ik_path.sample_times(path, dt_s))
     h.update(np.ascontiguousarray(points_m, dtype=float).tobytes())
