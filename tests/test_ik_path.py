@@ -135,3 +135,30 @@ def test_the_key_follows_the_robot_files_content(tmp_path):
     k1 = reference_cache.key(path, robot, tool, 0.004)
     copy.write_text(src.read_text() + "\n# edited\n")
     assert reference_cache.key(path, load_robot(str(copy)), tool, 0.004) != k1
+
+
+def test_a_controllers_own_kinematics_gives_the_sample_by_sample_references(job):
+    """diagrams/milling_cell.references_with_kinematic_error (a controller
+    whose joint zeros are off, the part touched off at the first point)
+    against the loop it replaced: solve_for sample by sample."""
+    import dataclasses
+
+    from robstiff_drake.diagrams.milling_cell import references_with_kinematic_error
+
+    path, robot, tool = job
+    d = np.deg2rad([0.02, -0.015, 0.01, 0.03, -0.02, 0.025])
+    ctrl = dataclasses.replace(robot, dh=dataclasses.replace(robot.dh, home_rad=robot.dh.home_rad + d))
+    t = np.arange(0.0, path.duration_s, 0.05)
+    fast = references_with_kinematic_error(path, t, robot, ctrl, tool)
+    q_prev, shift, slow = None, np.zeros(3), []
+    for k, tk in enumerate(t):
+        q = ik.solve_for(ctrl, ik.tool_down_pose(path.position(tk) - shift, path.yaw), tool, q_ref_rad=q_prev)
+        if k == 0:
+            q0 = q
+            shift = kin.tool_pose(robot.dh, q, tool)[:3, 3] - path.position(tk)
+            q = ik.solve_for(ctrl, ik.tool_down_pose(path.position(tk) - shift, path.yaw), tool, q_ref_rad=q0)
+        slow.append(q)
+        q_prev = q
+    assert np.max(np.abs(fast - np.array(slow))) < 1e-12
+    assert np.max(np.abs(fast - ik_path.solve_path(robot, [ik.tool_down_pose(path.position(tk), path.yaw)
+                                                           for tk in t], tool))) > 1e-5  # the error is there

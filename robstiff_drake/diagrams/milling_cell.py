@@ -120,20 +120,17 @@ def references_with_kinematic_error(path, t_ref, robot, ctrl, tool):
     path, the work offset touched off with the real arm at the path's
     first point (so the part starts where it is commanded; the error grows
     over the part, as path accuracy does)."""
-    from robstiff_drake.model import ik
+    from robstiff_drake.model import ik, ik_path
 
-    q_prev, q0 = None, None
     qs = np.empty((len(t_ref), 6))
-    shift = np.zeros(3)
-    for k, t in enumerate(t_ref):
-        q = ik.solve_for(ctrl, ik.tool_down_pose(path.position(t) - shift, path.yaw), tool, q_ref_rad=q_prev)
-        if k == 0:
-            q0 = q
-            T = kin.tool_pose(robot.dh, q, tool)
-            shift = T[:3, 3] - path.position(t)  # the real arm's offset at the first point
-            q = ik.solve_for(ctrl, ik.tool_down_pose(path.position(t) - shift, path.yaw), tool, q_ref_rad=q0)
-        qs[k] = q
-        q_prev = q
+    if not len(t_ref):
+        return qs
+    p = path.positions(t_ref)
+    q0 = ik.solve_for(ctrl, ik.tool_down_pose(p[0], path.yaw), tool)
+    shift = kin.tool_pose(robot.dh, q0, tool)[:3, 3] - p[0]  # the real arm's offset at the first point
+    qs[0] = ik.solve_for(ctrl, ik.tool_down_pose(p[0] - shift, path.yaw), tool, q_ref_rad=q0)
+    # the rest warm-started sample by sample from there (model/ik_path: the same answers, vectorised)
+    qs[1:] = ik_path.solve_path(ctrl, ik_path.tool_down_poses(p[1:] - shift, path.yaw), tool, qs[0])
     return qs
 
 

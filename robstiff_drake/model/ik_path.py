@@ -222,7 +222,7 @@ def solve_path(robot, poses, tool_m, q_start_rad=None):
     return out
 
 
-def _tool_down_poses(points_m, yaw_rad):
+def tool_down_poses(points_m, yaw_rad):
     """model/ik.tool_down_pose for points (N, 3): (N, 4, 4)."""
     T = np.broadcast_to(ik.tool_down_pose([0.0, 0.0, 0.0], yaw_rad), (len(points_m), 4, 4)).copy()
     T[:, :3, 3] = points_m
@@ -252,14 +252,14 @@ def joint_references(path, robot, tool_m, dt_s, q_start=None, points_m=None):
 
     failed = None
     try:
-        qs = solve_path(robot, _tool_down_poses(p, path.yaw), tool, q_start)
+        qs = solve_path(robot, tool_down_poses(p, path.yaw), tool, q_start)
         n = len(ts)
     except PathIKError as e:
         failed, n = e, e.index
         qs = None
     if n:
         if qs is None:  # the samples before the one out of reach, for the singularity check
-            qs = solve_path(robot, _tool_down_poses(p[:n], path.yaw), tool, q_start)
+            qs = solve_path(robot, tool_down_poses(p[:n], path.yaw), tool, q_start)
         J = kin.jacobian(robot.dh, qs[:n], tool)
         s = np.linalg.svd(J, compute_uv=False)
         sing = np.flatnonzero(s[:, -1] < MIN_JACOBIAN_CONDITION * s[:, 0])
