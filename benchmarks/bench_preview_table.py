@@ -114,11 +114,18 @@ def main():
             cold, plan = table_time(job, cache)
             warm, _ = table_time(job, cache)
             t_fast, n = ik_time(job)
+            from robstiff_drake.cell.preview_table import scale_gains
+
+            t0 = time.perf_counter()
+            scale_gains(plan.replica, PERIOD_S)
+            t_gains = time.perf_counter() - t0
             good = cold <= target
             ok &= good
             print(f"{name}: {len(plan.u)} cycles ({plan.u[-1]:.1f} s of path), {n} IK samples")
             print(f"  preview table, IK solved: {cold:7.2f} s   IK from the disk cache: {warm:7.2f} s   "
                   f"target <= {target:g} s: {'PASS' if good else 'FAIL'}")
+            print(f"  then the force scales' gains along it (cell/preview_table.scale_gains, also before the "
+                  f"stream): {t_gains:5.2f} s")
             line = f"  the vectorised IK alone: {t_fast:7.2f} s"
             if job == jobs[0][0] or args.long_reference:
                 before, old = table_time(job, cache, sample_by_sample=True)
