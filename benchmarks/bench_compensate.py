@@ -14,12 +14,21 @@ compensator's resident memory is sampled every second and its slope over
 the run's second half printed (a flat memory over a 10-minute run is the
 target: a shorter run and the slope, extrapolated, say so).
 
-Target: p99 of the computation per message below 1 ms.  Exit status 1
-when it is missed.
+Targets: the computation per message (arrival to answer) p99 <= 0.3 ms
+on a quiet machine, p99 <= 1 ms with a `stress`-like load on the other core
+(--load N: N busy processes on the machine's last core), and max <= 4 ms
+(the cycle) while streaming: the first message's answer waits for the
+start's own work (without --reference the loop check at the hold pose the
+message gives, and the log folder's start), printed apart.  Exit status 1 when one is missed.  Before the process runs,
+an in-process breakdown of one message (receive and decode, session and
+feedback checks, the sensor's records through guard and filter, the
+model's tick, the target check with the encoding and the send, and the log
+rows and statistics written after the answer has left).
 
     python benchmarks/bench_compensate.py                  # 60 s per protocol
     python benchmarks/bench_compensate.py --seconds 10     # shorter, for CI
     python benchmarks/bench_compensate.py --protocol rsi --seconds 600
+    python benchmarks/bench_compensate.py --load 1 --seconds 60   # a busy process beside it
 
 The machine is shared (2 cores): the load average is printed with the
 figures, since other processes' load shows in the tails.
@@ -44,7 +53,9 @@ from robstiff_drake.model.filters import filter_coefficients  # noqa: E402
 from robstiff_drake.model.realtime import DeflectionPredictor  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
 
-TARGET_P99_MS = 1.0
+TARGET_P99_MS = 0.3  # on a quiet machine
+TARGET_P99_LOADED_MS = 1.0  # with --load
+TARGET_MAX_MS = 4.0
 
 
 def in_process_us(robot, repeats=3000):
@@ -75,46 +86,54 @@ def in_process_us(robot, repeats=3000):
     return statistics.median(t_pred), statistics.median(t_chain)
 
 
+def _loopback_link(protocol):
+    """(the controller's socket on 127.0.0.1, the loop's link of
+    ``protocol`` answering it, the hold pose in controller deg)."""
+    import socket
+
+    from robstiff_drake.cell import rsi, stream_motion
+    from robstiff_drake.cell.egm import EgmLink
+
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(("127.0.0.1", 0))
+    ctrl = ("127.0.0.1", sock.getsockname()[1])
+    link = {"egm": lambda: EgmLink(0, ctrl), "rsi": lambda: rsi.RsiLink(0, ctrl, 0.004),
+            "stream-motion": lambda: stream_motion.StreamMotionLink(0, ctrl)}[protocol]()
+    link.reply_to = ctrl
+    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
+    link.start_deg = q0
+    return sock, link, q0
+
+
+class _HoldSensor:
+    """A sensor whose four records per 4 ms message all read ``w``."""
+
+    def __init__(self, w):
+        self.w = w
+
+    def drain(self):
+        now = time.monotonic()
+        return [(self.w, now, 0, False)] * 4
+
+
 def in_process_cycle_us(robot, protocol, repeats=1000):
     """(median, p99 us) of one whole message in-process: the session check,
     the sensor's 4 records through the guards, the chain, the target check,
     the protocol's encoding and a UDP send to a sink on 127.0.0.1, and the
     log's row formatting (cell/compensate.CompensatorLoop.cycle), without
     this machine's scheduling between two processes."""
-    import socket
-
-    from robstiff_drake.cell import rsi, stream_motion
     from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
-    from robstiff_drake.cell.egm import EgmLink
     from robstiff_drake.cell.link import Message
     from robstiff_drake.cell.run_log import StreamLog
 
-    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sink.bind(("127.0.0.1", 0))
-    ctrl = ("127.0.0.1", sink.getsockname()[1])
-    link = {"egm": lambda: EgmLink(0, ctrl), "rsi": lambda: rsi.RsiLink(0, ctrl, 0.004),
-            "stream-motion": lambda: stream_motion.StreamMotionLink(0, ctrl)}[protocol]()
-    link.reply_to = ctrl
-    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
-    link.start_deg = q0
-    tool = robot.payload.tool_point_m
+    sink, link, q0 = _loopback_link(protocol)
     w = h.hold_wrench(robot, np.radians(q0))(0.0).tolist()
-
-    class Sensor:
-        def drain(self):
-            now = time.monotonic()
-            return [(w, now, 0, False)] * 4
-
-    comp = Compensator(predictor=DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool),
-                       calibration=h.calibration(robot), tool_m=tool,
-                       filter_ba=filter_coefficients("lowpass", 10.0, 2, 1000.0, 3600.0), max_jump_N=1000.0,
-                       saturation_rad=math.radians(0.5), rate_limit_rad_per_s=math.radians(5.0), delay_steps=0,
-                       initial_wrench=w)
+    comp = h.hold_compensator(robot, w)
     ref = Reference(period_s=0.004)
     ref.hold(q0)
     with tempfile.TemporaryDirectory() as tmp:
         log = StreamLog(os.path.join(tmp, "log"), "compensator: {}\n", "bench")
-        loop = CompensatorLoop(comp, link, Sensor(), ref, robot, LoopSettings(max_jump_Nm=350.0), log=log,
+        loop = CompensatorLoop(comp, link, _HoldSensor(w), ref, robot, LoopSettings(max_jump_Nm=350.0), log=log,
                                out=open(os.devnull, "w"))
         loop.run_start(Message(1, 0, q0, echo=1), time.monotonic())
         us = []
@@ -137,6 +156,126 @@ def in_process_cycle_us(robot, protocol, repeats=1000):
     link.sock.close()
     sink.close()
     return float(np.median(us)), float(np.percentile(us, 99))
+
+
+STAGES = ("receive + decode", "session + feedback", "sensor records (guard, filter)", "model (tick)",
+          "target check + encode + send", "log rows + statistics (after the answer)")
+
+
+def stage_breakdown_us(robot, protocol, repeats=1000):
+    """Where one message's time goes, in-process: a datagram the controller
+    would send (its encoding made beforehand) is sent to the loop's socket
+    and the loop receives and decodes it, then cell/compensate's cycle
+    with each part timed (the instance's methods wrapped).  Returns
+    {stage: (median us, p99 us)} and (median, p99) of the whole message,
+    arrival to answer (the part the controller waits for)."""
+    from robstiff_drake.cell import rsi, stream_motion
+    from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
+    from robstiff_drake.cell.egm import ControllerLink
+    from robstiff_drake.cell.run_log import StreamLog
+
+    ctrl_sock, link, q0 = _loopback_link(protocol)
+    addr = ("127.0.0.1", link.sock.getsockname()[1])
+    egm = ControllerLink("127.0.0.1", 0) if protocol == "egm" else None
+
+    def datagram(k):
+        if protocol == "egm":
+            return egm.robot_message(q0, q0, tm_ms=(k - 1) * 4)
+        if protocol == "rsi":
+            return rsi.encode_rob(1_000_000 + 4 * k, q0, q0)
+        return stream_motion.encode_status(k, (k - 1) * 4, q0)
+
+    w = h.hold_wrench(robot, np.radians(q0))(0.0).tolist()
+    comp = h.hold_compensator(robot, w)
+    ref = Reference(period_s=0.004)
+    ref.hold(q0)
+    spent = {name: [] for name in STAGES}
+    current = {}
+
+    def timed(stage, fn):
+        def wrapper(*a, **k):
+            t0 = time.perf_counter()
+            try:
+                return fn(*a, **k)
+            finally:
+                current[stage] = current.get(stage, 0.0) + time.perf_counter() - t0
+        return wrapper
+
+    total = []
+    with tempfile.TemporaryDirectory() as tmp:
+        log = StreamLog(os.path.join(tmp, "log"), "compensator: {}\n", "bench")
+        loop = CompensatorLoop(comp, link, _HoldSensor(w), ref, robot, LoopSettings(max_jump_Nm=350.0), log=log,
+                               out=open(os.devnull, "w"))
+        ctrl_sock.sendto(datagram(1), addr)
+        loop.run_start(*link.receive(1.0)[-1])
+        loop._session = timed("session + feedback", loop._session)
+        loop._feedback = timed("session + feedback", loop._feedback)
+        loop._read_sensor = timed("sensor records (guard, filter)", loop._read_sensor)
+        comp.tick = timed("model (tick)", comp.tick)
+        link.send_targets = timed("target check + encode + send", link.send_targets)
+        log.cycle = timed("log rows + statistics (after the answer)", log.cycle)
+        log.wrench = timed("log rows + statistics (after the answer)", log.wrench)
+        for k in range(2, repeats + 2):
+            current.clear()
+            ctrl_sock.sendto(datagram(k), addr)
+            t0 = time.perf_counter()
+            got = link.receive(0.1)
+            t1 = time.perf_counter()
+            msg, t_arr = got[-1]
+            ok, dt = loop._session(msg)
+            loop.cycle(msg, t_arr, dt)
+            t2 = time.perf_counter()
+            current["receive + decode"] = t1 - t0
+            after = current.get("log rows + statistics (after the answer)", 0.0)
+            for name in STAGES:
+                spent[name].append(current.get(name, 0.0) * 1e6)
+            total.append((t2 - t0 - after) * 1e6)
+            time.sleep(0.003)
+            if k % 100 == 0:
+                log.tick(None)
+                ctrl_sock.setblocking(False)
+                try:
+                    while True:
+                        ctrl_sock.recvfrom(65536)
+                except BlockingIOError:
+                    pass
+                ctrl_sock.setblocking(True)
+        log.close({})
+    link.sock.close()
+    ctrl_sock.close()
+    if egm is not None:
+        egm.sock.close()
+    return ({name: (float(np.median(v)), float(np.percentile(v, 99))) for name, v in spent.items()},
+            (float(np.median(total)), float(np.percentile(total, 99))))
+
+
+def _spin():
+    while True:
+        pass
+
+
+def start_load(n):
+    """``n`` busy processes (a `stress`-like load), on the last core when the
+    machine lets a process choose (os.sched_setaffinity): the other core
+    for a compensator that the scheduler puts on the first."""
+    import multiprocessing
+
+    procs = []
+    for _ in range(n):
+        p = multiprocessing.Process(target=_spin, daemon=True)
+        p.start()
+        try:
+            os.sched_setaffinity(p.pid, {max(os.sched_getaffinity(0))})
+        except (AttributeError, OSError):
+            pass
+        procs.append(p)
+    return procs
+
+
+def stop_load(procs):
+    for p in procs:
+        p.terminate()
+        p.join(5)
 
 
 def rss_mb(pid):
@@ -188,7 +327,16 @@ def run_protocol(tmp, protocol, seconds, rt_priority=0):
     net.close()
     if proc.returncode != 0:
         raise SystemExit(f"compensate failed: {err}")
-    return json.load(open(os.path.join(log, "summary.json"))), net.stats, rss
+    summary = json.load(open(os.path.join(log, "summary.json")))
+    with open(os.path.join(log, "cycles.csv")) as f:
+        lines = [line.rstrip("\n").split(",") for line in f if not line.startswith("#")]
+    t_col, c_col = lines[0].index("t_s"), lines[0].index("compute_ms")
+    rows = [(float(r[t_col]), float(r[c_col])) for r in lines[1:] if r[c_col]]
+    top = sorted(range(len(rows)), key=lambda i: -rows[i][1])[:5]
+    summary["slowest"] = [(i, rows[i][0], rows[i][1]) for i in top]
+    summary["first_ms"] = rows[0][1]
+    summary["max_after_first_ms"] = max(r[1] for r in rows[1:])
+    return summary, net.stats, rss
 
 
 def slope_mb_per_min(rss):
@@ -206,11 +354,31 @@ def main():
     ap.add_argument("--protocol", default="all", choices=["all", "egm", "rsi", "stream-motion"])
     ap.add_argument("--rt-priority", type=int, default=0,
                     help="compensate --rt-priority, and the simulated controller 10 above it (default: off)")
+    ap.add_argument("--load", type=int, default=0,
+                    help="busy processes beside the compensator, on the machine's last core (default: none)")
+    ap.add_argument("--stages-only", action="store_true", help="only the in-process breakdown (no process runs)")
     args = ap.parse_args()
     robot = load_robot()
+    load = start_load(args.load)
+    try:
+        return _main(args, robot)
+    finally:
+        stop_load(load)
+
+
+def _main(args, robot):
     t_pred, t_chain = in_process_us(robot)
     ok = True
+    what = f"with {args.load} busy process(es) on the last core" if args.load else "no load generator"
     for protocol in (["egm", "rsi", "stream-motion"] if args.protocol == "all" else [args.protocol]):
+        stages, (med, p99) = stage_breakdown_us(robot, protocol)
+        print(f"{protocol}: where a message's time goes, in-process ({what}; load average "
+              f"{os.getloadavg()[0]:.2f}; us):            median      p99")
+        for name in STAGES:
+            print(f"  {name:<60} {stages[name][0]:8.1f} {stages[name][1]:8.1f}")
+        print(f"  {'arrival -> answer (all but the log rows)':<60} {med:8.1f} {p99:8.1f}", flush=True)
+        if args.stages_only:
+            continue
         load0 = os.getloadavg()[0]
         with tempfile.TemporaryDirectory() as tmp:
             summary, stats, rss = run_protocol(tmp, protocol, args.seconds, args.rt_priority)
@@ -226,6 +394,8 @@ def main():
               f"late {c['late']}, unanswered {c['unanswered']}; health {c['health']['verdict']}")
         print(f"  the simulated controller: answered {stats.answered}, late {stats.late_answers}, unanswered "
               f"{stats.unanswered}, {stats.late_ticks} of its ticks late by more than 2 ms")
+        print("  the slowest messages (row, t_s, ms): " + ", ".join(f"#{i} {t:.3f} s {ms:.2f} ms"
+                                                                  for i, t, ms in summary["slowest"]))
         slope = slope_mb_per_min(rss)
         print(f"  memory (RSS, with --log streaming): {rss[0][1]:.1f} MB at {rss[0][0]:.0f} s, {rss[-1][1]:.1f} MB at "
               f"{rss[-1][0]:.0f} s; slope over the second half {slope:+.2f} MB/min (x10 min: {10 * slope:+.1f} MB)")
@@ -234,9 +404,14 @@ def main():
               f"4 ms message {t_chain:.1f} us; the whole message with the checks, the encoding, the send and the "
               f"log row: median {med:.0f} us, p99 {p99:.0f} us; ratio process p99 / in-process p99 "
               f"{comp['p99'] * 1e3 / p99:.1f}")
-        passed = comp["p99"] < TARGET_P99_MS
+        target = TARGET_P99_LOADED_MS if args.load else TARGET_P99_MS
+        top = summary["max_after_first_ms"]
+        passed = comp["p99"] <= target and top <= TARGET_MAX_MS
         ok = ok and passed
-        print(f"  target p99 < {TARGET_P99_MS:g} ms: {'PASS' if passed else 'FAIL'}", flush=True)
+        print(f"  target p99 <= {target:g} ms ({what}) and max <= {TARGET_MAX_MS:g} ms while streaming: p99 "
+              f"{comp['p99']:.3f} ms, max {top:.2f} ms after the first message (the first: {summary['first_ms']:.1f} "
+              f"ms, with the loop check at the hold pose and the log folder's start): {'PASS' if passed else 'FAIL'}",
+              flush=True)
     return 0 if ok else 1
 
 

@@ -53,6 +53,21 @@ def cache_dir():
                      f"writable (set {CACHE_ENV} to a writable folder)")
 
 
+def code_digest(module_names):
+    """A digest (hex) of the source of the modules named (a cached file
+    made by other code is stale)."""
+    import importlib
+    import inspect
+
+    h = hashlib.sha256()
+    for name in module_names:
+        try:
+            h.update(inspect.getsource(importlib.import_module(name)).encode())
+        except (OSError, TypeError, ImportError):
+            h.update(name.encode())
+    return h.hexdigest()
+
+
 def robot_urdf(robot):
     """The URDF file of ``robot`` in the cache, (re)written when missing or
     different from what its robot file gives now.  Returns its path."""

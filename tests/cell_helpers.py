@@ -193,6 +193,24 @@ def hold_wrench(robot, q_rad):
     return lambda t: w
 
 
+def hold_compensator(robot, w):
+    """The chain compensate runs (model/compensator.Compensator: the
+    library's stiffness, a 10 Hz low-pass at 1 kHz, 1000 N guard, 0.5 deg
+    saturation, 5 deg/s rate limit, no delay) started on the wrench ``w``."""
+    import math
+
+    from robstiff_drake.model.compensator import Compensator
+    from robstiff_drake.model.filters import filter_coefficients
+    from robstiff_drake.model.realtime import DeflectionPredictor
+
+    tool = robot.payload.tool_point_m
+    return Compensator(predictor=DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool),
+                       calibration=calibration(robot), tool_m=tool,
+                       filter_ba=filter_coefficients("lowpass", 10.0, 2, 1000.0, 3600.0), max_jump_N=1000.0,
+                       saturation_rad=math.radians(0.5), rate_limit_rad_per_s=math.radians(5.0), delay_steps=0,
+                       initial_wrench=w)
+
+
 class ScriptedController:
     """A controller that sends EgmRobot messages exactly as a test says
     (sequence number, clock, joints) from 127.0.0.1 (or ``host``, another

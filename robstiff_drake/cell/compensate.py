@@ -88,6 +88,7 @@ class CompensatorLoop:
                                                                             robot, settings)
         self.preview = preview  # cell/preview_table.PreviewDeflection (the chain's model) or None: plain
         self.log = log  # run_log.StreamLog or None
+        self._wrench_rows = []  # this cycle's sensor records for the log, written after the answer
         self.out = out
         self.n = Counters()
         self.clock = SessionClock(settings.period_s)
@@ -195,8 +196,8 @@ class CompensatorLoop:
                                f"carry; {self.n.sensor_clipped} so far): refused")
                 w = (float("nan"),) * 6
             finite = all(v == v for v in w)
-            if self.log is not None:
-                self.log.wrench(t0 + span * (i + 1) / n_rec if span > 0 else t0 + 1e-6 * (i + 1), w)
+            if self.log is not None:  # (formatted after the answer has left: cycle's end)
+                self._wrench_rows.append((t0 + span * (i + 1) / n_rec if span > 0 else t0 + 1e-6 * (i + 1), w))
             self.last_raw = list(w)
             if finite and self.pending_reseed:
                 # the chain restarts on a new level only when two records in a row agree on it (within the
@@ -350,6 +351,9 @@ class CompensatorLoop:
         self.n.lost_estimate.add(sum(abs(c) for c in self.comp.dq), stale)
         self.t_last_answer = t_done
         if self.log is not None:
+            for t_w, w in self._wrench_rows:
+                self.log.wrench(t_w, w)
+            self._wrench_rows.clear()
             self.log.cycle(self, msg, t_arr, ref_deg, corr, corr_deg, target if sent else None, t_done - t_arr, age)
         return sent
 

@@ -112,19 +112,21 @@ def scale_gains(replica, period_s):
     computed here, once (a cycle skipped by a fault leaves the later gains
     a little smaller than the filter's: slower, never faster, learning)."""
     n = len(replica)
-    P = np.eye(N_FORCE_GROUPS) * SCALE_SIGMA ** 2
-    Q = np.eye(N_FORCE_GROUPS) * SCALE_WALK_PER_S ** 2 * period_s
+    eye = np.eye(N_FORCE_GROUPS)
+    P = eye * SCALE_SIGMA ** 2
+    Q = eye * SCALE_WALK_PER_S ** 2 * period_s
     R = np.eye(3) * NOISE_N ** 2
     K = np.zeros((n, N_FORCE_GROUPS, 3))
     Phi = np.zeros((n, 3, N_FORCE_GROUPS))
-    for k in range(1, n):
-        F = replica[k - 1, :N_FORCE_GROUPS, :3].T
-        Phi[k] = F
-        if np.max(np.abs(F)) <= MIN_GROUP_FORCE_N:
-            continue
+    Phi[1:] = np.swapaxes(replica[:-1, :N_FORCE_GROUPS, :3], 1, 2)
+    learns = np.max(np.abs(Phi), axis=(1, 2)) > MIN_GROUP_FORCE_N  # the rows the filter updates on
+    learns[0] = False
+    inv = np.linalg.inv
+    for k in np.flatnonzero(learns).tolist():  # (the same products in the same order: the same bits)
+        F = Phi[k]
         P = P + Q
-        K[k] = P @ F.T @ np.linalg.inv(F @ P @ F.T + R)
-        P = (np.eye(N_FORCE_GROUPS) - K[k] @ F) @ P
+        Kk = K[k] = P @ F.T @ inv(F @ P @ F.T + R)
+        P = (eye - Kk @ F) @ P
     return K, Phi
 
 

@@ -23,6 +23,7 @@ from pydrake.systems.primitives import Adder, Demultiplexer, LogVectorOutput, Mu
 from pydrake.trajectories import PiecewisePolynomial
 
 from robstiff_drake.diagrams.compensator import filter_coefficients, make_compensator
+from robstiff_drake.diagrams import reference_cache
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.scenario_models import (
     COEFFICIENT_GROUPS, cutting_setup, model_cutting_setup, model_damping_ratios, model_stiffness, payload_calibration
@@ -88,7 +89,8 @@ _PREVIEWS = {}  # preview tables (model/preview.py) for a path and a compensator
 
 def planned_path(sc, robot, tool):
     """(PlannedPath, times, joint references) of the scenario's path; the IK
-    is done once per process for a given path, robot file and tool."""
+    is done once per process for a given path, robot file and tool, and
+    kept on disk (diagrams/reference_cache.py)."""
     p = sc.path
     try:
         path = scenario_path(sc)
@@ -98,7 +100,7 @@ def planned_path(sc, robot, tool):
         key = (path.signature(), p.reference_period_ms, robot.source, tuple(np.round(tool, 12)),
                robot.q_lower_rad.tobytes(), robot.q_upper_rad.tobytes())
         if key not in _REFERENCES:
-            _REFERENCES[key] = path.joint_references(robot, tool, p.reference_period_ms / 1e3)
+            _REFERENCES[key] = reference_cache.joint_references(path, robot, tool, p.reference_period_ms / 1e3)
     except PathError as e:  # (a program's path: its file:line, the first that leaves the robot's reach or limits)
         raise InputError(f"{e.where or f'{sc.source}: path'}: {e} (robot {robot.name})") from None
     t_ref, q_ref = _REFERENCES[key]
@@ -118,20 +120,17 @@ def references_with_kinematic_error(path, t_ref, robot, ctrl, tool):
     path, the work offset touched off with the real arm at the path's
     first point (so the part starts where it is commanded; the error grows
     over the part, as path accuracy does)."""
-    from robstiff_drake.model import ik
+    from robstiff_drake.model import ik, ik_path
 
-    q_prev, q0 = None, None
     qs = np.empty((len(t_ref), 6))
-    shift = np.zeros(3)
-    for k, t in enumerate(t_ref):
-        q = ik.solve_for(ctrl, ik.tool_down_pose(path.position(t) - shift, path.yaw), tool, q_ref_rad=q_prev)
-        if k == 0:
-            q0 = q
-            T = kin.tool_pose(robot.dh, q, tool)
-            shift = T[:3, 3] - path.position(t)  # the real arm's offset at the first point
-            q = ik.solve_for(ctrl, ik.tool_down_pose(path.position(t) - shift, path.yaw), tool, q_ref_rad=q0)
-        qs[k] = q
-        q_prev = q
+    if not len(t_ref):
+        return qs
+    p = path.positions(t_ref)
+    q0 = ik.solve_for(ctrl, ik.tool_down_pose(p[0], path.yaw), tool)
+    shift = kin.tool_pose(robot.dh, q0, tool)[:3, 3] - p[0]  # the real arm's offset at the first point
+    qs[0] = ik.solve_for(ctrl, ik.tool_down_pose(p[0] - shift, path.yaw), tool, q_ref_rad=q0)
+    # the rest warm-started sample by sample from there (model/ik_path: the same answers, vectorised)
+    qs[1:] = ik_path.solve_path(ctrl, ik_path.tool_down_poses(p[1:] - shift, path.yaw), tool, qs[0])
     return qs
 
 

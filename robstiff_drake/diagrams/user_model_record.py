@@ -85,16 +85,9 @@ CODE = ("robstiff_drake.diagrams.station", "robstiff_drake.diagrams.compliant_ar
 
 def code_hash():
     """A digest of the source of the modules in CODE."""
-    import importlib
-    import inspect
+    from robstiff_drake.plant import code_digest
 
-    h = hashlib.sha256()
-    for name in CODE:
-        try:
-            h.update(inspect.getsource(importlib.import_module(name)).encode())
-        except (OSError, TypeError, ImportError):
-            h.update(name.encode())
-    return h.hexdigest()[:16]
+    return code_digest(CODE)[:16]
 
 
 def disk_path(key):

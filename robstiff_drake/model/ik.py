@@ -21,6 +21,9 @@ The arm branch is always the machining configuration, in front of axis 1
 (the shoulder between axis 1 and the wrist centre) with the elbow up (the
 elbow above the line from the shoulder to the wrist centre); of the wrist
 branches, the one nearest the reference q is taken.
+
+Along a path (each sample's reference the previous answer),
+model/ik_path.py gives the same answers for all samples at once.
 """
 
 import numpy as np
