@@ -256,17 +256,83 @@ def test_a_drift_without_clock_is_a_trend_not_a_cause(capsys, tmp_path):
 
 
 def test_the_residual_map_only_when_it_generalises(capsys, tmp_path):
-    # a reducer error at the 3rd and 4th harmonic of joints 2 and 3: no named effect holds it, the map does
+    # joint 3 off by an error of the elbow's absolute angle, sin(3 (J2 + J3)): no joint's own periodic error
+    # holds it, the map (which has the elbow's sum) does, in every fold
     robot = load_robot(str(UR10))
-    world = tw.make_tracker_campaign(robot, 61, n=1500, noise_mm=NOISE, unnamed=1e-4)
+    world = tw.make_tracker_campaign(robot, 61, n=1500, noise_mm=NOISE, coupled=1e-4)
     rep = _diagnose(capsys, [_write(tmp_path, world), "--robot", UR10, "--noise-mm", NOISE])
     e = rep["error_3d_mm"]
     assert rep["residual_map"]["kept"] is True, rep["residual_map"]
-    assert e["after_with_residual_map"]["mean"] < 0.75 * e["after"]["mean"], e
+    assert e["after_with_residual_map"]["mean"] < 0.9 * e["after"]["mean"], e
+    assert all(f["with"] < f["without"] for f in rep["residual_map"]["per_fold_mm"])
     assert "non-parametric" in rep["verdict"] and rep["explains_data"] is False
     # without it, the map is tried and not kept
     world = tw.make_tracker_campaign(robot, 62, n=1500, noise_mm=NOISE)
     rep = _diagnose(capsys, [_write(tmp_path, world, "b.csv"), "--robot", UR10, "--noise-mm", NOISE])
+    assert rep["residual_map"]["kept"] is False and rep["explains_data"] is True, rep["verdict"]
+    assert rep["periodic_errors"] == [], rep["periodic_errors"]  # no periodic error where the plant has none
+
+
+def test_the_residual_map_is_zero_outside_the_campaigns_domain():
+    # fitted on poses with joint 2 in [-90, -30] deg, it says nothing at joint 2 = +60 deg
+    from robstiff_drake.identification import residual_map as rmap
+
+    rng = np.random.default_rng(5)
+    J = rng.uniform(-0.5, 0.5, size=(400, 6))
+    J[:, 1] = rng.uniform(np.deg2rad(-90), np.deg2rad(-30), 400)
+    Jv = rng.normal(size=(400, 3, 6))
+    resid = 1e-4 * np.sin(3 * J[:, [1]]) * np.ones((400, 3))
+    mp = rmap.ResidualMap(6, 1e-6).fit(J, Jv, resid)
+    assert np.all(mp.weight(J) == 1.0)
+    far = J[:20].copy()
+    far[:, 1] = np.deg2rad(60)
+    assert np.all(mp.weight(far) == 0.0) and np.all(mp.predict(far, Jv[:20]) == 0.0)
+
+
+def test_a_periodic_joint_error_of_unknown_period(capsys, tmp_path):
+    """A reducer's error on joint 3, every 24.1 deg, 0.9 mrad (Drake's plant):
+    found by the periodogram, its period's interval holding 24.1, its size
+    within 5 %, written into the corrected robot file that fk reads, and a
+    second diagnosis with that file finds it no more."""
+    robot = load_robot(str(UR10))
+    world = tw.make_tracker_campaign(robot, 71, n=1500, noise_mm=NOISE, periodic=[(3, 24.1, 0.9e-3)])
+    data = _write(tmp_path, world)
+    out = tmp_path / "ur10_corrected.yaml"
+    rep = _diagnose(capsys, [data, "--robot", UR10, "--noise-mm", NOISE, "--write-robot", out])
+    top = rep["periodic_errors"][0]
+    assert top["joint"] == 3 and top["period_ci95_deg"][0] <= 24.1 <= top["period_ci95_deg"][1], top
+    assert top["amplitude_mrad"] == pytest.approx(0.9, rel=0.05), top
+    assert "joint 3: an angle error periodic every 24." in top["text"] and "reducer or encoder" in top["text"]
+    assert all(e["amplitude_mrad"] < 0.05 for e in rep["periodic_errors"][1:]), rep["periodic_errors"]
+    assert rep["explains_data"] is True and rep["error_3d_mm"]["after"]["mean"] <= 1.2 * MEAN3D
+    text = out.read_text()
+    assert "joint_periodic_errors:" in text and "joint: 3" in text
+    new = load_robot(str(out))
+    q_ctrl = np.array([10.0, -80.0, 47.0, -60.0, 30.0, 5.0])
+    assert main(["fk", *map(str, q_ctrl), "--robot", str(out), "--json", "-"]) == 0
+    fk = json.loads(capsys.readouterr().out)
+    e3 = 1e-3 * (top["sin_mrad"] * np.sin(np.deg2rad(q_ctrl[2]) * 360 / top["period_deg"])
+                 + top["cos_mrad"] * np.cos(np.deg2rad(q_ctrl[2]) * 360 / top["period_deg"]))
+    assert new.joint_rad(q_ctrl)[2] - np.deg2rad(q_ctrl[2]) == pytest.approx(e3, abs=0.05e-3)
+    np.testing.assert_allclose(np.array(fk["position_mm"]) / 1e3, kin.tool_position(new.dh, new.joint_rad(q_ctrl)),
+                               atol=1e-9)
+    d2 = diagnose_tracker(new, read_tracker_campaign(data, new), noise_mm=NOISE, residual_map=False)
+    assert not [e for e in d2.report["periodic_errors"] if e["joint"] == 3 and e["amplitude_mrad"] > 0.05]
+
+
+def test_harmonics_of_a_joints_turn_are_named(capsys, tmp_path):
+    # joints 2 and 3 off by 0.1 mrad at the 3rd and 4th harmonic of their turn (periods 120 and 90 deg): named as
+    # periodic errors of those joints, the error down to the noise, nothing left for the map.  The two periods are
+    # closer than the periodogram's resolution over the joints' spans (about 360 / span cycles per turn), so they
+    # are not told apart one by one: the test asks for the joints and the band, not for each period
+    robot = load_robot(str(UR10))
+    world = tw.make_tracker_campaign(robot, 63, n=1500, noise_mm=NOISE, unnamed=1e-4)
+    rep = _diagnose(capsys, [_write(tmp_path, world), "--robot", UR10, "--noise-mm", NOISE])
+    for joint in (2, 3):
+        hits = [e for e in rep["periodic_errors"] if e["joint"] == joint and 60 <= e["period_deg"] <= 180]
+        assert hits and max(e["amplitude_mrad"] for e in hits) > 0.05, (joint, rep["periodic_errors"])
+    assert {e["joint"] for e in rep["periodic_errors"]} == {2, 3}, rep["periodic_errors"]
+    assert rep["error_3d_mm"]["after"]["mean"] <= 1.25 * MEAN3D, rep["error_3d_mm"]
     assert rep["residual_map"]["kept"] is False and rep["explains_data"] is True, rep["verdict"]
 
 

@@ -208,7 +208,7 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         kept_blocks = [by_name[n] for n in kept]
         fit = problem.gauss_newton(fit0, kept_blocks, all_rows)
         # the joints' periodic errors, of periods searched in what that model leaves
-        per_cands, periodic_found, _ = periodic_candidates(problem, fit, kept_blocks, all_rows, tests)
+        per_cands, periodic_found, _ = periodic_candidates(problem, fit, cands, all_rows, tests)
         cands = cands + per_cands
         by_name = {b.name: b for b, _ in cands}
         bar.update(1)

@@ -14,8 +14,8 @@ The search (``search``), on what the model leaves (base frame):
    width 360 / the joint's span), the least-squares reduction of the residual
    sum of squares by the two columns above (a Lomb-Scargle periodogram
    weighted by each pose's lever |J_v G[:, J]|^2, O(N) per period).
-2. The highest peak over all joints, its period refined by a parabola
-   through the grid's three points, its 95 % interval from the curvature of
+2. The highest peak over all joints, its period refined by a bounded
+   scalar search between the grid's neighbours, its 95 % interval from the curvature of
    the sum of squares there (Delta SSE = chi2_1(0.95) sigma^2, sigma^2 from
    the residual); its false-alarm probability over the independent periods
    scanned (1 - (1 - p)^M, p the F test of the two columns).
@@ -103,17 +103,22 @@ def columns(ang, L_, period_deg):
     return np.stack([L_ * np.sin(nu * ang)[:, None], L_ * np.cos(nu * ang)[:, None]], -1)
 
 
-def _refine(nu, power, i):
-    """The peak's cycles per turn by a parabola through grid points i-1, i, i+1, and the curvature of Delta SSE."""
+def _refine(ang, L_, r, nu, power, i):
+    """The peak's cycles per turn (bounded scalar search of the exact Delta
+    SSE between the grid's neighbours of point i) and the curvature of
+    Delta SSE there (central difference), or None at the grid's ends."""
+    from scipy.optimize import minimize_scalar
+
     if i == 0 or i == len(nu) - 1:
         return nu[i], None
-    y0, y1, y2 = power[i - 1], power[i], power[i + 1]
     h = nu[1] - nu[0]
-    curv = (y0 - 2 * y1 + y2) / h**2  # d2 (Delta SSE) / d nu2, negative at a peak
-    if curv >= 0:
-        return nu[i], None
-    shift = 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2) * h
-    return nu[i] + np.clip(shift, -h, h), -curv
+    res = minimize_scalar(lambda v: -reduction(ang, L_, r, [v])[0], bounds=(nu[i - 1], nu[i + 1]), method="bounded",
+                          options={"xatol": 1e-4 * h})
+    c = float(res.x)
+    dh = h / 8
+    y0, y1, y2 = reduction(ang, L_, r, [c - dh, c, c + dh])
+    curv = (y0 - 2 * y1 + y2) / dh**2  # d2 (Delta SSE) / d nu2, negative at a peak
+    return c, (-curv if curv < 0 else None)
 
 
 class _Folds:
@@ -234,7 +239,7 @@ def search(q_ctrl_rad, Jv, G, resid_base, X_model, tests, joints=range(6)):
         if best is None:
             break
         J, i, _, nu, pw = best
-        nu_c, curv = _refine(nu, pw, i)
+        nu_c, curv = _refine(q_ctrl_rad[:, J], levers[J], e, nu, pw, i)
         if not consider(J, nu_c, curv, e, p_cols, None, M):
             break
         ci = found[-1]["period_ci95_deg"]

@@ -163,15 +163,21 @@ def _search(cv, base_cols, cands, info, pbar, kept_init=()):
     return kept, rounds, sorted(out, key=lambda r: r["rms_mm"]), dropped, rms_declared, current, cols_of
 
 
-def periodic_candidates(problem, fit, blocks, rows, tests):
+def periodic_candidates(problem, fit, cands, rows, tests):
     """[(Block, columns)] of the joints' periodic errors found in what ``fit``
-    leaves (tracker_periodic.search, with the model's columns refitted), and
-    the scans."""
+    leaves and no other candidate could hold (tracker_periodic.search, with
+    the columns of the registration, the measured point and every candidate
+    block refitted with each term), and the scans."""
     from robstiff_drake.identification import tracker_periodic as tpd
     from robstiff_drake.identification.tracker_terms import periodic_block
 
-    X, sl, ev = problem.columns(fit, blocks, rows)
-    r = problem.m[rows] - problem.predict(fit, rows, ev)
+    every = [b for b, _ in cands if not b.periodic]
+    fit_all = fit.copy()
+    for b in every:
+        if b.frame != "geometry" and b.name not in fit_all.coef:
+            fit_all.coef[b.name] = np.full(len(b.params), b.start)
+    X, _, ev = problem.columns(fit_all, every, rows)
+    r = problem.m[rows] - problem.predict(fit, rows)
     Jv = np.einsum("ij,njk->nik", fit.R, ev.Jv)  # the levers in the instrument's axes, as the residual
     found, scans = tpd.search(problem.q_ctrl[rows], Jv, problem.G, r, X, tests)
     out = []
