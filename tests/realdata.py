@@ -107,14 +107,17 @@ def ipa_ur10_campaign_csv(series, out_path):
     return out_path
 
 
-if __name__ == "__main__":  # python3 tests/realdata.py fanuc OUT.csv: the FANUC campaign in this project's format
+if __name__ == "__main__":  # python3 tests/realdata.py fanuc OUT.csv | ur10 A|B OUT.csv: in this project's format
     import sys
 
-    if len(sys.argv) != 3 or sys.argv[1] != "fanuc":
-        sys.exit("usage: python3 tests/realdata.py fanuc OUT.csv")
-    reason = missing(FANUC)
+    args = sys.argv[1:]
+    ok = (len(args) == 2 and args[0] == "fanuc") or (len(args) == 3 and args[0] == "ur10" and args[1] in IPA_SERIES)
+    if not ok:
+        sys.exit("usage: python3 tests/realdata.py fanuc OUT.csv | python3 tests/realdata.py ur10 A|B OUT.csv")
+    reason = missing(FANUC if args[0] == "fanuc" else IPA_UR10)
     if reason:
         sys.exit(reason)
-    if Path(sys.argv[2]).exists():
-        sys.exit(f"{sys.argv[2]}: exists; not overwritten")
-    print(f"wrote {fanuc_campaign_csv(sys.argv[2])}")
+    if Path(args[-1]).exists():
+        sys.exit(f"{args[-1]}: exists; not overwritten")
+    out = fanuc_campaign_csv(args[-1]) if args[0] == "fanuc" else ipa_ur10_campaign_csv(args[1], args[-1])
+    print(f"wrote {out}")

@@ -364,3 +364,41 @@ def test_every_output_of_a_tracker_diagnosis_has_its_wrote_line(capsys, tmp_path
     for p in outs:
         assert p.exists() and f"wrote {p}" in out, (p, out[-800:])
     assert f"wrote {outs[0]}: the corrected robot file" in out
+
+
+def _with_periodic(tmp_path, entries, name="ur10_periodic.yaml"):
+    text = UR10.read_text() + "\njoint_periodic_errors:\n" + "".join(
+        f"  - {{joint: {j}, period_deg: {p}, sin_mrad: {s}, cos_mrad: {c}}}\n" for j, p, s, c in entries)
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_a_robot_files_periodic_errors_move_the_joints_and_back(tmp_path):
+    """joint_periodic_errors: the model's angle is the controller's plus the
+    error, to_controller inverts it, a file without the key is unchanged."""
+    plain = load_robot(str(UR10))
+    robot = load_robot(str(_with_periodic(tmp_path, [(3, 24.1, 0.9, -0.3), (3, 12.05, 0.2, 0.0), (5, 360, 1.5, 2)])))
+    q = np.random.default_rng(8).uniform(-170, 170, size=(200, 6))
+    q[:, 2] = np.clip(q[:, 2], -150, 150)
+    dq = robot.joint_rad(q) - plain.joint_rad(q)
+    q3, q5 = np.deg2rad(q[:, 2]), np.deg2rad(q[:, 4])
+    want3 = 1e-3 * (0.9 * np.sin(q3 * 360 / 24.1) - 0.3 * np.cos(q3 * 360 / 24.1) + 0.2 * np.sin(q3 * 360 / 12.05))
+    np.testing.assert_allclose(dq[:, 2], want3, atol=1e-12)
+    np.testing.assert_allclose(dq[:, 4], 1e-3 * (1.5 * np.sin(q5) + 2 * np.cos(q5)), atol=1e-12)
+    assert not np.any(dq[:, [0, 1, 3, 5]])
+    np.testing.assert_allclose(robot.controller_deg(robot.joint_rad(q)), q, atol=1e-9)
+    assert plain.joint_map.periodic == () and plain.joint_map.is_identity
+
+
+def test_periodic_errors_that_would_turn_a_joint_backwards_are_refused(capsys, tmp_path):
+    # 5 mrad every 2 deg: the joint's angle would change by 0.9 rad per rad of the motor's (an amplitude in the
+    # wrong unit, or a period): one line naming the key
+    path = _with_periodic(tmp_path, [(2, 2.0, 5.0, 0.0)])
+    code = main(["fk", "0", "-90", "0", "-90", "0", "0", "--robot", str(path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "joint_periodic_errors" in err and "backwards" in err and "Traceback" not in err, err
+    path = _with_periodic(tmp_path, [(7, 20.0, 0.5, 0.0)], "bad_joint.yaml")
+    code = main(["fk", "0", "-90", "0", "-90", "0", "0", "--robot", str(path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "joint_periodic_errors[0].joint" in err, err

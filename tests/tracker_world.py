@@ -212,7 +212,8 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
                 transmission_rad=te_amp, periodic=list(periodic),
                 periodic_phase_rad=extra_phase[:len(periodic)], drift_mm=v_drift * 1e3, base_k=base_k, noise_mm=noise_mm,
                 effects=["joint_offsets", "link_lengths", "link_twists", "joint_compliance"]
-                + [f"transmission_error_j{j + 1}" for j in range(6) if te_amp[j] > 0]
+                + [f"periodic_j{j + 1}" for j in range(6) if te_amp[j] > 0]
+                + [f"periodic_j{j}" for j in sorted({j for j, _, _ in periodic} | ({2, 3} if unnamed else set()))]
                 + (["base_tilt"] if base_tilt else []) + (["time_drift"] if drift else []))
     head = ["q1", "q2", "q3", "q4", "q5", "q6", "x", "y", "z"] + (["t_s"] if clock else []) + \
         (["fx", "fy", "fz"] if loads else [])

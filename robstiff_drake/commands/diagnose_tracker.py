@@ -27,6 +27,8 @@ def format_report(rep, markdown=False):
              + f"; 3D error held out ({e['held_out']}):",
              "                                       mean        rms        max   (mm)"]
     rows = [("declared (the robot file's arm)", e["before"]), ("final model (the effects below)", e["after"])]
+    if e.get("after_with_outliers") is not None:
+        rows.append(("final model, outlier rows included", e["after_with_outliers"]))
     if e["after_with_residual_map"] is not None:
         kept = rep["residual_map"]["kept"]
         rows.append(("+ joint-space map" + ("" if kept else " (not kept)"), e["after_with_residual_map"]))

@@ -272,6 +272,8 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
                          "meaning": "p_instrument = rotation @ p_base + translation"},
         "tool_mm": fit.u * 1e3, "tool_guess_mm": guess * 1e3,
         "error_3d_mm": {"before": stats3d(e_b), "after": stats3d(e_a),
+                        "after_with_outliers": None if not len(flagged) else stats3d(np.vstack(
+                            [e_a, (problem.m[flagged] - problem.predict(fit, flagged)) * 1e3])),
                         "after_with_residual_map": None if e_map is None else stats3d(e_map[rows] * 1e3),
                         "held_out": f"{len(folds)}-fold, grouped by pose, folds seeded {FOLD_SEED}; before: "
                                     "registration and measured point on the robot file's arm (its kinematics, "
