@@ -402,3 +402,22 @@ def test_periodic_errors_that_would_turn_a_joint_backwards_are_refused(capsys, t
     code = main(["fk", "0", "-90", "0", "-90", "0", "0", "--robot", str(path)])
     err = capsys.readouterr().err
     assert code == 2 and "joint_periodic_errors[0].joint" in err, err
+
+
+def test_the_fft_periodogram_is_the_direct_least_squares_fit():
+    """The periodogram's reduction of the sum of squares (sums over poses by an
+    FFT of binned angles) against a least-squares fit of the two columns by
+    numpy's lstsq at the same periods."""
+    from robstiff_drake.identification import tracker_periodic as tpd
+
+    rng = np.random.default_rng(9)
+    ang = rng.uniform(-3.0, 4.0, 800)
+    L = rng.normal(size=(800, 3))
+    r = rng.normal(size=(800, 3)) + 0.5 * L * np.sin(360 / 24.1 * ang + 0.3)[:, None]
+    nu, power = tpd.periodogram(ang, L, r)
+    assert 360 / nu[np.argmax(power)] == pytest.approx(24.1, abs=0.2)
+    for i in (0, 37, int(np.argmax(power)), len(nu) - 1):
+        X = tpd.columns(ang, L, 360 / nu[i]).reshape(-1, 2)
+        coef = np.linalg.lstsq(X, r.reshape(-1), rcond=None)[0]
+        direct = float(r.reshape(-1) @ r.reshape(-1) - np.sum((r.reshape(-1) - X @ coef) ** 2))
+        assert power[i] == pytest.approx(direct, rel=0.02, abs=1e-6 * direct + 1e-9), (i, nu[i])

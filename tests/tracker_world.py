@@ -210,7 +210,8 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
     pts = np.array(pts) + np.outer(times / times[-1], v_drift) * 1e3
     true.update(k_Nm_per_rad=k_true, tool_mm=target * 1e3, tool_guess_mm=guess, X_WB=X_WB.GetAsMatrix4(),
                 transmission_rad=te_amp, periodic=list(periodic),
-                periodic_phase_rad=extra_phase[:len(periodic)], drift_mm=v_drift * 1e3, base_k=base_k, noise_mm=noise_mm,
+                periodic_phase_rad=extra_phase[:len(periodic)], drift_mm=v_drift * 1e3, base_k=base_k,
+                noise_mm=noise_mm,
                 effects=["joint_offsets", "link_lengths", "link_twists", "joint_compliance"]
                 + [f"periodic_j{j + 1}" for j in range(6) if te_amp[j] > 0]
                 + [f"periodic_j{j}" for j in sorted({j for j, _, _ in periodic} | ({2, 3} if unnamed else set()))]

@@ -89,11 +89,12 @@ def periodic_entries(fit):
 
 
 def _periodic_text(entries):
-    return "\n".join(["", "# angle errors periodic in each joint's controller angle (reducer, encoder), from the tracker",
-                      "# campaign: error = 1e-3 (sin_mrad sin(2 pi q / period) + cos_mrad cos(2 pi q / period)) rad",
-                      "joint_periodic_errors:"]
-                     + [f"  - {{joint: {e['joint']}, period_deg: {_number(e['period_deg'])}, "
-                        f"sin_mrad: {_number(e['sin_mrad'])}, cos_mrad: {_number(e['cos_mrad'])}}}" for e in entries]) + "\n"
+    head = ["", "# angle errors periodic in each joint's controller angle (reducer, encoder), from the tracker",
+            "# campaign: error = 1e-3 (sin_mrad sin(2 pi q / period) + cos_mrad cos(2 pi q / period)) rad",
+            "joint_periodic_errors:"]
+    items = [f"  - {{joint: {e['joint']}, period_deg: {_number(e['period_deg'])}, sin_mrad: {_number(e['sin_mrad'])}, "
+             f"cos_mrad: {_number(e['cos_mrad'])}}}" for e in entries]
+    return "\n".join(head + items) + "\n"
 
 
 def corrected_text(robot, source_text, fit, k_Nm_per_rad, provenance):
