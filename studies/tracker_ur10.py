@@ -78,14 +78,14 @@ def main():
             doc = ROOT / "docs" / "diagnosis.md"
             text = doc.read_text()
             block = "```\n" + text_a.strip() + "\n```"
-            new, n = re.subn(r"(<!-- generated: ur10 -->\n).*?(\n<!-- end ur10 -->)",
-                             lambda m: m.group(1) + block + m.group(2), text, flags=re.S)
+            new, n = re.subn(r"(<!-- generated: ur10 -->\n)(?:.*?\n)?(<!-- end ur10 -->)",
+                             lambda m: m.group(1) + block + "\n" + m.group(2), text, flags=re.S)
             if n != 1:
                 sys.exit("docs/diagnosis.md has no ur10 block")
             numbers = summary("series A (2020), validated on B (2021)", rep_a, s_a) + "\n" + summary(
                 "series B (2021) alone", rep_b, s_b)
-            new, n = re.subn(r"(<!-- generated: ur10_summary -->\n).*?(\n<!-- end ur10_summary -->)",
-                             lambda m: m.group(1) + "```\n" + numbers + "\n```" + m.group(2), new, flags=re.S)
+            new, n = re.subn(r"(<!-- generated: ur10_summary -->\n)(?:.*?\n)?(<!-- end ur10_summary -->)",
+                             lambda m: m.group(1) + "```\n" + numbers + "\n```\n" + m.group(2), new, flags=re.S)
             doc.write_text(new)
             print(f"wrote {doc}")
 

@@ -24,6 +24,8 @@ The search (``search``), on what the model leaves (base frame):
    (pose-grouped folds) RMS by MIN_STEP_GAIN; then its harmonics (P/2, P/3)
    are tried the same way (one period each: no search penalty).  Repeated
    until no peak passes or MAX_TERMS are found.
+4. Each period is polished by the profile of the sum of squares with every
+   other column refitted, its interval from that profile (``_polish``).
 
 The terms found become one block per joint (``periodic_block``): the
 diagnosis's search then judges them as a set with the rest of the model.
@@ -178,6 +180,54 @@ class _Folds:
         return out
 
 
+def _polish(found, q_ctrl_rad, levers, r, X_model, steps):
+    """Each term's period re-estimated by the profile of the sum of squares
+    with every other column (the model's and the other terms') refitted,
+    within one grid step of its estimate, and its 95 % interval from the
+    profile's curvature there (Delta SSE = chi2_1(0.95) sigma^2).  The scan
+    found each period in what the terms before it left, which the others'
+    parameters had partly taken; the profile frees it of that.  Updates
+    ``found`` in place."""
+    from scipy.optimize import minimize_scalar
+
+    N = len(r) // 3
+    cols = [columns(q_ctrl_rad[:, t["joint"]], levers[t["joint"]], t["period_deg"]).reshape(3 * N, 2) for t in found]
+    for k, t in enumerate(found):
+        J = t["joint"]
+        X = np.hstack([X_model] + [c for i, c in enumerate(cols) if i != k])
+        s = np.linalg.norm(X, axis=0)
+        X = X / np.where(s > 0, s, 1.0)
+        A = X.T @ X
+        A[np.diag_indices_from(A)] += 1e-12 * np.trace(A) / len(A)
+        Ainv = np.linalg.inv(A)
+        e = r - X @ (Ainv @ (X.T @ r))
+        sse_rest = float(e @ e)
+
+        def sse(nu, J=J, X=X, Ainv=Ainv, e=e, sse_rest=sse_rest):
+            z = columns(q_ctrl_rad[:, J], levers[J], 360.0 / nu).reshape(3 * N, 2)
+            C = X.T @ z
+            S = z.T @ z - C.T @ Ainv @ C
+            g = z.T @ e
+            try:
+                return sse_rest - float(g @ np.linalg.solve(S, g))
+            except np.linalg.LinAlgError:
+                return sse_rest
+
+        nu0, h = 360.0 / t["period_deg"], steps[J]
+        res = minimize_scalar(sse, bounds=(nu0 - h, nu0 + h), method="bounded", options={"xatol": 1e-3 * h})
+        nu = float(res.x)
+        dh = h / 8
+        y0, y1, y2 = sse(nu - dh), sse(nu), sse(nu + dh)
+        curv = (y0 - 2 * y1 + y2) / dh**2
+        sigma2 = y1 / max(len(r) - X.shape[1] - 2, 1)
+        t["period_deg"] = 360.0 / nu
+        t["period_ci95_deg"] = None
+        if curv > 0:
+            half = np.sqrt(2 * stats.chi2.ppf(0.95, 1) * sigma2 / curv)
+            t["period_ci95_deg"] = [360.0 / (nu + half), 360.0 / max(nu - half, 1e-9)]
+        cols[k] = columns(q_ctrl_rad[:, J], levers[J], t["period_deg"]).reshape(3 * N, 2)
+
+
 def search(q_ctrl_rad, Jv, G, resid_base, X_model, tests, joints=range(6)):
     """Periodic joint errors in what the model leaves (see the module
     docstring).  ``resid_base`` (N, 3) m, base frame; ``X_model`` (3N, P)
@@ -249,4 +299,7 @@ def search(q_ctrl_rad, Jv, G, resid_base, X_model, tests, joints=range(6)):
             tried_h.add((J, h, round(nu_c, 3)))
             e, p_cols = residual(Z)
             consider(J, nu_c * h, None, e, p_cols, 360.0 / nu_c, 1.0, None if ci is None else [c / h for c in ci])
+    if found:
+        # one grid step (cycles per turn) either side
+        _polish(found, q_ctrl_rad, levers, r, X_model, {J: 1.0 / _layout(spans[J])[0] for J in use})
     return found, scans
