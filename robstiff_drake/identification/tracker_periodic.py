@@ -191,6 +191,7 @@ def _polish(found, q_ctrl_rad, levers, r, X_model, steps):
     from scipy.optimize import minimize_scalar
 
     N = len(r) // 3
+    before = [t["period_deg"] for t in found]
     cols = [columns(q_ctrl_rad[:, t["joint"]], levers[t["joint"]], t["period_deg"]).reshape(3 * N, 2) for t in found]
     for k, t in enumerate(found):
         J = t["joint"]
@@ -226,6 +227,10 @@ def _polish(found, q_ctrl_rad, levers, r, X_model, steps):
             half = np.sqrt(2 * stats.chi2.ppf(0.95, 1) * sigma2 / curv)
             t["period_ci95_deg"] = [360.0 / (nu + half), 360.0 / max(nu - half, 1e-9)]
         cols[k] = columns(q_ctrl_rad[:, J], levers[J], t["period_deg"]).reshape(3 * N, 2)
+    polished = dict(zip(before, [t["period_deg"] for t in found]))
+    for t in found:  # a harmonic names its fundamental's polished period
+        if t.get("harmonic_of") is not None:
+            t["harmonic_of"] = polished.get(t["harmonic_of"], t["harmonic_of"])
 
 
 def search(q_ctrl_rad, Jv, G, resid_base, X_model, tests, joints=range(6)):
