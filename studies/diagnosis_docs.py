@@ -50,6 +50,8 @@ MARKERS = (
     ("fanuc.csv", "run: skip needs the real FANUC campaign (python3 tests/realdata.py fanuc fanuc.csv from a clone, "
                   "with the data in ROBSTIFF_REALDATA)"),
     ("robstiff synth stiffness campaign.csv", "run"),
+    ("tests/realdata.py ur10", "run: skip needs the real UR10 series (tests/realdata.py of a clone, with the data in "
+                               "ROBSTIFF_REALDATA)"),
 )
 
 

@@ -52,14 +52,72 @@ def fanuc_campaign_csv(out_path):
     return out_path
 
 
-if __name__ == "__main__":  # python3 tests/realdata.py fanuc OUT.csv: the FANUC campaign in this project's format
+IPA_UR10 = "ipa_ur10"
+IPA_SERIES = {"A": "Series_A/measurements_grid.csv", "B": "Series_B/measurements_joint_configurations.csv"}
+
+
+def _decimal_comma(cell):
+    return float(cell.replace(",", "."))
+
+
+def ipa_ur10_tool_mm(series="A"):
+    """The probe's point on the flange (mm, flange frame) from the series'
+    Trafo_TM_F_init.txt (the flange's pose in the probe's frame): -R^T t."""
+    T = np.loadtxt(realdata_dir() / IPA_UR10 / f"Series_{series}" / "Trafo_TM_F_init.txt")
+    return -T[:3, :3].T @ T[:3, 3]
+
+
+def ipa_ur10_campaign_csv(series, out_path):
+    """Write an IPA UR10 series (``"A"`` or ``"B"``) as an absolute-position
+    campaign: q1..q6 the controller's degrees (UR's angles are its DH
+    angles), x, y, z the tracker's measured probe point (mm, tracker frame),
+    temp_c, and t_s where the source's timestamp is intact (series A; B's was
+    damaged by a spreadsheet); the probe's point on the flange from the
+    series' Trafo_TM_F_init.txt in the '# tool_mm:' line.  Returns the path."""
+    import datetime
+
+    folder = realdata_dir() / IPA_UR10
+    src = folder / IPA_SERIES[series]
+    rows = src.read_text(encoding="utf-8").splitlines()
+    head = rows[0].split(";")
+    col = {name: i for i, name in enumerate(head)}
+    joints = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+              "wrist_3_joint"]
+    clock = series == "A"
+    t0 = None
+    out = [f"# IPA UR10 series {series} of {src} (MIT; see its README), converted by tests/realdata.py",
+           "# tool_mm: " + ", ".join(f"{v:.6g}" for v in ipa_ur10_tool_mm(series)),
+           ",".join((["t_s"] if clock else []) + ["q1", "q2", "q3", "q4", "q5", "q6", "temp_c", "x", "y", "z"])]
+    for line in rows[1:]:
+        if not line.strip():
+            continue
+        c = line.split(";")
+        q = np.rad2deg([_decimal_comma(c[col[j]]) for j in joints])
+        m = [_decimal_comma(c[col[f"measurement_{a}"]]) for a in "xyz"]
+        cells = []
+        if clock:
+            t = datetime.datetime.strptime(c[col["Timestamp"]].strip(), "%Y%m%d%H%M%S").timestamp()
+            t0 = t if t0 is None else t0
+            cells.append(f"{t - t0:.0f}")
+        cells += [f"{v:.10g}" for v in q] + [f"{_decimal_comma(c[col['measurement_temperature']]):.6g}"]
+        cells += [f"{v:.10g}" for v in m]
+        out.append(",".join(cells))
+    out_path = Path(out_path)
+    out_path.write_text("\n".join(out) + "\n")
+    return out_path
+
+
+if __name__ == "__main__":  # python3 tests/realdata.py fanuc OUT.csv | ur10 A|B OUT.csv: in this project's format
     import sys
 
-    if len(sys.argv) != 3 or sys.argv[1] != "fanuc":
-        sys.exit("usage: python3 tests/realdata.py fanuc OUT.csv")
-    reason = missing(FANUC)
+    args = sys.argv[1:]
+    ok = (len(args) == 2 and args[0] == "fanuc") or (len(args) == 3 and args[0] == "ur10" and args[1] in IPA_SERIES)
+    if not ok:
+        sys.exit("usage: python3 tests/realdata.py fanuc OUT.csv | python3 tests/realdata.py ur10 A|B OUT.csv")
+    reason = missing(FANUC if args[0] == "fanuc" else IPA_UR10)
     if reason:
         sys.exit(reason)
-    if Path(sys.argv[2]).exists():
-        sys.exit(f"{sys.argv[2]}: exists; not overwritten")
-    print(f"wrote {fanuc_campaign_csv(sys.argv[2])}")
+    if Path(args[-1]).exists():
+        sys.exit(f"{args[-1]}: exists; not overwritten")
+    out = fanuc_campaign_csv(args[-1]) if args[0] == "fanuc" else ipa_ur10_campaign_csv(args[1], args[-1])
+    print(f"wrote {out}")

@@ -257,17 +257,83 @@ def test_a_drift_without_clock_is_a_trend_not_a_cause(capsys, tmp_path):
 
 
 def test_the_residual_map_only_when_it_generalises(capsys, tmp_path):
-    # a reducer error at the 3rd and 4th harmonic of joints 2 and 3: no named effect holds it, the map does
+    # joint 3 off by an error of the elbow's absolute angle, sin(3 (J2 + J3)): no joint's own periodic error
+    # holds it, the map (which has the elbow's sum) does, in every fold
     robot = load_robot(str(UR10))
-    world = tw.make_tracker_campaign(robot, 61, n=1500, noise_mm=NOISE, unnamed=1e-4)
+    world = tw.make_tracker_campaign(robot, 61, n=1500, noise_mm=NOISE, coupled=1e-4)
     rep = _diagnose(capsys, [_write(tmp_path, world), "--robot", UR10, "--noise-mm", NOISE])
     e = rep["error_3d_mm"]
     assert rep["residual_map"]["kept"] is True, rep["residual_map"]
-    assert e["after_with_residual_map"]["mean"] < 0.75 * e["after"]["mean"], e
+    assert e["after_with_residual_map"]["mean"] < 0.9 * e["after"]["mean"], e
+    assert all(f["with"] < f["without"] for f in rep["residual_map"]["per_fold_mm"])
     assert "non-parametric" in rep["verdict"] and rep["explains_data"] is False
     # without it, the map is tried and not kept
     world = tw.make_tracker_campaign(robot, 62, n=1500, noise_mm=NOISE)
     rep = _diagnose(capsys, [_write(tmp_path, world, "b.csv"), "--robot", UR10, "--noise-mm", NOISE])
+    assert rep["residual_map"]["kept"] is False and rep["explains_data"] is True, rep["verdict"]
+    assert rep["periodic_errors"] == [], rep["periodic_errors"]  # no periodic error where the plant has none
+
+
+def test_the_residual_map_is_zero_outside_the_campaigns_domain():
+    # fitted on poses with joint 2 in [-90, -30] deg, it says nothing at joint 2 = +60 deg
+    from robstiff_drake.identification import residual_map as rmap
+
+    rng = np.random.default_rng(5)
+    J = rng.uniform(-0.5, 0.5, size=(400, 6))
+    J[:, 1] = rng.uniform(np.deg2rad(-90), np.deg2rad(-30), 400)
+    Jv = rng.normal(size=(400, 3, 6))
+    resid = 1e-4 * np.sin(3 * J[:, [1]]) * np.ones((400, 3))
+    mp = rmap.ResidualMap(6, 1e-6).fit(J, Jv, resid)
+    assert np.all(mp.weight(J) == 1.0)
+    far = J[:20].copy()
+    far[:, 1] = np.deg2rad(60)
+    assert np.all(mp.weight(far) == 0.0) and np.all(mp.predict(far, Jv[:20]) == 0.0)
+
+
+def test_a_periodic_joint_error_of_unknown_period(capsys, tmp_path):
+    """A reducer's error on joint 3, every 24.1 deg, 0.9 mrad (Drake's plant):
+    found by the periodogram, its period's interval holding 24.1, its size
+    within 5 %, written into the corrected robot file that fk reads, and a
+    second diagnosis with that file finds it no more."""
+    robot = load_robot(str(UR10))
+    world = tw.make_tracker_campaign(robot, 71, n=1500, noise_mm=NOISE, periodic=[(3, 24.1, 0.9e-3)])
+    data = _write(tmp_path, world)
+    out = tmp_path / "ur10_corrected.yaml"
+    rep = _diagnose(capsys, [data, "--robot", UR10, "--noise-mm", NOISE, "--write-robot", out])
+    top = rep["periodic_errors"][0]
+    assert top["joint"] == 3 and top["period_ci95_deg"][0] <= 24.1 <= top["period_ci95_deg"][1], top
+    assert top["amplitude_mrad"] == pytest.approx(0.9, rel=0.05), top
+    assert "joint 3: an angle error periodic every 24." in top["text"] and "reducer or encoder" in top["text"]
+    assert all(e["amplitude_mrad"] < 0.05 for e in rep["periodic_errors"][1:]), rep["periodic_errors"]
+    assert rep["explains_data"] is True and rep["error_3d_mm"]["after"]["mean"] <= 1.2 * MEAN3D
+    text = out.read_text()
+    assert "joint_periodic_errors:" in text and "joint: 3" in text
+    new = load_robot(str(out))
+    q_ctrl = np.array([10.0, -80.0, 47.0, -60.0, 30.0, 5.0])
+    assert main(["fk", *map(str, q_ctrl), "--robot", str(out), "--json", "-"]) == 0
+    fk = json.loads(capsys.readouterr().out)
+    e3 = 1e-3 * (top["sin_mrad"] * np.sin(np.deg2rad(q_ctrl[2]) * 360 / top["period_deg"])
+                 + top["cos_mrad"] * np.cos(np.deg2rad(q_ctrl[2]) * 360 / top["period_deg"]))
+    assert new.joint_rad(q_ctrl)[2] - np.deg2rad(q_ctrl[2]) == pytest.approx(e3, abs=0.05e-3)
+    np.testing.assert_allclose(np.array(fk["position_mm"]) / 1e3, kin.tool_position(new.dh, new.joint_rad(q_ctrl)),
+                               atol=1e-9)
+    d2 = diagnose_tracker(new, read_tracker_campaign(data, new), noise_mm=NOISE, residual_map=False)
+    assert not [e for e in d2.report["periodic_errors"] if e["joint"] == 3 and e["amplitude_mrad"] > 0.05]
+
+
+def test_harmonics_of_a_joints_turn_are_named(capsys, tmp_path):
+    # joints 2 and 3 off by 0.1 mrad at the 3rd and 4th harmonic of their turn (periods 120 and 90 deg): named as
+    # periodic errors of those joints, the error down to the noise, nothing left for the map.  The two periods are
+    # closer than the periodogram's resolution over the joints' spans (about 360 / span cycles per turn), so they
+    # are not told apart one by one: the test asks for the joints and the band, not for each period
+    robot = load_robot(str(UR10))
+    world = tw.make_tracker_campaign(robot, 63, n=1500, noise_mm=NOISE, unnamed=1e-4)
+    rep = _diagnose(capsys, [_write(tmp_path, world), "--robot", UR10, "--noise-mm", NOISE])
+    for joint in (2, 3):
+        hits = [e for e in rep["periodic_errors"] if e["joint"] == joint and 60 <= e["period_deg"] <= 180]
+        assert hits and max(e["amplitude_mrad"] for e in hits) > 0.05, (joint, rep["periodic_errors"])
+    assert {e["joint"] for e in rep["periodic_errors"]} == {2, 3}, rep["periodic_errors"]
+    assert rep["error_3d_mm"]["after"]["mean"] <= 1.25 * MEAN3D, rep["error_3d_mm"]
     assert rep["residual_map"]["kept"] is False and rep["explains_data"] is True, rep["verdict"]
 
 
@@ -320,3 +386,60 @@ def test_a_pose_column_that_names_every_row_one_pose_is_refused(capsys, tmp_path
     from robstiff_drake.identification.tracker_campaign import read_tracker_campaign as read
 
     assert len(read(path, load_robot("irb6400")).pose) == len(rows) + 1
+
+
+def _with_periodic(tmp_path, entries, name="ur10_periodic.yaml"):
+    text = UR10.read_text() + "\njoint_periodic_errors:\n" + "".join(
+        f"  - {{joint: {j}, period_deg: {p}, sin_mrad: {s}, cos_mrad: {c}}}\n" for j, p, s, c in entries)
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_a_robot_files_periodic_errors_move_the_joints_and_back(tmp_path):
+    """joint_periodic_errors: the model's angle is the controller's plus the
+    error, to_controller inverts it, a file without the key is unchanged."""
+    plain = load_robot(str(UR10))
+    robot = load_robot(str(_with_periodic(tmp_path, [(3, 24.1, 0.9, -0.3), (3, 12.05, 0.2, 0.0), (5, 360, 1.5, 2)])))
+    q = np.random.default_rng(8).uniform(-170, 170, size=(200, 6))
+    q[:, 2] = np.clip(q[:, 2], -150, 150)
+    dq = robot.joint_rad(q) - plain.joint_rad(q)
+    q3, q5 = np.deg2rad(q[:, 2]), np.deg2rad(q[:, 4])
+    want3 = 1e-3 * (0.9 * np.sin(q3 * 360 / 24.1) - 0.3 * np.cos(q3 * 360 / 24.1) + 0.2 * np.sin(q3 * 360 / 12.05))
+    np.testing.assert_allclose(dq[:, 2], want3, atol=1e-12)
+    np.testing.assert_allclose(dq[:, 4], 1e-3 * (1.5 * np.sin(q5) + 2 * np.cos(q5)), atol=1e-12)
+    assert not np.any(dq[:, [0, 1, 3, 5]])
+    np.testing.assert_allclose(robot.controller_deg(robot.joint_rad(q)), q, atol=1e-9)
+    assert plain.joint_map.periodic == () and plain.joint_map.is_identity
+
+
+def test_periodic_errors_that_would_turn_a_joint_backwards_are_refused(capsys, tmp_path):
+    # 5 mrad every 2 deg: the joint's angle would change by 0.9 rad per rad of the motor's (an amplitude in the
+    # wrong unit, or a period): one line naming the key
+    path = _with_periodic(tmp_path, [(2, 2.0, 5.0, 0.0)])
+    code = main(["fk", "0", "-90", "0", "-90", "0", "0", "--robot", str(path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "joint_periodic_errors" in err and "backwards" in err and "Traceback" not in err, err
+    path = _with_periodic(tmp_path, [(7, 20.0, 0.5, 0.0)], "bad_joint.yaml")
+    code = main(["fk", "0", "-90", "0", "-90", "0", "0", "--robot", str(path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "joint_periodic_errors[0].joint" in err, err
+
+
+def test_the_fft_periodogram_is_the_direct_least_squares_fit():
+    """The periodogram's reduction of the sum of squares (sums over poses by an
+    FFT of binned angles) against a least-squares fit of the two columns by
+    numpy's lstsq at the same periods."""
+    from robstiff_drake.identification import tracker_periodic as tpd
+
+    rng = np.random.default_rng(9)
+    ang = rng.uniform(-3.0, 4.0, 800)
+    L = rng.normal(size=(800, 3))
+    r = rng.normal(size=(800, 3)) + 0.5 * L * np.sin(360 / 24.1 * ang + 0.3)[:, None]
+    nu, power = tpd.periodogram(ang, L, r)
+    assert 360 / nu[np.argmax(power)] == pytest.approx(24.1, abs=0.2)
+    for i in (0, 37, int(np.argmax(power)), len(nu) - 1):
+        X = tpd.columns(ang, L, 360 / nu[i]).reshape(-1, 2)
+        coef = np.linalg.lstsq(X, r.reshape(-1), rcond=None)[0]
+        direct = float(r.reshape(-1) @ r.reshape(-1) - np.sum((r.reshape(-1) - X @ coef) ** 2))
+        assert power[i] == pytest.approx(direct, rel=0.02, abs=1e-6 * direct + 1e-9), (i, nu[i])

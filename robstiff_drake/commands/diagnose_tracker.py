@@ -32,6 +32,8 @@ def format_report(rep, markdown=False):
              + f"; 3D error held out ({e['held_out']}):",
              "                                       mean        rms        max   (mm)"]
     rows = [("declared (the robot file's arm)", e["before"]), ("final model (the effects below)", e["after"])]
+    if e.get("after_with_outliers") is not None:
+        rows.append(("final model, outlier rows included", e["after_with_outliers"]))
     if e["after_with_residual_map"] is not None:
         kept = rep["residual_map"]["kept"]
         rows.append(("+ joint-space map" + ("" if kept else " (not kept)"), e["after_with_residual_map"]))
@@ -52,6 +54,14 @@ def format_report(rep, markdown=False):
         lines.append(f"  {t['name']}: {t['description']}")
         lines.append(f"    {'plausible' if t['plausible'] else 'IMPLAUSIBLE'}: {t['plausibility']}"
                      + ("; a trend, not a cause" if t["kind"] == "trend" else ""))
+    if rep.get("periodic_errors"):
+        lines.append(f"periodic joint errors ({len(rep['periodic_errors'])}, largest first; "
+                     "periods searched by a periodogram per joint, 95 % intervals):")
+        lines += [f"  {e['text']}" + ("  BEYOND TYPICAL" if e["beyond_typical"] else "")
+                  for e in rep["periodic_errors"]]
+    if rep.get("hypothesis_sets"):
+        lines.append("tried as sets too: " + "; ".join(f"{k} ({', '.join(v)})" for k, v in
+                                                       rep["hypothesis_sets"].items()))
     if rep["leads"]:
         lines.append("fit the residual but not added (not physical or not plausible):")
         lines += [f"  {r['name']} (held-out {r['rms_mm']:.4f} mm): {r['plausibility']}" for r in rep["leads"]]
@@ -66,8 +76,10 @@ def format_report(rep, markdown=False):
         lines.append("not tried: " + "; ".join(f"{s['name']} ({s['reason']})" for s in rep["not_tried"]))
     if rep["residual_map"] is not None:
         rm = rep["residual_map"]
-        lines.append(f"joint-space residual map: {'kept' if rm['kept'] else 'not kept'} ({rm['rule']}); per fold mean "
-                     + ", ".join(f"{p['without']:.4f}->{p['with']:.4f}" for p in rm["per_fold_mean_mm"]) + " mm")
+        lines.append(f"joint-space residual map: {'kept' if rm['kept'] else 'not kept'} ({rm['rule']}; "
+                     f"{rm['domain']}); per fold mean (max) "
+                     + ", ".join(f"{p['without']:.4f}->{p['with']:.4f} ({p['max_without']:.3f}->{p['max_with']:.3f})"
+                                 for p in rm["per_fold_mm"]) + " mm")
     lines.append("joint stiffness (N*m/rad): " + ", ".join(f"{k:.4g}" for k in rep["joint_stiffness_Nm_per_rad"]))
     if rep["outliers"]:
         lines.append("outlier rows: " + ", ".join(f"line {o['line']} ({o['residual_mm']:.3f} mm)"
@@ -83,6 +95,9 @@ def format_report(rep, markdown=False):
                   f"  fitted model, registration refitted  {vr['after']['mean']:.4f} / {vr['after']['rms']:.4f} / "
                   f"{vr['after']['max']:.4f}  (nominal: {vr['before']['mean']:.4f} / {vr['before']['rms']:.4f} / "
                   f"{vr['before']['max']:.4f})"]
+        if v.get("transfer"):
+            lines.append("  what carries over (each group left out in turn, registration refitted):")
+            lines += [f"    {t['text']}" for t in v["transfer"]]
     return "\n".join(lines)
 
 

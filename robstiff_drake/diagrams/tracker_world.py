@@ -151,7 +151,8 @@ def _poses(robot, rng, n, frac=0.7):
 
 
 def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=False, base_tilt=False, drift=True,
-                          extra_columns=False, pose_seed=None, clock=True, unnamed=0.0, loads=False):
+                          extra_columns=False, pose_seed=None, clock=True, unnamed=0.0, loads=False,
+                          periodic=(), coupled=0.0):
     """A tracker campaign of ``robot`` (the robot file the user has) as
     Drake's perturbed plant measures it; see the module docstring.  The arm,
     tracker and target follow from ``seed``; ``pose_seed`` (when given)
@@ -162,7 +163,12 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
     and 4th harmonic of the joint's turn: the named transmission error has
     the 1st and 2nd; what a non-parametric map can learn).  ``loads``: every
     pose is measured twice, unloaded and under a force of 300-700 N in a
-    random direction at the target (the fx, fy, fz columns)."""
+    random direction at the target (the fx, fy, fz columns).  ``periodic``:
+    [(joint 1-6, period_deg, amplitude_rad)]: that joint's controller angle
+    off by amplitude sin(2 pi J / period + phi) (a reducer's or encoder's
+    error of any period; phi drawn from the seed).  ``coupled`` (rad): joint
+    3 off by coupled sin(3 (J2 + J3) + phi), an error of the elbow's absolute
+    angle that no single joint's periodic error holds."""
     rng = np.random.default_rng(seed)
     dh_true, true = _perturb(robot, rng)
     k_true = robot.joint_stiffness_Nm_per_rad * rng.uniform(0.7, 1.4, 6)
@@ -178,6 +184,7 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
     te_phase = rng.uniform(0, 2 * np.pi, 6)
     v_drift = rng.normal(size=3)  # the tracker's frame moves 0.05-0.3 mm over the campaign, linearly in time
     v_drift *= rng.uniform(0.05e-3, 0.3e-3) / np.linalg.norm(v_drift) if drift else 0.0
+    extra_phase = np.random.default_rng([seed, 99]).uniform(0, 2 * np.pi, len(periodic) + 1)  # apart from rng
     G = robot.joint_map.G
     guess = target * 1e3 + rng.normal(size=3) / np.sqrt(3) * rng.uniform(1, 5)
     if pose_seed is not None:
@@ -196,6 +203,10 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
         te_ctrl = te_amp * np.sin(q_ctrl + te_phase)  # the reducers' error, on the controller's joints
         if unnamed:
             te_ctrl[1:3] += unnamed * (np.sin(3 * q_ctrl[1:3] + te_phase[:2]) + np.sin(4 * q_ctrl[1:3] + te_phase[2:4]))
+        for (j, period_deg, amp), ph in zip(periodic, extra_phase):
+            te_ctrl[j - 1] += amp * np.sin(2 * np.pi * np.rad2deg(q_ctrl[j - 1]) / period_deg + ph)
+        if coupled:
+            te_ctrl[2] += coupled * np.sin(3 * (q_ctrl[1] + q_ctrl[2]) + extra_phase[-1])
         q_link = q_model + G @ te_ctrl
         for force in ([np.zeros(3), None] if loads else [None]):
             if force is None and loads:
@@ -215,9 +226,12 @@ def make_tracker_campaign(robot, seed, *, n=600, noise_mm=0.03, transmission=Fal
     q_ctrl_all, times, forces = np.array(q_ctrl_all), np.array(times), np.array(forces)
     pts = np.array(pts) + np.outer(times / times[-1], v_drift) * 1e3
     true.update(k_Nm_per_rad=k_true, tool_mm=target * 1e3, tool_guess_mm=guess, X_WB=X_WB.GetAsMatrix4(),
-                transmission_rad=te_amp, drift_mm=v_drift * 1e3, base_k=base_k, noise_mm=noise_mm,
+                transmission_rad=te_amp, periodic=list(periodic),
+                periodic_phase_rad=extra_phase[:len(periodic)], drift_mm=v_drift * 1e3, base_k=base_k,
+                noise_mm=noise_mm,
                 effects=["joint_offsets", "link_lengths", "link_twists", "joint_compliance"]
-                + [f"transmission_error_j{j + 1}" for j in range(6) if te_amp[j] > 0]
+                + [f"periodic_j{j + 1}" for j in range(6) if te_amp[j] > 0]
+                + [f"periodic_j{j}" for j in sorted({j for j, _, _ in periodic} | ({2, 3} if unnamed else set()))]
                 + (["base_tilt"] if base_tilt else []) + (["time_drift"] if drift else []))
     head = ["q1", "q2", "q3", "q4", "q5", "q6", "x", "y", "z"] + (["t_s"] if clock else []) + \
         (["fx", "fy", "fz"] if loads else [])

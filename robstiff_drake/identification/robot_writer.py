@@ -77,9 +77,30 @@ def _replace_line(text, key, values, after=None):
     return None
 
 
+def periodic_entries(fit):
+    """[{joint (1-based), period_deg, sin_mrad, cos_mrad}] of the fit's periodic blocks."""
+    out = []
+    for b in fit.blocks:
+        v = fit.coef.get(b.name)
+        for i, t in enumerate(getattr(b, "periodic", None) or []):
+            out.append({"joint": int(t["joint"]) + 1, "period_deg": float(f"{t['period_deg']:.8g}"),
+                        "sin_mrad": float(f"{v[2 * i] * 1e3:.6g}"), "cos_mrad": float(f"{v[2 * i + 1] * 1e3:.6g}")})
+    return out
+
+
+def _periodic_text(entries):
+    head = ["", "# angle errors periodic in each joint's controller angle (reducer, encoder), from the tracker",
+            "# campaign: error = 1e-3 (sin_mrad sin(2 pi q / period) + cos_mrad cos(2 pi q / period)) rad",
+            "joint_periodic_errors:"]
+    items = [f"  - {{joint: {e['joint']}, period_deg: {_number(e['period_deg'])}, sin_mrad: {_number(e['sin_mrad'])}, "
+             f"cos_mrad: {_number(e['cos_mrad'])}}}" for e in entries]
+    return "\n".join(head + items) + "\n"
+
+
 def corrected_text(robot, source_text, fit, k_Nm_per_rad, provenance):
     """The corrected robot file's text (see the module docstring)."""
     doc = yaml.safe_load(source_text)
+    periodic = periodic_entries(fit)
     rows = _row_values(robot, doc["dh"], fit.geo)
     tool = [float(v) for v in fit.u * 1e3]
     k = [float(f"{v:.6g}") for v in k_Nm_per_rad]
@@ -100,7 +121,13 @@ def corrected_text(robot, source_text, fit, k_Nm_per_rad, provenance):
     new = _replace_line(text, "joint_stiffness_Nm_per_rad", k)
     inline &= new is not None
     text = new if new is not None else text
+    if periodic and "joint_periodic_errors" in doc:  # a corrected file corrected again: the new terms add
+        inline = False
+    elif periodic:
+        text = text.rstrip("\n") + "\n" + _periodic_text(periodic)
     if not inline:
+        if periodic:
+            doc["joint_periodic_errors"] = list(doc.get("joint_periodic_errors") or []) + periodic
         doc["dh"].update(rows)
         if "beta_deg" not in rows:
             doc["dh"].pop("beta_deg", None)
@@ -136,9 +163,14 @@ def check(path, robot_fit, fit, q_rad):
     from robstiff_drake.model.robot import load_robot
 
     new = load_robot(str(path))
-    want = kin.tool_position(perturbed_dh(robot_fit.dh, fit.geo), q_rad, fit.u)
-    got = kin.tool_position(new.dh, new.joint_map.to_model(robot_fit.joint_map.to_controller(q_rad)),
-                            new.payload.measured_point_m)
+    q_ctrl = robot_fit.joint_map.to_controller(q_rad)
+    e = np.zeros_like(q_ctrl)  # the fit's periodic errors, in the controller's angles
+    for t in periodic_entries(fit):
+        nu = 360.0 / t["period_deg"]
+        j = t["joint"] - 1
+        e[:, j] += 1e-3 * (t["sin_mrad"] * np.sin(nu * q_ctrl[:, j]) + t["cos_mrad"] * np.cos(nu * q_ctrl[:, j]))
+    want = kin.tool_position(perturbed_dh(robot_fit.dh, fit.geo), q_rad + e @ robot_fit.joint_map.G.T, fit.u)
+    got = kin.tool_position(new.dh, new.joint_map.to_model(q_ctrl), new.payload.measured_point_m)
     err = float(np.max(np.abs(got - want)))
     if err > CHECK_TOL_M:
         raise InputError(f"{path}: the corrected robot file's kinematics differ from the fitted model's by "
@@ -159,6 +191,8 @@ def write_corrected_robot(out, robot, fit, report, data, q_rad):
     corrections += ["measured_point_mm"]
     if "joint_compliance" in report["selected_effects"]:
         corrections.append("joint_stiffness_Nm_per_rad (the sag's)")
+    if periodic_entries(fit):
+        corrections.append("joint_periodic_errors")
     text = corrected_text(robot, source_text, fit, report["joint_stiffness_Nm_per_rad"],
                           provenance_lines(data, robot, report, corrections))
     import tempfile

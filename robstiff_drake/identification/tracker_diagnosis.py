@@ -43,6 +43,7 @@ import numpy as np
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification import noise_floor as nf
 from robstiff_drake.identification import residual_map as rmap
+from robstiff_drake.identification import tracker_periodic as tpd
 from robstiff_drake.identification.confounding import CONFOUNDED_MIN
 from robstiff_drake.identification.cross_validation import FOLD_SEED, K_FOLDS, pose_groups, splits
 from robstiff_drake.identification.registration import check_geometry, register
@@ -52,9 +53,10 @@ from robstiff_drake.identification.tracker_fit import Fit, LinearCV, Problem, in
 from robstiff_drake.identification.tracker_loads import load_blocks
 from robstiff_drake.identification.tracker_model import GEOM, geometry_jacobian, geometry_params, gravity_in_base
 from robstiff_drake.identification.tracker_report import (_confounded, _floor, _screen, _term_reports, _verdict,
-                                                          stats3d, validate)
+                                                          periodic_report, stats3d, validate)
 from robstiff_drake.identification.tracker_search import (ALPHA, MIN_GAIN, MIN_KEEP_GAIN, _heldout, _linearised,
-                                                          _residual_map, _search)
+                                                          _residual_map, _search, periodic_candidates, sets_of)
+from robstiff_drake.identification.tracker_search import map_kept as map_kept_rule
 from robstiff_drake.identification.tracker_terms import blocks as all_blocks
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.progress import progress
@@ -208,6 +210,11 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         by_name = {b.name: b for b, _ in cands}
         kept_blocks = [by_name[n] for n in kept]
         fit = problem.gauss_newton(fit0, kept_blocks, all_rows)
+        # the joints' periodic errors, of periods searched in what that model leaves
+        per_cands, periodic_found, _ = periodic_candidates(problem, fit, cands, all_rows, tests)
+        cands = cands + per_cands
+        by_name = {b.name: b for b, _ in cands}
+        bar.update(1)
         # a second pass linearised at that fit: the first, linearised at the declared model millimetres away,
         # misjudges gains of a few micrometres (second-order terms of the large corrections)
         cv, info = _linearised(problem, fit, cands, all_rows, tests, groups)
@@ -229,10 +236,7 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         e_map, per_fold, map_kept = None, [], False
         if residual_map and len(rows) >= MIN_ROWS_FOR_MAP:
             e_map, per_fold = _residual_map(problem, fold_fits, folds, e_after)
-            better = sum(b < a for a, b in per_fold)
-            gain = 1 - np.nanmean(np.linalg.norm(e_map[rows], axis=1)) / np.nanmean(np.linalg.norm(e_after[rows],
-                                                                                                    axis=1))
-            map_kept = bool(gain >= rmap.MIN_GAIN and better >= rmap.MIN_FOLDS)
+            map_kept = map_kept_rule(per_fold, e_after, e_map, rows)
             bar.update(len(folds))
     reports, X_final, _ = _term_reports(problem, fit, kept_blocks, rows, groups)
     e_b, e_a = e_before[rows] * 1e3, e_after[rows] * 1e3
@@ -251,8 +255,7 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
     if map_kept and explains is not None:
         verdict += (f"; a non-parametric joint-space map of what is left lowers the held-out mean 3D error from "
                     f"{stats3d(e_a)['mean']:.4f} to {stats3d(e_map[rows] * 1e3)['mean']:.4f} mm in "
-                    f"{sum(b < a for a, b in per_fold)} of {len(per_fold)} folds: the named effects do not hold all "
-                    "of it")
+                    f"every one of the {len(per_fold)} folds: the named effects do not hold all of it")
     for r in leads:
         w.add(f"{r['name']} fits the residual (held-out {r['rms_mm']:.4f} mm) but was not added: {r['plausibility']}")
     if len(flagged):
@@ -272,6 +275,8 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
                          "meaning": "p_instrument = rotation @ p_base + translation"},
         "tool_mm": fit.u * 1e3, "tool_guess_mm": guess * 1e3,
         "error_3d_mm": {"before": stats3d(e_b), "after": stats3d(e_a),
+                        "after_with_outliers": None if not len(flagged) else stats3d(np.vstack(
+                            [e_a, (problem.m[flagged] - problem.predict(fit, flagged)) * 1e3])),
                         "after_with_residual_map": None if e_map is None else stats3d(e_map[rows] * 1e3),
                         "held_out": f"{len(folds)}-fold, grouped by pose, folds seeded {FOLD_SEED}; before: "
                                     "registration and measured point on the robot file's arm (its kinematics, "
@@ -285,13 +290,24 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
                                                  "dof": lof.dof, "test": lof.test, "p_below": lof.p_below},
         "unexplained_mm": unexplained,
         "selected_effects": kept, "effects": reports, "dropped": dropped, "leads": leads,
+        "periodic_errors": periodic_report(fit, kept_blocks, reports),
+        "hypothesis_sets": sets_of(cands),
+        "periodic_search": {"found": len(periodic_found), "min_period_deg": tpd.MIN_PERIOD_DEG,
+                            "false_alarm_max": tpd.ALPHA, "min_step_gain": tpd.MIN_STEP_GAIN,
+                            "note": "periods searched on all rows (a periodogram per joint, then harmonics); their "
+                                    "amplitudes refitted in each held-out fold from its training rows"},
         "identifiable_geometry": [f"{kind}{k_ + 1}" for k_, kind in free],
         "not_identifiable_geometry": [f"{kind}{k_ + 1}" for k_, kind in not_free],
         "not_tried": skipped, "rounds": rounds,
         "residual_map": None if e_map is None else {
-            "kept": map_kept, "per_fold_mean_mm": [{"without": a * 1e3, "with": b * 1e3} for a, b in per_fold],
-            "rule": f"kept if the held-out mean 3D error drops by {100 * rmap.MIN_GAIN:.0f} % and in at least "
-                    f"{rmap.MIN_FOLDS} of {len(folds)} folds"},
+            "kept": map_kept,
+            "per_fold_mean_mm": [{"without": f["without"] * 1e3, "with": f["with"] * 1e3} for f in per_fold],
+            "per_fold_mm": [{k: (v if k == "outside_domain" else v * 1e3) for k, v in f.items()} for f in per_fold],
+            "domain": f"applies within the training poses' joint-space domain: shrinks to zero from their "
+                      f"{100 * rmap.DOMAIN_QUANTILE:.0f} % nearest-neighbour spacing to {rmap.DOMAIN_FAR:g}x it",
+            "rule": f"kept if the held-out mean and rms 3D error drop in every one of the {len(folds)} folds, no "
+                    f"fold's max grows by more than {rmap.MAX_GROWTH:g}x, and the mean drops by "
+                    f"{100 * rmap.MIN_GAIN:.0f} % overall"},
         "joint_stiffness_Nm_per_rad": k,
         "outliers": [{"line": int(campaign.lines[i]),
                       "residual_mm": float(np.linalg.norm(problem.m[i] - problem.predict(fit, [i])[0]) * 1e3)}

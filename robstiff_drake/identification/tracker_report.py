@@ -8,6 +8,7 @@ import numpy as np
 from scipy import stats
 
 from robstiff_drake.identification import noise_floor as nf
+from robstiff_drake.identification import tracker_periodic as tpd
 from robstiff_drake.identification.confounding import confounded_pairs
 from robstiff_drake.identification.tracker_campaign import position_scale
 from robstiff_drake.identification.tracker_fit import Fit, LinearCV, Problem
@@ -81,6 +82,36 @@ def _term_reports(problem, fit, kept_blocks, rows, groups):
     return out, X, slices
 
 
+def periodic_report(fit, kept_blocks, reports):
+    """[{joint (1-based), period_deg, period_ci95_deg, amplitude_mrad, amplitude_ci95_mrad, sin_mrad, cos_mrad,
+    harmonic_of_deg, false_alarm, beyond_typical, text}] of the kept periodic errors, largest first."""
+    out = []
+    for b in kept_blocks:
+        if not b.periodic:
+            continue
+        v = fit.coef[b.name]
+        ci = next(r for r in reports if r["name"] == b.name)["ci95"]
+        for i, t in enumerate(b.periodic):
+            s, c = v[2 * i], v[2 * i + 1]
+            amp = float(np.hypot(s, c))
+            keys = list(ci)[2 * i:2 * i + 2]
+            half = max((hi - lo) / 2 for lo, hi in (ci[k] for k in keys)) * 1e-3  # rad, the wider of the two
+            out.append({"joint": int(t["joint"]) + 1, "period_deg": float(t["period_deg"]),
+                        "period_ci95_deg": t.get("period_ci95_deg"),
+                        "amplitude_mrad": amp * 1e3,
+                        "amplitude_ci95_mrad": [max(amp - half, 0.0) * 1e3, (amp + half) * 1e3],
+                        "sin_mrad": float(s * 1e3), "cos_mrad": float(c * 1e3),
+                        "harmonic_of_deg": t.get("harmonic_of"), "false_alarm": t.get("false_alarm"),
+                        "beyond_typical": bool(amp > tpd.TYPICAL_MAX_RAD),
+                        "text": (f"joint {int(t['joint']) + 1}: an angle error periodic every {t['period_deg']:.4g} deg"
+                                 + (f" (95 %: {t['period_ci95_deg'][0]:.4g}-{t['period_ci95_deg'][1]:.4g})"
+                                    if t.get("period_ci95_deg") else "")
+                                 + f", {amp * 1e3:.2g} mrad: "
+                                 + (f"harmonic of {t['harmonic_of']:.4g} deg" if t.get("harmonic_of")
+                                    else "reducer or encoder"))})
+    return sorted(out, key=lambda e: -e["amplitude_mrad"])
+
+
 def _verdict(floor, lof, rms_after_mm, trends, leads, unexplained):
     if floor.sigma_mm is None:
         return None, ("no verdict: no noise floor is known (state the instrument's noise per component with "
@@ -138,8 +169,11 @@ def validate(d, other):
     base = Fit(fit.R.copy(), fit.t.copy(), fit.u.copy(), np.zeros((6, 5)))
     e_decl = (p2.m - p2.predict(base, rows)) * 1e3
 
-    def reregistered(f0):
+    def reregistered(f0, blocks=None):
         f = f0.copy()
+        if blocks is not None:
+            f.blocks = list(blocks)
+        keep = (f.blocks, f.coef, f.geo)
         for _ in range(6):
             X, sl, ev = p2.columns(f, [], rows)
             r = (p2.m - p2.predict(f, rows, ev)).reshape(-1)
@@ -147,12 +181,65 @@ def validate(d, other):
             full = np.zeros(X.shape[1])
             full[:6] = step
             f = p2.apply(f, [], full, sl)
-            f.blocks, f.coef, f.geo = f0.blocks, f0.coef, f0.geo
-        return (p2.m - p2.predict(f, rows)) * 1e3
+            f.blocks, f.coef, f.geo = keep
+        return (p2.m - p2.predict(f, rows)) * 1e3, f
 
+    e_rereg_before, _ = reregistered(base)
+    e_rereg, f_rereg = reregistered(f_same)
+    transfer = _transfer(f_same, arm, stats3d(e_rereg)["mean"], reregistered)
+    dR = f_rereg.R @ fit.R.T
+    moved_deg = float(np.rad2deg(np.arccos(np.clip((np.trace(dR) - 1) / 2, -1.0, 1.0))))
+    moved_mm = float(np.linalg.norm(f_rereg.t - fit.t) * 1e3)
+    session = [b.name for b in fit.blocks if b not in arm]
+    transfer.append({"what": "registration", "carries_over": moved_mm < REGISTRATION_SAME_MM,
+                     "text": f"the instrument's frame moved by {moved_mm:.4g} mm and {moved_deg:.3g} deg against the "
+                             "fitted campaign's: " + ("it carries over (the same set-up)" if moved_mm <
+                                                      REGISTRATION_SAME_MM else "refitted (another set-up)")})
+    if session:
+        transfer.append({"what": "session", "carries_over": False,
+                         "text": ", ".join(session) + ": centred on the fitted campaign's own time and temperature; "
+                                 "not carried over"})
     return {"data": other.path, "n_measurements": p2.n,
             "error_3d_mm": {"before": stats3d(e_decl), "after": stats3d(e_same)},
-            "error_3d_mm_reregistered": {"before": stats3d(reregistered(base)), "after": stats3d(reregistered(f_same))},
+            "error_3d_mm_reregistered": {"before": stats3d(e_rereg_before), "after": stats3d(e_rereg)},
+            "transfer": transfer,
             "note": "after: the fitted arm, measured point and registration; reregistered: the instrument's 6 "
                     "registration parameters refitted to this file (another session, the tracker moved); drift and "
-                    "thermal terms are not carried over"}
+                    "thermal terms are not carried over; transfer: each group of the fitted model left out in turn "
+                    "(registration refitted)"}
+
+
+# The instrument's frame within this of the fitted campaign's: the same set-up (a tracker re-levelled in place
+# moves by tenths of a mm)
+REGISTRATION_SAME_MM = 1.0
+TRANSFER_MIN_GAIN = 0.02
+
+
+def _transfer(f_same, arm, mean_all, reregistered):
+    """What of the fitted arm model carries over to another campaign: each
+    group (kinematics, sag, periodic errors, the rest) left out in turn, the
+    registration refitted: it carries over when the other campaign's mean 3D
+    error is TRANSFER_MIN_GAIN lower with it."""
+    groups = {"kinematics": [b for b in arm if b.frame == "geometry"],
+              "sag": [b for b in arm if b.frame == "joint"],
+              "periodic errors": [b for b in arm if b.periodic]}
+    groups["other arm effects"] = [b for b in arm if not any(b in g for g in groups.values())]
+    out = []
+    for name, members in groups.items():
+        if not members:
+            continue
+        rest = [b for b in arm if b not in members]
+        f = f_same.copy()
+        if name == "kinematics":
+            f.geo = np.zeros_like(f.geo)
+        e, _ = reregistered(f, rest)
+        without = stats3d(e)["mean"]
+        carries = mean_all < (1 - TRANSFER_MIN_GAIN) * without
+        hurts = mean_all > without
+        out.append({"what": name, "blocks": [b.name for b in members], "mean_with_mm": mean_all,
+                    "mean_without_mm": without, "carries_over": bool(carries),
+                    "text": f"{name} ({', '.join(b.name for b in members)}): mean 3D error {without:.4f} mm without, "
+                            f"{mean_all:.4f} mm with: "
+                            + ("carries over" if carries else "makes it worse: does not carry over" if hurts
+                               else "no measurable gain")})
+    return out

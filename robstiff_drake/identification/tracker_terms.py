@@ -17,8 +17,9 @@ Displacements of the arm (base frame):
                           a large arm sags by 1-4 mrad, whose square is not negligible);
                           x_j a parameter for the joints that carry SAG_TORQUE_SHARE of
                           the largest torque, 1 (the file's compliance) for the others
-  transmission_error_jJ   the reducer's error periodic in joint J's angle:
-                          dJ = sum_h a_h cos(h J) + b_h sin(h J), h = 1, 2
+  periodic_jJ             joint J's angle errors periodic in its angle, of
+                          periods found by tracker_periodic.py's search:
+                          dJ = sum_P s_P sin(2 pi J / P) + c_P cos(2 pi J / P)
   base_tilt               the base tilts on its foundation under the weight's
                           moment: theta = c (M_x, M_y, 0), d = theta x p
   thermal_expansion       the arm grows with temperature: d = kappa (T - mean) p
@@ -39,6 +40,7 @@ from typing import Callable
 import numpy as np
 
 from robstiff_drake.identification import plausibility as pl
+from robstiff_drake.identification import tracker_periodic as tpd
 from robstiff_drake.identification.tracker_model import GEOM, GEOM_UNITS
 
 # Joint zero offsets: a robot mastered to its marks is within 0.01-0.1 deg
@@ -53,10 +55,11 @@ LINK_TWIST_MAX_RAD = np.deg2rad(1.0)
 # A joint's compliance against the robot file's: the file's values are often
 # assumptions (the library's are); a factor 10 either way is the bound.
 COMPLIANCE_FACTOR_MAX = 10.0
-# Transmission error of a reducer, per harmonic of the joint's angle: RV and
-# strain-wave gears catalogue an angular transmission error of about
-# 1 arc-min (0.29 mrad); 3 arc-min (0.87 mrad) as for lost motion.
-TRANSMISSION_ERROR_MAX_RAD = pl.LOST_MOTION_MAX_RAD
+# A joint's periodic angle error (reducer, encoder): catalogues give 0.3-1.5 mrad
+# (tracker_periodic.TYPICAL_MAX_RAD is the typical size the report names); an
+# error of 20 mrad (1.1 deg) would be seen by anyone watching the arm: beyond it
+# the term stands for another effect and is a lead.
+PERIODIC_ERROR_MAX_RAD = 20e-3
 # Thermal expansion of the arm: steel 12 ppm/K, aluminium 23 ppm/K; 50 ppm/K bound.
 THERMAL_EXPANSION_MAX_PER_K = 50e-6
 # The instrument against the base with temperature: a 1 m steel stand grows
@@ -69,8 +72,6 @@ DRIFT_TOTAL_MAX_M = pl.DRIFT_TOTAL_MAX_M
 # A joint whose largest torque (gravity and loads) is below this fraction of
 # the campaign's largest carries none: its compliance has no column (round-off).
 TORQUE_REL_MIN = 1e-6
-MIN_ANGLE_SPAN_DEG = 10.0  # a joint turned less than this cannot show an error periodic in its angle
-HARMONICS = (1, 2)
 
 
 @dataclass
@@ -106,6 +107,7 @@ class Block:
     geo: list = field(default_factory=list)  # geometry blocks: [(link, kind)]
     joints: list = field(default_factory=list)  # "joint" blocks: the joints whose compliance is a parameter
     start: float = 0.0  # the parameters' value in the declared model (the sag's: 1, the robot file's compliance)
+    periodic: list = field(default_factory=list)  # periodic blocks: the terms found [{joint, period_deg, ...}]
 
 
 def _fmt(values, params):
@@ -173,31 +175,43 @@ def joint_compliance_block(ev):
                  start=1.0), joints
 
 
-def transmission_block(J):
-    params = [(f"{ab}{h}", "urad", 1e6) for h in HARMONICS for ab in ("a", "b")]
+def periodic_block(J, terms):
+    """Joint J's errors periodic in its controller angle (tracker_periodic.py
+    found the periods ``terms``, [{period_deg, period_ci95_deg, ...}]): a sin
+    and a cos amplitude (rad) per period."""
+    periods = [t["period_deg"] for t in terms]
+    params = [(f"{ab}@{P:.4g}deg", "mrad", 1e3) for P in periods for ab in ("sin", "cos")]
 
     def columns(ev):
-        ang = ev.q_ctrl_rad[:, J]
-        move = np.einsum("nrj,j->nr", ev.Jv, ev.G[:, J])
-        cols = []
-        for h in HARMONICS:
-            cols += [move * np.cos(h * ang)[:, None], move * np.sin(h * ang)[:, None]]
-        return np.stack(cols, axis=-1)
+        L = tpd.lever(ev.Jv, ev.G, J)
+        return np.concatenate([tpd.columns(ev.q_ctrl_rad[:, J], L, P) for P in periods], axis=-1)
 
-    def needs(ev):
-        span = np.rad2deg(np.ptp(ev.q_ctrl_rad[:, J]))
-        return None if span >= MIN_ANGLE_SPAN_DEG else f"joint {J + 1} turns only {span:.3g} deg in this campaign"
+    def amplitudes(v):
+        return [float(np.hypot(v[2 * i], v[2 * i + 1])) for i in range(len(periods))]
 
     def plausible(v, info):
-        amp = [np.hypot(v[2 * i], v[2 * i + 1]) for i in range(len(HARMONICS))]
-        return pl.within(amp, TRANSMISSION_ERROR_MAX_RAD, "transmission error amplitude", "urad", 1e6)
+        amp = amplitudes(v)
+        if max(amp) > PERIODIC_ERROR_MAX_RAD:
+            return False, (f"an angle error of {max(amp) * 1e3:.3g} mrad periodic in joint {J + 1}'s angle: a joint "
+                           f"that wobbles by {np.rad2deg(max(amp)):.2g} deg would be seen; more likely another effect")
+        beyond = [f"{a * 1e3:.3g} mrad every {P:.4g} deg" for a, P in zip(amp, periods) if a > tpd.TYPICAL_MAX_RAD]
+        if beyond:
+            return True, ("beyond the typical few tenths of a mrad of a reducer or encoder (" + ", ".join(beyond)
+                          + "): check the joint's reducer and encoder")
+        return True, f"amplitudes within a reducer's or encoder's typical {tpd.TYPICAL_MAX_RAD * 1e3:g} mrad"
 
     def describe(v, info):
-        amp = ", ".join(f"{np.hypot(v[2 * i], v[2 * i + 1]) * 1e6:.3g} urad at {h}x per turn"
-                        for i, h in enumerate(HARMONICS))
-        return f"joint {J + 1}'s transmission error, periodic in its angle: {amp}"
+        parts = []
+        for t, a in zip(terms, amplitudes(v)):
+            ci = t.get("period_ci95_deg")
+            rng = f" (95 %: {ci[0]:.4g}-{ci[1]:.4g})" if ci else ""
+            what = (f"harmonic of {t['harmonic_of']:.4g} deg" if t.get("harmonic_of") else "reducer or encoder")
+            parts.append(f"joint {J + 1}: an angle error periodic every {t['period_deg']:.4g} deg{rng}, "
+                         f"{a * 1e3:.3g} mrad: {what}")
+        return "; ".join(parts)
 
-    return Block(f"transmission_error_j{J + 1}", "base", params, columns, describe, plausible, needs)
+    return Block(f"periodic_j{J + 1}", "base", params, columns, describe, plausible,
+                 periodic=[dict(t, joint=J) for t in terms])
 
 
 def base_tilt_block():
@@ -251,7 +265,6 @@ def blocks(ev, free):
            geometry_block("link_twists", ("alpha", "beta"), free, "link twist errors (alpha; beta between "
                           "nearly parallel axes)"),
            comp]
-    out += [transmission_block(J) for J in range(6)]
     out += [base_tilt_block(), thermal_expansion_block(),
             _vector_block("thermal_drift", "instrument", "mm/K", 1e3, "the instrument moves against the base with "
                           "temperature", lambda e: e.dtemp, THERMAL_DRIFT_MAX_M_PER_K, temp_needs),

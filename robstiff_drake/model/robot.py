@@ -69,6 +69,18 @@ class JointMap:
     sign: np.ndarray
     offset_rad: np.ndarray
     coupling: tuple = ()
+    # (joint, period_rad, sin_rad, cos_rad), 0-based: the controller's angle of ``joint`` is off by
+    # sin_rad sin(2 pi q / period) + cos_rad cos(2 pi q / period) (a reducer's or encoder's periodic error)
+    periodic: tuple = ()
+
+    def periodic_error_rad(self, q_ctrl_rad):
+        """(..., 6) rad: the periodic errors of controller angles (rad)."""
+        q = np.asarray(q_ctrl_rad, dtype=float)
+        e = np.zeros_like(q)
+        for j, period, s, c in self.periodic:
+            w = 2 * np.pi / period
+            e[..., j] += s * np.sin(w * q[..., j]) + c * np.cos(w * q[..., j])
+        return e
 
     @property
     def G(self):
@@ -79,21 +91,33 @@ class JointMap:
 
     @property
     def is_identity(self):
-        return (not self.coupling and np.all(self.sign == 1) and not np.any(self.offset_rad))
+        return (not self.coupling and np.all(self.sign == 1) and not np.any(self.offset_rad)
+                and not self.periodic)
 
     def to_model(self, q_ctrl_rad):
         """Model joint angles (rad) of controller angles (rad), shape (..., 6)."""
         q = np.asarray(q_ctrl_rad, dtype=float)
         if self.is_identity:
             return q.copy()
+        if self.periodic:
+            q = q + self.periodic_error_rad(q)
         return q @ self.G.T + self.offset_rad
 
     def to_controller(self, q_rad):
-        """Controller angles (rad) of model joint angles (rad), shape (..., 6)."""
+        """Controller angles (rad) of model joint angles (rad), shape (..., 6)
+        (with periodic errors: the fixed point q_c = x - e(q_c), x the map's
+        inverse; each step shrinks the error by the slope of e, which the
+        robot file's reader keeps below MAX_PERIODIC_SLOPE)."""
         q = np.asarray(q_rad, dtype=float)
         if self.is_identity:
             return q.copy()
-        return (q - self.offset_rad) @ np.linalg.inv(self.G).T
+        x = (q - self.offset_rad) @ np.linalg.inv(self.G).T
+        if not self.periodic:
+            return x
+        qc = x.copy()
+        for _ in range(30):
+            qc = x - self.periodic_error_rad(qc)
+        return qc
 
     def model_interval(self, lower_rad, upper_rad):
         """The box of model joint angles that the controller's limit box
@@ -323,9 +347,27 @@ def _dh(values, convention):
               beta_rad=None if not np.any(b[1:]) else np.r_[b[1:], 0.0])
 
 
+# The steepest a joint's periodic errors may be (d error / d angle, summed over its terms): beyond 1 the
+# joint would turn backwards as its motor turns forwards; half of that bounds any reducer or encoder
+MAX_PERIODIC_SLOPE = 0.5
+
+
+def _periodic(values):
+    out = tuple((int(e["joint"]) - 1, np.deg2rad(e["period_deg"]), e["sin_mrad"] * 1e-3, e["cos_mrad"] * 1e-3)
+                for e in values.get("joint_periodic_errors", []))
+    for j in range(N_JOINTS):
+        slope = sum(np.hypot(s, c) * 2 * np.pi / p for k, p, s, c in out if k == j)
+        if slope > MAX_PERIODIC_SLOPE:
+            values.fail("joint_periodic_errors", f"joint {j + 1}'s periodic errors change its angle by up to "
+                        f"{slope:.3g} rad per rad (at most {MAX_PERIODIC_SLOPE:g}: a joint does not turn backwards); "
+                        "is an amplitude in rad instead of mrad, or a period in rad instead of deg?")
+    return out
+
+
 def _joint_map(values):
     if "controller" not in values and not any(k.startswith("controller.") for k in values):
-        return IDENTITY_MAP
+        periodic = _periodic(values)
+        return replace(IDENTITY_MAP, periodic=periodic) if periodic else IDENTITY_MAP
     p = "controller."
     sign = values.get(p + "sign", np.ones(N_JOINTS))
     if not np.all(np.isin(sign, (-1.0, 1.0))):
@@ -337,7 +379,7 @@ def _joint_map(values):
         if j == k:
             values.fail(f"{p}coupling[{n}].from", "a joint cannot be coupled to itself (use sign)")
         coupling.append((j - 1, k - 1, entry["factor"]))
-    jm = JointMap(sign, offset, tuple(coupling))
+    jm = JointMap(sign, offset, tuple(coupling), _periodic(values))
     if abs(np.linalg.det(jm.G)) < 1e-9:
         values.fail(p + "coupling", "the map from controller to model angles is singular (not invertible)")
     return jm

@@ -63,6 +63,7 @@ class Key:
 
 
 JOINTS = tuple(f"joint {j}" for j in range(1, N_JOINTS + 1))
+PERIODIC_WHY = "reducers and encoders give a few tenths to a few mrad; 20 mrad (1.1 deg) would be seen"
 XYZ = ("x", "y", "z")
 ANGLE = dict(unit="deg", lo=-360.0, hi=360.0, length=N_JOINTS, names=JOINTS)
 LENGTH = dict(unit="mm", lo=-MAX_LENGTH_MM, hi=MAX_LENGTH_MM)
@@ -90,6 +91,15 @@ KEYS = {
     "controller.coupling[].joint": Key("number", "", 1, N_JOINTS, integer=True),
     "controller.coupling[].from": Key("number", "", 1, N_JOINTS, integer=True),
     "controller.coupling[].factor": Key("number", "", -10.0, 10.0, why="FANUC's J2/J3 interaction is +-1"),
+    # angle errors periodic in a joint's controller angle (reducer, encoder), found by a tracker campaign's
+    # `diagnose --write-robot`: error_rad = 1e-3 (sin_mrad sin(2 pi q / period) + cos_mrad cos(2 pi q / period)),
+    # q the controller's angle (deg), added to it before the model's joint map
+    "joint_periodic_errors": Key("list", required=False),
+    "joint_periodic_errors[].joint": Key("number", "", 1, N_JOINTS, integer=True),
+    "joint_periodic_errors[].period_deg": Key("number", "deg", 1.0, 720.0, why="a reducer stage's or an encoder's "
+                                              "period, a few degrees to a full turn"),
+    "joint_periodic_errors[].sin_mrad": Key("number", "mrad", -20.0, 20.0, why=PERIODIC_WHY),
+    "joint_periodic_errors[].cos_mrad": Key("number", "mrad", -20.0, 20.0, why=PERIODIC_WHY),
     "joint_limits": Key("section"),
     # two turns either way: the widest working range a robot controller offers
     "joint_limits.lower_deg": Key("vector", "deg", -720.0, 720.0, N_JOINTS, names=JOINTS),
