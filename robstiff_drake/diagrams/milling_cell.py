@@ -25,7 +25,8 @@ from pydrake.trajectories import PiecewisePolynomial
 from robstiff_drake.diagrams.compensator import filter_coefficients, make_compensator
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.scenario_models import (
-    COEFFICIENT_GROUPS, cutting_setup, model_cutting_setup, model_damping_ratios, model_stiffness, payload_calibration
+    COEFFICIENT_GROUPS, cutting_setup, model_cutting_setup, model_damping_ratios, model_stiffness, payload_calibration,
+    plant_cutting_setup
 )
 from robstiff_drake.diagrams.scenario import planned_path as scenario_path
 from robstiff_drake.diagrams.station import make_milling_station
@@ -159,9 +160,9 @@ def retimed_references(base, t_base, q_base, path, dt_s):
 
 
 def build_station(sc, robot, *, q_modes_rad, path=None):
-    """The scenario's station (InputError, one line, if its plant step is
-    unstable for its joints)."""
-    _, fmodel, workpiece = cutting_setup(sc)
+    """The scenario's station, its cutting force the plant's own law
+    (InputError, one line, if its plant step is unstable for its joints)."""
+    _, fmodel, workpiece = plant_cutting_setup(sc)
     path = path if path is not None else scenario_path(sc)
     try:
         return make_milling_station(sc, robot, path=path, force_model=fmodel, workpiece=workpiece,

@@ -119,6 +119,17 @@ class CuttingConfig:
     tangential_radial_scale: float = num(1.0, 0.0, 10.0, "", lo_open=True)
     axial_scale: float = num(1.0, 0.0, 10.0, "", lo_open=True)
     phase_deg: float = num(0.0, -360.0, 360.0, "deg")
+    # The plant's own cutting physics (model/plant_cutting.py, sources
+    # there): "rich": the chip from the tool's actual motion, a Kienzle chip
+    # law, the worn edge's ploughing, runout; "linear": the compensator's
+    # law (linear chip, no wear or runout), still from the actual motion.
+    plant_law: str = choice("rich", ("rich", "linear"))
+    # 1 - m_c of the Kienzle law (0.75: Sandvik Coromant's ISO N groups; 0.7-0.8 for wrought AlMgSi)
+    chip_exponent: float = num(0.75, 0.3, 1.0, "")
+    runout_mm: float = num(0.010, 0.0, 0.2, "mm", why="a face mill's insert runout is 5-20 um")
+    runout_angle_deg: float = num(0.0, -360.0, 360.0, "deg")
+    flank_wear_mm: float = num(0.02, 0.0, 1.0, "mm", why="ISO 3685's end-of-life criterion is VB = 0.3 mm")
+    flank_wear_mm_per_m: float = num(0.0003, 0.0, 0.1, "mm/m")
 
 
 @dataclass
