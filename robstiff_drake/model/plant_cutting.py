@@ -41,7 +41,8 @@ What differs from the compensator's model (each with its size and source):
   face milling of aluminium); over one job of metres its drift is small,
   over a shift of parts it is not.
 - Cutter runout: tooth j's radius is R + rho cos(2 pi j / N - lambda), so
-  tooth j's chip is c_f cos theta + (R_j - R_(j-1)) (Kline and DeVor, "The
+  tooth j's chip is the least over k = 1..N of k c_f cos theta + R_j -
+  R_(j-k) (the surface the tooth k back left; Kline and DeVor, "The
   effect of runout on cutting geometry and forces in end milling", Int. J.
   Mach. Tool Des. Res. 23(2-3), 1983).  rho = 0.010 mm: a face mill's
   insert runout on a robot spindle's taper and arbor, 5-20 um (the
@@ -106,6 +107,17 @@ class PlantCuttingLaw:
         radii = R + rho * np.cos(2 * np.pi * np.arange(n) / n - lam)
         # tooth j cuts what tooth j-1 left: its chip grows by R_j - R_(j-1)
         self.runout_chip_m = radii - np.roll(radii, 1)
+        # ... unless a tooth further back cut deeper: tooth j-k's surface lies k feeds back, R_j - R_(j-k)
+        # nearer (k = 1..n): the chip is the least of them (k = n: the tooth's own last pass)
+        self._k = np.arange(1, n + 1, dtype=float)
+        self._dR = np.array([[radii[j] - radii[(j - k) % n] for k in range(1, n + 1)] for j in range(n)])
+
+    def chips_m(self, c_f, cos_theta):
+        """The chip (m) of each tooth: (..., n) for cos theta of shape (...,
+        n), tooth j in the last axis; the least of k c_f cos theta + R_j -
+        R_(j-k) over the teeth k back (Kline and DeVor's runout chip)."""
+        c = np.asarray(cos_theta, dtype=float)
+        return np.min(c_f * c[..., None] * self._k + self._dR, axis=-1)
 
     def flank_wear_m(self, cut_length_m=0.0):
         p = self.physics
@@ -169,7 +181,7 @@ class PlantCuttingLaw:
         depth = tip_depths(x.ravel(), y.ravel(), float(tool_point_m[2]), workpiece).reshape(theta.shape)
         c_f = self.linear.chip_per_tooth_m(feed_m_per_s)
         depth = np.where(c > 0, depth, 0.0)  # the leading half cuts
-        h = c_f * c + self.runout_chip_m[None, :]
+        h = self.chips_m(c_f, c)
         parts = self._wrench_uvz(c, s, h, depth, cut_length_m)
         w = np.stack([p.sum(axis=1) for p in parts], axis=-1)  # (T, 6)
         return self._to_base(w, u0, u1)
@@ -197,7 +209,7 @@ class PlantCuttingLaw:
         th, wt, dep = np.concatenate(th), np.concatenate(wt), np.concatenate(dep)
         c, s = np.cos(th)[None, :], np.sin(th)[None, :]
         c_f = self.linear.chip_per_tooth_m(feed_m_per_s)
-        h = c_f * c + self.runout_chip_m[:, None]  # (teeth, points)
+        h = self.chips_m(c_f, np.broadcast_to(c.T, (c.shape[1], self.cutter.n_teeth))).T  # (teeth, points)
         parts = self._wrench_uvz(np.broadcast_to(c, h.shape), np.broadcast_to(s, h.shape), h,
                                  np.broadcast_to(dep, h.shape), cut_length_m)
         w = np.array([(p * wt[None, :]).sum() for p in parts]) / (2 * np.pi)
