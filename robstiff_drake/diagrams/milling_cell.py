@@ -192,7 +192,11 @@ def user_measured_damping(sc, robot, station, q_rad):
     key = (jm.M.tobytes(), jm.K.tobytes(), jm.D.tobytes(), jm.G.tobytes(), jm.velocity_gain.tobytes(),
            repr(jm.servo), np.asarray(q_rad).tobytes(), int(sc.model.identification.seed))
     if key not in _MODAL_TESTS:
-        _MODAL_TESTS[key] = modal_test_damping(sc, robot, jm, q_rad, station.tool_m)[0]
+        from robstiff_drake.diagrams.compliant_arm import modal_frequencies_hz
+
+        # the preview's own modes (motors held): the user's inertias on the compensator's stiffness
+        model_hz = modal_frequencies_hz(ArmInertia(user_robot(sc, robot)).mass_matrix(q_rad), model_stiffness(sc, robot))
+        _MODAL_TESTS[key] = modal_test_damping(sc, robot, jm, q_rad, station.tool_m, model_hz)[0]
     return _MODAL_TESTS[key]
 
 

@@ -6,8 +6,8 @@ sizes, each drawn from its seed; "exact"/0 for the bound):
   uniform draw within +-inertia_error (CAD or catalogue values);
 - the damping: a modal test on the station with the drives on (hammer
   blows on the tool in x, y, z, the response fitted by ERA:
-  identification/modal_test.py), the fitted ratios given to the preview's
-  modes lowest first (what a user's test finds is the drives-closed
+  identification/modal_test.py), each fitted ratio given to the preview's
+  mode nearest in frequency (what a user's test finds is the drives-closed
   damping; the modes it misses take the median of those it found);
 - the tool point: from a TCP calibration, off by tcp_error_mm (1 sigma
   per axis, flange frame);
@@ -73,10 +73,11 @@ def probed_workpiece(sc, workpiece):
     return Workpiece(workpiece.x_m, workpiece.y_m, workpiece.top_m + dz)
 
 
-def modal_test_damping(sc, robot, joints, q_rad, tool_m, n_modes=6):
-    """(damping ratios (n_modes,), (fitted frequencies Hz, ratios)): a
-    hammer test on the station's joints (model/joint_dynamics.JointModel,
-    drives closed) at pose q, the tool's displacement fitted by ERA."""
+def modal_test_damping(sc, robot, joints, q_rad, tool_m, model_hz):
+    """(damping ratios (6,), (fitted frequencies Hz, ratios)): a hammer
+    test on the station's joints (model/joint_dynamics.JointModel, drives
+    closed) at pose q, the tool's displacement fitted by ERA, mapped on the
+    preview's own modes (``model_hz``: its motors-held frequencies)."""
     A, B = joints.continuous()
     J = kin.jacobian(robot.dh, q_rad, tool_m)[:3]
     blows = B[:, 18:24] @ J.T  # a unit impulse of force at the tool, x, y, z
@@ -87,6 +88,22 @@ def modal_test_damping(sc, robot, joints, q_rad, tool_m, n_modes=6):
     f, z = merge_close(*era_modes(Y, MODAL_TEST["dt_s"]))
     if len(z) == 0:
         raise ValueError("the modal test found no mode")
-    ratios = np.full(n_modes, float(np.median(z)))
-    ratios[:min(n_modes, len(z))] = z[:n_modes]
-    return ratios, (f, z)
+    return match_modes(model_hz, f, z), (f, z)
+
+
+def match_modes(model_hz, found_hz, found_ratios, factor=1.3):
+    """The damping ratio of each of the model's modes (frequencies
+    ``model_hz``, ascending): the found mode's nearest to it in frequency
+    (within ``factor``; each found mode serves one model mode), else the
+    median of those found (as a user maps a modal test's modes on a
+    model's)."""
+    out = np.full(len(model_hz), float(np.median(found_ratios)))
+    used = set()
+    for i, fm in enumerate(model_hz):
+        dist = np.abs(np.log(np.asarray(found_hz) / fm))
+        for j in np.argsort(dist):
+            if dist[j] <= np.log(factor) and j not in used:
+                out[i] = found_ratios[j]
+                used.add(j)
+                break
+    return out

@@ -17,7 +17,10 @@ from scipy import linalg
 # poles with room to spare; the noise's modes are told apart by their
 # damping and frequency (MODE_RANGE).
 ERA_ORDER = 36
-STABLE_DROP = 6
+STABLE_DROP = 4
+NOISE_GAP = 3.0
+# A mode whose peak response is below this fraction of the largest one's is the noise's.
+MIN_AMPLITUDE = 0.001
 HANKEL_COLUMNS = 400  # samples per Hankel row (0.4 s at 1 kHz: two periods of the slowest mode)
 # What a fitted pole must be to count as a structural mode: lightly
 # damped, below the test's useful band (ASSUMPTION: an impact hammer with a
@@ -43,21 +46,35 @@ def impulse_response(A, B, C, dt_s, duration_s, noise_rel=0.01, seed=0):
     return out + noise_rel * scale * rng.standard_normal(out.shape)
 
 
-def _poles(U, S, Vt, H1, n, dt_s):
+def _poles(U, S, Vt, H1, n, dt_s, p, m):
+    """(frequencies Hz, damping ratios, peak amplitudes) of the poles of
+    the n-state realisation; a pole's amplitude: its mode's peak response
+    |C phi| |psi B| / (1 - |lambda|) in acceleration (times omega^2; the
+    noise's poles carry little)."""
     Si = np.diag(1.0 / np.sqrt(S[:n]))
     Ar = Si @ U[:, :n].T @ H1 @ Vt[:n].T @ Si
-    lam = np.log(np.linalg.eigvals(Ar).astype(complex)) / dt_s
-    lam = lam[lam.imag > 0]
-    return np.abs(lam) / (2 * np.pi), -lam.real / np.abs(lam)
+    Br = np.diag(np.sqrt(S[:n])) @ Vt[:n, :m]
+    Cr = U[:p, :n] @ np.diag(np.sqrt(S[:n]))
+    lam_d, phi = np.linalg.eig(Ar)
+    psi = np.linalg.inv(phi)
+    amp = (np.linalg.norm(Cr @ phi, axis=0) * np.linalg.norm(psi @ Br, axis=1)
+           / np.maximum(1.0 - np.abs(lam_d), 1e-12))
+    lam = np.log(lam_d.astype(complex)) / dt_s
+    up = lam.imag > 0
+    lam, amp = lam[up], amp[up] * np.abs(lam[up]) ** 2  # as an accelerometer sees it: times omega^2
+    return np.abs(lam) / (2 * np.pi), -lam.real / np.abs(lam), amp
 
 
 def era_modes(response, dt_s, order=ERA_ORDER, rows=None):
     """(frequencies Hz, damping ratios) of the modes fitted to an impulse
-    response (k, outputs, inputs) by ERA: the poles of the fit of
-    ``order`` states that a fit of STABLE_DROP fewer states also finds
+    response (k, outputs, inputs) by ERA: the poles of the fit of as
+    many states as singular values of the Hankel matrix stand NOISE_GAP
+    times above the noise's floor (at most ``order``) that a fit of
+    STABLE_DROP more states also finds
     (within 1 % in frequency and 20 % in damping: a stabilisation check,
     as modal software's stabilisation diagram; a pole of the noise moves
-    with the order), in MODE_RANGE, ascending."""
+    with the order), in MODE_RANGE, whose peak response is at least
+    MIN_AMPLITUDE of the largest's, ascending."""
     Y = np.asarray(response, dtype=float)
     n_k, p, m = Y.shape
     r = rows or min(n_k // 4, 60)
@@ -73,13 +90,17 @@ def era_modes(response, dt_s, order=ERA_ORDER, rows=None):
     S2, U = np.maximum(S2[idx], 1e-300), U[:, idx]
     S = np.sqrt(S2)
     Vt = (H0.T @ U / S).T
-    n = min(order, len(S))
-    f, z = _poles(U, S, Vt, H1, n, dt_s)
-    f2, z2 = _poles(U, S, Vt, H1, n - STABLE_DROP, dt_s)
+    # the model order: the singular values above the noise's floor (the median of those past ``order``)
+    floor = float(np.median(S[order:2 * order])) if len(S) > order else 0.0
+    n = int(np.clip(np.count_nonzero(S > NOISE_GAP * floor), 2, order))
+    n += n % 2
+    f, z, amp = _poles(U, S, Vt, H1, n, dt_s, p, m)
+    f2, z2, _ = _poles(U, S, Vt, H1, min(n + STABLE_DROP, len(S)), dt_s, p, m)
     stable = np.array([np.any((np.abs(f2 - fi) < 0.01 * fi) & (np.abs(z2 - zi) < 0.2 * zi)) for fi, zi in zip(f, z)],
                       dtype=bool)
     lo, hi = MODE_RANGE["damping"]
     keep = stable & (z > lo) & (z < hi) & (f > MODE_RANGE["hz"][0]) & (f < MODE_RANGE["hz"][1])
+    keep &= amp > MIN_AMPLITUDE * amp[keep].max(initial=0.0)
     order_ = np.argsort(f[keep])
     return f[keep][order_], z[keep][order_]
 
