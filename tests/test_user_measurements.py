@@ -53,7 +53,8 @@ def captured(robot):
     given."""
     sc = load_scenario(ROOT / "diagrams" / "face_and_contour.yaml")
     sc.controller.mode = "preview"
-    sc._user_model = SimpleNamespace(coefficient_factors=None, servo=_exact_servo(sc))
+    sc._user_model = SimpleNamespace(coefficient_factors=None, servo=_exact_servo(sc),
+                                     joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad * 1.05)
     tool = robot.tool_point(where="test")
     path, t_ref, q_ref = milling_cell.planned_path(sc, robot, tool)
     station = milling_cell.build_station(sc, robot, q_modes_rad=q_ref[0], path=path)
