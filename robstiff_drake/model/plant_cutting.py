@@ -81,8 +81,9 @@ class PlantCuttingPhysics:
                                    edge_ramp_chip_m=0.0)
 
 
-# Gauss-Legendre points per engaged arc of the revolution average
-GAUSS_POINTS = 12
+# Gauss-Legendre points per engaged arc of the revolution average (nodes and weights on [-1, 1])
+GAUSS_POINTS = 10
+_GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(GAUSS_POINTS)
 
 
 class PlantCuttingLaw:
@@ -199,18 +200,19 @@ class PlantCuttingLaw:
         u0, u1 = float(feed_dir_xy[0]), float(feed_dir_xy[1])
         if not arcs:
             return np.zeros(6)
-        x, wts = np.polynomial.legendre.leggauss(GAUSS_POINTS)
-        th, wt, dep = [], [], []
-        for ta, tb, a in arcs:
-            half = 0.5 * (tb - ta)
-            th.append(0.5 * (ta + tb) + half * x)
-            wt.append(half * wts)
-            dep.append(np.full(GAUSS_POINTS, a))
-        th, wt, dep = np.concatenate(th), np.concatenate(wt), np.concatenate(dep)
-        c, s = np.cos(th)[None, :], np.sin(th)[None, :]
+        ab = np.array(arcs)  # (arcs, 3): from, to, depth
+        mid, half = 0.5 * (ab[:, 0] + ab[:, 1]), 0.5 * (ab[:, 1] - ab[:, 0])
+        th = (mid[:, None] + half[:, None] * _GAUSS_X[None, :]).ravel()
+        wt = (half[:, None] * _GAUSS_W[None, :]).ravel()
+        dep = np.repeat(ab[:, 2], GAUSS_POINTS)
+        c, s = np.cos(th), np.sin(th)
         c_f = self.linear.chip_per_tooth_m(feed_m_per_s)
-        h = self.chips_m(c_f, np.broadcast_to(c.T, (c.shape[1], self.cutter.n_teeth))).T  # (teeth, points)
-        parts = self._wrench_uvz(np.broadcast_to(c, h.shape), np.broadcast_to(s, h.shape), h,
-                                 np.broadcast_to(dep, h.shape), cut_length_m)
-        w = np.array([(p * wt[None, :]).sum() for p in parts]) / (2 * np.pi)
+        h = self.chips_m(c_f, np.broadcast_to(c[:, None], (len(c), self.cutter.n_teeth)))  # (points, teeth)
+        Ft, Fr, Fa = (f.sum(axis=1) * wt for f in self.chip_forces(h, np.broadcast_to(dep[:, None], h.shape),
+                                                                    cut_length_m))
+        R = self.cutter.radius_m
+        fu = -Ft @ s - Fr @ c
+        fv = Ft @ c - Fr @ s
+        fz = Fa.sum()
+        w = np.array([fu, fv, fz, R * (Fa @ s), -R * (Fa @ c), R * Ft.sum()]) / (2 * np.pi)
         return self._to_base(w, u0, u1)
