@@ -19,6 +19,17 @@ from robstiff_drake.model.wrench_frames import to_sensor_frame
 MAX_INSTANTS = 8
 
 
+# The chip follows the tool's progress along its path low-passed at this
+# frequency (Hz), below the arm's first mode (about 5 Hz): the path's speed
+# ramps (0.5 s) and the tool's lag behind its plan pass, its vibration at
+# the arm's modes does not.  The chip's feedback at those modes (process
+# damping, regenerative and mode-coupling chatter) is real physics this
+# plant leaves out: computed at the force's 4 ms update, a step behind, it
+# is no damping but a numerical instability (the paper's forces on the
+# block ring within 5 s without this filter).
+FEED_CUTOFF_HZ = 2.0
+
+
 def chip_window_s(cutter):
     """Over how long the tool's displacement makes the revolution-averaged
     chip (s): one revolution (its chips' mean is the displacement over the
@@ -209,6 +220,12 @@ class MillingForceSource(LeafSystem):
         tg = self._path.tangent_at(s)
         return self._path.feed_direction_at(s), max(rate, 0.0) * math.hypot(tg[0], tg[1]), h.ravel()
 
+    def smoothed_feed(self, feed_now, feed_held):
+        """The feed the chip follows (m/s): the tool's progress low-passed
+        at FEED_CUTOFF_HZ (first order, one step per update)."""
+        a = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)
+        return feed_held + a * (feed_now - feed_held)
+
     def step_wrench(self, t, q, process, hist, instants=()):
         """(wrench over the period starting at t as a list, pose, the
         instantaneous wrenches at ``instants`` (tooth mode; (k, 6)), the
@@ -224,6 +241,7 @@ class MillingForceSource(LeafSystem):
         pose = self._kin.pose_only(q)
         p = pose[9:]
         u, feed, hist = self.motion(t, p, hist)
+        feed = self.smoothed_feed(feed, float(process[2]))
         travel = float(process[3])
         wear = self._wear_args(travel)
         inst = None
