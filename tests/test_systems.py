@@ -61,6 +61,7 @@ def test_milling_force_source_outputs(robot):
         back = 0.002 * np.arange(n, 0, -1)
         ctx.get_mutable_discrete_state(int(src._hist)).SetFromVector(np.c_[-back, 0.1 - 0.02 * back,
                                                                            np.zeros(n)].ravel())
+        ctx.get_mutable_discrete_state(int(src._process)).SetFromVector([1.0, 0.0, 0.02, 0.0])  # its feed, held
         sim.AdvanceTo(1e-4)  # the update at t = 0 has run
         held = ctx.get_discrete_state(1).CopyToVector()  # the period's wrench
         expected = (model.average_wrench(p, [1, 0], wp) if mode == "averaged" else

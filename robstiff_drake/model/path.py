@@ -246,6 +246,15 @@ class PlannedPath:
         n = math.hypot(tg[0], tg[1])
         return (tg[0] / n, tg[1] / n) if n > 1e-6 else self._elem_dirs[i]
 
+    def nearest_s(self, p_m, spacing_m=0.001):
+        """``project`` from the nearest of the path's points every
+        ``spacing_m`` (a search of the whole path: for a first guess)."""
+        s = np.arange(0.0, self.total_length + spacing_m, spacing_m)
+        s[-1] = min(s[-1], self.total_length)
+        pts = np.array([self.point_at(x) for x in s])
+        d = np.linalg.norm(pts - np.asarray(p_m, dtype=float)[None, :], axis=1)
+        return self.project(p_m, float(s[int(np.argmin(d))]))
+
     def project(self, p_m, s_guess_m, max_step_m=0.005, iterations=4):
         """The arc length (m) of the path's point nearest the point p (m)
         near ``s_guess_m``: Newton steps s += (p - P(s)) . T(s), each at

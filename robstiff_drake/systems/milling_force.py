@@ -197,14 +197,14 @@ class MillingForceSource(LeafSystem):
         s) added) from the tool point p (m) now and ``hist`` (3 n: t, s,
         0 per update, oldest first, NaN before the first): s is where along
         its path the tool really is (the path's point nearest it, found
-        from the last update's), the feed its progress since t - window
+        from the last update's; at the first, from a search of the whole
+        path), the feed its progress since t - window
         (interpolated in the history) over the window, times the path's
         horizontal slope there (a plunge makes no horizontal chip), along
         the path's direction there; a tool that goes back cuts no chip."""
         h = np.asarray(hist, dtype=float).reshape(-1, 3)
         last = h[-1]
-        guess = last[1] if not math.isnan(last[0]) else self._path.arc_length(t)
-        s = self._path.project(p, guess)
+        s = self._path.project(p, last[1]) if not math.isnan(last[0]) else self._path.nearest_s(p)
         h = np.vstack((h[1:], [t, s, 0.0]))
         known = h[~np.isnan(h[:, 0])]
         t0 = t - self._window
