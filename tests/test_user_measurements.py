@@ -12,6 +12,7 @@ import pytest
 from robstiff_drake.diagrams import milling_cell
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.diagrams.scenario_models import cutting_setup, plant_damping_ratios
+from robstiff_drake.diagrams.user_measurements import user_measured_damping
 from robstiff_drake.diagrams.user_model import _exact_servo
 from robstiff_drake.identification.modal_test import era_modes, impulse_response, merge_close
 
@@ -67,7 +68,7 @@ def captured(robot):
     try:
         make = milling_cell.preview_factory(
             sc, robot, path=path, workpiece=workpiece, t_ref=t_ref, q_ref=q_ref, tool_m=station.tool_m,
-            filter_ba=([1.0], [1.0]), modal_damping=lambda s: milling_cell.user_measured_damping(s, robot, station,
+            filter_ba=([1.0], [1.0]), modal_damping=lambda s: user_measured_damping(s, robot, station,
                                                                                                  q_ref[0]))
         from robstiff_drake.model.realtime import DeflectionPredictor
 

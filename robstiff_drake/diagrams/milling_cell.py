@@ -30,7 +30,9 @@ from robstiff_drake.diagrams.scenario_models import (
 )
 from robstiff_drake.diagrams.scenario import planned_path as scenario_path
 from robstiff_drake.diagrams.station import make_milling_station
-from robstiff_drake.diagrams.user_measurements import calibrated_tool, probed_workpiece, user_robot
+from robstiff_drake.diagrams.user_measurements import (
+    calibrated_tool, probed_workpiece, user_measured_damping, user_robot
+)
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.path import PathError, PlannedPath
 from robstiff_drake.model import kinematics as kin
@@ -178,26 +180,6 @@ def check_plant_step(sc, robot):
     for its joint modes at the path's first pose (InputError, one line)."""
     _, _, q_ref = planned_path(sc, robot, robot.tool_point(where="the closed loop"))
     build_station(sc, robot, q_modes_rad=q_ref[0])
-
-
-_MODAL_TESTS = {}  # the modal test's damping per station setup and pose (a sweep's runs share it)
-
-
-def user_measured_damping(sc, robot, station, q_rad):
-    """The damping ratios a modal test on ``station`` at q finds
-    (diagrams/user_measurements.py), once per process for a setup."""
-    from robstiff_drake.diagrams.user_measurements import modal_test_damping
-
-    jm = station.joints
-    key = (jm.M.tobytes(), jm.K.tobytes(), jm.D.tobytes(), jm.G.tobytes(), jm.velocity_gain.tobytes(),
-           repr(jm.servo), np.asarray(q_rad).tobytes(), int(sc.model.identification.seed))
-    if key not in _MODAL_TESTS:
-        from robstiff_drake.diagrams.compliant_arm import modal_frequencies_hz
-
-        # the preview's own modes (motors held): the user's inertias on the compensator's stiffness
-        model_hz = modal_frequencies_hz(ArmInertia(user_robot(sc, robot)).mass_matrix(q_rad), model_stiffness(sc, robot))
-        _MODAL_TESTS[key] = modal_test_damping(sc, robot, jm, q_rad, station.tool_m, model_hz)[0]
-    return _MODAL_TESTS[key]
 
 
 def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_ba, modal_damping=None):

@@ -22,8 +22,11 @@ import dataclasses
 
 import numpy as np
 
+from robstiff_drake.diagrams.compliant_arm import modal_frequencies_hz
+from robstiff_drake.diagrams.scenario_models import model_stiffness
 from robstiff_drake.identification.modal_test import era_modes, impulse_response, merge_close
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.arm_dynamics import ArmInertia
 from robstiff_drake.model.milling import Workpiece
 
 # The modal test: 1 kHz sampling for 1 s after each blow, the response's
@@ -107,3 +110,23 @@ def match_modes(model_hz, found_hz, found_ratios, factor=1.3):
                 used.add(j)
                 break
     return out
+
+
+_MODAL_TESTS = {}  # the modal test's damping per station setup and pose (a sweep's runs share it)
+
+
+def user_measured_damping(sc, robot, station, q_rad):
+    """The damping ratios a modal test on ``station`` at q finds
+    (``modal_test_damping``) on the preview's own modes, once per process
+    for a setup."""
+    jm = station.joints
+    k_model = np.asarray(model_stiffness(sc, robot), dtype=float)
+    ident = sc.model.identification
+    key = (jm.M.tobytes(), jm.K.tobytes(), jm.D.tobytes(), jm.G.tobytes(), jm.velocity_gain.tobytes(),
+           repr(jm.servo), np.asarray(q_rad).tobytes(), int(ident.seed), float(ident.inertia_error),
+           k_model.tobytes())
+    if key not in _MODAL_TESTS:
+        # the preview's own modes (motors held): the user's inertias on the compensator's stiffness
+        model_hz = modal_frequencies_hz(ArmInertia(user_robot(sc, robot)).mass_matrix(q_rad), k_model)
+        _MODAL_TESTS[key] = modal_test_damping(sc, robot, jm, q_rad, station.tool_m, model_hz)[0]
+    return _MODAL_TESTS[key]
