@@ -68,8 +68,7 @@ def captured(robot):
     try:
         make = milling_cell.preview_factory(
             sc, robot, path=path, workpiece=workpiece, t_ref=t_ref, q_ref=q_ref, tool_m=station.tool_m,
-            filter_ba=([1.0], [1.0]), modal_damping=lambda s: user_measured_damping(s, robot, station,
-                                                                                                 q_ref[0]))
+            filter_ba=([1.0], [1.0]), modal_damping=lambda s: user_measured_damping(s, robot, station, q_ref[0]))
         from robstiff_drake.model.realtime import DeflectionPredictor
 
         make(DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, station.tool_m), None)
