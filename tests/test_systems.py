@@ -49,13 +49,19 @@ def test_milling_force_source_outputs(robot):
     kinematics = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool)
     R, p = kinematics.flange_rotation_and_tool_point(Q)
     wp = Workpiece.from_boxes([[p[0] - 0.05, p[0] + 0.1, p[1] - 0.02, p[1] + 0.03, p[2] + 0.003]])
-    path = PlannedPath([p, p + [0.1, 0, 0]], 0.02)
+    path = PlannedPath([p - [0.1, 0, 0], p + [0.1, 0, 0]], 0.02)
     for mode in ("averaged", "tooth"):
         src = MillingForceSource(force_model=model, workpiece=wp, path=path, kinematics=kinematics, tool_point_m=tool,
                                  period_s=0.002, spindle_body_index=BodyIndex(7), mode=mode)
         sim = Simulator(src)
         ctx = sim.get_mutable_context()
         src.get_input_port().FixValue(ctx, Q)
+        # the tool came along the path at 0.02 m/s: its history (time, arc length) before t = 0
+        n = src._n_hist
+        back = 0.002 * np.arange(n, 0, -1)
+        ctx.get_mutable_discrete_state(int(src._hist)).SetFromVector(np.c_[-back, 0.1 - 0.02 * back,
+                                                                           np.zeros(n)].ravel())
+        ctx.get_mutable_discrete_state(int(src._process)).SetFromVector([1.0, 0.0, 0.02, 0.0])  # its feed, held
         sim.AdvanceTo(1e-4)  # the update at t = 0 has run
         held = ctx.get_discrete_state(1).CopyToVector()  # the period's wrench
         expected = (model.average_wrench(p, [1, 0], wp) if mode == "averaged" else

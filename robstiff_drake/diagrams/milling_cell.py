@@ -26,14 +26,19 @@ from robstiff_drake.diagrams.compensator import filter_coefficients, make_compen
 from robstiff_drake.diagrams import reference_cache
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.scenario_models import (
-    COEFFICIENT_GROUPS, cutting_setup, model_cutting_setup, model_damping_ratios, model_stiffness, payload_calibration
+    COEFFICIENT_GROUPS, cutting_setup, model_cutting_setup, model_damping_ratios, model_stiffness, payload_calibration,
+    plant_cutting_setup
 )
 from robstiff_drake.diagrams.scenario import planned_path as scenario_path
 from robstiff_drake.diagrams.station import make_milling_station
+from robstiff_drake.diagrams.user_measurements import (
+    calibrated_tool, probed_workpiece, user_measured_damping, user_robot
+)
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.path import PathError, PlannedPath
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.arm_dynamics import ArmInertia
+from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.preview import preview_table
 from robstiff_drake.systems.predictive_wrench import PredictiveWrench
 from robstiff_drake.systems.preview_correction import PreviewCorrection, PreviewModel
@@ -158,9 +163,9 @@ def retimed_references(base, t_base, q_base, path, dt_s):
 
 
 def build_station(sc, robot, *, q_modes_rad, path=None):
-    """The scenario's station (InputError, one line, if its plant step is
-    unstable for its joints)."""
-    _, fmodel, workpiece = cutting_setup(sc)
+    """The scenario's station, its cutting force the plant's own law
+    (InputError, one line, if its plant step is unstable for its joints)."""
+    _, fmodel, workpiece = plant_cutting_setup(sc)
     path = path if path is not None else scenario_path(sc)
     try:
         return make_milling_station(sc, robot, path=path, force_model=fmodel, workpiece=workpiece,
@@ -176,23 +181,35 @@ def check_plant_step(sc, robot):
     build_station(sc, robot, q_modes_rad=q_ref[0])
 
 
-def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_ba):
+def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_ba, modal_damping=None):
     """A function (kinematics, deflection model) -> PreviewCorrection: the
     scenario's preview compensator, from the compensator's own models (its
-    stiffness, the robot file's inertias, its servo model, its force model
-    per coefficient group; model/preview.py)."""
+    stiffness, its servo model, its force model per coefficient group;
+    model/preview.py) and, with an identified model, what a user measures
+    of the rest (diagrams/user_measurements.py: the robot file's inertias
+    as a user's file has them, the tool point from a TCP calibration, the
+    workpiece's top from a probe, the damping from ``modal_damping(sc)``,
+    a modal test on the station)."""
     ss, ctl = sc.sensor, sc.controller
     T = ctl.period_ms / 1e3
     servo = user_models.servo_model(sc)
     groups = [model_cutting_setup(sc, groups=g)[1] for g in COEFFICIENT_GROUPS]
-    inertia = ArmInertia(robot)
-    ratios = model_damping_ratios(sc)
-    motors = inertia.motor_inertia(q_ref[0])
     um = sc._user_model if sc.model.source == "identified" else None
+    ratios = model_damping_ratios(sc)
+    if um is not None:  # what a user measures (diagrams/user_measurements.py)
+        robot = user_robot(sc, robot)
+        tool_m = calibrated_tool(sc, tool_m)
+        workpiece = probed_workpiece(sc, workpiece)
+        if sc.model.identification.damping == "modal_test" and not sc.model.damping_ratios and modal_damping:
+            ratios = modal_damping(sc)
+    inertia = ArmInertia(robot)
+    motors = inertia.motor_inertia(q_ref[0])
     sigma = max(sc.model.identification.coefficient_error, 0.05) if um is not None else 0.05
 
     def make(kin, deflection):
         C = kin.joint_compliance
+        if um is not None:  # the preview's own kinematics: the calibrated tool point
+            kin = DeflectionPredictor(robot.dh, 1.0 / C, tool_m)
         key = (path.signature(), T, tuple(C.tolist()), tuple(ratios), servo, tuple(motors), tuple(np.round(tool_m, 12)),
                robot.source,
                hash(np.asarray(q_ref).tobytes()), workpiece.boxes,
@@ -230,7 +247,8 @@ def build_compensator(sc, robot, station, *, path, workpiece, t_ref=None, q_ref=
     predictive = preview = None
     if ctl.mode == "preview":
         preview = preview_factory(sc, robot, path=path, workpiece=workpiece, t_ref=t_ref, q_ref=q_ref,
-                                  tool_m=station.tool_m, filter_ba=ba)
+                                  tool_m=station.tool_m, filter_ba=ba,
+                                  modal_damping=lambda s: user_measured_damping(s, robot, station, q_ref[0]))
     if ctl.mode == "predictive":
         _, model_forces, _ = model_cutting_setup(sc)
         # a correction computed now acts after the delay line, half a hold,

@@ -15,6 +15,7 @@ from robstiff_drake.diagrams.schema import num, validate, vec
 from robstiff_drake.errors import InputError, excerpt
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.payload import PayloadCalibration
+from robstiff_drake.model.plant_cutting import PlantCuttingLaw, PlantCuttingPhysics
 from robstiff_drake.model.robot_file import STIFFNESS_RANGE_NM_PER_RAD
 from robstiff_drake.user_files import load_json, load_yaml, read_user_text
 
@@ -103,6 +104,21 @@ def cutting_setup(sc, scale=1.0, factors=None, groups=None):
     model = MillingForceModel(cutter, coeffs, sc.path.feed_mm_per_s / 1e3)
     workpiece = Workpiece.from_boxes(np.asarray(sc.workpiece.boxes_mm, dtype=float) / 1e3)
     return cutter, model, workpiece
+
+
+def plant_cutting_setup(sc):
+    """(cutter, the plant's cutting law, workpiece): the scenario's linear
+    coefficients as the anchor of the plant's richer law
+    (model/plant_cutting.py; cutting.plant_law)."""
+    cutter, linear, workpiece = cutting_setup(sc)
+    c = sc.cutting
+    if c.plant_law == "linear":
+        physics = PlantCuttingPhysics.linear()
+    else:
+        physics = PlantCuttingPhysics(chip_exponent=c.chip_exponent, runout_m=c.runout_mm / 1e3,
+                                      runout_angle_rad=float(np.deg2rad(c.runout_angle_deg)),
+                                      flank_wear_m=c.flank_wear_mm / 1e3, flank_wear_per_m=c.flank_wear_mm_per_m / 1e3)
+    return cutter, PlantCuttingLaw(linear, physics), workpiece
 
 
 # The force model's coefficients by group (preview mode scales each group

@@ -119,6 +119,17 @@ class CuttingConfig:
     tangential_radial_scale: float = num(1.0, 0.0, 10.0, "", lo_open=True)
     axial_scale: float = num(1.0, 0.0, 10.0, "", lo_open=True)
     phase_deg: float = num(0.0, -360.0, 360.0, "deg")
+    # The plant's own cutting physics (model/plant_cutting.py, sources
+    # there): "rich": the chip from the tool's actual motion, a Kienzle chip
+    # law, the worn edge's ploughing, runout; "linear": the compensator's
+    # law (linear chip, no wear or runout), still from the actual motion.
+    plant_law: str = choice("rich", ("rich", "linear"))
+    # 1 - m_c of the Kienzle law (0.75: Sandvik Coromant's ISO N groups; 0.7-0.8 for wrought AlMgSi)
+    chip_exponent: float = num(0.75, 0.3, 1.0, "")
+    runout_mm: float = num(0.010, 0.0, 0.2, "mm", why="a face mill's insert runout is 5-20 um")
+    runout_angle_deg: float = num(0.0, -360.0, 360.0, "deg")
+    flank_wear_mm: float = num(0.02, 0.0, 1.0, "mm", why="ISO 3685's end-of-life criterion is VB = 0.3 mm")
+    flank_wear_mm_per_m: float = num(0.0003, 0.0, 0.1, "mm/m")
 
 
 @dataclass
@@ -261,6 +272,24 @@ class IdentificationConfig:
     # The controller's servo (preview mode): "identified" from a step test
     # of the joint targets, or "exact" (the scenario's servo keys).
     servo: str = choice("identified", ("identified", "exact"))
+    # What the preview knows of the arm and the cell besides (diagrams/
+    # user_measurements.py; each "exact" for the bound):
+    # the links' masses and inertias: the robot file's, each off by a
+    # uniform draw within +-inertia_error.  ASSUMPTION 15 %: a robot file's
+    # inertial data are CAD or catalogue values, and identification studies
+    # of industrial arms find link masses and inertias 10-20 % from them.
+    inertia_error: float = num(0.15, 0.0, 0.9, "")
+    # the damping: "modal_test" (hammer blows on the tool, drives on, modes
+    # fitted: identification/modal_test.py) or "stated" (model.damping_ratios,
+    # else the plant's stated ratios).
+    damping: str = choice("modal_test", ("modal_test", "stated"))
+    # the tool point from a TCP calibration (four-point or sphere method):
+    # ASSUMPTION 0.5 mm, 1 sigma per axis (robot TCP routines reach 0.2-1 mm)
+    tcp_error_mm: float = num(0.5, 0.0, 20.0, "mm")
+    # the workpiece's top from a touch probe: 0.05 mm, 1 sigma (ASSUMPTION:
+    # a robot-carried probe's repeatability is a few um, the arm's own
+    # repeatability 0.03-0.1 mm dominates)
+    probe_error_mm: float = num(0.05, 0.0, 5.0, "mm")
     seed: int = num(20, 0, 2**32 - 1, "", integer=True)  # of every draw above
 
 

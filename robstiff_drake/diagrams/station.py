@@ -204,7 +204,7 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
     systems = {key: arm[key] for key in ("plant", "controller_plant", "servo", "servo_parameters", "interpolator",
                                          "touch_off", "joints", "gear_torque_at_rest")}
 
-    # the process: the cutting load at the actual tool point, on the spindle
+    # the process: the cutting load at the actual tool point and from its actual motion, on the spindle
     state_demux = builder.AddNamedSystem("state_demux", Demultiplexer([6, 6]))
     builder.Connect(plant.get_state_output_port(), state_demux.get_input_port())
     q_link = state_demux.get_output_port(0)

@@ -236,6 +236,41 @@ class PlannedPath:
         n = math.hypot(tg[0], tg[1])
         return (tg[0] / n, tg[1] / n) if n > 1e-6 else self._elem_dirs[i]
 
+    def feed_direction_at(self, s):
+        """``feed_direction`` at arc length s (m) instead of a time."""
+        i = self._element(s)
+        e = self.elements[i]
+        if isinstance(e, Line) or len(self._elem_dirs) == 1:
+            return self._elem_dirs[i]
+        tg = e.tangent(min(max(s - self._s_knots[i], 0.0), e.length))
+        n = math.hypot(tg[0], tg[1])
+        return (tg[0] / n, tg[1] / n) if n > 1e-6 else self._elem_dirs[i]
+
+    def nearest_s(self, p_m, spacing_m=0.001):
+        """``project`` from the nearest of the path's points every
+        ``spacing_m`` (a search of the whole path: for a first guess)."""
+        s = np.arange(0.0, self.total_length + spacing_m, spacing_m)
+        s[-1] = min(s[-1], self.total_length)
+        pts = np.array([self.point_at(x) for x in s])
+        d = np.linalg.norm(pts - np.asarray(p_m, dtype=float)[None, :], axis=1)
+        return self.project(p_m, float(s[int(np.argmin(d))]))
+
+    def project(self, p_m, s_guess_m, max_step_m=0.005, iterations=4):
+        """The arc length (m) of the path's point nearest the point p (m)
+        near ``s_guess_m``: Newton steps s += (p - P(s)) . T(s), each at
+        most ``max_step_m`` (the plant's cutting force: where along its
+        path the tool really is)."""
+        s = min(max(float(s_guess_m), 0.0), self.total_length)
+        px, py, pz = float(p_m[0]), float(p_m[1]), float(p_m[2])
+        for _ in range(iterations):
+            P, T = self.point_at(s), self.tangent_at(s)
+            step = (px - P[0]) * T[0] + (py - P[1]) * T[1] + (pz - P[2]) * T[2]
+            step = min(max(step, -max_step_m), max_step_m)
+            s = min(max(s + step, 0.0), self.total_length)
+            if abs(step) < 1e-9:
+                break
+        return s
+
     def sample_xy(self, spacing_m):
         """(s (N,), points (N, 3), horizontal unit tangents (N, 2)) every
         ``spacing_m`` along the path, leaving out the (near-)vertical parts."""

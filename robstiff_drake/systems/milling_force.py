@@ -1,7 +1,9 @@
 """The milling force source: the cutting wrench on the tool from the actual
-tool position against the workpiece (the process loop), applied to the
-spindle body as a spatial force, so the flange-spindle weld carries it and
-the wrist sensor feels it as it would on a real cell."""
+tool position against the workpiece (the process loop) and the tool's
+actual motion (the chip's feed per tooth and direction: a tool that lags
+its plan cuts where and how it really moves), applied to the spindle body
+as a spatial force, so the flange-spindle weld carries it and the wrist
+sensor feels it as it would on a real cell."""
 
 import math
 
@@ -17,6 +19,24 @@ from robstiff_drake.model.wrench_frames import to_sensor_frame
 MAX_INSTANTS = 8
 
 
+# The chip follows the tool's progress along its path low-passed at this
+# frequency (Hz), below the arm's first mode (about 5 Hz): the path's speed
+# ramps (0.5 s) and the tool's lag behind its plan pass, its vibration at
+# the arm's modes does not.  The chip's feedback at those modes (process
+# damping, regenerative and mode-coupling chatter) is real physics this
+# plant leaves out: computed at the force's 4 ms update, a step behind, it
+# is no damping but a numerical instability (the paper's forces on the
+# block ring within 5 s without this filter).
+FEED_CUTOFF_HZ = 2.0
+
+
+def chip_window_s(cutter):
+    """Over how long the tool's displacement makes the revolution-averaged
+    chip (s): one revolution (its chips' mean is the displacement over the
+    revolution over the number of teeth)."""
+    return 60.0 / cutter.spindle_rpm
+
+
 def _arange(start, stop, step):
     """list(np.arange(start, stop, step)) for floats, value for value
     (numpy's fill: start, start + step, then start + i * (the second minus
@@ -30,7 +50,16 @@ def _arange(start, stop, step):
 
 class MillingForceSource(LeafSystem):
     """Samples the robot's link angles every ``period_s`` and computes the
-    cutting load at the actual tool point.
+    cutting load at the actual tool point, the chip from the tool's actual
+    horizontal motion: its displacement over the chip's window
+    (``chip_window_s``: a revolution; interpolated in the history of
+    updates) over that window is the feed (m/s) whose feed per tooth is the
+    chip, and its direction the feed direction.  So a tool that lags
+    its plan turns a corner where it turns, and a speed ramp thins the
+    chip; the planned path gives only the direction before the tool first
+    moves.  ``force_model``: the plant's law (model/plant_cutting.py's
+    PlantCuttingLaw, which also takes the cutting travel so far, its flank
+    wear's clock) or a linear MillingForceModel.
 
     Input  ``q`` (6): link angles, rad (controller convention).
     Output ``spatial_force`` (abstract, a list of one
@@ -79,6 +108,15 @@ class MillingForceSource(LeafSystem):
         # (base frame, at the tool point) and the spatial force list
         self._pose = self.DeclareDiscreteState(12)
         self._w = self.DeclareDiscreteState(6)
+        self._wears = hasattr(force_model, "flank_wear_m")
+        # held: the feed direction (2, unit; before the tool first moves, the path's first), the feed (m/s) and
+        # the cutting travel so far (m)
+        u0 = path.feed_direction(0.0)
+        self._process = self.DeclareDiscreteState([float(u0[0]), float(u0[1]), 0.0, 0.0])
+        # the tool point's recent history over the chip's window: (t, x, y) per update, oldest first
+        self._window = chip_window_s(force_model.cutter)
+        self._n_hist = max(2, math.ceil(self._window / self._period + 1e-9) + 2)
+        self._hist = self.DeclareDiscreteState(np.full(3 * self._n_hist, np.nan))
         self._applied = ExternallyAppliedSpatialForce()  # reused: only its force changes
         self._applied.body_index = self._body
         self._applied.p_BoBq_B = np.array(self._tool)  # the spindle's frame is the flange's
@@ -94,7 +132,7 @@ class MillingForceSource(LeafSystem):
             self._inst = self.DeclareDiscreteState(np.zeros(12 * MAX_INSTANTS))
             self._inst_t = self.DeclareDiscreteState(np.full(MAX_INSTANTS, np.nan))
             now = {self.discrete_state_ticket(self._pose), self.time_ticket(), self.discrete_state_ticket(self._inst),
-                   self.discrete_state_ticket(self._inst_t)}
+                   self.discrete_state_ticket(self._inst_t), self.discrete_state_ticket(self._process)}
             self.DeclareVectorOutputPort("wrench", 6, lambda c, o: o.SetFromVector(self._tooth_wrench_now(c)),
                                          prerequisites_of_calc=now)
             self.DeclareVectorOutputPort("ripple_sensor", 6, self._calc_ripple,
@@ -133,8 +171,9 @@ class MillingForceSource(LeafSystem):
             return context.get_discrete_state(self._inst).value()[12 * i:12 * i + 6]
         t = context.get_time()
         p = context.get_discrete_state(self._pose).value()[9:]
-        return self._model.tooth_wrench(t, p, self._path.feed_direction(t), self._workpiece, self._phase,
-                                        self._path.programmed_speed(t))
+        u0, u1, feed, travel = context.get_discrete_state(self._process).value().tolist()
+        return self._model.tooth_wrenches([t], p, (u0, u1), self._workpiece, self._phase, feed,
+                                          **self._wear_args(travel))[0]
 
     def _ripple(self, R, w_now, w_held):
         """The ripple (sensor frame, list) for the flange rotation R (9
@@ -150,36 +189,84 @@ class MillingForceSource(LeafSystem):
         held = context.get_discrete_state(self._w).value()
         output.SetFromVector(self._ripple(R, self._tooth_wrench_now(context), held))
 
-    def step_wrench(self, t, q, instants=()):
-        """(wrench over the period starting at t as a list, pose, the
-        instantaneous wrenches at ``instants`` (tooth mode; (k, 6))): the
-        pose is the flange rotation (row-major 9) and the tool point (3), m."""
-        w, pose, inst = self._step(t, q, instants)
-        return w.tolist(), pose, inst
+    def _wear_args(self, travel_m):
+        return {"cut_length_m": travel_m} if self._wears else {}
 
-    def _step(self, t, q, instants=()):
+    def motion(self, t, p, hist):
+        """(feed direction (2,), horizontal feed m/s, the history with (t,
+        s) added) from the tool point p (m) now and ``hist`` (3 n: t, s,
+        0 per update, oldest first, NaN before the first): s is where along
+        its path the tool really is (the path's point nearest it, found
+        from the last update's; at the first, from a search of the whole
+        path), the feed its progress since t - window
+        (interpolated in the history) over the window, times the path's
+        horizontal slope there (a plunge makes no horizontal chip), along
+        the path's direction there; a tool that goes back cuts no chip."""
+        h = np.asarray(hist, dtype=float).reshape(-1, 3)
+        last = h[-1]
+        s = self._path.project(p, last[1]) if not math.isnan(last[0]) else self._path.nearest_s(p)
+        h = np.vstack((h[1:], [t, s, 0.0]))
+        known = h[~np.isnan(h[:, 0])]
+        t0 = t - self._window
+        if len(known) < 2 or known[0, 0] >= t0:
+            ref = known[0]
+        else:
+            k = int(np.searchsorted(known[:, 0], t0)) - 1
+            a, b = known[k], known[k + 1]
+            f = (t0 - a[0]) / (b[0] - a[0])
+            ref = a + f * (b - a)
+        span = t - ref[0]
+        rate = (s - ref[1]) / span if span > 0 else 0.0
+        tg = self._path.tangent_at(s)
+        return self._path.feed_direction_at(s), max(rate, 0.0) * math.hypot(tg[0], tg[1]), h.ravel()
+
+    def smoothed_feed(self, feed_now, feed_held):
+        """The feed the chip follows (m/s): the tool's progress low-passed
+        at FEED_CUTOFF_HZ (first order, one step per update)."""
+        a = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)
+        return feed_held + a * (feed_now - feed_held)
+
+    def step_wrench(self, t, q, process, hist, instants=()):
+        """(wrench over the period starting at t as a list, pose, the
+        instantaneous wrenches at ``instants`` (tooth mode; (k, 6)), the
+        new process state, the new history): the pose is the flange
+        rotation (row-major 9) and the tool point (3), m; ``process``: (u_x,
+        u_y, feed m/s, cutting travel m) held from the last update;
+        ``hist``: see ``motion``."""
+        w, pose, inst, process, hist = self._step(t, q, process, hist, instants)
+        return w.tolist(), pose, inst, process, hist
+
+    def _step(self, t, q, process, hist, instants=()):
         """step_wrench with the wrench as an array."""
         pose = self._kin.pose_only(q)
         p = pose[9:]
-        u = self._path.feed_direction(t)
-        feed = self._path.programmed_speed(t)  # each move's own feed (chip thickness)
+        u, feed, hist = self.motion(t, p, hist)
+        feed = self.smoothed_feed(feed, float(process[2]))
+        travel = float(process[3])
+        wear = self._wear_args(travel)
         inst = None
         if self._mode == "tooth":
             n = len(self._sub_t)
             rows = self._model.tooth_wrenches(np.concatenate((t + self._sub_t, instants)), p, u, self._workpiece,
-                                              self._phase, feed)
+                                              self._phase, feed, **wear)
             w, inst = rows[:n].sum(axis=0) / n, rows[n:]
         else:
-            w = self._model.average_wrench(p, u, self._workpiece, feed)
-        return w, pose, inst
+            w = self._model.average_wrench(p, u, self._workpiece, feed, **wear)
+        if w[0] != 0.0 or w[1] != 0.0 or w[2] != 0.0:  # in the material: the edges travel (their wear's clock)
+            travel += feed * self._period
+        return w, pose, inst, np.array([u[0], u[1], feed, travel]), hist
 
     def _update(self, context, state):
         q = self._q.Eval(context)
         t = context.get_time()
         instants = self._read_offsets(t) if self._mode == "tooth" else ()
-        w, pose, inst = self._step(t, q, instants)
+        process = context.get_discrete_state(self._process).value()
+        hist = context.get_discrete_state(self._hist).value()
+        w, pose, inst, process, hist = self._step(t, q, process, hist, instants)
         discrete = state.get_mutable_discrete_state()
         discrete.set_value(int(self._w), w)
+        discrete.set_value(int(self._process), process)
+        discrete.set_value(int(self._hist), hist)
         if inst is not None:
             discrete.set_value(int(self._pose), np.array(pose))  # (read between updates in tooth mode only)
             times = np.full(MAX_INSTANTS, np.nan)
