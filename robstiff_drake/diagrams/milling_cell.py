@@ -251,12 +251,14 @@ def build_compensator(sc, robot, station, *, path, workpiece, t_ref=None, q_ref=
         controller_plant=station.controller_plant)
 
 
-def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model_wrench=None):
+def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model_wrench=None, q_reference=None):
     """Build the closed-loop diagram of scenario ``sc``: the station, the
     path and (always built, connected only with ``compensation``) the
     compensator.  ``model_wrench``: (times s, (N, 6) sensor-frame wrench)
     subtracted from the measured wrench before the compensator (the part a
-    corrected program already compensates: diagrams/offline_compensation.py)."""
+    corrected program already compensates: diagrams/offline_compensation.py);
+    ``q_reference``: (times s, (N, 6) rad) joint references streamed instead
+    of the path's own (a corrected joint reference)."""
     tool = robot.tool_point(where="the closed loop")
     _, fmodel, workpiece = cutting_setup(sc)
     path, t_ref, q_ref = planned_path(sc, robot, tool)
@@ -267,6 +269,8 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model
     builder = DiagramBuilder()
     st = builder.AddSystem(station.diagram)
     cp = builder.AddSystem(comp.diagram)
+    if q_reference is not None:
+        t_ref, q_ref = (np.asarray(v, dtype=float) for v in q_reference)
     traj = PiecewisePolynomial.FirstOrderHold(t_ref, q_ref.T)
     path_src = builder.AddNamedSystem("path", TrajectorySource(traj, output_derivative_order=1))
     path_demux = builder.AddNamedSystem("path_demux", Demultiplexer([6, 6]))

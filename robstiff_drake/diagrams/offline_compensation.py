@@ -26,7 +26,6 @@ import copy
 import math
 import time
 from dataclasses import dataclass, replace
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -183,34 +182,25 @@ def move_corrections(sc, program, prediction, *, chord_mm, max_correction_mm):
                             round_mm=1e-4, is_cutting=is_cutting, label=program.path)
 
 
-def _scan(sc, path, workpiece, radius_m, p_cmd, n_cmd, p_act, n_act):
-    from robstiff_drake.diagrams.experiment import scan_along_path
-    from robstiff_drake.model.surface import surface_error_stats
-
-    cell = SimpleNamespace(scenario=sc, path=path, workpiece=workpiece, compensation=False)
-    lines = scan_along_path(cell, p_cmd, n_cmd, p_act, n_act, radius_m)
-    err = np.concatenate([ln.error_m[np.isfinite(ln.error_m)] for ln in lines])
-    return surface_error_stats(err) if err.size else {"mean": 0.0, "max_abs": 0.0, "rms": 0.0, "pv": 0.0}
-
-
-def predicted_errors(sc, robot, prediction):
+def predicted_errors(sc, robot, prediction, corrected_program, *, progress=None, say=None):
     """The predicted surface error (mm: mean, max_abs, ...) on the
     compensator's model, before (the program as written) and after (the
-    corrected one: the tool point moved by the correction, the tool's tilt
-    left as it was: a 3-axis program cannot tilt it)."""
-    from robstiff_drake.diagrams.scenario_models import model_cutting_setup
+    corrected program): each run on the model's twin of the cell
+    (diagrams/feed_plan.twin_scenario: the identified stiffness, its
+    damping, servo, force model and sensor bias as the plant), scanned
+    against the programmed surface."""
+    from robstiff_drake.diagrams import user_model as user_models
+    from robstiff_drake.diagrams.experiment import run_cut
+    from robstiff_drake.diagrams.feed_plan import twin_scenario
+    from robstiff_drake.diagrams.scenario import load_scenario
 
-    cutter, _, workpiece = model_cutting_setup(sc)
-    q_link = prediction.q_rad - prediction.c_rad
-    T6 = kin.frames(robot.dh, q_link)[:, 6]
-    p_act = T6[:, :3, 3] + T6[:, :3, :3] @ prediction.tool_m
-    n_act = -T6[:, :3, 2]
-    p_cmd = prediction.path.positions(prediction.u_s)
-    n_cmd = np.tile([0.0, 0.0, 1.0], (len(p_cmd), 1))
-    before = _scan(sc, prediction.path, workpiece, cutter.radius_m, p_cmd, n_cmd, p_act, n_act)
-    after = _scan(sc, prediction.path, workpiece, cutter.radius_m, p_cmd, n_cmd, p_act + prediction.delta_mm / 1e3,
-                  n_act)
-    return before, after
+    if say:
+        say("the compensator's model (its twin of the cell): the program as written and the corrected one")
+    before = run_cut(twin_scenario(sc, robot, 1.0), robot, compensation=False, progress=progress).surface_error_mm
+    sc2 = load_scenario(sc.source, toolpath=corrected_program)
+    user_models.resolve(sc2, robot, prediction.q_ref_rad[0])
+    res = run_cut(twin_scenario(sc2, robot, 1.0), robot, compensation=False, progress=progress)
+    return _short(before), _short(scanned_against_program(res, prediction.path))
 
 
 def scanned_against_program(res, program_path):
@@ -236,42 +226,168 @@ def model_wrench_cell(sc, robot, prediction):
                               model_wrench=(prediction.u_s + lag, prediction.sensor_wrench))
 
 
+def corrected_reference(prediction):
+    """(times s, (N, 6) rad): the path's joint references with the full
+    (six-axis) offline correction, on the references' own grid."""
+    t = prediction.t_ref_s
+    c = np.column_stack([np.interp(t, prediction.u_s, prediction.c_rad[:, j]) for j in range(6)])
+    return t, prediction.q_ref_rad + c
+
+
+def reference_text(robot, prediction, run_id, job):
+    """joint_reference.csv: the corrected joint references (controller degrees)."""
+    from robstiff_drake.identification.run_logs import joint_reference_text
+
+    t, q = corrected_reference(prediction)
+    return joint_reference_text(robot, t, q, run_id, [
+        f"robstiff compensate-program: the joint references of {job}'s program with the offline correction of "
+        "the compensator's model (all six axes; controller degrees), for `robstiff compensate --reference`"])
+
+
 def proof_runs(job_sc, robot, corrected_program, prediction, *, modes=("off", "plain"), progress=None, say=None):
-    """{"uncompensated": stats, "corrected": stats, "corrected+plain": stats}:
-    the plant's surface error (mm), scanned against the programmed surface,
-    of the program as written and of the corrected program, without and
-    with online compensation."""
+    """{"uncompensated": stats, "corrected program": stats, "corrected joint
+    reference": stats, "corrected program + online plain": stats}: the
+    plant's surface error (mm), scanned against the programmed surface."""
+    from robstiff_drake.diagrams import user_model as user_models
     from robstiff_drake.diagrams.experiment import run_cut
+    from robstiff_drake.diagrams.milling_cell import build_milling_cell
     from robstiff_drake.diagrams.scenario import load_scenario
 
     out = {}
-    base = copy.deepcopy(job_sc)
     if say:
-        say("the program as written, on the plant, no compensation")
-    res = run_cut(base, robot, compensation=False, progress=progress)
+        say("proof: the program as written, on the plant, no compensation")
+    res = run_cut(copy.deepcopy(job_sc), robot, compensation=False, progress=progress)
     out["uncompensated"] = _short(res.surface_error_mm)
-    sc = load_scenario(job_sc.source, toolpath=corrected_program, work_offset=None)
-    sc.toolpath = copy.deepcopy(job_sc.toolpath)
-    sc.toolpath.program = str(corrected_program)
-    sc._program = None
+    sc = load_scenario(job_sc.source, toolpath=corrected_program)
     for mode in modes:
         run_sc = copy.deepcopy(sc)
         if mode == "off":
             if say:
-                say("the corrected program, on the plant, no online compensation")
+                say("proof: the corrected program, on the plant, no online compensation")
             res = run_cut(run_sc, robot, compensation=False, progress=progress)
-            out["corrected"] = _short(scanned_against_program(res, prediction.path))
+            out["corrected program"] = _short(scanned_against_program(res, prediction.path))
+            if say:
+                say("proof: the corrected joint reference (six axes), on the plant, no online compensation")
+            ref_sc = copy.deepcopy(job_sc)
+            cell = build_milling_cell(ref_sc, robot, compensation=False, q_reference=corrected_reference(prediction))
+            res = run_cut(ref_sc, robot, compensation=False, cell=cell, progress=progress)
+            out["corrected joint reference"] = _short(res.surface_error_mm)
         else:
             if say:
-                say(f"the corrected program, on the plant, with online {mode} compensation of the model's residual")
+                say(f"proof: the corrected program, on the plant, online {mode} compensation of the model's residual")
             run_sc.controller.mode = mode
-            from robstiff_drake.diagrams import user_model as user_models
-
             user_models.resolve(run_sc, robot, prediction.q_ref_rad[0])
             cell = model_wrench_cell(run_sc, robot, prediction)
             res = run_cut(run_sc, robot, compensation=True, cell=cell, progress=progress)
-            out[f"corrected+{mode}"] = _short(scanned_against_program(res, prediction.path))
+            out[f"corrected program + online {mode}"] = _short(scanned_against_program(res, prediction.path))
     return out
+
+
+def rapid_targets(sc, robot, program, corrections, prediction, written_moves):
+    """The RAPID module's targets (model/rapid_writer.Target): each written
+    block's end in the work frame, the orientation of the corrected pose
+    there (the full correction's, FK of the corrected joints at that point
+    of the path; the programmed tool-down pose for moves left as they are),
+    the configuration from the project's IK at that pose; ``written_moves``
+    the corrected program's moves as read back (a move left as programmed
+    ends where the controller takes it: an axis it does not name stays
+    where the corrected cut left it).  InputError (naming the line) for a
+    point the IK cannot reach."""
+    from robstiff_drake.diagrams.toolpath import work_transform, work_transform_mm
+    from robstiff_drake.model import ik
+    from robstiff_drake.model import program_correction as pc
+    from robstiff_drake.model import rapid_writer as rw
+    from robstiff_drake.model.program_path import program_pieces
+    from robstiff_drake.errors import InputError
+
+    tp = sc.toolpath
+    _, _, _, _, sources = program_pieces(program.moves, tp.rapid_mm_per_s / 1e3, work_transform(tp))
+    element_of = {id(m): i for i, m in enumerate(sources)}
+    maps = pc.element_arc_maps(prediction.path)
+    to_base = work_transform_mm(tp)
+    R_w = work_rotation(sc)
+    tool = prediction.tool_m
+    yaw = prediction.path.yaw
+    s_u, keep = prediction.s_m, np.flatnonzero(np.r_[True, np.diff(prediction.s_m) > 1e-12])
+    dh = robot.dh
+    q_prev = prediction.q_ref_rad[0]
+    targets = []
+
+    def pose_at(p_work, m, frac, corrected):
+        p_base = to_base(np.asarray(p_work, dtype=float)) / 1e3
+        T = ik.tool_down_pose(p_base, yaw)
+        i = element_of.get(id(m))
+        if corrected and i is not None and i in maps:
+            A, S = maps[i]
+            s = float(np.interp(frac * prediction.path.programmed_elements[i].length, A, S))
+            u = float(np.interp(s, s_u[keep], prediction.u_s[keep]))
+            q = np.array([np.interp(u, prediction.u_s, prediction.q_rad[:, j] + prediction.c_rad[:, j])
+                          for j in range(6)])
+            T[:3, :3] = kin.tool_pose(dh, q, tool)[:3, :3]
+        return T
+
+    def target(p_work, m, frac, corrected):
+        nonlocal q_prev
+        T = pose_at(p_work, m, frac, corrected)
+        try:
+            q = ik.solve_for(robot, T, tool, q_ref_rad=q_prev)
+        except ik.IKError as e:
+            raise InputError(f"{program.path}:{m.line}: the corrected point ({p_work[0]:.3f}, {p_work[1]:.3f}, "
+                             f"{p_work[2]:.3f}) mm is out of the robot's reach or limits: {e}") from None
+        q_prev = q
+        F = kin.frames(dh, q)
+        conf = rw.configuration(robot.controller_deg(q), ik.wrist_centre(dh, T, tool), F[1, :3, 3],
+                                F[2, :3, 3] - F[1, :3, 3], F[1, :3, 2])
+        return rw.quaternion(R_w.T @ T[:3, :3]), conf
+
+    k = 0
+    for m in program.moves:
+        corr = corrections.get(m.line)
+        speed = tp.rapid_mm_per_s if m.kind == "rapid" else m.feed_mm_per_min / 60.0
+        end = written_moves[k].end_mm if k < len(written_moves) else m.end_mm
+        pieces = corr.pieces if corr is not None else [pc.Piece(np.asarray(end, dtype=float), m.center_mm, 1.0)]
+        k += len(pieces)
+        start = None
+        prev_frac = 0.0
+        for piece in pieces:
+            quat, conf = target(piece.end_mm, m, piece.frac, corr is not None)
+            if m.kind == "arc":
+                mid = 0.5 * (prev_frac + piece.frac)
+                via = pc.move_points(m, [mid])[0]
+                if corr is not None:  # the piece's circle halfway: the corrected path there
+                    a, b, _ = pc.PLANES[m.plane]
+                    c = np.asarray(piece.center_mm, dtype=float)
+                    pend = np.asarray(piece.end_mm, dtype=float)
+                    s0 = start if start is not None else (targets[-1].pos_mm if targets else np.asarray(m.start_mm))
+                    r = float(np.hypot(s0[a] - c[0], s0[b] - c[1]))
+                    a0 = np.arctan2(s0[b] - c[1], s0[a] - c[0])
+                    a1 = np.arctan2(pend[b] - c[1], pend[a] - c[0])
+                    sweep = (a1 - a0) % (2 * np.pi) if not m.clockwise else -((a0 - a1) % (2 * np.pi))
+                    am = a0 + 0.5 * sweep
+                    via = np.array(s0, dtype=float)
+                    via[a], via[b] = c[0] + r * np.cos(am), c[1] + r * np.sin(am)
+                    via[pc.PLANES[m.plane][2]] = 0.5 * (s0[pc.PLANES[m.plane][2]] + pend[pc.PLANES[m.plane][2]])
+                vq, vc = target(via, m, mid, corr is not None)
+                targets.append(rw.Target("arc", np.asarray(piece.end_mm, dtype=float), quat, conf, speed, False,
+                                         m.line, via, vq, vc))
+            else:
+                targets.append(rw.Target("line", np.asarray(piece.end_mm, dtype=float), quat, conf, speed,
+                                         m.kind == "rapid", m.line))
+            start = np.asarray(piece.end_mm, dtype=float)
+            prev_frac = piece.frac
+    return targets
+
+
+def rapid_text(sc, robot, stem, targets, header):
+    """The RAPID module (text) of ``targets``: the robot file's tool and
+    payload, the work object at the job's work offset and rotation."""
+    from robstiff_drake.model import rapid_writer as rw
+
+    tool = robot.tool_point(where="compensate-program")
+    return rw.module_text(f"{stem}_compensated", targets, tool_mm=tool * 1e3, payload_mass_kg=robot.payload.mass_kg,
+                          payload_com_mm=np.asarray(robot.payload.com_m) * 1e3,
+                          wobj_mm=sc.toolpath.work_offset_mm, wobj_quat=rw.quaternion(work_rotation(sc)),
+                          zone_mm=sc.path.zone_mm, header_lines=header)
 
 
 def _short(stats):

@@ -44,6 +44,7 @@ class Piece:
 
     end_mm: np.ndarray
     center_mm: tuple = None
+    frac: float = 1.0  # where along the move it ends (fraction of its length)
 
 
 @dataclass
@@ -209,7 +210,7 @@ def split_move(move, start_mm, base_mm, delta_mm, chord_mm, round_mm):
                 break
         end = Q[good]
         pieces.append(Piece(end, tuple(np.round(np.asarray(good_c) / round_mm) * round_mm)
-                            if good_c is not None else None))
+                            if good_c is not None else None, good / n))
         start, i = end, good
     return pieces
 
