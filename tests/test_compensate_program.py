@@ -84,7 +84,7 @@ def check_rapid(text):
         assert declared.get(wobj) == "wobjdata" and (zone == "fine" or declared.get(zone) == "zonedata")
         for pos, quat, conf, extax in targets:
             assert pos.shape == (3,) and np.all(np.isfinite(pos))
-            assert abs(np.linalg.norm(quat) - 1.0) < 1e-6 and quat[0] >= 0
+            assert abs(np.linalg.norm(quat) - 1.0) < 1e-6
             assert len(conf) == 4 and 0 <= conf[3] <= 7
             assert extax == ",".join(["9E9"] * 6)
     return name, declared, moves
@@ -269,8 +269,11 @@ def test_the_rapid_module_follows_the_written_program(written):
     _, _, out, _ = written
     _, _, moves = check_rapid((out / "short_compensated.mod").read_text())
     prog = read_program((out / "short_compensated.nc").read_text(), "c.nc")
-    assert len(moves) == len(prog.moves)
-    for (kind, targets, *_), m in zip(moves, prog.moves):
+    assert len(moves) == len(prog.moves) + 1  # (first the program's start point)
+    assert np.allclose(moves[0][1][0][0], prog.start_mm)
+    quats = [t[1] for _, targets, *_ in moves for t in targets]
+    assert min(float(a @ b) for a, b in zip(quats[:-1], quats[1:])) > 0.99  # no sign flips along the path
+    for (kind, targets, *_), m in zip(moves[1:], prog.moves):
         assert (kind == "MoveC") == (m.kind == "arc")
         assert np.allclose(targets[-1][0], m.end_mm, atol=1e-3)
 

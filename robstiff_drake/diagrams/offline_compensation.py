@@ -311,6 +311,7 @@ def rapid_targets(sc, robot, program, corrections, prediction, written_moves):
     s_u, keep = prediction.s_m, np.flatnonzero(np.r_[True, np.diff(prediction.s_m) > 1e-12])
     dh = robot.dh
     q_prev = prediction.q_ref_rad[0]
+    quat_prev = None
     targets = []
 
     def pose_at(p_work, m, frac, corrected):
@@ -327,7 +328,7 @@ def rapid_targets(sc, robot, program, corrections, prediction, written_moves):
         return T
 
     def target(p_work, m, frac, corrected):
-        nonlocal q_prev
+        nonlocal q_prev, quat_prev
         T = pose_at(p_work, m, frac, corrected)
         try:
             q = ik.solve_for(robot, T, tool, q_ref_rad=q_prev)
@@ -338,8 +339,13 @@ def rapid_targets(sc, robot, program, corrections, prediction, written_moves):
         F = kin.frames(dh, q)
         conf = rw.configuration(robot.controller_deg(q), ik.wrist_centre(dh, T, tool), F[1, :3, 3],
                                 F[2, :3, 3] - F[1, :3, 3], F[1, :3, 2])
-        return rw.quaternion(R_w.T @ T[:3, :3]), conf
+        quat_prev = rw.quaternion(R_w.T @ T[:3, :3], quat_prev)
+        return quat_prev, conf
 
+    first = program.moves[0]  # the program's start point (the reader's first point with X, Y and Z known)
+    quat, conf = target(np.asarray(first.start_mm, dtype=float), first, 0.0, False)
+    targets.append(rw.Target("line", np.asarray(first.start_mm, dtype=float), quat, conf, tp.rapid_mm_per_s, True,
+                             first.line))
     k = 0
     for m in program.moves:
         corr = corrections.get(m.line)

@@ -46,12 +46,16 @@ class Target:
     via_conf: tuple = None
 
 
-def quaternion(R):
-    """[q1 (scalar), q2, q3, q4] of rotation matrix R, q1 >= 0, unit norm."""
+def quaternion(R, previous=None):
+    """[q1 (scalar), q2, q3, q4] of rotation matrix R, unit norm: of its two
+    signs the one nearer ``previous`` (a path's quaternions without sign
+    flips), else the one with q1 >= 0."""
     from scipy.spatial.transform import Rotation
 
     x, y, z, w = Rotation.from_matrix(np.asarray(R, dtype=float)).as_quat()
     q = np.array([w, x, y, z])
+    if previous is not None:
+        return q if float(q @ np.asarray(previous, dtype=float)) >= 0 else -q
     return q if q[0] >= 0 else -q
 
 
