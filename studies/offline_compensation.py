@@ -27,7 +27,14 @@ from robstiff_drake.model.gcode_writer import rewrite_corrected
 ROOT = Path(__file__).resolve().parents[1]
 JOB = ROOT / "diagrams" / "face_and_contour.yaml"
 FIGURE = ROOT / "docs" / "offline_compensation_path.png"
-MAGNIFY = 50.0
+MAGNIFY = 30.0
+
+
+def work_frame(sc):
+    """base frame mm (n, 3) -> the program's frame mm."""
+    R = oc.work_rotation(sc)
+    offset = np.asarray(sc.toolpath.work_offset_mm, dtype=float)
+    return lambda p: (np.asarray(p, dtype=float) - offset) @ R
 
 
 def figure(sc, program, back, prediction, path_png):
@@ -44,16 +51,19 @@ def figure(sc, program, back, prediction, path_png):
         p = pc.move_points(m, frac)
         ax.plot(p[:, 0], p[:, 1], color="0.6" if m.kind == "rapid" else "k", lw=1.0,
                 ls=":" if m.kind == "rapid" else "-")
-    # the written (corrected) blocks' ends, each offset from the programmed path magnified
-    xs, ys = [], []
+    # the planned path (corners blended) moved by the predicted correction, magnified; the written blocks' ends
+    # placed on it by their nearest point of the planned path, their offset magnified alike
+    to_work = work_frame(sc)
+    planned = to_work(np.array([prediction.path.point_at(x) for x in prediction.s_m]) * 1e3)
+    d = prediction.delta_mm @ oc.work_rotation(sc)
+    cut = np.abs(d).max(axis=1) > 1e-4
+    moved = planned + MAGNIFY * d
+    ax.plot(np.where(cut, moved[:, 0], np.nan), np.where(cut, moved[:, 1], np.nan), color="tab:red", lw=0.8,
+            label=f"corrected path (offset x{MAGNIFY:g})")
     ends = np.array([b.end_mm for b in back.moves if b.kind != "rapid"])
-    # nearest programmed point of each written end, the offset magnified
-    dense = np.vstack([pc.move_points(m, np.linspace(0, 1, 2000)) for m in program.moves if m.kind != "rapid"])
-    for e in ends:
-        j = int(np.argmin(np.linalg.norm(dense - e, axis=1)))
-        xs.append(dense[j, 0] + MAGNIFY * (e[0] - dense[j, 0]))
-        ys.append(dense[j, 1] + MAGNIFY * (e[1] - dense[j, 1]))
-    ax.plot(xs, ys, "o-", color="tab:red", ms=2.5, lw=0.8, label=f"corrected blocks (offset x{MAGNIFY:g})")
+    j = np.array([int(np.argmin(np.linalg.norm(planned - e, axis=1))) for e in ends])
+    pts = planned[j] + MAGNIFY * (ends - planned[j])
+    ax.plot(pts[:, 0], pts[:, 1], "o", color="tab:red", ms=2.5, label="written block ends (offset alike)")
     ax.plot([], [], color="k", label="programmed (G1/G2/G3)")
     ax.plot([], [], color="0.6", ls=":", label="rapids (untouched)")
     ax.set_aspect("equal")
@@ -62,7 +72,6 @@ def figure(sc, program, back, prediction, path_png):
     ax.set_title("corrected path against the programmed one")
     ax.legend(loc="lower right", fontsize=8)
     s = prediction.s_m * 1e3
-    d = prediction.delta_mm @ oc.work_rotation(sc)
     for j, name in enumerate("XYZ"):
         bx.plot(s, d[:, j], label=f"{name}")
     bx.set_xlabel("distance along the planned path (mm)")

@@ -33,6 +33,12 @@ def _say(text):
 
 def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot_yaml=None, simulate=True,
         online=("plain",), show_progress=None):
+    from robstiff_drake.paths import find_scenario, unknown_scenario
+
+    found = find_scenario(job)
+    if found is None:
+        raise InputError(unknown_scenario(job))
+    job = str(found)
     check_outputs(inputs=[job], files={"--json": json_out}, folders={"--out": out})
     from robstiff_drake.diagrams import offline_compensation as oc
     from robstiff_drake.diagrams.scenario import load_scenario, resolve, scenario_robot

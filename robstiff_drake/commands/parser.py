@@ -265,7 +265,8 @@ def build_parser():
 
     p = sub.add_parser("compensate-program", help="offline compensation: the job's G-code program corrected for "
                                                   "the predicted deflection (no sensor, no real-time interface)")
-    p.add_argument("job", metavar="JOB.yaml", help="a scenario with a toolpath.program (diagrams/*.yaml)")
+    p.add_argument("job", metavar="JOB.yaml", help="a scenario with a toolpath.program, or the name of a packaged "
+                                                   "one (face_and_contour)")
     p.add_argument("--out", required=True, metavar="DIR", help="folder for the corrected program, RAPID module and "
                                                                 "joint reference (written whole, or not at all)")
     p.add_argument("--json", metavar="FILE", help="write the summary as JSON ('-' for stdout)")
