@@ -4,8 +4,8 @@ simulations: the predicted errors on the model's twin and the proof runs on
 the plant are Drake runs as long as the job, left out here).
 
 The job: the face-and-contour machine (diagrams/face_and_contour.yaml) with
-a generated finishing spiral of 10,000 G1 blocks (0.5 mm chords, 0.3 mm
-deep, F3000, 110 s of cutting; the nominal model, so that the
+a generated finishing spiral of 10,000 G1 blocks (0.2 mm chords, 0.3 mm
+deep, F1200, about 110 s of cutting; the nominal model, so that the
 identification campaign's one-off cost does not count), the form a CAM
 post writes for a finish.  Stages,
 each timed: the path and its IK, the preview along it, the correction of the
@@ -32,20 +32,22 @@ N_LINES = 10_000
 
 
 def spiral(n_lines):
-    """A finishing spiral of 0.5 mm chords (a CAM post's small segments),
-    0.3 mm deep at F3000, its radius from 35 to 15 mm about the plate's
-    middle, entered by a tangent ramp."""
+    """A finishing spiral of 0.2 mm chords (a CAM post's small segments),
+    0.3 mm deep at F1200, its radius from 35 to 15 mm about the plate's
+    middle, entered along its tangent from off the plate."""
     out = ["%", "O0300 (FINISH SPIRAL - ROBSTIFF BENCHMARK)", "N10 G21 G17 G90 G40 G49 G80 G94", "N20 G54",
-           "N30 S3600 M3", "N40 G0 X95. Y20. Z5.", "N50 G1 Y40. Z-0.3 F3000."]
+           "N30 S3600 M3", "N40 G0 X95. Y-50. Z5.", "N45 Z-0.3", "N50 G1 Y40. F1200."]
     cx, cy, r0, r1 = 60.0, 40.0, 35.0, 15.0
-    n_chords = n_lines - 4
+    n_chords = n_lines - 6
     a, n = 0.0, 60
     for k in range(n_chords):
         r = r0 + (r1 - r0) * k / n_chords
-        a += 0.5 / r
+        a += 0.2 / r
         out.append(f"N{n} X{cx + r * math.cos(a):.3f} Y{cy + r * math.sin(a):.3f}")
         n += 10
-    out += [f"N{n} G0 Z20.", f"N{n + 10} M30", "%"]
+    tx, ty = -math.sin(a), math.cos(a)  # a tangent lead-out, as a CAM post writes before the retract
+    out.append(f"N{n} X{cx + r1 * math.cos(a) + 60 * tx:.3f} Y{cy + r1 * math.sin(a) + 60 * ty:.3f}")
+    out += [f"N{n + 10} G0 Z20.", f"N{n + 20} M30", "%"]
     return "\n".join(out) + "\n"
 
 
@@ -101,9 +103,9 @@ def main():
     print(f"writing the corrected program (after the prediction): {writing:.1f} s, {writing / reference:.0f}x the "
           f"reading; with the prediction {total:.1f} s")
     ok = writing <= TARGET_S and np.isfinite(total)
-    print(f"{'PASS' if ok else 'FAIL'}: writing {writing:.1f} s (target <= {TARGET_S:g} s); the prediction "
-          f"(planned path's IK and the preview, {stages['path, IK and preview']:.1f} s) "
-          f"{'within' if total <= TARGET_S else 'beyond'} the target too")
+    print(f"{'PASS' if ok else 'FAIL'}: writing {writing:.1f} s (target <= {TARGET_S:g} s); with the prediction "
+          f"(the planned path's IK and the preview, {stages['path, IK and preview']:.1f} s) {total:.1f} s, "
+          f"{'within' if total <= TARGET_S else 'beyond'} the target")
     return 0 if ok else 1
 
 

@@ -84,6 +84,30 @@ def figure(sc, program, back, prediction, path_png):
     plt.close(fig)
 
 
+def position_only(sc, robot, prediction):
+    """The plant's surface error (mm) with the six-axis correction turned
+    into tool-point positions at the planned (vertical) tool orientation by
+    the IK, streamed as the joint reference at its own times: what a 3-axis
+    correction can do at best, with no program in between."""
+    import copy
+
+    from robstiff_drake.diagrams.experiment import run_cut
+    from robstiff_drake.diagrams.milling_cell import build_milling_cell
+    from robstiff_drake.model import ik
+    from robstiff_drake.model import kinematics as kin
+
+    t, q6 = oc.corrected_reference(prediction)
+    q_ref, tool = prediction.q_ref_rad, prediction.tool_m
+    qs = []
+    for k in range(len(t)):
+        T = kin.tool_pose(robot.dh, q6[k], tool)
+        T[:3, :3] = kin.tool_pose(robot.dh, q_ref[k], tool)[:3, :3]
+        qs.append(ik.solve_for(robot, T, tool, q_ref_rad=q_ref[k]))
+    run_sc = copy.deepcopy(sc)
+    cell = build_milling_cell(run_sc, robot, compensation=False, q_reference=(t, np.array(qs)))
+    return run_cut(run_sc, robot, compensation=False, cell=cell).surface_error_mm
+
+
 def main():
     sc = load_scenario(JOB)
     robot = scenario_robot(sc)
@@ -99,6 +123,7 @@ def main():
         before, after = oc.predicted_errors(sc, robot, prediction, draft)
         print("  predicted on the model: done", file=sys.stderr, flush=True)
         proof = oc.proof_runs(sc, robot, draft, prediction, modes=("off", "plain"))
+    proof["position-only correction (no program, the tool kept vertical)"] = position_only(sc, robot, prediction)
     figure(sc, program, read_program(written, "c.nc"), prediction, FIGURE)
     print(f"\nface_and_contour.nc, identified model: {len(corr)} cutting moves corrected, {added} blocks added "
           f"(chord 0.005 mm), largest correction {max(c.max_correction_mm for c in corr.values()):.3f} mm; "

@@ -246,7 +246,9 @@ def correct_moves(moves, samples_of_move, *, chord_mm, max_correction_mm, round_
             raise CorrectionError(f"{label}:{m.line}: the predicted correction is {size[k]:.3f} mm "
                                   f"{k / n * L:.1f} mm along the move, more than --max-correction-mm "
                                   f"{max_correction_mm:g} (a deflection this large is no job for a corrected "
-                                  "program: check the cut's depth, feed and the model)", m.line)
+                                  "program: check the cut's depth and feed, a sharp corner taken at speed (the "
+                                  "path's own acceleration: a longer move or a lead-out there) and the model)",
+                                  m.line)
         start = written_end if written_end is not None else np.asarray(m.start_mm, dtype=float)
         pieces = split_move(m, start, base, delta, chord_mm, round_mm)
         out[m.line] = MoveCorrection(m.line, pieces, float(size.max()))
