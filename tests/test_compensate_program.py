@@ -322,3 +322,20 @@ def test_a_corrected_point_out_of_reach_is_refused(tmp_path, capsys, monkeypatch
     line = _refused(capsys, ["compensate-program", str(job), "--out", str(tmp_path / "o3"), "--no-simulate"],
                     tmp_path / "o3")
     assert "out of the robot's reach" in line and re.search(r"short\.nc:\d+:", line)
+
+
+def test_a_posted_program_keeps_its_posted_words():
+    """A generic Fanuc post's program (G28 G91 Z0., T1 M6, G43 H1, M8 / M9,
+    a blank line) written again with a correction varying along it: the
+    reader takes it without a warning and every posted line is still there."""
+    text = (ROOT / "diagrams" / "face_contour_fanuc.nc").read_text()
+    prog = read_program(text, "posted.nc")
+    corr = _corrections(prog, lambda p: np.column_stack([0.05 * np.sin(p[:, 0] / 15.0), -0.1 + 0 * p[:, 0],
+                                                         0.03 * np.cos(p[:, 1] / 10.0)]))
+    out, added = rewrite_corrected(text, prog.moves, corr, ["HEADER"])
+    back = read_program(out, "posted_compensated.nc")
+    assert back.warnings == [] and added > 0 and len(back.moves) == len(prog.moves) + added
+    written = out.splitlines()
+    for line in ("N20 G28 G91 Z0.", "N30 T1 M6", "N45 M8", "N55 G43 Z15. H1", "N100 M9", ""):
+        assert line in written
+    assert sum(1 for ln in written if ln.startswith("N65 G1") and "F300." in ln) == 1
