@@ -149,6 +149,12 @@ def _dispatch(args):
                               allow_unstable_loop=args.allow_unstable_loop, mode=args.mode, job=args.job,
                               preview_sync_ms=args.preview_sync_ms,
                               preview_force_bound_N=args.preview_force_bound_N)
+    if args.command == "compensate-program":
+        from robstiff_drake.commands import compensate_program
+
+        return compensate_program.run(job=args.job, out=args.out, json_out=args.json, chord_mm=args.chord_mm,
+                                      max_correction_mm=args.max_correction_mm, robot_yaml=args.robot,
+                                      simulate=not args.no_simulate, show_progress=args.progress)
     if args.command == "examples":
         from robstiff_drake.commands import examples
 

@@ -282,6 +282,21 @@ def build_parser():
     _add_robot_option(p, "the robot to run (default: the scenario's `robot:`, else irb6400); must agree with the "
                          "scenario's `robot:` when it has one")
 
+    p = sub.add_parser("compensate-program", help="offline compensation: the job's G-code program corrected for "
+                                                  "the predicted deflection (no sensor, no real-time interface)")
+    p.add_argument("job", metavar="JOB.yaml", help="a scenario with a toolpath.program, or the name of a packaged "
+                                                   "one (face_and_contour)")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for the corrected program, RAPID module and "
+                                                                "joint reference (written whole, or not at all)")
+    p.add_argument("--json", metavar="FILE", help="write the summary as JSON ('-' for stdout)")
+    p.add_argument("--chord-mm", type=_number_in(1e-4, 1.0, "mm"), default=0.005,
+                   help="largest distance of a written block from the corrected path (default: %(default)s mm)")
+    p.add_argument("--max-correction-mm", type=_number_in(1e-3, 10.0, "mm"), default=1.0,
+                   help="refuse a predicted correction larger than this (default: %(default)s mm)")
+    p.add_argument("--no-simulate", action="store_true", help="skip the proof runs on the plant")
+    p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
+    _add_robot_option(p, "the robot (default: the job's `robot:`, else irb6400)")
+
     p = sub.add_parser("sim-cell", help="the scenario's simulated cell behind EGM and Net F/T (for `compensate`)")
     p.add_argument("scenario", metavar="SCENARIO.yaml", help=SCENARIO_HELP)
     p.add_argument("--egm-to", required=True, metavar="HOST:PORT", help="where the compensator listens for EGM")

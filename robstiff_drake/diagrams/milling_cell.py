@@ -268,10 +268,14 @@ def build_compensator(sc, robot, station, *, path, workpiece, t_ref=None, q_ref=
         controller_plant=station.controller_plant)
 
 
-def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
+def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model_wrench=None, q_reference=None):
     """Build the closed-loop diagram of scenario ``sc``: the station, the
     path and (always built, connected only with ``compensation``) the
-    compensator."""
+    compensator.  ``model_wrench``: (times s, (N, 6) sensor-frame wrench)
+    subtracted from the measured wrench before the compensator (the part a
+    corrected program already compensates: diagrams/offline_compensation.py);
+    ``q_reference``: (times s, (N, 6) rad) joint references streamed instead
+    of the path's own (a corrected joint reference)."""
     tool = robot.tool_point(where="the closed loop")
     _, fmodel, workpiece = cutting_setup(sc)
     path, t_ref, q_ref = planned_path(sc, robot, tool)
@@ -282,11 +286,22 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None):
     builder = DiagramBuilder()
     st = builder.AddSystem(station.diagram)
     cp = builder.AddSystem(comp.diagram)
+    if q_reference is not None:
+        t_ref, q_ref = (np.asarray(v, dtype=float) for v in q_reference)
     traj = PiecewisePolynomial.FirstOrderHold(t_ref, q_ref.T)
     path_src = builder.AddNamedSystem("path", TrajectorySource(traj, output_derivative_order=1))
     path_demux = builder.AddNamedSystem("path_demux", Demultiplexer([6, 6]))
     builder.Connect(path_src.get_output_port(), path_demux.get_input_port())
-    builder.Connect(st.GetOutputPort("wrench_measured"), cp.GetInputPort("wrench"))
+    if model_wrench is None:
+        builder.Connect(st.GetOutputPort("wrench_measured"), cp.GetInputPort("wrench"))
+    else:
+        t_w, w = model_wrench
+        known = builder.AddNamedSystem("model_wrench", TrajectorySource(
+            PiecewisePolynomial.FirstOrderHold(np.asarray(t_w, dtype=float), -np.asarray(w, dtype=float).T)))
+        residual = builder.AddNamedSystem("wrench_residual", Adder(2, 6))
+        builder.Connect(st.GetOutputPort("wrench_measured"), residual.get_input_port(0))
+        builder.Connect(known.get_output_port(), residual.get_input_port(1))
+        builder.Connect(residual.get_output_port(), cp.GetInputPort("wrench"))
     builder.Connect(st.GetOutputPort("position_measured"), cp.GetInputPort("position_measured"))
     if compensation:
         command = builder.AddNamedSystem("q_command", Adder(2, 6))

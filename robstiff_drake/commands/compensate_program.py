@@ -1,0 +1,153 @@
+"""``robstiff compensate-program JOB.yaml --out DIR``: offline compensation
+for a cell with no wrist force sensor and no real-time interface.  The
+compensator's model (the job's: identified, as a user has it) predicts the
+deflection along the job's G-code program (diagrams/offline_compensation.py)
+and the command writes, into DIR (all or nothing):
+
+* ``<program>_compensated.nc``: the program in its own words, the cutting
+  moves' coordinates corrected (model/gcode_writer.py);
+* ``joint_reference.csv``: the path's joint references with the full
+  (six-axis) correction, for cells that stream a reference
+  (``robstiff compensate --reference``);
+* ``<program>_compensated.mod``: an ABB RAPID module (model/rapid_writer.py)
+  whose targets carry the corrected orientation too.
+
+Then (unless ``--no-simulate``) the proof: the program as written and the
+corrected one on the job's plant, surface error before and after."""
+
+import datetime
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from robstiff_drake.errors import InputError
+from robstiff_drake.io import RunFolder, check_outputs, emit_json
+from robstiff_drake.progress import info, progress, wrote
+
+
+def _say(text):
+    info(f"robstiff: compensate-program: {text}", file=sys.stderr)
+
+
+def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot_yaml=None, simulate=True,
+        online=("plain",), show_progress=None):
+    from robstiff_drake.paths import find_scenario, unknown_scenario
+
+    found = find_scenario(job)
+    if found is None:
+        raise InputError(unknown_scenario(job))
+    job = str(found)
+    check_outputs(inputs=[job], files={"--json": json_out}, folders={"--out": out})
+    from robstiff_drake.diagrams import offline_compensation as oc
+    from robstiff_drake.diagrams.scenario import load_scenario, resolve, scenario_robot
+    from robstiff_drake.model.gcode_writer import ProgramWriteError, rewrite_corrected
+    from robstiff_drake.model.program_correction import CorrectionError
+
+    sc = load_scenario(job)
+    if not sc.toolpath.program:
+        raise InputError(f"{job}: the job has no G-code program (toolpath.program): compensate-program corrects a "
+                         "program")
+    program_file = resolve(sc, sc.toolpath.program)
+    program = sc._program
+    if program.warnings:
+        raise InputError(f"{program.warnings[0]} (compensate-program writes a program the reader takes without a "
+                         "warning: fix the input first)")
+    text = program_file.read_bytes().decode("utf-8-sig")
+    robot = scenario_robot(sc, robot_yaml)
+
+    def bar(total):
+        return progress(total, show_progress, "preview along the program", unit="cycle")
+
+    prediction = oc.predict(sc, robot, bar=bar, say=_say)
+    try:
+        corrections = oc.move_corrections(sc, program, prediction, chord_mm=chord_mm,
+                                          max_correction_mm=max_correction_mm)
+    except CorrectionError as e:
+        raise InputError(str(e)) from None
+    model = (f"identified model (seed {sc.model.identification.seed})" if sc.model.source == "identified"
+             else "nominal model")
+    try:
+        plain_text, added = rewrite_corrected(text, program.moves, corrections)
+    except ProgramWriteError as e:
+        raise InputError(f"{program.path}:{e.line}: {str(e).split(': ', 1)[1]}") from None
+    back = check_round_trip(plain_text, program, corrections, max_correction_mm, chord_mm, sc)
+    targets = oc.rapid_targets(sc, robot, program, corrections, prediction, back.moves)  # (InputError: a point out of reach)
+    with tempfile.TemporaryDirectory(prefix="robstiff-compensate-program-") as tmp:
+        draft = Path(tmp) / program_file.name
+        draft.write_text(plain_text)
+        before, after = oc.predicted_errors(sc, robot, prediction, draft, progress=show_progress, say=_say)
+    header = [f"ROBSTIFF COMPENSATE-PROGRAM {datetime.date.today().isoformat()}: {program_file.name} corrected for "
+              f"the arm's deflection predicted by the {model} of {Path(job).name}",
+              f"PREDICTED SURFACE ERROR MM ON THAT MODEL: BEFORE MEAN {before['mean']:+.3f} MAX "
+              f"{before['max_abs']:.3f}, AFTER MEAN {after['mean']:+.3f} MAX {after['max_abs']:.3f}; CHORD "
+              f"{chord_mm:g} MM"]
+    corrected_text, _ = rewrite_corrected(text, program.moves, corrections, header)
+    stem = program_file.stem
+    names = {"program": f"{stem}_compensated.nc", "rapid": f"{stem}_compensated.mod",
+             "reference": "joint_reference.csv"}
+    largest = max((c.max_correction_mm for c in corrections.values()), default=0.0)
+    summary = {"program": str(Path(out) / names["program"]),
+               "rapid_module": str(Path(out) / names["rapid"]),
+               "joint_reference": str(Path(out) / names["reference"]),
+               "predicted_error_mm": {"before": _two(before), "after": _two(after)},
+               "segments_added": int(added), "corrected_moves": len(corrections),
+               "max_correction_mm": float(largest), "chord_mm": chord_mm,
+               "prediction_seconds": float(prediction.seconds), "simulated": None}
+    with RunFolder(out) as folder:
+        folder.write(names["program"], corrected_text)
+        folder.write(names["reference"], oc.reference_text(robot, prediction, folder.run_id, job))
+        folder.write(names["rapid"], oc.rapid_text(sc, robot, stem, targets, header))
+        if simulate:
+            summary["simulated"] = oc.proof_runs(sc, robot, folder.file(names["program"]), prediction,
+                                                 modes=("off",) + tuple(online), progress=show_progress, say=_say)
+    summary["run_id"] = folder.run_id
+    if json_out is not None:
+        emit_json(summary, json_out)
+    stderr = json_out == "-"
+    show = (lambda t: print(t, file=sys.stderr)) if stderr else print
+    show(f"predicted surface error on the compensator's model (mm): before mean {before['mean']:+.3f} max "
+         f"{before['max_abs']:.3f}; after mean {after['mean']:+.3f} max {after['max_abs']:.3f}")
+    show(f"{len(corrections)} cutting moves corrected (largest correction {largest:.3f} mm), {added} blocks added "
+         f"for the chord tolerance {chord_mm:g} mm")
+    if summary["simulated"]:
+        show("surface error on the plant, scanned against the programmed surface (mm):")
+        for label, st in summary["simulated"].items():
+            show(f"  {label:<32} mean {st['mean']:+.3f}  rms {st['rms']:.3f}  max {st['max_abs']:.3f}")
+    wrote(out, ", ".join(names.values()), folder=True, to_stderr=stderr)
+    wrote(json_out, "the summary", to_stderr=stderr)
+    return 0
+
+
+def _two(stats):
+    return {"mean": float(stats["mean"]), "max_abs": float(stats["max_abs"])}
+
+
+def check_round_trip(text, program, corrections, max_correction_mm, chord_mm, sc):
+    """The written program read back by the project's reader: no warning,
+    the same number of motion blocks as written, rapids unchanged, and
+    every corrected point within the clamp of the path the controller runs
+    (InputError otherwise: a bug, reported as such rather than written)."""
+    from robstiff_drake.model.gcode import read_program
+
+    tp = sc.toolpath
+    back = read_program(text, f"{program.path} (corrected)", decimal_point=tp.decimal_point,
+                        block_delete=tp.block_delete)
+    if back.warnings:
+        raise InputError(f"the corrected program reads with a warning: {back.warnings[0]}")
+    # a rapid's words are not touched; an axis it does not name stays where the corrected cut left it
+    rapids = [m for m in program.moves if m.kind == "rapid"]
+    rapids_back = [m for m in back.moves if m.kind == "rapid"]
+    largest = max((c.max_correction_mm for c in corrections.values()), default=0.0)
+    if len(rapids) != len(rapids_back) or any(
+            np.max(np.abs(np.subtract(a.end_mm, b.end_mm))) > largest + chord_mm + 1e-3
+            for a, b in zip(rapids, rapids_back)):
+        raise InputError("the corrected program's rapids differ from the input's (a bug: please report it)")
+    expected = len(program.moves) + sum(len(c.pieces) - 1 for c in corrections.values())
+    if len(back.moves) != expected:
+        raise InputError(f"the corrected program reads as {len(back.moves)} moves, {expected} written (a bug)")
+    return back
+
+
+__all__ = ["run", "check_round_trip"]

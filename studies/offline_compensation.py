@@ -1,0 +1,143 @@
+"""Offline compensation on the face-and-contour job
+(diagrams/face_and_contour.yaml + .nc): the program corrected by the
+compensator's identified model (robstiff compensate-program), and its
+proof on the plant (the plant's own physics), against the program as
+written and the online compensators of docs/results.md.
+
+Prints the table of docs/offline_compensation.md and writes
+docs/offline_compensation_path.png: the corrected path against the
+programmed one (the correction magnified), and the correction along the
+path.
+
+    python studies/offline_compensation.py     # about 3 minutes on a quiet 2-core machine
+"""
+
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from robstiff_drake.commands.compensate_program import check_round_trip
+from robstiff_drake.diagrams import offline_compensation as oc
+from robstiff_drake.diagrams.scenario import load_scenario, resolve, scenario_robot
+from robstiff_drake.model.gcode import read_program
+from robstiff_drake.model.gcode_writer import rewrite_corrected
+
+ROOT = Path(__file__).resolve().parents[1]
+JOB = ROOT / "diagrams" / "face_and_contour.yaml"
+FIGURE = ROOT / "docs" / "offline_compensation_path.png"
+MAGNIFY = 30.0
+
+
+def work_frame(sc):
+    """base frame mm (n, 3) -> the program's frame mm."""
+    R = oc.work_rotation(sc)
+    offset = np.asarray(sc.toolpath.work_offset_mm, dtype=float)
+    return lambda p: (np.asarray(p, dtype=float) - offset) @ R
+
+
+def figure(sc, program, back, prediction, path_png):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from robstiff_drake.model import program_correction as pc
+
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 5))
+    frac = np.linspace(0.0, 1.0, 200)
+    for m in program.moves:
+        p = pc.move_points(m, frac)
+        ax.plot(p[:, 0], p[:, 1], color="0.6" if m.kind == "rapid" else "k", lw=1.0,
+                ls=":" if m.kind == "rapid" else "-")
+    # the planned path (corners blended) moved by the predicted correction, magnified; the written blocks' ends
+    # placed on it by their nearest point of the planned path, their offset magnified alike
+    to_work = work_frame(sc)
+    planned = to_work(np.array([prediction.path.point_at(x) for x in prediction.s_m]) * 1e3)
+    d = prediction.delta_mm @ oc.work_rotation(sc)
+    cut = np.abs(d).max(axis=1) > 1e-4
+    moved = planned + MAGNIFY * d
+    ax.plot(np.where(cut, moved[:, 0], np.nan), np.where(cut, moved[:, 1], np.nan), color="tab:red", lw=0.8,
+            label=f"corrected path (offset x{MAGNIFY:g})")
+    ends = np.array([b.end_mm for b in back.moves if b.kind != "rapid"])
+    j = np.array([int(np.argmin(np.linalg.norm(planned - e, axis=1))) for e in ends])
+    pts = planned[j] + MAGNIFY * (ends - planned[j])
+    ax.plot(pts[:, 0], pts[:, 1], "o", color="tab:red", ms=2.5, label="written block ends (offset alike)")
+    ax.plot([], [], color="k", label="programmed (G1/G2/G3)")
+    ax.plot([], [], color="0.6", ls=":", label="rapids (untouched)")
+    ax.set_aspect("equal")
+    ax.set_xlabel("X (mm, program)")
+    ax.set_ylabel("Y (mm, program)")
+    ax.set_title("corrected path against the programmed one")
+    ax.legend(loc="lower right", fontsize=8)
+    s = prediction.s_m * 1e3
+    for j, name in enumerate("XYZ"):
+        bx.plot(s, d[:, j], label=f"{name}")
+    bx.set_xlabel("distance along the planned path (mm)")
+    bx.set_ylabel("correction (mm, program frame)")
+    bx.set_title("the correction the model predicts (before the chord split)")
+    bx.grid(alpha=0.3)
+    bx.legend()
+    fig.tight_layout()
+    fig.savefig(path_png, dpi=110)
+    plt.close(fig)
+
+
+def position_only(sc, robot, prediction):
+    """The plant's surface error (mm) with the six-axis correction turned
+    into tool-point positions at the planned (vertical) tool orientation by
+    the IK, streamed as the joint reference at its own times: what a 3-axis
+    correction can do at best, with no program in between."""
+    import copy
+
+    from robstiff_drake.diagrams.experiment import run_cut
+    from robstiff_drake.diagrams.milling_cell import build_milling_cell
+    from robstiff_drake.model import ik
+    from robstiff_drake.model import kinematics as kin
+
+    t, q6 = oc.corrected_reference(prediction)
+    q_ref, tool = prediction.q_ref_rad, prediction.tool_m
+    qs = []
+    for k in range(len(t)):
+        T = kin.tool_pose(robot.dh, q6[k], tool)
+        T[:3, :3] = kin.tool_pose(robot.dh, q_ref[k], tool)[:3, :3]
+        qs.append(ik.solve_for(robot, T, tool, q_ref_rad=q_ref[k]))
+    run_sc = copy.deepcopy(sc)
+    cell = build_milling_cell(run_sc, robot, compensation=False, q_reference=(t, np.array(qs)))
+    return run_cut(run_sc, robot, compensation=False, cell=cell).surface_error_mm
+
+
+def main():
+    sc = load_scenario(JOB)
+    robot = scenario_robot(sc)
+    program = sc._program
+    text = resolve(sc, sc.toolpath.program).read_text()
+    prediction = oc.predict(sc, robot)
+    corr = oc.move_corrections(sc, program, prediction, chord_mm=0.005, max_correction_mm=1.0)
+    written, added = rewrite_corrected(text, program.moves, corr)
+    back = check_round_trip(written, program, corr, 1.0, 0.005, sc)
+    with tempfile.TemporaryDirectory() as tmp:
+        draft = Path(tmp) / "face_and_contour_compensated.nc"
+        draft.write_text(written)
+        before, after = oc.predicted_errors(sc, robot, prediction, draft)
+        print("  predicted on the model: done", file=sys.stderr, flush=True)
+        proof = oc.proof_runs(sc, robot, draft, prediction, modes=("off", "plain"))
+    proof["position-only correction (no program, the tool kept vertical)"] = position_only(sc, robot, prediction)
+    figure(sc, program, read_program(written, "c.nc"), prediction, FIGURE)
+    print(f"\nface_and_contour.nc, identified model: {len(corr)} cutting moves corrected, {added} blocks added "
+          f"(chord 0.005 mm), largest correction {max(c.max_correction_mm for c in corr.values()):.3f} mm; "
+          f"prediction {prediction.seconds:.1f} s\n")
+    print("| run | where | mean (mm) | RMS (mm) | max abs (mm) |")
+    print("|---|---|---|---|---|")
+    print(f"| program as written | compensator's model (twin) | {before['mean']:+.3f} | {before['rms']:.3f} | "
+          f"{before['max_abs']:.3f} |")
+    print(f"| corrected program | compensator's model (twin) | {after['mean']:+.3f} | {after['rms']:.3f} | "
+          f"{after['max_abs']:.3f} |")
+    for label, st in proof.items():
+        print(f"| {label} | plant | {st['mean']:+.3f} | {st['rms']:.3f} | {st['max_abs']:.3f} |")
+    print(f"\nwrote {FIGURE.relative_to(ROOT)}")
+
+
+if __name__ == "__main__":
+    main()
