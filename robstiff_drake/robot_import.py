@@ -198,7 +198,6 @@ def read_urdf(path):
         c, s = np.cos(home[i]), np.sin(home[i])
         Rz[:2, :2] = [[c, -s], [s, c]]
         link_frames.append(frames[i] @ Rz)
-    sums = [[0.0, np.zeros(3), np.zeros((3, 3)), []] for _ in range(N_JOINTS + 1)]  # mass, m*com, inertia, parts
     parts = []
     payload = None
     for bi in range(plant.num_bodies()):

@@ -116,7 +116,7 @@ def main():
     prediction = oc.predict(sc, robot)
     corr = oc.move_corrections(sc, program, prediction, chord_mm=0.005, max_correction_mm=1.0)
     written, added = rewrite_corrected(text, program.moves, corr)
-    back = check_round_trip(written, program, corr, 1.0, 0.005, sc)
+    check_round_trip(written, program, corr, 1.0, 0.005, sc)
     with tempfile.TemporaryDirectory() as tmp:
         draft = Path(tmp) / "face_and_contour_compensated.nc"
         draft.write_text(written)

@@ -176,7 +176,7 @@ def check_stock(sc, prog):
     if hit is None:
         return
     m, p, k, depth = hit
-    what = "a rapid move (G0)" if m.kind == "rapid" else f"a feed move with the spindle stopped (M5 or S0)"
+    what = "a rapid move (G0)" if m.kind == "rapid" else "a feed move with the spindle stopped (M5 or S0)"
     end = ", ".join(f"{v:g}" for v in m.end_mm)
     raise InputError(f"{prog.path}:{m.line}: {what} to ({end}) runs the {sc.cutter.diameter_mm:g} mm cutter "
                      f"{depth:.3g} mm below the top of workpiece box {k + 1} where no earlier cut has removed the "

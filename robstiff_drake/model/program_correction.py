@@ -189,7 +189,7 @@ def split_move(move, start_mm, base_mm, delta_mm, chord_mm, round_mm):
     i = 0
     start = np.asarray(start_mm, dtype=float)
     while i < n:
-        step, good, good_c = 1, i + 1, None
+        good = i + 1
         ok, c = _fits(move, P, i, i + 1, start, Q, shifts, chord_mm)
         good_c = c
         while ok and good < n:  # doubling
