@@ -126,14 +126,15 @@ def _candidate_blocks(problem, fit, rows, free, Xgeo, extra=()):
     """The blocks the campaign can be searched for, their columns at the
     declared fit, and [(name, reason)] of those it cannot."""
     problem.geo_free = free
-    ev, _ = problem.evaluate(fit, rows)
+    at, cache = problem.evaluate(fit, rows), {}  # (one evaluation and geometry Jacobian for every block)
+    ev = at[0]
     out, skipped = [], []
     for b in list(all_blocks(ev, free)) + list(extra):
         why = b.needs(ev) if b.needs else None
         if why:
             skipped.append({"name": b.name, "reason": why})
             continue
-        X, sl, _ = problem.columns(fit, [b], rows)
+        X, sl, _ = problem.columns(fit, [b], rows, at=at, cache=cache)
         Z = X[:, sl[b.name]]
         if b.frame != "geometry":
             kept = independent_columns(np.hstack([Xgeo, Z]), list(range(Xgeo.shape[1] + Z.shape[1])))
@@ -196,8 +197,8 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         cands, skipped = _candidate_blocks(problem, fit0, all_rows, free, Xgeo,
                                            load_blocks(robot, campaign, fit0.u))
         bar.update(1)
-        r0 = (problem.m - problem.predict(fit0, all_rows)).reshape(-1)
         X0, _, ev0 = problem.columns(fit0, [], all_rows)
+        r0 = (problem.m - problem.predict(fit0, all_rows, ev0)).reshape(-1)
         tests = [rows_to_eq(test) for _, test in folds]
         cv = LinearCV(np.hstack([X0] + [Z for _, Z in cands]), r0, tests, np.repeat(groups, 3))
         info = {"ev": ev0, "c_nom": problem.c_nom}
