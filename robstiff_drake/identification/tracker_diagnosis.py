@@ -200,7 +200,9 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         X0, _, ev0 = problem.columns(fit0, [], all_rows)
         r0 = (problem.m - problem.predict(fit0, all_rows, ev0)).reshape(-1)
         tests = [rows_to_eq(test) for _, test in folds]
-        cv = LinearCV(np.hstack([X0] + [Z for _, Z in cands]), r0, tests, np.repeat(groups, 3))
+        cv = LinearCV(np.hstack([X0] + [Z for _, Z in cands]), r0, tests, np.repeat(groups, 3), copy=False)
+        cands = [(b, np.empty((0, Z.shape[1]))) for b, Z in cands]  # (the columns are in cv: the search needs
+        # only their count; 3N x P floats freed)
         info = {"ev": ev0, "c_nom": problem.c_nom}
         kept, rounds, leads, dropped, rms_decl, rms_lin, _ = _search(cv, np.arange(9), cands, info, bar)
         by_name = {b.name: b for b, _ in cands}
@@ -208,6 +210,7 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         fit = problem.gauss_newton(fit0, kept_blocks, all_rows)
         # a second pass linearised at that fit: the first, linearised at the declared model millimetres away,
         # misjudges gains of a few micrometres (second-order terms of the large corrections)
+        cv = None  # (freed before the next one is built)
         cv, info = _linearised(problem, fit, cands, all_rows, tests, groups)
         kept, rounds2, leads, dropped2, _, rms_lin, _ = _search(cv, np.arange(9), cands, info, bar, kept)
         rounds += rounds2

@@ -253,10 +253,16 @@ class LinearCV:
     from fold Gram matrices: a subset of columns costs O(K P^3), whatever N.
     ``tests``: equation indices of each fold's test rows."""
 
-    def __init__(self, X, r, tests, groups_eq):
+    def __init__(self, X, r, tests, groups_eq, copy=True):
+        """``copy=False``: X is the caller's to give away (scaled in place:
+        no second 3N x P array)."""
         self.scale = np.linalg.norm(X, axis=0)
         self.scale[self.scale == 0] = 1.0
-        self.Xs = X / self.scale
+        if copy:
+            self.Xs = X / self.scale
+        else:
+            self.Xs = X
+            self.Xs /= self.scale
         self.r = r
         self.tests = tests
         self.Gh = [self.Xs[te].T @ self.Xs[te] for te in tests]
