@@ -187,8 +187,10 @@ class CellNetwork:
             if km is not None:
                 answers[km] = targets
 
-    def run(self, duration_s, q_start_rad):
-        """Run for ``duration_s`` (s) of real time from ``q_start_rad``.
+    def run(self, duration_s, q_start_rad, cut_s=None):
+        """Run for ``duration_s`` (s) of real time from ``q_start_rad``
+        (``cut_s``: or until this much of the controller's time has passed
+        once engaged: a lockstep run's length whatever this machine's load).
 
         Tick k: the answer to message k - 1 - D (D: the transport delay in
         cycles) is the target of the period k -> k+1 (none: the last target
@@ -211,7 +213,7 @@ class CellNetwork:
         while True:
             t_tick = t0 + k * T
             now = time.monotonic()
-            if self.stop or now - t0 >= duration_s:
+            if self.stop or now - t0 >= duration_s or (cut_s is not None and engaged and k * T - t_eng >= cut_s):
                 break
             stepped = self.lockstep and engaged
             if not stepped and t_tick - now > SPIN_S:
