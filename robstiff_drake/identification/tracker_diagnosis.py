@@ -82,8 +82,10 @@ def _tool_guess_m(campaign, robot, tool_m):
 
 
 def _declared_fit(problem, robot, rows, guess):
-    T = kin.frames(robot.dh, problem.q[rows])
-    R, t, u = register(T[:, 6, :3, 3], T[:, 6, :3, :3], problem.m[rows], guess)
+    T6 = kin.frames(robot.dh, problem.q[rows])[:, 6, :3, :].copy()  # (the flange's pose only: not 7 frames held
+    # through the fit)
+    R, t, u = register(T6[:, :, 3], T6[:, :, :3], problem.m[rows], guess)
+    del T6
     fit = Fit(R, t, u, np.zeros((6, 5)))
     return problem.gauss_newton(fit, [], rows)
 

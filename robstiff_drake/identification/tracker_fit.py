@@ -96,6 +96,7 @@ class Problem:
                 tau, moment = gravity(self.robot, T, q + dq, None if self.force is None else self.force[rows],
                                       self.tool_guess, self.g_base)
                 dq = tau * (x * self.c_nom)
+                T = None  # (freed before the next frames are made)
             q = q + dq
         T = kin.frames(dh, q)
         p = tool_points(T, fit.u)
