@@ -3,15 +3,20 @@
 ``progress(total, enabled, desc)`` is a tqdm bar on stderr: shown when
 stderr is a terminal (``enabled=None``), forced on with ``enabled=True``
 (a command's ``--progress``) or off with ``enabled=False``; ``--quiet``
-(``set_quiet(True)``) turns every bar off, forced or not.  ``info(text)``
+(``set_quiet(True)``) turns every bar off, forced or not.  When stderr is
+not a terminal (a log file, a batch job) and ``enabled=None``, a long
+task says how far it is on a log line at most every LOG_EVERY_S seconds
+instead of a bar (nothing for a task shorter than that).  ``info(text)``
 prints an informational line (what was written where) unless quiet.
 Warnings (``robstiff: warning: ...``) and errors are never silenced, and
 neither is a command's result.
 """
 
 import sys
+import time
 
 _QUIET = False
+LOG_EVERY_S = 5.0  # a log line's interval (s) when stderr is not a terminal
 
 
 def set_quiet(quiet):
@@ -44,9 +49,47 @@ def progress(total, enabled=None, desc="", unit="it", **kwargs):
     ``with progress(n, enabled, "runs") as bar: ... bar.update(1)``."""
     from tqdm import tqdm
 
+    if enabled is None and not _QUIET and not bar_enabled(None):
+        return LogLines(total, desc, unit)
     kwargs.setdefault("leave", True)
     return tqdm(total=total, desc=desc or None, unit=unit, disable=not bar_enabled(enabled), file=sys.stderr,
                 dynamic_ncols=True, **kwargs)
+
+
+class LogLines:
+    """A progress bar's surface (``update``, ``close``, a context manager,
+    ``disable``) that prints ``robstiff: DESC: N/TOTAL UNIT (P %) after
+    S s`` on stderr at most every ``every_s`` seconds, at an update (a
+    task shorter than that prints nothing).  ``clock``: seconds (injected
+    by the tests)."""
+
+    disable = False
+
+    def __init__(self, total, desc="", unit="it", every_s=None, clock=time.monotonic, file=None):
+        self.total, self.desc, self.unit, self.n = total, desc or "working", unit, 0
+        self.every_s = LOG_EVERY_S if every_s is None else float(every_s)
+        self.clock, self.file = clock, file
+        self.t0 = self.last = clock()
+
+    def update(self, n=1):
+        self.n += n
+        now = self.clock()
+        if now - self.last >= self.every_s and not _QUIET:
+            self.last = now
+            of = f"/{self.total:g}" if self.total else ""
+            pct = f" ({100.0 * self.n / self.total:.0f} %)" if self.total else ""
+            print(f"robstiff: {self.desc}: {self.n:g}{of} {self.unit}{pct} after {now - self.t0:.0f} s",
+                  file=self.file or sys.stderr, flush=True)
+
+    def close(self):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+        return False
 
 
 def simulation_bar(t_end_s, enabled=None, desc="simulating"):
@@ -60,7 +103,7 @@ def time_monitor(bar, t_end_s, steps=200):
     """A Drake Simulator monitor that moves ``bar`` (a ``simulation_bar``)
     with the simulated time, in ``steps`` increments up to ``t_end_s`` (s);
     None when the bar is disabled (no Python call per simulator step then)."""
-    if bar.disable:
+    if bar.disable or isinstance(bar, LogLines):  # (log lines: no Python call per simulator step either)
         return None
     from pydrake.systems.framework import EventStatus
 

@@ -92,10 +92,12 @@ def cutting_wrench(t0=0.8, ramp_s=0.3, force_N=(-300.0, 260.0, 50.0)):
 
 
 def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=None, wrench=None, rt_priority=0,
-               lockstep=False, link=None, supervise=True, transport_delay_cycles=None):
+               lockstep=False, link=None, supervise=True, transport_delay_cycles=None, cut_s=None,
+               answer_timeout_s=1.0):
     """A simulated cell (stand-in arm) in a thread; returns (thread, network).
     ``rt_priority``: run the thread under SCHED_FIFO (a controller is hard
-    real-time; the benchmark's option)."""
+    real-time; the benchmark's option); ``cut_s``: end after this much of
+    the controller's time once engaged (lockstep)."""
     station = ServoArmStandIn(robot=robot, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
                               calibration=calibration(robot), process_wrench=wrench or cutting_wrench(),
                               reference=reference, q_start_rad=reference(0.0), seed=3)
@@ -103,11 +105,11 @@ def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=Non
                robot.acceleration_limit_deg_per_s2) if supervise else None)
     net = CellNetwork(station, egm_to=("127.0.0.1", egm_port), netft_port=netft_port, faults=faults or Faults(),
                       netft_http_port=netft_port, lockstep=lockstep, limits=limits, link=link,
-                      transport_delay_cycles=transport_delay_cycles)
+                      transport_delay_cycles=transport_delay_cycles, answer_timeout_s=answer_timeout_s)
     def run():
         if rt_priority:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
-        net.run(duration_s, reference(0.0))
+        net.run(duration_s, reference(0.0), cut_s=cut_s)
 
     th = threading.Thread(target=run, daemon=True)
     th.start()
@@ -127,11 +129,15 @@ def compensate_cmd(model, payload, reference, *, egm_port, netft_port, log=None,
 
 
 def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), wrench=None, stream_reference=False,
-                                cell_rt_priority=0):
+                                cell_rt_priority=0, lockstep=True):
     """Start `robstiff compensate` as a separate process and the simulated
     cell; returns (completed process, network stats, log folder).  Without
     ``stream_reference`` the compensator holds the start pose (no
-    --reference) and the stand-in measures its error against that pose."""
+    --reference) and the stand-in measures its error against that pose.
+    ``lockstep`` (the tests' default): the cell steps when answered and
+    ends after ``duration_s`` of its controller's time, the compensator when
+    its messages stop (--idle-exit-s): the loop's logic whatever this
+    machine's load; False: both in real time for ``duration_s``."""
     robot = load_robot()
     model, payload, ref, ref_fn = write_inputs(str(tmp), robot, duration_s=duration_s + 1.0)
     q0 = ref_fn(0.0)
@@ -140,12 +146,15 @@ def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), w
     log = os.path.join(str(tmp), "log")
     # the cell first, standing still (its sensor streaming, its controller
     # sending EGM messages) until the compensator answers, as a real one
-    th, net = start_cell(robot, reference, egm_port=egm_port, netft_port=netft_port, duration_s=duration_s + 15.0,
-                         faults=faults, wrench=wrench, rt_priority=cell_rt_priority)
-    proc = subprocess.Popen(compensate_cmd(model, payload, ref if stream_reference else None, egm_port=egm_port, netft_port=netft_port, log=log,
-                                           extra=list(extra) + ["--duration-s", str(duration_s)]), cwd=ROOT,
+    wall_s = duration_s * (30.0 if lockstep else 1.0) + 15.0  # (lockstep: a bound; the cut ends the run)
+    th, net = start_cell(robot, reference, egm_port=egm_port, netft_port=netft_port, duration_s=wall_s,
+                         faults=faults, wrench=wrench, rt_priority=cell_rt_priority, lockstep=lockstep,
+                         cut_s=duration_s if lockstep else None, answer_timeout_s=10.0 if lockstep else 1.0)
+    end = [] if lockstep else ["--duration-s", str(duration_s)]
+    proc = subprocess.Popen(compensate_cmd(model, payload, ref if stream_reference else None, egm_port=egm_port,
+                                           netft_port=netft_port, log=log, extra=list(extra) + end), cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    out, err = proc.communicate(timeout=duration_s + 60)
+    out, err = proc.communicate(timeout=wall_s + 60)
     net.stop = True
     th.join(30)
     net.close()

@@ -86,7 +86,9 @@ def test_compensate_cancels_the_deflection_over_the_protocols(tmp_path):
     # most cycles answered (the simulated controller is a Python thread on a shared machine: under load it
     # leaves ticks out; benchmarks/bench_compensate.py measures the timing)
     assert summary["cycles"]["messages"] > 0.4 * 2.5 / PERIOD_S
-    assert summary["cycles"]["faults"] == []
+    # (the controller stopping is the run's end in lockstep: its "no message" lines are no fault)
+    assert [f for f in summary["cycles"]["faults"] if "no message" not in f["event"]] == [], summary["cycles"]
+    assert summary["cycles"]["ended_by"] == "idle", summary["cycles"]["ended_by"]
 
 
 def test_saturation_is_counted_and_logged(tmp_path):
@@ -164,7 +166,9 @@ def test_faults_ramp_the_correction_down_and_are_logged(tmp_path):
     events = summary["cycles"]["faults"]
     # (the injected silence starts at 1.6 s; a loaded machine may stall the simulated sensor briefly before)
     # (times on the controller's clock, the log's: this simulated controller slips its schedule when late)
-    t_on = next(e["t_controller_s"] for e in events if "sensor: no record" in e["event"] and e["t_s"] > 1.58)
+    # (lockstep: the controller's clock runs faster or slower than this PC's, by its load)
+    t_on = next(e["t_controller_s"] for e in events if "sensor: no record" in e["event"]
+                and e["t_controller_s"] > 1.58)
     t_off = next(e["t_controller_s"] for e in events if "valid records again" in e["event"]
                  and e["t_controller_s"] > t_on)
     assert 0.25 < t_off - t_on < 1.5  # the 0.3 s silence (+ pynetft's reconnection, with its back-off)

@@ -43,6 +43,7 @@ def silent_then(records):
     loop = CompensatorLoop(comp, None, sensor, None, robot, LoopSettings(max_jump_Nm=500.0), out=io.StringIO())
     sensor.queue = [(tuple(REST), 0.0, 0, False)]
     loop._read_sensor(0.0)
+    loop.t_session = 0.05  # (the controller's clock advances with the wall clock)
     loop._read_sensor(0.05)  # 50 ms without a record: the fault, and the chain waits for a new level
     assert loop.pending_reseed and "sensor" in loop.faults
     sensor.queue = [(tuple(w), t, 0, False) for w, t in records]
@@ -68,3 +69,21 @@ def test_a_new_level_is_taken_once_two_records_agree():
     loop.sensor.queue = [(with_moment(800.0), 0.052, 0, False)]
     loop._read_sensor(0.052)
     assert not loop.pending_reseed and math.isclose(loop.comp.held[4], REST[4] + 800.0)
+
+
+def test_silence_counts_on_the_controllers_clock_too():
+    """A simulated controller in lockstep on a loaded PC: a cycle of the
+    controller's clock (4 ms) while the wall clock ran 30 ms, this cycle's
+    records not yet handed over by the reader thread: not a silence (before,
+    the wall clock alone faulted and ramped the correction to zero).  A
+    sensor silent while the controller streams on its clock still faults
+    after the timeout (20 ms)."""
+    loop = silent_then([(REST, 0.051), (REST, 0.052)])
+    assert "sensor" not in loop.faults
+    loop.t_session = 0.054
+    loop._read_sensor(0.052 + 0.030)
+    assert "sensor" not in loop.faults
+    for k in range(1, 7):  # the controller streams on (4 ms a message on both clocks), no record comes
+        loop.t_session = 0.054 + 0.004 * k
+        loop._read_sensor(0.082 + 0.004 * k)
+    assert "sensor" in loop.faults, loop.faults

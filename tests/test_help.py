@@ -176,3 +176,30 @@ def test_diagnosis_search_bar_on_a_terminal(capsys, tmp_path, monkeypatch):
     assert code == 0 and "diagnosis, round 1" in err and "term" in err
     code, out, err = run(capsys, "diagnose", data, "--quiet")
     assert code == 0 and "diagnosis, round" not in err and out
+
+
+def test_progress_off_a_terminal_is_a_log_line_every_few_seconds(capsys):
+    """Off a terminal (pytest's stderr) a task's progress is a log line at
+    most every LOG_EVERY_S seconds of an injected clock, at an update;
+    nothing for a task shorter than that, nothing with --quiet, and no bar
+    (enabled=False) when a command turns it off."""
+    now = [0.0]
+    bar = progress.LogLines(20, "diagnosis", "step", every_s=5.0, clock=lambda: now[0])
+    with bar:
+        for _ in range(20):
+            now[0] += 1.5
+            bar.update(1)
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == [f"robstiff: diagnosis: {n}/20 step ({5 * n} %) after {1.5 * n:.0f} s"
+                     for n in (4, 8, 12, 16, 20)], lines
+    assert isinstance(progress.progress(10, None, "x"), progress.LogLines)
+    assert progress.progress(10, False, "x").disable
+    previous = progress.set_quiet(True)
+    try:
+        assert progress.progress(10, None, "x").disable
+    finally:
+        progress.set_quiet(previous)
+    quick = progress.progress(3, None, "quick")
+    for _ in range(3):
+        quick.update(1)
+    assert capsys.readouterr().err == ""

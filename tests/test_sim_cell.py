@@ -108,6 +108,13 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
         assert abs(surf["mean"] - diagram["mean"]) < 0.005, (surf, diagram)
         assert res["unanswered"] == 0, res
         assert res["health"]["verdict"] == "good", res["health"]
+        # the two sides' verdicts on the run agree, and each names what it saw of the other (in lockstep the
+        # sensor's silence is judged on the controller's clock too: a loaded PC does not ramp the correction)
+        summary = json.loads((tmp_path / "log" / "summary.json").read_text())
+        assert summary["health"]["verdict"] == "good", summary["health"]
+        assert "seen of the controller" in summary["health"]["line"] and "seen of the compensator" in \
+            res["health"]["line"], (summary["health"]["line"], res["health"]["line"])
+        assert summary["health"]["seen_of_the_other_side"]["sensor_faults"] == 0, summary["health"]
         # the log is a run folder diagnose-run reads, with the scan made outside it attached
         dr = subprocess.run([sys.executable, "-m", "robstiff_drake", "diagnose-run", str(tmp_path / "log"), "--scan",
                              str(tmp_path / "my_scan.csv"), "--json", str(tmp_path / "dr.json"), "--out",

@@ -24,7 +24,8 @@ For every message the controller sends (every 4 ms on an IRC5; RSI 4 or
 Faults.  Each is one log line when it starts and one when it ends, and
 while any lasts the correction ramps to zero at the rate limit (never a
 jump, never a stale correction held): the sensor silent, invalid,
-clipped or rejected by the guard for ``sensor_timeout_s``; feedback not
+clipped or rejected by the guard for ``sensor_timeout_s`` (silent: on
+this PC's clock and on the controller's); feedback not
 finite or outside the working ranges; the controller silent; its sequence
 or clock inconsistent (cleared after ``CLEAR_MESSAGES`` consistent
 messages once the correction is zero); a target refused.
@@ -98,6 +99,7 @@ class CompensatorLoop:
         self.q = None  # the model's joint angles (rad)
         self.q_deg = None  # the controller's (deg)
         self.t_q_good = self.t_sensor_good = self.t_sensor_rejecting = self.t_sensor_invalid = None
+        self.ts_sensor_good = 0.0  # the controller's time (t_session) of the last good record
         self.latest_sample_time = None
         self.last_raw = [float("nan")] * 6
         self.t_logged = 0.0  # the controller's time of the last wrench record logged
@@ -137,6 +139,7 @@ class CompensatorLoop:
         if name not in self.faults:
             self.faults[name] = self.now()
             self.n.fault_onsets += 1
+            self.n.sensor_faults += name == "sensor"
             self.event(f"{text}; the correction ramps to zero")
         self.ok_since_fault = 0
 
@@ -226,6 +229,7 @@ class CompensatorLoop:
             if accepted:
                 got_good = True
                 self.t_sensor_good = t_arr
+                self.ts_sensor_good = self.t_session
                 self.t_sensor_rejecting = None
                 self.latest_sample_time = t_arr
             elif finite and self.t_sensor_rejecting is None:
@@ -240,9 +244,13 @@ class CompensatorLoop:
             self.pending_reseed = True
             self.t_sensor_rejecting = None
         # silence counts while the controller streams: after a gap in the controller's messages (this PC
-        # or the network stalled) the sensor's records of that span may still be on their way
+        # or the network stalled) the sensor's records of that span may still be on their way; and it spans the
+        # timeout on the controller's clock too (the arm moves on that clock: a simulated controller stepped in
+        # lockstep on a loaded PC advances a cycle while the wall clock runs tens of ms, and the records of
+        # that cycle may still wait for this process's reader thread)
         if not got_good and self.t_sensor_good is not None and t_now - max(self.t_sensor_good,
-                                                                           self.t_sensor_grace) > to:
+                                                                           self.t_sensor_grace) > to \
+                and self.t_session - self.ts_sensor_good > to:
             invalid = self.t_sensor_invalid is not None and self.t_sensor_invalid >= self.t_sensor_good
             what = "invalid records (status flags, NaN or clipped), then none" if invalid else "no record"
             self.fault_on("sensor", f"sensor: {what} for {to * 1e3:.0f} ms")
@@ -454,8 +462,13 @@ class CompensatorLoop:
         unanswered = n.skipped + n.unanswered_refused + n.lost
         cycles = n.received + n.lost
         lost = n.lost_estimate.fraction()
+        sensor_faults = n.sensor_faults
+        seen = (f"seen of the controller: {n.received} messages, {n.lost} lost on the way, {n.gaps_over} gaps over "
+                f"1.5 periods; of the sensor: {n.sensor_records} records, {sensor_faults} sensor faults; the "
+                "controller sees only the answers (its own verdict counts those), not the correction this side "
+                "ramped down for its faults")
         word, reasons, line = verdict(cycles=cycles, answered=n.answered, late=n.late, unanswered=unanswered,
-                                      faults=n.fault_onsets, lost_fraction=lost, refused=n.refused)
+                                      faults=n.fault_onsets, lost_fraction=lost, refused=n.refused, seen=seen)
         return {"messages": n.received, "cycles": cycles, "answered": n.answered, "late": n.late,
                 "unanswered": unanswered, "skipped": n.skipped, "lost_in_network": n.lost,
                 "duplicates_dropped": n.duplicates, "old_dropped": n.old, "sequence_jumps": n.jumps,
@@ -468,4 +481,8 @@ class CompensatorLoop:
                 "moment_spikes": n.moment_spikes, "saturated_cycles": n.saturated_cycles,
                 "stale_correction_s": n.stale_s, "fault_onsets": n.fault_onsets, "ended_by": self.ended_by,
                 "faults": [{"t_s": t, "t_controller_s": tc, "event": e} for t, tc, e in n.events], "events_dropped": n.events_dropped,
-                "health": {"verdict": word, "reasons": reasons, "compensation_lost_fraction": lost, "line": line}}
+                "health": {"verdict": word, "reasons": reasons, "compensation_lost_fraction": lost, "line": line,
+                           "seen_of_the_other_side": {"controller_messages": n.received, "lost_on_the_way": n.lost,
+                                                      "controller_gaps": n.gaps_over,
+                                                      "sensor_records": n.sensor_records,
+                                                      "sensor_faults": sensor_faults}}}

@@ -67,9 +67,12 @@ class Histogram:
 
 
 def verdict(*, cycles, answered, late, unanswered, faults, lost_fraction, refused=0, stopped="",
-            unanswered_good=GOOD_UNANSWERED):
+            unanswered_good=GOOD_UNANSWERED, seen=""):
     """(word, reasons list, one line) of a run's health; ``stopped``: why
-    the run stopped before its end ("": it did not)."""
+    the run stopped before its end ("": it did not); ``seen``: what this
+    side saw of the other (the line ends with it: the compensator's and the
+    controller's verdicts on one run count different things, and each says
+    what it could see)."""
     reasons = [stopped] if stopped else []
     n = max(int(cycles), 1)
     missed = late + unanswered
@@ -87,7 +90,7 @@ def verdict(*, cycles, answered, late, unanswered, faults, lost_fraction, refuse
     else:
         word = "good"
     line = (f"health {word.upper()}: about {lost_txt} of the compensation lost"
-            + (f" ({'; '.join(reasons)})" if reasons else ""))
+            + (f" ({'; '.join(reasons)})" if reasons else "") + (f"; {seen}" if seen else ""))
     return word, reasons, line
 
 
@@ -139,6 +142,7 @@ class Counters:
     saturation_onsets: int = 0
     stale_s: float = 0.0  # controller time with a stale or ramped-down correction
     fault_onsets: int = 0
+    sensor_faults: int = 0  # of them, the sensor's (silent, invalid, rejected by the guard)
     events_dropped: int = 0
     compute_ms: Histogram = field(default_factory=Histogram)
     age_ms: Histogram = field(default_factory=Histogram)

@@ -47,14 +47,25 @@ def servo_parameters(servo):
                            interpolator_delay_s=delay_ms / 1e3, velocity_integral_hz=ki)
 
 
-def feed_direction(robot, tool_m, q_model_rad):
+def feed_direction(robot, tool_m, q_model_rad, block=4096, to_model=None):
     """The tool point's first horizontal motion along a reference (model
-    angles, (N, 6) rad): the unit vector (2,) from the start to the first
-    row at least FEED_DISTANCE_M away; None when it never moves."""
-    p = kin.tool_position(robot.dh, np.asarray(q_model_rad, dtype=float), tool_m)
-    d = p[:, :2] - p[0, :2]
-    far = np.nonzero(np.linalg.norm(d, axis=1) >= FEED_DISTANCE_M)[0]
-    return None if not len(far) else d[far[0]] / np.linalg.norm(d[far[0]])
+    angles, (N, 6) rad; or other angles and ``to_model``, their map to the
+    model's radians): the unit vector (2,) from the start to the first row
+    at least FEED_DISTANCE_M away; None when it never moves.  Blocks of
+    ``block`` rows from the start until one holds such a row (a long
+    reference's kinematics are not held at once)."""
+    q = np.asarray(q_model_rad, dtype=float)
+    p0 = None
+    for start in range(0, len(q), block):
+        qb = q[start:start + block]
+        p = kin.tool_position(robot.dh, qb if to_model is None else to_model(qb), tool_m)
+        if p0 is None:
+            p0 = p[0, :2].copy()
+        d = p[:, :2] - p0
+        far = np.nonzero(np.linalg.norm(d, axis=1) >= FEED_DISTANCE_M)[0]
+        if len(far):
+            return d[far[0]] / np.linalg.norm(d[far[0]])
+    return None
 
 
 def _pose_text(q_deg):

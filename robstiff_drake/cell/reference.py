@@ -1,8 +1,11 @@
 """The joint reference a compensator streams: the path's joint angles in
 the controller's degrees against time since the session started, with
-how far it moves around each row (for cell/safety.py's envelope)."""
+how far it moves around each row (for cell/safety.py's envelope).
 
-import bisect
+Held as numpy arrays (a 67-minute path at 4 ms is a million rows: about
+150 MB here, where Python lists of it held over a gigabyte); ``at`` reads
+one row pair per call, from the last call's row onward (the session's
+time only advances), so a call stays a few microseconds."""
 
 import numpy as np
 
@@ -23,31 +26,47 @@ class Reference:
             self.t = self.q = None
 
     def _set(self, t, q):
-        self.t, self.q = t, q
-        self._t = t.tolist()
-        self._rows = q.tolist()
-        self._m1 = motion_within(t, q, self.period_s).tolist()
-        self._mf = motion_within(t, q, self.period_s + FOLLOW_S).tolist()
+        n = len(t)
+        # per row i: q_i (deg), then the larger of rows i and i+1's motion over a period and over the follow time
+        tab = np.empty((n, 18))
+        tab[:, :6] = q
+        for k, window_s in ((6, self.period_s), (12, self.period_s + FOLLOW_S)):
+            m = motion_within(t, q, window_s, out=tab[:, k:k + 6])
+            for lo in range(0, n - 1, 1 << 16):  # (in blocks: row i's block reads row i + 1 before it is written)
+                hi = min(lo + (1 << 16), n - 1)
+                m[lo:hi] = np.maximum(m[lo:hi], m[lo + 1:hi + 1])
+        self.t, self._tab = t, tab
+        self.q = tab[:, :6]  # (a view)
+        self._n, self._t0, self._t_end = n, float(t[0]), float(t[-1])
+        self._hint = 0
 
     def hold(self, q_deg):
         self._set(np.array([0.0]), np.asarray(q_deg, dtype=float).reshape(1, 6))
 
     def _index(self, t_s):
-        return max(0, min(bisect.bisect_right(self._t, t_s) - 1, len(self._t) - 1))
+        """The last row at or before t_s (0 before the start, the last after the end)."""
+        t, i = self.t, self._hint
+        if t[i] <= t_s and (i + 1 >= self._n or t_s < t[i + 1]):
+            return i
+        if i + 2 < self._n and t[i + 1] <= t_s < t[i + 2]:
+            i += 1
+        else:
+            i = max(0, min(int(np.searchsorted(t, t_s, side="right")) - 1, self._n - 1))
+        self._hint = i
+        return i
 
     def at(self, t_s):
         """(q (list, deg) at t_s: linear between rows, motion over a period,
         motion over the follow time) (scalar code: a few microseconds)."""
-        t, rows = self._t, self._rows
         i = self._index(t_s)
-        j = min(i + 1, len(t) - 1)
-        m1 = [max(a, b) for a, b in zip(self._m1[i], self._m1[j])]
-        mf = [max(a, b) for a, b in zip(self._mf[i], self._mf[j])]
-        if t_s <= t[0] or len(t) == 1 or t_s >= t[-1]:
-            return list(rows[0] if t_s <= t[0] else rows[-1]), m1, mf
-        f = (t_s - t[i]) / (t[i + 1] - t[i])
-        a, b = rows[i], rows[i + 1]
-        return [x + f * (y - x) for x, y in zip(a, b)], m1, mf
+        a = self._tab[i].tolist()
+        m1, mf = a[6:12], a[12:18]
+        if t_s <= self._t0 or self._n == 1 or t_s >= self._t_end:
+            return (a[:6] if t_s <= self._t0 else self._tab[-1, :6].tolist()), m1, mf
+        t0, t1 = float(self.t[i]), float(self.t[i + 1])
+        f = (t_s - t0) / (t1 - t0)
+        b = self._tab[i + 1, :6].tolist()
+        return [x + f * (y - x) for x, y in zip(a[:6], b)], m1, mf
 
     @property
     def duration_s(self):

@@ -156,59 +156,108 @@ def pose_problem(robot, q_deg):
     return None
 
 
+CHECK_BLOCK = 1 << 16  # rows checked at a time (a long reference's temporaries stay a few MB)
+
+
+def _first(n, test, overlap=0):
+    """The first (row, column) where ``test(lo, hi)`` (a boolean array over
+    rows lo..hi-1, (rows,) or (rows, joints)) holds, in blocks of
+    CHECK_BLOCK rows; None when it never does."""
+    for lo in range(0, max(n - overlap, 0), CHECK_BLOCK):
+        bad = np.argwhere(test(lo, min(lo + CHECK_BLOCK, n - overlap)))
+        if len(bad):
+            return (lo + int(bad[0][0]),) + tuple(int(x) for x in bad[0][1:])
+    return None
+
+
 def check_reference(where, robot, t_s, q_deg, period_s, rows=None):
     """Refuse (InputError naming the file and line) a joint reference whose
     times are not strictly increasing at ``period_s`` or coarser, whose
     angles leave the working ranges, or that asks more speed or
     acceleration of a joint than the robot file's limits.  ``rows``: the
-    file's line number of each row."""
+    file's line number of each row.  Each test over all rows in turn, in
+    blocks (a million-row reference)."""
     t = np.asarray(t_s, dtype=float)
     q = np.asarray(q_deg, dtype=float)
+    n = len(t)
     line = (lambda i: f"{where}:{rows[i]}") if rows is not None else (lambda i: f"{where}: row {i + 1}")
-    dt = np.diff(t)
-    bad = np.flatnonzero(dt < period_s - TIME_EPS_S)
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise InputError(f"{line(i)}: t_s {t[i]:.9g} is {dt[i - 1]:.3g} s after the previous row; rows must be at "
-                         f"least the controller period ({period_s:g} s) apart")
-    for i, row in enumerate(q):
-        p = pose_problem(robot, row)
-        if p:
-            raise InputError(f"{line(i)}: {p}")
+    bad = _first(n, lambda a, b: t[a + 1:b + 1] - t[a:b] < period_s - TIME_EPS_S, overlap=1)
+    if bad:
+        i = bad[0] + 1
+        raise InputError(f"{line(i)}: t_s {t[i]:.9g} is {t[i] - t[i - 1]:.3g} s after the previous row; rows must be "
+                         f"at least the controller period ({period_s:g} s) apart")
+    lo, hi = np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad)
+    bad = _first(n, lambda a, b: ~((q[a:b] >= lo) & (q[a:b] <= hi)).all(axis=1))  # (NaN too)
+    if bad:
+        raise InputError(f"{line(bad[0])}: {pose_problem(robot, q[bad[0]])}")
     if robot.speed_limit_deg_per_s is None or robot.acceleration_limit_deg_per_s2 is None:
         raise InputError(f"{robot.source}: key 'joint_limits.speed_deg_per_s' and 'acceleration_deg_per_s2': "
                          "missing; compensate checks the reference's joint speeds and accelerations against them "
                          "(the maker's data-sheet axis speeds; see models/*.yaml)")
-    if len(t) < 2:
-        return
-    v = np.diff(q, axis=0) / dt[:, None]
-    over = np.abs(v) > robot.speed_limit_deg_per_s
-    if over.any():
-        i, j = (int(x) for x in np.argwhere(over)[0])
-        raise InputError(f"{line(i + 1)}: q{j + 1} moves at {abs(v[i, j]):.4g} deg/s from the previous row; "
+
+    def speed(a, b):  # rows a..b-1 to the next, (deg/s)
+        return (q[a + 1:b + 1] - q[a:b]) / (t[a + 1:b + 1] - t[a:b])[:, None]
+
+    bad = _first(n, lambda a, b: np.abs(speed(a, b)) > robot.speed_limit_deg_per_s, overlap=1)
+    if bad:
+        i, j = bad
+        v = speed(i, i + 1)[0, j]
+        raise InputError(f"{line(i + 1)}: q{j + 1} moves at {abs(v):.4g} deg/s from the previous row; "
                          f"{robot.name}'s axis speed is {robot.speed_limit_deg_per_s[j]:g} deg/s (joint_limits."
                          "speed_deg_per_s)")
-    if len(t) < 3:
-        return
-    a = np.diff(v, axis=0) / (0.5 * (dt[1:] + dt[:-1]))[:, None]
-    over = np.abs(a) > robot.acceleration_limit_deg_per_s2
-    if over.any():
-        i, j = (int(x) for x in np.argwhere(over)[0])
-        raise InputError(f"{line(i + 1)}: q{j + 1} accelerates at {abs(a[i, j]):.4g} deg/s^2; {robot.name}'s limit "
+
+    def acceleration(a, b):  # at rows a+1..b (deg/s^2)
+        v = speed(a, b + 1)
+        return np.diff(v, axis=0) / (0.5 * ((t[a + 2:b + 2] - t[a + 1:b + 1]) + (t[a + 1:b + 1] - t[a:b])))[:, None]
+
+    bad = _first(n, lambda a, b: np.abs(acceleration(a, b)) > robot.acceleration_limit_deg_per_s2, overlap=2)
+    if bad:
+        i, j = bad
+        acc = acceleration(i, i + 1)[0, j]
+        raise InputError(f"{line(i + 1)}: q{j + 1} accelerates at {abs(acc):.4g} deg/s^2; {robot.name}'s limit "
                          f"is {robot.acceleration_limit_deg_per_s2[j]:g} deg/s^2 (joint_limits."
                          "acceleration_deg_per_s2)")
 
 
-def motion_within(t_s, q_deg, window_s):
+def motion_within(t_s, q_deg, window_s, out=None):
     """Per row, per joint: the largest change of the reference (deg) over
-    the ``window_s`` before that row's time (inclusive), (N, 6)."""
+    the ``window_s`` before that row's time (inclusive), (N, 6) (into
+    ``out`` when given).  Vectorised over the rows, a joint at a time:
+    N log2(the rows in the longest window) steps."""
     t = np.asarray(t_s, dtype=float)
     q = np.asarray(q_deg, dtype=float).reshape(len(t), -1)
-    out = np.zeros_like(q)
-    lo = 0
-    for i in range(len(t)):
-        while t[i] - t[lo] > window_s + 1e-12:
-            lo += 1
-        seg = q[max(lo - 1, 0): i + 1]  # (the row before the window: the reference moves between rows)
-        out[i] = seg.max(axis=0) - seg.min(axis=0)
+    n = len(t)
+    out = np.empty_like(q) if out is None else out
+    if n == 0:
+        return out
+    # the first row of each row's window: the first j with t[i] - t[j] <= window_s (times increase), then the
+    # row before it (the reference moves between rows)
+    w = window_s + 1e-12
+    lo = np.searchsorted(t, t - w, side="left")
+    idx = np.arange(n)
+    lo = np.minimum(lo, idx)
+    while True:  # (searchsorted's rounding against the difference's: the exact test, a step either way)
+        up = (lo < idx) & (t - t[lo] > w)
+        down = (lo > 0) & (t - t[np.maximum(lo - 1, 0)] <= w)
+        if not up.any() and not down.any():
+            break
+        lo = lo + up - down
+    size = idx - np.maximum(lo - 1, 0) + 1  # rows in each row's window
+    del lo, idx, up, down
+    level = np.floor(np.log2(size)).astype(int)
+    groups = [(p, np.flatnonzero(level == p)) for p in range(int(level.max()) + 1)]
+    groups = [(p, rows, rows - size[rows] + (1 << p)) for p, rows in groups if rows.size]
+    del level, size
+    # a sparse table: at level p, hi[j] and low[j] are the max and min of the 2**p rows up to j; a window of
+    # 2**p <= size < 2**(p + 1) rows is the union of two such spans, one ending at its row, one starting at its first
+    for j in range(q.shape[1]):
+        hi, low = q[:, j].copy(), q[:, j].copy()
+        for p in range(groups[-1][0] + 1):
+            if p:
+                s = 1 << (p - 1)
+                hi[s:] = np.maximum(hi[s:], hi[:-s])
+                low[s:] = np.minimum(low[s:], low[:-s])
+            for level_p, rows, other in groups:
+                if level_p == p:
+                    out[rows, j] = np.maximum(hi[rows], hi[other]) - np.minimum(low[rows], low[other])
     return out

@@ -90,9 +90,10 @@ class CellNetwork:
 
     ``lockstep``: once engaged, step only when the answer to the last
     message has come (waiting up to ``answer_timeout_s``; none by then ends
-    the run), not on the wall clock: the loop's physics without this
-    machine's scheduling (a Python thread on shared cores is no hard
-    real-time controller).  The controller's clock (header.tm) still
+    the run), and never sooner than a period after the last step: the
+    loop's physics without this machine's scheduling (a Python thread on
+    shared cores is no hard real-time controller), at a controller's pace
+    or slower.  The controller's clock (header.tm) still
     advances by one period per message."""
 
     def __init__(self, station, *, egm_to, netft_port, period_s=0.004, faults=None, netft_host="127.0.0.1",
@@ -182,8 +183,10 @@ class CellNetwork:
             if km is not None:
                 answers[km] = targets
 
-    def run(self, duration_s, q_start_rad):
-        """Run for ``duration_s`` (s) of real time from ``q_start_rad``.
+    def run(self, duration_s, q_start_rad, cut_s=None):
+        """Run for ``duration_s`` (s) of real time from ``q_start_rad``
+        (``cut_s``: or until this much of the controller's time has passed
+        once engaged: a lockstep run's length whatever this machine's load).
 
         Tick k: the answer to message k - 1 - D (D: the transport delay in
         cycles) is the target of the period k -> k+1 (none: the last target
@@ -199,6 +202,7 @@ class CellNetwork:
         k = 0
         restarted = False
         engaged, t_eng = False, 0.0
+        t_stepped = 0.0  # (this PC's clock at the last tick)
         k_clock = 0  # the tick the controller's clock (header.tm) counts from: 0, or the last restart's
         answers = {}  # message k -> targets (deg) received
         dropped = set()  # messages lost on the way (nothing to answer)
@@ -206,14 +210,20 @@ class CellNetwork:
         while True:
             t_tick = t0 + k * T
             now = time.monotonic()
-            if self.stop or now - t0 >= duration_s:
+            if self.stop or now - t0 >= duration_s or (cut_s is not None and engaged and k * T - t_eng >= cut_s):
                 break
             stepped = self.lockstep and engaged
+            if stepped and t_stepped + T > now:
+                # lockstep is never faster than real time either (a tick at least a period after the last,
+                # no burst after a stall): the sensor's records and the compensator's clocks keep a
+                # controller's pace, whatever this machine's load
+                time.sleep(t_stepped + T - now)
             if not stepped and t_tick - now > SPIN_S:
                 time.sleep(t_tick - now - SPIN_S)
             while not stepped and time.monotonic() < t_tick:
                 pass
-            t = k * T if stepped else time.monotonic() - t0
+            t_stepped = time.monotonic()
+            t = k * T if stepped else t_stepped - t0
             st.tick_error_s.append(t - k * T)
             if t - k * T > 0.5 * T:
                 st.late_ticks += 1

@@ -97,46 +97,15 @@ def read_model(path, robot):
 
 def read_reference(path, robot, period_s=0.004):
     """(times s from 0, q (N, 6) controller angles in rad) of a joint reference CSV:
-    columns t_s, q1_deg .. q6_deg (header first; '#' lines are comments),
-    checked by cell/safety.check_reference."""
+    columns t_s, q1_deg .. q6_deg (header first; '#' lines are comments), read in one
+    pass (cell/reference_file.py), checked by cell/safety.check_reference."""
+    from robstiff_drake.cell.reference_file import read_reference_rows
     from robstiff_drake.cell.safety import check_reference
 
-    path = Path(path)
-    try:
-        lines = path.read_bytes().decode("utf-8-sig").splitlines()
-    except OSError as e:
-        raise InputError(f"--reference {path}: cannot read ({e.strerror})") from None
-    except UnicodeDecodeError:
-        raise InputError(f"--reference {path}: not UTF-8 text") from None
-    want = ["t_s"] + [f"q{j}_deg" for j in range(1, 7)]
-    header, idx, rows, numbers = None, None, [], []
-    for n, line in enumerate(lines, 1):
-        s = line.strip()
-        if not s or s.startswith("#"):
-            continue
-        cells = [c.strip() for c in s.split(",")]
-        if header is None:
-            header = cells
-            missing = [c for c in want if c not in header]
-            if missing:
-                raise InputError(f"{path}:{n}: missing column {missing[0]} (expected {', '.join(want)})")
-            idx = [header.index(c) for c in want]
-            continue
-        if len(cells) != len(header):
-            raise InputError(f"{path}:{n}: {len(cells)} fields, the header has {len(header)}")
-        try:
-            v = [float(cells[i]) for i in idx]
-        except ValueError:
-            raise InputError(f"{path}:{n}: not a number in {', '.join(cells[i] for i in idx)}") from None
-        if not all(math.isfinite(x) for x in v):
-            raise InputError(f"{path}:{n}: not a finite number")
-        rows.append(v)
-        numbers.append(n)
-    if not rows:
-        raise InputError(f"--reference {path}: no rows")
-    a = np.array(rows)
-    check_reference(str(path), robot, a[:, 0], a[:, 1:], period_s, numbers)
-    return a[:, 0] - a[0, 0], np.radians(a[:, 1:])
+    t, q, numbers = read_reference_rows(path)
+    check_reference(str(Path(path)), robot, t, q, period_s, numbers)
+    t -= t[0]
+    return t, np.radians(q, out=q)
 
 
 def wait_for_file(path, wait_s, what="--reference"):
@@ -237,7 +206,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     elif reference:
         wait_for_file(reference, wait_s)
         t_ref, q_ref = read_reference(reference, robot, period_s)
-        ref = Reference(t_ref, np.degrees(q_ref), period_s=period_s)
+        ref = Reference(t_ref, np.degrees(q_ref, out=q_ref), period_s=period_s)  # (in place: a long path is large)
+        del t_ref, q_ref
     else:
         ref = Reference(period_s=period_s)
     tool = robot.payload.tool_point_m
@@ -247,10 +217,10 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                       delay_steps=delay_steps, filter_kind=filter_kind, filter_ba=ba, cutoff_hz=cutoff_hz,
                       filter_order=filter_order, allow_unstable=allow_unstable_loop)
     if ref.q is not None:
-        q_model = robot.joint_map.to_model(q_ref)
         what = f"--job {Path(job).name}'s path" if job and not reference else f"--reference {Path(reference).name}"
         _say(guard.at(ref.q[0], f"{what}'s first row",
-                      feed_direction(robot, tool, q_model)), guard)
+                      feed_direction(robot, tool, ref.q, to_model=lambda q: robot.joint_map.to_model(np.radians(q)))),
+             guard)
     if max_jump_Nm is None:
         max_jump_Nm = max_jump_N * max(float(np.linalg.norm(tool)) if tool is not None else 0.0, MIN_LEVER_M)
     predictor = DeflectionPredictor(robot.dh, k, tool)

@@ -127,7 +127,10 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
                                   stopped=stats.stop_reason or ("" if station.done else "the pass was not finished"),
                                   # a held target jerks the arm through the servo's velocity feed-forward: one
                                   # or two held cycles moved the short block's face by 1-18 um (docs/real_cell.md)
-                                  unanswered_good=0.0)
+                                  unanswered_good=0.0,
+                                  seen=f"seen of the compensator: {stats.answered} fresh answers, {stats.late_answers} "
+                                       f"late, {stats.unanswered} missing; its corrections, not why it ramped "
+                                       "them down (its own faults: compensate's verdict)")
     if word != "good":
         warnings.add(f"sim-cell: {line}")
     res = {"scenario": str(Path(scenario)), "robot": robot.name, "protocol": protocol,
@@ -141,7 +144,9 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
                                "p99": float(np.percentile(stats.step_ms, 99)) if stats.step_ms else None},
            "tick_late_ms": {"median": float(np.median(stats.tick_error_s) * 1e3) if stats.tick_error_s else None,
                             "p99": float(np.percentile(stats.tick_error_s, 99) * 1e3) if stats.tick_error_s else None},
-           "health": {"verdict": word, "reasons": reasons, "compensation_lost_fraction": lost, "line": line},
+           "health": {"verdict": word, "reasons": reasons, "compensation_lost_fraction": lost, "line": line,
+                      "seen_of_the_other_side": {"fresh_answers": stats.answered, "late_answers": stats.late_answers,
+                                                 "missing_answers": stats.unanswered}},
            "warnings": list(warnings)}
     if json_out is not None:
         emit_json(res, json_out)

@@ -87,8 +87,10 @@ def _tool_guess_m(campaign, robot, tool_m):
 
 
 def _declared_fit(problem, robot, rows, guess):
-    T = kin.frames(robot.dh, problem.q[rows])
-    R, t, u = register(T[:, 6, :3, 3], T[:, 6, :3, :3], problem.m[rows], guess)
+    T6 = kin.frames(robot.dh, problem.q[rows])[:, 6, :3, :].copy()  # (the flange's pose only: not 7 frames held
+    # through the fit)
+    R, t, u = register(T6[:, :, 3], T6[:, :, :3], problem.m[rows], guess)
+    del T6
     fit = Fit(R, t, u, np.zeros((6, 5)))
     return problem.gauss_newton(fit, [], rows)
 
@@ -131,14 +133,15 @@ def _candidate_blocks(problem, fit, rows, free, Xgeo, extra=()):
     """The blocks the campaign can be searched for, their columns at the
     declared fit, and [(name, reason)] of those it cannot."""
     problem.geo_free = free
-    ev, _ = problem.evaluate(fit, rows)
+    at, cache = problem.evaluate(fit, rows), {}  # (one evaluation and geometry Jacobian for every block)
+    ev = at[0]
     out, skipped = [], []
     for b in list(all_blocks(ev, free)) + list(extra):
         why = b.needs(ev) if b.needs else None
         if why:
             skipped.append({"name": b.name, "reason": why})
             continue
-        X, sl, _ = problem.columns(fit, [b], rows)
+        X, sl, _ = problem.columns(fit, [b], rows, at=at, cache=cache)
         Z = X[:, sl[b.name]]
         if b.frame != "geometry":
             kept = independent_columns(np.hstack([Xgeo, Z]), list(range(Xgeo.shape[1] + Z.shape[1])))
@@ -201,10 +204,12 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         cands, skipped = _candidate_blocks(problem, fit0, all_rows, free, Xgeo,
                                            load_blocks(robot, campaign, fit0.u))
         bar.update(1)
-        r0 = (problem.m - problem.predict(fit0, all_rows)).reshape(-1)
         X0, _, ev0 = problem.columns(fit0, [], all_rows)
+        r0 = (problem.m - problem.predict(fit0, all_rows, ev0)).reshape(-1)
         tests = [rows_to_eq(test) for _, test in folds]
-        cv = LinearCV(np.hstack([X0] + [Z for _, Z in cands]), r0, tests, np.repeat(groups, 3))
+        cv = LinearCV(np.hstack([X0] + [Z for _, Z in cands]), r0, tests, np.repeat(groups, 3), copy=False)
+        cands = [(b, np.empty((0, Z.shape[1]))) for b, Z in cands]  # (the columns are in cv: the search needs
+        # only their count; 3N x P floats freed)
         info = {"ev": ev0, "c_nom": problem.c_nom}
         kept, rounds, leads, dropped, rms_decl, rms_lin, _ = _search(cv, np.arange(9), cands, info, bar)
         by_name = {b.name: b for b, _ in cands}
@@ -217,6 +222,7 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         bar.update(1)
         # a second pass linearised at that fit: the first, linearised at the declared model millimetres away,
         # misjudges gains of a few micrometres (second-order terms of the large corrections)
+        cv = None  # (freed before the next one is built)
         cv, info = _linearised(problem, fit, cands, all_rows, tests, groups)
         kept, rounds2, leads, dropped2, _, rms_lin, _ = _search(cv, np.arange(9), cands, info, bar, kept)
         rounds += rounds2

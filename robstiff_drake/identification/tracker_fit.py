@@ -96,6 +96,7 @@ class Problem:
                 tau, moment = gravity(self.robot, T, q + dq, None if self.force is None else self.force[rows],
                                       self.tool_guess, self.g_base)
                 dq = tau * (x * self.c_nom)
+                T = None  # (freed before the next frames are made)
             q = q + dq
         T = kin.frames(dh, q)
         p = tool_points(T, fit.u)
@@ -130,11 +131,14 @@ class Problem:
         arm, dm = self.parts(fit, ev)
         return arm + fit.t + dm
 
-    def columns(self, fit, blocks, rows):
+    def columns(self, fit, blocks, rows, at=None, cache=None):
         """(3n, P) derivatives of the prediction at ``rows``: registration
         rotation (3), translation (3), measured point (3), then each block's
-        parameters; and {name: slice}."""
-        ev, dh = self.evaluate(fit, rows)
+        parameters; and {name: slice}.  ``at``: ``evaluate(fit, rows)``'s
+        result when the caller has it (the same fit and rows); ``cache``: a
+        dict kept between calls with the same ``at`` (the geometry's
+        Jacobian is computed once)."""
+        ev, dh = self.evaluate(fit, rows) if at is None else at
         v, _ = self.parts(fit, ev)  # R (p + dp): what the registration's rotation turns
         cols = [np.cross(np.eye(3)[k], v) for k in range(3)]
         cols += [np.tile(np.eye(3)[k], (len(v), 1)) for k in range(3)]
@@ -147,7 +151,11 @@ class Problem:
         for b in blocks:
             if b.frame == "geometry":
                 if Jg is None:
-                    Jg = geometry_jacobian(ev.T, ev.p, dh)
+                    Jg = cache.get("Jg") if cache is not None else None
+                    if Jg is None:
+                        Jg = geometry_jacobian(ev.T, ev.p, dh)
+                    if cache is not None:
+                        cache["Jg"] = Jg
                 Z = np.stack([Jg[:, :, k, GEOM.index(kind)] for k, kind in b.geo], axis=-1)
                 Z = np.einsum("ij,njp->nip", fit.R, Z)
             elif b.frame in ("base", "joint"):
@@ -246,10 +254,16 @@ class LinearCV:
     from fold Gram matrices: a subset of columns costs O(K P^3), whatever N.
     ``tests``: equation indices of each fold's test rows."""
 
-    def __init__(self, X, r, tests, groups_eq):
+    def __init__(self, X, r, tests, groups_eq, copy=True):
+        """``copy=False``: X is the caller's to give away (scaled in place:
+        no second 3N x P array)."""
         self.scale = np.linalg.norm(X, axis=0)
         self.scale[self.scale == 0] = 1.0
-        self.Xs = X / self.scale
+        if copy:
+            self.Xs = X / self.scale
+        else:
+            self.Xs = X
+            self.Xs /= self.scale
         self.r = r
         self.tests = tests
         self.Gh = [self.Xs[te].T @ self.Xs[te] for te in tests]

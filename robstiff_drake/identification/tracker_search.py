@@ -213,7 +213,7 @@ def _linearised(problem, fit, cands, rows, tests, groups):
         b = next(x for x in every if x.name == name)
         r = r + X[:, sl[name]] @ (v - b.start)
     order = [np.arange(9)] + [np.arange(sl[b.name].start, sl[b.name].stop) for b in every]
-    cv = LinearCV(X[:, np.concatenate(order)], r, tests, np.repeat(groups[rows], 3))
+    cv = LinearCV(X[:, np.concatenate(order)], r, tests, np.repeat(groups[rows], 3), copy=False)
     return cv, {"ev": ev, "c_nom": problem.c_nom}
 
 

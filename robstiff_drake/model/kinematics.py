@@ -62,15 +62,39 @@ def frames(dh, q_rad):
 
     Frame 0 is the base (moved by the chain's fixed base transform, if any);
     frame i (i >= 1) moves with link i; frame 6 is the flange (the wrist
-    sensor frame).  The axis of joint i is the z axis of frame i-1."""
-    A = link_transforms(dh, q_rad)
-    T = np.empty(A.shape[:-3] + (7, 4, 4))
-    # products of contiguous stacks: twice as fast as multiplying strided views of T
-    cur = np.broadcast_to(np.eye(4) if dh.base is None else dh.base, A.shape[:-3] + (4, 4)).copy()
-    T[..., 0, :, :] = cur
+    sensor frame).  The axis of joint i is the z axis of frame i-1.
+
+    The chain's product written out per element over the batch (a link's
+    transform is Rz(theta) Tz(d) Tx(a) Rx(alpha) [Ry(beta)]): each frame's
+    columns are a few multiply-adds of the previous frame's, with no stack
+    of 4x4 link transforms (a batch of 100,000 poses: no 77 MB temporary).
+    """
+    q = np.asarray(q_rad, dtype=float)
+    batch = q.shape[:-1]
+    base = np.eye(4) if dh.base is None else np.asarray(dh.base, dtype=float)
+    T = np.zeros(batch + (7, 4, 4))
+    T[..., 0, :, :] = base
+    T[..., :, 3, 3] = 1.0
+    theta = q + dh.home_rad
+    ct, st = np.cos(theta), np.sin(theta)
+    ca, sa = np.cos(dh.alpha_rad), np.sin(dh.alpha_rad)
+    beta = getattr(dh, "beta_rad", None)
+    # the current frame's rotation columns x, y, z and origin o, each a list of 3 (batch) arrays (or scalars)
+    x, y, z, o = ([base[r, c] for r in range(3)] for c in range(4))
     for i in range(6):
-        cur = np.matmul(cur, np.ascontiguousarray(A[..., i, :, :]))
-        T[..., i + 1, :, :] = cur
+        c, s = ct[..., i], st[..., i]
+        xr = [x[r] * c + y[r] * s for r in range(3)]  # Rz(theta): x, y turn
+        yr = [y[r] * c - x[r] * s for r in range(3)]
+        o = [o[r] + dh.a_m[i] * xr[r] + dh.d_m[i] * z[r] for r in range(3)]  # Tz(d) Tx(a)
+        y = [ca[i] * yr[r] + sa[i] * z[r] for r in range(3)]  # Rx(alpha): y, z turn
+        z = [ca[i] * z[r] - sa[i] * yr[r] for r in range(3)]
+        x = xr
+        if beta is not None and beta[i] != 0.0:  # Hayati's Ry(beta): x, z turn, the origin stays
+            cb, sb = np.cos(beta[i]), np.sin(beta[i])
+            x, z = [x[r] * cb - z[r] * sb for r in range(3)], [x[r] * sb + z[r] * cb for r in range(3)]
+        # one write of the frame's 12 values per pose (12 strided writes of the batch cost 3x as much)
+        rows = np.broadcast_arrays(*[v[r] for r in range(3) for v in (x, y, z, o)])
+        T[..., i + 1, :3, :] = np.moveaxis(np.array(rows), 0, -1).reshape(batch + (3, 4))
     return T
 
 
