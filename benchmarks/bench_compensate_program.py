@@ -57,8 +57,8 @@ def main():
     from robstiff_drake.commands.compensate_program import check_round_trip
     from robstiff_drake.diagrams import offline_compensation as oc
     from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
-    from robstiff_drake.model.gcode import read_program
-    from robstiff_drake.model.gcode_writer import rewrite_corrected
+    from robstiff_drake.model.gcode.program import read_program
+    from robstiff_drake.model.gcode.writer import rewrite_corrected
     from robstiff_drake.progress import progress
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -21,9 +21,9 @@ import sys
 import time
 from pathlib import Path
 
-from robstiff_drake.identification import synth
-from robstiff_drake.identification.diagnosis import diagnose
-from robstiff_drake.identification.joint_stiffness import identify
+from robstiff_drake.identification.stiffness import synth
+from robstiff_drake.identification.diagnosis.campaign_diagnosis import diagnose
+from robstiff_drake.identification.stiffness.joint_stiffness import identify
 from robstiff_drake.model.robot import load_robot
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

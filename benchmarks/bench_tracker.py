@@ -25,8 +25,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from robstiff_drake.identification import tracker_diagnosis as td
-from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
+from robstiff_drake.identification.tracker import diagnosis as td
+from robstiff_drake.identification.tracker.campaign import read_tracker_campaign
 from robstiff_drake.io import Warnings
 from robstiff_drake.model.robot import load_robot
 

@@ -31,8 +31,8 @@ TARGET_S, TARGET_MB = 60.0, 1024.0
 
 REFERENCE = """
 import sys
-from robstiff_drake.identification import tracker_diagnosis as td
-from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
+from robstiff_drake.identification.tracker import diagnosis as td
+from robstiff_drake.identification.tracker.campaign import read_tracker_campaign
 from robstiff_drake.io import Warnings
 from robstiff_drake.model.robot import load_robot
 robot = load_robot("irb6400")

@@ -15,8 +15,8 @@ import numpy as np
 
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.scenario import load_scenario
-from robstiff_drake.identification import synth
-from robstiff_drake.identification.joint_stiffness import identify
+from robstiff_drake.identification.stiffness import synth
+from robstiff_drake.identification.stiffness.joint_stiffness import identify
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import DIAGRAMS_DIR
 

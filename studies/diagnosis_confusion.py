@@ -44,9 +44,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import open_world as ow  # noqa: E402
 from physical_effects import physical_params, visible_campaign  # noqa: E402
 
-from robstiff_drake.identification import synth  # noqa: E402
-from robstiff_drake.identification.candidates import CANDIDATES  # noqa: E402
-from robstiff_drake.identification.diagnosis import diagnose  # noqa: E402
+from robstiff_drake.identification.stiffness import synth  # noqa: E402
+from robstiff_drake.identification.diagnosis.candidates import CANDIDATES  # noqa: E402
+from robstiff_drake.identification.diagnosis.campaign_diagnosis import diagnose  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
 
 NOISE_MM = 0.01

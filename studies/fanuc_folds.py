@@ -20,8 +20,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 import realdata  # noqa: E402
 
-from robstiff_drake.identification.campaign import read_stiffness_campaign  # noqa: E402
-from robstiff_drake.identification.diagnosis import diagnose  # noqa: E402
+from robstiff_drake.identification.stiffness.campaign import read_stiffness_campaign  # noqa: E402
+from robstiff_drake.identification.diagnosis.campaign_diagnosis import diagnose  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
 
 NOISE_MM = 0.03  # a tracker's noise per displacement component, as the issue states it

@@ -13,8 +13,8 @@ import argparse
 
 import numpy as np
 
-from robstiff_drake.identification import synth
-from robstiff_drake.identification.joint_stiffness import identify
+from robstiff_drake.identification.stiffness import synth
+from robstiff_drake.identification.stiffness.joint_stiffness import identify
 from robstiff_drake.model.robot import load_robot
 
 K_TRUE = np.array([1.3e6, 1.2e6, 0.7e6, 3.5e5, 2.5e5, 2.0e5])

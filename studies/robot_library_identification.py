@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.identification import synth
-from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
-from robstiff_drake.identification.joint_stiffness import identify
+from robstiff_drake.identification.stiffness import synth
+from robstiff_drake.identification.stiffness.campaign import campaign_tool_m, read_stiffness_campaign
+from robstiff_drake.identification.stiffness.joint_stiffness import identify
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import library_robots
 

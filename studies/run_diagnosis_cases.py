@@ -35,7 +35,7 @@ import time
 from pathlib import Path
 
 from robstiff_drake.commands.main import main as robstiff
-from robstiff_drake.identification.run_tables import SIM_PREFIX
+from robstiff_drake.identification.runs.tables import SIM_PREFIX
 from robstiff_drake.paths import DIAGRAMS_DIR, REPO_ROOT
 
 

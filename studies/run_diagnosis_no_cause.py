@@ -79,8 +79,8 @@ def known_part_vs_truth(run_dir, a):
 
     from robstiff_drake.commands.diagnose_run import run_robot
     from robstiff_drake.diagrams.run_arm import ArmModel
-    from robstiff_drake.identification.run_diagnosis import run_signals
-    from robstiff_drake.identification.run_files import load_run_files
+    from robstiff_drake.identification.runs.diagnosis import run_signals
+    from robstiff_drake.identification.runs.files import load_run_files
 
     robot = run_robot(run_dir)
     sig = run_signals(load_run_files(run_dir), robot, ArmModel(robot))

@@ -7,7 +7,7 @@ against the noise, and the finding it names; then, when the real FANUC
 R-2000iC campaign is there (tests/realdata.py), its held-out RMS, the kept
 terms and the confounded alternatives shown side by side.
 
-Campaigns: made two ways, by robstiff_drake/identification/synth.py (the
+Campaigns: made two ways, by robstiff_drake/identification/stiffness/synth.py (the
 library's effect formulas, model/effects.py) and, for the setup mistakes, by
 Drake's MultibodyPlant (tests/setup_errors.py; shares no code with the
 diagnosis).
@@ -30,8 +30,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from robstiff_drake.identification import synth  # noqa: E402
-from robstiff_drake.identification.diagnosis import diagnose  # noqa: E402
+from robstiff_drake.identification.stiffness import synth  # noqa: E402
+from robstiff_drake.identification.diagnosis.campaign_diagnosis import diagnose  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
 
 NOISE_MM = 0.01
@@ -77,7 +77,7 @@ def _summary(tally):
 
 
 def synth_cases(robot, seeds):
-    print(f"synthetic (identification/synth.py, the library's effect formulas), seeds {seeds}:")
+    print(f"synthetic (identification/stiffness/synth.py, the library's effect formulas), seeds {seeds}:")
     tally = []
     for label, params, expected in SYNTH_CASES:
         for seed in seeds:
@@ -90,7 +90,7 @@ def drake_cases(robot, seeds):
     import setup_errors as se
 
     from robstiff_drake.errors import InputError
-    from robstiff_drake.identification.joint_stiffness import identify
+    from robstiff_drake.identification.stiffness.joint_stiffness import identify
 
     print(f"Drake plant (tests/setup_errors.py), seeds {seeds}:")
     tally = []
@@ -157,7 +157,7 @@ def beyond(robot, seeds):
 
 def fanuc():
     import realdata
-    from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
+    from robstiff_drake.identification.stiffness.campaign import campaign_tool_m, read_stiffness_campaign
 
     reason = realdata.missing(realdata.FANUC)
     if reason:

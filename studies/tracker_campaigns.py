@@ -32,8 +32,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 import tracker_world as tw  # noqa: E402
 
-from robstiff_drake.identification.tracker_campaign import read_tracker_campaign  # noqa: E402
-from robstiff_drake.identification.tracker_diagnosis import diagnose_tracker  # noqa: E402
+from robstiff_drake.identification.tracker.campaign import read_tracker_campaign  # noqa: E402
+from robstiff_drake.identification.tracker.diagnosis import diagnose_tracker  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
 
 ROBOTS = ["irb6400", "r2000ic_165f", "kr240_r2900", str(ROOT / "tests" / "data" / "ur10_user.yaml")]

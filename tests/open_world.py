@@ -59,7 +59,7 @@ from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
 from pydrake.multibody.tree import MultibodyForces, RevoluteJoint, SpatialInertia, UnitInertia
 
-from robstiff_drake.identification.campaign import StiffnessCampaign, tool_header_line
+from robstiff_drake.identification.stiffness.campaign import StiffnessCampaign, tool_header_line
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.plant import JOINT_NAMES, robot_urdf
 
@@ -79,7 +79,7 @@ OUT_OF_LIBRARY = KINDS[1:]
 
 # Physical ranges of the effects' parameters (what each case reports against).
 # Each lies inside the diagnosis's plausibility bound
-# (robstiff_drake/identification/plausibility.py), which is the limit of what
+# (robstiff_drake/identification/diagnosis/plausibility.py), which is the limit of what
 # is physically possible, judged at the estimate: an effect planted at the
 # limit itself would be estimated beyond it half the time.
 # Foundation tilt stiffness: 1.5e7-3e8 N*m/rad (bolted plate on concrete

@@ -30,7 +30,7 @@ noise within each range (where the range ends first, the case is smaller).
 import numpy as np
 
 import open_world as ow
-from robstiff_drake.identification.campaign import StiffnessCampaign
+from robstiff_drake.identification.stiffness.campaign import StiffnessCampaign
 from robstiff_drake.model.robot import load_robot
 
 HISTORY_JOINT, HISTORY_PLAY_NM, HISTORY_SHARE_RANGE = 1, 300.0, (0.05, 0.5)

@@ -2,14 +2,14 @@
 (studies/diagnosis_confusion.py) and the tests: each effect's parameters
 drawn in its physical pattern and range, with the range's source or
 reasoning next to it.  The diagnosis's plausibility bounds
-(robstiff_drake/identification/plausibility.py) are generous limits of what
+(robstiff_drake/identification/diagnosis/plausibility.py) are generous limits of what
 is physically possible; the ranges here are what real arms and cells show,
 inside those bounds, so that a planted effect of physical size is one the
 diagnosis may add."""
 
 import numpy as np
 
-from robstiff_drake.identification import synth
+from robstiff_drake.identification.stiffness import synth
 
 
 def _unit(rng):

@@ -12,7 +12,7 @@ unloaded, plus Gaussian CMM noise of 0.01 mm per component.  30 poses x 4
 loads of 300 N in random directions.
 
 Kinds (the sizes are the issue's, beyond the typical ranges of
-robstiff_drake/identification/plausibility.py):
+robstiff_drake/identification/diagnosis/plausibility.py):
 
   none        the six springs only
   tool_point  the load acts (and the instrument reads) 250 mm beyond the
@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import open_world as ow
 
-from robstiff_drake.identification.campaign import StiffnessCampaign
+from robstiff_drake.identification.stiffness.campaign import StiffnessCampaign
 from robstiff_drake.model.robot import load_robot
 
 NOISE_MM = 0.01

@@ -1,5 +1,5 @@
 """The arm's response that diagnose-run predicts from a run's logs
-(identification/arm_response.py with diagrams/run_arm.py) against Drake's
+(identification/runs/arm_response.py with diagrams/run_arm.py) against Drake's
 plant of the station (diagrams/station.py: the gears in a discrete
 MultibodyPlant, the interpolator's hold and delay line, the motors with
 their inertia and the drives):
@@ -26,7 +26,7 @@ from robstiff_drake.diagrams.station import (
     servo_parameters,
     set_drives_at_rest,
 )
-from robstiff_drake.identification import arm_response as ar
+from robstiff_drake.identification.runs import arm_response as ar
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.paths import REPO_ROOT
 

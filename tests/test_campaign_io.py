@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from robstiff_drake.commands.main import main
-from robstiff_drake.identification import synth
+from robstiff_drake.identification.stiffness import synth
 from robstiff_drake.model.robot import load_robot
 
 ROBOT = load_robot()

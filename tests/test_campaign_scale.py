@@ -16,8 +16,8 @@ import textwrap
 import numpy as np
 import pytest
 
-from robstiff_drake.identification import noise_floor as nf
-from robstiff_drake.identification.cross_validation import splits
+from robstiff_drake.identification.diagnosis import noise_floor as nf
+from robstiff_drake.identification.diagnosis.cross_validation import splits
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.robot import load_robot
 
@@ -51,8 +51,8 @@ SCRIPT = textwrap.dedent("""
     import json, resource, sys
     resource.setrlimit(resource.RLIMIT_AS, ({cap}, {cap}))
     from robstiff_drake.commands.main import main
-    from robstiff_drake.identification.campaign import read_stiffness_campaign
-    from robstiff_drake.identification.diagnosis import diagnose
+    from robstiff_drake.identification.stiffness.campaign import read_stiffness_campaign
+    from robstiff_drake.identification.diagnosis.campaign_diagnosis import diagnose
     from robstiff_drake.model.robot import load_robot
     data = sys.argv[1]
     code = main(["--quiet", "identify", data, "--json", sys.argv[2]])

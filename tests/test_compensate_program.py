@@ -12,8 +12,8 @@ import pytest
 
 from robstiff_drake.model import program_correction as pc
 from robstiff_drake.model import rapid_writer as rw
-from robstiff_drake.model.gcode import read_program
-from robstiff_drake.model.gcode_writer import rewrite_corrected
+from robstiff_drake.model.gcode.program import read_program
+from robstiff_drake.model.gcode.writer import rewrite_corrected
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -94,7 +94,7 @@ def check_rapid(text):
 
 
 def _line(length, line=60):
-    from robstiff_drake.model.gcode_moves import Move
+    from robstiff_drake.model.gcode.moves import Move
 
     return Move("line", (0.0, 0.0, 0.0), (length, 0.0, 0.0), 1200.0, 3600.0, line)
 
@@ -194,7 +194,7 @@ def test_a_correction_beyond_the_clamp_names_the_line():
 
 
 def test_incremental_corrected_lines_are_refused():
-    from robstiff_drake.model.gcode_writer import ProgramWriteError
+    from robstiff_drake.model.gcode.writer import ProgramWriteError
 
     text = SHORT.replace("N60 X40. M8", "N60 G91 X40. M8").replace("N70 G3", "N70 G90 G3")
     prog = read_program(text, "inc.nc")

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from robstiff_drake.commands.main import main
-from robstiff_drake.identification import synth
-from robstiff_drake.identification.diagnosis import CANDIDATES, diagnose
-from robstiff_drake.identification.joint_stiffness import identify
+from robstiff_drake.identification.stiffness import synth
+from robstiff_drake.identification.diagnosis.campaign_diagnosis import CANDIDATES, diagnose
+from robstiff_drake.identification.stiffness.joint_stiffness import identify
 from physical_effects import visible_campaign
 
 NOISE = 0.01
@@ -37,7 +37,7 @@ def test_a_physical_effect_is_named_first_and_added(robot, index, effect):
 
 def test_a_parallel_rod_coupling_is_added_even_where_the_six_springs_are_not_physical(robot):
     # axis 3 driven by a rod from the turret: c23 = -c2, 0.85 of sqrt(c2 c3) with the file's stiffness (physical,
-    # within identification/plausibility.py's bound); with six independent springs joint 2's compliance can come out
+    # within identification/diagnosis/plausibility.py's bound); with six independent springs joint 2's compliance can come out
     # negative, and the coupling is what makes the fit physical: it is added and the verdict is given
     c2 = 1.0 / robot.joint_stiffness_Nm_per_rad[1]
     c = synth.stiffness_campaign(robot, n=120, noise_mm=NOISE, seed=115,

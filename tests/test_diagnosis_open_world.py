@@ -11,11 +11,11 @@ import open_world as ow
 import pytest
 
 from robstiff_drake.commands.main import main
-from robstiff_drake.identification import synth
-from robstiff_drake.identification.candidates import CANDIDATES
-from robstiff_drake.identification.cross_validation import pose_groups, splits
-from robstiff_drake.identification.diagnosis import diagnose
-from robstiff_drake.identification.terms import Context, fit_model, held_out
+from robstiff_drake.identification.stiffness import synth
+from robstiff_drake.identification.diagnosis.candidates import CANDIDATES
+from robstiff_drake.identification.diagnosis.cross_validation import pose_groups, splits
+from robstiff_drake.identification.diagnosis.campaign_diagnosis import diagnose
+from robstiff_drake.identification.diagnosis.terms import Context, fit_model, held_out
 from robstiff_drake.io import Warnings
 from robstiff_drake.model import kinematics as kin
 

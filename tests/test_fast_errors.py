@@ -68,7 +68,7 @@ def test_another_robots_compensator_is_refused_before_the_path_is_computed(tmp_p
     identified model were computed (50 s on a loaded machine): now before."""
     from robstiff_drake.commands.main import main
     from robstiff_drake.diagrams import milling_cell, user_model
-    from robstiff_drake.identification import run_files as rf
+    from robstiff_drake.identification.runs import files as rf
 
     def too_late(*args, **kwargs):
         raise AssertionError("the path was computed before the compensator's robot was checked")

@@ -199,8 +199,8 @@ def test_table2_plot():
 
 def test_identify_plot(tmp_path):
     from robstiff_drake.commands.identify import plot_fit
-    from robstiff_drake.identification.campaign import read_stiffness_campaign
-    from robstiff_drake.identification.joint_stiffness import identify
+    from robstiff_drake.identification.stiffness.campaign import read_stiffness_campaign
+    from robstiff_drake.identification.stiffness.joint_stiffness import identify
 
     data = tmp_path / "campaign.csv"
     assert main(["synth", "stiffness", str(data), "--n", "48", "--quiet"]) == 0

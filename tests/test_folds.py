@@ -6,8 +6,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from robstiff_drake.identification import synth
-from robstiff_drake.identification.cross_validation import FOLD_SEEDS, pose_groups, splits
+from robstiff_drake.identification.stiffness import synth
+from robstiff_drake.identification.diagnosis.cross_validation import FOLD_SEEDS, pose_groups, splits
 
 
 def _test_sets(campaign, seed=0):

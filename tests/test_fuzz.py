@@ -26,7 +26,7 @@ from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.diagrams.scenario_schema import Scenario
 from robstiff_drake.diagrams.schema import check_object
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification import synth
+from robstiff_drake.identification.stiffness import synth
 from robstiff_drake.model.robot import load_robot
 
 ROOT = Path(__file__).parents[1]

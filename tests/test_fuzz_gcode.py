@@ -15,8 +15,8 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.model import gcode_lexer as lexer
-from robstiff_drake.model.gcode import read_program_file
+from robstiff_drake.model.gcode import lexer
+from robstiff_drake.model.gcode.program import read_program_file
 
 ROOT = Path(__file__).resolve().parents[1]
 PROGRAM = (ROOT / "diagrams" / "face_contour_fanuc.nc").read_text()

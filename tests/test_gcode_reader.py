@@ -10,7 +10,7 @@ import math
 import pytest
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.model.gcode import read_program
+from robstiff_drake.model.gcode.program import read_program
 
 HEAD = "G0 X0 Y0 Z10\nF100\n"  # a known start and a feed
 

@@ -1,5 +1,5 @@
 """docs/toolpaths.md's table of G-code words cannot fall behind the reader:
-the table in the document is the one robstiff_drake/model/gcode_words.py
+the table in the document is the one robstiff_drake/model/gcode/words.py
 holds, and every word in it does what its row says when a program uses
 it: an accepted or ignored word is read, a refused one is refused with one
 line naming the file, line, column and the word."""
@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.model import gcode_words as W
-from robstiff_drake.model.gcode import read_program
+from robstiff_drake.model.gcode import words as W
+from robstiff_drake.model.gcode.program import read_program
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "toolpaths.md"
 HEAD = "G0 X0 Y0 Z10\nF100\n"
@@ -43,8 +43,8 @@ def doc_table():
 
 def test_the_documents_table_is_the_readers_table():
     assert doc_table() == W.markdown_table(), \
-        "docs/toolpaths.md's words table differs from model/gcode_words.py: paste the output of " \
-        "`python -m robstiff_drake.model.gcode_words` between its markers"
+        "docs/toolpaths.md's words table differs from model/gcode/words.py: paste the output of " \
+        "`python -m robstiff_drake.model.gcode.words` between its markers"
 
 
 def test_every_row_of_the_document_is_a_word_of_the_table():

@@ -54,7 +54,7 @@ def test_quick_examples_run(capsys, tmp_path, monkeypatch, name):
 
 
 def test_table2_help_gives_the_grouping(capsys):
-    from robstiff_drake.identification.table2_grouping import GROUPS
+    from robstiff_drake.identification.stiffness.table2_grouping import GROUPS
 
     with pytest.raises(SystemExit):
         main(["table2", "--help"])

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from robstiff_drake.identification import synth
-from robstiff_drake.identification.joint_stiffness import identify
+from robstiff_drake.identification.stiffness import synth
+from robstiff_drake.identification.stiffness.joint_stiffness import identify
 
 
 def as_campaign(c, moments=None, rot_mrad=None):

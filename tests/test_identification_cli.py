@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from robstiff_drake.commands.main import main
-from robstiff_drake.identification.measurement_table import read_table
+from robstiff_drake.identification.stiffness.measurement_table import read_table
 
 
 def cli(capsys, *argv):

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification import synth
-from robstiff_drake.identification.campaign import PayloadCampaign
-from robstiff_drake.identification.payload import calibrate
+from robstiff_drake.identification.stiffness import synth
+from robstiff_drake.identification.stiffness.campaign import PayloadCampaign
+from robstiff_drake.identification.stiffness.payload import calibrate
 
 
 def as_campaign(c):

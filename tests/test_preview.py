@@ -15,7 +15,7 @@ from robstiff_drake.diagrams.feed_plan import advised_program, plan_feeds
 from robstiff_drake.diagrams.scenario import load_scenario, planned_path
 from robstiff_drake.diagrams.scenario_models import plant_stiffness
 from robstiff_drake.model.arm_dynamics import ArmInertia
-from robstiff_drake.model.gcode import read_program_file
+from robstiff_drake.model.gcode.program import read_program_file
 from robstiff_drake.model.preview import ServoModel, fit_servo
 from robstiff_drake.model.robot import load_robot
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import realdata
 
-from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
-from robstiff_drake.identification.tracker_diagnosis import diagnose_tracker
+from robstiff_drake.identification.tracker.campaign import read_tracker_campaign
+from robstiff_drake.identification.tracker.diagnosis import diagnose_tracker
 from robstiff_drake.model.robot import load_robot
 
 UR10 = Path(__file__).resolve().parent / "data" / "ur10_user.yaml"

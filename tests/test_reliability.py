@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from robstiff_drake.commands.main import main
-from robstiff_drake.identification import synth
+from robstiff_drake.identification.stiffness import synth
 from robstiff_drake.io import RUN_ID_FILE, RunFolder, Warnings, emit_json, json_text, write_atomic
 from robstiff_drake.model.robot import load_robot
 
@@ -520,8 +520,8 @@ def test_intervals_a_campaign_cannot_support_are_not_printed(capsys, tmp_path, n
 
 
 def test_a_campaign_loaded_along_one_line_has_no_intervals(tmp_path):
-    from robstiff_drake.identification.campaign import read_stiffness_campaign
-    from robstiff_drake.identification.interval_support import interval_support
+    from robstiff_drake.identification.stiffness.campaign import read_stiffness_campaign
+    from robstiff_drake.identification.stiffness.interval_support import interval_support
 
     c = read_stiffness_campaign(_campaign_file(tmp_path, "c.csv", 60, 4), ROBOT)
     assert interval_support(c, ROBOT.payload.tool_point_m, 5) == []

@@ -65,8 +65,8 @@ def test_the_run_folder_holds_the_controllers_angles(fanuc_run):
     controller's; read back with the robot they put the tool on the
     commanded path (within the arm's deflection), and the run's settings
     name the robot."""
-    from robstiff_drake.identification import run_logs as rl
-    from robstiff_drake.identification import run_settings as rs
+    from robstiff_drake.identification.runs import logs as rl
+    from robstiff_drake.identification.runs import settings as rs
 
     _, out, _ = fanuc_run
     robot = load_robot("r2000ic_165f")

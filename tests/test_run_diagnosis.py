@@ -17,13 +17,13 @@ from robstiff_drake.commands.diagnose_run import run_robot
 from robstiff_drake.commands.main import main
 from robstiff_drake.diagrams.run_arm import ArmModel
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification import run_files as rf
-from robstiff_drake.identification import run_logs as rl
-from robstiff_drake.identification import run_settings as rs
-from robstiff_drake.identification import run_tables as rt
-from robstiff_drake.identification import run_verification as rv
-from robstiff_drake.identification import scan_statistics as ss
-from robstiff_drake.identification.run_diagnosis import run_signals
+from robstiff_drake.identification.runs import files as rf
+from robstiff_drake.identification.runs import logs as rl
+from robstiff_drake.identification.runs import settings as rs
+from robstiff_drake.identification.runs import tables as rt
+from robstiff_drake.identification.runs import verification as rv
+from robstiff_drake.identification.runs import scan_statistics as ss
+from robstiff_drake.identification.runs.diagnosis import run_signals
 
 ROOT = Path(__file__).parents[1]
 SHORT = (ROOT / "tests" / "data" / "short_block.yaml").read_text()  # plain compensation: its loop lags
@@ -223,7 +223,7 @@ def test_settings_without_the_servo_are_refused(exact_run, tmp_path, capsys):
 def test_the_servo_integral_corner_is_logged_and_read(exact_run, tmp_path):
     """The run's compensator.yaml carries the velocity loop's integral corner (the plant's drives are PI:
     diagnose-run's arm response needs it); a file written before it was logged reads the documented default."""
-    from robstiff_drake.identification.run_diagnosis import servo_of
+    from robstiff_drake.identification.runs.diagnosis import servo_of
     from robstiff_drake.model.servo import ServoParameters
 
     s = Path(exact_run) / rt.SETTINGS
@@ -413,7 +413,7 @@ def test_the_cuts_decide_only_beyond_the_noise():
 def test_a_fix_whose_cut_is_worse_than_the_first_is_not_verified():
     """One candidate, cut once, worse than the first cut: the verdict is
     "no fix better than the first cut", never "verified" (not even in part)."""
-    from robstiff_drake.identification.run_diagnosis import _verified_fix
+    from robstiff_drake.identification.runs.diagnosis import _verified_fix
 
     report = {"candidates": [{"name": "lost_motion", "params": {"lost_motion": {}}, "changes": ["x"],
                               "settings": "candidates/lost_motion/compensator.yaml"}]}

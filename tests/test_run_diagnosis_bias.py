@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from robstiff_drake.identification.run_diagnosis import _verified_fix
+from robstiff_drake.identification.runs.diagnosis import _verified_fix
 from robstiff_drake.model.robot import load_robot
 from test_run_diagnosis import PREDICTIVE, after, diagnose, simulate
 
@@ -84,7 +84,7 @@ def test_a_preview_run_is_refused_by_diagnose_run_with_the_reason(tmp_path, caps
     diagnose-run says in one line why it cannot predict that loop, instead
     of calling the file's mode a mistake."""
     from robstiff_drake.commands.main import main
-    from robstiff_drake.identification.run_files import load_run_files
+    from robstiff_drake.identification.runs.files import load_run_files
 
     run_dir = simulate(tmp_path, PREDICTIVE.replace("  mode: predictive\n", "  mode: preview\n", 1), "preview")
     assert load_run_files(run_dir).settings.mode == "preview"

@@ -16,7 +16,7 @@ import yaml
 
 from robstiff_drake.commands.diagnose_run import run_robot
 from robstiff_drake.commands.main import main
-from robstiff_drake.identification import run_settings as rs
+from robstiff_drake.identification.runs import settings as rs
 from robstiff_drake.paths import MODELS_DIR, scenario_file
 
 # the KR 210's joint springs (N*m/rad): not the KR 240's, so a run that read the library's file would show it

@@ -16,9 +16,9 @@ import setup_errors as se
 from robstiff_drake.commands.diagnose import to_dict
 from robstiff_drake.commands.main import main
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification import synth
-from robstiff_drake.identification.diagnosis import diagnose
-from robstiff_drake.identification.joint_stiffness import identify
+from robstiff_drake.identification.stiffness import synth
+from robstiff_drake.identification.diagnosis.campaign_diagnosis import diagnose
+from robstiff_drake.identification.stiffness.joint_stiffness import identify
 from robstiff_drake.io import Warnings, emit_json
 
 NOISE = se.NOISE_MM
@@ -117,9 +117,9 @@ def test_without_a_noise_floor_a_size_beyond_the_typical_is_not_kept(robot, made
 
 def test_every_term_has_a_typical_range_and_a_finding():
     # a term the search may keep beyond its typical size says what that range is and what to check
-    from robstiff_drake.identification.candidates import CANDIDATES
-    from robstiff_drake.identification.dictionary import DICTIONARY
-    from robstiff_drake.identification.findings import finding, prior_size
+    from robstiff_drake.identification.diagnosis.candidates import CANDIDATES
+    from robstiff_drake.identification.diagnosis.dictionary import DICTIONARY
+    from robstiff_drake.identification.diagnosis.findings import finding, prior_size
 
     for name, t in {**CANDIDATES, **DICTIONARY}.items():
         assert prior_size(name), name

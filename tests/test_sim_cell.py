@@ -19,7 +19,7 @@ import pytest
 from cell_helpers import FORCE_BIAS_N, ROOT, TORQUE_BIAS_NM, free_udp_port, write_inputs
 from robstiff_drake.diagrams.cell_record import servo_settings
 from robstiff_drake.diagrams.cell_station import CellStation
-from robstiff_drake.identification.run_settings import SERVO_KEYS
+from robstiff_drake.identification.runs.settings import SERVO_KEYS
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.model.robot import load_robot

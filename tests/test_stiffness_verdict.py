@@ -1,12 +1,12 @@
 """Where the data cannot decide, diagnose's verdict says which measurement
-would (identification/stiffness_verdict.py)."""
+would (identification/diagnosis/verdict.py)."""
 
 import numpy as np
 from physical_effects import visible_campaign
 
-from robstiff_drake.identification.candidates import CANDIDATES
-from robstiff_drake.identification.diagnosis import diagnose
-from robstiff_drake.identification.stiffness_verdict import decides
+from robstiff_drake.identification.diagnosis.candidates import CANDIDATES
+from robstiff_drake.identification.diagnosis.campaign_diagnosis import diagnose
+from robstiff_drake.identification.diagnosis.verdict import decides
 from robstiff_drake.model.robot import load_robot
 
 

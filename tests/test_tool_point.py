@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from robstiff_drake.commands.main import main
-from robstiff_drake.identification.campaign import read_tool_header
+from robstiff_drake.identification.stiffness.campaign import read_tool_header
 from robstiff_drake.model.robot import load_robot
 
 

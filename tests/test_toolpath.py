@@ -16,7 +16,7 @@ import pytest
 
 from robstiff_drake.diagrams.scenario import load_scenario, planned_path
 from robstiff_drake.errors import InputError
-from robstiff_drake.model.gcode import read_program
+from robstiff_drake.model.gcode.program import read_program
 from robstiff_drake.model.path import PlannedPath
 from robstiff_drake.model.path_elements import Corner
 from robstiff_drake.model.program_path import program_elements

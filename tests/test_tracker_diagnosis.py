@@ -11,10 +11,10 @@ import pytest
 import tracker_world as tw
 
 from robstiff_drake.commands.main import main
-from robstiff_drake.identification.robot_writer import write_corrected_robot
-from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
-from robstiff_drake.identification.tracker_diagnosis import diagnose_tracker
-from robstiff_drake.identification.tracker_model import gravity, perturbed_dh
+from robstiff_drake.identification.tracker.robot_writer import write_corrected_robot
+from robstiff_drake.identification.tracker.campaign import read_tracker_campaign
+from robstiff_drake.identification.tracker.diagnosis import diagnose_tracker
+from robstiff_drake.identification.tracker.model import gravity, perturbed_dh
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.plant import JOINT_NAMES, make_robot_plant
@@ -278,7 +278,7 @@ def test_the_residual_map_only_when_it_generalises(capsys, tmp_path):
 
 def test_the_residual_map_is_zero_outside_the_campaigns_domain():
     # fitted on poses with joint 2 in [-90, -30] deg, it says nothing at joint 2 = +60 deg
-    from robstiff_drake.identification import residual_map as rmap
+    from robstiff_drake.identification.tracker import residual_map as rmap
 
     rng = np.random.default_rng(5)
     J = rng.uniform(-0.5, 0.5, size=(400, 6))
@@ -385,7 +385,7 @@ def test_a_pose_column_that_names_every_row_one_pose_is_refused(capsys, tmp_path
     # ids that each name one pose (a pose measured twice shares its id) are read
     rows = [f"{line},P{i}" for i, line in enumerate(lines[head + 1:])]
     path.write_text("\n".join(lines[:head] + [lines[head] + ",pose"] + rows + [rows[0]]) + "\n")
-    from robstiff_drake.identification.tracker_campaign import read_tracker_campaign as read
+    from robstiff_drake.identification.tracker.campaign import read_tracker_campaign as read
 
     assert len(read(path, load_robot("irb6400")).pose) == len(rows) + 1
 
@@ -432,7 +432,7 @@ def test_the_fft_periodogram_is_the_direct_least_squares_fit():
     """The periodogram's reduction of the sum of squares (sums over poses by an
     FFT of binned angles) against a least-squares fit of the two columns by
     numpy's lstsq at the same periods."""
-    from robstiff_drake.identification import tracker_periodic as tpd
+    from robstiff_drake.identification.tracker import periodic as tpd
 
     rng = np.random.default_rng(9)
     ang = rng.uniform(-3.0, 4.0, 800)

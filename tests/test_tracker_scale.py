@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robstiff_drake.identification import residual_map as rmap
-from robstiff_drake.identification import tracker_diagnosis as td
-from robstiff_drake.identification import tracker_fit
-from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
+from robstiff_drake.identification.tracker import residual_map as rmap
+from robstiff_drake.identification.tracker import diagnosis as td
+from robstiff_drake.identification.tracker import fit as tracker_fit
+from robstiff_drake.identification.tracker.campaign import read_tracker_campaign
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.robot import load_robot
 

@@ -18,7 +18,7 @@ from robstiff_drake.diagrams.job_checks import corners, job_warnings
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.errors import InputError
 from robstiff_drake.model import feed_plan as fp
-from robstiff_drake.model.gcode import read_program_file
+from robstiff_drake.model.gcode.program import read_program_file
 
 ROOT = Path(__file__).resolve().parents[1]
 MACHINE = ROOT / "diagrams" / "face_contour_fanuc.yaml"

@@ -14,7 +14,7 @@ from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.diagrams.scenario_models import cutting_setup, plant_damping_ratios
 from robstiff_drake.diagrams.user_measurements import user_measured_damping
 from robstiff_drake.diagrams.user_model import _exact_servo
-from robstiff_drake.identification.modal_test import era_modes, impulse_response, merge_close
+from robstiff_drake.identification.stiffness.modes import era_modes, impulse_response, merge_close
 
 ROOT = Path(__file__).resolve().parents[1]
 

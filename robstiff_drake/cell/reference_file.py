@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.errors import InputError, excerpt
-from robstiff_drake.identification.measurement_table import parse_number
+from robstiff_drake.identification.stiffness.measurement_table import parse_number
 
 COLUMNS = ["t_s"] + [f"q{j}_deg" for j in range(1, 7)]
 BLOCK_BYTES = 1 << 22  # lines read at a time (about 50,000 rows of a reference)

@@ -1,12 +1,12 @@
 """compensator.yaml of a compensator process (docs/run_files.md): what
 `robstiff compensate` runs with, in the run-file format that
-`robstiff diagnose-run` reads (identification/run_files.py writes it)."""
+`robstiff diagnose-run` reads (identification/runs/files.py writes it)."""
 
 from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.identification import run_files as rf
+from robstiff_drake.identification.runs import files as rf
 
 SERVO_NOTE = ("servo: not given to compensate (--servo DELAY_MS,KP_PER_S,BANDWIDTH_HZ,FEEDFORWARD[,KI_HZ]); add the robot "
               "controller's servo section before diagnose-run")

@@ -13,8 +13,8 @@ def run(*, data, json_out=None, yaml_out=None, mount_rpy=None, robot_yaml=None):
     robot = load_robot(robot_yaml)
     mount = (0.0, 0.0, 0.0) if mount_rpy is None else parse_vector(mount_rpy, 3, "--mount-rpy")
     # scipy comes with these: after the checks of the arguments
-    from robstiff_drake.identification.campaign import read_payload_campaign
-    from robstiff_drake.identification.payload import calibrate, check_payload_fit, t95, yaml_block
+    from robstiff_drake.identification.stiffness.campaign import read_payload_campaign
+    from robstiff_drake.identification.stiffness.payload import calibrate, check_payload_fit, t95, yaml_block
 
     warnings = Warnings()
     campaign = read_payload_campaign(data, robot)

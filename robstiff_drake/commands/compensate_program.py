@@ -5,7 +5,7 @@ deflection along the job's G-code program (diagrams/offline_compensation.py)
 and the command writes, into DIR (all or nothing):
 
 * ``<program>_compensated.nc``: the program in its own words, the cutting
-  moves' coordinates corrected (model/gcode_writer.py);
+  moves' coordinates corrected (model/gcode/writer.py);
 * ``joint_reference.csv``: the path's joint references with the full
   (six-axis) correction, for cells that stream a reference
   (``robstiff compensate --reference``);
@@ -42,7 +42,7 @@ def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot
     check_outputs(inputs=[job], files={"--json": json_out}, folders={"--out": out})
     from robstiff_drake.diagrams import offline_compensation as oc
     from robstiff_drake.diagrams.scenario import load_scenario, resolve, scenario_robot
-    from robstiff_drake.model.gcode_writer import ProgramWriteError, rewrite_corrected
+    from robstiff_drake.model.gcode.writer import ProgramWriteError, rewrite_corrected
     from robstiff_drake.model.program_correction import CorrectionError
 
     sc = load_scenario(job)
@@ -129,7 +129,7 @@ def check_round_trip(text, program, corrections, max_correction_mm, chord_mm, sc
     the same number of motion blocks as written, rapids unchanged, and
     every corrected point within the clamp of the path the controller runs
     (InputError otherwise: a bug, reported as such rather than written)."""
-    from robstiff_drake.model.gcode import read_program
+    from robstiff_drake.model.gcode.program import read_program
 
     tp = sc.toolpath
     back = read_program(text, f"{program.path} (corrected)", decimal_point=tp.decimal_point,

@@ -8,13 +8,13 @@ import numpy as np
 from robstiff_drake.commands.identify import campaign_warnings
 from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
-from robstiff_drake.identification.confounding import CONFOUNDED_MIN
-from robstiff_drake.identification.diagnosis import CANDIDATES, DICTIONARY, diagnose
-from robstiff_drake.identification.findings import describe_alternatives
-from robstiff_drake.identification.fold_spread import describe as describe_spread
-from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
-from robstiff_drake.identification.selection import ALPHA_ROUND, MIN_GAIN
+from robstiff_drake.identification.stiffness.campaign import campaign_tool_m, read_stiffness_campaign
+from robstiff_drake.identification.diagnosis.confounding import CONFOUNDED_MIN
+from robstiff_drake.identification.diagnosis.campaign_diagnosis import CANDIDATES, DICTIONARY, diagnose
+from robstiff_drake.identification.diagnosis.findings import describe_alternatives
+from robstiff_drake.identification.diagnosis.fold_spread import describe as describe_spread
+from robstiff_drake.identification.stiffness.joint_stiffness import check_angle_units, check_signs, identify
+from robstiff_drake.identification.diagnosis.selection import ALPHA_ROUND, MIN_GAIN
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, staged_outputs, write_atomic
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote
@@ -277,7 +277,7 @@ def residual_views(d, campaign, robot, folder, tool_m=None):
 def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=None, noise_mm=None, validate=None,
         write_robot=None):
     from robstiff_drake.commands import diagnose_tracker
-    from robstiff_drake.identification.tracker_campaign import is_tracker_file
+    from robstiff_drake.identification.tracker.campaign import is_tracker_file
 
     check_outputs(inputs=[data, robot_yaml, validate], files={"--json": json_out, "--report": report,
                                                               "--write-robot": write_robot},

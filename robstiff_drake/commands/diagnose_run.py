@@ -8,14 +8,14 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.identification.run_diagnosis import diagnose_run
+from robstiff_drake.identification.runs.diagnosis import diagnose_run
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.run_files import load_run_files
-from robstiff_drake.identification.run_settings import read_settings, settings_text
-from robstiff_drake.identification.run_tables import SETTINGS, run_file
-from robstiff_drake.identification.run_folder_checks import check_run
-from robstiff_drake.identification.run_verification import plan_markdown
-from robstiff_drake.identification.scan_statistics import along_mm, segments
+from robstiff_drake.identification.runs.files import load_run_files
+from robstiff_drake.identification.runs.settings import read_settings, settings_text
+from robstiff_drake.identification.runs.tables import SETTINGS, run_file
+from robstiff_drake.identification.runs.folder_checks import check_run
+from robstiff_drake.identification.runs.verification import plan_markdown
+from robstiff_drake.identification.runs.scan_statistics import along_mm, segments
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote

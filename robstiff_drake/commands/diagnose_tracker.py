@@ -2,15 +2,15 @@
 (a laser tracker's: q1..q6 and x, y, z): the accuracy before and after,
 the effects found, the corrected robot file (``--write-robot``) and the
 test on a second file (``--validate``).  See
-identification/tracker_diagnosis.py."""
+identification/tracker/diagnosis.py."""
 
 from pathlib import Path
 
 import numpy as np
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
-from robstiff_drake.identification.tracker_diagnosis import diagnose_tracker
+from robstiff_drake.identification.tracker.campaign import read_tracker_campaign
+from robstiff_drake.identification.tracker.diagnosis import diagnose_tracker
 from robstiff_drake.io import RunFolder, Warnings, emit_json, staged_outputs, write_atomic
 from robstiff_drake.progress import wrote
 
@@ -153,7 +153,7 @@ def run(*, data, tool_m, noise_mm, robot, json_out=None, report=None, plots_dir=
                     "default": not robot_given}
     with staged_outputs():  # the corrected robot file, the JSON, the report and the views, all or none
         if write_robot is not None:
-            from robstiff_drake.identification.robot_writer import write_corrected_robot
+            from robstiff_drake.identification.tracker.robot_writer import write_corrected_robot
 
             err = write_corrected_robot(write_robot, robot, d.fit, rep, data, d.problem.q)
             rep["corrected_robot"] = {"path": str(write_robot), "fk_check_mm": err * 1e3}

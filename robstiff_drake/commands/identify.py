@@ -135,8 +135,8 @@ def _run_tracker(data, robot, tool_m, json_out, warnings):
     sag under the arm's weight gives, with the kinematic errors and the
     registration fitted with it (the tracker diagnosis's model)."""
     from robstiff_drake.commands.diagnose_tracker import format_report
-    from robstiff_drake.identification.tracker_campaign import read_tracker_campaign
-    from robstiff_drake.identification.tracker_diagnosis import diagnose_tracker
+    from robstiff_drake.identification.tracker.campaign import read_tracker_campaign
+    from robstiff_drake.identification.tracker.diagnosis import diagnose_tracker
 
     d = diagnose_tracker(robot, read_tracker_campaign(data, robot), tool_m=tool_m, warnings=warnings,
                          residual_map=False)
@@ -172,15 +172,15 @@ def _run_tracker(data, robot, tool_m, json_out, warnings):
 
 
 def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=None):
-    from robstiff_drake.identification.tracker_campaign import is_tracker_file
+    from robstiff_drake.identification.tracker.campaign import is_tracker_file
 
     check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--plot": plot})
     robot = load_robot(robot_yaml)
     tool_arg = parse_tool(tool)
     # scipy comes with these: after the checks of the arguments
-    from robstiff_drake.identification.campaign import campaign_tool_m, read_stiffness_campaign
-    from robstiff_drake.identification.joint_stiffness import check_angle_units, check_signs, identify
-    from robstiff_drake.identification.interval_support import interval_support
+    from robstiff_drake.identification.stiffness.campaign import campaign_tool_m, read_stiffness_campaign
+    from robstiff_drake.identification.stiffness.joint_stiffness import check_angle_units, check_signs, identify
+    from robstiff_drake.identification.stiffness.interval_support import interval_support
 
     warnings = Warnings()
     if is_tracker_file(data):

@@ -214,7 +214,7 @@ def build_parser():
                         "compliances and '# tool_mm:' line are used)")
     _add_robot_option(p)
 
-    from robstiff_drake.identification.table2_grouping import GROUPING
+    from robstiff_drake.identification.stiffness.table2_grouping import GROUPING
 
     p = sub.add_parser("table2", help="the paper's Table 2: linearity in load, offsets, repeatability",
                        description="The paper's Table 2 (data/seed_table2.csv) analysed per pose group: linearity "

@@ -4,7 +4,7 @@ stiffness identification, compared with random poses of the same size."""
 import numpy as np
 
 from robstiff_drake.commands.options import parse_tool
-from robstiff_drake.identification.campaign import tool_header_line
+from robstiff_drake.identification.stiffness.campaign import tool_header_line
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import check_outputs, emit_json, staged_outputs, write_atomic
 from robstiff_drake.model.robot import load_robot
@@ -12,7 +12,7 @@ from robstiff_drake.progress import wrote
 
 
 def plan_csv(plan, *, robot, force_N, noise_mm, tool_m):
-    from robstiff_drake.identification.synth import command_line
+    from robstiff_drake.identification.stiffness.synth import command_line
 
     lines = [
         "# Measurement plan made by robstiff-drake (robstiff plan-poses; D-optimal over candidate poses x 26 load",
@@ -38,7 +38,7 @@ def plan_csv(plan, *, robot, force_N, noise_mm, tool_m):
 
 
 def separation_csv(plan, *, robot, force_N, noise_mm, tool_m):
-    from robstiff_drake.identification.synth import command_line
+    from robstiff_drake.identification.stiffness.synth import command_line
 
     a, b = plan.effects
     lines = [
@@ -62,9 +62,9 @@ def separation_csv(plan, *, robot, force_N, noise_mm, tool_m):
 
 
 def _run_separate(*, n, separate, campaign_csv, candidates, force_N, noise_mm, tool, seed, out, json_out, robot):
-    from robstiff_drake.identification.campaign import read_stiffness_campaign
-    from robstiff_drake.identification.joint_stiffness import identify
-    from robstiff_drake.identification.separation import parse_pair, plan_separation
+    from robstiff_drake.identification.stiffness.campaign import read_stiffness_campaign
+    from robstiff_drake.identification.stiffness.joint_stiffness import identify
+    from robstiff_drake.identification.diagnosis.separation import parse_pair, plan_separation
 
     effects = parse_pair(separate)
     campaign, compliance = None, None
@@ -129,7 +129,7 @@ def run(*, n, candidates=120, force_N=300.0, noise_mm=0.01, tool=None, seed=0, o
         return _run_separate(n=n, separate=separate, campaign_csv=campaign, candidates=candidates, force_N=force_N,
                              noise_mm=noise_mm, tool=tool, seed=seed, out=out, json_out=json_out, robot=robot)
     tool_m = robot.tool_point(parse_tool(tool), where="plan-poses")
-    from robstiff_drake.identification.pose_planning import plan_poses  # scipy: after the checks
+    from robstiff_drake.identification.stiffness.pose_planning import plan_poses  # scipy: after the checks
 
     plan = plan_poses(robot, n, n_candidate_poses=candidates, force_N=force_N, noise_mm=noise_mm, tool_m=tool_m,
                       seed=seed)

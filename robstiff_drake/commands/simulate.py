@@ -4,7 +4,7 @@ the diagram (Graphviz), CSV time series and a JSON summary.
 
 The run folder (``--out``) holds the compensated cut as a cell records it
 (wrench_log.csv, joint_log.csv, compensator.yaml, scan.csv: the formats of
-docs/run_files.md, written by identification/run_files.py) and the
+docs/run_files.md, written by identification/runs/files.py) and the
 simulation's own files, named ``sim_*`` (the scenario with its plant, the
 actual tool path, the true surface): the truth that ``robstiff
 diagnose-run`` never reads.  ``--compensator SETTINGS.yaml`` runs the
@@ -24,9 +24,9 @@ import numpy as np
 from robstiff_drake.diagrams.job_checks import job_warnings, worse_reason
 from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, WORSE_PREFIX, run_warnings
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.run_logs import joint_reference_text
-from robstiff_drake.identification.run_settings import read_settings
-from robstiff_drake.identification.run_tables import SIM_PREFIX
+from robstiff_drake.identification.runs.logs import joint_reference_text
+from robstiff_drake.identification.runs.settings import read_settings
+from robstiff_drake.identification.runs.tables import SIM_PREFIX
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, json_text, write_atomic
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.feed_plan import check_rewritable

@@ -1,5 +1,5 @@
 """``robstiff synth stiffness|payload|tracker OUT.csv``: virtual
-measurement campaigns from the model (see identification/synth.py); the
+measurement campaigns from the model (see identification/stiffness/synth.py); the
 tracker's from Drake's plant of a perturbed arm (diagrams/tracker_world.py)."""
 
 import sys
@@ -68,7 +68,7 @@ def run_stiffness(*, out, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01,
         if np.any(k <= 0):
             raise InputError("synth: --stiffness values must be > 0 (N*m/rad)")
     effects = parse_effects(effects)
-    from robstiff_drake.identification import synth  # scipy: after the checks of the arguments
+    from robstiff_drake.identification.stiffness import synth  # scipy: after the checks of the arguments
 
     try:
         c = synth.stiffness_campaign(robot, n=n, loads_per_pose=loads_per_pose, force_N=force_N, noise_mm=noise_mm,
@@ -91,7 +91,7 @@ def run_payload(*, out, n=15, mass_kg=None, com=None, noise_N=1.0, noise_Nm=0.1,
     if mass_kg is not None:
         _positive("--mass-kg", mass_kg)
     com_m = None if com is None else np.array(parse_vector(com, 3, "--com-mm")) / 1000.0
-    from robstiff_drake.identification import synth  # scipy: after the checks of the arguments
+    from robstiff_drake.identification.stiffness import synth  # scipy: after the checks of the arguments
 
     c = synth.payload_campaign(robot, n=n, mass_kg=mass_kg, com_m=com_m, noise_N=noise_N, noise_Nm=noise_Nm,
                                seed=seed)

@@ -4,16 +4,16 @@ repeatability, per assumed pose group.  The table and plot in the README come
 from ``robstiff table2 --plot docs/table2.png``.
 
 The grouping of the rows by pose is an assumption: see
-identification/table2_grouping.py (printed by ``robstiff table2 --help``).
+identification/stiffness/table2_grouping.py (printed by ``robstiff table2 --help``).
 """
 
 import numpy as np
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification.campaign import D_COLS, F_COLS
-from robstiff_drake.identification.measurement_table import read_table
-from robstiff_drake.identification.linearity import analyse_group, cartesian_diagnosis, pooled_offset
-from robstiff_drake.identification.table2_grouping import GROUPS, SPLIT_A
+from robstiff_drake.identification.stiffness.campaign import D_COLS, F_COLS
+from robstiff_drake.identification.stiffness.measurement_table import read_table
+from robstiff_drake.identification.stiffness.linearity import analyse_group, cartesian_diagnosis, pooled_offset
+from robstiff_drake.identification.stiffness.table2_grouping import GROUPS, SPLIT_A
 from robstiff_drake.io import check_outputs, emit_json, save_figure_atomic, staged_outputs
 from robstiff_drake.paths import DATA_DIR
 from robstiff_drake.progress import wrote

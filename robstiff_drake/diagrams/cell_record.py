@@ -1,5 +1,5 @@
 """A simulated cut as a cell records it, and a compensator's settings as a
-scenario: the simulation side of the run files (identification/run_files.py).
+scenario: the simulation side of the run files (identification/runs/files.py).
 
 * ``compensator_settings(sc, robot)``: the compensator of a scenario, as the
   settings file a cell would hold (the model's stiffness resolved from the
@@ -29,9 +29,9 @@ import numpy as np
 from robstiff_drake.diagrams.scenario import check_scenario, plant_step_s, robot_spec
 from robstiff_drake.diagrams.scenario_models import model_stiffness, payload_calibration
 from robstiff_drake.errors import InputError
-from robstiff_drake.identification import run_logs as rl
-from robstiff_drake.identification import run_settings as rs
-from robstiff_drake.identification import run_tables as rt
+from robstiff_drake.identification.runs import logs as rl
+from robstiff_drake.identification.runs import settings as rs
+from robstiff_drake.identification.runs import tables as rt
 
 
 def _payload_dict(cal):

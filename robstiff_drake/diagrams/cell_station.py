@@ -32,7 +32,7 @@ from pydrake.systems.primitives import LogVectorOutput
 from robstiff_drake.diagrams.experiment import RUN_OUT_S, scanned_surface
 from robstiff_drake.diagrams.milling_cell import build_station, planned_path
 from robstiff_drake.diagrams.scenario_models import cutting_setup
-from robstiff_drake.identification.run_logs import joint_reference_text
+from robstiff_drake.identification.runs.logs import joint_reference_text
 
 
 class CellStation:
@@ -103,7 +103,7 @@ class CellStation:
         (scan.csv's columns and noise line, no run id): ``surface()``'s scan
         lines with the scenario's scanner noise."""
         from robstiff_drake.diagrams.cell_record import scan_of
-        from robstiff_drake.identification import run_logs as rl
+        from robstiff_drake.identification.runs import logs as rl
 
         scan = scan_of(scans, self.sc.scan.noise_mm)
         return rl.scan_text(scan, None, [f"the face cut by robstiff sim-cell ({self.sc.name}), as a scanner measures "

@@ -6,7 +6,7 @@ preview's computation (model/preview.py: the arm's modes, the drives and
 their give under load), the joint correction c(t) that keeps the links on
 the programmed path; its Cartesian image at the tool point is the
 correction written into the program (model/program_correction.py,
-model/gcode_writer.py).
+model/gcode/writer.py).
 
 The preview's c is meant for a correction sent *without* velocity
 feed-forward (it holds a term d'/Kp for the position loop's lag).  A
@@ -236,7 +236,7 @@ def corrected_reference(prediction):
 
 def reference_text(robot, prediction, run_id, job):
     """joint_reference.csv: the corrected joint references (controller degrees)."""
-    from robstiff_drake.identification.run_logs import joint_reference_text
+    from robstiff_drake.identification.runs.logs import joint_reference_text
 
     t, q = corrected_reference(prediction)
     return joint_reference_text(robot, t, q, run_id, [

@@ -7,7 +7,7 @@ Everything here comes from the robot file (masses, inertias, payload: the
 Drake plant of robstiff_drake/plant.py, through diagrams/compliant_arm.py's
 ``controller_model``, diagrams/compliant_arm.py), never from a run's plant: a cell's controller knows
 its arm's model, not its gears' truth.  The diagnosis itself
-(identification/run_diagnosis.py) is plain numpy and calls this through the
+(identification/runs/diagnosis.py) is plain numpy and calls this through the
 methods of ``ArmModel``.
 """
 

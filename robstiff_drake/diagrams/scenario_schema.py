@@ -169,7 +169,7 @@ class PathConfig:
 
 @dataclass
 class ToolpathConfig:
-    """A G-code program (model/gcode.py) as the path, placed on the
+    """A G-code program (model/gcode/program.py) as the path, placed on the
     workpiece: a program point p (mm, work frame) is at
     work_offset_mm + Rz(work_rotation_deg) p in the robot's base frame (the
     G54 offset; ``simulate --work-offset`` sets both).  F gives the feed
@@ -280,7 +280,7 @@ class IdentificationConfig:
     # of industrial arms find link masses and inertias 10-20 % from them.
     inertia_error: float = num(0.15, 0.0, 0.9, "")
     # the damping: "modal_test" (hammer blows on the tool, drives on, modes
-    # fitted: identification/modal_test.py) or "stated" (model.damping_ratios,
+    # fitted: identification/stiffness/modes.py) or "stated" (model.damping_ratios,
     # else the plant's stated ratios).
     damping: str = choice("modal_test", ("modal_test", "stated"))
     # the tool point from a TCP calibration (four-point or sphere method):

@@ -13,7 +13,7 @@ from dataclasses import fields
 import numpy as np
 
 from robstiff_drake.errors import InputError
-from robstiff_drake.model.gcode import read_program_file
+from robstiff_drake.model.gcode.program import read_program_file
 from robstiff_drake.model.program_checks import StockCheck, cut_extent
 
 # The program's tool comment and the scenario's cutter may differ by

@@ -3,7 +3,7 @@ tracker``): the arm as a MultibodyPlant with its geometry perturbed, sagging und
 through compliant joints, measured by a tracker standing somewhere in the
 cell, which drifts, with its noise.
 
-Nothing here comes from the diagnosis (identification/tracker_*.py) nor
+Nothing here comes from the diagnosis (identification/tracker/) nor
 from the package's kinematics: the perturbed arm is a robot file's URDF
 (model/description.py, the project's URDF writer) parsed by Drake; Drake
 gives the measured point (CalcPointsPositions in the tracker's frame, the

@@ -6,7 +6,7 @@ sizes, each drawn from its seed; "exact"/0 for the bound):
   uniform draw within +-inertia_error (CAD or catalogue values);
 - the damping: a modal test on the station with the drives on (hammer
   blows on the tool in x, y, z, the response fitted by ERA:
-  identification/modal_test.py), each fitted ratio given to the preview's
+  identification/stiffness/modes.py), each fitted ratio given to the preview's
   mode nearest in frequency (what a user's test finds is the drives-closed
   damping; the modes it misses take the median of those it found);
 - the tool point: from a TCP calibration, off by tcp_error_mm (1 sigma
@@ -24,7 +24,7 @@ import numpy as np
 
 from robstiff_drake.diagrams.compliant_arm import modal_frequencies_hz
 from robstiff_drake.diagrams.scenario_models import model_stiffness
-from robstiff_drake.identification.modal_test import era_modes, impulse_response, merge_close
+from robstiff_drake.identification.stiffness.modes import era_modes, impulse_response, merge_close
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.arm_dynamics import ArmInertia
 from robstiff_drake.model.milling import Workpiece

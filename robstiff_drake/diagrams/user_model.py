@@ -37,10 +37,10 @@ from robstiff_drake.diagrams.scenario import planned_path
 from robstiff_drake.diagrams.scenario_models import plant_stiffness
 from robstiff_drake.diagrams.station import make_milling_station
 from robstiff_drake.diagrams.user_model_record import UserModel, disk_path, from_json, signature, to_json
-from robstiff_drake.identification.campaign import PayloadCampaign, StiffnessCampaign
-from robstiff_drake.identification.joint_stiffness import identify
-from robstiff_drake.identification.payload import calibrate
-from robstiff_drake.identification.pose_planning import plan_poses
+from robstiff_drake.identification.stiffness.campaign import PayloadCampaign, StiffnessCampaign
+from robstiff_drake.identification.stiffness.joint_stiffness import identify
+from robstiff_drake.identification.stiffness.payload import calibrate
+from robstiff_drake.identification.stiffness.pose_planning import plan_poses
 from robstiff_drake.io import write_atomic
 from robstiff_drake.model.milling import Cutter
 from robstiff_drake.model.payload import PayloadCalibration

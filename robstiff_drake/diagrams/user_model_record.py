@@ -78,8 +78,8 @@ CODE = ("robstiff_drake.diagrams.station", "robstiff_drake.diagrams.compliant_ar
         "robstiff_drake.model.joint_dynamics", "robstiff_drake.systems.gear_transmission",
         "robstiff_drake.model.transmission", "robstiff_drake.model.servo", "robstiff_drake.systems.milling_force",
         "robstiff_drake.systems.wrist_sensor", "robstiff_drake.plant", "robstiff_drake.model.description",
-        "robstiff_drake.identification.joint_stiffness", "robstiff_drake.identification.payload",
-        "robstiff_drake.identification.pose_planning", "robstiff_drake.model.preview",
+        "robstiff_drake.identification.stiffness.joint_stiffness", "robstiff_drake.identification.stiffness.payload",
+        "robstiff_drake.identification.stiffness.pose_planning", "robstiff_drake.model.preview",
         "robstiff_drake.diagrams.user_model", __name__)
 
 

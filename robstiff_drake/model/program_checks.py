@@ -3,7 +3,7 @@ before running it: where its cuts are, and whether a rapid move (or a feed
 move with the spindle stopped) runs the cutter into stock that no earlier
 cut has removed.  Plain numpy (and scipy's KD-tree); no Drake.
 
-Units: mm.  Moves are model/gcode.py Moves (work frame); ``to_base`` maps
+Units: mm.  Moves are model/gcode/program.py Moves (work frame); ``to_base`` maps
 an (N, 3) array of work-frame points to the robot's base frame (mm);
 boxes are the scenario's [x0, x1, y0, y1, top] (base frame)."""
 
@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from robstiff_drake.model.gcode_moves import PLANES
+from robstiff_drake.model.gcode.moves import PLANES
 
 # A rapid counts as "into the stock" where the cutter's face is more than
 # this below a box's top (the reader's arc tolerance: numbers of a post

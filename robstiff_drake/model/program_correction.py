@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robstiff_drake.model.gcode_moves import PLANES
+from robstiff_drake.model.gcode.moves import PLANES
 
 SAMPLE_MM = 0.1  # spacing of the corrected path's samples along a move (mm)
 MAX_SAMPLES_PER_MOVE = 20000

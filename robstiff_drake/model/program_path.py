@@ -1,4 +1,4 @@
-"""A G-code program's moves (model/gcode.py) as the planned path's
+"""A G-code program's moves (model/gcode/program.py) as the planned path's
 elements (model/path_elements.py): lines and arcs in the robot's base
 frame, with the program's feeds, exact stops and dwells.  Plain numpy; no Drake."""
 
@@ -6,13 +6,13 @@ import math
 
 import numpy as np
 
-from robstiff_drake.model.gcode_moves import PLANES
+from robstiff_drake.model.gcode.moves import PLANES
 from robstiff_drake.model.path_elements import Arc, Line
 
 def program_pieces(moves, rapid_m_per_s, transform):
     """Elements (m, base frame), speeds (m/s), exact stops and dwells (s)
     after each element, and the Move each comes from, of G-code moves
-    (model/gcode.py Move, mm in the work frame).  ``transform(p_mm)``
+    (model/gcode/program.py Move, mm in the work frame).  ``transform(p_mm)``
     maps a work-frame point (mm) to the base frame (m), a rotation about z
     and a shift; ``rapid_m_per_s``: the speed of G0 moves."""
     origin = np.asarray(transform((0.0, 0.0, 0.0)), dtype=float)
