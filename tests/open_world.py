@@ -54,11 +54,11 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import RigidTransform
-from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import MultibodyPlant
-from pydrake.multibody.tree import MultibodyForces, RevoluteJoint, SpatialInertia, UnitInertia
+from pydrake.multibody.tree import RevoluteJoint, SpatialInertia, UnitInertia
 
+from robstiff_drake.diagrams.tracker_world import FlangeQueries
 from robstiff_drake.identification.stiffness.campaign import StiffnessCampaign, tool_header_line
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.plant import JOINT_NAMES, robot_urdf
@@ -100,7 +100,7 @@ POINT_OFFSET_DIR = np.array([0.6, 0.0, -0.8])  # target on the spindle housing: 
 POINT_OFFSET_RANGE_M = (0.01, 0.15)
 
 
-class DrakeRobot:
+class DrakeRobot(FlangeQueries):
     """The IRB6400 in Drake, optionally on a compliant base (two extra
     revolute joints at the floor)."""
 
@@ -132,21 +132,9 @@ class DrakeRobot:
             q[self.base_joints] = q_base
         return q
 
-    def point(self, q, p_flange):
-        """Position (m, world) of a point fixed on the flange."""
-        self.plant.SetPositions(self.context, q)
-        return self.plant.CalcPointsPositions(self.context, self.flange.body_frame(),
-                                              np.reshape(p_flange, (3, 1)), self.plant.world_frame())[:, 0]
-
     def load_torques(self, q, force_N, p_flange=TOOL_M):
-        """Generalized forces (nq,) of a force (world frame) at a flange point, by Drake."""
-        plant, ctx = self.plant, self.context
-        plant.SetPositions(ctx, q)
-        forces = MultibodyForces(plant)
-        R_WB = plant.EvalBodyPoseInWorld(ctx, self.flange).rotation().matrix()
-        self.flange.AddInForce(ctx, R_WB @ p_flange, SpatialForce(np.zeros(3), np.asarray(force_N, float)),
-                               plant.world_frame(), forces)
-        return plant.CalcGeneralizedForces(ctx, forces)
+        """Generalized forces (nq,) of a force (world frame) at a flange point (m), by Drake."""
+        return super().load_torques(q, force_N, p_flange)
 
 
 @dataclass

@@ -74,7 +74,30 @@ def _perturb(robot, rng, tilt_between_parallel=True):
     return new, {"dtheta_rad": dtheta, "dd_m": dd, "da_m": da, "dalpha_rad": dalpha, "beta_rad": beta}
 
 
-class Arm:
+class FlangeQueries:
+    """What Drake says of a point fixed on the flange of ``self.plant`` (at
+    ``self.context``, the flange body ``self.flange``): its position and the
+    generalized forces of a force applied there.  The tests' independent
+    Drake arm (tests/open_world.py) asks the same questions."""
+
+    def point(self, q, p_flange):
+        """Position (m, world) of a point fixed on the flange."""
+        self.plant.SetPositions(self.context, q)
+        return self.plant.CalcPointsPositions(self.context, self.flange.body_frame(),
+                                              np.reshape(p_flange, (3, 1)), self.plant.world_frame())[:, 0]
+
+    def load_torques(self, q, force_N, p_flange):
+        """Generalized forces of a force (N, world frame) at a flange point (m), by Drake."""
+        plant, ctx = self.plant, self.context
+        plant.SetPositions(ctx, q)
+        forces = MultibodyForces(plant)
+        R_WB = plant.EvalBodyPoseInWorld(ctx, self.flange).rotation().matrix()
+        self.flange.AddInForce(ctx, R_WB @ np.asarray(p_flange, float), SpatialForce(np.zeros(3), np.asarray(force_N, float)),
+                               plant.world_frame(), forces)
+        return plant.CalcGeneralizedForces(ctx, forces)
+
+
+class Arm(FlangeQueries):
     """The perturbed arm in Drake, its base welded (or on two compliant floor
     joints) at the pose X_WB in the tracker's frame (the world)."""
 
@@ -105,22 +128,6 @@ class Arm:
         self.base_k = base_k
         self.flange = plant.GetBodyByName("flange")
         self.k = np.asarray(robot.joint_stiffness_Nm_per_rad, dtype=float)
-
-    def point(self, q, p_flange):
-        """Position (m, world) of a point fixed on the flange."""
-        self.plant.SetPositions(self.context, q)
-        return self.plant.CalcPointsPositions(self.context, self.flange.body_frame(),
-                                              np.reshape(p_flange, (3, 1)), self.plant.world_frame())[:, 0]
-
-    def load_torques(self, q, force_N, p_flange):
-        """Generalized forces of a force (N, world frame) at a flange point (m), by Drake."""
-        plant, ctx = self.plant, self.context
-        plant.SetPositions(ctx, q)
-        forces = MultibodyForces(plant)
-        R_WB = plant.EvalBodyPoseInWorld(ctx, self.flange).rotation().matrix()
-        self.flange.AddInForce(ctx, R_WB @ np.asarray(p_flange, float), SpatialForce(np.zeros(3), np.asarray(force_N, float)),
-                               plant.world_frame(), forces)
-        return plant.CalcGeneralizedForces(ctx, forces)
 
     def equilibrium(self, q_link_cmd, iterations=30, force_N=None, p_flange=None):
         """Positions with the joints (and base) sagged under gravity (and a force at a flange point)."""
