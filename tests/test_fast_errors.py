@@ -73,6 +73,15 @@ def test_another_robots_compensator_is_refused_before_the_path_is_computed(tmp_p
     def too_late(*args, **kwargs):
         raise AssertionError("the path was computed before the compensator's robot was checked")
 
+    # every module that binds planned_path by name binds the real one before it is patched (one imported while
+    # the patch stood would keep too_late after the test: the error budget of a later test in this process did)
+    import importlib
+    import pkgutil
+
+    import robstiff_drake.diagrams as diagrams_pkg
+
+    for m in pkgutil.iter_modules(diagrams_pkg.__path__, "robstiff_drake.diagrams."):
+        importlib.import_module(m.name)
     monkeypatch.setattr(milling_cell, "planned_path", too_late)
     monkeypatch.setattr(user_model, "resolve", too_late)
     payload = {"mass_kg": 40.0, "com_mm": [0.0, 0.0, 180.0], "force_bias_N": [0.0] * 3, "torque_bias_Nm": [0.0] * 3,

@@ -39,7 +39,7 @@ from doc_blocks import blocks, pages, shortened, shorten_options
 from robstiff_drake.commands.main import EXAMPLES
 
 REPO = Path(__file__).resolve().parents[1]
-SOURCES = ("pyproject.toml", "README.md", "LICENSE", "robstiff_drake", "models", "diagrams", "data", "examples")
+SOURCES = ("pyproject.toml", "README.md", "LICENSE", "robstiff_drake", "models", "diagrams", "data", "examples", "docs")
 # --help examples that need more than this machine: a controller and a sensor on the network
 HELP_NEEDS_A_CELL = {
     "compensate": "streams to an ABB controller and reads a Net F/T: needs a cell (tests/test_sim_cell.py runs "
