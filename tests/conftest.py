@@ -33,6 +33,18 @@ def _urdf_cache(tmp_path_factory):
         os.environ[CACHE_ENV] = old
 
 
+@pytest.fixture(autouse=True)
+def _collect_on_the_main_thread():
+    """After each test, the garbage cycles it left are collected here, on the main thread.  Left to chance, a
+    collection can run in whatever thread allocates next (a Dask client's event loop in test_sweep did): a cycle
+    holding a Drake object whose C++ side owns a thread (Meshcat's server) then ends in that thread, and a
+    pytest worker aborted ("Fatal Python error: Aborted" while garbage-collecting in tornado's loop)."""
+    yield
+    import gc
+
+    gc.collect()
+
+
 @pytest.fixture(scope="session")
 def robot():
     return load_robot()
