@@ -1,4 +1,4 @@
-"""No gouge where the path turns: the face-and-contour job of issue 20
+"""No gouge where the path turns: the face-and-contour job
 (diagrams/face_and_contour.yaml + .nc: a 75 mm face mill, a plunge at the
 plate's edge, one face pass along X, a 90-degree corner, a contour back
 with R20 arcs over the face pass; F1200, S3600, z5), and the same program

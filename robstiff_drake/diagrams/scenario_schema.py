@@ -266,7 +266,7 @@ class IdentificationConfig:
     # Cutting coefficients (predictive and preview modes): "perturbed", each
     # off by a uniform draw within +-coefficient_error, or "exact".
     # ASSUMPTION: 20 %: coefficients from a handbook or another batch of
-    # the alloy, another insert grade or a worn edge (issue 20).
+    # the alloy, another insert grade or a worn edge.
     coefficients: str = choice("perturbed", ("perturbed", "exact"))
     coefficient_error: float = num(0.2, 0.0, 0.9, "")
     # The controller's servo (preview mode): "identified" from a step test

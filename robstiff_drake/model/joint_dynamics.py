@@ -43,7 +43,7 @@ from scipy import linalg
 from robstiff_drake.model import servo as servo_model
 
 # ASSUMPTION: 5 % of critical damping on every mode of the links on their gears.  Experimental modal
-# analyses of industrial arms report 2-10 % on their structural modes (the range issue 22's physics review
+# analyses of industrial arms report 2-10 % on their structural modes (the range a physics review of this project
 # quotes; e.g. the tool-point modes of a surgical milling arm, 2.0-3.6 % at 110-122 Hz, Sci. Rep. 14 (2024),
 # doi:10.1038/s41598-024-61362-2, Table 3); 5 % is the middle.  A scenario sets its own (plant.modal_damping_ratio,
 # plant.damping_ratios).
