@@ -49,7 +49,7 @@ class CompensatorSettings:
     # the robot controller's servo (its `servo:` section, SERVO_KEYS): the
     # interpolator's dead time (ms), the position loop's gain (1/s), the
     # velocity loop's bandwidth (Hz) and the path's velocity feed-forward
-    # (0-1).  None: not stated (a file written before the loop settings were recorded, 2026-11-23); what a
+    # (0-1).  None: not stated (a file written by an earlier version); what a
     # correction takes to reach the motor is then unknown.
     servo: dict = None
     path: str = ""
