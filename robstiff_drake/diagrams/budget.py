@@ -291,9 +291,12 @@ def error_budget(sc, robot, *, metric="rms", sources=None, ordered=True, progres
     floor = float(stats_without(active)[metric])
     contributions, interaction = budget_fields.one_at_a_time(total, alone, floor)
     out = {"metric": metric, "total": total, "floor": floor, "contributions": contributions,
-           "interaction": interaction, "sources": active,
-           "field": budget_fields.field_shares(fields[frozenset()], {s: fields[frozenset([s])] for s in active},
-                                               fields[frozenset(active)])}
+           "interaction": interaction, "sources": active}
+    try:
+        out["field"] = budget_fields.field_shares(fields[frozenset()], {s: fields[frozenset([s])] for s in active},
+                                                  fields[frozenset(active)])
+    except ValueError as e:  # no common scan points, or a zero error field: no field split, and why
+        out["field_not_split"] = str(e)
     if ordered:
         steps = {}
         for name, order in (("forward", active), ("reverse", active[::-1])):
@@ -366,6 +369,8 @@ def format_budget(b):
             lines.append(f"  the ordered shares' +- sum to {100 * spread:.0f} % of total - floor")
     if "field" in b:
         lines.extend(format_field(b["field"], b["sources"]))
+    elif "field_not_split" in b:
+        lines.append(f"  no split of the error field: {b['field_not_split']}")
     for src in b["sources"]:
         if src in ALSO_CHANGES:
             lines.append(f"  removing {src} also changes {ALSO_CHANGES[src]}")
