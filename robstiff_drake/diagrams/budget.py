@@ -15,14 +15,21 @@ Sources, and what "removed" means (the scenario's other settings kept):
   filter.  (Deleting the filter alone is not a removal of its lag: the
   plain loop then feeds the sensor's reading of the payload's inertia back
   at the arm's first mode and rings, 72-119 mm on the paper's cuts; the
-  filter is there for that as much as for the noise.  Its noise is then
-  unfiltered: what the filter did for the noise stays with the filter's
-  share, not the noise's);
+  filter is there for that as much as for the noise.)  So that the removal
+  takes away the lag and not the noise filtering too, the lag-free
+  sensor's noise is the filtered noise's size: the sensor's noise times
+  the filter's noise factor (model/filters.noise_std_factor, 0.067 for a
+  2 Hz second-order low-pass at 1 kHz), white rather than low-passed (the
+  same variance per sample, not the same spectrum);
 * sensor noise: a noiseless sensor;
 * servo and interpolator lag: no interpolator dead time, a 1000 1/s
   position loop around a 500 Hz velocity loop;
 * sampling period and transport delay: no delay periods, the controller
-  (and the plant, and the sensor at >= 1 kHz) at 1 ms;
+  (and the sensor at >= 1 kHz) at 1 ms; the plant's step, where it is
+  coarser than 1 ms, then goes to 1 ms too (a discrete plant cannot be
+  sampled faster than it steps): this removal also changes the
+  simulation's step, which is why the budget prints it (ALSO_CHANGES);
+  the step's own effect is measured in studies/time_step_convergence.py;
 * lost motion: none in the gears (nor in the compensator's model);
 * the arm's dynamic response: the arm's and the payload's masses and
   inertias scaled by EPSILON and gravity by 1 / EPSILON: the same static
@@ -37,6 +44,16 @@ Sources, and what "removed" means (the scenario's other settings kept):
   arm's: its path accuracy; studies/paper_reproduction.py): the arm's own;
 * scan noise: a noiseless scan (the budget's statistics are the scan's, as
   a user measures them, not the simulation's true surface).
+
+The field split (the budget's answer: model/budget_fields.py).  Each run
+keeps its error field along the scan (mm, the same scan points in every
+run); source i's field is the cut's less the one with i alone removed,
+and its share is its projection on the cut's field over the cut's mean
+square.  When the sources' effects add, the shares and the floor's add to
+1 whatever the fields' correlations; what is left is the true interaction.
+The one-at-a-time split of the RMS below it calls 41-49 % of an additive
+cut "interaction" (n equal uncorrelated sources add in quadrature); it is
+printed beside, for comparison.
 
 Interactions and the attribution.  Removing two sources together is not
 the sum of removing each (a filter's lag matters less once the delays are
@@ -74,7 +91,9 @@ import numpy as np
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.milling_cell import build_milling_cell, planned_path
-from robstiff_drake.diagrams.scenario_models import exact_payload_calibration, plant_stiffness
+from robstiff_drake.diagrams.scenario_models import cutting_setup, exact_payload_calibration, plant_stiffness
+from robstiff_drake.model import budget_fields
+from robstiff_drake.model.filters import noise_std_factor
 from robstiff_drake.model.surface import surface_error_stats
 
 EPSILON = 0.04  # the mass scale of "the arm's dynamic response removed"
@@ -88,6 +107,9 @@ METRICS = ("mean", "rms", "max_abs", "pv")
 # A run whose largest error exceeds RINGING_FACTOR times the real cut's is named in the budget (``ringing``):
 # its loop rings rather than cutting better, and a share involving it is not a share of the cut's error
 RINGING_FACTOR = 2.0
+# what a removal changes beyond its label, where it cannot help it (printed under the budget)
+ALSO_CHANGES = {"sampling period and delay": "the plant's step, to 1 ms where it is coarser",
+                "arm dynamic response": f"the plant's step, to {FAST_STEP_S * 1e3:g} ms (the faster modes need it)"}
 
 
 def applies(sc, source):
@@ -139,6 +161,9 @@ def without(sc, robot, removed, model):
         if um is not None:
             um.coefficient_factors = {k: 1.0 for k in um.coefficient_factors}
     if "force filter lag" in removed:  # a lag-free measurement of the cutting wrench, no filter (module docstring)
+        b, a = _filter_ba(sc)
+        factor = noise_std_factor(b, a)  # the noise as filtered: the removal takes the lag, not the filtering
+        s.sensor.noise_N, s.sensor.noise_Nm = s.sensor.noise_N * factor, s.sensor.noise_Nm * factor
         s.controller.filter.kind = "none"
         s._lag_free_cutting_sensor = True
     if "sensor noise" in removed:
@@ -180,6 +205,18 @@ def without(sc, robot, removed, model):
     return s, robot, gravity
 
 
+def _filter_ba(sc):
+    """(b, a) of scenario ``sc``'s force filter, at its sensor's rate."""
+    from robstiff_drake.diagrams.compensator import filter_coefficients
+    return filter_coefficients(sc.controller.filter, sc.sensor.rate_hz, cutting_setup(sc)[0].spindle_rpm)
+
+
+def measured_field_mm(res):
+    """The surface error as the scan measures it (mm), every scan line's
+    points end to end (NaN where there is no machined face)."""
+    return np.concatenate([np.asarray(line.measured_error_m, dtype=float) for line in res.scans]) * 1e3
+
+
 def measured_stats(res):
     """Surface-error statistics (mm) of what the scan measures (its noise in)."""
     err = np.concatenate([line.measured_error_m[np.isfinite(line.measured_error_m)] for line in res.scans])
@@ -188,7 +225,7 @@ def measured_stats(res):
 
 def run(sc, robot, *, compensation=True):
     """One compensated cut of a budget scenario (``without``'s output):
-    measured statistics (mm)."""
+    (measured statistics (mm), the measured error field (mm))."""
     s, rob, gravity = sc
     if getattr(s, "_reidentify_servo", False):  # keep the identified parts, identify the servo anew
         _, _, q_ref = planned_path(s, rob, rob.tool_point(where="the error budget"))
@@ -206,7 +243,7 @@ def run(sc, robot, *, compensation=True):
         if getattr(s, "_lag_free_cutting_sensor", False):  # its weight: eps m at gravity g / eps
             cell.station.systems["sensor"].set_payload(cal, g)
     res = run_cut(s, rob, compensation=compensation, cell=cell)
-    return measured_stats(res)
+    return measured_stats(res), measured_field_mm(res)
 
 
 def _servo_only(sc):
@@ -225,7 +262,10 @@ def error_budget(sc, robot, *, metric="rms", sources=None, ordered=True, progres
     sum); with ``ordered``: ``attribution`` ({source: mm}, the mean of the
     forward and reverse cumulative removals; it and the floor sum to the
     total), ``forward``/``reverse`` (each order's steps) and ``order_spread``
-    (half their difference); ``ringing`` ({run: max abs mm}, runs whose
+    (half their difference); ``field`` (the split of the error field
+    itself, model/budget_fields.field_shares: each source's and the
+    floor's fraction of the cut's mean square and the true interaction);
+    ``ringing`` ({run: max abs mm}, runs whose
     loop rings), ``run_stats`` ({run: METRICS}), ``metric``, ``sources``,
     ``runs``.  ``progress(text)``:
     called after each run."""
@@ -235,22 +275,28 @@ def error_budget(sc, robot, *, metric="rms", sources=None, ordered=True, progres
     model = user_models.resolve(sc, robot, q_ref[0])
     active = [s for s in SOURCES if s in (sources or SOURCES) and applies(sc, s)]
     n_runs = len(active) + 2 + (2 * max(len(active) - 2, 0) if ordered else 0)
-    done = {}
+    done, fields = {}, {}
 
     def stats_without(removed):
         key = frozenset(removed)
         if key not in done:
-            done[key] = run(without(sc, robot, key, model), robot)
+            done[key], fields[key] = run(without(sc, robot, key, model), robot)
             if progress:
                 progress(f"budget: {len(done)} of {n_runs} runs; removed: {', '.join(sorted(key)) or 'nothing'}")
         return done[key]
 
     full = stats_without(())
     total = float(full[metric])
-    contributions = {src: float(total - stats_without([src])[metric]) for src in active}
+    alone = {src: float(stats_without([src])[metric]) for src in active}
     floor = float(stats_without(active)[metric])
+    contributions, interaction = budget_fields.one_at_a_time(total, alone, floor)
     out = {"metric": metric, "total": total, "floor": floor, "contributions": contributions,
-           "interaction": float(total - floor - sum(contributions.values())), "sources": active}
+           "interaction": interaction, "sources": active}
+    try:
+        out["field"] = budget_fields.field_shares(fields[frozenset()], {s: fields[frozenset([s])] for s in active},
+                                                  fields[frozenset(active)])
+    except ValueError as e:  # no common scan points, or a zero error field: no field split, and why
+        out["field_not_split"] = str(e)
     if ordered:
         steps = {}
         for name, order in (("forward", active), ("reverse", active[::-1])):
@@ -321,6 +367,28 @@ def format_budget(b):
         if ordered:
             spread = sum(b["order_spread"].values()) / abs(b["total"] - b["floor"])
             lines.append(f"  the ordered shares' +- sum to {100 * spread:.0f} % of total - floor")
+    if "field" in b:
+        lines.extend(format_field(b["field"], b["sources"]))
+    elif "field_not_split" in b:
+        lines.append(f"  no split of the error field: {b['field_not_split']}")
+    for src in b["sources"]:
+        if src in ALSO_CHANGES:
+            lines.append(f"  removing {src} also changes {ALSO_CHANGES[src]}")
     for run_, mx in b.get("ringing", {}).items():
         lines.append(f"  rings: the run with {run_} removed (max abs {mx:.3f} mm): its share is not of the cut's error")
     return "\n".join(lines)
+
+
+def format_field(f, sources):
+    """The field split's lines (the budget's answer: they add up)."""
+    lines = [f"  the error field split ({f['points']} scan points; a source's field: the cut's less the one with it "
+             "alone removed; its share: its projection on the cut's field over the cut's mean square)",
+             f"  {'source':30s} {'share':>7s} {'RMS mm':>8s} {'mean mm':>8s}"]
+    for s in sorted(sources, key=lambda k: -abs(f["shares"][k])):
+        lines.append(f"  {s:30s} {100 * f['shares'][s]:+6.1f}% {f['shares_mm'][s]:+8.4f} {f['mean_mm'][s]:+8.4f}")
+    lines.append(f"  {'every source removed (floor)':30s} {100 * f['floor']:+6.1f}% {f['floor_mm']:+8.4f} "
+                 f"{f['mean_mm']['floor']:+8.4f}")
+    lines.append(f"  {'interaction (what is left)':30s} {100 * f['interaction']:+6.1f}% {f['interaction_mm']:+8.4f} "
+                 f"{f['mean_mm']['interaction']:+8.4f}")
+    lines.append(f"  {'total':30s} {100.0:+6.1f}% {f['rms_mm']:+8.4f} {f['mean_mm']['total']:+8.4f}")
+    return lines

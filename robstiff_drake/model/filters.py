@@ -83,3 +83,13 @@ class SampleFilter:
                 z[n - 1] = b[n] * x - a[n] * y
             out.append(y)
         return out
+
+
+def noise_std_factor(b, a, n_samples=1 << 16):
+    """The factor the filter (b, a) scales white noise's standard deviation
+    by, per sample at its own rate: the root of the sum of its impulse
+    response's squares (``n_samples`` of it)."""
+    impulse = np.zeros(int(n_samples))
+    impulse[0] = 1.0
+    h = signal.lfilter(b, a, impulse)
+    return float(np.sqrt(np.sum(h * h)))
