@@ -355,7 +355,11 @@ class CompensatorLoop:
         age = t_done - self.latest_sample_time if self.latest_sample_time is not None else float("nan")
         self.n.compute_ms.add((t_done - t_arr) * 1e3)
         self.n.age_ms.add(age * 1e3)
-        stale = bool(self.faults) or not sent or not age <= STALE_PERIODS * self.s.period_s
+        # (stale when old on both clocks, as the sensor's silence is judged: in lockstep on a loaded PC the
+        # newest record can be old on this PC's clock and of this very cycle on the controller's)
+        bound = STALE_PERIODS * self.s.period_s
+        age_ctrl = self.t_session - self.ts_sensor_good if self.latest_sample_time is not None else float("nan")
+        stale = bool(self.faults) or not sent or not (age <= bound or 0.0 <= age_ctrl <= bound)
         if stale:
             self.n.stale_s += dt
         self.n.lost_estimate.add(sum(abs(c) for c in self.comp.dq), stale)
