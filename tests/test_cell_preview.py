@@ -156,14 +156,17 @@ def test_preview_falls_back_to_plain_when_the_plan_no_longer_holds(tmp_path, cas
 
     egm_port, netft_port = free_udp_port(), free_udp_port()
     faults = Faults(restart_at=0.6) if case == "restart" else Faults()
-    th, net = start_cell(robot, reference, egm_port=egm_port, netft_port=netft_port, duration_s=60.0,
+    # lockstep (the physics without this machine's scheduling: a shared PC holds cycles), ended by the cell after
+    # 4 s of its controller's clock and the compensator when the messages stop: no wall-clock check between the
+    # two (a compensator ended on its own clock left the cell unanswered, which it reported as a fault)
+    th, net = start_cell(robot, reference, egm_port=egm_port, netft_port=netft_port, duration_s=600.0,
                          faults=faults, wrench=cutting_wrench(t0=0.3 if case == "force" else 5.0, ramp_s=0.05),
-                         lockstep=True)  # (the physics without this machine's scheduling: a shared PC holds cycles)
+                         lockstep=True, cut_s=4.0, answer_timeout_s=60.0)
     log = tmp_path / "log"
     try:
         p = subprocess.run(compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=str(log),
-                                          extra=["--mode", "preview", "--job", SHORT, "--duration-s", "4"]),
-                           cwd=ROOT, capture_output=True, text=True, timeout=240)
+                                          extra=["--mode", "preview", "--job", SHORT, "--idle-exit-s", "5"]),
+                           cwd=ROOT, capture_output=True, text=True, timeout=900)
     finally:
         net.stop = True
         th.join(30)

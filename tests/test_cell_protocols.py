@@ -100,15 +100,18 @@ def test_compensate_over_rsi_and_stream_motion(tmp_path, protocol):
     q0 = ref_fn(0.0)
     port, netft = h.free_udp_port(), h.free_udp_port()
     link = _controller_link(protocol, port)
-    th, net = h.start_cell(robot, lambda t: q0, egm_port=port, netft_port=netft, duration_s=20.0, link=link,
-                           lockstep=True, transport_delay_cycles=1)
+    # lockstep, ended by the cell after 2.5 s of its controller's clock and the compensator when the messages
+    # stop (not by the compensator's --duration-s on this PC's clock: on a loaded machine the cut had not
+    # reached its settled part by then)
+    th, net = h.start_cell(robot, lambda t: q0, egm_port=port, netft_port=netft, duration_s=600.0, link=link,
+                           lockstep=True, transport_delay_cycles=1, cut_s=2.5, answer_timeout_s=60.0)
     cmd = h.compensate_cmd(model, payload, None, egm_port=0 if protocol == "stream-motion" else port,
                            netft_port=netft, log=str(tmp_path / "log"),
-                           extra=["--controller-protocol", protocol, "--duration-s", "2.5"]
+                           extra=["--controller-protocol", protocol, "--idle-exit-s", "5"]
                            + (["--controller", f"127.0.0.1:{port}"] if protocol == "stream-motion" else []))
     import subprocess
 
-    cp = subprocess.run(cmd, cwd=h.ROOT, capture_output=True, text=True, timeout=120)
+    cp = subprocess.run(cmd, cwd=h.ROOT, capture_output=True, text=True, timeout=900)
     net.stop = True
     th.join(30)
     net.close()

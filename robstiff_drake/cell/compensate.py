@@ -54,6 +54,7 @@ MAX_STEP_PERIODS = 2.0
 CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
 STALE_PERIODS = 3.0
 MALFORMED_FIRST = 25  # unusable datagrams from the controller before its first good one: refused at once  # a correction computed from a wrench older than this many periods is stale
+START_BACKLOG_S = 1.0  # the most of the controller's messages (s of its clock) waiting at the start not counted late
 
 
 def _fmt(q_deg):
@@ -106,6 +107,7 @@ class CompensatorLoop:
         self.t_sensor_grace = 0.0  # the first message after a gap in the controller's stream
         self.t_start = self.t_last_msg = None
         self.t_last_answer = 0.0
+        self._caught_up = False  # (after the start's backlog: see run)
         self.pending_reseed = False
         self.reseed_candidate = None  # the first finite record while pending_reseed (the wrench, 6)
         self.saturated = False
@@ -353,7 +355,11 @@ class CompensatorLoop:
         age = t_done - self.latest_sample_time if self.latest_sample_time is not None else float("nan")
         self.n.compute_ms.add((t_done - t_arr) * 1e3)
         self.n.age_ms.add(age * 1e3)
-        stale = bool(self.faults) or not sent or not age <= STALE_PERIODS * self.s.period_s
+        # (stale when old on both clocks, as the sensor's silence is judged: in lockstep on a loaded PC the
+        # newest record can be old on this PC's clock and of this very cycle on the controller's)
+        bound = STALE_PERIODS * self.s.period_s
+        age_ctrl = self.t_session - self.ts_sensor_good if self.latest_sample_time is not None else float("nan")
+        stale = bool(self.faults) or not sent or not (age <= bound or 0.0 <= age_ctrl <= bound)
         if stale:
             self.n.stale_s += dt
         self.n.lost_estimate.add(sum(abs(c) for c in self.comp.dq), stale)
@@ -426,11 +432,22 @@ class CompensatorLoop:
                         accepted.append((m, t, dt))
                 if not accepted:
                     continue  # duplicates or old datagrams only: nothing to answer
+                # before the first answer reaches it the controller holds its own pose: the messages it sent
+                # meanwhile, waiting here until this side first caught up (a message alone; at most a second of
+                # them), are the start's backlog, not late answers, as the controller counts them (from its first
+                # target on): the two sides' verdicts judge the same cycles whatever this PC's load
+                started = self._caught_up
+                if not started and self.n.answered > 0 and (
+                        len(accepted) == 1 or self.n.start_backlog >= START_BACKLOG_S / self.s.period_s):
+                    self._caught_up = started = True
                 for m, t, dt in accepted[:-1]:
                     # older ones behind the newest (this PC fell behind): each answered in turn, late; a
                     # controller that takes the newest target loses nothing by it, and one that reads the
                     # targets a cycle after sending (the transport delay) gets the target it is due
-                    self.n.late += 1
+                    if started:
+                        self.n.late += 1
+                    else:
+                        self.n.start_backlog += 1
                     self.cycle(m, t, dt)
                 msg, t_arr, dt = accepted[-1]
                 gap = t_arr - self.t_last_msg
@@ -439,7 +456,7 @@ class CompensatorLoop:
                     self.t_sensor_grace = t_arr
                 if gap > 1.5 * T:
                     self.n.gaps_over += 1
-                if self.t_last_answer > t_arr:
+                if self.t_last_answer > t_arr and started:
                     self.n.late += 1
                 self.t_last_msg = t_arr
                 self.fault_off("silent", f"{self.link.name}: messages again")
@@ -463,13 +480,15 @@ class CompensatorLoop:
         cycles = n.received + n.lost
         lost = n.lost_estimate.fraction()
         sensor_faults = n.sensor_faults
-        seen = (f"seen of the controller: {n.received} messages, {n.lost} lost on the way, {n.gaps_over} gaps over "
+        seen = (f"seen of the controller: {n.received} messages ({n.start_backlog} waiting at the start, before "
+                f"its first target: not late), {n.lost} lost on the way, {n.gaps_over} gaps over "
                 f"1.5 periods; of the sensor: {n.sensor_records} records, {sensor_faults} sensor faults; the "
                 "controller sees only the answers (its own verdict counts those), not the correction this side "
                 "ramped down for its faults")
         word, reasons, line = verdict(cycles=cycles, answered=n.answered, late=n.late, unanswered=unanswered,
                                       faults=n.fault_onsets, lost_fraction=lost, refused=n.refused, seen=seen)
         return {"messages": n.received, "cycles": cycles, "answered": n.answered, "late": n.late,
+                "start_backlog": n.start_backlog,
                 "unanswered": unanswered, "skipped": n.skipped, "lost_in_network": n.lost,
                 "duplicates_dropped": n.duplicates, "old_dropped": n.old, "sequence_jumps": n.jumps,
                 "clock_faults": n.clock_faults, "strangers_dropped": self.link.strangers,

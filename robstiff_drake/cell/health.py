@@ -126,6 +126,7 @@ class Counters:
     received: int = 0  # controller messages decoded
     answered: int = 0
     late: int = 0  # answers sent after the next message had arrived
+    start_backlog: int = 0  # messages waiting before the first answer (the controller held its own pose: not late)
     skipped: int = 0  # messages never answered: a newer one was already waiting
     refused: int = 0  # targets the safety check refused
     unanswered_refused: int = 0  # messages left unanswered because no safe target was at hand

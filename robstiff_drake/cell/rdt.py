@@ -39,6 +39,9 @@ CMD_SET_BIAS = 0x0042
 _REQUEST = struct.Struct("!HHI")
 _RECORD = struct.Struct("!3I6i")
 RECORD_BYTES = _RECORD.size  # 36
+# the malformed packets (wrong header or length) with no RDT record among them after which a device is refused
+# (pynetft stops a stream of malformed packets and asks again with a back-off: a few arrive per second)
+MALFORMED_ENOUGH = 5
 # The simulated sensor's calibration (ASSUMPTION: a fine resolution, 1e6
 # counts per N and per N*m, so that the int32 counts carry the simulated
 # wrench to 1 uN; a real sensor serves its own, which compensate reads).
@@ -175,7 +178,10 @@ class NetFTReader:
         except Exception as e:  # pynetft's configuration / socket errors
             raise InputError(f"{where}: cannot start the RDT stream ({e})") from None
         t_end = time.monotonic() + timeout_s
-        while not self._queue and time.monotonic() < t_end:
+        # (a device that has sent MALFORMED_ENOUGH packets and no RDT record is refused at once: a count, not
+        # a time, so the verdict does not depend on how fast this PC runs)
+        while (not self._queue and time.monotonic() < t_end
+               and self._client.health().malformed_count < MALFORMED_ENOUGH):
             time.sleep(0.005)
         if not self._queue:
             h = self._client.health()

@@ -140,7 +140,8 @@ def _link(protocol, listen_port, controller, period_s):
 def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, log=None, period_ms=4.0,
         sensor_rate_hz=1000.0, filter_kind="lowpass", cutoff_hz=DEFAULT_CUTOFF_HZ, filter_order=2, spindle_rpm=3600.0,
         max_jump_N=1000.0, max_jump_Nm=None, saturation_deg=0.5, rate_limit_deg_per_s=5.0, delay_steps=0,
-        netft_counts=None, netft_units=None, netft_http_port=80, wait_s=30.0, duration_s=0.0, idle_exit_s=0.0,
+        netft_counts=None, netft_units=None, netft_http_port=80, netft_open_s=2.0,
+        wait_s=30.0, duration_s=0.0, idle_exit_s=0.0,
         sensor_timeout_ms=20.0, rt_priority=0, controller="127.0.0.1", protocol="egm", servo=None,
         cutter_diameter_mm=None, allow_unstable_loop=False, mode="plain", job=None, preview_sync_ms=25.0,
         preview_force_bound_N=150.0):
@@ -228,7 +229,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     sensor = NetFTReader(host, port, counts=netft_counts, units=netft_units, http_port=netft_http_port)
     stream_log = None
     try:
-        sensor.open(timeout_s=2.0)
+        sensor.open(timeout_s=netft_open_s)
         good = [w for w, _, _, clipped in sensor.drain() if all(v == v for v in w) and not clipped]
         # the guard's and filter's start: the median of the first records (a spike among them moves a mean)
         w0 = np.median(good, axis=0) if good else np.zeros(6)

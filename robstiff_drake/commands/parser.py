@@ -385,6 +385,9 @@ def build_parser():
                         "lbf-ft, kgf-cm, kN-m)")
     p.add_argument("--netft-http-port", type=_number_in(1, 65535, integer=True), default=80,
                    help="TCP port of the sensor's calibration page netftapi2.xml (default: %(default)s)")
+    p.add_argument("--netft-open-s", type=_number_in(0.1, 600.0, "s"), default=2.0,
+                   help="how long to wait for the sensor's first RDT record before refusing it, on this PC's clock "
+                        "(default: %(default)s)")
     p.add_argument("--servo", metavar="DELAY_MS,KP,BW_HZ,FF[,KI_HZ]", default=None,
                    help="the controller's servo for the log's compensator.yaml: interpolator dead time (ms), "
                         "position gain (1/s), velocity bandwidth (Hz), velocity feed-forward (0-1) and, "
