@@ -46,16 +46,19 @@ def motor_inertia(robot, M):
     return joint_dynamics.motor_inertia(robot, M)
 
 
-def joint_model(controller_plant, robot, q_rad, stiffness_matrix, damping_ratios, servo):
+def joint_model(controller_plant, robot, q_rad, stiffness_matrix, damping_ratios, servo, damping_on="drives_closed"):
     """The linear joints (model/joint_dynamics.JointModel) at pose q: the
     controller model's mass matrix and weight's stiffness, the gears, their
-    modal damping (``damping_ratios``, per mode or one for all), the motors
-    and drives (velocity loops tuned for the rigid axes at q)."""
+    modal damping (``damping_ratios``, per mode or one for all, on the
+    modes ``damping_on`` names: drives_closed or motors_held), the motors
+    and drives (velocity loops tuned for the rigid axes at q, the integral
+    corner chosen there when the servo's rule says so)."""
     ctx = controller_plant.CreateDefaultContext()
     G = gravity_stiffness(controller_plant, ctx, np.asarray(q_rad, dtype=float))
     controller_plant.SetPositions(ctx, q_rad)
     M = controller_plant.CalcMassMatrix(ctx)
-    return joint_dynamics.linear_joints(M, G, stiffness_matrix, damping_ratios, servo, motor_inertia(robot, M))
+    return joint_dynamics.linear_joints(M, G, stiffness_matrix, damping_ratios, servo, motor_inertia(robot, M),
+                                        stated_on=damping_on)
 
 
 def unstable_step_message(jm, time_step_s):
@@ -151,7 +154,7 @@ def set_drives_at_rest(arm, root_context, theta, q_command=None):
 
 def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_rad, damping_ratios, q_modes_rad,
                       servo, interpolator_period_s, lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0,
-                      check_stability=True):
+                      check_stability=True, damping_on="drives_closed"):
     """The arm and its drives: a discrete MultibodyPlant (``plant_config``)
     of the links, each driven through its gear by a motor with its rotor's
     inertia, which a torque-level drive turns (model/servo.py); the robot
@@ -162,9 +165,11 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     Gear j carries tau = K dz(theta - q) + D (theta' - q') onto the link
     and minus that onto its motor: K the gears' stiffness (with the 2-3
     coupling), dz the play's dead zone (``lost_motion_rad``: half-widths;
-    none: dz(x) = x), D the modal damping that gives each motors-held mode
-    its ratio in ``damping_ratios`` (model/joint_dynamics.py, at
-    ``q_modes_rad``).  Without play the torque is one MatrixGain (no Python
+    none: dz(x) = x), D the modal damping that gives each drives-closed arm
+    mode (``damping_on`` "motors_held": each motors-held mode) its ratio in
+    ``damping_ratios`` (model/joint_dynamics.py, at ``q_modes_rad``; the
+    drives' integral corner chosen there when the servo's rule says so:
+    the drives are built with ``joints.servo``).  Without play the torque is one MatrixGain (no Python
     in the step), with play systems/gear_transmission.GearPlay.  The gear's
     torque is explicit over a step (symplectic Euler in the plant, the
     drives exact with it held): stable while omega h < 2 in every mode
@@ -192,7 +197,8 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     plant.Finalize()
     ctrl = controller_model(robot)
     Kg = joint_dynamics.stiffness_matrix(k, coupling_c23_rad_per_Nm)
-    jm = joint_model(ctrl, robot, q_modes_rad, Kg, damping_ratios, servo)
+    jm = joint_model(ctrl, robot, q_modes_rad, Kg, damping_ratios, servo, damping_on)
+    servo = jm.servo  # (its integral corner chosen)
     why = unstable_step_message(jm, h) if check_stability else None
     if why:
         raise ValueError(why)

@@ -80,6 +80,7 @@ def twin_scenario(sc, robot, coefficient_factor):
     tw.servo.velocity_bandwidth_hz = float(np.clip(servo.velocity_bandwidth_hz, 1.0, 500.0))
     tw.servo.velocity_feedforward = 1.0
     tw.servo.velocity_integral_hz = float(np.clip(servo.velocity_integral_hz, 0.0, 100.0))
+    tw.servo.velocity_integral = "stated"  # (the identified drives' corner, not one chosen again)
     tw.sensor.force_bias_N = [float(v) for v in cal.force_bias_N]
     tw.sensor.torque_bias_Nm = [float(v) for v in cal.torque_bias_Nm]
     um = user_model_of(sc)

@@ -40,8 +40,10 @@ class PlantConfig:
 
     # Joint stiffness of the plant (N*m/rad); empty: the robot file's nominal.
     joint_stiffness_Nm_per_rad: list[float] = vec([], (0, 6), *STIFFNESS_RANGE_NM_PER_RAD, "N*m/rad")
-    # Damping per mode (modal damping, model/joint_dynamics.py): the damping ratio of each mode of the links
-    # on their gears (motors held), lowest frequency first; or one ratio for every mode.  damping_ratios,
+    # Damping per mode (modal damping, model/joint_dynamics.py): the damping ratio of each mode of the arm
+    # with its drives closed (what a modal test with the drives on measures; damping_on: motors_held states
+    # it on the links on their gears, motors held, instead), lowest frequency first; or one ratio for every
+    # mode.  damping_ratios,
     # when not empty, sets every mode (modal_damping_ratio is then not used); empty: modal_damping_ratio.  ASSUMPTION (default): 5 % (joint_dynamics.py
     # gives the source).  The plant step is stable by its size, not by the damping (the run is refused
     # with the step it needs when it is not).
@@ -51,6 +53,10 @@ class PlantConfig:
     modal_damping_ratio: float = num(DEFAULT_MODAL_DAMPING_RATIO, 0.0, MAX_DAMPING_RATIO, "",
                                      why="a structural mode past 50 % of critical is no longer a mode; modal "
                                          "tests of industrial arms find 2-10 %")
+    # Which modes the ratios are stated on: drives_closed (the arm's modes with the drives' loops closed, as a
+    # modal test with the drives on measures them: the plant solves for the gears' damping that gives them)
+    # or motors_held (the links on their gears; the drives then add or take damping).
+    damping_on: str = choice("drives_closed", ("drives_closed", "motors_held"))
     # The gears' play (rad): half the width b of each gear's dead zone (2b in all, no torque inside it,
     # the gear's stiffness outside: model/transmission.play_torque), and the coupling compliance between
     # joints 2 and 3 (rad/(N*m)).  Empty / 0: none.
@@ -87,6 +93,12 @@ class ServoConfig:
     # The velocity loop's integral corner (a PI, as industrial drives have): ASSUMPTION 7.5 Hz, a quarter of
     # the velocity bandwidth (model/servo.py).
     velocity_integral_hz: float = num(7.5, 0.0, 100.0, "Hz")
+    # How the integral corner is chosen: antiresonance (the arm's first antiresonance, its first motors-held
+    # mode at the path's first pose, over model/servo.INTEGRAL_BELOW_ANTIRESONANCE, at most
+    # velocity_integral_hz: the PI's integral then takes no damping from the arm's modes; the station writes
+    # the corner it chose into velocity_integral_hz, so the run's settings and the compensator's servo model
+    # carry it) or stated (velocity_integral_hz as it is).
+    velocity_integral: str = choice("antiresonance", ("antiresonance", "stated"))
 
 
 @dataclass

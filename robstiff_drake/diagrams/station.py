@@ -72,7 +72,7 @@ def servo_parameters(sc):
     return ServoParameters(position_gain_per_s=s.position_gain_per_s, velocity_bandwidth_hz=s.velocity_bandwidth_hz,
                            velocity_feedforward=s.velocity_feedforward,
                            interpolator_delay_s=s.interpolator_delay_ms / 1e3,
-                           velocity_integral_hz=s.velocity_integral_hz)
+                           velocity_integral_hz=s.velocity_integral_hz, integral_rule=s.velocity_integral)
 
 
 class ToolPose(LeafSystem):
@@ -104,7 +104,7 @@ class MillingStation:
     compliance_plant_rad_per_Nm: np.ndarray
     lost_motion_plant_rad: np.ndarray  # the gears' play, half-width (rad)
     coupling_plant: float
-    damping_ratios: np.ndarray  # per mode, motors held
+    damping_ratios: np.ndarray  # per mode, as stated (on the drives-closed arm modes unless plant.damping_on)
 
     @property
     def natural_frequencies_hz(self):
@@ -186,7 +186,8 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
     """The station of scenario ``sc`` (see module docstring).  ``path`` (the
     planned path: the cut's feed direction) and ``force_model``/``workpiece``
     (the process), ``q_modes_rad`` the pose whose modes set the damping and
-    tune the drives.  Raises ValueError if the plant step is unstable for
+    tune the drives (and choose their integral corner: scenario
+    servo.velocity_integral, which the chosen corner is written back to).  Raises ValueError if the plant step is unstable for
     these joints (unless ``check_stability`` is false)."""
     tool = robot.tool_point(where="the closed loop")
     h = plant_step_s(sc)
@@ -199,7 +200,10 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
                             interpolator_period_s=sc.servo.interpolator_period_ms / 1e3,
                             lost_motion_rad=sc.plant.lost_motion_rad,
                             coupling_c23_rad_per_Nm=sc.plant.coupling_c23_rad_per_Nm,
-                            check_stability=check_stability)
+                            check_stability=check_stability, damping_on=sc.plant.damping_on)
+    servo = arm["servo_parameters"]  # the drives' own, their integral corner chosen
+    # the corner the drives got, where the run's settings and the compensator's servo model read it
+    sc.servo.velocity_integral_hz = float(servo.velocity_integral_hz)
     plant = arm["plant"]
     systems = {key: arm[key] for key in ("plant", "controller_plant", "servo", "servo_parameters", "interpolator",
                                          "touch_off", "joints", "gear_torque_at_rest")}

@@ -24,6 +24,17 @@ Structural Dynamics, 2nd ed., Wiley 2006).  D acts on the
 gears' twist rate theta' - q', where the arm's damping is (gears, bearings,
 structure): it does not damp the arm's motion as a whole.
 
+Stated on the drives-closed modes.  A ratio a scenario states is what a
+modal test with the drives on measures (a hammer on the tool, the arm
+servoing): the ratio of each arm mode of the loop with the drives closed
+(``arm_modes``: the closed loop's mode whose link motion is the
+motors-held mode's).  ``linear_joints`` solves for the motors-held ratios
+that give it (``realise_drives_closed``): the drives' velocity loops add
+damping to the arm's modes, their integral takes some away.  Where the
+drives alone damp a mode beyond the stated ratio (the gears' modes near
+the velocity loop's bandwidth) the gears keep MIN_HELD_SHARE of it and
+the mode comes out more damped than stated (``arm_modes`` says by how much).
+
 The step.  The station steps the links in Drake's discrete
 MultibodyPlant (symplectic Euler: v+ = v + h M^-1 (forces at the step's
 start), q+ = q + h v+) and the drives exactly over the step with the gear
@@ -48,6 +59,10 @@ from robstiff_drake.model import servo as servo_model
 # doi:10.1038/s41598-024-61362-2, Table 3); 5 % is the middle.  A scenario sets its own (plant.modal_damping_ratio,
 # plant.damping_ratios).
 DEFAULT_MODAL_DAMPING_RATIO = 0.05
+# ASSUMPTION: where the drives alone damp a mode beyond its stated ratio, the gears keep this share of the
+# stated ratio on it (their own damping, bearings and structure, does not vanish because a drive damps the mode).
+MIN_HELD_SHARE = 0.25
+DAMPING_TOLERANCE = 1e-4  # the drives-closed ratios are realised to this (absolute, 0.01 % of critical)
 STABLE_MARGIN = 1.0 + 1e-9  # spectral radius of a stable step (an undamped mode sits at 1)
 
 
@@ -103,16 +118,48 @@ def motor_inertia(robot, M):
     return np.diag(M).copy()
 
 
-def linear_joints(M, G, stiffness_matrix, damping_ratios, servo, motor_inertia_kgm2):
+def linear_joints(M, G, stiffness_matrix, damping_ratios, servo, motor_inertia_kgm2, stated_on="drives_closed"):
     """The JointModel of mass matrix M (6, 6, kg*m^2), the weight's
     stiffness G (N*m/rad), the gears (N*m/rad), their modal damping
-    (``damping_ratios``, per mode or one for all), the motors and drives
-    (velocity loops tuned for the rigid axes)."""
+    (``damping_ratios``, per mode or one for all: on the drives-closed arm
+    modes, ``stated_on`` "drives_closed", see the module docstring; or on
+    the motors-held modes, "motors_held"), the motors and drives (velocity
+    loops tuned for the rigid axes; the integral corner chosen from the
+    first motors-held mode when the servo's rule says so:
+    model/servo.integral_corner_hz)."""
     M = np.asarray(M, dtype=float)
+    w_held = held_modes(M, stiffness_matrix, G)[0]
+    servo = servo_model.with_integral_corner(servo, w_held[0] / (2 * np.pi))
     D = modal_damping_matrix(M, stiffness_matrix, G, damping_ratios)
     Jm = np.asarray(motor_inertia_kgm2, dtype=float)
-    return JointModel(M=M, K=stiffness_matrix, G=G, D=D, motor_inertia_kgm2=Jm, servo=servo,
-                      velocity_gain=servo_model.velocity_gain_Nms(servo, Jm + np.diag(M)))
+    jm = JointModel(M=M, K=stiffness_matrix, G=G, D=D, motor_inertia_kgm2=Jm, servo=servo,
+                    velocity_gain=servo_model.velocity_gain_Nms(servo, Jm + np.diag(M)))
+    if stated_on == "motors_held":
+        return jm
+    if stated_on != "drives_closed":
+        raise ValueError(f"stated_on {stated_on!r}: one of drives_closed, motors_held")
+    return realise_drives_closed(jm, damping_ratios)
+
+
+def realise_drives_closed(jm, ratios, iterations=40):
+    """``jm`` with the gears' damping D whose drives-closed arm modes
+    (``arm_modes``) have the damping ratios ``ratios`` (per mode or one for
+    all): the motors-held ratios found by a fixed-point iteration (each
+    corrected by what its drives-closed mode misses, which moves it by
+    about as much), none below MIN_HELD_SHARE of its target."""
+    target = np.broadcast_to(np.asarray(ratios, dtype=float), (6,)).copy()
+    floor = MIN_HELD_SHARE * target
+    held = target.copy()
+    out = jm
+    for _ in range(iterations):
+        realised = out.arm_modes()[1]
+        miss = target - realised
+        active = (held > floor + 1e-12) | (miss > 0)  # (a mode at its floor, damped beyond: done)
+        if not np.any(np.abs(miss[active]) > DAMPING_TOLERANCE):
+            break
+        held = np.maximum(held + miss, floor)
+        out = JointModel(**{**out.__dict__, "D": modal_damping_matrix(out.M, out.K, out.G, held)})
+    return out
 
 
 @dataclass
@@ -155,6 +202,44 @@ class JointModel:
         lam = lam[lam.imag > 1e-9]
         lam = lam[np.argsort(np.abs(lam))]
         return np.abs(lam) / (2 * np.pi), -lam.real / np.abs(lam)
+
+    def held_ratios(self):
+        """(6,) the damping ratio D gives each motors-held mode."""
+        w, Phi = held_modes(self.M, self.K, self.G)
+        return np.diag(Phi.T @ self.D @ Phi) / (2.0 * w)
+
+    def arm_modes(self):
+        """(frequency Hz (6,), damping ratio (6,)) of the arm's modes with
+        the drives closed, one per motors-held mode (ascending): the closed
+        loop's oscillating mode whose link motion is most that mode's
+        (modal assurance criterion on the links' displacement, mass-weighted;
+        each closed-loop mode serves one), what a modal test on the tool
+        with the drives on measures.  A motors-held mode the loop leaves
+        without an oscillating match (made aperiodic) gets ratio 1."""
+        lam, V = np.linalg.eig(self.continuous()[0])
+        osc = np.nonzero(lam.imag > 1e-9)[0]
+        _, Phi = held_modes(self.M, self.K, self.G)
+        MPhi = self.M @ Phi
+        Vq = V[0:6, osc]
+        num = np.abs(MPhi.T @ Vq) ** 2  # (6 held, n osc); Phi^T M Phi = I
+        den = np.real(np.einsum("ij,ik,kj->j", Vq.conj(), self.M, Vq))
+        mac = num / np.maximum(den, 1e-300)
+        f, z = np.zeros(6), np.ones(6)
+        taken = set()
+        for i, j in sorted(np.ndindex(mac.shape), key=lambda ij: -mac[ij]):
+            if i in taken or osc[j] < 0 or mac[i, j] < 0.5:
+                continue
+            taken.add(i)
+            f[i], z[i] = abs(lam[osc[j]]) / (2 * np.pi), -lam[osc[j]].real / abs(lam[osc[j]])
+            osc[j] = -1
+        w = held_modes(self.M, self.K, self.G)[0]
+        f[z == 1.0] = w[z == 1.0] / (2 * np.pi)
+        return f, z
+
+    def at_pose(self, M, G):
+        """These gears, damping D and drives (tuned where they were) on the
+        arm at another pose (its mass matrix M and weight's stiffness G)."""
+        return JointModel(**{**self.__dict__, "M": np.asarray(M, dtype=float), "G": G})
 
     def step_map(self, step_s):
         """(30, 30): the station's discrete scheme over one step, linearised
