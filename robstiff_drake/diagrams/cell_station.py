@@ -31,6 +31,7 @@ from pydrake.systems.primitives import LogVectorOutput
 
 from robstiff_drake.diagrams.experiment import RUN_OUT_S, scanned_surface
 from robstiff_drake.diagrams.milling_cell import build_station, planned_path
+from robstiff_drake.diagrams.station import path_poses
 from robstiff_drake.diagrams.scenario_models import cutting_setup
 from robstiff_drake.identification.runs.logs import joint_reference_text
 
@@ -41,7 +42,7 @@ class CellStation:
         tool = robot.tool_point(where="sim-cell")
         _, self.force_model, self.workpiece = cutting_setup(sc)
         self.path, self.t_ref, self.q_ref = planned_path(sc, robot, tool)
-        self.station = build_station(sc, robot, q_modes_rad=self.q_ref[0], path=self.path)
+        self.station = build_station(sc, robot, q_modes_rad=path_poses(self.q_ref), path=self.path)
         builder = DiagramBuilder()
         st = builder.AddSystem(self.station.diagram)
         self._wrench_log = LogVectorOutput(st.GetOutputPort("wrench_measured"), builder, 1.0 / sc.sensor.rate_hz)

@@ -61,6 +61,44 @@ def joint_model(controller_plant, robot, q_rad, stiffness_matrix, damping_ratios
                                         stated_on=damping_on)
 
 
+# The poses along a path the gears' damping is fitted over (diagrams/compliant_arm.path_poses): this many, evenly
+# spaced in the path's time.  A face-and-contour job's first modes change their damping by less than 0.1 % of
+# critical between neighbours at 16 (studies/damping_along_path.py compares 64).
+PATH_DAMPING_SAMPLES = 16
+
+
+def path_poses(q_ref_rad, n=PATH_DAMPING_SAMPLES):
+    """(n, 6) rows of a path's joint references (N, 6) evenly spaced, the
+    first row first: the poses ``arm_joints`` fits the damping over."""
+    q = np.atleast_2d(np.asarray(q_ref_rad, dtype=float))
+    return q[np.unique(np.linspace(0, len(q) - 1, min(n, len(q))).round().astype(int))]
+
+
+def mass_and_weight_stiffness(controller_plant, q_rad):
+    """(M (6, 6) kg*m^2, G (6, 6) N*m/rad) of the controller's model at q."""
+    ctx = controller_plant.CreateDefaultContext()
+    q = np.asarray(q_rad, dtype=float)
+    G = gravity_stiffness(controller_plant, ctx, q)
+    controller_plant.SetPositions(ctx, q)
+    return controller_plant.CalcMassMatrix(ctx), G
+
+
+def arm_joints(controller_plant, robot, q_modes_rad, stiffness_matrix, damping_ratios, servo,
+               damping_on="drives_closed"):
+    """The JointModel the station builds: ``joint_model`` at the first pose
+    of ``q_modes_rad`` (one pose (6,), or the poses a path visits (n, 6):
+    ``path_poses``), which tunes the drives and chooses their integral
+    corner; with several poses and the damping stated on the drives-closed
+    modes, one gears' damping fitted over them all
+    (model/joint_dynamics.fit_path_damping)."""
+    q = np.atleast_2d(np.asarray(q_modes_rad, dtype=float))
+    jm = joint_model(controller_plant, robot, q[0], stiffness_matrix, damping_ratios, servo, damping_on)
+    if len(q) > 1 and damping_on == "drives_closed":
+        jm = joint_dynamics.fit_path_damping(jm, [(jm.M, jm.G)] + [mass_and_weight_stiffness(controller_plant, qi)
+                                                                   for qi in q[1:]], damping_ratios)
+    return jm
+
+
 def unstable_step_message(jm, time_step_s):
     """None when the plant step keeps every mode of the joints ``jm``
     stable, else why not and the step that would do (one line)."""
@@ -167,9 +205,11 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     coupling), dz the play's dead zone (``lost_motion_rad``: half-widths;
     none: dz(x) = x), D the modal damping that gives each drives-closed arm
     mode (``damping_on`` "motors_held": each motors-held mode) its ratio in
-    ``damping_ratios`` (model/joint_dynamics.py, at ``q_modes_rad``; the
-    drives' integral corner chosen there when the servo's rule says so:
-    the drives are built with ``joints.servo``).  Without play the torque is one MatrixGain (no Python
+    ``damping_ratios`` (model/joint_dynamics.py, at ``q_modes_rad``: a pose,
+    or the poses a path visits, the first tuning the drives, one D fitted
+    over them all: ``arm_joints``; the drives' integral corner chosen at
+    the first when the servo's rule says so: the drives are built with
+    ``joints.servo``).  Without play the torque is one MatrixGain (no Python
     in the step), with play systems/gear_transmission.GearPlay.  The gear's
     torque is explicit over a step (symplectic Euler in the plant, the
     drives exact with it held): stable while omega h < 2 in every mode
@@ -197,7 +237,7 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     plant.Finalize()
     ctrl = controller_model(robot)
     Kg = joint_dynamics.stiffness_matrix(k, coupling_c23_rad_per_Nm)
-    jm = joint_model(ctrl, robot, q_modes_rad, Kg, damping_ratios, servo, damping_on)
+    jm = arm_joints(ctrl, robot, q_modes_rad, Kg, damping_ratios, servo, damping_on)
     servo = jm.servo  # (its integral corner chosen)
     why = unstable_step_message(jm, h) if check_stability else None
     if why:

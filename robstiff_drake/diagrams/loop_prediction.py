@@ -2,8 +2,6 @@
 sweep combination: what it predicts for stability and surface error, to set
 beside the closed-loop simulation."""
 
-from dataclasses import replace
-
 import numpy as np
 
 from robstiff_drake.diagrams.experiment import ScanLine, material_top, zone_stats
@@ -14,9 +12,12 @@ from robstiff_drake.diagrams.scenario_models import (
     cutting_setup, model_stiffness, plant_damping_ratios, plant_stiffness
 )
 from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (gravity_stiffness: its old home)
+    arm_joints,
     controller_model,
     gravity_stiffness,
     joint_model,
+    mass_and_weight_stiffness,
+    path_poses,
 )
 from robstiff_drake.diagrams.station import servo_parameters
 from robstiff_drake.diagrams.sweep_config import configure
@@ -55,15 +56,16 @@ def predict(sc, robot, combo, *, plant_step_ms=None, mass_matrix_cache=None, sen
     _, _, q_ref = cell_planned_path(sc, robot, tool)
     key = (robot.source, tuple(np.round(q_mid, 9)), tuple(np.round(q_ref[0], 9)),
            tuple(plant_stiffness(sc, robot)), float(sc.plant.coupling_c23_rad_per_Nm),
-           tuple(plant_damping_ratios(sc)), servo_parameters(sc))
+           tuple(plant_damping_ratios(sc)), sc.plant.damping_on, servo_parameters(sc))
     cache = mass_matrix_cache if mass_matrix_cache is not None else {}
     if key not in cache:
-        # the plant's joints (damping and drives set at the start pose, as the station's), at mid-pass
+        # the plant's joints (drives tuned at the start pose, damping fitted along the path, as the station's),
+        # at mid-pass
         plant = controller_model(robot)
         Kg = joint_dynamics.stiffness_matrix(plant_stiffness(sc, robot), sc.plant.coupling_c23_rad_per_Nm)
-        at_start = joint_model(plant, robot, q_ref[0], Kg, plant_damping_ratios(sc), servo_parameters(sc))
-        mid = joint_model(plant, robot, q_mid, Kg, plant_damping_ratios(sc), servo_parameters(sc))
-        cache[key] = replace(at_start, M=mid.M, G=mid.G)
+        at_start = arm_joints(plant, robot, path_poses(q_ref), Kg, plant_damping_ratios(sc), servo_parameters(sc),
+                              sc.plant.damping_on)
+        cache[key] = at_start.at_pose(*mass_and_weight_stiffness(plant, q_mid))
     joints = cache[key]
     ba = filter_coefficients(sc.controller.filter, sc.sensor.rate_hz, cutter.spindle_rpm)
     T = sc.controller.period_ms / 1e3

@@ -30,7 +30,7 @@ from robstiff_drake.diagrams.scenario_models import (
     plant_cutting_setup
 )
 from robstiff_drake.diagrams.scenario import planned_path as scenario_path
-from robstiff_drake.diagrams.station import make_milling_station
+from robstiff_drake.diagrams.station import make_milling_station, path_poses
 from robstiff_drake.diagrams.user_measurements import (
     calibrated_tool, probed_workpiece, user_measured_damping, user_robot
 )
@@ -178,7 +178,7 @@ def check_plant_step(sc, robot):
     """Refuse, before anything runs, a scenario whose plant step is unstable
     for its joint modes at the path's first pose (InputError, one line)."""
     _, _, q_ref = planned_path(sc, robot, robot.tool_point(where="the closed loop"))
-    build_station(sc, robot, q_modes_rad=q_ref[0])
+    build_station(sc, robot, q_modes_rad=path_poses(q_ref))
 
 
 def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_ba, modal_damping=None):
@@ -279,7 +279,7 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model
     tool = robot.tool_point(where="the closed loop")
     _, fmodel, workpiece = cutting_setup(sc)
     path, t_ref, q_ref = planned_path(sc, robot, tool)
-    station = build_station(sc, robot, q_modes_rad=q_ref[0], path=path)
+    station = build_station(sc, robot, q_modes_rad=path_poses(q_ref), path=path)
     user_models.resolve(sc, robot, q_ref[0])
     comp = build_compensator(sc, robot, station, path=path, workpiece=workpiece, t_ref=t_ref, q_ref=q_ref)
 

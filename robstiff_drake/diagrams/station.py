@@ -48,6 +48,7 @@ from robstiff_drake.diagrams.scenario import plant_step_s
 from robstiff_drake.diagrams.scenario_models import exact_payload_calibration, plant_damping_ratios, plant_stiffness
 from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (the arm's helpers, imported from here too)
     add_compliant_arm,
+    arm_joints,
     controller_model,
     gravity_holding_torque,
     gravity_stiffness,
@@ -55,6 +56,7 @@ from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (the arm's he
     modal_frequencies_hz,
     motor_inertia,
     natural_frequencies,
+    path_poses,
     set_drives_at_rest,
     static_link_angles,
     unstable_step_message,
@@ -97,7 +99,7 @@ class MillingStation:
     robot: object
     tool_m: np.ndarray
     servo: ServoParameters
-    joints: object  # model/joint_dynamics.JointModel at the start pose (modes, damping, drives)
+    joints: object  # model/joint_dynamics.JointModel at the start pose (modes, damping: fitted along the path, drives)
     plant_step_s: float
     systems: dict
     compliance_model_rad_per_Nm: np.ndarray  # the controller's (absolute-accuracy) gear compliance
@@ -185,8 +187,9 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
                          name="milling_station"):
     """The station of scenario ``sc`` (see module docstring).  ``path`` (the
     planned path: the cut's feed direction) and ``force_model``/``workpiece``
-    (the process), ``q_modes_rad`` the pose whose modes set the damping and
-    tune the drives (and choose their integral corner: scenario
+    (the process), ``q_modes_rad`` the pose (or the path's poses,
+    compliant_arm.path_poses, the first first) whose modes set the damping
+    and tune the drives (and choose their integral corner: scenario
     servo.velocity_integral, which the chosen corner is written back to).  Raises ValueError if the plant step is unstable for
     these joints (unless ``check_stability`` is false)."""
     tool = robot.tool_point(where="the closed loop")

@@ -162,6 +162,38 @@ def realise_drives_closed(jm, ratios, iterations=40):
     return out
 
 
+def fit_path_damping(jm, poses, ratios):
+    """``jm`` (its drives tuned where they were) with one gears' damping D
+    for every pose of a path: ``poses`` a list of (M, G) at the poses the
+    path visits.  At each pose the motors-held ratios that give the stated
+    drives-closed ones (``realise_drives_closed``) set what D must give
+    each motors-held mode there (phi_i^T D phi_i = 2 zeta_i omega_i, and
+    phi_i^T D phi_j = 0: no coupling between modes): a linear least squares
+    in D's 21 entries, each equation relative to its own size, D then kept
+    positive semi-definite.  The gears' damping is the joints'
+    (gears, bearings), not the pose's: one D, the pose's realised ratios
+    what they come out (``JointModel.arm_modes`` at each pose measures
+    them)."""
+    rows, rhs = [], []
+    iu = np.triu_indices(6)
+    for M, G in poses:
+        at = realise_drives_closed(jm.at_pose(M, G), ratios)
+        w, Phi = held_modes(at.M, at.K, at.G)
+        need = 2.0 * at.held_ratios() * w
+        for i in range(6):
+            for j in range(i, 6):  # (i != j: no coupling between the modes, as modal damping has none)
+                P = 0.5 * (np.outer(Phi[:, i], Phi[:, j]) + np.outer(Phi[:, j], Phi[:, i]))
+                rows.append(np.where(iu[0] == iu[1], 1.0, 2.0) * P[iu] / np.sqrt(need[i] * need[j]))
+                rhs.append(1.0 if i == j else 0.0)
+    x = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)[0]
+    D = np.zeros((6, 6))
+    D[iu] = x
+    D = D + np.triu(D, 1).T
+    lam, V = np.linalg.eigh(D)
+    D = (V * np.maximum(lam, 0.0)) @ V.T
+    return JointModel(**{**jm.__dict__, "D": D})
+
+
 @dataclass
 class JointModel:
     """The linear joints at one pose (see the module docstring)."""
