@@ -56,10 +56,12 @@ def test_the_numpy_arm_is_drakes(block):
 
 
 def test_the_model_verdict_agrees_with_the_drake_cell(block):
-    """At 2 Hz the model's loop (the plant's 5 % damping) is stable and at
-    10 Hz unstable; the Drake cell held in air and kicked decays at 2 Hz and
-    grows at 10 Hz, at rates within 0.2 1/s of the model's ln(radius) / T
-    (measured: -1.34 against -1.30, +0.27 against +0.31)."""
+    """At 2 Hz the model's loop (the plant's 5 % damping, on the
+    drives-closed modes) is stable and at 20 Hz unstable; the Drake cell
+    held in air and kicked decays at 2 Hz and grows at 20 Hz, at rates
+    within 0.2 1/s of the model's ln(radius) / T (measured: -1.70 against
+    -1.69, +0.11 against +0.13; with the damping stated on the motors-held
+    modes and the integral corner at 7.5 Hz, 10 Hz grew at +0.27)."""
     from robstiff_drake.diagrams.hold_response import hold_response
     from robstiff_drake.diagrams.loop_prediction import scenario_loop_setup
     from robstiff_drake.diagrams.scenario_models import plant_damping_ratios
@@ -67,7 +69,7 @@ def test_the_model_verdict_agrees_with_the_drake_cell(block):
     sc, robot = block
     setup = scenario_loop_setup(sc, robot)
     T = sc.controller.period_ms / 1e3
-    for f, unstable in ((2.0, False), (10.0, True)):
+    for f, unstable in ((2.0, False), (20.0, True)):
         ba = lowpass_coefficients(f, sc.sensor.rate_hz, sc.controller.filter.order)
         radius = setup.radius(ba, np.zeros((3, 3)), plant_damping_ratios(sc))
         assert (radius > 1.0) == unstable, (f, radius)
@@ -76,7 +78,7 @@ def test_the_model_verdict_agrees_with_the_drake_cell(block):
         assert run.growth_per_s == pytest.approx(np.log(radius) / T, abs=0.2), (f, run, radius)
         # the envelope moved by a factor that no noise floor explains
         ratio = run.envelope_rad[-1] / run.envelope_rad[2]
-        assert (ratio > 1.3) if unstable else (ratio < 0.3), (f, run.envelope_rad)
+        assert (ratio > 1.1) if unstable else (ratio < 0.3), (f, run.envelope_rad)
 
 
 def test_the_margin_refuses_what_is_stable_only_at_the_assumed_damping(block):
@@ -149,11 +151,14 @@ def test_the_override_runs_with_a_loud_warning(tmp_path):
                                                    extra=["--cutoff-hz", "10", "--allow-unstable-loop"])
     assert cp.returncode == 0, cp.stderr
     warn = [ln for ln in cp.stderr.splitlines() if ln.startswith("robstiff: warning: compensate: --allow-unstable")]
-    assert len(warn) == 1 and "UNSTABLE in air and cutting" in warn[0], cp.stderr
+    # at the start pose, then along the reference (its worst pose named by its row)
+    assert len(warn) == 2 and all("UNSTABLE in air and cutting" in w for w in warn), cp.stderr
+    assert "at the start pose" in warn[0] and "along --reference reference.csv at row " in warn[1], warn
     with open(os.path.join(log, "summary.json")) as f:
         summary = json.load(f)
     assert summary["loop_check"]["overridden"] is True
     assert summary["loop_check"]["unstable_modes"] == ["air", "cutting"]
+    assert summary["loop_check"]["along_path"]["unstable_modes"] == ["air", "cutting"]
     assert any("--allow-unstable-loop" in w and "UNSTABLE" in w for w in summary["warnings"])
     with open(os.path.join(log, "events.csv")) as f:
         assert "--allow-unstable-loop: running anyway" in f.read()
@@ -171,6 +176,10 @@ def test_a_stable_run_logs_its_check(tmp_path):
     assert max(check["spectral_radius"].values()) < 1.0  # (the default 2 Hz cutoff)
     assert check["pose"].startswith("--reference")
     np.testing.assert_allclose(check["feed_direction_xy"], [1.0, 0.0], atol=1e-6)  # the pass runs along +x
+    along = check["along_path"]  # and at poses along the reference, the last row among them
+    assert along["unstable_modes"] == [] and len(along["rows_checked"]) >= 5
+    assert max(along["spectral_radius"].values()) < 1.0
+
     # the run folder keeps its inputs, as a simulated run's does (docs/run_files.md), and names the kept robot
     from robstiff_drake.commands.diagnose_run import run_robot_and_file
 
@@ -181,3 +190,43 @@ def test_a_stable_run_logs_its_check(tmp_path):
             assert a.read() == b.read(), name
     robot, robot_file = run_robot_and_file(log)
     assert robot.name == "irb6400" and os.path.samefile(robot_file, os.path.join(log, "inputs", "irb6400.yaml"))
+
+
+def test_the_loop_is_checked_along_the_path_not_only_at_its_start():
+    """A reference from a pose where a 3.5 Hz filter's loop is stable to one
+    where it is not (the IRB 6400 reaching out: the arm's first mode lower
+    and its payload's inertia larger on the sensor): the start passes, the
+    path is refused in one line naming its row, time, pose and radius, and
+    the override records the worst pose."""
+    from robstiff_drake.cell.loop_guard import LoopGuard
+    from robstiff_drake.errors import InputError
+    from robstiff_drake.model.robot import load_robot
+
+    robot = load_robot("irb6400")
+    start, end = np.array([0, 13.6, 22, 0, 54, 0.0]), np.array([0, 45, -10, 0, 55, 0.0])
+    rows = start + np.linspace(0.0, 1.0, 1001)[:, None] * (end - start)
+
+    def guard(allow):
+        return LoopGuard(robot=robot, k_Nm_per_rad=robot.joint_stiffness_Nm_per_rad, servo=None, sensor_rate_hz=1000.0,
+                         period_s=0.004, delay_steps=0, filter_kind="lowpass",
+                         filter_ba=lowpass_coefficients(3.5, 1000.0, 2), cutoff_hz=3.5, filter_order=2,
+                         allow_unstable=allow)
+
+    g = guard(False)
+    assert "is stable at the start pose" in g.at(rows[0], "the test's first row")
+    with pytest.raises(InputError) as e:
+        g.along(rows, "the test path", 0.004)
+    msg = str(e.value)
+    assert "\n" not in msg and "UNSTABLE" in msg and "along the test path at row 1001, t = 4.00 s: 0.00, 45.00" in msg, msg
+    assert "spectral radius 1.00" in msg and "--cutoff-hz" in msg and "nothing was sent" in msg, msg
+    g = guard(True)
+    g.at(rows[0], "the test's first row")
+    assert g.along(rows, "the test path", 0.004).startswith("--allow-unstable-loop: running anyway")
+    along = g.result["along_path"]
+    assert along["worst_row"] == 1001 and g.result["overridden"] is True
+    radii = along["spectral_radius_by_row"]
+    assert radii[1001] > 1.0 > g.result["spectral_radius"]["cutting"]  # the start's own verdict: stable
+    # a path that stays near its start passes and names its worst pose
+    g = guard(False)
+    g.at(rows[0], "the test's first row")
+    assert "is stable along the short path" in g.along(rows[:50], "the short path", 0.004)

@@ -1,11 +1,13 @@
 """``robstiff compensate``'s check, before anything is streamed, that the
-correction loop it is about to close is stable at the start pose
-(model/loop_check.py: the linear loop model in plain numpy, in air and at
-a nominal process stiffness, with the margin of 2 % modal damping).
+correction loop it is about to close is stable at the start pose and at
+poses along the reference (model/loop_check.py: the linear loop model in
+plain numpy, in air and at a nominal process stiffness, with the margin of
+2 % modal damping on the drives-closed modes; the drives tuned at the
+start pose).
 
 A loop the model predicts unstable is refused in one line (exit status 2)
-naming the pose, the mode, the spectral radius and the largest
-``--cutoff-hz`` the model finds stable; ``--allow-unstable-loop`` runs it
+naming the pose (along the reference: its row and time), the mode, the
+spectral radius and the largest ``--cutoff-hz`` the model finds stable there; ``--allow-unstable-loop`` runs it
 anyway with a warning in the text, the log's events and summary.json.
 
 Units: the pose in the controller's degrees at the interface (the
@@ -24,6 +26,10 @@ from robstiff_drake.model.servo import ServoParameters
 
 # The tool point must move this far along the reference (m) for its start to have a feed direction.
 FEED_DISTANCE_M = 1e-3
+# The poses along a reference the loop is checked at beyond its first row: this many, evenly spaced in its rows
+# (the last row among them).  The arm's mass matrix changes smoothly along a path; a path whose poses change more
+# between samples than this catches is checked at the worst of those sampled (the result's "along_path" lists them).
+PATH_CHECK_SAMPLES = 11
 OVERRIDE = "--allow-unstable-loop"
 
 
@@ -43,8 +49,12 @@ def servo_parameters(servo):
     else:
         delay_ms, kp, bw, ff = (float(v) for v in servo[:4])
         ki = float(servo[4]) if len(servo) > 4 else s.velocity_integral_hz
+    # an integral corner not given: chosen from the arm's first antiresonance at the start pose, at most
+    # ServoConfig's (model/servo.integral_corner_hz), as the scenarios' plant chooses it
+    given = servo is not None and len(servo) > 4
     return ServoParameters(position_gain_per_s=kp, velocity_bandwidth_hz=bw, velocity_feedforward=ff,
-                           interpolator_delay_s=delay_ms / 1e3, velocity_integral_hz=ki)
+                           interpolator_delay_s=delay_ms / 1e3, velocity_integral_hz=ki,
+                           integral_rule="stated" if given else "antiresonance")
 
 
 def feed_direction(robot, tool_m, q_model_rad, block=4096, to_model=None):
@@ -85,14 +95,11 @@ class LoopGuard:
         self.result = None  # the last check's dict (for summary.json)
         self.warning = None  # the override's warning line, when it ran an unstable loop
 
-    def at(self, q_ctrl_deg, where, feed_xy=None):
-        """Check the loop at the controller's joint angles ``q_ctrl_deg``
-        (``where``: which pose this is, for the message).  InputError (one
-        line) when it is predicted unstable and not overridden; returns the
-        line to print (information, or the override's warning)."""
+    def _verdict(self, q_ctrl_deg, where, feed_xy, search_cutoff=True):
+        """(Verdict, the process stiffnesses) at the controller's angles
+        (degrees; ``where``: the pose's name and angles, for the message)."""
         from robstiff_drake.identification.threads import single_blas_thread
 
-        t0 = time.perf_counter()
         q = self.robot.joint_map.to_model(np.radians(np.asarray(q_ctrl_deg, dtype=float)))
         setup = loop_check.LoopSetup(robot=self.robot, q_rad=q, k_Nm_per_rad=self.k, servo=self.servo,
                                      sensor_rate_hz=self.rate_hz, period_s=self.period_s,
@@ -100,11 +107,88 @@ class LoopGuard:
         modes = {"air": np.zeros((3, 3)), "cutting": loop_check.process_stiffness_along(feed_xy)}
         try:
             with single_blas_thread():  # (many threads on small matrices: 10x slower on a busy machine)
-                v = loop_check.check(setup, self.ba, modes,
+                v = loop_check.check(setup, self.ba, modes, search_cutoff=search_cutoff,
                                      cutoff_hz=self.cutoff_hz if self.filter_kind == "lowpass" else None)
+                self.servo = setup.arm(loop_check.MARGIN_DAMPING_RATIO)[0].servo  # (tuned here, if not yet)
         except (np.linalg.LinAlgError, ValueError) as e:  # no loop to check (a mass matrix without inertia): refused
-            raise InputError(f"the correction loop cannot be checked at the start pose ({where}: "
-                             f"{_pose_text(q_ctrl_deg)} deg): {e}; check the robot file's links and payload") from None
+            raise InputError(f"the correction loop cannot be checked at {where}: {e}; check the robot file's links "
+                             "and payload") from None
+        return v, modes
+
+    def _best_cutoff_text(self, f):
+        if f is None:
+            return "no low-pass cutoff down to 0.1 Hz is stable"
+        if self.filter_kind == "lowpass":
+            return f"the largest cutoff the model finds stable is {f:g} Hz (--cutoff-hz {f:g})"
+        return f"the largest low-pass cutoff the model finds stable is {f:g} Hz (--filter lowpass --cutoff-hz {f:g})"
+
+    def along(self, q_ctrl_deg_rows, what, period_s, to_model=None):
+        """Check the loop at PATH_CHECK_SAMPLES rows of a reference after
+        its first (``at`` checks that one first: it tunes the drives), each
+        cutting along the tool's motion from there; ``what`` names the
+        reference.  The worst pose (largest spectral radius at the margin's
+        damping) goes into the result (``along_path``).  InputError (one
+        line, naming the row, its time, the pose, the radius and the
+        largest stable cutoff there) when a pose is predicted unstable and
+        not overridden; returns the line to print."""
+        q = np.asarray(q_ctrl_deg_rows, dtype=float)
+        rows = np.unique(np.linspace(0, len(q) - 1, PATH_CHECK_SAMPLES + 1).round().astype(int))[1:]
+        if not len(rows):
+            return None
+        t0 = time.perf_counter()
+        found = []
+        for r in rows:
+            feed = feed_direction(self.robot, self.robot.payload.tool_point_m, q[r:], to_model=to_model)
+            v, modes = self._verdict(q[r], f"{what}'s row {r + 1} ({_pose_text(q[r])} deg)", feed, search_cutoff=False)
+            found.append((max(v.radius.values()), int(r), v, modes))
+        worst = max(found, key=lambda x: x[0])
+        _, r, v, modes = worst
+        seconds = time.perf_counter() - t0
+        T_ms = self.period_s * 1e3
+        pose = f"row {r + 1}, t = {r * period_s:.2f} s: {_pose_text(q[r])} deg"
+        along = {"rows_checked": [int(x) + 1 for x in rows], "worst_row": r + 1, "worst_t_s": r * float(period_s),
+                 "worst_pose_deg": [float(x) for x in q[r]], "spectral_radius": v.radius,
+                 "spectral_radius_by_row": {int(x[1]) + 1: max(x[2].radius.values()) for x in found},
+                 "unstable_modes": v.unstable, "check_s": seconds}
+        if self.result is not None:
+            self.result["along_path"] = along
+        if not v.unstable:
+            return (f"the correction loop is stable along {what} by the loop model ({len(rows)} poses after its first "
+                    f"row): worst spectral radius {v.radius['air']:.4f} in air, {v.radius['cutting']:.4f} cutting per "
+                    f"{T_ms:g} ms period at {pose} with {loop_check.MARGIN_DAMPING_RATIO * 100:g} % modal damping "
+                    f"(checked in {seconds:.2f} s)")
+        f = self.largest_stable_cutoff(q[r], modes)
+        along["largest_stable_cutoff_hz"] = f
+        if self.result is not None:
+            self.result["overridden"] = bool(self.result.get("overridden") or self.allow)
+        modes_text = " and ".join("in air" if m == "air" else "cutting" for m in v.unstable)
+        radii = ", ".join(f"{v.radius[m]:.4f} {'in air' if m == 'air' else 'cutting'}" for m in v.unstable)
+        filt = f"--cutoff-hz {self.cutoff_hz:g}" if self.filter_kind == "lowpass" else f"--filter {self.filter_kind}"
+        line = (f"the correction loop is predicted UNSTABLE {modes_text} along {what} at {pose} with {filt}: spectral "
+                f"radius {radii} per {T_ms:g} ms period with {loop_check.MARGIN_DAMPING_RATIO * 100:g} % modal "
+                f"damping (the check's margin); {self._best_cutoff_text(f)} there")
+        if not self.allow:
+            raise InputError(f"{line}; nothing was sent ({OVERRIDE} runs it anyway)")
+        self.warning = f"{OVERRIDE}: running anyway: {line}"
+        return self.warning
+
+    def largest_stable_cutoff(self, q_ctrl_deg, modes):
+        """The largest low-pass cutoff (Hz) stable at a pose (None: none)."""
+        q = self.robot.joint_map.to_model(np.radians(np.asarray(q_ctrl_deg, dtype=float)))
+        setup = loop_check.LoopSetup(robot=self.robot, q_rad=q, k_Nm_per_rad=self.k, servo=self.servo,
+                                     sensor_rate_hz=self.rate_hz, period_s=self.period_s,
+                                     delay_steps=self.delay_steps, filter_order=self.order)
+        upper = min(self.cutoff_hz if self.filter_kind == "lowpass" else loop_check.SEARCH_UPPER_HZ,
+                    0.45 * self.rate_hz)
+        return setup.largest_stable_cutoff_hz(upper, modes, upper_unstable=self.filter_kind == "lowpass")
+
+    def at(self, q_ctrl_deg, where, feed_xy=None):
+        """Check the loop at the controller's joint angles ``q_ctrl_deg``
+        (``where``: which pose this is, for the message).  InputError (one
+        line) when it is predicted unstable and not overridden; returns the
+        line to print (information, or the override's warning)."""
+        t0 = time.perf_counter()
+        v, _ = self._verdict(q_ctrl_deg, f"the start pose ({where}: {_pose_text(q_ctrl_deg)} deg)", feed_xy)
         seconds = time.perf_counter() - t0
         self.result = dict(v.as_dict(), pose_deg=[float(x) for x in q_ctrl_deg], pose=where,
                            feed_direction_xy=None if feed_xy is None else [float(x) for x in feed_xy],
@@ -117,14 +201,8 @@ class LoopGuard:
         modes_text = " and ".join("in air" if m == "air" else "cutting" for m in v.unstable)
         radii = ", ".join(f"{v.radius[m]:.4f} {'in air' if m == 'air' else 'cutting'}" for m in v.unstable)
         assumed = ", ".join(f"{v.radius_assumed[m]:.4f}" for m in v.unstable)
-        f = v.largest_stable_cutoff_hz
         filt = f"--cutoff-hz {self.cutoff_hz:g}" if self.filter_kind == "lowpass" else f"--filter {self.filter_kind}"
-        if f is None:
-            best = "no low-pass cutoff down to 0.1 Hz is stable"
-        elif self.filter_kind == "lowpass":
-            best = f"the largest cutoff the model finds stable is {f:g} Hz (--cutoff-hz {f:g})"
-        else:
-            best = f"the largest low-pass cutoff the model finds stable is {f:g} Hz (--filter lowpass --cutoff-hz {f:g})"
+        best = self._best_cutoff_text(v.largest_stable_cutoff_hz)
         line = (f"the correction loop is predicted UNSTABLE {modes_text} at the start pose ({where}: "
                 f"{_pose_text(q_ctrl_deg)} deg) with {filt}: spectral radius {radii} per {T_ms:g} ms period with "
                 f"{loop_check.MARGIN_DAMPING_RATIO * 100:g} % modal damping (the check's margin; {assumed} at the assumed "

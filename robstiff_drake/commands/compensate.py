@@ -212,16 +212,18 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     else:
         ref = Reference(period_s=period_s)
     tool = robot.payload.tool_point_m
-    # the loop model's stability check, before any socket is opened (with --reference: at its first row; without,
-    # at the hold pose when the controller's first message gives it, before anything is sent)
+    # the loop model's stability check, before any socket is opened (with --reference: at its first row and at
+    # poses along it; without, at the hold pose when the controller's first message gives it, before anything is sent)
     guard = LoopGuard(robot=robot, k_Nm_per_rad=k, servo=servo, sensor_rate_hz=sensor_rate_hz, period_s=period_s,
                       delay_steps=delay_steps, filter_kind=filter_kind, filter_ba=ba, cutoff_hz=cutoff_hz,
                       filter_order=filter_order, allow_unstable=allow_unstable_loop)
     if ref.q is not None:
         what = f"--job {Path(job).name}'s path" if job and not reference else f"--reference {Path(reference).name}"
-        _say(guard.at(ref.q[0], f"{what}'s first row",
-                      feed_direction(robot, tool, ref.q, to_model=lambda q: robot.joint_map.to_model(np.radians(q)))),
-             guard)
+        to_model = lambda q: robot.joint_map.to_model(np.radians(q))  # noqa: E731
+        _say(guard.at(ref.q[0], f"{what}'s first row", feed_direction(robot, tool, ref.q, to_model=to_model)), guard)
+        along = guard.along(ref.q, what, period_s, to_model=to_model)  # (and along it: the drives tuned at its start)
+        if along:
+            _say(along, guard)
     if max_jump_Nm is None:
         max_jump_Nm = max_jump_N * max(float(np.linalg.norm(tool)) if tool is not None else 0.0, MIN_LEVER_M)
     predictor = DeflectionPredictor(robot.dh, k, tool)

@@ -62,8 +62,7 @@ def joint_model(controller_plant, robot, q_rad, stiffness_matrix, damping_ratios
 
 
 # The poses along a path the gears' damping is fitted over (diagrams/compliant_arm.path_poses): this many, evenly
-# spaced in the path's time.  A face-and-contour job's first modes change their damping by less than 0.1 % of
-# critical between neighbours at 16 (studies/damping_along_path.py compares 64).
+# spaced in the path's time (studies/damping_along_path.py measures the fit's damping at 64).
 PATH_DAMPING_SAMPLES = 16
 
 

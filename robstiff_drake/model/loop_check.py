@@ -8,6 +8,12 @@ tests/test_robot_file_schema.py), no Drake.
 
 Two modes: in air (no process stiffness) and cutting (a nominal process
 stiffness, ``NOMINAL_PROCESS_STIFFNESS_N_PER_M``, turned to the feed).
+The damping ratios are those of the arm's modes with the drives closed
+(model/joint_dynamics.linear_joints), the drives' integral corner chosen
+from the arm's first antiresonance when the servo's rule says so: the
+caller tunes the drives once (at the start pose: ``LoopSetup.arm(...)[0]
+.servo`` is then the tuned servo) and checks the poses along the path with
+it (cell/loop_guard.LoopGuard.along).
 
 The margin.  The verdict is taken with the arm's damping at
 ``MARGIN_DAMPING_RATIO`` (2 %) on every mode, not at the 5 % the plant
@@ -194,17 +200,18 @@ class Verdict:
 
 
 
-def check(setup, filter_ba, modes, *, cutoff_hz=None):
+def check(setup, filter_ba, modes, *, cutoff_hz=None, search_cutoff=True):
     """The verdict for the compensator's filter (b, a) and the process
     stiffnesses ``modes`` ({name: Kp (3, 3) N/m}); with an unstable mode,
     the largest stable low-pass cutoff up to ``cutoff_hz`` (the filter's
     own, a low-pass of ``setup.filter_order``), or up to SEARCH_UPPER_HZ
-    (``cutoff_hz`` None: another filter)."""
+    (``cutoff_hz`` None: another filter; ``search_cutoff`` false: no
+    search, None)."""
     radius = {m: setup.radius(filter_ba, Kp) for m, Kp in modes.items()}
     assumed = {m: setup.radius(filter_ba, Kp, joint_dynamics.DEFAULT_MODAL_DAMPING_RATIO) for m, Kp in modes.items()}
     unstable = [m for m, r in radius.items() if not r <= STABLE_RADIUS]
     v = Verdict(radius, assumed, unstable)
-    if unstable:
+    if unstable and search_cutoff:
         upper = min(cutoff_hz or SEARCH_UPPER_HZ, 0.45 * setup.sensor_rate_hz)
         v.largest_stable_cutoff_hz = setup.largest_stable_cutoff_hz(upper, modes, upper_unstable=upper == cutoff_hz)
     return v
