@@ -11,7 +11,10 @@ model/joint_dynamics.JointModel.arm_modes) at poses along a scenario's path
 - path fit: as the station builds it, one gears' damping fitted over the
   path's poses (diagrams/compliant_arm.arm_joints).
 
-No simulation: the station's linear joints at each pose (about 10 s).
+And the loop check (model/loop_check.py, 2 % margin damping on the
+drives-closed modes, the scenario's filter) at 12 poses along the path,
+its worst pose: diagrams/loop_prediction.path_loop_margins.  No
+simulation: the station's linear joints at each pose (about 10 s).
 
     python3 studies/damping_along_path.py [SCENARIO.yaml] [--samples N]
 """
@@ -21,10 +24,12 @@ import dataclasses
 
 import numpy as np
 
+from robstiff_drake.diagrams.compensator import filter_coefficients
 from robstiff_drake.diagrams.compliant_arm import arm_joints, mass_and_weight_stiffness, path_poses
+from robstiff_drake.diagrams.loop_prediction import path_loop_margins
 from robstiff_drake.diagrams.milling_cell import planned_path
 from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
-from robstiff_drake.diagrams.scenario_models import plant_damping_ratios, plant_stiffness
+from robstiff_drake.diagrams.scenario_models import cutting_setup, plant_damping_ratios, plant_stiffness
 from robstiff_drake.diagrams.station import controller_model, servo_parameters
 from robstiff_drake.model import joint_dynamics as jd
 from robstiff_drake.paths import DIAGRAMS_DIR
@@ -67,6 +72,16 @@ def main():
     for name, (fi, lo, hi) in ranges(sc, a.samples).items():
         print(f"| {name} | {fi:.2f} | " + " | ".join(f"{a_ * 100:.1f}-{b_ * 100:.1f} %" for a_, b_ in zip(lo, hi))
               + f" | {lo[:3].min() * 100:.1f}-{hi[:3].max() * 100:.1f} % |")
+    robot = scenario_robot(sc)
+    ctl = sc.controller
+    ba = filter_coefficients(ctl.filter, sc.sensor.rate_hz, cutting_setup(sc)[0].spindle_rpm)
+    rows = path_loop_margins(sc, robot, ba)
+    worst = max(rows, key=lambda r: max(r["spectral_radius"].values()))
+    first = rows[0]["spectral_radius"]
+    print(f"loop check along the path ({len(rows)} poses, {ctl.filter.kind} {ctl.filter.cutoff_hz:g} Hz, "
+          f"{ctl.period_ms:g} ms period, 2 % margin damping): first pose {first['air']:.4f} in air, "
+          f"{first['cutting']:.4f} cutting; worst at row {worst['row']} (t = {worst['t_s']:.2f} s): "
+          f"{worst['spectral_radius']['air']:.4f} in air, {worst['spectral_radius']['cutting']:.4f} cutting")
 
 
 if __name__ == "__main__":

@@ -25,7 +25,7 @@ from robstiff_drake.model import loop_check
 from robstiff_drake.model.servo import ServoParameters
 
 # The tool point must move this far along the reference (m) for its start to have a feed direction.
-FEED_DISTANCE_M = 1e-3
+FEED_DISTANCE_M = loop_check.FEED_DISTANCE_M
 # The poses along a reference the loop is checked at beyond its first row: this many, evenly spaced in its rows
 # (the last row among them).  The arm's mass matrix changes smoothly along a path; a path whose poses change more
 # between samples than this catches is checked at the worst of those sampled (the result's "along_path" lists them).

@@ -1,6 +1,9 @@
 """The linear loop model (model/loop_model.py) set up for a scenario and a
 sweep combination: what it predicts for stability and surface error, to set
-beside the closed-loop simulation."""
+beside the closed-loop simulation; and the loop check along a scenario's
+path (``path_loop_margins``)."""
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -163,3 +166,28 @@ def mid_pass_process_stiffness(sc):
     t_mid = path.dwell_s + 0.5 * path.move_s
     return process_stiffness(lambda p: fmodel.average_wrench(p, path.feed_direction(t_mid), workpiece),
                              path.position(t_mid))
+
+
+def path_loop_margins(sc, robot, filter_ba, samples=12):
+    """The loop check (model/loop_check.py, at its margin's damping) at
+    ``samples`` poses along scenario ``sc``'s path, the drives tuned at its
+    first pose (as the station's): a list of dicts (row, t_s, q_rad,
+    spectral_radius {air, cutting (the nominal process stiffness along the
+    tool's motion from there)}), in path order."""
+    from robstiff_drake.model.loop_check import FEED_DISTANCE_M, check, process_stiffness_along
+
+    tool = robot.tool_point(where="the loop model")
+    _, t_ref, q_ref = cell_planned_path(sc, robot, tool)
+    start = scenario_loop_setup(sc, robot)
+    servo = start.arm(0.02)[0].servo  # (the drives tuned at the first pose, their integral corner chosen there)
+    p = kin.tool_position(robot.dh, q_ref, tool)
+    out = []
+    for r in np.unique(np.linspace(0, len(q_ref) - 1, samples).round().astype(int)):
+        d = p[r:, :2] - p[r, :2]
+        far = np.nonzero(np.linalg.norm(d, axis=1) >= FEED_DISTANCE_M)[0]
+        feed = d[far[0]] if len(far) else None
+        setup = replace(start, q_rad=q_ref[r], servo=servo, _arm={})
+        v = check(setup, filter_ba, {"air": np.zeros((3, 3)), "cutting": process_stiffness_along(feed)},
+                  search_cutoff=False)
+        out.append({"row": int(r) + 1, "t_s": float(t_ref[r]), "q_rad": q_ref[r], "spectral_radius": v.radius})
+    return out

@@ -60,6 +60,8 @@ TRANSPORT_DELAY_STEPS = 1
 NOMINAL_PROCESS_STIFFNESS_N_PER_M = 1e3 * np.array([[0.0, -0.2, 45.1],
                                                    [0.0, 3.9, -39.2],
                                                    [0.0, 0.5, -7.7]])
+# The tool point must move this far along a path (m) for a pose on it to have a feed direction.
+FEED_DISTANCE_M = 1e-3
 CUTOFF_RESOLUTION_HZ = 0.1  # the largest stable cutoff is given to this, rounded down
 MIN_CUTOFF_HZ = 0.1  # the search's lower end
 SEARCH_UPPER_HZ = 20.0  # its upper end where the compensator's filter is not a low-pass
