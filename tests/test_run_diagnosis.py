@@ -228,13 +228,16 @@ def test_the_servo_integral_corner_is_logged_and_read(exact_run, tmp_path):
 
     s = Path(exact_run) / rt.SETTINGS
     text = s.read_text()
-    assert "    velocity_integral_hz: 7.5\n" in text
+    # the corner the plant's drives got (chosen below the arm's first antiresonance: about 1.2 Hz here)
+    line = next(ln for ln in text.splitlines(keepends=True) if ln.startswith("    velocity_integral_hz: "))
+    logged = float(line.split(":")[1])
+    assert 0.5 < logged < 7.5, line
     _, settings = rs.read_settings(s)
-    assert servo_of(settings).velocity_integral_hz == 7.5
+    assert servo_of(settings).velocity_integral_hz == logged
     old = tmp_path / rt.SETTINGS
-    old.write_text(text.replace("    velocity_integral_hz: 7.5\n", "    velocity_integral_hz: 12.0\n"))
+    old.write_text(text.replace(line, "    velocity_integral_hz: 12.0\n"))
     assert servo_of(rs.read_settings(old)[1]).velocity_integral_hz == 12.0
-    old.write_text(text.replace("    velocity_integral_hz: 7.5\n", ""))
+    old.write_text(text.replace(line, ""))
     assert servo_of(rs.read_settings(old)[1]).velocity_integral_hz == ServoParameters.velocity_integral_hz
 
 
