@@ -62,6 +62,7 @@ DEFAULT_MODAL_DAMPING_RATIO = 0.05
 # ASSUMPTION: where the drives alone damp a mode beyond its stated ratio, the gears keep this share of the
 # stated ratio on it (their own damping, bearings and structure, does not vanish because a drive damps the mode).
 MIN_HELD_SHARE = 0.25
+FIT_RATIO_FLOOR = 1e-3  # fit_path_damping weighs a mode's equation by its ratio, taken at least this
 DAMPING_TOLERANCE = 1e-4  # the drives-closed ratios are realised to this (absolute, 0.01 % of critical)
 STABLE_MARGIN = 1.0 + 1e-9  # spectral radius of a stable step (an undamped mode sits at 1)
 
@@ -180,11 +181,13 @@ def fit_path_damping(jm, poses, ratios):
         at = realise_drives_closed(jm.at_pose(M, G), ratios)
         w, Phi = held_modes(at.M, at.K, at.G)
         need = 2.0 * at.held_ratios() * w
+        scale = 2.0 * np.maximum(at.held_ratios(), FIT_RATIO_FLOOR) * w  # (each equation relative to its size)
         for i in range(6):
             for j in range(i, 6):  # (i != j: no coupling between the modes, as modal damping has none)
                 P = 0.5 * (np.outer(Phi[:, i], Phi[:, j]) + np.outer(Phi[:, j], Phi[:, i]))
-                rows.append(np.where(iu[0] == iu[1], 1.0, 2.0) * P[iu] / np.sqrt(need[i] * need[j]))
-                rhs.append(1.0 if i == j else 0.0)
+                s_ij = np.sqrt(scale[i] * scale[j])
+                rows.append(np.where(iu[0] == iu[1], 1.0, 2.0) * P[iu] / s_ij)
+                rhs.append(need[i] / s_ij if i == j else 0.0)
     x = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)[0]
     D = np.zeros((6, 6))
     D[iu] = x
