@@ -95,7 +95,7 @@ class LoopGuard:
         self.result = None  # the last check's dict (for summary.json)
         self.warning = None  # the override's warning line, when it ran an unstable loop
 
-    def _verdict(self, q_ctrl_deg, where, feed_xy, search_cutoff=True):
+    def _verdict(self, q_ctrl_deg, where, feed_xy, search_cutoff=True, assumed_damping=True):
         """(Verdict, the process stiffnesses) at the controller's angles
         (degrees; ``where``: the pose's name and angles, for the message)."""
         from robstiff_drake.identification.threads import single_blas_thread
@@ -108,6 +108,7 @@ class LoopGuard:
         try:
             with single_blas_thread():  # (many threads on small matrices: 10x slower on a busy machine)
                 v = loop_check.check(setup, self.ba, modes, search_cutoff=search_cutoff,
+                                     assumed_damping=assumed_damping,
                                      cutoff_hz=self.cutoff_hz if self.filter_kind == "lowpass" else None)
                 self.servo = setup.arm(loop_check.MARGIN_DAMPING_RATIO)[0].servo  # (tuned here, if not yet)
         except (np.linalg.LinAlgError, ValueError) as e:  # no loop to check (a mass matrix without inertia): refused
@@ -139,7 +140,8 @@ class LoopGuard:
         found = []
         for r in rows:
             feed = feed_direction(self.robot, self.robot.payload.tool_point_m, q[r:], to_model=to_model)
-            v, modes = self._verdict(q[r], f"{what}'s row {r + 1} ({_pose_text(q[r])} deg)", feed, search_cutoff=False)
+            v, modes = self._verdict(q[r], f"{what}'s row {r + 1} ({_pose_text(q[r])} deg)", feed,
+                                     search_cutoff=False, assumed_damping=False)
             found.append((max(v.radius.values()), int(r), v, modes))
         worst = max(found, key=lambda x: x[0])
         _, r, v, modes = worst

@@ -42,12 +42,13 @@ NOMINAL_TOLERANCE = 1e-6
 MIN_LEVER_M = 0.1
 # The force filter's default low-pass cutoff (Hz).  Not 10 Hz (the old default): the loop model
 # (model/loop_check.py) at the block test's start on the IRB 6400, 4 ms period, 1 kHz sensor, calls 10 Hz
-# unstable (spectral radius per period 1.0018 in air and 1.0043 cutting at the plant's assumed 5 % modal
-# damping, 1.0047 and 1.0071 at the check's 2 %: benchmarks/bench_loop_check.py), and the Drake cell diverges
-# at 10 Hz (studies/loop_stability_check.py, docs/results.md): the sensor feeds the payload's inertial force
-# back and a filter near the arm's first mode (4.5-4.8 Hz with the drives closed) takes its damping.  2 Hz:
-# the block scenario's filter, near the least radius (0.9984 in air, 0.9983 cutting at 2 %), stable with the
-# check's margin up to 3.5 Hz there; a 75 mm cutter entering at 20 mm/s changes the force over seconds, so the
+# unstable (spectral radius per period 1.0003 in air and 1.0028 cutting at the plant's assumed 5 % modal
+# damping on the drives-closed modes, 1.0034 and 1.0058 at the check's 2 %: benchmarks/bench_loop_check.py;
+# 1.0018 / 1.0043 and 1.0047 / 1.0071 with the damping on the motors-held modes and the drives' integral
+# corner at 7.5 Hz), and the Drake cell diverges above it (studies/loop_stability_check.py, docs/results.md):
+# the sensor feeds the payload's inertial force back and a filter near the arm's first mode (4.5-4.8 Hz with
+# the drives closed) takes its damping.  2 Hz: the block scenario's filter, near the least radius (0.9970 in
+# air, 0.9967 cutting at 2 %), stable with the check's margin up to 4 Hz there; a 75 mm cutter entering at 20 mm/s changes the force over seconds, so the
 # lag costs little (entry error 0.036 mm simulated, docs/results.md).
 DEFAULT_CUTOFF_HZ = 2.0
 SWITCH_INTERVAL_S = 0.0005

@@ -188,6 +188,6 @@ def path_loop_margins(sc, robot, filter_ba, samples=12):
         feed = d[far[0]] if len(far) else None
         setup = replace(start, q_rad=q_ref[r], servo=servo, _arm={})
         v = check(setup, filter_ba, {"air": np.zeros((3, 3)), "cutting": process_stiffness_along(feed)},
-                  search_cutoff=False)
+                  search_cutoff=False, assumed_damping=False)
         out.append({"row": int(r) + 1, "t_s": float(t_ref[r]), "q_rad": q_ref[r], "spectral_radius": v.radius})
     return out

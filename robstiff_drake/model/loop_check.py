@@ -202,15 +202,17 @@ class Verdict:
 
 
 
-def check(setup, filter_ba, modes, *, cutoff_hz=None, search_cutoff=True):
+def check(setup, filter_ba, modes, *, cutoff_hz=None, search_cutoff=True, assumed_damping=True):
     """The verdict for the compensator's filter (b, a) and the process
     stiffnesses ``modes`` ({name: Kp (3, 3) N/m}); with an unstable mode,
     the largest stable low-pass cutoff up to ``cutoff_hz`` (the filter's
     own, a low-pass of ``setup.filter_order``), or up to SEARCH_UPPER_HZ
     (``cutoff_hz`` None: another filter; ``search_cutoff`` false: no
-    search, None)."""
+    search, None; ``assumed_damping`` false: no radii at the assumed
+    damping, an empty dict)."""
     radius = {m: setup.radius(filter_ba, Kp) for m, Kp in modes.items()}
-    assumed = {m: setup.radius(filter_ba, Kp, joint_dynamics.DEFAULT_MODAL_DAMPING_RATIO) for m, Kp in modes.items()}
+    assumed = {m: setup.radius(filter_ba, Kp, joint_dynamics.DEFAULT_MODAL_DAMPING_RATIO)
+               for m, Kp in modes.items()} if assumed_damping else {}
     unstable = [m for m, r in radius.items() if not r <= STABLE_RADIUS]
     v = Verdict(radius, assumed, unstable)
     if unstable and search_cutoff:
