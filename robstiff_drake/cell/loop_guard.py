@@ -123,16 +123,19 @@ class LoopGuard:
             return f"the largest cutoff the model finds stable is {f:g} Hz (--cutoff-hz {f:g})"
         return f"the largest low-pass cutoff the model finds stable is {f:g} Hz (--filter lowpass --cutoff-hz {f:g})"
 
-    def along(self, q_ctrl_deg_rows, what, period_s, to_model=None):
+    def along(self, q_ctrl_deg_rows, what, times_s, to_model=None):
         """Check the loop at PATH_CHECK_SAMPLES rows of a reference after
         its first (``at`` checks that one first: it tunes the drives), each
         cutting along the tool's motion from there; ``what`` names the
-        reference.  The worst pose (largest spectral radius at the margin's
+        reference, ``times_s`` its rows' times (s; or one number: their
+        period).  The worst pose (largest spectral radius at the margin's
         damping) goes into the result (``along_path``).  InputError (one
         line, naming the row, its time, the pose, the radius and the
         largest stable cutoff there) when a pose is predicted unstable and
         not overridden; returns the line to print."""
         q = np.asarray(q_ctrl_deg_rows, dtype=float)
+        t = np.asarray(times_s, dtype=float)
+        t = t if t.ndim else np.arange(len(q)) * float(t)
         rows = np.unique(np.linspace(0, len(q) - 1, PATH_CHECK_SAMPLES + 1).round().astype(int))[1:]
         if not len(rows):
             return None
@@ -147,8 +150,8 @@ class LoopGuard:
         _, r, v, modes = worst
         seconds = time.perf_counter() - t0
         T_ms = self.period_s * 1e3
-        pose = f"row {r + 1}, t = {r * period_s:.2f} s: {_pose_text(q[r])} deg"
-        along = {"rows_checked": [int(x) + 1 for x in rows], "worst_row": r + 1, "worst_t_s": r * float(period_s),
+        pose = f"row {r + 1}, t = {t[r]:.2f} s: {_pose_text(q[r])} deg"
+        along = {"rows_checked": [int(x) + 1 for x in rows], "worst_row": r + 1, "worst_t_s": float(t[r]),
                  "worst_pose_deg": [float(x) for x in q[r]], "spectral_radius": v.radius,
                  "spectral_radius_by_row": {int(x[1]) + 1: max(x[2].radius.values()) for x in found},
                  "unstable_modes": v.unstable, "check_s": seconds}

@@ -222,7 +222,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         what = f"--job {Path(job).name}'s path" if job and not reference else f"--reference {Path(reference).name}"
         to_model = lambda q: robot.joint_map.to_model(np.radians(q))  # noqa: E731
         _say(guard.at(ref.q[0], f"{what}'s first row", feed_direction(robot, tool, ref.q, to_model=to_model)), guard)
-        along = guard.along(ref.q, what, period_s, to_model=to_model)  # (and along it: the drives tuned at its start)
+        along = guard.along(ref.q, what, ref.t, to_model=to_model)  # (and along it: the drives tuned at its start)
         if along:
             _say(along, guard)
     if max_jump_Nm is None:
