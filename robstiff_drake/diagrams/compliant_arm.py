@@ -53,10 +53,7 @@ def joint_model(controller_plant, robot, q_rad, stiffness_matrix, damping_ratios
     modes ``damping_on`` names: drives_closed or motors_held), the motors
     and drives (velocity loops tuned for the rigid axes at q, the integral
     corner chosen there when the servo's rule says so)."""
-    ctx = controller_plant.CreateDefaultContext()
-    G = gravity_stiffness(controller_plant, ctx, np.asarray(q_rad, dtype=float))
-    controller_plant.SetPositions(ctx, q_rad)
-    M = controller_plant.CalcMassMatrix(ctx)
+    M, G = mass_and_weight_stiffness(controller_plant, q_rad)
     return joint_dynamics.linear_joints(M, G, stiffness_matrix, damping_ratios, servo, motor_inertia(robot, M),
                                         stated_on=damping_on)
 
