@@ -192,10 +192,11 @@ def test_no_gouge_at_a_fast_corner_needs_preview_and_feed_plan(robot, tmp_path):
     alone leaves more (the arm's inertia beyond what its model and the
     discrete loop can cancel); the feed planner alone (on the plain
     compensator) cannot reach it either, even at its lowest feed; both
-    together hold it, for a cycle time at most 50 % longer (+39 % on the
-    plant with motors, drives and 5 % modal damping: the plunge's end at
-    50 mm/s rings the arm's first mode into the cut, and the planner slows
-    the plunge as well as the corner)."""
+    together hold it, for a cycle time at most 50 % longer (+33 %: the
+    planner slows the corner; +39 % on the plant whose 5 % was stated on the
+    motors-held modes with the drives' integral corner at 7.5 Hz, 3.6 % on
+    the first mode with the drives closed, where the plunge's end at 50 mm/s
+    rang that mode into the cut and the planner slowed the plunge too)."""
     sc = load_scenario(corner_scenario(tmp_path))
     sc.controller.mode = "preview"
     preview_only = run_cut(copy.deepcopy(sc), robot, compensation=True).surface_error_mm["max_abs"]
@@ -213,7 +214,7 @@ def test_no_gouge_at_a_fast_corner_needs_preview_and_feed_plan(robot, tmp_path):
     assert both.surface_error_mm["max_abs"] <= 0.03
     assert plan.cycle_time_s <= 1.5 * plan.program_cycle_time_s
     assert abs(both.cell.path.duration_s - plan.cycle_time_s) < 1e-9
-    assert {a["cause"] for a in plan.advice} == {"plunge", "corner"}, plan.advice
+    assert "corner" in {a["cause"] for a in plan.advice} <= {"plunge", "corner"}, plan.advice
     assert all(a["feed_mm_per_min"] < 3000.0 for a in plan.advice)
 
 
