@@ -36,8 +36,9 @@ def test_a_hammer_test_on_the_station_measures_the_stated_damping(face_and_conto
     nothing of how the damping was built): the first two modes (those the
     blows at the tool excite) come out at the stated 5 % within the fit's
     own scatter (0.5 % of critical), and the linearised station's first
-    three within 0.3 % of it (one damping fitted over the path's poses); the damping stated on the motors-held modes (the corner at
-    7.5 Hz) came out below 4.5 % on both."""
+    three within 0.3 % of it (one damping fitted over the path's poses);
+    the damping stated on the motors-held modes (the corner at 7.5 Hz)
+    came out below 4.5 % on both."""
     sc, robot, q_ref = face_and_contour
     station = build_station(sc, robot, q_modes_rad=path_poses(q_ref))
     stated = plant_damping_ratios(sc)[:2]

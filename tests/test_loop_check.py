@@ -217,7 +217,8 @@ def test_the_loop_is_checked_along_the_path_not_only_at_its_start():
     with pytest.raises(InputError) as e:
         g.along(rows, "the test path", 0.004)
     msg = str(e.value)
-    assert "\n" not in msg and "UNSTABLE" in msg and "along the test path at row 1001, t = 4.00 s: 0.00, 45.00" in msg, msg
+    assert "\n" not in msg and "UNSTABLE" in msg, msg
+    assert "along the test path at row 1001, t = 4.00 s: 0.00, 45.00" in msg, msg
     assert "spectral radius 1.00" in msg and "--cutoff-hz" in msg and "nothing was sent" in msg, msg
     g = guard(True)
     g.at(rows[0], "the test's first row")

@@ -88,11 +88,29 @@ def arm_joints(controller_plant, robot, q_modes_rad, stiffness_matrix, damping_r
     modes, one gears' damping fitted over them all
     (model/joint_dynamics.fit_path_damping)."""
     q = np.atleast_2d(np.asarray(q_modes_rad, dtype=float))
+    # (the key: the arm as the controller's model has it at the poses, its mass matrices and weight, not its name)
+    ctx = controller_plant.CreateDefaultContext()
+    arm = []
+    for qi in q:
+        controller_plant.SetPositions(ctx, qi)
+        arm += [controller_plant.CalcMassMatrix(ctx).tobytes(),
+                controller_plant.CalcGravityGeneralizedForces(ctx).tobytes()]
+    key = (tuple(arm), q.tobytes(), np.asarray(motor_inertia(robot, np.eye(6)), dtype=float).tobytes(),
+           np.asarray(stiffness_matrix, dtype=float).tobytes(), np.asarray(damping_ratios, dtype=float).tobytes(),
+           servo, damping_on)
+    if key in _ARM_JOINTS:
+        return _ARM_JOINTS[key]
     jm = joint_model(controller_plant, robot, q[0], stiffness_matrix, damping_ratios, servo, damping_on)
     if len(q) > 1 and damping_on == "drives_closed":
         jm = joint_dynamics.fit_path_damping(jm, [(jm.M, jm.G)] + [mass_and_weight_stiffness(controller_plant, qi)
                                                                    for qi in q[1:]], damping_ratios)
+    if len(_ARM_JOINTS) >= 16:
+        del _ARM_JOINTS[next(iter(_ARM_JOINTS))]
+    _ARM_JOINTS[key] = jm
     return jm
+
+
+_ARM_JOINTS = {}  # arm_joints' results per setup (a cell's runs build the same station several times)
 
 
 def unstable_step_message(jm, time_step_s):

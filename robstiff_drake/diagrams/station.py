@@ -190,8 +190,9 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
     (the process), ``q_modes_rad`` the pose (or the path's poses,
     compliant_arm.path_poses, the first first) whose modes set the damping
     and tune the drives (and choose their integral corner: scenario
-    servo.velocity_integral, which the chosen corner is written back to).  Raises ValueError if the plant step is unstable for
-    these joints (unless ``check_stability`` is false)."""
+    servo.velocity_integral, which the chosen corner is written back to).
+    Raises ValueError if the plant step is unstable for these joints
+    (unless ``check_stability`` is false)."""
     tool = robot.tool_point(where="the closed loop")
     h = plant_step_s(sc)
     k = np.asarray(plant_stiffness(sc, robot), dtype=float)
