@@ -128,6 +128,12 @@ def scenario_with_compensator(sc, settings, robot):
             raise InputError(f"{where}: compensator.{key} {got:g} is not the scenario's {machine:g} "
                              "(the simulation takes the machine's own tool)")
     if settings.servo is not None:
+        from robstiff_drake.diagrams.milling_cell import planned_path
+        from robstiff_drake.diagrams.station import resolve_integral_corner
+
+        # (the drives' integral corner the station will choose, where the run's settings logged it)
+        _, _, q_ref = planned_path(sc, robot, robot.tool_point(where="the verification cut"))
+        resolve_integral_corner(sc, robot, q_ref[0])
         own_servo = servo_settings(sc)
         for k, v in settings.servo.items():
             if not np.isclose(v, own_servo[k], rtol=1e-9, atol=0):

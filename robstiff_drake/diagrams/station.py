@@ -53,6 +53,7 @@ from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (the arm's he
     gravity_holding_torque,
     gravity_stiffness,
     joint_model,
+    mass_and_weight_stiffness,
     modal_frequencies_hz,
     motor_inertia,
     natural_frequencies,
@@ -62,6 +63,7 @@ from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (the arm's he
     unstable_step_message,
 )
 from robstiff_drake.model import joint_dynamics, transmission
+from robstiff_drake.model import servo as servo_model
 from robstiff_drake.model.payload import payload_wrench
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.servo import ServoParameters
@@ -75,6 +77,21 @@ def servo_parameters(sc):
                            velocity_feedforward=s.velocity_feedforward,
                            interpolator_delay_s=s.interpolator_delay_ms / 1e3,
                            velocity_integral_hz=s.velocity_integral_hz, integral_rule=s.velocity_integral)
+
+
+def resolve_integral_corner(sc, robot, q_rad):
+    """Write the drives' integral corner the station chooses at pose q
+    (its first pose: servo.velocity_integral "antiresonance",
+    model/servo.integral_corner_hz) into ``sc.servo.velocity_integral_hz``
+    before a station is built (a stated corner is left as it is); returns
+    it (Hz)."""
+    if sc.servo.velocity_integral == "antiresonance":
+        M, G = mass_and_weight_stiffness(controller_model(robot), q_rad)
+        K = joint_dynamics.stiffness_matrix(plant_stiffness(sc, robot), sc.plant.coupling_c23_rad_per_Nm)
+        f_ar = joint_dynamics.held_modes(M, K, G)[0][0] / (2 * np.pi)
+        sc.servo.velocity_integral_hz = float(servo_model.with_integral_corner(servo_parameters(sc), f_ar)
+                                              .velocity_integral_hz)
+    return float(sc.servo.velocity_integral_hz)
 
 
 class ToolPose(LeafSystem):
