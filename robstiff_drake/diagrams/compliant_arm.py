@@ -78,6 +78,83 @@ def unstable_step_message(jm, time_step_s):
             f"(plant_config.time_step: {ok_ms / 1e3:g})")
 
 
+def twist_inertia_kgm2(jm):
+    """(6,) J_eff of each gear's twist phi = theta - q (kg*m^2): its link
+    (1 / (M^-1)_jj, the rest of the arm free) in series with its motor."""
+    return 1.0 / (np.diag(np.linalg.inv(jm.M)) + 1.0 / jm.motor_inertia_kgm2)
+
+
+def contact_frequencies_hz(jm):
+    """(6,) each gear's contact mode (Hz): its stiffness on the twist's
+    inertia (``twist_inertia_kgm2``), the mode a flank impact rings in."""
+    return np.sqrt(np.diag(jm.K) / twist_inertia_kgm2(jm)) / (2 * np.pi)
+
+
+# A tooth-resolved cutting force is resolved by the plant's step when the step takes at least TOOTH_STEPS_PER_PASS
+# samples of each tooth pass (the step's mean then keeps 95 % of the tooth-pass harmonic, and nothing folds
+# down) and keeps every mode of the arm within omega h <= RESOLVED_OMEGA_H (a mode's frequency then within 2 %,
+# its damping within 6 %, of the converged: joint_dynamics.JointModel.step_modes).  On the IRB 6400 with the
+# paper's 360 Hz tooth pass both give 0.5 ms; there joint 6's twist per N*m of tooth force is within 10 % of
+# its converged value (studies/time_step_convergence.py), at 2 ms it is 19 times too large.
+TOOTH_STEPS_PER_PASS = 5.5
+
+
+def tooth_resolving_step_s(jm, tooth_pass_hz):
+    """The largest plant step (s) that resolves a tooth-resolved force of
+    ``tooth_pass_hz`` on the joints ``jm`` (TOOTH_STEPS_PER_PASS)."""
+    f_top = jm.closed_loop_modes()[0].max()
+    return float(min(1.0 / (TOOTH_STEPS_PER_PASS * tooth_pass_hz), RESOLVED_OMEGA_H / (2 * np.pi * f_top)))
+
+
+def unresolved_tooth_message(jm, tooth_pass_hz, time_step_s):
+    """None when the plant step resolves a tooth-resolved force of
+    ``tooth_pass_hz`` (Hz), else why not and the step that would (one
+    line)."""
+    ok = tooth_resolving_step_s(jm, tooth_pass_hz)
+    if time_step_s <= ok * (1 + 1e-9):
+        return None
+    ok_ms = np.floor(ok * 1e5) / 100.0
+    return (f"a {time_step_s * 1e3:g} ms plant step does not resolve the tooth-resolved force (cutting.mode: "
+            f"tooth, {tooth_pass_hz:.0f} Hz tooth pass) on an arm whose stiffest mode is "
+            f"{jm.closed_loop_modes()[0].max():.0f} Hz: the step's mean folds it down next to that mode and the "
+            f"step moves the mode; use at most {ok_ms:g} ms (plant_config.time_step: {ok_ms / 1e3:g}) or "
+            f"cutting.mode: averaged")
+
+
+# A flank impact lasts half a period of the gear's contact mode.  The explicit step locates no contact inside
+# itself: the restitution of an impact comes out within 5 % of its converged value (whatever the phase of the
+# impact on the step's grid) while omega_c h <= RESOLVED_OMEGA_H (studies/time_step_convergence.py measures
+# it on the IRB 6400's joint 6, and the test of tests/test_gear_play_resolution.py keeps it).
+RESOLVED_OMEGA_H = 0.4
+
+
+def resolving_step_s(jm, play_rad):
+    """The largest plant step (s) that resolves every gear with play's flank
+    impacts (RESOLVED_OMEGA_H), or None without play."""
+    b = np.asarray(play_rad, dtype=float)
+    if not np.any(b > 0):
+        return None
+    w = 2 * np.pi * contact_frequencies_hz(jm)[b > 0]
+    return float(RESOLVED_OMEGA_H / w.max())
+
+
+def under_resolved_play_message(jm, play_rad, time_step_s):
+    """None when the plant step resolves the flank impacts of every gear
+    with play, else which joint it does not and the step that would (one
+    line)."""
+    b = np.asarray(play_rad, dtype=float)
+    f = contact_frequencies_hz(jm)
+    bad = [j for j in range(6) if b[j] > 0 and 2 * np.pi * f[j] * time_step_s > RESOLVED_OMEGA_H * (1 + 1e-9)]
+    if not bad:
+        return None
+    j = max(bad, key=lambda i: f[i])
+    ok_ms = np.floor(resolving_step_s(jm, b) * 1e5) / 100.0  # rounded down to 0.01 ms
+    return (f"joint {j + 1}'s play ({b[j] * 1e3:.3g} mrad, plant.lost_motion_rad) hits its flanks in a "
+            f"{f[j]:.0f} Hz contact mode that a {time_step_s * 1e3:g} ms plant step does not resolve (its impacts' "
+            f"restitution comes out wrong, energy created): use at most {ok_ms:g} ms (plant_config.time_step: "
+            f"{ok_ms / 1e3:g}) or no play on that joint")
+
+
 def controller_model(robot):
     """The robot controller's own model of the arm and payload (a
     continuous MultibodyPlant, finalized): its gravity model, and the arm's
@@ -151,7 +228,7 @@ def set_drives_at_rest(arm, root_context, theta, q_command=None):
 
 def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_rad, damping_ratios, q_modes_rad,
                       servo, interpolator_period_s, lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0,
-                      check_stability=True):
+                      check_stability=True, gap_friction_Nm=None, check_resolution=True):
     """The arm and its drives: a discrete MultibodyPlant (``plant_config``)
     of the links, each driven through its gear by a motor with its rotor's
     inertia, which a torque-level drive turns (model/servo.py); the robot
@@ -254,8 +331,15 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     b = np.asarray(lost_motion_rad if lost_motion_rad is not None and len(lost_motion_rad) else np.zeros(6),
                    dtype=float)
     if np.any(b):
+        why = under_resolved_play_message(jm, b, h) if check_resolution else None
+        if why:
+            raise ValueError(why)
+        friction = (transmission.gap_friction_Nm(Kg) if gap_friction_Nm is None or not len(gap_friction_Nm)
+                    else np.asarray(gap_friction_Nm, dtype=float))
         gear = builder.AddNamedSystem("gear_transmission", GearPlay(
-            stiffness_Nm_per_rad=Kg, damping_Nms_per_rad=jm.D, play_rad=b))
+            stiffness_Nm_per_rad=Kg, damping_Nms_per_rad=jm.D, play_rad=b,
+            gap_friction_Nm=friction if np.any(friction) else None, gap_inertia_kgm2=twist_inertia_kgm2(jm),
+            step_s=h))
         builder.Connect(motor, gear.GetInputPort("motor_state"))
         builder.Connect(plant.get_state_output_port(), gear.GetInputPort("link_state"))
     else:

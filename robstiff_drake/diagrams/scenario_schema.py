@@ -59,6 +59,11 @@ class PlantConfig:
                                            "specified at 0.1-0.3 mrad (RV: at most 1 arcmin)")
     coupling_c23_rad_per_Nm: float = num(0.0, -1e-5, 1e-5, "rad/(N*m)", why="at most the softest joint's own "
                                                                          "compliance (1e-5 rad/(N*m) = 1e5 N*m/rad)")
+    # The Coulomb torque (N*m) with which a gear with play still drags its link while the flanks are apart;
+    # empty: 1.5 % of the gear's rated torque (model/transmission.gap_friction_Nm gives the source); zeros: none.
+    gap_friction_Nm: list[float] = vec([], (0, 6), 0.0, 1000.0, "N*m",
+                                       why="a reducer's internal friction is a few % of its rated torque, at "
+                                           "most some hundred N*m on the largest arms")
 
 
 @dataclass

@@ -57,6 +57,7 @@ from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (the arm's he
     natural_frequencies,
     set_drives_at_rest,
     static_link_angles,
+    unresolved_tooth_message,
     unstable_step_message,
 )
 from robstiff_drake.model import joint_dynamics, transmission
@@ -199,8 +200,12 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
                             interpolator_period_s=sc.servo.interpolator_period_ms / 1e3,
                             lost_motion_rad=sc.plant.lost_motion_rad,
                             coupling_c23_rad_per_Nm=sc.plant.coupling_c23_rad_per_Nm,
-                            check_stability=check_stability)
+                            check_stability=check_stability, gap_friction_Nm=sc.plant.gap_friction_Nm or None)
     plant = arm["plant"]
+    why = unresolved_tooth_message(arm["joints"], force_model.cutter.tooth_pass_hz, h) \
+        if sc.cutting.mode == "tooth" and check_stability else None
+    if why:
+        raise ValueError(why)
     systems = {key: arm[key] for key in ("plant", "controller_plant", "servo", "servo_parameters", "interpolator",
                                          "touch_off", "joints", "gear_torque_at_rest")}
 
