@@ -91,19 +91,29 @@ def contact_frequencies_hz(jm):
 
 
 # A tooth-resolved cutting force is resolved by the plant's step when the step takes at least TOOTH_STEPS_PER_PASS
-# samples of each tooth pass (the step's mean then keeps 95 % of the tooth-pass harmonic, and nothing folds
-# down) and keeps every mode of the arm within omega h <= RESOLVED_OMEGA_H (a mode's frequency then within 2 %,
-# its damping within 6 %, of the converged: joint_dynamics.JointModel.step_modes).  On the IRB 6400 with the
-# paper's 360 Hz tooth pass both give 0.5 ms; there joint 6's twist per N*m of tooth force is within 10 % of
-# its converged value (studies/time_step_convergence.py), at 2 ms it is 19 times too large.
-TOOTH_STEPS_PER_PASS = 5.5
+# samples of each tooth pass (the step's mean then keeps 98 % of the tooth-pass harmonic, and nothing folds
+# down) and keeps every mode of the arm within omega h <= RESOLVED_OMEGA_H.  On the IRB 6400 with the paper's
+# 360 Hz tooth pass that is 0.25 ms: there joint 6's twist per N*m of tooth force is 3 % above the continuous
+# model's and its 126 Hz / 5.5 % wrist mode comes out 126.9 Hz / 5.3 % (joint_dynamics.JointModel.step_modes);
+# at 0.5 ms 10 % above, at 2 ms 19 times (the tooth pass folded to 140 Hz, the mode moved to 153 Hz / 3.6 %;
+# studies/time_step_convergence.py).
+TOOTH_STEPS_PER_PASS = 10.0
+
+
+def step_on_grid_s(step_s):
+    """``step_s`` rounded down to a step that divides 1 ms (1 ms / n) below
+    1 ms, to 0.1 ms above: the sensor's and controller's periods stay
+    whole numbers of plant steps."""
+    if step_s >= 1e-3:
+        return float(np.floor(step_s * 1e4 + 1e-9) / 1e4)
+    return 1e-3 / np.ceil(1e-3 / step_s - 1e-9)
 
 
 def tooth_resolving_step_s(jm, tooth_pass_hz):
     """The largest plant step (s) that resolves a tooth-resolved force of
     ``tooth_pass_hz`` on the joints ``jm`` (TOOTH_STEPS_PER_PASS)."""
     f_top = jm.closed_loop_modes()[0].max()
-    return float(min(1.0 / (TOOTH_STEPS_PER_PASS * tooth_pass_hz), RESOLVED_OMEGA_H / (2 * np.pi * f_top)))
+    return step_on_grid_s(min(1.0 / (TOOTH_STEPS_PER_PASS * tooth_pass_hz), RESOLVED_OMEGA_H / (2 * np.pi * f_top)))
 
 
 def unresolved_tooth_message(jm, tooth_pass_hz, time_step_s):
@@ -113,7 +123,7 @@ def unresolved_tooth_message(jm, tooth_pass_hz, time_step_s):
     ok = tooth_resolving_step_s(jm, tooth_pass_hz)
     if time_step_s <= ok * (1 + 1e-9):
         return None
-    ok_ms = np.floor(ok * 1e5) / 100.0
+    ok_ms = round(ok * 1e3, 4)
     return (f"a {time_step_s * 1e3:g} ms plant step does not resolve the tooth-resolved force (cutting.mode: "
             f"tooth, {tooth_pass_hz:.0f} Hz tooth pass) on an arm whose stiffest mode is "
             f"{jm.closed_loop_modes()[0].max():.0f} Hz: the step's mean folds it down next to that mode and the "
@@ -135,7 +145,7 @@ def resolving_step_s(jm, play_rad):
     if not np.any(b > 0):
         return None
     w = 2 * np.pi * contact_frequencies_hz(jm)[b > 0]
-    return float(RESOLVED_OMEGA_H / w.max())
+    return step_on_grid_s(RESOLVED_OMEGA_H / w.max())
 
 
 def under_resolved_play_message(jm, play_rad, time_step_s):
@@ -144,11 +154,13 @@ def under_resolved_play_message(jm, play_rad, time_step_s):
     line)."""
     b = np.asarray(play_rad, dtype=float)
     f = contact_frequencies_hz(jm)
+    if time_step_s <= resolving_step_s(jm, b) * (1 + 1e-9):
+        return None
     bad = [j for j in range(6) if b[j] > 0 and 2 * np.pi * f[j] * time_step_s > RESOLVED_OMEGA_H * (1 + 1e-9)]
     if not bad:
         return None
     j = max(bad, key=lambda i: f[i])
-    ok_ms = np.floor(resolving_step_s(jm, b) * 1e5) / 100.0  # rounded down to 0.01 ms
+    ok_ms = round(resolving_step_s(jm, b) * 1e3, 4)
     return (f"joint {j + 1}'s play ({b[j] * 1e3:.3g} mrad, plant.lost_motion_rad) hits its flanks in a "
             f"{f[j]:.0f} Hz contact mode that a {time_step_s * 1e3:g} ms plant step does not resolve (its impacts' "
             f"restitution comes out wrong, energy created): use at most {ok_ms:g} ms (plant_config.time_step: "
