@@ -45,12 +45,15 @@ class JointLoadStep(LeafSystem):
         output.SetFromVector(tau)
 
 
-def release_run(robot, q_rad, *, step_s, play_rad, joint, load_Nm, release_s, duration_s, damping_ratios=0.05,
-                servo, gap_friction_Nm=None):
+def joint_load_run(robot, q_rad, load, *, step_s, play_rad, joint, initial_load_Nm, duration_s, servo,
+                   damping_ratios=0.05, gap_friction_Nm=None):
     """(t (n,), phi (n,), phi' (n,)) of joint ``joint``'s gear (rad, rad/s)
-    every plant step ``step_s`` of the release experiment (module
-    docstring); ``play_rad`` (6,) the half-widths, ``gap_friction_Nm``
-    the friction inside the play (None: the plant's default)."""
+    every plant step ``step_s``, the bare arm holding ``q_rad`` with the
+    LeafSystem ``load`` (output: generalized forces (6), N*m) on its links,
+    started at rest under ``initial_load_Nm`` on that joint (the link on
+    the flank it presses); ``play_rad`` (6,) the half-widths,
+    ``gap_friction_Nm`` the friction inside the play (None: the plant's
+    default)."""
     builder = DiagramBuilder()
     k = np.asarray(robot.joint_stiffness_Nm_per_rad, dtype=float)
     arm = add_compliant_arm(builder, robot=robot, plant_config=MultibodyPlantConfig(time_step=step_s),
@@ -60,7 +63,7 @@ def release_run(robot, q_rad, *, step_s, play_rad, joint, load_Nm, release_s, du
     plant = arm["plant"]
     for port, value in ((arm["position_command"], q_rad), (arm["velocity_command"], np.zeros(6))):
         builder.Connect(builder.AddSystem(ConstantVectorSource(value)).get_output_port(), port)
-    load = builder.AddSystem(JointLoadStep(joint, load_Nm, release_s))
+    builder.AddSystem(load)
     builder.Connect(load.get_output_port(), plant.get_applied_generalized_force_input_port())
     links = builder.AddSystem(VectorLogSink(12, step_s))
     motors = builder.AddSystem(VectorLogSink(12, step_s))
@@ -70,7 +73,7 @@ def release_run(robot, q_rad, *, step_s, play_rad, joint, load_Nm, release_s, du
     root = sim.get_mutable_context()
     # at rest with the load on: the gear carries gravity's torque and the load, the link on the flank they press
     hold = gravity_holding_torque(arm["controller_plant"], q_rad)
-    hold[joint] -= load_Nm
+    hold[joint] -= initial_load_Nm
     theta = q_rad + transmission.play_twist(hold, 1.0 / k, play_rad)
     plant.SetPositions(plant.GetMyMutableContextFromRoot(root), q_rad)
     set_drives_at_rest(arm, root, theta, q_rad)
@@ -81,6 +84,15 @@ def release_run(robot, q_rad, *, step_s, play_rad, joint, load_Nm, release_s, du
     phi = Mo.data()[joint] - L.data()[joint]
     rate = Mo.data()[6 + joint] - L.data()[6 + joint]
     return t, phi, rate
+
+
+def release_run(robot, q_rad, *, step_s, play_rad, joint, load_Nm, release_s, duration_s, damping_ratios=0.05,
+                servo, gap_friction_Nm=None):
+    """``joint_load_run`` of the release experiment (module docstring): a
+    torque ``load_Nm`` on the joint's link until ``release_s``."""
+    return joint_load_run(robot, q_rad, JointLoadStep(joint, load_Nm, release_s), step_s=step_s, play_rad=play_rad,
+                          joint=joint, initial_load_Nm=load_Nm, duration_s=duration_s, servo=servo,
+                          damping_ratios=damping_ratios, gap_friction_Nm=gap_friction_Nm)
 
 
 def impacts(t, phi, rate, b_rad, after_s):

@@ -325,6 +325,12 @@ class ModelConfig:
     # The compensator's own model of the joint effects (see PlantConfig):
     # what `robstiff diagnose-run` adds when it finds them.
     lost_motion_rad: list[float] = vec([], (0, 6), 0.0, 0.01, "rad")
+    # The torque over which each joint's lost motion is taken up (N*m, the smooth law's tanh scale,
+    # model/transmission.twist), identified from a campaign (identification/stiffness/play_law.py); empty: the
+    # fallback, 1.5 % of each gear's rated torque (model/transmission.fallback_take_up_Nm).
+    lost_motion_take_up_Nm: list[float] = vec([], (0, 6), 0.01, 1e4, "N*m",
+                                              why="from a fraction of a N*m (a tight small reducer) to the "
+                                                  "largest arms' kN*m")
     coupling_c23_rad_per_Nm: float = num(0.0, -1e-5, 1e-5, "rad/(N*m)")
     # Preview mode's damping of the arm: the modal damping ratio of each mode
     # of the links on their gears (lowest frequency first; one number: every
