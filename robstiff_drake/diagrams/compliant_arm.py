@@ -267,7 +267,11 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     ``servo`` (the drives' LinearSystem), ``interpolator`` (its blocks),
     joints (the JointModel), natural_frequencies_hz (motors held).  Raises
     ValueError, naming the step that would do, if the step is unstable for
-    these joints (unless ``check_stability`` is false)."""
+    these joints (unless ``check_stability`` is false) or does not resolve
+    a gear with play's flank impacts (``under_resolved_play_message``;
+    unless ``check_resolution`` is false).  ``gap_friction_Nm``: the
+    Coulomb torque inside each play (N*m; None or empty: the plant's,
+    model/transmission.gap_friction_Nm; zeros: none)."""
     k = np.asarray(joint_stiffness_Nm_per_rad, dtype=float)
     # ASSUMPTION: the absolute-accuracy model is calibrated for this arm (as
     # ABB calibrates each robot with the option): its gravity model uses the
