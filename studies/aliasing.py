@@ -40,7 +40,7 @@ def main():
     robot = load_robot()
     base = load_scenario(DIAGRAMS_DIR / "block_milling.yaml")
     base.cutting.mode = "tooth"
-    base.plant_config.time_step = 0.002  # the plant sees each step's mean tooth force: resolve it finer than 4 ms
+    base.plant_config.time_step = 0.00025  # the step that resolves the tooth pass (the station refuses a coarser one)
     base.controller.period_ms = 24.0
     base.controller.filter.cutoff_hz = 5.0
     base.controller.rate_limit_deg_per_s = 10.0

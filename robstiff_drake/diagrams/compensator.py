@@ -79,7 +79,8 @@ class Compensator:
 
 def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, saturation_rad, rate_limit_rad_per_s,
                      calibration, model_dh, model_stiffness_Nm_per_rad, tool_m, predictive=None, preview=None,
-                     lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0, controller_plant=None, name="compensator"):
+                     lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0, controller_plant=None, name="compensator",
+                     lost_motion_take_up_Nm=None):
     """The compensator diagram (see module docstring).  ``calibration``: the
     payload calibration it believes; ``model_*``: its kinematics and joint
     stiffness; ``predictive``: a function (kinematics, lead) -> PredictiveWrench
@@ -99,7 +100,7 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     builder.Connect(s["guard"].GetOutputPort("wrench"), s["filter"].get_input_port())
     lost = lost_motion_rad if lost_motion_rad and any(lost_motion_rad) else None
     model = DeflectionModel(kin, tool_m, calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0), lost,
-                            coupling_c23_rad_per_Nm)
+                            coupling_c23_rad_per_Nm, lost_motion_take_up_Nm)
     # one block per tick: sample, gravity removal, [prediction], saturation, delay, correction
     # (systems/compensator_tick.py); a predictor with its own inputs or state stays its own block
     separate = predictive is not None or preview is not None or lost is not None
@@ -115,7 +116,8 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     else:
         s["prediction"] = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
             predictor=kin, tool_m=tool_m, mount_rpy_deg=calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0),
-            lost_motion_rad=lost, coupling_c23_rad_per_Nm=coupling_c23_rad_per_Nm))
+            lost_motion_rad=lost, coupling_c23_rad_per_Nm=coupling_c23_rad_per_Nm,
+            take_up_Nm=lost_motion_take_up_Nm))
         if lost is not None:  # the gravity torque the gears carry, from the controller's model
             zeros = builder.AddNamedSystem("zero_velocity", ConstantVectorSource(np.zeros(6)))
             q_state = builder.AddNamedSystem("sampled_q_as_state", Multiplexer([6, 6]))

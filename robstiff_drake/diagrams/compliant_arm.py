@@ -133,6 +133,95 @@ def unstable_step_message(jm, time_step_s):
             f"(plant_config.time_step: {ok_ms / 1e3:g})")
 
 
+def twist_inertia_kgm2(jm):
+    """(6,) J_eff of each gear's twist phi = theta - q (kg*m^2): its link
+    (1 / (M^-1)_jj, the rest of the arm free) in series with its motor."""
+    return 1.0 / (np.diag(np.linalg.inv(jm.M)) + 1.0 / jm.motor_inertia_kgm2)
+
+
+def contact_frequencies_hz(jm):
+    """(6,) each gear's contact mode (Hz): its stiffness on the twist's
+    inertia (``twist_inertia_kgm2``), the mode a flank impact rings in."""
+    return np.sqrt(np.diag(jm.K) / twist_inertia_kgm2(jm)) / (2 * np.pi)
+
+
+# A tooth-resolved cutting force is resolved by the plant's step when the step takes at least TOOTH_STEPS_PER_PASS
+# samples of each tooth pass (the step's mean then keeps 98 % of the tooth-pass harmonic, and nothing folds
+# down) and keeps every mode of the arm within omega h <= RESOLVED_OMEGA_H.  On the IRB 6400 with the paper's
+# 360 Hz tooth pass that is 0.25 ms: there joint 6's twist per N*m of tooth force is 3 % above the continuous
+# model's and its 126 Hz / 5.5 % wrist mode comes out 126.9 Hz / 5.3 % (joint_dynamics.JointModel.step_modes);
+# at 0.5 ms 10 % above, at 2 ms 19 times (the tooth pass folded to 140 Hz, the mode moved to 153 Hz / 3.6 %;
+# studies/time_step_convergence.py).
+TOOTH_STEPS_PER_PASS = 10.0
+
+
+def step_on_grid_s(step_s):
+    """``step_s`` rounded down to a step that divides 1 ms (1 ms / n) below
+    1 ms, to 0.1 ms above: the sensor's and controller's periods stay
+    whole numbers of plant steps."""
+    if step_s >= 1e-3:
+        return float(np.floor(step_s * 1e4 + 1e-9) / 1e4)
+    return 1e-3 / np.ceil(1e-3 / step_s - 1e-9)
+
+
+def tooth_resolving_step_s(jm, tooth_pass_hz):
+    """The largest plant step (s) that resolves a tooth-resolved force of
+    ``tooth_pass_hz`` on the joints ``jm`` (TOOTH_STEPS_PER_PASS)."""
+    f_top = jm.closed_loop_modes()[0].max()
+    return step_on_grid_s(min(1.0 / (TOOTH_STEPS_PER_PASS * tooth_pass_hz), RESOLVED_OMEGA_H / (2 * np.pi * f_top)))
+
+
+def unresolved_tooth_message(jm, tooth_pass_hz, time_step_s):
+    """None when the plant step resolves a tooth-resolved force of
+    ``tooth_pass_hz`` (Hz), else why not and the step that would (one
+    line)."""
+    ok = tooth_resolving_step_s(jm, tooth_pass_hz)
+    if time_step_s <= ok * (1 + 1e-9):
+        return None
+    ok_ms = round(ok * 1e3, 4)
+    return (f"a {time_step_s * 1e3:g} ms plant step does not resolve the tooth-resolved force (cutting.mode: "
+            f"tooth, {tooth_pass_hz:.0f} Hz tooth pass) on an arm whose stiffest mode is "
+            f"{jm.closed_loop_modes()[0].max():.0f} Hz: the step's mean folds it down next to that mode and the "
+            f"step moves the mode; use at most {ok_ms:g} ms (plant_config.time_step: {ok_ms / 1e3:g}) or "
+            f"cutting.mode: averaged")
+
+
+# A flank impact lasts half a period of the gear's contact mode.  The explicit step locates no contact inside
+# itself: the restitution of an impact comes out within 5 % of its converged value (whatever the phase of the
+# impact on the step's grid) while omega_c h <= RESOLVED_OMEGA_H (studies/time_step_convergence.py measures
+# it on the IRB 6400's joint 6, and the test of tests/test_gear_play_resolution.py keeps it).
+RESOLVED_OMEGA_H = 0.4
+
+
+def resolving_step_s(jm, play_rad):
+    """The largest plant step (s) that resolves every gear with play's flank
+    impacts (RESOLVED_OMEGA_H), or None without play."""
+    b = np.asarray(play_rad, dtype=float)
+    if not np.any(b > 0):
+        return None
+    w = 2 * np.pi * contact_frequencies_hz(jm)[b > 0]
+    return step_on_grid_s(RESOLVED_OMEGA_H / w.max())
+
+
+def under_resolved_play_message(jm, play_rad, time_step_s):
+    """None when the plant step resolves the flank impacts of every gear
+    with play, else which joint it does not and the step that would (one
+    line)."""
+    b = np.asarray(play_rad, dtype=float)
+    f = contact_frequencies_hz(jm)
+    if time_step_s <= resolving_step_s(jm, b) * (1 + 1e-9):
+        return None
+    bad = [j for j in range(6) if b[j] > 0 and 2 * np.pi * f[j] * time_step_s > RESOLVED_OMEGA_H * (1 + 1e-9)]
+    if not bad:
+        return None
+    j = max(bad, key=lambda i: f[i])
+    ok_ms = round(resolving_step_s(jm, b) * 1e3, 4)
+    return (f"joint {j + 1}'s play ({b[j] * 1e3:.3g} mrad, plant.lost_motion_rad) hits its flanks in a "
+            f"{f[j]:.0f} Hz contact mode that a {time_step_s * 1e3:g} ms plant step does not resolve (its impacts' "
+            f"restitution comes out wrong, energy created): use at most {ok_ms:g} ms (plant_config.time_step: "
+            f"{ok_ms / 1e3:g}) or no play on that joint")
+
+
 def controller_model(robot):
     """The robot controller's own model of the arm and payload (a
     continuous MultibodyPlant, finalized): its gravity model, and the arm's
@@ -206,7 +295,8 @@ def set_drives_at_rest(arm, root_context, theta, q_command=None):
 
 def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_rad, damping_ratios, q_modes_rad,
                       servo, interpolator_period_s, lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0,
-                      check_stability=True, damping_on="drives_closed"):
+                      check_stability=True, damping_on="drives_closed", gap_friction_Nm=None,
+                      check_resolution=True):
     """The arm and its drives: a discrete MultibodyPlant (``plant_config``)
     of the links, each driven through its gear by a motor with its rotor's
     inertia, which a torque-level drive turns (model/servo.py); the robot
@@ -237,7 +327,11 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     ``servo`` (the drives' LinearSystem), ``interpolator`` (its blocks),
     joints (the JointModel), natural_frequencies_hz (motors held).  Raises
     ValueError, naming the step that would do, if the step is unstable for
-    these joints (unless ``check_stability`` is false)."""
+    these joints (unless ``check_stability`` is false) or does not resolve
+    a gear with play's flank impacts (``under_resolved_play_message``;
+    unless ``check_resolution`` is false).  ``gap_friction_Nm``: the
+    Coulomb torque inside each play (N*m; None or empty: the plant's,
+    model/transmission.gap_friction_Nm; zeros: none)."""
     k = np.asarray(joint_stiffness_Nm_per_rad, dtype=float)
     # ASSUMPTION: the absolute-accuracy model is calibrated for this arm (as
     # ABB calibrates each robot with the option): its gravity model uses the
@@ -314,8 +408,15 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     b = np.asarray(lost_motion_rad if lost_motion_rad is not None and len(lost_motion_rad) else np.zeros(6),
                    dtype=float)
     if np.any(b):
+        why = under_resolved_play_message(jm, b, h) if check_resolution else None
+        if why:
+            raise ValueError(why)
+        friction = (transmission.gap_friction_Nm(Kg) if gap_friction_Nm is None or not len(gap_friction_Nm)
+                    else np.asarray(gap_friction_Nm, dtype=float))
         gear = builder.AddNamedSystem("gear_transmission", GearPlay(
-            stiffness_Nm_per_rad=Kg, damping_Nms_per_rad=jm.D, play_rad=b))
+            stiffness_Nm_per_rad=Kg, damping_Nms_per_rad=jm.D, play_rad=b,
+            gap_friction_Nm=friction if np.any(friction) else None, gap_inertia_kgm2=twist_inertia_kgm2(jm),
+            step_s=h))
         builder.Connect(motor, gear.GetInputPort("motor_state"))
         builder.Connect(plant.get_state_output_port(), gear.GetInputPort("link_state"))
     else:

@@ -65,6 +65,11 @@ class PlantConfig:
                                            "specified at 0.1-0.3 mrad (RV: at most 1 arcmin)")
     coupling_c23_rad_per_Nm: float = num(0.0, -1e-5, 1e-5, "rad/(N*m)", why="at most the softest joint's own "
                                                                          "compliance (1e-5 rad/(N*m) = 1e5 N*m/rad)")
+    # The Coulomb torque (N*m) with which a gear with play still drags its link while the flanks are apart;
+    # empty: 1.5 % of the gear's rated torque (model/transmission.gap_friction_Nm gives the source); zeros: none.
+    gap_friction_Nm: list[float] = vec([], (0, 6), 0.0, 1000.0, "N*m",
+                                       why="a reducer's internal friction is a few % of its rated torque, at "
+                                           "most some hundred N*m on the largest arms")
 
 
 @dataclass
@@ -332,6 +337,12 @@ class ModelConfig:
     # The compensator's own model of the joint effects (see PlantConfig):
     # what `robstiff diagnose-run` adds when it finds them.
     lost_motion_rad: list[float] = vec([], (0, 6), 0.0, 0.01, "rad")
+    # The torque over which each joint's lost motion is taken up (N*m, the smooth law's tanh scale,
+    # model/transmission.twist), identified from a campaign (identification/stiffness/play_law.py); empty: the
+    # fallback, 1.5 % of each gear's rated torque (model/transmission.fallback_take_up_Nm).
+    lost_motion_take_up_Nm: list[float] = vec([], (0, 6), 0.01, 1e4, "N*m",
+                                              why="from a fraction of a N*m (a tight small reducer) to the "
+                                                  "largest arms' kN*m")
     coupling_c23_rad_per_Nm: float = num(0.0, -1e-5, 1e-5, "rad/(N*m)")
     # Preview mode's damping of the arm: the modal damping ratio of each mode
     # of the links on their gears (lowest frequency first; one number: every

@@ -60,6 +60,7 @@ from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (the arm's he
     path_poses,
     set_drives_at_rest,
     static_link_angles,
+    unresolved_tooth_message,
     unstable_step_message,
 )
 from robstiff_drake.model import joint_dynamics, transmission
@@ -221,11 +222,16 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
                             interpolator_period_s=sc.servo.interpolator_period_ms / 1e3,
                             lost_motion_rad=sc.plant.lost_motion_rad,
                             coupling_c23_rad_per_Nm=sc.plant.coupling_c23_rad_per_Nm,
-                            check_stability=check_stability, damping_on=sc.plant.damping_on)
+                            check_stability=check_stability, damping_on=sc.plant.damping_on,
+                            gap_friction_Nm=sc.plant.gap_friction_Nm or None)
     servo = arm["servo_parameters"]  # the drives' own, their integral corner chosen
     # the corner the drives got, where the run's settings and the compensator's servo model read it
     sc.servo.velocity_integral_hz = float(servo.velocity_integral_hz)
     plant = arm["plant"]
+    why = unresolved_tooth_message(arm["joints"], force_model.cutter.tooth_pass_hz, h) \
+        if sc.cutting.mode == "tooth" and check_stability else None
+    if why:
+        raise ValueError(why)
     systems = {key: arm[key] for key in ("plant", "controller_plant", "servo", "servo_parameters", "interpolator",
                                          "touch_off", "joints", "gear_torque_at_rest")}
 

@@ -73,10 +73,17 @@ class DeflectionModel:
     flange (deg)."""
 
     def __init__(self, predictor, tool_m, mount_rpy_deg=(0.0, 0.0, 0.0), lost_motion_rad=None,
-                 coupling_c23_rad_per_Nm=0.0):
+                 coupling_c23_rad_per_Nm=0.0, take_up_Nm=None):
+        """``take_up_Nm`` (6,): the lost motion's take-up torque per joint
+        (N*m), identified from a campaign; None: the fallback
+        (model/transmission.fallback_take_up_Nm, from the compliance)."""
         self._pred = predictor
         self.lost = None if lost_motion_rad is None or not np.any(np.asarray(lost_motion_rad) != 0) else \
             np.asarray(lost_motion_rad, dtype=float)
+        self.take_up = None
+        if self.lost is not None:
+            self.take_up = (transmission.fallback_take_up_Nm(predictor.joint_compliance) if take_up_Nm is None
+                            or not len(take_up_Nm) else np.asarray(take_up_Nm, dtype=float))
         self.c23 = float(coupling_c23_rad_per_Nm)
         R_mount = rpy_to_rotation(np.deg2rad(mount_rpy_deg))
         self._R_mount = tuple(R_mount.ravel().tolist())
@@ -101,7 +108,8 @@ class DeflectionModel:
         if self.lost is None and not self.c23:
             return [c * t for c, t in zip(self._pred.joint_compliance_list, tau)]
         static = np.zeros(6) if static_torque is None else static_torque
-        return transmission.static_deflection(static, tau, self._pred.joint_compliance, self.lost, self.c23)
+        return transmission.static_deflection(static, tau, self._pred.joint_compliance, self.lost, self.c23,
+                                              self.take_up)
 
 
 class Compensator:

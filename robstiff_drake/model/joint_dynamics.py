@@ -297,6 +297,17 @@ class JointModel:
         P[12:30] += Btau @ T
         return P
 
+    def step_modes(self, step_s):
+        """(frequency Hz, damping ratio) of each oscillating mode of the
+        discrete scheme at ``step_s`` (the step map's eigenvalues z read as
+        s = ln(z) / h), ascending in frequency: what the step makes of
+        ``closed_loop_modes``."""
+        z = np.linalg.eigvals(self.step_map(step_s)).astype(complex)
+        z = z[(z.imag > 1e-12) & (np.abs(z) > 0)]
+        lam = np.log(z) / float(step_s)
+        lam = lam[np.argsort(np.abs(lam))]
+        return np.abs(lam) / (2 * np.pi), -lam.real / np.abs(lam)
+
     def spectral_radius(self, step_s):
         return float(np.max(np.abs(np.linalg.eigvals(self.step_map(step_s)))))
 

@@ -24,13 +24,14 @@ class DeflectionPrediction(LeafSystem):
     entry's extra call into Python)."""
 
     def __init__(self, *, predictor, tool_m, mount_rpy_deg=(0.0, 0.0, 0.0), lost_motion_rad=None,
-                 coupling_c23_rad_per_Nm=0.0):
+                 coupling_c23_rad_per_Nm=0.0, take_up_Nm=None):
         """``predictor``: the compensator's DeflectionPredictor; ``tool_m``:
         the tool point in the flange frame (m); ``mount_rpy_deg``: the sensor
         frame's rotation on the flange (deg)."""
         super().__init__()
         # the arithmetic: model/compensator.DeflectionModel (shared with the compensator process)
-        self._model = DeflectionModel(predictor, tool_m, mount_rpy_deg, lost_motion_rad, coupling_c23_rad_per_Nm)
+        self._model = DeflectionModel(predictor, tool_m, mount_rpy_deg, lost_motion_rad, coupling_c23_rad_per_Nm,
+                                      take_up_Nm)
         self._lost = self._model.lost
         self._w = self.DeclareVectorInputPort("process_wrench", 6)
         self._q = self.DeclareVectorInputPort("q", 6)

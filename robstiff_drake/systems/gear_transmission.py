@@ -21,6 +21,14 @@ of inertia J on a gear of stiffness k then rebounds with the coefficient
 of restitution exp(-pi zeta / sqrt(1 - zeta^2)), zeta = d / (2 sqrt(k J))
 (d the gear's damping): the gear's own damping, no extra parameter.
 
+Friction inside the play.  While the flanks are apart the gear still
+drags its link with a Coulomb torque T_c (model/transmission.gap_friction_Nm
+gives its size and source) against the twist rate, explicit like the rest:
+at most the torque that stops the relative motion within the step
+(J_eff |phi'| / h, 1/J_eff = (M^-1)_jj + 1/J_m,j), so it sticks instead of
+chattering.  Without it a link released from a flank rattles in its play
+until the impacts' own damping has taken the energy.
+
 Without play the gear is linear and the station uses a MatrixGain
 instead (no Python in the step)."""
 
@@ -33,8 +41,15 @@ class GearPlay(LeafSystem):
     ``link_state`` (12: q, q'); output ``gear_torque`` (6, N*m: on the link;
     the motor feels minus it)."""
 
-    def __init__(self, *, stiffness_Nm_per_rad, damping_Nms_per_rad, play_rad):
+    def __init__(self, *, stiffness_Nm_per_rad, damping_Nms_per_rad, play_rad, gap_friction_Nm=None,
+                 gap_inertia_kgm2=None, step_s=None):
+        """``gap_friction_Nm`` (6,) the Coulomb torque inside the play (None:
+        none), ``gap_inertia_kgm2`` (6,) J_eff of each gear's twist and
+        ``step_s`` the plant's step (both needed with friction)."""
         super().__init__()
+        self._Tc = None if gap_friction_Nm is None else np.asarray(gap_friction_Nm, dtype=float)
+        if self._Tc is not None:
+            self._stop = np.asarray(gap_inertia_kgm2, dtype=float) / float(step_s)
         self._K = np.asarray(stiffness_Nm_per_rad, dtype=float)
         self._D = np.asarray(damping_Nms_per_rad, dtype=float)
         self._b = np.asarray(play_rad, dtype=float)
@@ -54,7 +69,11 @@ class GearPlay(LeafSystem):
         tau = self._K @ dz + (self._D * np.outer(contact, contact)) @ rate
         # no tension: a flank in contact can only push (the sign of its dead-zone twist)
         pulls = self._has_play & (tau * dz < 0.0)
-        return np.where(contact & ~pulls, tau, 0.0)
+        tau = np.where(contact & ~pulls, tau, 0.0)
+        if self._Tc is not None:
+            gap = ~contact
+            tau = np.where(gap, np.sign(rate) * np.minimum(self._Tc, self._stop * np.abs(rate)), tau)
+        return tau
 
     def _calc(self, context, output):
         output.SetFromVector(self.torque(self._motor.Eval(context), self._link.Eval(context)))
