@@ -119,6 +119,7 @@ def run(entry, out):
     fd, tmp = tempfile.mkstemp(dir=out, prefix=f".{name}.", suffix=".txt")
     with os.fdopen(fd, "w") as f:
         f.write(f"$ {shown(cmd)}\n{proc.stdout}")
+    os.chmod(tmp, 0o644)
     os.replace(tmp, out / f"{name}.txt")
     print(f"   exit {proc.returncode}, {dt:.0f} s wall -> {out / (name + '.txt')}", flush=True)
     return proc.returncode
