@@ -77,3 +77,11 @@ def test_the_cylinder_head_read_as_the_paper_read_it(robot):
     assert after <= np.nanmax(rel) - np.nanmin(rel) + 0.1 + 1e-9
     # against the commanded surface (an outside reference) the path accuracy counts: the range is wider
     assert on["pv"] > np.nanmax(rel) - np.nanmin(rel)
+
+
+def test_the_worst_a_repeatability_can_read():
+    """Every pass off by the full RP the adverse way widens the reading by
+    at most 2 RP (and the steps): 0.64 mm true, RP 0.1 mm: 0.9 at most."""
+    depth = np.linspace(-0.13, 0.51, 50)
+    assert pr.worst_reading(depth, 0.1) == pytest.approx(0.9)  # touch at -0.2, clean at 0.7
+    assert pr.worst_reading(depth, 0.0) == pytest.approx(pr.touch_reading(depth)[2])
