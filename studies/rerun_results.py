@@ -70,7 +70,8 @@ FIGURES = [
      CLI + ["sweep", "block_milling", "--period-ms", "4", "--delay-steps", "0,1,2", "--cutoff-hz", "2,5,10",
             "--mode", "plain,predictive"]),
     ("stability_boundary", "4. The stability boundary (56 runs)", "6 min",
-     PY + ["studies/stability_boundary.py", "--json", "{out}/sweep_low_damping_boundary.json"]),
+     PY + ["studies/stability_boundary.py", "--json", "{out}/sweep_low_damping_boundary.json",
+           "--plot", "{out}/sweep_low_damping_boundary.png"]),
     ("aliasing", "4. Aliasing", "5 min", PY + ["studies/aliasing.py"]),
 ]
 GROUPS = {
