@@ -15,6 +15,7 @@ predicts more than the tolerance).
 
     python studies/face_and_contour.py     # about 10 minutes on a quiet 2-core machine
     python studies/face_and_contour.py --posted    # the posted program of docs/toolpaths.md, each mode
+    python studies/face_and_contour.py --finishing # only the finishing pass (about 5 minutes)
 
 prints the tables of docs/results.md.
 """
@@ -109,7 +110,8 @@ def main():
     if "--posted" in sys.argv[1:]:
         posted_table(robot)
         return
-    table("face_and_contour.nc (F1200, 3 mm, tolerance 0.05 mm)", load_scenario(SCENARIO), robot)
+    if "--finishing" not in sys.argv[1:]:
+        table("face_and_contour.nc (F1200, 3 mm, tolerance 0.05 mm)", load_scenario(SCENARIO), robot)
     with tempfile.TemporaryDirectory() as folder:
         table("the same program as a finishing pass (F2400, 1 mm, tolerance 0.02 mm)", finishing_scenario(folder), robot)
 

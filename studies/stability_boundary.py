@@ -26,6 +26,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--from-json", help="read the runs from a sweep JSON instead of running them")
     ap.add_argument("--plot", metavar="OUT.png", help="draw the runs (error against period, simulated and model)")
+    ap.add_argument("--json", metavar="OUT.json", default=str(REPO_ROOT / "docs" / "sweep_low_damping_boundary.json"),
+                    help="where the runs go (default docs/sweep_low_damping_boundary.json)")
     args = ap.parse_args()
     if args.from_json:
         rows = json.loads(open(args.from_json).read())["runs"]
@@ -33,7 +35,7 @@ def main():
         combos = combinations([4, 8, 12, 16, 24, 32, 48], [0, 2], [5, 10, 20, 50], ["plain"])
         rows = run_sweep(DIAGRAMS_DIR / "interrupted_cut_low_damping.yaml", combos)
         emit_json({"scenario": "diagrams/interrupted_cut_low_damping.yaml", "n_runs": len(rows), "complete": True,
-                   "runs": rows}, REPO_ROOT / "docs" / "sweep_low_damping_boundary.json")
+                   "runs": rows}, args.json)
     if args.plot:
         plot(rows, args.plot)
     table = {}

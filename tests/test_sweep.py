@@ -180,31 +180,26 @@ def test_loop_model_finds_an_unstable_loop():
     assert radius_ok < 1 < radius_bad
 
 
-def _linear_cut(text):
-    """A scenario's text with its plant cutting by the compensator's linear law (``cutting.plant_law: linear``):
-    the loop model is linear in the cut, and these tests check the loop's dynamics it models.  What the loop
-    model still does not share with the plant: the chip there follows the tool's actual progress along the
-    path, so a tool held back at a rib's entry cuts a thinner chip (a damping along the feed): on
-    interrupted_cut at 24 ms the simulation's largest entry/exit error fell from 0.105 mm (chip from the
-    plan) to 0.090 (linear law) and 0.091 mm (the plant's own law), the model's stays 0.120 mm."""
-    assert "\ncutting:\n" in text
-    return text.replace("\ncutting:\n", "\ncutting:\n  plant_law: linear\n", 1)
-
-
 def test_loop_model_predicts_the_simulation(robot, tmp_path):
+    """The loop model (the compensator's linear, revolution-averaged cut, its chip from the plan) against the
+    simulation on the plant's own cutting law (model/plant_cutting.py: the chip from the tool's actual progress,
+    Kienzle, worn edge, runout), interrupted_cut at 24 ms.  The model over-predicts the entry/exit error, as it
+    must: a tool held back at a rib's entry cuts a thinner chip (a damping along the feed the model lacks), so
+    the simulation's largest entry/exit error is 0.091 mm on the plant's law (0.090 on the linear law,
+    ``cutting.plant_law: linear``; 0.105 with the chip from the plan) against the model's 0.120 mm.  The band:
+    the model at or above the simulation, by at most 40 % (0.120 / 0.091 = 1.32)."""
     from robstiff_drake.diagrams.loop_prediction import predict
 
-    path = tmp_path / "interrupted_cut.yaml"
-    path.write_text(_linear_cut(INTERRUPTED.read_text()))
-    sc = load_scenario(path)
+    sc = load_scenario(INTERRUPTED)
+    assert sc.cutting.plant_law == "rich"
     combo = {"period_ms": 24.0, "delay_steps": 1, "cutoff_hz": 5.0, "mode": "plain"}
     p = predict(sc, robot, combo)
-    row = run_one(str(path), combo, predict=False)
+    row = run_one(str(INTERRUPTED), combo, predict=False)
     sim = max(row["surface_error_mm"]["entry_max_abs"], row["surface_error_mm"]["exit_max_abs"])
     model = max(p["surface_error_mm"]["entry_max_abs"], p["surface_error_mm"]["exit_max_abs"])
-    assert model == pytest.approx(sim, rel=0.4)  # 0.120 against 0.090 mm: the chip's damping (_linear_cut)
-    assert p["surface_error_mm"]["mean"] == pytest.approx(row["surface_error_mm"]["mean"], rel=0.25)
-    assert p["first_order_lag_error_mm"] == pytest.approx(sim, rel=0.5)
+    assert sim <= model <= 1.4 * sim, (model, sim)  # 0.120 against 0.091 mm: the chip's damping (docstring)
+    assert p["surface_error_mm"]["mean"] == pytest.approx(row["surface_error_mm"]["mean"], rel=0.25)  # 0.063 / 0.060
+    assert p["first_order_lag_error_mm"] == pytest.approx(sim, rel=0.5)  # 0.118 / 0.091
 
 
 def test_payload_inertia_map_is_what_drake_reports_at_the_weld(robot, rng):
@@ -252,15 +247,16 @@ def test_loop_model_needs_the_payload_inertia_at_a_resonance(robot, tmp_path):
     from robstiff_drake.diagrams import loop_prediction
 
     path = tmp_path / "interrupted_cut.yaml"
-    path.write_text(_linear_cut((ROOT / "diagrams" / "interrupted_cut.yaml").read_text()) + "model:\n  source: nominal\n")
+    path.write_text((ROOT / "diagrams" / "interrupted_cut.yaml").read_text() + "model:\n  source: nominal\n")
     sc = load_scenario(path)
     combo = {"period_ms": 2.0, "delay_steps": 1, "cutoff_hz": 50.0, "mode": "plain"}
     row = run_one(str(path), combo, predict=False)
     sim = max(row["surface_error_mm"]["entry_max_abs"], row["surface_error_mm"]["exit_max_abs"])
     assert sim > 1.0  # mm: it rings
     p = loop_prediction.predict(sc, robot, combo)
-    # a growing oscillation's size at the window's end: the chip that follows the tool's vibration along the
-    # feed (_linear_cut) slows the growth the model predicts (4.25 mm against 1.84; 2.30 with the plant's law)
+    # a growing oscillation's size at the window's end, on the plant's own cutting law: its chip follows the
+    # tool's vibration along the feed and slows the growth the model (the compensator's law, the chip from the
+    # plan) predicts: 4.25 mm against 2.30 (1.84 on the linear law, cutting.plant_law: linear)
     model = max(p["surface_error_mm"]["entry_max_abs"], p["surface_error_mm"]["exit_max_abs"])
     assert sim / 1.5 < model < 3.0 * sim, (model, sim)
     assert p["spectral_radius"] > 1.0
