@@ -58,6 +58,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robstiff_drake.model import jit
+from robstiff_drake.model.cutting_kernels import average_wrench_arcs
 from robstiff_drake.model.milling import tip_depths
 
 
@@ -111,6 +113,7 @@ class PlantCuttingLaw:
         # ... unless a tooth further back cut deeper: tooth j-k's surface lies k feeds back, R_j - R_(j-k)
         # nearer (k = 1..n): the chip is the least of them (k = n: the tooth's own last pass)
         self._k = np.arange(1, n + 1, dtype=float)
+        self._kernel_args = None
         self._dR = np.array([[radii[j] - radii[(j - k) % n] for k in range(1, n + 1)] for j in range(n)])
 
     def chips_m(self, c_f, cos_theta):
@@ -195,7 +198,27 @@ class PlantCuttingLaw:
 
     def average_wrench(self, tool_point_m, feed_dir_xy, workpiece, feed_m_per_s=None, cut_length_m=0.0):
         """The wrench averaged over one spindle revolution (base frame):
-        each tooth integrated over the engaged arcs of the leading half."""
+        each tooth integrated over the engaged arcs of the leading half.
+        Compiled (model/cutting_kernels.py) when numba is installed, else
+        ``average_wrench_reference``; the two agree to round-off."""
+        if not jit.available():
+            return self.average_wrench_reference(tool_point_m, feed_dir_xy, workpiece, feed_m_per_s, cut_length_m)
+        arcs = self.linear.lead_intervals(tool_point_m, feed_dir_xy, workpiece)
+        if not arcs:
+            return np.zeros(6)
+        if self._kernel_args is None:  # (the law's constants, as the reference computes them)
+            e = self.physics.chip_exponent
+            self._kernel_args = (float(self.h_ref_m ** (1.0 - e)), float(e), float(self.physics.edge_ramp_chip_m),
+                                 self.Kc)
+        h_scale, e, ramp, Kc = self._kernel_args
+        return average_wrench_arcs(np.array(arcs, dtype=float), float(feed_dir_xy[0]), float(feed_dir_xy[1]),
+                                   float(self.linear.chip_per_tooth_m(feed_m_per_s)), h_scale, e, ramp, Kc,
+                                   self.edge_coefficients(cut_length_m), self.cutter.radius_m, self._k, self._dR,
+                                   _GAUSS_X, _GAUSS_W)
+
+    def average_wrench_reference(self, tool_point_m, feed_dir_xy, workpiece, feed_m_per_s=None, cut_length_m=0.0):
+        """``average_wrench`` vectorised in numpy (the reference the compiled
+        kernel is tested against)."""
         arcs = self.linear.lead_intervals(tool_point_m, feed_dir_xy, workpiece)
         u0, u1 = float(feed_dir_xy[0]), float(feed_dir_xy[1])
         if not arcs:

@@ -102,6 +102,7 @@ class MillingForceSource(LeafSystem):
         n_sub = max(1, int(round(period_s * force_model.cutter.tooth_pass_hz * samples_per_tooth)))
         self._sub_t = np.arange(n_sub) * (period_s / n_sub)
         self._period = float(period_s)
+        self._feed_gain = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)  # (smoothed_feed)
         self._sensor_period = float(sensor_period_s or period_s)
         self._q = self.DeclareVectorInputPort("q", 6)
         # held: flange rotation (9) and tool point (3; tooth mode only, where it is read); the period's wrench
@@ -202,29 +203,33 @@ class MillingForceSource(LeafSystem):
         (interpolated in the history) over the window, times the path's
         horizontal slope there (a plunge makes no horizontal chip), along
         the path's direction there; a tool that goes back cuts no chip."""
-        h = np.asarray(hist, dtype=float).reshape(-1, 3)
-        last = h[-1]
-        s = self._path.project(p, last[1]) if not math.isnan(last[0]) else self._path.nearest_s(p)
-        h = np.vstack((h[1:], [t, s, 0.0]))
-        known = h[~np.isnan(h[:, 0])]
+        h = hist.tolist() if hasattr(hist, "tolist") else list(hist)
+        last_t, last_s = h[-3], h[-2]
+        s = self._path.project(p, last_s) if not math.isnan(last_t) else self._path.nearest_s(p)
+        h = h[3:] + [t, s, 0.0]
+        # the known updates (a suffix of the history: NaN before the first), oldest first
+        first = 0
+        while math.isnan(h[first]):
+            first += 3
         t0 = t - self._window
-        if len(known) < 2 or known[0, 0] >= t0:
-            ref = known[0]
+        if len(h) - first < 6 or h[first] >= t0:
+            ref_t, ref_s = h[first], h[first + 1]
         else:
-            k = int(np.searchsorted(known[:, 0], t0)) - 1
-            a, b = known[k], known[k + 1]
-            f = (t0 - a[0]) / (b[0] - a[0])
-            ref = a + f * (b - a)
-        span = t - ref[0]
-        rate = (s - ref[1]) / span if span > 0 else 0.0
+            i = first + 3  # (numpy's searchsorted: the first known time >= t0; interpolated from the one before)
+            while h[i] < t0:
+                i += 3
+            a_t, a_s, b_t, b_s = h[i - 3], h[i - 2], h[i], h[i + 1]
+            f = (t0 - a_t) / (b_t - a_t)
+            ref_t, ref_s = a_t + f * (b_t - a_t), a_s + f * (b_s - a_s)
+        span = t - ref_t
+        rate = (s - ref_s) / span if span > 0 else 0.0
         tg = self._path.tangent_at(s)
-        return self._path.feed_direction_at(s), max(rate, 0.0) * math.hypot(tg[0], tg[1]), h.ravel()
+        return self._path.feed_direction_at(s), max(rate, 0.0) * math.hypot(tg[0], tg[1]), np.array(h)
 
     def smoothed_feed(self, feed_now, feed_held):
         """The feed the chip follows (m/s): the tool's progress low-passed
         at FEED_CUTOFF_HZ (first order, one step per update)."""
-        a = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)
-        return feed_held + a * (feed_now - feed_held)
+        return feed_held + self._feed_gain * (feed_now - feed_held)
 
     def step_wrench(self, t, q, process, hist, instants=()):
         """(wrench over the period starting at t as a list, pose, the
@@ -241,8 +246,8 @@ class MillingForceSource(LeafSystem):
         pose = self._kin.pose_only(q)
         p = pose[9:]
         u, feed, hist = self.motion(t, p, hist)
-        feed = self.smoothed_feed(feed, float(process[2]))
-        travel = float(process[3])
+        _, _, feed_held, travel = process.tolist() if hasattr(process, "tolist") else process
+        feed = self.smoothed_feed(feed, feed_held)
         wear = self._wear_args(travel)
         inst = None
         if self._mode == "tooth":
@@ -254,7 +259,7 @@ class MillingForceSource(LeafSystem):
             w = self._model.average_wrench(p, u, self._workpiece, feed, **wear)
         if w[0] != 0.0 or w[1] != 0.0 or w[2] != 0.0:  # in the material: the edges travel (their wear's clock)
             travel += feed * self._period
-        return w, pose, inst, np.array([u[0], u[1], feed, travel]), hist
+        return w, pose, inst, np.array([float(u[0]), float(u[1]), feed, travel]), hist
 
     def _update(self, context, state):
         q = self._q.Eval(context)

@@ -1,0 +1,84 @@
+"""The plant's cutting law (model/plant_cutting.py) as scalar loops, for
+compilation (model/jit.py): its revolution average, the arithmetic of every
+averaged force update of the closed loop.  The same sums as the numpy
+reference (``PlantCuttingLaw.average_wrench`` with numba absent), in
+another order: equal to round-off (tests/test_jit_kernels.py).  Plain
+Python, no Drake.
+"""
+
+import math
+
+import numpy as np
+
+from robstiff_drake.model.jit import kernel
+
+
+@kernel
+def average_wrench_arcs(arcs, u0, u1, c_f, h_scale, exponent, ramp_m, Kc, Ke, radius_m, k_back, dR, gauss_x,
+                        gauss_w):
+    """The revolution-averaged wrench (6,: force N, moment N*m about the
+    tool point, base frame) over the engaged ``arcs`` ((A, 3): from, to
+    rad, depth m), the feed direction (u0, u1), feed per tooth ``c_f`` (m),
+    the Kienzle law ``h_scale`` h^``exponent`` (exponent 1: h), the edge
+    forces ramped in up to a chip of ``ramp_m`` (<= 0: a step), cutting and
+    edge coefficients ``Kc``, ``Ke`` (3, N/m^2 and N/m), the runout chip's
+    ``k_back`` (n,) and ``dR`` (n, n) (PlantCuttingLaw.chips_m), Gauss-Legendre
+    nodes and weights on [-1, 1]."""
+    n = dR.shape[0]
+    kt, kr, ka = Kc[0], Kc[1], Kc[2]
+    et, er, ea = Ke[0], Ke[1], Ke[2]
+    # sums over the points of Ft s, Ft c, Fr s, Fr c, Fa, Fa s, Fa c, Ft
+    fts = ftc = frs = frc = fa_sum = fas = fac = ft_sum = 0.0
+    for i in range(arcs.shape[0]):
+        ta, tb, depth = arcs[i, 0], arcs[i, 1], arcs[i, 2]
+        mid, half = 0.5 * (ta + tb), 0.5 * (tb - ta)
+        for g in range(gauss_x.shape[0]):
+            th = mid + half * gauss_x[g]
+            wt = half * gauss_w[g]
+            c, s = math.cos(th), math.sin(th)
+            cfc = c_f * c
+            ft = fr = fa = 0.0
+            for j in range(n):
+                h = math.inf
+                for kk in range(n):
+                    v = cfc * k_back[kk] + dR[j, kk]
+                    if v < h or v != v:  # (the least; a NaN wins, as numpy's min)
+                        h = v
+                a = depth if h >= 0.0 else 0.0
+                if h < 0.0:
+                    h = 0.0
+                chip = h if exponent == 1.0 else h_scale * h ** exponent
+                if ramp_m <= 0.0:
+                    edge = a
+                else:
+                    r = h / ramp_m
+                    if r > 1.0:
+                        r = 1.0
+                    edge = a * r
+                ft += kt * a * chip + et * edge
+                fr += kr * a * chip + er * edge
+                fa += ka * a * chip + ea * edge
+            ft, fr, fa = ft * wt, fr * wt, fa * wt
+            fts += ft * s
+            ftc += ft * c
+            frs += fr * s
+            frc += fr * c
+            fa_sum += fa
+            fas += fa * s
+            fac += fa * c
+            ft_sum += ft
+    two_pi = 2.0 * math.pi
+    fu = (-fts - frc) / two_pi
+    fv = (ftc - frs) / two_pi
+    fz = fa_sum / two_pi
+    mu = radius_m * fas / two_pi
+    mv = -radius_m * fac / two_pi
+    mz = radius_m * ft_sum / two_pi
+    out = np.empty(6)
+    out[0] = fu * u0 - fv * u1
+    out[1] = fu * u1 + fv * u0
+    out[2] = fz
+    out[3] = mu * u0 - mv * u1
+    out[4] = mu * u1 + mv * u0
+    out[5] = mz
+    return out
