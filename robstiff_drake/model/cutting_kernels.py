@@ -82,3 +82,68 @@ def average_wrench_arcs(arcs, u0, u1, c_f, h_scale, exponent, ramp_m, Kc, Ke, ra
     out[4] = mu * u1 + mv * u0
     out[5] = mz
     return out
+
+
+@kernel
+def tooth_wrenches_at(times_s, tool_x, tool_y, tool_z, u0, u1, phase_rad, omega_rad_per_s, tooth_angles, c_f, h_scale,
+                      exponent, ramp_m, Kc, Ke, radius_m, k_back, dR, boxes):
+    """(T, 6): the tooth-resolved wrench (base frame) at each of
+    ``times_s``, the teeth at phase - omega t + ``tooth_angles``; the tip's
+    depth the highest of ``boxes`` ((B, 5): x0, x1, y0, y1, top, m) above
+    the cutter bottom ``tool_z``; the leading half cuts (cos > 0); the
+    chip, law and edge as ``average_wrench_arcs``."""
+    n = dR.shape[0]
+    kt, kr, ka = Kc[0], Kc[1], Kc[2]
+    et, er, ea = Ke[0], Ke[1], Ke[2]
+    out = np.empty((times_s.shape[0], 6))
+    for r in range(times_s.shape[0]):
+        base = phase_rad - omega_rad_per_s * times_s[r]
+        fu_s = fv_s = fz_s = mu_s = mv_s = mz_s = 0.0
+        for j in range(n):
+            th = base + tooth_angles[j]
+            c, s = math.cos(th), math.sin(th)
+            x = tool_x + radius_m * (c * u0 - s * u1)
+            y = tool_y + radius_m * (c * u1 + s * u0)
+            depth = 0.0
+            if c > 0.0:  # (the leading half cuts)
+                for b in range(boxes.shape[0]):
+                    top = boxes[b, 4]
+                    if top > tool_z and boxes[b, 0] <= x <= boxes[b, 1] and boxes[b, 2] <= y <= boxes[b, 3]:
+                        d = top - tool_z
+                        if d > depth:
+                            depth = d
+            cfc = c_f * c
+            h = math.inf
+            for kk in range(n):
+                v = cfc * k_back[kk] + dR[j, kk]
+                if v < h or v != v:
+                    h = v
+            a = depth if h >= 0.0 else 0.0
+            if h < 0.0:
+                h = 0.0
+            chip = h if exponent == 1.0 else h_scale * h ** exponent
+            if ramp_m <= 0.0:
+                edge = a
+            else:
+                q = h / ramp_m
+                if q > 1.0:
+                    q = 1.0
+                edge = a * q
+            ft = kt * a * chip + et * edge
+            fr = kr * a * chip + er * edge
+            fa = ka * a * chip + ea * edge
+            fu = -ft * s - fr * c
+            fv = ft * c - fr * s
+            fu_s += fu
+            fv_s += fv
+            fz_s += fa
+            mu_s += radius_m * s * fa
+            mv_s += -radius_m * c * fa
+            mz_s += radius_m * (c * fv - s * fu)
+        out[r, 0] = fu_s * u0 - fv_s * u1
+        out[r, 1] = fu_s * u1 + fv_s * u0
+        out[r, 2] = fz_s
+        out[r, 3] = mu_s * u0 - mv_s * u1
+        out[r, 4] = mu_s * u1 + mv_s * u0
+        out[r, 5] = mz_s
+    return out

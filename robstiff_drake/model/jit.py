@@ -13,6 +13,7 @@ fails (a platform numba does not support) falls back the same way, with
 one warning.
 """
 
+import contextlib
 import os
 import warnings
 
@@ -36,7 +37,19 @@ def _numba():
 def available():
     """True when kernels run compiled (numba importable, not disabled, no
     compilation has failed)."""
-    return _numba() is not None and not _STATE["failed"]
+    return _numba() is not None and not _STATE["failed"] and not _STATE.get("off")
+
+
+@contextlib.contextmanager
+def disabled():
+    """Within: ``available()`` is false (the callers run their numpy
+    references), as with ROBSTIFF_NO_JIT set."""
+    was = _STATE.get("off", False)
+    _STATE["off"] = True
+    try:
+        yield
+    finally:
+        _STATE["off"] = was
 
 
 class Kernel:

@@ -91,6 +91,8 @@ class MillingForceSource(LeafSystem):
         if mode not in ("averaged", "tooth"):
             raise ValueError(f"mode must be 'averaged' or 'tooth', got {mode!r}")
         self._model = force_model
+        if hasattr(force_model, "warm_up"):
+            force_model.warm_up()  # (a compiled kernel loaded while the diagram is built: model/jit.py)
         self._workpiece = workpiece
         self._path = path
         self._kin = kinematics
