@@ -37,13 +37,10 @@ def cases(seed, n=60):
 
 
 def kernel_average(law, p, u, wp, feed, travel, fn):
-    arcs = law.linear.lead_intervals(p, u, wp)
-    if not arcs:
-        return np.zeros(6)
     h_scale, e, ramp, Kc = law._constants()
-    return fn(np.array(arcs, dtype=float), float(u[0]), float(u[1]), float(law.linear.chip_per_tooth_m(feed)),
-              h_scale, e, ramp, Kc, law.edge_coefficients(travel), float(CUTTER.radius_m), law._k, law._dR,
-              _GAUSS_X, _GAUSS_W)
+    return fn(float(p[0]), float(p[1]), float(p[2]), float(u[0]), float(u[1]),
+              np.array(wp.boxes, dtype=float).reshape(-1, 5), float(law.linear.chip_per_tooth_m(feed)), h_scale, e,
+              ramp, Kc, law.edge_coefficients(travel), float(CUTTER.radius_m), law._k, law._dR, _GAUSS_X, _GAUSS_W)
 
 
 def kernel_teeth(law, t, p, u, wp, phase, feed, travel, fn):
@@ -68,7 +65,7 @@ def test_the_kernels_python_originals_are_the_numpy_references(name, wp):
     for i, (p, u, feed, travel) in enumerate(cases(1)):
         want = law.average_wrench_reference(p, u, wp, feed, travel)
         engaged += bool(np.any(want != 0.0))
-        assert_round_off(kernel_average(law, p, u, wp, feed, travel, ck.average_wrench_arcs.py_func), want)
+        assert_round_off(kernel_average(law, p, u, wp, feed, travel, ck.average_wrench_at.py_func), want)
         t = np.linspace(0.0, 0.004, 7) + 0.001 * i
         assert_round_off(kernel_teeth(law, t, p, u, wp, 0.3, feed, travel, ck.tooth_wrenches_at.py_func),
                          law.tooth_wrenches_reference(t, p, u, wp, 0.3, feed, travel))
@@ -102,4 +99,4 @@ def test_the_compiled_kernels_are_the_numpy_references():
             t = np.linspace(0.0, 0.002, 22) + 0.0007 * i
             assert_round_off(law.tooth_wrenches(t, p, u, TWO_BOXES, 0.3, feed, travel),
                              law.tooth_wrenches_reference(t, p, u, TWO_BOXES, 0.3, feed, travel))
-    assert ck.average_wrench_arcs._impl is not ck.average_wrench_arcs.py_func  # (it did run compiled)
+    assert ck.average_wrench_at._impl is not ck.average_wrench_at.py_func  # (it did run compiled)

@@ -59,7 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robstiff_drake.model import jit
-from robstiff_drake.model.cutting_kernels import average_wrench_arcs, tooth_wrenches_at
+from robstiff_drake.model.cutting_kernels import average_wrench_at, tooth_wrenches_at
 from robstiff_drake.model.milling import Workpiece, tip_depths
 
 
@@ -113,7 +113,7 @@ class PlantCuttingLaw:
         # ... unless a tooth further back cut deeper: tooth j-k's surface lies k feeds back, R_j - R_(j-k)
         # nearer (k = 1..n): the chip is the least of them (k = n: the tooth's own last pass)
         self._k = np.arange(1, n + 1, dtype=float)
-        self._kernel_args = self._tooth_angles = None  # (the compiled kernels' constants, made when first used)
+        self._kernel_args = self._tooth_angles = self._last_boxes = None  # (the compiled kernels' constants, made when first used)
         self._dR = np.array([[radii[j] - radii[(j - k) % n] for k in range(1, n + 1)] for j in range(n)])
 
     def chips_m(self, c_f, cos_theta):
@@ -183,7 +183,7 @@ class PlantCuttingLaw:
         if self._tooth_angles is None:
             n = self.cutter.n_teeth
             self._tooth_angles = 2 * np.pi * np.arange(n) / n
-        boxes = np.array(workpiece.boxes, dtype=float).reshape(-1, 5)
+        boxes = self._boxes(workpiece)
         return tooth_wrenches_at(np.atleast_1d(np.asarray(t_s, dtype=float)), float(tool_point_m[0]),
                                  float(tool_point_m[1]), float(tool_point_m[2]), float(feed_dir_xy[0]),
                                  float(feed_dir_xy[1]), float(phase_rad), float(self.cutter.spindle_rad_per_s),
@@ -223,14 +223,12 @@ class PlantCuttingLaw:
         ``average_wrench_reference``; the two agree to round-off."""
         if not jit.available():
             return self.average_wrench_reference(tool_point_m, feed_dir_xy, workpiece, feed_m_per_s, cut_length_m)
-        arcs = self.linear.lead_intervals(tool_point_m, feed_dir_xy, workpiece)
-        if not arcs:
-            return np.zeros(6)
         h_scale, e, ramp, Kc = self._constants()
-        return average_wrench_arcs(np.array(arcs, dtype=float), float(feed_dir_xy[0]), float(feed_dir_xy[1]),
-                                   float(self.linear.chip_per_tooth_m(feed_m_per_s)), h_scale, e, ramp, Kc,
-                                   self.edge_coefficients(cut_length_m), self.cutter.radius_m, self._k, self._dR,
-                                   _GAUSS_X, _GAUSS_W)
+        return average_wrench_at(float(tool_point_m[0]), float(tool_point_m[1]), float(tool_point_m[2]),
+                                 float(feed_dir_xy[0]), float(feed_dir_xy[1]), self._boxes(workpiece),
+                                 float(self.linear.chip_per_tooth_m(feed_m_per_s)), h_scale, e, ramp, Kc,
+                                 self.edge_coefficients(cut_length_m), self.cutter.radius_m, self._k, self._dR,
+                                 _GAUSS_X, _GAUSS_W)
 
     def _constants(self):
         """(h_ref^(1 - e), e, the edge ramp's chip m, Kc): the law's
@@ -240,6 +238,14 @@ class PlantCuttingLaw:
             self._kernel_args = (float(self.h_ref_m ** (1.0 - e)), float(e), float(self.physics.edge_ramp_chip_m),
                                  self.Kc)
         return self._kernel_args
+
+    def _boxes(self, workpiece):
+        """The workpiece's boxes as a (B, 5) array (x0, x1, y0, y1, top, m),
+        kept for the last workpiece asked for."""
+        last = self._last_boxes
+        if last is None or last[0] is not workpiece:
+            last = self._last_boxes = (workpiece, np.array(workpiece.boxes, dtype=float).reshape(-1, 5))
+        return last[1]
 
     def warm_up(self):
         """Load (or compile) the compiled kernel now, not in the first

@@ -280,9 +280,9 @@ class MillingForceSource(LeafSystem):
             times[:len(instants)] = instants
             values = np.zeros((MAX_INSTANTS, 12))
             values[:len(inst), :6] = inst
-            w_held, R = w, list(pose[:9])
-            for i, row in enumerate(inst):
-                values[i, 6:] = self._ripple(R, row, w_held)
+            R = list(pose[:9])
+            for i, d in enumerate((inst - w).tolist()):  # (the ripple, as _ripple: one subtraction for the rows)
+                values[i, 6:] = to_sensor_frame(R, self._tool, d)
             discrete.set_value(int(self._inst), values.ravel())
             discrete.set_value(int(self._inst_t), times)
         state.get_mutable_abstract_state(int(self._force)).set_value([self._spatial_force(w)])
