@@ -113,7 +113,8 @@ class PlantCuttingLaw:
         # ... unless a tooth further back cut deeper: tooth j-k's surface lies k feeds back, R_j - R_(j-k)
         # nearer (k = 1..n): the chip is the least of them (k = n: the tooth's own last pass)
         self._k = np.arange(1, n + 1, dtype=float)
-        self._kernel_args = self._tooth_angles = self._last_boxes = None  # (the compiled kernels' constants, made when first used)
+        # the compiled kernels' constants, made when first used
+        self._kernel_args = self._tooth_angles = self._last_boxes = None
         self._dR = np.array([[radii[j] - radii[(j - k) % n] for k in range(1, n + 1)] for j in range(n)])
 
     def chips_m(self, c_f, cos_theta):
