@@ -73,6 +73,10 @@ class MillingForceSource(LeafSystem):
     Output ``ripple_sensor`` (6): tooth mode only: the instantaneous wrench
       minus the held one, as the wrist sensor sees it (the part of the tooth
       force the plant's step averages away, which a fast sensor still sees).
+    Outputs ``instant_table`` (12 MAX_INSTANTS) and ``instant_times``
+      (MAX_INSTANTS): tooth mode only: the update's table (the wrench and
+      the ripple at each instant it tabulated), held state that the wrist
+      sensor reads without a call into Python (``ripple_from_table``).
 
     In averaged mode every output is held state (no computation between
     updates).  In tooth mode each update also computes, in the same
@@ -140,6 +144,20 @@ class MillingForceSource(LeafSystem):
                                          prerequisites_of_calc=now)
             self.DeclareVectorOutputPort("ripple_sensor", 6, self._calc_ripple,
                                          prerequisites_of_calc=now | {self.discrete_state_ticket(self._w)})
+            # the same table as held state (no call into Python to read it): the sensor looks its sample's
+            # instant up itself (ripple_from_table), and reads ripple_sensor only at an instant not in it
+            self.DeclareStateOutputPort("instant_table", self._inst)
+            self.DeclareStateOutputPort("instant_times", self._inst_t)
+
+    @staticmethod
+    def ripple_from_table(t, table, times):
+        """The ripple (sensor frame, list of 6) at time t from the
+        ``instant_table`` and ``instant_times`` outputs' values (lists), as
+        ``ripple_sensor`` reads it; None when t is not a tabulated instant."""
+        for i, ti in enumerate(times):
+            if abs(ti - t) < 1e-9:
+                return table[12 * i + 6:12 * i + 12]
+        return None
 
     def _spatial_force(self, w):
         """The wrench w (6: force, moment about the tool point, base frame)
