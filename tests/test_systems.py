@@ -238,3 +238,38 @@ def test_correction_rate_limit_and_nan():
     corr.get_input_port().FixValue(ctx, [np.nan] * 6)
     (y,) = update(corr, ctx)
     np.testing.assert_array_equal(y, x)
+
+
+def test_the_sensor_reads_the_tooth_ripple_from_the_sources_table_as_its_port_gives_it(robot):
+    """Tooth mode: at every 1 kHz sensor instant the milling source's held
+    table (instant_table, instant_times: no call into Python) gives the
+    ripple_sensor port's value exactly; at an instant it did not tabulate,
+    None (the sensor then reads the port)."""
+    from pydrake.systems.analysis import Simulator
+
+    tool = robot.payload.tool_point_m
+    model = MillingForceModel(Cutter(0.075, 6, 3600), CuttingCoefficients(631, 99, 273, 13, 10, 2.8), 0.02)
+    kinematics = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool)
+    _, p = kinematics.flange_rotation_and_tool_point(Q)
+    wp = Workpiece.from_boxes([[p[0] - 0.05, p[0] + 0.1, p[1] - 0.02, p[1] + 0.03, p[2] + 0.003]])
+    path = PlannedPath([p - [0.1, 0, 0], p + [0.1, 0, 0]], 0.02)
+    src = MillingForceSource(force_model=model, workpiece=wp, path=path, kinematics=kinematics, tool_point_m=tool,
+                             period_s=0.002, spindle_body_index=BodyIndex(7), mode="tooth", sensor_period_s=0.001)
+    sim = Simulator(src)
+    ctx = sim.get_mutable_context()
+    src.get_input_port().FixValue(ctx, Q)
+    n = src._n_hist  # the tool came along the path at 0.02 m/s (its feed makes the chip)
+    back = 0.002 * np.arange(n, 0, -1)
+    ctx.get_mutable_discrete_state(int(src._hist)).SetFromVector(np.c_[-back, 0.1 - 0.02 * back, np.zeros(n)].ravel())
+    ctx.get_mutable_discrete_state(int(src._process)).SetFromVector([1.0, 0.0, 0.02, 0.0])
+    hits = 0
+    for k in range(1, 12):
+        sim.AdvanceTo(k * 0.001)
+        table = src.GetOutputPort("instant_table").Eval(ctx).tolist()
+        times = src.GetOutputPort("instant_times").Eval(ctx).tolist()
+        got = MillingForceSource.ripple_from_table(ctx.get_time(), table, times)
+        want = src.GetOutputPort("ripple_sensor").Eval(ctx).tolist()
+        assert got == want  # (the same numbers, bit for bit)
+        hits += any(v != 0.0 for v in got)
+        assert MillingForceSource.ripple_from_table(ctx.get_time() + 0.0005, table, times) is None
+    assert hits >= 8  # (the cutter is in the material: a ripple to read)

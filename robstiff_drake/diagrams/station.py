@@ -265,6 +265,8 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
         builder.Connect(plant.get_reaction_forces_output_port(), sensor.GetInputPort("reaction_forces"))
     if sc.cutting.mode == "tooth" and not lag_free:
         builder.Connect(milling.GetOutputPort("ripple_sensor"), sensor.GetInputPort("ripple"))
+        for port in ("instant_table", "instant_times"):  # (the table the sensor reads first: no Python call)
+            builder.Connect(milling.GetOutputPort(port), sensor.GetInputPort(port))
     add_random_inputs(builder, sensor)
 
     pose = builder.AddNamedSystem("tool_pose", ToolPose(fk))

@@ -263,7 +263,14 @@ class PlannedPath:
         s = min(max(float(s_guess_m), 0.0), self.total_length)
         px, py, pz = float(p_m[0]), float(p_m[1]), float(p_m[2])
         for _ in range(iterations):
-            P, T = self.point_at(s), self.tangent_at(s)
+            i = self._element(s)
+            e = self.elements[i]
+            if type(e) is Line:  # (point_at and tangent_at in floats: the same arithmetic)
+                ls = min(max(s - self._s_knots[i], 0.0), e.length)
+                (x0, y0, z0), T = e.p0_xyz, e.u_xyz
+                P = (x0 + T[0] * ls, y0 + T[1] * ls, z0 + T[2] * ls)
+            else:
+                P, T = self.point_at(s), self.tangent_at(s)
             step = (px - P[0]) * T[0] + (py - P[1]) * T[1] + (pz - P[2]) * T[2]
             step = min(max(step, -max_step_m), max_step_m)
             s = min(max(s + step, 0.0), self.total_length)

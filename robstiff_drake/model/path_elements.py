@@ -37,6 +37,8 @@ class Line:
         d = self.p1 - self.p0
         self.length = float(np.linalg.norm(d))
         self.u = d / self.length
+        # the same as floats, for scalar code (PlannedPath.project, every force update)
+        self.p0_xyz, self.u_xyz = tuple(self.p0.tolist()), tuple(self.u.tolist())
 
     def point(self, s):
         return self.p0 + self.u * s

@@ -58,7 +58,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robstiff_drake.model.milling import tip_depths
+from robstiff_drake.model import jit
+from robstiff_drake.model.cutting_kernels import average_wrench_at, tooth_wrenches_at
+from robstiff_drake.model.milling import Workpiece, tip_depths
 
 
 @dataclass(frozen=True)
@@ -111,6 +113,8 @@ class PlantCuttingLaw:
         # ... unless a tooth further back cut deeper: tooth j-k's surface lies k feeds back, R_j - R_(j-k)
         # nearer (k = 1..n): the chip is the least of them (k = n: the tooth's own last pass)
         self._k = np.arange(1, n + 1, dtype=float)
+        # the compiled kernels' constants, made when first used
+        self._kernel_args = self._tooth_angles = self._last_boxes = None
         self._dR = np.array([[radii[j] - radii[(j - k) % n] for k in range(1, n + 1)] for j in range(n)])
 
     def chips_m(self, c_f, cos_theta):
@@ -170,7 +174,27 @@ class PlantCuttingLaw:
                        cut_length_m=0.0):
         """(n, 6): the tooth-resolved wrench at each time of ``t_s`` (base
         frame), the teeth at their angles then, the chip from ``feed_m_per_s``
-        (None: the scenario's feed) along ``feed_dir_xy``."""
+        (None: the scenario's feed) along ``feed_dir_xy``.  Compiled
+        (model/cutting_kernels.py) when numba is installed, else
+        ``tooth_wrenches_reference``; the two agree to round-off."""
+        if not jit.available():
+            return self.tooth_wrenches_reference(t_s, tool_point_m, feed_dir_xy, workpiece, phase_rad, feed_m_per_s,
+                                                 cut_length_m)
+        h_scale, e, ramp, Kc = self._constants()
+        if self._tooth_angles is None:
+            n = self.cutter.n_teeth
+            self._tooth_angles = 2 * np.pi * np.arange(n) / n
+        boxes = self._boxes(workpiece)
+        return tooth_wrenches_at(np.atleast_1d(np.asarray(t_s, dtype=float)), float(tool_point_m[0]),
+                                 float(tool_point_m[1]), float(tool_point_m[2]), float(feed_dir_xy[0]),
+                                 float(feed_dir_xy[1]), float(phase_rad), float(self.cutter.spindle_rad_per_s),
+                                 self._tooth_angles, float(self.linear.chip_per_tooth_m(feed_m_per_s)), h_scale, e,
+                                 ramp, Kc, self.edge_coefficients(cut_length_m), float(self.cutter.radius_m), self._k,
+                                 self._dR, boxes)
+
+    def tooth_wrenches_reference(self, t_s, tool_point_m, feed_dir_xy, workpiece, phase_rad=0.0, feed_m_per_s=None,
+                                 cut_length_m=0.0):
+        """``tooth_wrenches`` vectorised in numpy (the compiled kernel's reference)."""
         u0, u1 = float(feed_dir_xy[0]), float(feed_dir_xy[1])
         n = self.cutter.n_teeth
         t = np.atleast_1d(np.asarray(t_s, dtype=float))
@@ -195,7 +219,49 @@ class PlantCuttingLaw:
 
     def average_wrench(self, tool_point_m, feed_dir_xy, workpiece, feed_m_per_s=None, cut_length_m=0.0):
         """The wrench averaged over one spindle revolution (base frame):
-        each tooth integrated over the engaged arcs of the leading half."""
+        each tooth integrated over the engaged arcs of the leading half.
+        Compiled (model/cutting_kernels.py) when numba is installed, else
+        ``average_wrench_reference``; the two agree to round-off."""
+        if not jit.available():
+            return self.average_wrench_reference(tool_point_m, feed_dir_xy, workpiece, feed_m_per_s, cut_length_m)
+        h_scale, e, ramp, Kc = self._constants()
+        return average_wrench_at(float(tool_point_m[0]), float(tool_point_m[1]), float(tool_point_m[2]),
+                                 float(feed_dir_xy[0]), float(feed_dir_xy[1]), self._boxes(workpiece),
+                                 float(self.linear.chip_per_tooth_m(feed_m_per_s)), h_scale, e, ramp, Kc,
+                                 self.edge_coefficients(cut_length_m), self.cutter.radius_m, self._k, self._dR,
+                                 _GAUSS_X, _GAUSS_W)
+
+    def _constants(self):
+        """(h_ref^(1 - e), e, the edge ramp's chip m, Kc): the law's
+        constants for the compiled kernels, as the reference computes them."""
+        if self._kernel_args is None:
+            e = self.physics.chip_exponent
+            self._kernel_args = (float(self.h_ref_m ** (1.0 - e)), float(e), float(self.physics.edge_ramp_chip_m),
+                                 self.Kc)
+        return self._kernel_args
+
+    def _boxes(self, workpiece):
+        """The workpiece's boxes as a (B, 5) array (x0, x1, y0, y1, top, m),
+        kept for the last workpiece asked for."""
+        last = self._last_boxes
+        if last is None or last[0] is not workpiece:
+            last = self._last_boxes = (workpiece, np.array(workpiece.boxes, dtype=float).reshape(-1, 5))
+        return last[1]
+
+    def warm_up(self):
+        """Load (or compile) the compiled kernel now, not in the first
+        update of a timed simulation (nothing without numba)."""
+        if jit.available():
+            c = self.cutter
+            tool = (0.0, 0.0, -1e-3)
+            box = Workpiece(x_m=np.array([[-2 * c.radius_m, 2 * c.radius_m]]),
+                            y_m=np.array([[-2 * c.radius_m, 2 * c.radius_m]]), top_m=np.array([0.0]))
+            self.average_wrench(tool, (1.0, 0.0), box, self.feed_m_per_s)
+            self.tooth_wrenches([0.0, 1e-3], tool, (1.0, 0.0), box, 0.0, self.feed_m_per_s)
+
+    def average_wrench_reference(self, tool_point_m, feed_dir_xy, workpiece, feed_m_per_s=None, cut_length_m=0.0):
+        """``average_wrench`` vectorised in numpy (the reference the compiled
+        kernel is tested against)."""
         arcs = self.linear.lead_intervals(tool_point_m, feed_dir_xy, workpiece)
         u0, u1 = float(feed_dir_xy[0]), float(feed_dir_xy[1])
         if not arcs:

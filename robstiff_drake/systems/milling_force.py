@@ -73,6 +73,10 @@ class MillingForceSource(LeafSystem):
     Output ``ripple_sensor`` (6): tooth mode only: the instantaneous wrench
       minus the held one, as the wrist sensor sees it (the part of the tooth
       force the plant's step averages away, which a fast sensor still sees).
+    Outputs ``instant_table`` (12 MAX_INSTANTS) and ``instant_times``
+      (MAX_INSTANTS): tooth mode only: the update's table (the wrench and
+      the ripple at each instant it tabulated), held state that the wrist
+      sensor reads without a call into Python (``ripple_from_table``).
 
     In averaged mode every output is held state (no computation between
     updates).  In tooth mode each update also computes, in the same
@@ -91,6 +95,8 @@ class MillingForceSource(LeafSystem):
         if mode not in ("averaged", "tooth"):
             raise ValueError(f"mode must be 'averaged' or 'tooth', got {mode!r}")
         self._model = force_model
+        if hasattr(force_model, "warm_up"):
+            force_model.warm_up()  # (a compiled kernel loaded while the diagram is built: model/jit.py)
         self._workpiece = workpiece
         self._path = path
         self._kin = kinematics
@@ -102,6 +108,7 @@ class MillingForceSource(LeafSystem):
         n_sub = max(1, int(round(period_s * force_model.cutter.tooth_pass_hz * samples_per_tooth)))
         self._sub_t = np.arange(n_sub) * (period_s / n_sub)
         self._period = float(period_s)
+        self._feed_gain = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)  # (smoothed_feed)
         self._sensor_period = float(sensor_period_s or period_s)
         self._q = self.DeclareVectorInputPort("q", 6)
         # held: flange rotation (9) and tool point (3; tooth mode only, where it is read); the period's wrench
@@ -137,6 +144,20 @@ class MillingForceSource(LeafSystem):
                                          prerequisites_of_calc=now)
             self.DeclareVectorOutputPort("ripple_sensor", 6, self._calc_ripple,
                                          prerequisites_of_calc=now | {self.discrete_state_ticket(self._w)})
+            # the same table as held state (no call into Python to read it): the sensor looks its sample's
+            # instant up itself (ripple_from_table), and reads ripple_sensor only at an instant not in it
+            self.DeclareStateOutputPort("instant_table", self._inst)
+            self.DeclareStateOutputPort("instant_times", self._inst_t)
+
+    @staticmethod
+    def ripple_from_table(t, table, times):
+        """The ripple (sensor frame, list of 6) at time t from the
+        ``instant_table`` and ``instant_times`` outputs' values (lists), as
+        ``ripple_sensor`` reads it; None when t is not a tabulated instant."""
+        for i, ti in enumerate(times):
+            if abs(ti - t) < 1e-9:
+                return table[12 * i + 6:12 * i + 12]
+        return None
 
     def _spatial_force(self, w):
         """The wrench w (6: force, moment about the tool point, base frame)
@@ -202,29 +223,33 @@ class MillingForceSource(LeafSystem):
         (interpolated in the history) over the window, times the path's
         horizontal slope there (a plunge makes no horizontal chip), along
         the path's direction there; a tool that goes back cuts no chip."""
-        h = np.asarray(hist, dtype=float).reshape(-1, 3)
-        last = h[-1]
-        s = self._path.project(p, last[1]) if not math.isnan(last[0]) else self._path.nearest_s(p)
-        h = np.vstack((h[1:], [t, s, 0.0]))
-        known = h[~np.isnan(h[:, 0])]
+        h = hist.tolist() if hasattr(hist, "tolist") else list(hist)
+        last_t, last_s = h[-3], h[-2]
+        s = self._path.project(p, last_s) if not math.isnan(last_t) else self._path.nearest_s(p)
+        h = h[3:] + [t, s, 0.0]
+        # the known updates (a suffix of the history: NaN before the first), oldest first
+        first = 0
+        while math.isnan(h[first]):
+            first += 3
         t0 = t - self._window
-        if len(known) < 2 or known[0, 0] >= t0:
-            ref = known[0]
+        if len(h) - first < 6 or h[first] >= t0:
+            ref_t, ref_s = h[first], h[first + 1]
         else:
-            k = int(np.searchsorted(known[:, 0], t0)) - 1
-            a, b = known[k], known[k + 1]
-            f = (t0 - a[0]) / (b[0] - a[0])
-            ref = a + f * (b - a)
-        span = t - ref[0]
-        rate = (s - ref[1]) / span if span > 0 else 0.0
+            i = first + 3  # (numpy's searchsorted: the first known time >= t0; interpolated from the one before)
+            while h[i] < t0:
+                i += 3
+            a_t, a_s, b_t, b_s = h[i - 3], h[i - 2], h[i], h[i + 1]
+            f = (t0 - a_t) / (b_t - a_t)
+            ref_t, ref_s = a_t + f * (b_t - a_t), a_s + f * (b_s - a_s)
+        span = t - ref_t
+        rate = (s - ref_s) / span if span > 0 else 0.0
         tg = self._path.tangent_at(s)
-        return self._path.feed_direction_at(s), max(rate, 0.0) * math.hypot(tg[0], tg[1]), h.ravel()
+        return self._path.feed_direction_at(s), max(rate, 0.0) * math.hypot(tg[0], tg[1]), np.array(h)
 
     def smoothed_feed(self, feed_now, feed_held):
         """The feed the chip follows (m/s): the tool's progress low-passed
         at FEED_CUTOFF_HZ (first order, one step per update)."""
-        a = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)
-        return feed_held + a * (feed_now - feed_held)
+        return feed_held + self._feed_gain * (feed_now - feed_held)
 
     def step_wrench(self, t, q, process, hist, instants=()):
         """(wrench over the period starting at t as a list, pose, the
@@ -241,8 +266,8 @@ class MillingForceSource(LeafSystem):
         pose = self._kin.pose_only(q)
         p = pose[9:]
         u, feed, hist = self.motion(t, p, hist)
-        feed = self.smoothed_feed(feed, float(process[2]))
-        travel = float(process[3])
+        _, _, feed_held, travel = process.tolist() if hasattr(process, "tolist") else process
+        feed = self.smoothed_feed(feed, feed_held)
         wear = self._wear_args(travel)
         inst = None
         if self._mode == "tooth":
@@ -254,7 +279,7 @@ class MillingForceSource(LeafSystem):
             w = self._model.average_wrench(p, u, self._workpiece, feed, **wear)
         if w[0] != 0.0 or w[1] != 0.0 or w[2] != 0.0:  # in the material: the edges travel (their wear's clock)
             travel += feed * self._period
-        return w, pose, inst, np.array([u[0], u[1], feed, travel]), hist
+        return w, pose, inst, np.array([float(u[0]), float(u[1]), feed, travel]), hist
 
     def _update(self, context, state):
         q = self._q.Eval(context)
@@ -273,9 +298,9 @@ class MillingForceSource(LeafSystem):
             times[:len(instants)] = instants
             values = np.zeros((MAX_INSTANTS, 12))
             values[:len(inst), :6] = inst
-            w_held, R = w, list(pose[:9])
-            for i, row in enumerate(inst):
-                values[i, 6:] = self._ripple(R, row, w_held)
+            R = list(pose[:9])
+            for i, d in enumerate((inst - w).tolist()):  # (the ripple, as _ripple: one subtraction for the rows)
+                values[i, 6:] = to_sensor_frame(R, self._tool, d)
             discrete.set_value(int(self._inst), values.ravel())
             discrete.set_value(int(self._inst_t), times)
         state.get_mutable_abstract_state(int(self._force)).set_value([self._spatial_force(w)])

@@ -13,6 +13,7 @@ from pydrake.systems.primitives import RandomSource
 from robstiff_drake.model.compensator import guard_accepts
 from robstiff_drake.model.realtime import rotate_transposed
 from robstiff_drake.model.wrench_frames import to_sensor_frame
+from robstiff_drake.systems.milling_force import MAX_INSTANTS, MillingForceSource
 
 
 class WristForceSensor(LeafSystem):
@@ -28,7 +29,9 @@ class WristForceSensor(LeafSystem):
       random generator, not by this object.
     Input  ``ripple`` (6), with ``tooth_ripple=True``: the part of the tooth
       force the plant's step averages away (MillingForceSource), which a
-      sensor faster than the step still sees.
+      sensor faster than the step still sees; inputs ``instant_table`` and
+      ``instant_times`` (optional), the source's table of it, read first
+      (no call into Python), ``ripple`` only at an instant not in it.
     Output ``wrench`` (6): (force N, torque N*m) that the payload (spindle,
       tool and the cutting load on it) exerts on the sensor, sensor frame
       (= DH frame 6), plus bias and Gaussian noise; NaN during a dropout, and
@@ -51,6 +54,9 @@ class WristForceSensor(LeafSystem):
         self._gauss = self.DeclareVectorInputPort("gaussian", 6) if any(self._noise) else None
         self._uniform = self.DeclareVectorInputPort("uniform", 3) if self._p_drop or self._p_spike else None
         self._ripple = self.DeclareVectorInputPort("ripple", 6) if tooth_ripple else None
+        # (tooth_ripple: the milling force's table of instants, read here before ``ripple``, which computes)
+        self._table = self.DeclareVectorInputPort("instant_table", 12 * MAX_INSTANTS) if tooth_ripple else None
+        self._times = self.DeclareVectorInputPort("instant_times", MAX_INSTANTS) if tooth_ripple else None
         init = np.zeros(6) if initial_wrench is None else np.asarray(initial_wrench, dtype=float)
         self._state = self.DeclareDiscreteState(init)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period_s, 0.0, self._sample)
@@ -62,7 +68,11 @@ class WristForceSensor(LeafSystem):
         t0, t1, t2, f0, f1, f2 = self._reaction.Eval(context)[self._joint].get_coeffs().tolist()
         w = [-f0, -f1, -f2, -t0, -t1, -t2]
         if self._ripple is not None:
-            w = [a + b for a, b in zip(w, self._ripple.Eval(context).tolist())]
+            r = None
+            if self._times.HasValue(context):
+                r = MillingForceSource.ripple_from_table(context.get_time(), self._table.Eval(context).tolist(),
+                                                         self._times.Eval(context).tolist())
+            w = [a + b for a, b in zip(w, self._ripple.Eval(context).tolist() if r is None else r)]
         return w
 
     def _sample(self, context, discrete_state):

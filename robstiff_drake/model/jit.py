@@ -1,0 +1,89 @@
+"""Optional compilation of the closed loop's per-tick arithmetic.
+
+A kernel is a plain Python function of floats and float arrays written as
+scalar loops (the subset of Python that numba compiles).  When numba is
+installed (``pip install 'robstiff-drake[fast]'``: numba ships wheels for
+Linux, macOS and Windows, no compiler needed) it is compiled on its first
+call and cached on disk (numba's ``cache=True``: the next process loads it
+in milliseconds); without numba, or with the environment variable
+ROBSTIFF_NO_JIT set, ``available()`` is false and the callers keep their
+vectorised numpy reference, which is what every kernel is tested against
+(tests/test_jit_kernels.py, to round-off).  A kernel whose compilation
+fails (a platform numba does not support) falls back the same way, with
+one warning.
+"""
+
+import contextlib
+import os
+import warnings
+
+DISABLE_ENV = "ROBSTIFF_NO_JIT"
+
+_STATE = {"numba": None, "checked": False, "failed": False}
+
+
+def _numba():
+    if not _STATE["checked"]:
+        _STATE["checked"] = True
+        if not os.environ.get(DISABLE_ENV):
+            try:
+                import numba
+                _STATE["numba"] = numba
+            except ImportError:
+                pass
+    return _STATE["numba"]
+
+
+def available():
+    """True when kernels run compiled (numba importable, not disabled, no
+    compilation has failed)."""
+    return _numba() is not None and not _STATE["failed"] and not _STATE.get("off")
+
+
+@contextlib.contextmanager
+def disabled():
+    """Within: ``available()`` is false (the callers run their numpy
+    references), as with ROBSTIFF_NO_JIT set."""
+    was = _STATE.get("off", False)
+    _STATE["off"] = True
+    try:
+        yield
+    finally:
+        _STATE["off"] = was
+
+
+class Kernel:
+    """A function compiled with numba on its first call (``py_func``: the
+    Python original, run as it is when numba is not there)."""
+
+    def __init__(self, fn):
+        self.py_func = fn
+        self.__name__ = fn.__name__
+        self.__doc__ = fn.__doc__
+        self._impl = None
+
+    def __call__(self, *args):
+        impl = self._impl
+        if impl is None:
+            impl = self._impl = self._compile()
+        try:
+            return impl(*args)
+        except Exception as e:  # (numba's typing and lowering errors: fall back, once)
+            if impl is self.py_func:
+                raise
+            _STATE["failed"] = True
+            warnings.warn(f"robstiff: compiled kernel {self.__name__} failed ({type(e).__name__}: {e}); "
+                          f"running the numpy reference instead", RuntimeWarning, stacklevel=2)
+            self._impl = self.py_func
+            return self.py_func(*args)
+
+    def _compile(self):
+        numba = _numba()
+        if numba is None or _STATE["failed"]:
+            return self.py_func
+        return numba.njit(cache=True, nogil=True)(self.py_func)
+
+
+def kernel(fn):
+    """Decorator: ``fn`` as a Kernel."""
+    return Kernel(fn)
