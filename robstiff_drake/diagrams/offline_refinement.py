@@ -12,9 +12,9 @@ point (model/floor_generation.py), so those dips, and the dips the cut's own
 transients leave (the plunge, the cutter leaving the plate), are stamped over
 the cutter's width.  The tool point's mean position is then right and the
 floor is not.  Each round here runs the corrected program on the twin
-(diagrams/feed_plan.twin_scenario: the identified stiffness, damping, servo
-and force model as the plant; the cutting force recomputed on the corrected
-path, so a correction that changes the force is re-predicted), finds where
+(``model_twin``: the identified stiffness, damping, servo and linear force
+model as the plant; the cutting force recomputed on the corrected path, so
+a correction that changes the force is re-predicted), finds where
 along the path the tool cut each point of the floor (its generating place,
 with the tool's actual tilt), and raises the program there by the floor's
 error (lowers it where the floor is left high): a fixed-point iteration on
@@ -70,17 +70,30 @@ def generating_errors(res, program_path):
     return np.array([s_of[i] for i in samples]), errors
 
 
-def twin_run(sc, robot, prediction, program_file, *, progress=None):
-    """The program ``program_file`` run on the compensator's model of the
-    cell (its twin), no online compensation."""
+def model_twin(sc, robot):
+    """The compensator's model of the cell as a scenario
+    (diagrams/feed_plan.twin_scenario) with the model's own cutting law,
+    the linear one the coefficients were identified with: the plant's
+    richer law (chip exponent, runout, wear: model/plant_cutting.py) is
+    what a user does not have."""
+    from robstiff_drake.diagrams.feed_plan import twin_scenario
+
+    tw = twin_scenario(sc, robot, 1.0)
+    tw.cutting.plant_law = "linear"
+    return tw
+
+
+def twin_run(sc, robot, prediction, program_file=None, *, progress=None):
+    """The program ``program_file`` (None: the job's own) run on the
+    compensator's model of the cell (``model_twin``), no online
+    compensation."""
     from robstiff_drake.diagrams import user_model as user_models
     from robstiff_drake.diagrams.experiment import run_cut
-    from robstiff_drake.diagrams.feed_plan import twin_scenario
     from robstiff_drake.diagrams.scenario import load_scenario
 
-    sc2 = load_scenario(sc.source, toolpath=program_file)
+    sc2 = load_scenario(sc.source, toolpath=program_file) if program_file is not None else sc
     user_models.resolve(sc2, robot, prediction.q_ref_rad[0])
-    return run_cut(twin_scenario(sc2, robot, 1.0), robot, compensation=False, progress=progress)
+    return run_cut(model_twin(sc2, robot), robot, compensation=False, progress=progress)
 
 
 def refine(sc, robot, program, text, prediction, *, rounds, chord_mm, max_correction_mm, progress=None, say=None):
