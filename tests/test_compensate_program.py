@@ -265,10 +265,22 @@ def test_the_command_writes_a_program_simulate_reads(written):
     assert len(t) > 100 and np.shape(q)[1] == 6
 
 
-def test_the_rapid_module_follows_the_written_program(written):
-    _, _, out, _ = written
+def test_the_rapid_module_follows_the_program_with_the_preview_correction(written, tmp_path):
+    """The RAPID targets turn the tool, so they take the preview's six-axis
+    correction as it is: block for block the program written with no floor
+    refinement (--refine-rounds 0), not the refined G-code."""
+    from robstiff_drake.commands.main import main
+
+    _, job, out, summary = written
+    assert summary["refinement_rounds"] == 2 and len(summary["predicted_error_by_round_mm"]) == 3
+    assert main(["compensate-program", str(job), "--out", str(tmp_path / "plain"), "--no-simulate",
+                 "--refine-rounds", "0"]) == 0
     _, _, moves = check_rapid((out / "short_compensated.mod").read_text())
-    prog = read_program((out / "short_compensated.nc").read_text(), "c.nc")
+    prog = read_program((tmp_path / "plain" / "short_compensated.nc").read_text(), "c.nc")
+    refined = read_program((out / "short_compensated.nc").read_text(), "r.nc")
+    z, z_refined = (np.array([m.end_mm[2] for m in p.moves if m.kind != "rapid" and m.end_mm[2] < 0.0])
+                    for p in (prog, refined))  # the written floor (the cut 3 mm deep)
+    assert len(z) and len(z_refined) and abs(np.mean(z) - np.mean(z_refined)) > 1e-3  # the G-code's floor is refined
     assert len(moves) == len(prog.moves) + 1  # (first the program's start point)
     assert np.allclose(moves[0][1][0][0], prog.start_mm)
     quats = [t[1] for _, targets, *_ in moves for t in targets]
