@@ -152,6 +152,7 @@ def double_correction(sc, robot, program_file, prediction):
 def main():
     from robstiff_drake.diagrams.experiment import run_cut
     from robstiff_drake.diagrams.offline_refinement import refine
+    from robstiff_drake.diagrams.rapid_proof import rapid_run
 
     sc = load_scenario(JOB)
     robot = scenario_robot(sc)
@@ -178,6 +179,10 @@ def main():
         proof = oc.proof_runs(sc, robot, draft, refined, modes=("off", "plain"))
         res1 = run_cut(load_scenario(sc.source, toolpath=draft), robot, compensation=False)
         double = double_correction(sc, robot, draft, refined)
+        back0 = check_round_trip(draft0.read_text(), program, corr0, 1.0, 0.005, sc)
+        module = oc.rapid_text(sc, robot, "face_and_contour",
+                               oc.rapid_targets(sc, robot, program, corr0, prediction, back0.moves), ["study"])
+        rapid = rapid_run(sc, robot, module, draft0, prediction)
     rows.append(("program as written", "compensator's model (twin)", before))
     for k, h in enumerate(history):
         name = "corrected program, the preview's correction as written" if k == 0 else \
@@ -194,6 +199,7 @@ def main():
         rows.append((label, "plant", st))
     rows.append(("corrected program + online plain on the whole measured wrench (the deflection corrected twice)",
                  "plant", double))
+    rows.append(("RAPID module (read back; the preview's correction, the tool turned)", "plant", rapid))
     rows.append(("position-only correction (no program, the tool kept vertical)", "plant",
                  position_only(sc, robot, prediction)))
     figure(sc, program, read_program(written, "c.nc"), refined, FIGURE, prediction)

@@ -84,9 +84,10 @@ def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot
     back = check_round_trip(plain_text, program, corrections, max_correction_mm, chord_mm, sc)
     # the RAPID module turns the tool too, so its targets take the preview's six-axis correction as it is (the
     # floor's refinement makes up for the 3-axis program's lost wrist share and would count it twice there)
+    preview_text = plain_text if preview_corrections is corrections else \
+        rewrite_corrected(text, program.moves, preview_corrections)[0]
     rapid_back = back if preview_corrections is corrections else check_round_trip(
-        rewrite_corrected(text, program.moves, preview_corrections)[0], program, preview_corrections,
-        max_correction_mm, chord_mm, sc)
+        preview_text, program, preview_corrections, max_correction_mm, chord_mm, sc)
     # (InputError: a point out of reach)
     targets = oc.rapid_targets(sc, robot, program, preview_corrections, prediction, rapid_back.moves)
     with tempfile.TemporaryDirectory(prefix="robstiff-compensate-program-") as tmp:
@@ -116,10 +117,19 @@ def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot
     with RunFolder(out) as folder:
         folder.write(names["program"], corrected_text)
         folder.write(names["reference"], oc.reference_text(robot, prediction, folder.run_id, job))
-        folder.write(names["rapid"], oc.rapid_text(sc, robot, stem, targets, header))
+        module = oc.rapid_text(sc, robot, stem, targets, header)
+        folder.write(names["rapid"], module)
         if simulate:
             summary["simulated"] = oc.proof_runs(sc, robot, folder.file(names["program"]), prediction,
                                                  modes=("off",) + tuple(online), progress=show_progress, say=_say)
+            from robstiff_drake.diagrams.rapid_proof import rapid_run
+
+            _say("proof: the RAPID module read back and run on the plant, no online compensation")
+            with tempfile.TemporaryDirectory(prefix="robstiff-compensate-program-") as tmp:
+                source = Path(tmp) / program_file.name
+                source.write_text(preview_text)
+                summary["simulated"]["RAPID module (read back)"] = rapid_run(sc, robot, module, source, prediction,
+                                                                             progress=show_progress)
     summary["run_id"] = folder.run_id
     if json_out is not None:
         emit_json(summary, json_out)
