@@ -265,10 +265,22 @@ def test_the_command_writes_a_program_simulate_reads(written):
     assert len(t) > 100 and np.shape(q)[1] == 6
 
 
-def test_the_rapid_module_follows_the_written_program(written):
-    _, _, out, _ = written
+def test_the_rapid_module_follows_the_program_with_the_preview_correction(written, tmp_path):
+    """The RAPID targets turn the tool, so they take the preview's six-axis
+    correction as it is: block for block the program written with no floor
+    refinement (--refine-rounds 0), not the refined G-code."""
+    from robstiff_drake.commands.main import main
+
+    _, job, out, summary = written
+    assert summary["refinement_rounds"] == 2 and len(summary["predicted_error_by_round_mm"]) == 3
+    assert main(["compensate-program", str(job), "--out", str(tmp_path / "plain"), "--no-simulate",
+                 "--refine-rounds", "0"]) == 0
     _, _, moves = check_rapid((out / "short_compensated.mod").read_text())
-    prog = read_program((out / "short_compensated.nc").read_text(), "c.nc")
+    prog = read_program((tmp_path / "plain" / "short_compensated.nc").read_text(), "c.nc")
+    refined = read_program((out / "short_compensated.nc").read_text(), "r.nc")
+    z, z_refined = (np.array([m.end_mm[2] for m in p.moves if m.kind != "rapid" and m.end_mm[2] < 0.0])
+                    for p in (prog, refined))  # the written floor (the cut 3 mm deep)
+    assert len(z) and len(z_refined) and abs(np.mean(z) - np.mean(z_refined)) > 1e-3  # the G-code's floor is refined
     assert len(moves) == len(prog.moves) + 1  # (first the program's start point)
     assert np.allclose(moves[0][1][0][0], prog.start_mm)
     quats = [t[1] for _, targets, *_ in moves for t in targets]
@@ -339,3 +351,48 @@ def test_a_posted_program_keeps_its_posted_words():
     for line in ("N20 G28 G91 Z0.", "N30 T1 M6", "N45 M8", "N55 G43 Z15. H1", "N100 M9", ""):
         assert line in written
     assert sum(1 for ln in written if ln.startswith("N65 G1") and "F300." in ln) == 1
+
+
+def test_the_rapid_module_runs_back_through_the_plan(tmp_path):
+    """The proof's RAPID run (diagrams/rapid_proof.py): the module read
+    back, its joint references on the plan of the program it was written
+    from (the same tool points), turned as its targets are; a module that
+    does not follow that program is refused."""
+    from robstiff_drake.commands.main import main
+    from robstiff_drake.diagrams.milling_cell import planned_path
+    from robstiff_drake.diagrams.rapid_proof import rapid_reference
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+    from robstiff_drake.model import kinematics as kin
+    from robstiff_drake.model.rapid_reader import read_moves, rotation
+
+    job = short_job(tmp_path / "job")
+    out = tmp_path / "out"
+    assert main(["compensate-program", str(job), "--out", str(out), "--no-simulate", "--refine-rounds", "0"]) == 0
+    sc = load_scenario(job)
+    robot = scenario_robot(sc)
+    tool = robot.tool_point(where="test")
+    module = (out / "short_compensated.mod").read_text()
+    program = out / "short_compensated.nc"
+    t, q = rapid_reference(sc, robot, module, program, tool)
+    _, t_plan, q_plan = planned_path(load_scenario(job, toolpath=program), robot, tool)
+    assert np.allclose(t, t_plan)
+    assert np.max(np.abs(kin.tool_position(robot.dh, q, tool) - kin.tool_position(robot.dh, q_plan, tool))) < 1e-6
+    # the tool turned as the targets say: at the sample nearest each target its orientation (a 1e-4 rad tolerance:
+    # the plan passes a target within its zone, not at it)
+    R_plan = np.array([kin.tool_pose(robot.dh, qk, tool)[:3, :3] for qk in q])
+    p_plan = kin.tool_position(robot.dh, q, tool) * 1e3
+    tilts = []
+    for m in read_moves(module)[1:]:
+        p, quat = m.targets[-1]
+        k = int(np.argmin(np.linalg.norm(p_plan - (p + np.asarray(sc.toolpath.work_offset_mm)), axis=1)))
+        R = rotation(quat)
+        tilts.append(np.arccos(np.clip(R[:, 2] @ np.array([0.0, 0.0, -1.0]), -1, 1)))
+        assert np.arccos(np.clip((np.trace(R.T @ R_plan[k]) - 1) / 2, -1, 1)) < 1e-4
+    assert max(tilts) > 1e-5  # the module does turn the tool
+    lines = module.splitlines()
+    k = next(i for i, ln in enumerate(lines) if ln.strip().startswith("MoveL") and "vFeed" in ln)
+    moved = lines[k].split("[[", 1)  # its target moved 0.5 mm in x
+    x = moved[1].split(",", 1)
+    lines[k] = moved[0] + "[[" + f"{float(x[0]) + 0.5:g}," + x[1]
+    with pytest.raises(ValueError, match="not the program's block end"):
+        rapid_reference(sc, robot, "\n".join(lines), program, tool)

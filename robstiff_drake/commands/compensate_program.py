@@ -32,7 +32,7 @@ def _say(text):
 
 
 def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot_yaml=None, simulate=True,
-        online=("plain",), show_progress=None):
+        online=("plain",), show_progress=None, rounds=2):
     from robstiff_drake.paths import find_scenario, unknown_scenario
 
     found = find_scenario(job)
@@ -61,9 +61,18 @@ def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot
         return progress(total, show_progress, "preview along the program", unit="cycle")
 
     prediction = oc.predict(sc, robot, bar=bar, say=_say)
+    history = []
     try:
         corrections = oc.move_corrections(sc, program, prediction, chord_mm=chord_mm,
                                           max_correction_mm=max_correction_mm)
+        preview_corrections = corrections  # the RAPID module's positions (its targets carry the orientation too)
+        if rounds > 0:  # the floor refined on the compensator's model (diagrams/offline_refinement.py)
+            from robstiff_drake.diagrams.offline_refinement import refine
+
+            prediction, history = refine(sc, robot, program, text, prediction, rounds=rounds, chord_mm=chord_mm,
+                                         max_correction_mm=max_correction_mm, progress=show_progress, say=_say)
+            corrections = oc.move_corrections(sc, program, prediction, chord_mm=chord_mm,
+                                              max_correction_mm=max_correction_mm)
     except CorrectionError as e:
         raise InputError(str(e)) from None
     model = (f"identified model (seed {sc.model.identification.seed})" if sc.model.source == "identified"
@@ -73,11 +82,19 @@ def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot
     except ProgramWriteError as e:
         raise InputError(f"{program.path}:{e.line}: {str(e).split(': ', 1)[1]}") from None
     back = check_round_trip(plain_text, program, corrections, max_correction_mm, chord_mm, sc)
-    targets = oc.rapid_targets(sc, robot, program, corrections, prediction, back.moves)  # (InputError: a point out of reach)
+    # the RAPID module turns the tool too, so its targets take the preview's six-axis correction as it is (the
+    # floor's refinement makes up for the 3-axis program's lost wrist share and would count it twice there)
+    preview_text = plain_text if preview_corrections is corrections else \
+        rewrite_corrected(text, program.moves, preview_corrections)[0]
+    rapid_back = back if preview_corrections is corrections else check_round_trip(
+        preview_text, program, preview_corrections, max_correction_mm, chord_mm, sc)
+    # (InputError: a point out of reach)
+    targets = oc.rapid_targets(sc, robot, program, preview_corrections, prediction, rapid_back.moves)
     with tempfile.TemporaryDirectory(prefix="robstiff-compensate-program-") as tmp:
         draft = Path(tmp) / program_file.name
         draft.write_text(plain_text)
-        before, after = oc.predicted_errors(sc, robot, prediction, draft, progress=show_progress, say=_say)
+        before, after = oc.predicted_errors(sc, robot, prediction, draft, progress=show_progress, say=_say,
+                                            after=history[-1] if history else None)
     header = [f"ROBSTIFF COMPENSATE-PROGRAM {datetime.date.today().isoformat()}: {program_file.name} corrected for "
               f"the arm's deflection predicted by the {model} of {Path(job).name}",
               f"PREDICTED SURFACE ERROR MM ON THAT MODEL: BEFORE MEAN {before['mean']:+.3f} MAX "
@@ -92,16 +109,27 @@ def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot
                "rapid_module": str(Path(out) / names["rapid"]),
                "joint_reference": str(Path(out) / names["reference"]),
                "predicted_error_mm": {"before": _two(before), "after": _two(after)},
+               "predicted_error_by_round_mm": [_two(h) for h in history],
+               "refinement_rounds": int(rounds),
                "segments_added": int(added), "corrected_moves": len(corrections),
                "max_correction_mm": float(largest), "chord_mm": chord_mm,
                "prediction_seconds": float(prediction.seconds), "simulated": None}
     with RunFolder(out) as folder:
         folder.write(names["program"], corrected_text)
         folder.write(names["reference"], oc.reference_text(robot, prediction, folder.run_id, job))
-        folder.write(names["rapid"], oc.rapid_text(sc, robot, stem, targets, header))
+        module = oc.rapid_text(sc, robot, stem, targets, header)
+        folder.write(names["rapid"], module)
         if simulate:
             summary["simulated"] = oc.proof_runs(sc, robot, folder.file(names["program"]), prediction,
                                                  modes=("off",) + tuple(online), progress=show_progress, say=_say)
+            from robstiff_drake.diagrams.rapid_proof import rapid_run
+
+            _say("proof: the RAPID module read back and run on the plant, no online compensation")
+            with tempfile.TemporaryDirectory(prefix="robstiff-compensate-program-") as tmp:
+                source = Path(tmp) / program_file.name
+                source.write_text(preview_text)
+                summary["simulated"]["RAPID module (read back)"] = rapid_run(sc, robot, module, source, prediction,
+                                                                             progress=show_progress)
     summary["run_id"] = folder.run_id
     if json_out is not None:
         emit_json(summary, json_out)
@@ -109,6 +137,9 @@ def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot
     show = (lambda t: print(t, file=sys.stderr)) if stderr else print
     show(f"predicted surface error on the compensator's model (mm): before mean {before['mean']:+.3f} max "
          f"{before['max_abs']:.3f}; after mean {after['mean']:+.3f} max {after['max_abs']:.3f}")
+    if history:
+        show("the floor refined on the model, its predicted error by round (mm): " + "; ".join(
+            f"mean {h['mean']:+.3f} max {h['max_abs']:.3f}" for h in history))
     show(f"{len(corrections)} cutting moves corrected (largest correction {largest:.3f} mm), {added} blocks added "
          f"for the chord tolerance {chord_mm:g} mm")
     if summary["simulated"]:

@@ -293,6 +293,9 @@ def build_parser():
                    help="largest distance of a written block from the corrected path (default: %(default)s mm)")
     p.add_argument("--max-correction-mm", type=_number_in(1e-3, 10.0, "mm"), default=1.0,
                    help="refuse a predicted correction larger than this (default: %(default)s mm)")
+    p.add_argument("--refine-rounds", type=_number_in(0, 10, integer=True), default=2, metavar="N",
+                   help="rounds of refining the corrected program's floor on the compensator's model (each one "
+                        "simulation of the job; 0: the preview's correction as it is; default: %(default)s)")
     p.add_argument("--no-simulate", action="store_true", help="skip the proof runs on the plant")
     p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
     _add_robot_option(p, "the robot (default: the job's `robot:`, else irb6400)")

@@ -182,25 +182,24 @@ def move_corrections(sc, program, prediction, *, chord_mm, max_correction_mm):
                             round_mm=1e-4, is_cutting=is_cutting, label=program.path)
 
 
-def predicted_errors(sc, robot, prediction, corrected_program, *, progress=None, say=None):
+def predicted_errors(sc, robot, prediction, corrected_program, *, progress=None, say=None, after=None):
     """The predicted surface error (mm: mean, max_abs, ...) on the
     compensator's model, before (the program as written) and after (the
     corrected program): each run on the model's twin of the cell
-    (diagrams/feed_plan.twin_scenario: the identified stiffness, its
-    damping, servo, force model and sensor bias as the plant), scanned
-    against the programmed surface."""
-    from robstiff_drake.diagrams import user_model as user_models
-    from robstiff_drake.diagrams.experiment import run_cut
-    from robstiff_drake.diagrams.feed_plan import twin_scenario
-    from robstiff_drake.diagrams.scenario import load_scenario
+    (diagrams/offline_refinement.model_twin: the identified stiffness, its
+    damping, servo, linear force model and sensor bias as the plant), scanned
+    against the programmed surface.  ``after``: the corrected program's
+    stats when already known (the refinement's last round)"""
+    from robstiff_drake.diagrams.offline_refinement import twin_run
 
     if say:
-        say("the compensator's model (its twin of the cell): the program as written and the corrected one")
-    before = run_cut(twin_scenario(sc, robot, 1.0), robot, compensation=False, progress=progress).surface_error_mm
-    sc2 = load_scenario(sc.source, toolpath=corrected_program)
-    user_models.resolve(sc2, robot, prediction.q_ref_rad[0])
-    res = run_cut(twin_scenario(sc2, robot, 1.0), robot, compensation=False, progress=progress)
-    return _short(before), _short(scanned_against_program(res, prediction.path))
+        say("the compensator's model (its twin of the cell): the program as written" +
+            (" and the corrected one" if after is None else ""))
+    before = twin_run(sc, robot, prediction, progress=progress).surface_error_mm
+    if after is None:
+        res = twin_run(sc, robot, prediction, corrected_program, progress=progress)
+        after = _short(scanned_against_program(res, prediction.path))
+    return _short(before), after
 
 
 def scanned_against_program(res, program_path):
