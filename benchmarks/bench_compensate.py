@@ -100,8 +100,7 @@ def _loopback_link(protocol):
     link = {"egm": lambda: EgmLink(0, ctrl), "rsi": lambda: rsi.RsiLink(0, ctrl, 0.004),
             "stream-motion": lambda: stream_motion.StreamMotionLink(0, ctrl)}[protocol]()
     link.reply_to = ctrl
-    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
-    link.start_deg = q0
+    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]  # (RSI learns its start from the first message it decodes)
     return sock, link, q0
 
 
@@ -127,6 +126,10 @@ def in_process_cycle_us(robot, protocol, repeats=1000):
     from robstiff_drake.cell.run_log import StreamLog
 
     sink, link, q0 = _loopback_link(protocol)
+    if protocol == "rsi":
+        from robstiff_drake.cell import rsi
+
+        link.decode(rsi.encode_rob(1_000_000, q0, q0))  # (its start, as from the controller's first message)
     w = h.hold_wrench(robot, np.radians(q0))(0.0).tolist()
     comp = h.hold_compensator(robot, w)
     ref = Reference(period_s=0.004)

@@ -271,17 +271,21 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         gc_frozen = _quiet_gc()
         # the sensor's records come through pynetft's thread: let it have the interpreter within half a
         # millisecond when the loop is busy (the default switch interval, 5 ms, is longer than a cycle)
+        switch = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
         _realtime(rt_priority)
         first = loop.first_message(wait_s)
         q0 = first[0].joints_deg
         if ref.q is None:
+            # the loop check at the hold pose (70-220 ms) runs off the real-time path while the loop answers with
+            # zero correction, the controller's own pose (cell/start_gate.py): RSI expects each answer within its
+            # cycle; the loop compensates once the check has passed
             ref.hold(q0)
             problem = pose_problem(robot, q0)
             if problem:
                 raise InputError(f"the hold pose (the controller's first message) is refused: {problem}")
-            _say(guard.at(q0, "the hold pose, the controller's first message"), guard)
-        if guard.warning and stream_log is not None:
+            loop.start_jobs.append(("the loop check at the hold pose", lambda: _hold_check(guard, q0)))
+        elif guard.warning and stream_log is not None:
             stream_log.event(0.0, 0.0, f"warning: {guard.warning}")  # (events.csv, before the first message's)
         off = np.abs(np.asarray(q0) - ref.q[0])
         if off.max() > START_TOLERANCE_DEG:
@@ -289,8 +293,11 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             raise InputError(f"{f'--job {job}' if job and not reference else f'--reference {reference}'}: the robot is "
                              f"{off[j]:.3f} deg from the reference's start on "
                              f"joint {j + 1} (at most {START_TOLERANCE_DEG:g}); move it there before streaming starts")
-        loop.run(first)
-        _restore_gc(gc_frozen)
+        try:
+            loop.run(first)
+        finally:
+            _restore_gc(gc_frozen)
+            sys.setswitchinterval(switch)
     finally:
         sensor.close()
         link.close()
@@ -333,6 +340,18 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                                ("tool.cutter_diameter_mm (--cutter-diameter-mm)", cutter_diameter_mm)) if v is None)
                   + "; diagnose-run needs them", file=sys.stderr)
     return 0
+
+
+def _hold_check(guard, q0):
+    """The loop check at the hold pose (a start job: cell/start_gate.py); its
+    refusal says that only zero correction was answered."""
+    try:
+        line = guard.at(q0, "the hold pose, the controller's first message")
+    except InputError as e:
+        raise InputError(str(e).replace("; nothing was sent", "; nothing but zero correction (the controller's own "
+                                        "pose) was answered")) from None
+    _say(line, guard)
+    return f"warning: {guard.warning}" if guard.warning else None
 
 
 def _say(line, guard):
