@@ -85,6 +85,7 @@ class CompensatorLoop(LoopStart, SensorIntake):
         self.comp, self.link, self.sensor, self.ref, self.robot, self.s = (compensator, link, sensor, reference,
                                                                             robot, settings)
         self.preview = preview  # cell/preview_table.PreviewDeflection (the chain's model) or None: plain
+        self.pending_preview = None  # cell/preview_job.BackgroundTable: the table on its way (plain meanwhile)
         self.log = log  # run_log.StreamLog or None
         # the start's slow work ([(what, function)]: cell/start_gate.py; the log folder's start is added), run
         # off this thread while the loop answers with zero correction; ``gate`` None once it has passed
@@ -215,6 +216,8 @@ class CompensatorLoop(LoopStart, SensorIntake):
         self._read_sensor(t_arr)
         if self.gate is not None:
             self._poll_gate()
+        if self.pending_preview is not None and self.pending_preview.done:
+            self._take_preview()
         if self.preview is not None:
             self.preview.update(self, msg)
         active = not self.faults and self.gate is None

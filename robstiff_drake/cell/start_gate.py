@@ -8,7 +8,7 @@ correction loop's stability check at the hold pose the first message
 gives (cell/loop_guard.py: 70-220 ms on this project's 2-core test
 machine), the log folder's start (cell/run_log.py: an earlier run folder
 replaced, the inputs copied).  ``StartGate`` runs that work in a thread
-of its own (below the loop's real-time priority: ``_below_the_loop``),
+of its own (below the loop's real-time priority: ``below_the_loop``),
 while the loop answers every message with zero correction: the
 controller's own pose (the hold pose, checked against the working
 ranges, or the reference), through the same target checks as every
@@ -54,7 +54,7 @@ class StartGate:
         return self
 
     def _run(self):
-        _below_the_loop()
+        below_the_loop()
         t0 = time.monotonic()
         try:
             for _, fn in self.jobs:
@@ -76,7 +76,7 @@ class StartGate:
         return self.done
 
 
-def _below_the_loop():
+def below_the_loop():
     """This thread (started by the loop's, whose scheduling it inherits) at
     the lowest real-time priority when the loop runs under SCHED_FIFO: above
     every normal process, so that it is never preempted by one while it
@@ -155,7 +155,7 @@ class LoopStart:
         self.gate = None
         for note in g.notes:
             self.event(note)
-        self.event(f"start: {g.what} done in {g.seconds:.3f} s (meanwhile answered with zero correction, the "
+        self.note(f"start: {g.what} done in {g.seconds:.3f} s (meanwhile answered with zero correction, the "
                    "controller's own pose); compensating from now on, the correction ramping in at the rate limit")
 
     def finish_start(self):
@@ -172,5 +172,29 @@ class LoopStart:
         self.gate = None
         for note in g.notes:
             self.event(note)
-        self.event(f"start: {g.what} done in {g.seconds:.3f} s, after the run's last message: the run answered "
+        self.note(f"start: {g.what} done in {g.seconds:.3f} s, after the run's last message: the run answered "
                    "with zero correction only")
+
+    def note(self, text):
+        """A line of the run's course (events.csv and stderr), not a fault:
+        not in the summary's list of faults and events."""
+        t = self.now()
+        if self.log is not None:
+            self.log.event(t, self.t_session, text)
+        print(f"robstiff: compensate: t = {t:8.3f} s: {text}", file=self.out, flush=True)
+
+    def _take_preview(self):
+        """The job's table computed in the background (cell/preview_job.
+        BackgroundTable) is ready: preview from this message on (the
+        correction moves from the plain chain's at the rate limit), or say
+        why not (plain compensation to the end)."""
+        bg, self.pending_preview = self.pending_preview, None
+        bg.taken_at_s = self.t_session
+        if bg.preview is None:
+            self.event(f"preview: the job's table could not be computed ({bg.error}); plain compensation to the end")
+            return
+        pv = bg.preview
+        pv.t_ctrl = self.t_session  # (its check of the controller's clock counts from the session's time now)
+        self.preview = self.comp.model = pv
+        self.note(f"preview: the job's table is ready ({pv.n} cycles, computed in {bg.seconds:.2f} s in another "
+                   "process); previewing from now on (the correction moves to the preview's at the rate limit)")

@@ -192,17 +192,20 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         ba = filter_coefficients(filter_kind, cutoff_hz, filter_order, sensor_rate_hz, spindle_rpm)
     except ValueError as e:
         raise InputError(f"--cutoff-hz: {e}") from None
-    plan = None
+    plan = table_file = None
     if job is not None:
-        from robstiff_drake.cell.preview_job import job_reference
+        from robstiff_drake.cell.preview_job import build_plan, job_reference
 
         def given():
             wait_for_file(reference, wait_s)
             return read_reference(reference, robot, period_s)
 
-        plan, t_ref, q_ref = job_reference(sc_job, robot, k, job=job, reference=reference, read_reference=given,
-                                           period_s=period_s, filter_ba=ba, rate_hz=sensor_rate_hz,
-                                           delay_steps=delay_steps, servo=servo)
+        plan, table_file, t_ref, q_ref = job_reference(sc_job, robot, k, job=job, reference=reference,
+                                                       read_reference=given, period_s=period_s, filter_ba=ba,
+                                                       rate_hz=sensor_rate_hz, delay_steps=delay_steps, servo=servo)
+        if plan is None and table_file is None:  # (no writable cache folder: computed here, before any socket)
+            plan = build_plan(sc_job, robot, k, period_s=period_s, filter_ba=ba, rate_hz=sensor_rate_hz,
+                              delay_steps=delay_steps, servo_option=servo)
         ref = Reference(t_ref, np.degrees(q_ref), period_s=period_s)
     elif reference:
         wait_for_file(reference, wait_s)
@@ -227,8 +230,17 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     predictor = DeflectionPredictor(robot.dh, k, tool)
     link = _link(protocol, listen_port, ctrl, period_s)
     sensor = NetFTReader(host, port, counts=netft_counts, units=netft_units, http_port=netft_http_port)
-    stream_log = None
+    stream_log = background = None
     try:
+        if job is not None and plan is None:
+            # the table in a process of its own from now on (the sensor's start, the controller's first message
+            # and the stream never wait for it: plain compensation until it is ready; cell/preview_job.py)
+            from robstiff_drake.cell import preview_cache
+            from robstiff_drake.cell.preview_job import BackgroundTable
+
+            background = BackgroundTable(preview_cache.build_input(
+                job=job, robot_yaml=robot_yaml, k_Nm_per_rad=k, period_s=period_s, filter_ba=ba,
+                rate_hz=sensor_rate_hz, delay_steps=delay_steps, servo_option=servo, file=table_file), table_file)
         sensor.open(timeout_s=netft_open_s)
         good = [w for w, _, _, clipped in sensor.drain() if all(v == v for v in w) and not clipped]
         # the guard's and filter's start: the median of the first records (a spike among them moves a mean)
@@ -257,13 +269,19 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                 cutter_diameter_mm=cutter_diameter_mm, robot_ref=kept.robot, mode=mode), f"robot {robot.name}, model {model}",
                 inputs={rel: kept.sources[key].read_bytes() for key, rel in kept.names.items()})
         preview = None
-        if plan is not None:
+        if job is not None:
             from robstiff_drake.cell.preview_table import PreviewDeflection
 
-            preview = comp.model = PreviewDeflection(comp.model, plan, sync_s=preview_sync_ms / 1e3,
-                                                     force_bound_N=preview_force_bound_N,
-                                                     force_bound_fraction=FORCE_BOUND_FRACTION)
+            def make_preview(p, plain=comp.model):
+                return PreviewDeflection(plain, p, sync_s=preview_sync_ms / 1e3, force_bound_N=preview_force_bound_N,
+                                         force_bound_fraction=FORCE_BOUND_FRACTION)
+
+            if plan is not None:
+                preview = comp.model = make_preview(plan)
+            else:
+                background.then(make_preview)
         loop = CompensatorLoop(comp, link, sensor, ref, robot, settings, log=stream_log, preview=preview)
+        loop.pending_preview = background
         where = f"{ctrl[0]}" + (f":{ctrl[1]}" if ctrl[1] else "")
         link.open()
         print(f"robstiff: compensate: sensor {host}:{port} streaming (calibration {cal_text}); waiting for "
@@ -299,6 +317,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             _restore_gc(gc_frozen)
             sys.setswitchinterval(switch)
     finally:
+        if background is not None:
+            background.stop()
         sensor.close()
         link.close()
     stats = loop.stats()
@@ -309,6 +329,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
           f"{stats['fault_onsets']} faults; {stats['strangers_dropped']} datagrams from strangers dropped",
           file=sys.stderr)
     h = stats["health"]
+    table = "disk cache" if job is not None and background is None else background.note() if background else None
+    if background is not None and loop.preview is None:
+        print(f"robstiff: warning: compensate: preview: the job's table {table}", file=sys.stderr)
     if loop.preview is not None:
         pv = loop.preview.summary()
         fb = pv["fallback"]
@@ -330,6 +353,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                        "sensor_timeout_ms": sensor_timeout_ms},
                    "mode": mode, "job": str(job) if job else None,
                    "preview": loop.preview.summary() if loop.preview is not None else None,
+                   "preview_table": table,
                    "cycles": stats, "health": h, "loop_check": guard.result,
                    "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])}
         written = stream_log.close(summary)
