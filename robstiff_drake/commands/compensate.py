@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.errors import InputError, excerpt
+from robstiff_drake.cell.realtime_thread import quiet_gc as _quiet_gc, realtime as _realtime, restore_gc as _restore_gc
 from robstiff_drake.progress import info, wrote
 
 # How far the first joint feedback may be from the reference's start (deg)
@@ -384,55 +385,3 @@ def _say(line, guard):
         print(f"robstiff: warning: compensate: {line}", file=sys.stderr, flush=True)
     else:
         info(f"robstiff: compensate: {line}", file=sys.stderr)
-
-
-def _realtime(priority):
-    """Run the loop's thread under SCHED_FIFO at ``priority`` (1-99), as a
-    real-time PC would; 0: leave the scheduling alone.  Not permitted (no
-    privilege): a warning, and the loop runs anyway.
-
-    The process's threads started before it (the sensor reader's) go to
-    SCHED_FIFO one below the loop: they take Python's interpreter lock to
-    hand over each record, and one of them preempted by another process
-    while it holds the lock would hold up the loop for that process's time
-    slice (the loop's own priority does not help it then).  Threads started
-    later (the log's writer) inherit the loop's scheduling."""
-    if not priority:
-        return
-    import os
-    import threading
-
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
-    except (AttributeError, PermissionError, OSError) as e:
-        print(f"robstiff: warning: --rt-priority {priority}: cannot switch to real-time scheduling ({e}); running "
-              "without it", file=sys.stderr)
-        return
-    me = threading.get_native_id()
-    try:
-        tids = [int(t) for t in os.listdir("/proc/self/task")]
-    except OSError:
-        return  # (not Linux: the loop's thread only)
-    for tid in tids:
-        if tid != me:
-            try:
-                os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(max(int(priority) - 1, 1)))
-            except OSError:
-                pass  # (a thread that ended meanwhile)
-
-
-def _quiet_gc():
-    """Freeze the objects made so far out of the garbage collector's reach
-    (fewer and shorter collection pauses in the loop)."""
-    import gc
-
-    gc.collect()
-    gc.freeze()
-    return True
-
-
-def _restore_gc(frozen):
-    import gc
-
-    if frozen:
-        gc.unfreeze()
