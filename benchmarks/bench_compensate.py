@@ -17,9 +17,11 @@ target: a shorter run and the slope, extrapolated, say so).
 Targets: the computation per message (arrival to answer) p99 <= 0.3 ms
 on a quiet machine, p99 <= 1 ms with a `stress`-like load on the other core
 (--load N: N busy processes on the machine's last core), and max <= 4 ms
-(the cycle) while streaming: the first message's answer waits for the
-start's own work (without --reference the loop check at the hold pose the
-message gives, and the log folder's start), printed apart.  Exit status 1 when one is missed.  Before the process runs,
+(the cycle) from the first message on: the start's own work (without
+--reference the loop check at the hold pose the message gives, and the log
+folder's start) runs off the loop's thread while the loop answers with
+zero correction (cell/start_gate.py; it made the first answer 70-220 ms
+late before).  Exit status 1 when one is missed.  Before the process runs,
 an in-process breakdown of one message (receive and decode, session and
 feedback checks, the sensor's records through guard and filter, the
 model's tick, the target check with the encoding and the send, and the log
@@ -409,12 +411,12 @@ def _main(args, robot):
               f"{comp['p99'] * 1e3 / p99:.1f}")
         target = TARGET_P99_LOADED_MS if args.load else TARGET_P99_MS
         top = summary["max_after_first_ms"]
-        passed = comp["p99"] <= target and top <= TARGET_MAX_MS
+        passed = comp["p99"] <= target and max(top, summary["first_ms"]) <= TARGET_MAX_MS
         ok = ok and passed
-        print(f"  target p99 <= {target:g} ms ({what}) and max <= {TARGET_MAX_MS:g} ms while streaming: p99 "
-              f"{comp['p99']:.3f} ms, max {top:.2f} ms after the first message (the first: {summary['first_ms']:.1f} "
-              f"ms, with the loop check at the hold pose and the log folder's start): {'PASS' if passed else 'FAIL'}",
-              flush=True)
+        print(f"  target p99 <= {target:g} ms ({what}) and max <= {TARGET_MAX_MS:g} ms from the first message on: "
+              f"p99 {comp['p99']:.3f} ms, max {top:.2f} ms after the first message, the first {summary['first_ms']:.2f} "
+              f"ms (the loop check at the hold pose and the log folder's start off the loop's thread): "
+              f"{'PASS' if passed else 'FAIL'}", flush=True)
     return 0 if ok else 1
 
 

@@ -12,7 +12,12 @@ loop's stability at the start pose by the linear loop model
 (cell/loop_guard.py; --allow-unstable-loop overrides it), the sensor's
 calibration read and its stream started and the controller's first
 message awaited and checked before the loop; anything wrong there is one
-line and exit status 2.  During the loop faults are logged and ramp the
+line and exit status 2.  The start's slow work (without --reference the
+loop check at the hold pose; the log folder's start) runs off the loop's
+thread while the controller is answered with its own pose
+(cell/start_gate.py), and --mode preview's table, when the disk cache
+does not hold it, in another process while the loop runs plain
+(cell/preview_job.BackgroundTable).  During the loop faults are logged and ramp the
 correction to zero (cell/compensate.py); every target passes
 cell/safety.py's check.  Ctrl-C, SIGTERM, --duration-s or a controller
 silent for --idle-exit-s end the run; --log DIR is written as the run goes
@@ -217,7 +222,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         ref = Reference(period_s=period_s)
     tool = robot.payload.tool_point_m
     # the loop model's stability check, before any socket is opened (with --reference: at its first row; without,
-    # at the hold pose when the controller's first message gives it, before anything is sent)
+    # at the hold pose when the controller's first message gives it, while the loop answers with zero correction)
     guard = LoopGuard(robot=robot, k_Nm_per_rad=k, servo=servo, sensor_rate_hz=sensor_rate_hz, period_s=period_s,
                       delay_steps=delay_steps, filter_kind=filter_kind, filter_ba=ba, cutoff_hz=cutoff_hz,
                       filter_order=filter_order, allow_unstable=allow_unstable_loop)
