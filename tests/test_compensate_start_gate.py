@@ -124,7 +124,7 @@ def test_the_first_answer_does_not_wait_for_the_start_and_compensation_ramps_in_
     assert np.max(np.abs(corr[2])) < 0.5 * np.max(np.abs(corr[-1]))  # (ramped in, not at once)
     said = loop.out.getvalue()
     assert "start: the stand-in check done" in said and "compensating from now on" in said, said
-    assert loop.n.events == []  # (a note of the run's course, not a fault)
+    assert not [e for _, _, e in loop.n.events if "start" in e]  # (a note of the run's course, not a fault)
 
 
 def test_a_refused_start_ends_the_run_with_only_zero_correction_sent():
