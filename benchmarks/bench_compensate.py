@@ -163,8 +163,21 @@ def in_process_cycle_us(robot, protocol, repeats=1000):
     return float(np.median(us)), float(np.percentile(us, 99))
 
 
-STAGES = ("receive + decode", "session + feedback", "sensor records (guard, filter)", "model (tick)",
-          "target check + encode + send", "log rows + statistics (after the answer)")
+STAGES = ("receive (select, recvfrom: system calls)", "decode", "session + feedback", "sensor records (guard, filter)",
+          "model (tick)", "safety check (target, the pose commanded, motion)", "encode (and the answer read back)",
+          "send (sendto: system call)", "rest (envelope, reference, counters, statistics)",
+          "log rows + statistics (after the answer)")
+
+
+class _TimedSocket:
+    """The link's socket with its sendto timed (the rest passed through)."""
+
+    def __init__(self, sock, timed):
+        self._sock = sock
+        self.sendto = timed("send (sendto: system call)", sock.sendto)
+
+    def __getattr__(self, name):
+        return getattr(self._sock, name)
 
 
 def stage_breakdown_us(robot, protocol, repeats=1000):
@@ -213,11 +226,21 @@ def stage_breakdown_us(robot, protocol, repeats=1000):
                                out=open(os.devnull, "w"))
         ctrl_sock.sendto(datagram(1), addr)
         loop.run_start(*link.receive(1.0)[-1])
+        loop.gate.wait(30.0)  # (the log folder's start, off the loop's thread)
+        import robstiff_drake.cell.link as link_module
+
+        saved = link_module.unsafe_reason, link_module.motion_reason
         loop._session = timed("session + feedback", loop._session)
         loop._feedback = timed("session + feedback", loop._feedback)
         loop._read_sensor = timed("sensor records (guard, filter)", loop._read_sensor)
         comp.tick = timed("model (tick)", comp.tick)
-        link.send_targets = timed("target check + encode + send", link.send_targets)
+        link.decode = timed("decode", link.decode)
+        link.encode = timed("encode (and the answer read back)", link.encode)
+        link.commanded_deg = timed("encode (and the answer read back)", link.commanded_deg)
+        link.answer_problem = timed("safety check (target, the pose commanded, motion)", link.answer_problem)
+        link_module.unsafe_reason = timed("safety check (target, the pose commanded, motion)", saved[0])
+        link_module.motion_reason = timed("safety check (target, the pose commanded, motion)", saved[1])
+        link.sock = _TimedSocket(link.sock, timed)
         log.cycle = timed("log rows + statistics (after the answer)", log.cycle)
         log.wrench = timed("log rows + statistics (after the answer)", log.wrench)
         for k in range(2, repeats + 2):
@@ -230,8 +253,10 @@ def stage_breakdown_us(robot, protocol, repeats=1000):
             ok, dt = loop._session(msg)
             loop.cycle(msg, t_arr, dt)
             t2 = time.perf_counter()
-            current["receive + decode"] = t1 - t0
+            current["receive (select, recvfrom: system calls)"] = t1 - t0 - current.get("decode", 0.0)
             after = current.get("log rows + statistics (after the answer)", 0.0)
+            current["rest (envelope, reference, counters, statistics)"] = (t2 - t0 - after) - sum(
+                v for name, v in current.items() if name != "log rows + statistics (after the answer)")
             for name in STAGES:
                 spent[name].append(current.get(name, 0.0) * 1e6)
             total.append((t2 - t0 - after) * 1e6)
@@ -246,6 +271,7 @@ def stage_breakdown_us(robot, protocol, repeats=1000):
                     pass
                 ctrl_sock.setblocking(True)
         log.close({})
+        link_module.unsafe_reason, link_module.motion_reason = saved
     link.sock.close()
     ctrl_sock.close()
     if egm is not None:

@@ -222,17 +222,6 @@ class CompensatorLoop(LoopStart, SensorIntake):
             self.preview.update(self, msg)
         active = not self.faults and self.gate is None
         corr = self.comp.tick(self.q, min(dt, MAX_STEP_PERIODS * self.s.period_s), active)
-        if any(abs(d) >= s for d, s in zip(self.comp.dq, self._sat)):
-            self.n.saturated_cycles += 1
-            if not self.saturated:
-                self.saturated = True
-                self.n.saturation_onsets += 1
-                if self.n.saturation_onsets <= 5 or self.n.saturation_onsets % 100 == 0:
-                    j = max(range(6), key=lambda i: abs(self.comp.dq[i]) / self._sat[i])
-                    self.event(f"correction saturated on q{j + 1} at {math.degrees(self._sat[j]):g} deg (the model "
-                               f"asks more; onset {self.n.saturation_onsets}, {self.n.saturated_cycles} cycles so far)")
-        else:
-            self.saturated = False
         if self._identity:
             corr_deg = [math.degrees(c) for c in corr]
         else:
@@ -245,6 +234,7 @@ class CompensatorLoop(LoopStart, SensorIntake):
                        tuple(self.q_deg), tuple(c + m for c, m in zip(self._clamp, mf)), *self._supervision)
         sent = self._send(msg, target, env)
         t_done = time.monotonic()
+        self._count_saturation()  # (after the answer: counting only)
         age = t_done - self.latest_sample_time if self.latest_sample_time is not None else float("nan")
         self.n.compute_ms.add((t_done - t_arr) * 1e3)
         self.n.age_ms.add(age * 1e3)
@@ -263,6 +253,20 @@ class CompensatorLoop(LoopStart, SensorIntake):
             self._wrench_rows.clear()
             self.log.cycle(self, msg, t_arr, ref_deg, corr, corr_deg, target if sent else None, t_done - t_arr, age)
         return sent
+
+    def _count_saturation(self):
+        """Count the cycles the model asked more than the clamp, and log its onsets."""
+        if any(abs(d) >= s for d, s in zip(self.comp.dq, self._sat)):
+            self.n.saturated_cycles += 1
+            if not self.saturated:
+                self.saturated = True
+                self.n.saturation_onsets += 1
+                if self.n.saturation_onsets <= 5 or self.n.saturation_onsets % 100 == 0:
+                    j = max(range(6), key=lambda i: abs(self.comp.dq[i]) / self._sat[i])
+                    self.event(f"correction saturated on q{j + 1} at {math.degrees(self._sat[j]):g} deg (the model "
+                               f"asks more; onset {self.n.saturation_onsets}, {self.n.saturated_cycles} cycles so far)")
+        else:
+            self.saturated = False
 
     def _send(self, msg, target, env):
         try:
