@@ -236,8 +236,10 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     predictor = DeflectionPredictor(robot.dh, k, tool)
     link = _link(protocol, listen_port, ctrl, period_s)
     sensor = NetFTReader(host, port, counts=netft_counts, units=netft_units, http_port=netft_http_port)
-    stream_log = background = None
+    stream_log = background = remote = None
     try:
+        if ref.q is None:  # (the hold pose's check: its process started now, asked once the first message comes)
+            remote = guard.elsewhere(robot_yaml)
         if job is not None and plan is None:
             # the table in a process of its own from now on (the sensor's start, the controller's first message
             # and the stream never wait for it: plain compensation until it is ready; cell/preview_job.py)
@@ -308,7 +310,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             problem = pose_problem(robot, q0)
             if problem:
                 raise InputError(f"the hold pose (the controller's first message) is refused: {problem}")
-            loop.start_jobs.append(("the loop check at the hold pose", lambda: _hold_check(guard, q0)))
+            loop.start_jobs.append(("the loop check at the hold pose", lambda: _hold_check(remote, q0)))
         elif guard.warning and stream_log is not None:
             stream_log.event(0.0, 0.0, f"warning: {guard.warning}")  # (events.csv, before the first message's)
         off = np.abs(np.asarray(q0) - ref.q[0])
@@ -325,6 +327,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     finally:
         if background is not None:
             background.stop()
+        if remote is not None:
+            remote.close()
         sensor.close()
         link.close()
     stats = loop.stats()
@@ -372,11 +376,13 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     return 0
 
 
-def _hold_check(guard, q0):
-    """The loop check at the hold pose (a start job: cell/start_gate.py); its
+def _hold_check(remote, q0):
+    """The loop check at the hold pose (a start job: cell/start_gate.py, the
+    check itself in the process cell/loop_guard.RemoteCheck started); its
     refusal says that only zero correction was answered."""
+    guard = remote.guard
     try:
-        line = guard.at(q0, "the hold pose, the controller's first message")
+        line = remote.at(q0, "the hold pose, the controller's first message")
     except InputError as e:
         raise InputError(str(e).replace("; nothing was sent", "; nothing but zero correction (the controller's own "
                                         "pose) was answered")) from None
