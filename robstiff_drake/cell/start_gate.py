@@ -8,8 +8,10 @@ correction loop's stability check at the hold pose the first message
 gives (cell/loop_guard.py: 70-220 ms on this project's 2-core test
 machine), the log folder's start (cell/run_log.py: an earlier run folder
 replaced, the inputs copied).  ``StartGate`` runs that work in a thread
-of its own (below the loop's real-time priority: ``below_the_loop``),
-while the loop answers every message with zero correction: the
+of its own (below the loop's real-time priority: ``below_the_loop``; the
+loop check's arithmetic itself in a process forked before the link opens,
+cell/loop_guard.RemoteCheck, as its numerical calls hold Python's lock for
+milliseconds at a time), while the loop answers every message with zero correction: the
 controller's own pose (the hold pose, checked against the working
 ranges, or the reference), through the same target checks as every
 answer.  The loop compensates only once every job has passed, the
