@@ -170,3 +170,45 @@ def test_the_gate_reports_its_work(refuse):
     assert g.wait(WAIT_S)
     assert ran == (["a"] if refuse else ["a", "b", "c"])
     assert (str(g.error) == "no") if refuse else (g.error is None and g.notes == ["note a", "note c"])
+
+
+def test_the_sensor_records_piled_up_before_the_first_message_are_not_worked_through_then():
+    """While the first message is awaited the sensor's reader keeps up to
+    4096 records (4 s at 1 kHz); the first answer does not take them through
+    the guard and filter one by one (about 25 ms): the chain restarts on the
+    newest few (their median: the wrench at the start pose)."""
+    from robstiff_drake.cell.link import Message
+
+    robot = load_robot()
+    w_old = h.hold_wrench(robot, np.radians(Q0))(0.0).tolist()
+    w_new = (np.asarray(w_old) + [50.0, 0.0, -20.0, 0.0, 1.0, 0.0]).tolist()
+    spike = (np.asarray(w_new) + [2000.0, 0.0, 0.0, 0.0, 0.0, 0.0]).tolist()
+    backlog = [(w_old, 0.0, 0, False)] * 4088 + [(w_new, 0.0, 0, False)] * 7 + [(spike, 0.0, 0, False)]
+
+    class Sensor:
+        def __init__(self):
+            self.batches = [backlog]
+
+        def drain(self):
+            return self.batches.pop(0) if self.batches else [(w_new, time.monotonic(), 0, False)] * 4
+
+    class Link:
+        name, option, port = "RSI", "--listen-port", 0
+        strangers = malformed = 0
+
+        def send_targets(self, msg, target, env):
+            self.target = target
+
+    comp = h.hold_compensator(robot, w_old)
+    taken = []
+    sample = comp.sensor_sample
+    comp.sensor_sample = lambda w: taken.append(w) or sample(w)
+    ref = Reference(period_s=0.004)
+    ref.hold(Q0)
+    link = Link()
+    loop = CompensatorLoop(comp, link, Sensor(), ref, robot, LoopSettings(max_jump_Nm=350.0), out=io.StringIO())
+    loop.run_start(Message(1, 0, Q0, echo=1), time.monotonic())
+    assert len(taken) == 4  # the first cycle's own records only (before: 4096 + 4)
+    assert loop.n.sensor_records == 4096 + 4
+    np.testing.assert_allclose(comp.held, w_new)  # restarted on the newest records' median (the spike outvoted)
+    np.testing.assert_allclose(link.target, Q0, atol=1e-12)  # (answered; the first message moves no correction)

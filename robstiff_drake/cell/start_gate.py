@@ -140,6 +140,7 @@ class LoopStart:
             self.log.bind(self)  # (rows are kept in memory until the folder is open)
             jobs.append(("the log folder's start", self.log.open))
         self.gate = StartGate(jobs) if jobs else None
+        self._start_on_recent_records()
         self.cycle(msg, t_arr, self._session(msg)[1])
         if self.gate is not None:
             self.gate.start()
