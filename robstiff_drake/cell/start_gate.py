@@ -149,9 +149,19 @@ class LoopStart:
         """Compensate from this message on once the start's work has passed
         (the correction ramps in from zero at the rate limit); its refusal
         (InputError) ends the run."""
+        if self.gate.done:
+            self._gate_ended("compensating from now on, the correction ramping in at the rate limit")
+
+    def finish_start(self):
+        """At the run's end: wait for the start's work if it has not ended
+        (the log folder opens before it is closed); InputError when it
+        refused the start."""
+        if self.gate is not None:
+            self.gate.wait()
+            self._gate_ended("after the run's last message: the run answered with zero correction only")
+
+    def _gate_ended(self, what_now):
         g = self.gate
-        if not g.done:
-            return
         if g.error is not None:
             self.ended_by = "start refused"
             raise g.error
@@ -159,24 +169,7 @@ class LoopStart:
         for note in g.notes:
             self.event(note)
         self.note(f"start: {g.what} done in {g.seconds:.3f} s (meanwhile answered with zero correction, the "
-                   "controller's own pose); compensating from now on, the correction ramping in at the rate limit")
-
-    def finish_start(self):
-        """At the run's end: wait for the start's work if it has not ended
-        (the log folder opens before it is closed); InputError when it
-        refused the start."""
-        g = self.gate
-        if g is None:
-            return
-        g.wait()
-        if g.error is not None:
-            self.ended_by = "start refused"
-            raise g.error
-        self.gate = None
-        for note in g.notes:
-            self.event(note)
-        self.note(f"start: {g.what} done in {g.seconds:.3f} s, after the run's last message: the run answered "
-                   "with zero correction only")
+                  f"controller's own pose); {what_now}")
 
     def note(self, text):
         """A line of the run's course (events.csv and stderr), not a fault:
