@@ -17,9 +17,11 @@ target: a shorter run and the slope, extrapolated, say so).
 Targets: the computation per message (arrival to answer) p99 <= 0.3 ms
 on a quiet machine, p99 <= 1 ms with a `stress`-like load on the other core
 (--load N: N busy processes on the machine's last core), and max <= 4 ms
-(the cycle) while streaming: the first message's answer waits for the
-start's own work (without --reference the loop check at the hold pose the
-message gives, and the log folder's start), printed apart.  Exit status 1 when one is missed.  Before the process runs,
+(the cycle) from the first message on: the start's own work (without
+--reference the loop check at the hold pose the message gives, and the log
+folder's start) runs off the loop's thread while the loop answers with
+zero correction (cell/start_gate.py; it made the first answer 70-220 ms
+late before).  Exit status 1 when one is missed.  Before the process runs,
 an in-process breakdown of one message (receive and decode, session and
 feedback checks, the sensor's records through guard and filter, the
 model's tick, the target check with the encoding and the send, and the log
@@ -100,8 +102,7 @@ def _loopback_link(protocol):
     link = {"egm": lambda: EgmLink(0, ctrl), "rsi": lambda: rsi.RsiLink(0, ctrl, 0.004),
             "stream-motion": lambda: stream_motion.StreamMotionLink(0, ctrl)}[protocol]()
     link.reply_to = ctrl
-    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
-    link.start_deg = q0
+    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]  # (RSI learns its start from the first message it decodes)
     return sock, link, q0
 
 
@@ -127,6 +128,10 @@ def in_process_cycle_us(robot, protocol, repeats=1000):
     from robstiff_drake.cell.run_log import StreamLog
 
     sink, link, q0 = _loopback_link(protocol)
+    if protocol == "rsi":
+        from robstiff_drake.cell import rsi
+
+        link.decode(rsi.encode_rob(1_000_000, q0, q0))  # (its start, as from the controller's first message)
     w = h.hold_wrench(robot, np.radians(q0))(0.0).tolist()
     comp = h.hold_compensator(robot, w)
     ref = Reference(period_s=0.004)
@@ -158,8 +163,21 @@ def in_process_cycle_us(robot, protocol, repeats=1000):
     return float(np.median(us)), float(np.percentile(us, 99))
 
 
-STAGES = ("receive + decode", "session + feedback", "sensor records (guard, filter)", "model (tick)",
-          "target check + encode + send", "log rows + statistics (after the answer)")
+STAGES = ("receive (select, recvfrom: system calls)", "decode", "session + feedback", "sensor records (guard, filter)",
+          "model (tick)", "safety check (target, the pose commanded, motion)", "encode (and the answer read back)",
+          "send (sendto: system call)", "rest (envelope, reference, counters, statistics)",
+          "log rows + statistics (after the answer)")
+
+
+class _TimedSocket:
+    """The link's socket with its sendto timed (the rest passed through)."""
+
+    def __init__(self, sock, timed):
+        self._sock = sock
+        self.sendto = timed("send (sendto: system call)", sock.sendto)
+
+    def __getattr__(self, name):
+        return getattr(self._sock, name)
 
 
 def stage_breakdown_us(robot, protocol, repeats=1000):
@@ -208,11 +226,21 @@ def stage_breakdown_us(robot, protocol, repeats=1000):
                                out=open(os.devnull, "w"))
         ctrl_sock.sendto(datagram(1), addr)
         loop.run_start(*link.receive(1.0)[-1])
+        loop.gate.wait(30.0)  # (the log folder's start, off the loop's thread)
+        import robstiff_drake.cell.link as link_module
+
+        saved = link_module.unsafe_reason, link_module.motion_reason
         loop._session = timed("session + feedback", loop._session)
         loop._feedback = timed("session + feedback", loop._feedback)
         loop._read_sensor = timed("sensor records (guard, filter)", loop._read_sensor)
         comp.tick = timed("model (tick)", comp.tick)
-        link.send_targets = timed("target check + encode + send", link.send_targets)
+        link.decode = timed("decode", link.decode)
+        link.encode = timed("encode (and the answer read back)", link.encode)
+        link.commanded_deg = timed("encode (and the answer read back)", link.commanded_deg)
+        link.answer_problem = timed("safety check (target, the pose commanded, motion)", link.answer_problem)
+        link_module.unsafe_reason = timed("safety check (target, the pose commanded, motion)", saved[0])
+        link_module.motion_reason = timed("safety check (target, the pose commanded, motion)", saved[1])
+        link.sock = _TimedSocket(link.sock, timed)
         log.cycle = timed("log rows + statistics (after the answer)", log.cycle)
         log.wrench = timed("log rows + statistics (after the answer)", log.wrench)
         for k in range(2, repeats + 2):
@@ -225,8 +253,10 @@ def stage_breakdown_us(robot, protocol, repeats=1000):
             ok, dt = loop._session(msg)
             loop.cycle(msg, t_arr, dt)
             t2 = time.perf_counter()
-            current["receive + decode"] = t1 - t0
+            current["receive (select, recvfrom: system calls)"] = t1 - t0 - current.get("decode", 0.0)
             after = current.get("log rows + statistics (after the answer)", 0.0)
+            current["rest (envelope, reference, counters, statistics)"] = (t2 - t0 - after) - sum(
+                v for name, v in current.items() if name != "log rows + statistics (after the answer)")
             for name in STAGES:
                 spent[name].append(current.get(name, 0.0) * 1e6)
             total.append((t2 - t0 - after) * 1e6)
@@ -241,6 +271,7 @@ def stage_breakdown_us(robot, protocol, repeats=1000):
                     pass
                 ctrl_sock.setblocking(True)
         log.close({})
+        link_module.unsafe_reason, link_module.motion_reason = saved
     link.sock.close()
     ctrl_sock.close()
     if egm is not None:
@@ -406,12 +437,12 @@ def _main(args, robot):
               f"{comp['p99'] * 1e3 / p99:.1f}")
         target = TARGET_P99_LOADED_MS if args.load else TARGET_P99_MS
         top = summary["max_after_first_ms"]
-        passed = comp["p99"] <= target and top <= TARGET_MAX_MS
+        passed = comp["p99"] <= target and max(top, summary["first_ms"]) <= TARGET_MAX_MS
         ok = ok and passed
-        print(f"  target p99 <= {target:g} ms ({what}) and max <= {TARGET_MAX_MS:g} ms while streaming: p99 "
-              f"{comp['p99']:.3f} ms, max {top:.2f} ms after the first message (the first: {summary['first_ms']:.1f} "
-              f"ms, with the loop check at the hold pose and the log folder's start): {'PASS' if passed else 'FAIL'}",
-              flush=True)
+        print(f"  target p99 <= {target:g} ms ({what}) and max <= {TARGET_MAX_MS:g} ms from the first message on: "
+              f"p99 {comp['p99']:.3f} ms, max {top:.2f} ms after the first message, the first {summary['first_ms']:.2f} "
+              f"ms (the loop check at the hold pose and the log folder's start off the loop's thread): "
+              f"{'PASS' if passed else 'FAIL'}", flush=True)
     return 0 if ok else 1
 
 

@@ -315,3 +315,24 @@ def logging_run(tmp, answered, timeout_s=60.0):
     while net.stats.answered < answered and time.monotonic() - t0 < timeout_s and proc.poll() is None:
         time.sleep(0.05)
     return proc, th, net, log
+
+
+def cached_preview_table(job, robot_yaml=None, *, k_Nm_per_rad=None, cutoff_hz=2.0, rate_hz=1000.0, delay_steps=0,
+                         servo=None, period_s=0.004):
+    """Compute the preview's table of ``job`` into the disk cache as `compensate --mode preview` with these
+    options keys it (cell/preview_cache.py: the job run again; a cold cache computes it in the background while
+    the run is plain); returns the cache file."""
+    from robstiff_drake.cell import preview_cache
+    from robstiff_drake.cell.preview_job import build_plan, load_job, table_file
+    from robstiff_drake.model.filters import filter_coefficients
+
+    sc, robot = load_job(job, robot_yaml, period_s=period_s)
+    k = robot.joint_stiffness_Nm_per_rad if k_Nm_per_rad is None else np.asarray(k_Nm_per_rad, dtype=float)
+    ba = filter_coefficients("lowpass", cutoff_hz, 2, rate_hz, 3600.0)
+    file = table_file(sc, robot, k, period_s=period_s, filter_ba=ba, rate_hz=rate_hz, delay_steps=delay_steps,
+                      servo=servo)
+    if preview_cache.load(file) is None:
+        plan = build_plan(sc, robot, k, period_s=period_s, filter_ba=ba, rate_hz=rate_hz, delay_steps=delay_steps,
+                          servo_option=servo)
+        assert preview_cache.save(plan, file)
+    return file

@@ -13,7 +13,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from cell_helpers import ROOT, compensate_cmd, free_udp_port, write_inputs
+from cell_helpers import ROOT, cached_preview_table, compensate_cmd, free_udp_port, write_inputs
 from robstiff_drake.model.robot import load_robot
 
 SHORT = os.path.join(ROOT, "tests", "data", "short_block.yaml")
@@ -70,6 +70,7 @@ def pair(tmp_path_factory):
     from test_sim_cell import _run_pair
 
     robot = load_robot()
+    cached_preview_table(SHORT)  # (the job run again: its table from the disk cache, previewing from the start)
     out = {}
     for mode in ("plain", "preview"):
         tmp = tmp_path_factory.mktemp(mode)
@@ -154,6 +155,7 @@ def test_preview_falls_back_to_plain_when_the_plan_no_longer_holds(tmp_path, cas
     def reference(t):
         return np.array([np.interp(t, t_ref, q_ref[:, j]) for j in range(6)])
 
+    cached_preview_table(SHORT)  # (the job run again: its table from the disk cache, previewing from the start)
     egm_port, netft_port = free_udp_port(), free_udp_port()
     faults = Faults(restart_at=0.6) if case == "restart" else Faults()
     # lockstep (the physics without this machine's scheduling: a shared PC holds cycles), ended by the cell after
@@ -187,3 +189,52 @@ def test_preview_falls_back_to_plain_when_the_plan_no_longer_holds(tmp_path, cas
         print("fallback at", pv["fallback"]["t_s"], "s; the last 0.2 s's largest correction", np.max(np.abs(late)),
               "deg; run to", joints["t_s"][-1], "s")
         assert np.max(np.abs(late)) > 0.005, late
+
+
+def test_a_cold_cache_computes_the_table_in_the_background_while_the_stream_runs(tmp_path):
+    """A job run for the first time (an empty disk cache): the stream starts
+    at once, plain, while another process computes the table; the loop then
+    previews (one line says so), the table is left in the cache for the
+    next run, and every target stays inside the limits."""
+    from cell_helpers import cutting_wrench, start_cell
+    from robstiff_drake.diagrams.milling_cell import planned_path
+    from robstiff_drake.diagrams.scenario import load_scenario
+
+    robot = load_robot()
+    model, payload, _, _ = write_inputs(str(tmp_path), robot, duration_s=0.1)
+    _, t_ref, q_ref = planned_path(load_scenario(SHORT), robot, robot.payload.tool_point_m)
+
+    def reference(t):
+        return np.array([np.interp(t, t_ref, q_ref[:, j]) for j in range(6)])
+
+    cache = tmp_path / "cache"
+    egm_port, netft_port = free_udp_port(), free_udp_port()
+    # lockstep, never faster than real time: 8 s of the controller's clock are at least 8 s here, time enough for
+    # the table's process (its interpreter's start and the job's 1156 cycles) on a loaded machine
+    th, net = start_cell(robot, reference, egm_port=egm_port, netft_port=netft_port, duration_s=600.0,
+                         wrench=cutting_wrench(t0=5.0, ramp_s=0.05), lockstep=True, cut_s=8.0, answer_timeout_s=60.0)
+    log = tmp_path / "log"
+    try:
+        p = subprocess.run(compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=str(log),
+                                          extra=["--mode", "preview", "--job", SHORT, "--idle-exit-s", "5"]),
+                           cwd=ROOT, capture_output=True, text=True, timeout=900,
+                           env=dict(os.environ, ROBSTIFF_CACHE_DIR=str(cache)))
+    finally:
+        net.stop = True
+        th.join(30)
+        net.close()
+    assert p.returncode == 0, p.stderr
+    assert "not in the disk cache; computed in another process while the loop runs" in p.stderr, p.stderr
+    summary = json.loads((log / "summary.json").read_text())
+    table = summary["preview_table"]
+    assert table.startswith("computed in another process"), table
+    t_taken = float(table.split("plain compensation until t = ")[1].split(" s")[0])
+    cycles = _log(log / "cycles.csv")
+    assert t_taken > 0 and np.sum(cycles["t_s"] < t_taken) > 0  # answered (plain) before the table was ready
+    events = (log / "events.csv").read_text()
+    assert "preview: the job's table is ready" in events, events
+    assert len(list(cache.glob("preview-table-*.npz"))) == 1  # (the next run reads it)
+    assert net.stats.refused == 0 and not net.stats.stop_reason, net.stats.stop_reason
+    joints = _log(log / "joint_log.csv")
+    corr = np.column_stack([joints[f"corr{j}_deg"] for j in range(1, 7)])
+    assert np.max(np.abs(corr)) <= 0.5 + 1e-9

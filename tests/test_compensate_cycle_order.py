@@ -26,7 +26,10 @@ class Log:
     def __init__(self, calls):
         self.calls = calls
 
-    def start(self, loop):
+    def bind(self, loop):
+        pass
+
+    def open(self):  # (the log folder's start: off the loop's thread, cell/start_gate.py)
         pass
 
     def wrench(self, t, w):

@@ -136,13 +136,20 @@ def test_an_unstable_loop_is_refused_before_any_socket(tmp_path, monkeypatch, ca
     assert "the correction loop is stable at the start pose" in capsys.readouterr().err
 
 
-def test_an_unstable_hold_is_refused_before_anything_is_sent(tmp_path):
+def test_an_unstable_hold_is_refused_with_only_zero_correction_sent(tmp_path):
+    """Without --reference the check runs at the hold pose off the loop's
+    thread while the controller is answered with its own pose (its first
+    answer within the cycle: cell/start_gate.py); its refusal ends the run
+    before any correction, the earlier log folder untouched."""
     pytest.importorskip("pynetft", reason="the cell tests need pynetft (pip install '.[test]')")
     cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=1.0, extra=["--cutoff-hz", "10"])
     assert cp.returncode == 2, cp.stderr
     line = _one_error_line(cp.stderr)
     assert "UNSTABLE" in line and "the hold pose, the controller's first message" in line, line
-    assert stats.answered == 0 and not os.path.exists(log)
+    assert "nothing but zero correction (the controller's own pose) was answered" in line, line
+    assert not os.path.exists(log)
+    q = np.asarray(stats.q_cmd)  # every command the controller followed: its start pose
+    assert len(q) and np.max(np.abs(q - q[0])) < 1e-9, np.max(np.abs(q - q[0]))
 
 
 def test_the_override_runs_with_a_loud_warning(tmp_path):

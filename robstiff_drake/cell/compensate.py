@@ -41,30 +41,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robstiff_drake.cell.health import Counters, verdict
+from robstiff_drake.cell.health import Counters
+from robstiff_drake.cell.loop_stats import loop_stats
 from robstiff_drake.cell.reference import Reference  # noqa: F401 (the loop's reference; commands import it here)
-from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_problem, supervision_tolerances
+from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_limits_deg, pose_problem_within, \
+    supervision_tolerances
+from robstiff_drake.cell.sensor_intake import SensorIntake
 from robstiff_drake.cell.session import SessionClock
+from robstiff_drake.cell.start_gate import LoopStart
 from robstiff_drake.errors import InputError, Terminated
-from robstiff_drake.model.compensator import guard_accepts
 
 # The correction may move by at most this many controller periods' worth
 # of its rate limit in one answer, whatever the time since the last one.
 MAX_STEP_PERIODS = 2.0
 CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
-STALE_PERIODS = 3.0
-MALFORMED_FIRST = 25  # unusable datagrams from the controller before its first good one: refused at once  # a correction computed from a wrench older than this many periods is stale
+STALE_PERIODS = 3.0  # a correction computed from a wrench older than this many periods is stale
 START_BACKLOG_S = 1.0  # the most of the controller's messages (s of its clock) waiting at the start not counted late
 
 
 def _fmt(q_deg):
     return "(" + ", ".join(f"{v:.3f}" for v in q_deg) + ")" if q_deg else "?"
-
-
-def _moments_within(w, ref, lim_Nm):
-    """Whether every moment of wrench ``w`` is within ``lim_Nm`` (N*m) of
-    ``ref``'s (the force part is model/compensator.guard_accepts')."""
-    return abs(w[3] - ref[3]) <= lim_Nm and abs(w[4] - ref[4]) <= lim_Nm and abs(w[5] - ref[5]) <= lim_Nm
 
 
 @dataclass
@@ -80,16 +76,21 @@ class LoopSettings:
     max_jump_Nm: float = math.inf  # a moment jumping more than this from the last good sample is refused
 
 
-class CompensatorLoop:
+class CompensatorLoop(LoopStart, SensorIntake):
     """The loop over a controller link (cell/link.PCLink) and a sensor
     reader (cell/rdt.NetFTReader, or stand-ins with the same methods)."""
 
     def __init__(self, compensator, link, sensor, reference, robot, settings, *, log=None, out=sys.stderr,
-                 preview=None):
+                 preview=None, start_jobs=()):
         self.comp, self.link, self.sensor, self.ref, self.robot, self.s = (compensator, link, sensor, reference,
                                                                             robot, settings)
         self.preview = preview  # cell/preview_table.PreviewDeflection (the chain's model) or None: plain
+        self.pending_preview = None  # cell/preview_job.BackgroundTable: the table on its way (plain meanwhile)
         self.log = log  # run_log.StreamLog or None
+        # the start's slow work ([(what, function)]: cell/start_gate.py; the log folder's start is added), run
+        # off this thread while the loop answers with zero correction; ``gate`` None once it has passed
+        self.start_jobs = list(start_jobs)
+        self.gate = None
         self._wrench_rows = []  # this cycle's sensor records for the log, written after the answer
         self.out = out
         self.n = Counters()
@@ -116,8 +117,8 @@ class CompensatorLoop:
         G = robot.joint_map.G
         self._identity = robot.joint_map.is_identity
         self._Ginv = np.linalg.inv(G)
-        self._lo = tuple(np.degrees(robot.q_lower_rad).tolist())
-        self._hi = tuple(np.degrees(robot.q_upper_rad).tolist())
+        self._limits = pose_limits_deg(robot)  # (the working ranges in deg, once: not per message)
+        self._lo, self._hi = self._limits[:2]
         self._clamp = clamp_deg(robot, settings.saturation_deg).tolist()
         self._supervision = supervision_tolerances(robot, settings.period_s)  # axis speeds and accelerations
         self._sat = [math.radians(settings.saturation_deg)] * 6
@@ -150,118 +151,6 @@ class CompensatorLoop:
             t0 = self.faults.pop(name)
             self.event(f"{text} (after {self.now() - t0:.3f} s)")
 
-    # ------------------------------------------------------------ the start
-
-    def first_message(self, timeout_s):
-        """The controller's first usable message; InputError (before the
-        loop: exit 2) when none comes, or its feedback is absurd."""
-        t_end = time.monotonic() + timeout_s
-        while True:
-            got = self.link.receive(min(max(t_end - time.monotonic(), 0.0), 0.5))
-            if not got:
-                self.link.open()  # (again: a start request lost on the way, or sent before the robot listened)
-            else:
-                msg, t_arr = got[-1]
-                break
-            if time.monotonic() >= t_end or self.link.malformed >= MALFORMED_FIRST:
-                who = f"{self.link.controller_ip}" + (f":{self.link.controller_port}" if self.link.controller_port
-                                                      else "")
-                extra = ""
-                if self.link.strangers:
-                    extra = (f"; {self.link.strangers} datagrams from other senders (e.g. {self.link.stranger_example}) "
-                             "were dropped: give the controller's address with --controller HOST[:PORT]")
-                elif self.link.malformed:
-                    extra = f"; {self.link.malformed} datagrams from it were not usable ({self.link.malformed_example})"
-                within = f"within {timeout_s:g} s" if self.link.malformed < MALFORMED_FIRST else "yet"
-                raise InputError(f"{self.link.option} {self.link.port}: no usable {self.link.name} message from the "
-                                 f"controller {who} {within}{extra}")
-        problem = pose_problem(self.robot, msg.joints_deg)
-        if problem:
-            raise InputError(f"{self.link.option} {self.link.port}: the controller's first message has absurd joint "
-                             f"feedback ({problem}); nothing was sent")
-        return msg, t_arr
-
-    # ------------------------------------------------------------ the sensor
-
-    def _read_sensor(self, t_now):
-        """Feed every record received since the last cycle to the chain."""
-        records = self.sensor.drain()
-        got_good = False
-        comp, lim = self.comp, self.s.max_jump_Nm
-        # the records came between the last message and this one: stamped evenly over that span of the
-        # controller's clock (the logs' clock; strictly increasing whatever this PC's scheduling did)
-        t0, span = self.t_logged, self.t_session - self.t_logged
-        n_rec = len(records)
-        for i, (w, t_arr, status, clipped) in enumerate(records):
-            self.n.sensor_records += 1
-            if clipped:
-                self.n.sensor_clipped += 1
-                if self.n.sensor_clipped <= 5 or self.n.sensor_clipped % 1000 == 0:
-                    self.event(f"sensor: a record at the end of its int32 counts (the load beyond what the counts "
-                               f"carry; {self.n.sensor_clipped} so far): refused")
-                w = (float("nan"),) * 6
-            finite = all(v == v for v in w)
-            if self.log is not None:  # (formatted after the answer has left: cycle's end)
-                self._wrench_rows.append((t0 + span * (i + 1) / n_rec if span > 0 else t0 + 1e-6 * (i + 1), w))
-            self.last_raw = list(w)
-            if finite and self.pending_reseed:
-                # the chain restarts on a new level only when two records in a row agree on it (within the
-                # guard's jumps): the first record after a silence or a step may itself be a spike
-                cand = self.reseed_candidate
-                if cand is not None and guard_accepts(w, cand, comp.max_jump_N) and _moments_within(w, cand, lim):
-                    comp.reseed(list(w))
-                    self.pending_reseed = False
-                    self.reseed_candidate = None
-                    self.fault_off("sensor", "sensor: valid records again; guard and filter restarted on the new "
-                                             "reading")
-                else:
-                    self.reseed_candidate = list(w)
-            if finite and not self.pending_reseed and not _moments_within(w, comp.held, lim):
-                self.n.moment_spikes += 1
-                if self.n.moment_spikes <= 5 or self.n.moment_spikes % 1000 == 0:
-                    self.event(f"sensor: a moment jumped more than {lim:g} N*m from the last good sample: refused "
-                               f"({self.n.moment_spikes} so far)")
-                w = comp.held  # the guard's answer to a spike: the last good sample again
-                accepted = False
-                comp.sensor_sample(list(w))
-            else:
-                accepted = comp.sensor_sample(list(w)) if not self.pending_reseed else False
-            if not finite:
-                self.t_sensor_invalid = t_arr
-            if accepted:
-                got_good = True
-                self.t_sensor_good = t_arr
-                self.ts_sensor_good = self.t_session
-                self.t_sensor_rejecting = None
-                self.latest_sample_time = t_arr
-            elif finite and self.t_sensor_rejecting is None:
-                self.t_sensor_rejecting = t_arr
-        to = self.s.sensor_timeout_s
-        if self.t_sensor_rejecting is not None and t_now - self.t_sensor_rejecting > to and records:
-            # the guard has refused every sample for a while: the force really changed, or the sensor is bad
-            self.fault_on("sensor", f"sensor: the guard rejected every sample for {to * 1e3:.0f} ms (a jump of more "
-                                    f"than {comp.max_jump_N:g} N or {lim:g} N*m)")
-            if not self.pending_reseed:
-                self.reseed_candidate = None
-            self.pending_reseed = True
-            self.t_sensor_rejecting = None
-        # silence counts while the controller streams: after a gap in the controller's messages (this PC
-        # or the network stalled) the sensor's records of that span may still be on their way; and it spans the
-        # timeout on the controller's clock too (the arm moves on that clock: a simulated controller stepped in
-        # lockstep on a loaded PC advances a cycle while the wall clock runs tens of ms, and the records of
-        # that cycle may still wait for this process's reader thread)
-        if not got_good and self.t_sensor_good is not None and t_now - max(self.t_sensor_good,
-                                                                           self.t_sensor_grace) > to \
-                and self.t_session - self.ts_sensor_good > to:
-            invalid = self.t_sensor_invalid is not None and self.t_sensor_invalid >= self.t_sensor_good
-            what = "invalid records (status flags, NaN or clipped), then none" if invalid else "no record"
-            self.fault_on("sensor", f"sensor: {what} for {to * 1e3:.0f} ms")
-            if not self.pending_reseed:
-                self.reseed_candidate = None  # (kept while it waits: the next record may agree with it)
-            self.pending_reseed = True
-        if n_rec:
-            self.t_logged = max(self.t_session, t0 + 1e-6 * n_rec)
-
     # ------------------------------------------------------------ one message
 
     def _feedback(self, joints_deg, t_now):
@@ -270,7 +159,7 @@ class CompensatorLoop:
         ``feedback_timeout_s``; finite feedback outside the ranges (no arm
         is there: a lie or a corrupted message) at once.  Meanwhile the
         last good feedback stands."""
-        problem = pose_problem(self.robot, joints_deg)
+        problem = pose_problem_within(self._limits, joints_deg)
         if problem is None:
             self.q_deg = list(joints_deg)
             r = [math.radians(v) for v in joints_deg]
@@ -325,21 +214,14 @@ class CompensatorLoop:
         self.t_session += dt
         self._feedback(msg.joints_deg, t_arr)
         self._read_sensor(t_arr)
+        if self.gate is not None:
+            self._poll_gate()
+        if self.pending_preview is not None and self.pending_preview.done:
+            self._take_preview()
         if self.preview is not None:
             self.preview.update(self, msg)
-        active = not self.faults
+        active = not self.faults and self.gate is None
         corr = self.comp.tick(self.q, min(dt, MAX_STEP_PERIODS * self.s.period_s), active)
-        if any(abs(d) >= s for d, s in zip(self.comp.dq, self._sat)):
-            self.n.saturated_cycles += 1
-            if not self.saturated:
-                self.saturated = True
-                self.n.saturation_onsets += 1
-                if self.n.saturation_onsets <= 5 or self.n.saturation_onsets % 100 == 0:
-                    j = max(range(6), key=lambda i: abs(self.comp.dq[i]) / self._sat[i])
-                    self.event(f"correction saturated on q{j + 1} at {math.degrees(self._sat[j]):g} deg (the model "
-                               f"asks more; onset {self.n.saturation_onsets}, {self.n.saturated_cycles} cycles so far)")
-        else:
-            self.saturated = False
         if self._identity:
             corr_deg = [math.degrees(c) for c in corr]
         else:
@@ -352,6 +234,7 @@ class CompensatorLoop:
                        tuple(self.q_deg), tuple(c + m for c, m in zip(self._clamp, mf)), *self._supervision)
         sent = self._send(msg, target, env)
         t_done = time.monotonic()
+        self._count_saturation()  # (after the answer: counting only)
         age = t_done - self.latest_sample_time if self.latest_sample_time is not None else float("nan")
         self.n.compute_ms.add((t_done - t_arr) * 1e3)
         self.n.age_ms.add(age * 1e3)
@@ -359,7 +242,7 @@ class CompensatorLoop:
         # newest record can be old on this PC's clock and of this very cycle on the controller's)
         bound = STALE_PERIODS * self.s.period_s
         age_ctrl = self.t_session - self.ts_sensor_good if self.latest_sample_time is not None else float("nan")
-        stale = bool(self.faults) or not sent or not (age <= bound or 0.0 <= age_ctrl <= bound)
+        stale = bool(self.faults) or self.gate is not None or not sent or not (age <= bound or 0.0 <= age_ctrl <= bound)
         if stale:
             self.n.stale_s += dt
         self.n.lost_estimate.add(sum(abs(c) for c in self.comp.dq), stale)
@@ -370,6 +253,20 @@ class CompensatorLoop:
             self._wrench_rows.clear()
             self.log.cycle(self, msg, t_arr, ref_deg, corr, corr_deg, target if sent else None, t_done - t_arr, age)
         return sent
+
+    def _count_saturation(self):
+        """Count the cycles the model asked more than the clamp, and log its onsets."""
+        if any(abs(d) >= s for d, s in zip(self.comp.dq, self._sat)):
+            self.n.saturated_cycles += 1
+            if not self.saturated:
+                self.saturated = True
+                self.n.saturation_onsets += 1
+                if self.n.saturation_onsets <= 5 or self.n.saturation_onsets % 100 == 0:
+                    j = max(range(6), key=lambda i: abs(self.comp.dq[i]) / self._sat[i])
+                    self.event(f"correction saturated on q{j + 1} at {math.degrees(self._sat[j]):g} deg (the model "
+                               f"asks more; onset {self.n.saturation_onsets}, {self.n.saturated_cycles} cycles so far)")
+        else:
+            self.saturated = False
 
     def _send(self, msg, target, env):
         try:
@@ -391,17 +288,6 @@ class CompensatorLoop:
         return False
 
     # ------------------------------------------------------------ the loop
-
-    def run_start(self, msg, t_arr):
-        """Start the session on the first message (answered)."""
-        self.t_start = self.t_last_msg = self.t_q_good = t_arr
-        self.t_sensor_good = time.monotonic()  # (the sensor's records are drained from now on)
-        self.q_deg = list(msg.joints_deg)
-        r = [math.radians(v) for v in msg.joints_deg]
-        self.q = r if self._identity else self.robot.joint_map.to_model(r).tolist()
-        if self.log is not None:
-            self.log.start(self)
-        self.cycle(msg, t_arr, self._session(msg)[1])
 
     def run(self, first):
         """Run from the first message (``first_message``'s result) until the
@@ -471,37 +357,9 @@ class CompensatorLoop:
             # the controller stopped streaming: the program's normal end, not a fault
             self.faults.pop("silent")
             self.n.fault_onsets -= 1
+        self.finish_start()
         return self.n
 
     def stats(self):
-        """The run's figures and its health (a dict for the JSON)."""
-        n, T = self.n, self.s.period_s
-        unanswered = n.skipped + n.unanswered_refused + n.lost
-        cycles = n.received + n.lost
-        lost = n.lost_estimate.fraction()
-        sensor_faults = n.sensor_faults
-        seen = (f"seen of the controller: {n.received} messages ({n.start_backlog} waiting at the start, before "
-                f"its first target: not late), {n.lost} lost on the way, {n.gaps_over} gaps over "
-                f"1.5 periods; of the sensor: {n.sensor_records} records, {sensor_faults} sensor faults; the "
-                "controller sees only the answers (its own verdict counts those), not the correction this side "
-                "ramped down for its faults")
-        word, reasons, line = verdict(cycles=cycles, answered=n.answered, late=n.late, unanswered=unanswered,
-                                      faults=n.fault_onsets, lost_fraction=lost, refused=n.refused, seen=seen)
-        return {"messages": n.received, "cycles": cycles, "answered": n.answered, "late": n.late,
-                "start_backlog": n.start_backlog,
-                "unanswered": unanswered, "skipped": n.skipped, "lost_in_network": n.lost,
-                "duplicates_dropped": n.duplicates, "old_dropped": n.old, "sequence_jumps": n.jumps,
-                "clock_faults": n.clock_faults, "strangers_dropped": self.link.strangers,
-                "malformed": self.link.malformed, "targets_refused": n.refused,
-                "compute_ms": n.compute_ms.summary(), "correction_age_ms": n.age_ms.summary(),
-                "message_gap_ms": n.gap_ms.summary(), "missed_cycles": int(n.skipped + n.late),
-                "controller_gaps": n.gaps_over, "over_budget": int(sum(n.compute_ms.counts[int(T * 1e3 / 0.01):])),
-                "sensor_records": n.sensor_records, "sensor_clipped": n.sensor_clipped,
-                "moment_spikes": n.moment_spikes, "saturated_cycles": n.saturated_cycles,
-                "stale_correction_s": n.stale_s, "fault_onsets": n.fault_onsets, "ended_by": self.ended_by,
-                "faults": [{"t_s": t, "t_controller_s": tc, "event": e} for t, tc, e in n.events], "events_dropped": n.events_dropped,
-                "health": {"verdict": word, "reasons": reasons, "compensation_lost_fraction": lost, "line": line,
-                           "seen_of_the_other_side": {"controller_messages": n.received, "lost_on_the_way": n.lost,
-                                                      "controller_gaps": n.gaps_over,
-                                                      "sensor_records": n.sensor_records,
-                                                      "sensor_faults": sensor_faults}}}
+        """The run's figures and its health (a dict for the JSON: cell/loop_stats.py)."""
+        return loop_stats(self)

@@ -112,14 +112,14 @@ class _NoBar:
         pass
 
 
-def reference_disagreement(plan, t_s, q_ctrl_deg):
+def reference_disagreement(t_plan_s, q_plan_deg, period_s, t_s, q_ctrl_deg):
     """None, or why the joint reference (t_s, (N, 6) controller deg) is not
-    the job's planned path: the largest difference at its rows, or another
-    duration."""
+    the job's planned path (``t_plan_s``, ``q_plan_deg`` controller deg): the
+    largest difference at its rows, or another duration."""
     t = np.asarray(t_s, dtype=float)
-    if abs(t[-1] - plan.t_ref_s[-1]) > plan.period_s + 1e-9:
-        return f"it lasts {t[-1]:.3f} s, the job's path {plan.t_ref_s[-1]:.3f} s"
-    job = np.column_stack([np.interp(t, plan.t_ref_s, plan.q_ref_deg[:, j]) for j in range(6)])
+    if abs(t[-1] - t_plan_s[-1]) > period_s + 1e-9:
+        return f"it lasts {t[-1]:.3f} s, the job's path {t_plan_s[-1]:.3f} s"
+    job = np.column_stack([np.interp(t, t_plan_s, q_plan_deg[:, j]) for j in range(6)])
     d = np.abs(np.asarray(q_ctrl_deg, dtype=float) - job)
     i, j = np.unravel_index(int(np.argmax(d)), d.shape)
     if d[i, j] > REFERENCE_AGREEMENT_DEG:
@@ -128,35 +128,132 @@ def reference_disagreement(plan, t_s, q_ctrl_deg):
     return None
 
 
+def table_file(sc, robot, k_Nm_per_rad, t_plan_s=None, q_plan_rad=None, *, period_s, filter_ba, rate_hz,
+               delay_steps, servo):
+    """The disk cache's file of this job's table with these numbers
+    (cell/preview_cache.py; None: no writable cache folder); ``t_plan_s``,
+    ``q_plan_rad``: the planned path when at hand."""
+    from robstiff_drake.cell import preview_cache
+
+    if t_plan_s is None:
+        from robstiff_drake.diagrams.milling_cell import planned_path
+
+        _, t_plan_s, q_plan_rad = planned_path(sc, robot, robot.payload.tool_point_m)
+    return preview_cache.file_for(preview_cache.key(sc, robot, k_Nm_per_rad, t_plan_s, q_plan_rad, period_s=period_s,
+                                                    filter_ba=filter_ba, rate_hz=rate_hz, delay_steps=delay_steps,
+                                                    servo_option=servo))
+
+
 def job_reference(sc, robot, k_Nm_per_rad, *, job, reference, read_reference, period_s, filter_ba, rate_hz,
                   delay_steps, servo):
-    """(PreviewPlan, reference times s, reference (N, 6) controller rad):
-    the job's planned path, checked as a --reference file is
-    (cell/safety.check_reference), and its table, with a line before and
-    after and a bar when it takes more than a second.  With --reference
-    too (``read_reference()`` waits for it and reads it, after the table):
-    that file, refused (one line) unless it is the job's path."""
+    """(PreviewPlan or None, its cache file, reference times s, reference
+    (N, 6) controller rad): the job's planned path (the IK, kept on disk:
+    diagrams/reference_cache.py), checked as a --reference file is
+    (cell/safety.check_reference), and its table when the disk cache holds
+    it (cell/preview_cache.py; None: ``BackgroundTable`` computes it while
+    the loop runs).  With --reference too (``read_reference()`` waits for it
+    and reads it): that file, refused (one line) unless it is the job's path."""
     import sys
 
+    from robstiff_drake.cell import preview_cache
     from robstiff_drake.cell.safety import check_reference
-    from robstiff_drake.progress import info, progress
+    from robstiff_drake.diagrams.milling_cell import planned_path
+    from robstiff_drake.progress import info
 
     def say(text):
         info(f"robstiff: compensate: {text}", file=sys.stderr)
 
-    def bar(total):
-        return progress(total, None, "preview table", unit="cycle", delay=1.0, leave=False)
-
-    plan = build_plan(sc, robot, k_Nm_per_rad, period_s=period_s, filter_ba=filter_ba, rate_hz=rate_hz,
-                      delay_steps=delay_steps, servo_option=servo, say=say, bar=bar)
-    check_reference(f"--job {job} (its planned path)", robot, plan.t_ref_s, plan.q_ref_deg, period_s)
-    say(f"preview table of {job}: {len(plan.u)} cycles ({plan.u[-1]:.2f} s) computed in {plan.seconds:.2f} s")
+    _, t_plan, q_plan = planned_path(sc, robot, robot.payload.tool_point_m)
+    t_plan = np.asarray(t_plan, dtype=float)
+    q_deg = robot.controller_deg(np.asarray(q_plan, dtype=float))
+    check_reference(f"--job {job} (its planned path)", robot, t_plan, q_deg, period_s)
+    file = table_file(sc, robot, k_Nm_per_rad, t_plan, q_plan, period_s=period_s, filter_ba=filter_ba,
+                      rate_hz=rate_hz, delay_steps=delay_steps, servo=servo)
+    plan = preview_cache.load(file)
+    if plan is not None:
+        say(f"preview table of {job}: {len(plan.u)} cycles ({plan.u[-1]:.2f} s), from the disk cache ({file.name})")
+    else:
+        say(f"preview table of {job}: not in the disk cache; computed in another process while the loop runs "
+            "(plain compensation until it is ready)")
     if reference is None:
-        return plan, plan.t_ref_s, np.radians(plan.q_ref_deg)
+        return plan, file, t_plan, np.radians(q_deg)
     t_ref, q_ref = read_reference()
-    why = reference_disagreement(plan, t_ref, np.degrees(q_ref))
+    why = reference_disagreement(t_plan, q_deg, period_s, t_ref, np.degrees(q_ref))
     if why:
         raise InputError(f"--reference {reference}: not the planned path of --job {job}: {why}; drop --reference "
                          "(the job's path is streamed) or write it from the job (robstiff simulate JOB --out RUN)")
-    return plan, t_ref, q_ref
+    return plan, file, t_ref, q_ref
 
+
+class BackgroundTable:
+    """The job's table computed in a process of its own
+    (cell/preview_cache.py's build, started at once: while compensate waits
+    for the controller's first message and then answers it), read back and
+    made the loop's PreviewDeflection (``make_preview(plan)``) in a thread
+    below the loop's priority.  The loop polls ``done`` (an attribute) and
+    then takes ``preview`` (None: ``error`` says why); it never waits."""
+
+    def __init__(self, spec_json, file):
+        import subprocess
+        import threading
+
+        from robstiff_drake.cell import preview_cache
+
+        self.done = False
+        self.preview = None
+        self.error = None
+        self.seconds = float("nan")
+        self.taken_at_s = None  # the session's time (s) the loop took it at
+        self._file, self._make = file, None
+        self._t0 = time.monotonic()
+        self._proc = subprocess.Popen(preview_cache.build_command(), stdin=subprocess.PIPE,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        self._thread = threading.Thread(target=self._run, args=(spec_json,), name="robstiff-preview", daemon=True)
+
+    def then(self, make_preview):
+        """Make the PreviewDeflection with ``make_preview(plan)`` once the
+        table is built (the process runs from the constructor on)."""
+        self._make = make_preview
+        self._thread.start()
+        return self
+
+    def _run(self, spec_json):
+        from robstiff_drake.cell import preview_cache
+        from robstiff_drake.cell.start_gate import below_the_loop
+
+        try:
+            _, err = self._proc.communicate(spec_json)
+            below_the_loop()  # (the loop's start may have made this thread real-time meanwhile)
+            if self._proc.returncode != 0:
+                lines = [ln for ln in err.splitlines() if ln.strip()]
+                self.error = lines[-1].removeprefix("robstiff: error: ") if lines else \
+                    f"its process ended with status {self._proc.returncode}"
+                return
+            plan = preview_cache.load(self._file)
+            if plan is None:
+                self.error = f"its file {self._file} could not be read back"
+                return
+            self.preview = self._make(plan)
+        except Exception as e:  # (the preview is an addition: plain compensation stands without it)
+            self.error = f"{type(e).__name__}: {e}"
+        finally:
+            self.seconds = time.monotonic() - self._t0
+            self.done = True
+
+    def stop(self):
+        """At the run's end: the build's process ended if it still runs."""
+        if self._proc.poll() is None:
+            self._proc.kill()
+        if self._thread.is_alive():
+            self._thread.join(30)
+        elif self._make is None:
+            self._proc.communicate()  # (never taken: its pipes closed)
+
+    def note(self):
+        """What became of the table (for the summary and the last lines)."""
+        if self.taken_at_s is not None and self.preview is not None:
+            return (f"computed in another process in {self.seconds:.2f} s; plain compensation until t = "
+                    f"{self.taken_at_s:.3f} s, previewing from then")
+        if self.done and self.preview is None:
+            return f"could not be computed ({self.error}): plain compensation throughout"
+        return "not ready before the run ended: plain compensation throughout"

@@ -41,7 +41,15 @@ class Reference:
         self._hint = 0
 
     def hold(self, q_deg):
-        self._set(np.array([0.0]), np.asarray(q_deg, dtype=float).reshape(1, 6))
+        """A constant: ``_set``'s table of one row, without its window
+        searches (a row's motion is zero; the hold starts on the controller's
+        first message, whose answer is due within a cycle)."""
+        tab = np.zeros((1, 18))
+        tab[0, :6] = np.asarray(q_deg, dtype=float).reshape(6)
+        self.t, self._tab = np.array([0.0]), tab
+        self.q = tab[:, :6]
+        self._n, self._t0, self._t_end = 1, 0.0, 0.0
+        self._hint = 0
 
     def _index(self, t_s):
         """The last row at or before t_s (0 before the start, the last after the end)."""

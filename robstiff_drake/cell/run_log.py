@@ -122,10 +122,21 @@ class StreamLog:
     # ------------------------------------------------------------ start and end
 
     def start(self, loop):
-        """Replace an earlier run folder at ``path`` (check_outputs refused
-        anything else) and open the files: called when the loop starts, so
-        that a refused start leaves the earlier run as it was."""
+        """``bind`` and ``open`` at once."""
+        self.bind(loop)
+        self.open()
+
+    def bind(self, loop):
+        """The loop's model and start (the rows are formatted and kept in
+        memory from now on; ``tick`` hands them over once the folder is open)."""
         self.model = loop.comp.model
+        self.t_flush = loop.t_start
+
+    def open(self):
+        """Replace an earlier run folder at ``path`` (check_outputs refused
+        anything else) and open the files: called once the loop's start has
+        passed (cell/start_gate.py, off the real-time thread), so that a
+        refused start leaves the earlier run as it was."""
         target = Path(os.path.realpath(self.path))
         if target.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
@@ -144,9 +155,9 @@ class StreamLog:
             f.write(f"# run_id: {self.run_id}\n# {NOTES[name]} {self.note}\n" + ",".join(header) + "\n")
             f.flush()
             files[name] = f
-        self.writer = _Writer(files)
-        self.writer.start()
-        self.t_flush = loop.t_start
+        writer = _Writer(files)
+        writer.start()
+        self.writer = writer  # (last: the loop's tick hands rows over once it is set)
 
     def close(self, summary):
         """Hand the last rows over, close the files and write summary.json."""
@@ -174,8 +185,8 @@ class StreamLog:
     def tick(self, now):
         """Hand the rows to the writer when ``FLUSH_S`` has passed (``now``
         None: at once)."""
-        if now is not None and now - self.t_flush < FLUSH_S:
-            return
+        if self.writer is None or (now is not None and now - self.t_flush < FLUSH_S):
+            return  # (not open yet: the rows wait in memory)
         self.t_flush = now if now is not None else self.t_flush
         item = {name: "".join(rows) for name, rows in self.chunks.items() if rows}
         n = sum(len(rows) for rows in self.chunks.values())

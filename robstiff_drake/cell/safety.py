@@ -144,16 +144,32 @@ def clamp_deg(robot, saturation_deg):
     return Ginv @ np.broadcast_to(np.asarray(saturation_deg, dtype=float), 6)
 
 
-def pose_problem(robot, q_deg):
-    """None when ``q_deg`` (controller degrees) is six finite angles inside
-    the working ranges; else what is wrong, naming the joint."""
-    lo, hi = np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad)
+def pose_limits_deg(robot):
+    """(lower, upper, robot name): the working ranges in the controller's
+    degrees as tuples of floats, for ``pose_problem_within`` (computed once,
+    not per message)."""
+    return (tuple(np.degrees(robot.q_lower_rad).tolist()), tuple(np.degrees(robot.q_upper_rad).tolist()),
+            robot.name)
+
+
+def pose_problem_within(limits, q_deg):
+    """``pose_problem`` against precomputed ``limits`` (``pose_limits_deg``):
+    scalar comparisons only, the text made only for a pose that fails."""
+    lo, hi, name = limits
+    if len(q_deg) == 6 and all(a <= v <= b for a, v, b in zip(lo, q_deg, hi)):  # (False for NaN)
+        return None
     for j, v in enumerate(q_deg):
         if not math.isfinite(v):
             return f"q{j + 1} = {v} is not finite"
         if not lo[j] <= v <= hi[j]:
-            return f"q{j + 1} = {v:g} deg is outside {robot.name}'s working range [{lo[j]:g}, {hi[j]:g}] deg"
+            return f"q{j + 1} = {v:g} deg is outside {name}'s working range [{lo[j]:g}, {hi[j]:g}] deg"
     return None
+
+
+def pose_problem(robot, q_deg):
+    """None when ``q_deg`` (controller degrees) is six finite angles inside
+    the working ranges; else what is wrong, naming the joint."""
+    return pose_problem_within(pose_limits_deg(robot), q_deg)
 
 
 CHECK_BLOCK = 1 << 16  # rows checked at a time (a long reference's temporaries stay a few MB)

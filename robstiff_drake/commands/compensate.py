@@ -12,7 +12,12 @@ loop's stability at the start pose by the linear loop model
 (cell/loop_guard.py; --allow-unstable-loop overrides it), the sensor's
 calibration read and its stream started and the controller's first
 message awaited and checked before the loop; anything wrong there is one
-line and exit status 2.  During the loop faults are logged and ramp the
+line and exit status 2.  The start's slow work (without --reference the
+loop check at the hold pose; the log folder's start) runs off the loop's
+thread while the controller is answered with its own pose
+(cell/start_gate.py), and --mode preview's table, when the disk cache
+does not hold it, in another process while the loop runs plain
+(cell/preview_job.BackgroundTable).  During the loop faults are logged and ramp the
 correction to zero (cell/compensate.py); every target passes
 cell/safety.py's check.  Ctrl-C, SIGTERM, --duration-s or a controller
 silent for --idle-exit-s end the run; --log DIR is written as the run goes
@@ -27,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.errors import InputError, excerpt
+from robstiff_drake.cell.realtime_thread import quiet_gc as _quiet_gc, realtime as _realtime, restore_gc as _restore_gc
 from robstiff_drake.progress import info, wrote
 
 # How far the first joint feedback may be from the reference's start (deg)
@@ -193,17 +199,20 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         ba = filter_coefficients(filter_kind, cutoff_hz, filter_order, sensor_rate_hz, spindle_rpm)
     except ValueError as e:
         raise InputError(f"--cutoff-hz: {e}") from None
-    plan = None
+    plan = table_file = None
     if job is not None:
-        from robstiff_drake.cell.preview_job import job_reference
+        from robstiff_drake.cell.preview_job import build_plan, job_reference
 
         def given():
             wait_for_file(reference, wait_s)
             return read_reference(reference, robot, period_s)
 
-        plan, t_ref, q_ref = job_reference(sc_job, robot, k, job=job, reference=reference, read_reference=given,
-                                           period_s=period_s, filter_ba=ba, rate_hz=sensor_rate_hz,
-                                           delay_steps=delay_steps, servo=servo)
+        plan, table_file, t_ref, q_ref = job_reference(sc_job, robot, k, job=job, reference=reference,
+                                                       read_reference=given, period_s=period_s, filter_ba=ba,
+                                                       rate_hz=sensor_rate_hz, delay_steps=delay_steps, servo=servo)
+        if plan is None and table_file is None:  # (no writable cache folder: computed here, before any socket)
+            plan = build_plan(sc_job, robot, k, period_s=period_s, filter_ba=ba, rate_hz=sensor_rate_hz,
+                              delay_steps=delay_steps, servo_option=servo)
         ref = Reference(t_ref, np.degrees(q_ref), period_s=period_s)
     elif reference:
         wait_for_file(reference, wait_s)
@@ -214,7 +223,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         ref = Reference(period_s=period_s)
     tool = robot.payload.tool_point_m
     # the loop model's stability check, before any socket is opened (with --reference: at its first row and at
-    # poses along it; without, at the hold pose when the controller's first message gives it, before anything is sent)
+    # poses along it; without, at the hold pose when the controller's first message gives it, while the loop
+    # answers with zero correction)
     guard = LoopGuard(robot=robot, k_Nm_per_rad=k, servo=servo, sensor_rate_hz=sensor_rate_hz, period_s=period_s,
                       delay_steps=delay_steps, filter_kind=filter_kind, filter_ba=ba, cutoff_hz=cutoff_hz,
                       filter_order=filter_order, allow_unstable=allow_unstable_loop)
@@ -230,8 +240,19 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     predictor = DeflectionPredictor(robot.dh, k, tool)
     link = _link(protocol, listen_port, ctrl, period_s)
     sensor = NetFTReader(host, port, counts=netft_counts, units=netft_units, http_port=netft_http_port)
-    stream_log = None
+    stream_log = background = remote = None
     try:
+        if ref.q is None:  # (the hold pose's check: its process started now, asked once the first message comes)
+            remote = guard.elsewhere(robot_yaml)
+        if job is not None and plan is None:
+            # the table in a process of its own from now on (the sensor's start, the controller's first message
+            # and the stream never wait for it: plain compensation until it is ready; cell/preview_job.py)
+            from robstiff_drake.cell import preview_cache
+            from robstiff_drake.cell.preview_job import BackgroundTable
+
+            background = BackgroundTable(preview_cache.build_input(
+                job=job, robot_yaml=robot_yaml, k_Nm_per_rad=k, period_s=period_s, filter_ba=ba,
+                rate_hz=sensor_rate_hz, delay_steps=delay_steps, servo_option=servo, file=table_file), table_file)
         sensor.open(timeout_s=netft_open_s)
         good = [w for w, _, _, clipped in sensor.drain() if all(v == v for v in w) and not clipped]
         # the guard's and filter's start: the median of the first records (a spike among them moves a mean)
@@ -260,13 +281,19 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                 cutter_diameter_mm=cutter_diameter_mm, robot_ref=kept.robot, mode=mode), f"robot {robot.name}, model {model}",
                 inputs={rel: kept.sources[key].read_bytes() for key, rel in kept.names.items()})
         preview = None
-        if plan is not None:
+        if job is not None:
             from robstiff_drake.cell.preview_table import PreviewDeflection
 
-            preview = comp.model = PreviewDeflection(comp.model, plan, sync_s=preview_sync_ms / 1e3,
-                                                     force_bound_N=preview_force_bound_N,
-                                                     force_bound_fraction=FORCE_BOUND_FRACTION)
+            def make_preview(p, plain=comp.model):
+                return PreviewDeflection(plain, p, sync_s=preview_sync_ms / 1e3, force_bound_N=preview_force_bound_N,
+                                         force_bound_fraction=FORCE_BOUND_FRACTION)
+
+            if plan is not None:
+                preview = comp.model = make_preview(plan)
+            else:
+                background.then(make_preview)
         loop = CompensatorLoop(comp, link, sensor, ref, robot, settings, log=stream_log, preview=preview)
+        loop.pending_preview = background
         where = f"{ctrl[0]}" + (f":{ctrl[1]}" if ctrl[1] else "")
         link.open()
         print(f"robstiff: compensate: sensor {host}:{port} streaming (calibration {cal_text}); waiting for "
@@ -274,17 +301,21 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         gc_frozen = _quiet_gc()
         # the sensor's records come through pynetft's thread: let it have the interpreter within half a
         # millisecond when the loop is busy (the default switch interval, 5 ms, is longer than a cycle)
+        switch = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
         _realtime(rt_priority)
         first = loop.first_message(wait_s)
         q0 = first[0].joints_deg
         if ref.q is None:
+            # the loop check at the hold pose (70-220 ms) runs off the real-time path while the loop answers with
+            # zero correction, the controller's own pose (cell/start_gate.py): RSI expects each answer within its
+            # cycle; the loop compensates once the check has passed
             ref.hold(q0)
             problem = pose_problem(robot, q0)
             if problem:
                 raise InputError(f"the hold pose (the controller's first message) is refused: {problem}")
-            _say(guard.at(q0, "the hold pose, the controller's first message"), guard)
-        if guard.warning and stream_log is not None:
+            loop.start_jobs.append(("the loop check at the hold pose", lambda: _hold_check(remote, q0)))
+        elif guard.warning and stream_log is not None:
             stream_log.event(0.0, 0.0, f"warning: {guard.warning}")  # (events.csv, before the first message's)
         off = np.abs(np.asarray(q0) - ref.q[0])
         if off.max() > START_TOLERANCE_DEG:
@@ -292,9 +323,16 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             raise InputError(f"{f'--job {job}' if job and not reference else f'--reference {reference}'}: the robot is "
                              f"{off[j]:.3f} deg from the reference's start on "
                              f"joint {j + 1} (at most {START_TOLERANCE_DEG:g}); move it there before streaming starts")
-        loop.run(first)
-        _restore_gc(gc_frozen)
+        try:
+            loop.run(first)
+        finally:
+            _restore_gc(gc_frozen)
+            sys.setswitchinterval(switch)
     finally:
+        if background is not None:
+            background.stop()
+        if remote is not None:
+            remote.close()
         sensor.close()
         link.close()
     stats = loop.stats()
@@ -305,6 +343,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
           f"{stats['fault_onsets']} faults; {stats['strangers_dropped']} datagrams from strangers dropped",
           file=sys.stderr)
     h = stats["health"]
+    table = "disk cache" if job is not None and background is None else background.note() if background else None
+    if background is not None and loop.preview is None:
+        print(f"robstiff: warning: compensate: preview: the job's table {table}", file=sys.stderr)
     if loop.preview is not None:
         pv = loop.preview.summary()
         fb = pv["fallback"]
@@ -326,6 +367,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                        "sensor_timeout_ms": sensor_timeout_ms},
                    "mode": mode, "job": str(job) if job else None,
                    "preview": loop.preview.summary() if loop.preview is not None else None,
+                   "preview_table": table,
                    "cycles": stats, "health": h, "loop_check": guard.result,
                    "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])}
         written = stream_log.close(summary)
@@ -338,61 +380,23 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     return 0
 
 
+def _hold_check(remote, q0):
+    """The loop check at the hold pose (a start job: cell/start_gate.py, the
+    check itself in the process cell/loop_guard.RemoteCheck started); its
+    refusal says that only zero correction was answered."""
+    guard = remote.guard
+    try:
+        line = remote.at(q0, "the hold pose, the controller's first message")
+    except InputError as e:
+        raise InputError(str(e).replace("; nothing was sent", "; nothing but zero correction (the controller's own "
+                                        "pose) was answered")) from None
+    _say(line, guard)
+    return f"warning: {guard.warning}" if guard.warning else None
+
+
 def _say(line, guard):
     """The loop check's line: a warning when --allow-unstable-loop ran an unstable loop, else information."""
     if guard.warning:
         print(f"robstiff: warning: compensate: {line}", file=sys.stderr, flush=True)
     else:
         info(f"robstiff: compensate: {line}", file=sys.stderr)
-
-
-def _realtime(priority):
-    """Run the loop's thread under SCHED_FIFO at ``priority`` (1-99), as a
-    real-time PC would; 0: leave the scheduling alone.  Not permitted (no
-    privilege): a warning, and the loop runs anyway.
-
-    The process's threads started before it (the sensor reader's) go to
-    SCHED_FIFO one below the loop: they take Python's interpreter lock to
-    hand over each record, and one of them preempted by another process
-    while it holds the lock would hold up the loop for that process's time
-    slice (the loop's own priority does not help it then).  Threads started
-    later (the log's writer) inherit the loop's scheduling."""
-    if not priority:
-        return
-    import os
-    import threading
-
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
-    except (AttributeError, PermissionError, OSError) as e:
-        print(f"robstiff: warning: --rt-priority {priority}: cannot switch to real-time scheduling ({e}); running "
-              "without it", file=sys.stderr)
-        return
-    me = threading.get_native_id()
-    try:
-        tids = [int(t) for t in os.listdir("/proc/self/task")]
-    except OSError:
-        return  # (not Linux: the loop's thread only)
-    for tid in tids:
-        if tid != me:
-            try:
-                os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(max(int(priority) - 1, 1)))
-            except OSError:
-                pass  # (a thread that ended meanwhile)
-
-
-def _quiet_gc():
-    """Freeze the objects made so far out of the garbage collector's reach
-    (fewer and shorter collection pauses in the loop)."""
-    import gc
-
-    gc.collect()
-    gc.freeze()
-    return True
-
-
-def _restore_gc(frozen):
-    import gc
-
-    if frozen:
-        gc.unfreeze()

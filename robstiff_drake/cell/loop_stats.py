@@ -1,0 +1,40 @@
+"""A compensator run's figures and its health verdict, from the loop's
+counters (cell/health.py): the dict summary.json and the last lines
+print."""
+
+from robstiff_drake.cell.health import verdict
+
+
+def loop_stats(loop):
+    """The run's figures and its health (a dict for the JSON) of ``loop``
+    (a cell/compensate.CompensatorLoop after its run)."""
+    n, T = loop.n, loop.s.period_s
+    unanswered = n.skipped + n.unanswered_refused + n.lost
+    cycles = n.received + n.lost
+    lost = n.lost_estimate.fraction()
+    sensor_faults = n.sensor_faults
+    seen = (f"seen of the controller: {n.received} messages ({n.start_backlog} waiting at the start, before "
+            f"its first target: not late), {n.lost} lost on the way, {n.gaps_over} gaps over "
+            f"1.5 periods; of the sensor: {n.sensor_records} records, {sensor_faults} sensor faults; the "
+            "controller sees only the answers (its own verdict counts those), not the correction this side "
+            "ramped down for its faults")
+    word, reasons, line = verdict(cycles=cycles, answered=n.answered, late=n.late, unanswered=unanswered,
+                                  faults=n.fault_onsets, lost_fraction=lost, refused=n.refused, seen=seen)
+    return {"messages": n.received, "cycles": cycles, "answered": n.answered, "late": n.late,
+            "start_backlog": n.start_backlog,
+            "unanswered": unanswered, "skipped": n.skipped, "lost_in_network": n.lost,
+            "duplicates_dropped": n.duplicates, "old_dropped": n.old, "sequence_jumps": n.jumps,
+            "clock_faults": n.clock_faults, "strangers_dropped": loop.link.strangers,
+            "malformed": loop.link.malformed, "targets_refused": n.refused,
+            "compute_ms": n.compute_ms.summary(), "correction_age_ms": n.age_ms.summary(),
+            "message_gap_ms": n.gap_ms.summary(), "missed_cycles": int(n.skipped + n.late),
+            "controller_gaps": n.gaps_over, "over_budget": int(sum(n.compute_ms.counts[int(T * 1e3 / 0.01):])),
+            "sensor_records": n.sensor_records, "sensor_clipped": n.sensor_clipped,
+            "moment_spikes": n.moment_spikes, "saturated_cycles": n.saturated_cycles,
+            "stale_correction_s": n.stale_s, "fault_onsets": n.fault_onsets, "ended_by": loop.ended_by,
+            "faults": [{"t_s": t, "t_controller_s": tc, "event": e} for t, tc, e in n.events], "events_dropped": n.events_dropped,
+            "health": {"verdict": word, "reasons": reasons, "compensation_lost_fraction": lost, "line": line,
+                       "seen_of_the_other_side": {"controller_messages": n.received, "lost_on_the_way": n.lost,
+                                                  "controller_gaps": n.gaps_over,
+                                                  "sensor_records": n.sensor_records,
+                                                  "sensor_faults": sensor_faults}}}
