@@ -121,7 +121,8 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
         s["prediction"] = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
             predictor=kin, tool_m=tool_m, mount_rpy_deg=calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0),
             lost_motion_rad=lost, coupling_c23_rad_per_Nm=coupling_c23_rad_per_Nm,
-            take_up_Nm=lost_motion_take_up_Nm, law=law, friction_Nm=lost_motion_friction_Nm, period_s=T))
+            take_up_Nm=lost_motion_take_up_Nm, law=law, friction_Nm=lost_motion_friction_Nm, period_s=T,
+            controller_plant=controller_plant))
         if lost is not None:  # the gravity torque the gears carry, from the controller's model
             zeros = builder.AddNamedSystem("zero_velocity", ConstantVectorSource(np.zeros(6)))
             q_state = builder.AddNamedSystem("sampled_q_as_state", Multiplexer([6, 6]))

@@ -148,6 +148,13 @@ class DeflectionModel:
             return play_hysteresis.start(carried, self.lost)
         return play_hysteresis.step(positions, carried, self.lost, self.friction)
 
+    def play_crossing(self, tau_process, static_torque, positions, rates, inertia_kgm2, dt_s):
+        """(positions, rates) of the gears in their gaps after ``dt_s``
+        carrying ``static_torque - tau_process``, each link crossing its gap
+        with its inertia ``inertia_kgm2`` (model/play_hysteresis.crossing_step)."""
+        carried = np.asarray(static_torque, dtype=float) - np.asarray(tau_process, dtype=float)
+        return play_hysteresis.crossing_step(positions, rates, carried, self.lost, self.friction, inertia_kgm2, dt_s)
+
     def play_dq(self, tau_process, static_torque, positions, reference):
         """The predicted joint deflection (rad, (6,)) with the hysteretic
         law: the gears at ``positions`` in their gaps (``play_positions``),

@@ -102,3 +102,24 @@ def replay(tau_Nm, play_rad, friction_Nm, compliance_rad_per_Nm, coupling_c23_ra
         p = step(p, tau, play_rad, friction_Nm)
         out[i] = twist(tau, p, compliance_rad_per_Nm, play_rad, coupling_c23_rad_per_Nm)
     return out
+
+
+def crossing_step(position_rad, rate_rad_per_s, tau_Nm, play_rad, friction_Nm, inertia_kgm2, dt_s):
+    """(positions (6, rad), rates (6, rad/s)) of the gears in their gaps
+    after ``dt_s`` carrying ``tau_Nm``, the link crossing its gap under the
+    torque beyond the friction, ``inertia_kgm2`` (6,) the link's inertia
+    about its joint (its motor held by the servo): phi'' = (tau - T_c
+    sign(phi')) / J while moving, no motion while |tau| <= T_c at rest; a
+    flank stops it.  The quasi-static ``step`` crosses at once instead; a
+    link of an arm takes a few hundred ms to cross a few hundred urad."""
+    tau = np.asarray(tau_Nm, dtype=float)
+    b = np.asarray(play_rad, dtype=float)
+    fr = np.asarray(friction_Nm, dtype=float)
+    v = np.asarray(rate_rad_per_s, dtype=float)
+    moving = v != 0.0
+    net = np.where(moving, tau - fr * np.sign(v), np.where(np.abs(tau) > fr, tau - fr * np.sign(tau), 0.0))
+    v_new = v + net / np.asarray(inertia_kgm2, dtype=float) * dt_s
+    v_new = np.where(moving & (v_new * v < 0.0), 0.0, v_new)  # friction stops it, never reverses it
+    p = np.asarray(position_rad, dtype=float) + v_new * dt_s
+    hit = (p >= b) & (v_new > 0.0) | (p <= -b) & (v_new < 0.0)
+    return np.clip(p, -b, b), np.where(hit | (b <= 0.0), 0.0, v_new)

@@ -36,12 +36,16 @@ class DeflectionPrediction(LeafSystem):
     held over the period just ended, the ones ``dq`` was computed from."""
 
     def __init__(self, *, predictor, tool_m, mount_rpy_deg=(0.0, 0.0, 0.0), lost_motion_rad=None,
-                 coupling_c23_rad_per_Nm=0.0, take_up_Nm=None, law="smooth", friction_Nm=None, period_s=None):
+                 coupling_c23_rad_per_Nm=0.0, take_up_Nm=None, law="smooth", friction_Nm=None, period_s=None,
+                 controller_plant=None):
         """``predictor``: the compensator's DeflectionPredictor; ``tool_m``:
         the tool point in the flange frame (m); ``mount_rpy_deg``: the sensor
         frame's rotation on the flange (deg); ``law``, ``friction_Nm``:
         model/compensator.DeflectionModel's; ``period_s``: the controller's
-        period (s; needed with the hysteretic law)."""
+        period (s; needed with the hysteretic law); ``controller_plant``:
+        the controller's model, whose mass matrix at the first sample gives
+        each link's inertia for its crossing of the gap (None: the law
+        crosses at once)."""
         super().__init__()
         # the arithmetic: model/compensator.DeflectionModel (shared with the compensator process)
         self._model = DeflectionModel(predictor, tool_m, mount_rpy_deg, lost_motion_rad, coupling_c23_rad_per_Nm,
@@ -60,6 +64,12 @@ class DeflectionPrediction(LeafSystem):
             self._pos = self.DeclareDiscreteState(6)
             self._ref = self.DeclareDiscreteState(6)
             self._started = self.DeclareDiscreteState(1)
+            self._T = float(period_s)
+            self._plant = controller_plant
+            if controller_plant is not None:
+                self._plant_context = controller_plant.CreateDefaultContext()
+                self._rate = self.DeclareDiscreteState(6)
+                self._inertia = self.DeclareDiscreteState(np.ones(6))
             self.DeclarePeriodicDiscreteUpdateEvent(float(period_s), 0.0, self._update_play)
             deps.add(self.xd_ticket())
         self.DeclareVectorOutputPort("dq", 6, self._calc_play_dq if self._model.hysteretic else self._calc_dq,
@@ -89,21 +99,36 @@ class DeflectionPrediction(LeafSystem):
 
     def _play(self, context):
         """(tau_process, static torque, positions after the current inputs,
-        reference) of the hysteretic law."""
-        tau = self._model.process_torque(self._w.Eval(context), self._q.Eval(context))
+        reference, rates, inertia) of the hysteretic law (rates and inertia
+        None without the controller's model)."""
+        q = self._q.Eval(context)
+        tau = self._model.process_torque(self._w.Eval(context), q)
         static = self._static.Eval(context)
+        rates = inertia = None
         if context.get_discrete_state(self._started).GetAtIndex(0) == 0.0:
             pos = self._model.play_positions(tau, static)
-            return tau, static, pos, pos
-        pos = self._model.play_positions(tau, static, context.get_discrete_state(self._pos).value())
-        return tau, static, pos, context.get_discrete_state(self._ref).value()
+            if self._plant is not None:
+                self._plant.SetPositions(self._plant_context, q)
+                rates, inertia = np.zeros(6), np.diag(self._plant.CalcMassMatrix(self._plant_context)).copy()
+            return tau, static, pos, pos, rates, inertia
+        pos = context.get_discrete_state(self._pos).value()
+        ref = context.get_discrete_state(self._ref).value()
+        if self._plant is None:
+            return tau, static, self._model.play_positions(tau, static, pos), ref, None, None
+        inertia = context.get_discrete_state(self._inertia).value()
+        pos, rates = self._model.play_crossing(tau, static, pos, context.get_discrete_state(self._rate).value(),
+                                               inertia, self._T)
+        return tau, static, pos, ref, rates, inertia
 
     def _calc_play_dq(self, context, output):
-        tau, static, pos, ref = self._play(context)
+        tau, static, pos, ref, _, _ = self._play(context)
         output.SetFromVector(self._model.play_dq(tau, static, pos, ref))
 
     def _update_play(self, context, discrete_state):
-        _, _, pos, ref = self._play(context)
+        _, _, pos, ref, rates, inertia = self._play(context)
         discrete_state.set_value(int(self._pos), pos)
         discrete_state.set_value(int(self._ref), ref)
         discrete_state.set_value(int(self._started), [1.0])
+        if rates is not None:
+            discrete_state.set_value(int(self._rate), rates)
+            discrete_state.set_value(int(self._inertia), inertia)
