@@ -195,6 +195,32 @@ def test_the_known_part_is_what_the_machine_did(exact_run):
     assert np.sqrt(np.mean((predicted - truth) ** 2)) < 0.1 * np.sqrt(np.mean(truth**2))
 
 
+def test_the_lost_motion_law_takes_each_joints_take_up_torque(exact_run):
+    """diagnose-run's smooth lost-motion law (what the compensator's model
+    predicts, and the lost_motion cause's columns) takes each joint's
+    take-up torque, the compensator's fallback from the model's compliance
+    (18 N*m on joint 2, 3.3 N*m on joint 6), not 50 N*m for every joint."""
+    from robstiff_drake.identification.runs.causes import candidates
+    from robstiff_drake.model import transmission
+
+    robot = run_robot(exact_run)
+    files = rf.load_run_files(exact_run)
+    files.settings.lost_motion_rad = [0.0, 1e-4, 0.0, 0.0, 0.0, 2e-4]
+    sig = run_signals(files, robot, ArmModel(robot))
+    take_up = transmission.fallback_take_up_Nm(sig.compliance)
+    assert take_up[1] == pytest.approx(18.15) and take_up[5] == pytest.approx(3.3)
+    b = np.asarray(files.settings.lost_motion_rad)
+    law = transmission.static_deflection(sig.tau_static_Nm, sig.tau_Nm, sig.compliance, b, 0.0, take_up)
+    old = transmission.static_deflection(sig.tau_static_Nm, sig.tau_Nm, sig.compliance, b)  # 50 N*m
+    np.testing.assert_allclose(sig.model_dq_rad, law, rtol=0, atol=1e-12)
+    assert np.abs(sig.model_dq_rad - old).max() > 1e-7
+    lost = next(c for c in candidates(sig) if c.name == "lost_motion")
+    carried = sig.tau_static_Nm + sig.tau_inertia_Nm - sig.tau_Nm
+    j = 5  # joint 6's column per unit b: -(tanh(T / B6) - tanh(T0 / B6)) along the tool's vertical
+    col = -sig.Jz[:, j] * (np.tanh(carried[:, j] / take_up[j]) - np.tanh(sig.tau_touch_off_Nm[j] / take_up[j]))
+    np.testing.assert_allclose(lost.columns[:, j], col, rtol=1e-9, atol=1e-15)
+
+
 def test_only_the_cell_files_are_read(exact_run, tmp_path, capsys):
     bare = tmp_path / "cell"  # what a real cell has: the four files and the run id
     bare.mkdir()
