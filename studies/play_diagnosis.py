@@ -1,11 +1,15 @@
-"""Gear play in the plant, a smooth lost-motion law in the compensator and in
-`diagnose-run`: how well the law fits the play, and what the diagnosis
+"""Gear play in the plant, the compensator's lost-motion laws and
+`diagnose-run`: how well the laws fit the play, and what the diagnosis
 concludes.
 
 The plant's gears have play (model/transmission.play_torque): a dead zone
-of total width 2b, no torque inside it, the link left on the flank it last
-pressed.  The compensator's model and diagnose-run's `lost_motion` cause
-keep the smooth law phi = c tau + b tanh(tau / 50 N*m).
+of total width 2b, no torque inside it but the friction, the link left on
+the flank it last pressed until the torque passes the friction the other
+way.  The compensator's model has two laws (model.lost_motion_law): the
+smooth phi = c tau + b tanh(tau / TAU_B_j) and the hysteretic one
+(model/play_hysteresis.py: each gear's position in its gap from the
+torque's history, the friction per joint); diagnose-run's `lost_motion`
+cause keeps the smooth law.
 
 1. The two laws at rest: the twist the smooth law gives against the play's
    (on the flank the torque presses), as a fraction of b, for a few
@@ -16,8 +20,9 @@ keep the smooth law phi = c tau + b tanh(tau / 50 N*m).
    zero during the cut (from about -55 to +77 N*m), with play b on joint 2
    alone, b = 0, 20, 40, 80, 150, 300 urad.  For each: the compensated
    surface error (the compensator without lost motion), the same with the
-   compensator's smooth law at the true b (how well the law fits the play
-   plant), and `diagnose-run` on the first run with 3 um of scan noise: the
+   compensator's smooth law and with its hysteretic law at the true b (how
+   well each law fits the play plant; the friction is the fallback, the
+   plant's own 1.5 % of the rated torque: a perfect-model bound), and `diagnose-run` on the first run with 3 um of scan noise: the
    causes it names (and b2 fitted), the arm's damping it reads, and the
    verdict of its verification cuts (each candidate fix cut once more on
    the same simulated machine, decided from the cuts' scans only; see
@@ -48,8 +53,10 @@ def predictive(text):
     return text.replace("controller:\n", "controller:\n  mode: predictive\n", 1)
 
 
-def with_play(text, b_rad, section="plant"):
+def with_play(text, b_rad, section="plant", law=None):
     line = f"  lost_motion_rad: [0.0, {b_rad:g}, 0.0, 0.0, 0.0, 0.0]\n"
+    if law:
+        line += f"  lost_motion_law: {law}\n"
     return text.replace(f"{section}:\n", f"{section}:\n{line}", 1) if section in text else text + f"{section}:\n{line}"
 
 
@@ -92,10 +99,10 @@ def main():
     out.mkdir(parents=True, exist_ok=True)
     print("2. The balanced pass with play b on joint 2 (predictive compensation); surface error mean / rms / max abs "
           "(mm)")
-    print("| b2 (urad) | compensator without lost motion | compensator's smooth law at the true b | diagnose-run: "
-          "traced (fitted) | the arm's damping it used | decided from the verification cuts | after the decided "
-          "fix (mm) |")
-    print("|---|---|---|---|---|---|---|")
+    print("| b2 (urad) | compensator without lost motion | compensator's smooth law at the true b | compensator's "
+          "hysteretic law at the true b | diagnose-run: traced (fitted) | the arm's damping it used | decided from "
+          "the verification cuts | after the decided fix (mm) |")
+    print("|---|---|---|---|---|---|---|---|")
     base = predictive(BALANCED)
     for b_urad in (float(v) for v in args.b_urad.split(",")):
         b = b_urad * 1e-6
@@ -103,10 +110,11 @@ def main():
         name = f"play_{b_urad:g}"
         rep, verified, _ = close_loop(text, out, name)
         s0 = rep["surface_error_before_mm"]
-        smooth = "-"
+        laws = {"smooth": "-", "hysteretic": "-"}
         if b:
-            s1 = surface(out, f"{name}_smooth_law", with_play(text, b, "model"))
-            smooth = f"{s1['mean']:+.4f} / {s1['rms']:.4f} / {s1['max_abs']:.4f}"
+            for law in laws:
+                s1 = surface(out, f"{name}_{law}_law", with_play(text, b, "model", law))
+                laws[law] = f"{s1['mean']:+.4f} / {s1['rms']:.4f} / {s1['max_abs']:.4f}"
         d = rep["damping"]
         damping = f"{d['used']:.0%} ({'from the run' if d.get('ratio') is not None else 'assumed'})"
         if verified is None:
@@ -117,7 +125,7 @@ def main():
             rows = {r["candidate"]: r["surface_error_mm"] for r in verified["verification"]["cuts"]}
             a = rows[verified["verification"]["best"]]
             after = f"{a['mean']:+.4f} / {a['rms']:.4f} / {a['max_abs']:.4f}"
-        print(f"| {b_urad:g} | {s0['mean']:+.4f} / {s0['rms']:.4f} / {s0['max_abs']:.4f} | {smooth} | {traced(rep)} | "
+        print(f"| {b_urad:g} | {s0['mean']:+.4f} / {s0['rms']:.4f} / {s0['max_abs']:.4f} | {laws['smooth']} | {laws['hysteretic']} | {traced(rep)} | "
               f"{damping} | {decided} | {after} |", flush=True)
     if args.out is None:
         shutil.rmtree(out, ignore_errors=True)

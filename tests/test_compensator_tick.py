@@ -121,3 +121,52 @@ def test_set_sample_is_what_the_holds_would_give(robot):
     pred.GetInputPort("q").FixValue(pc, Q0)
     np.testing.assert_array_equal(tick.GetOutputPort("process_wrench").Eval(ctx), p)
     np.testing.assert_array_equal(tick.GetOutputPort("dq").Eval(ctx), pred.GetOutputPort("dq").Eval(pc))
+
+
+def test_the_hysteretic_play_law_keeps_each_gears_place_in_its_gap_in_the_context(robot):
+    """DeflectionPrediction with the hysteretic law (play b on joint 2, the
+    fallback friction, 18 N*m): at the touch-off the gear carries -5 N*m
+    (on the - flank); under a process load, a gear torque of +10 N*m (a
+    reversal below the friction) leaves the prediction on that flank; +30
+    N*m carries it across (2b more); back at +10 N*m it stays across.  The
+    place in the gap is the context's state: a second context, never
+    loaded across, is unmoved."""
+    tool = robot.payload.tool_point_m
+    kin = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool)
+    b2, c2 = 1e-4, 1.0 / robot.joint_stiffness_Nm_per_rad[1]
+    pred = DeflectionPrediction(predictor=kin, tool_m=tool, lost_motion_rad=[0.0, b2, 0.0, 0.0, 0.0, 0.0],
+                                law="hysteretic", period_s=T)
+    assert pred.model.friction[1] == pytest.approx(0.015 * robot.joint_stiffness_Nm_per_rad[1] * 1.1e-3)
+    w = np.array([200.0, -100.0, 300.0, 5.0, -3.0, 2.0])
+    tau_p = np.asarray(pred.model.process_torque(w, Q0))
+
+    def run(sim, process, carried2, until):
+        """Joint 2's dq at ``until`` s with the process wrench ``process`` and
+        the static torque set so that the gear carries ``carried2`` (N*m)."""
+        ctx = sim.get_mutable_context()
+        tp = tau_p if process is w else np.zeros(6)
+        static = tp.copy()
+        static[1] += carried2
+        pred.GetInputPort("process_wrench").FixValue(ctx, process)
+        pred.GetInputPort("static_torque").FixValue(ctx, static)
+        sim.AdvanceTo(until)
+        return pred.GetOutputPort("dq").Eval(ctx)[1]
+
+    def expected(carried2, across):
+        """held twist + the touch-off's place (-b) - the twist now (on the +
+        flank across: b + c tau; still on the - flank, not pressed: -b)."""
+        return c2 * (tau_p[1] + carried2) - b2 - ((b2 + c2 * carried2) if across else -b2)
+
+    sims = []
+    for _ in range(2):
+        ctx = pred.CreateDefaultContext()
+        pred.GetInputPort("q").FixValue(ctx, Q0)
+        sim = Simulator(pred, ctx)
+        assert run(sim, np.zeros(6), -5.0, 2 * T) == pytest.approx(0.0, abs=1e-15)  # the touch-off
+        sims.append(sim)
+    a, other = sims
+    assert run(a, w, 10.0, 4 * T) == pytest.approx(expected(10.0, False), abs=1e-12)
+    assert run(a, w, 30.0, 6 * T) == pytest.approx(expected(30.0, True), abs=1e-12)
+    assert run(a, w, 10.0, 8 * T) == pytest.approx(expected(10.0, True), abs=1e-12)
+    assert expected(10.0, False) - expected(10.0, True) == pytest.approx(2 * b2 + c2 * 10.0)
+    assert run(other, w, 10.0, 8 * T) == pytest.approx(expected(10.0, False), abs=1e-12)

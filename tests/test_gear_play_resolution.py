@@ -143,3 +143,32 @@ def test_tooth_force_twist_converged_at_the_resolving_step(robot, pose, joints):
     assert fs[-1] == pytest.approx(f[-1], rel=0.02) and zs[-1] == pytest.approx(z[-1], rel=0.06)
     fs2, zs2 = joints.step_modes(0.002)
     assert fs2[-1] > 1.15 * f[-1]  # what 2 ms does to it (2/h asin(omega h / 2))
+
+
+def test_the_hysteretic_play_law_at_the_true_play_beats_the_law_free_model_on_a_pass(tmp_path):
+    """The balanced pass (tests/data/balanced_y_pass.yaml, predictive, the
+    2 ms step that resolves play on joints 1-3) with 150 urad of play and
+    the fallback friction in joints 1-3, whose joint 2 torque crosses
+    zero: the compensator with the hysteretic law at the true play leaves
+    a face closer to flat than the compensator without lost motion (rms
+    0.112 against 0.156 mm when written), where the smooth law did not
+    (0.162 mm)."""
+    import json
+
+    from robstiff_drake.commands.main import main
+    from robstiff_drake.paths import REPO_ROOT
+
+    text = (REPO_ROOT / "tests" / "data" / "balanced_y_pass.yaml").read_text().replace(
+        "controller:\n", "controller:\n  mode: predictive\n", 1)
+    play = "  lost_motion_rad: [1.5e-4, 1.5e-4, 1.5e-4, 0.0, 0.0, 0.0]\n"
+    text = text.replace("plant:\n", "plant:\n" + play, 1)
+    faces = {}
+    for name, t in (("law_free", text),
+                    ("hysteretic", text.replace("model:\n", "model:\n" + play + "  lost_motion_law: hysteretic\n", 1))):
+        sc = tmp_path / f"{name}.yaml"
+        sc.write_text(t)
+        assert main(["simulate", str(sc), "--compensation", "on", "--out", str(tmp_path / name)]) == 0
+        faces[name] = json.loads((tmp_path / name / "summary.json").read_text())["surface_error_mm"]["compensated"]
+    free, hyst = faces["law_free"], faces["hysteretic"]
+    assert hyst["rms"] < 0.85 * free["rms"], faces
+    assert hyst["max_abs"] < free["max_abs"] and hyst["pv"] < free["pv"], faces

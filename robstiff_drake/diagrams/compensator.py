@@ -80,7 +80,7 @@ class Compensator:
 def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, saturation_rad, rate_limit_rad_per_s,
                      calibration, model_dh, model_stiffness_Nm_per_rad, tool_m, predictive=None, preview=None,
                      lost_motion_rad=None, coupling_c23_rad_per_Nm=0.0, controller_plant=None, name="compensator",
-                     lost_motion_take_up_Nm=None):
+                     lost_motion_take_up_Nm=None, lost_motion_law="smooth", lost_motion_friction_Nm=None):
     """The compensator diagram (see module docstring).  ``calibration``: the
     payload calibration it believes; ``model_*``: its kinematics and joint
     stiffness; ``predictive``: a function (kinematics, lead) -> PredictiveWrench
@@ -89,7 +89,10 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     compensation (its ``dq`` replaces the prediction's), or None;
     ``controller_plant``: the
     controller's model, for the gravity torque the gears carry (needed only
-    when the model has lost motion).  Inputs ``wrench``,
+    when the model has lost motion); ``lost_motion_law``/``_friction_Nm``:
+    model/compensator.DeflectionModel's ``law``/``friction_Nm`` (preview
+    mode's table of future deflections is memoryless: it keeps the smooth
+    law).  Inputs ``wrench``,
     ``position_measured``; output ``correction`` and the LOG_PORTS."""
     T = period_s
     builder = DiagramBuilder()
@@ -99,8 +102,9 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     s["filter"] = builder.AddNamedSystem("force_filter", filter_system(*filter_ba, rate_hz))
     builder.Connect(s["guard"].GetOutputPort("wrench"), s["filter"].get_input_port())
     lost = lost_motion_rad if lost_motion_rad and any(lost_motion_rad) else None
+    law = "smooth" if preview is not None else lost_motion_law
     model = DeflectionModel(kin, tool_m, calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0), lost,
-                            coupling_c23_rad_per_Nm, lost_motion_take_up_Nm)
+                            coupling_c23_rad_per_Nm, lost_motion_take_up_Nm, law, lost_motion_friction_Nm)
     # one block per tick: sample, gravity removal, [prediction], saturation, delay, correction
     # (systems/compensator_tick.py); a predictor with its own inputs or state stays its own block
     separate = predictive is not None or preview is not None or lost is not None
@@ -117,7 +121,8 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
         s["prediction"] = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
             predictor=kin, tool_m=tool_m, mount_rpy_deg=calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0),
             lost_motion_rad=lost, coupling_c23_rad_per_Nm=coupling_c23_rad_per_Nm,
-            take_up_Nm=lost_motion_take_up_Nm))
+            take_up_Nm=lost_motion_take_up_Nm, law=law, friction_Nm=lost_motion_friction_Nm, period_s=T,
+            controller_plant=controller_plant))
         if lost is not None:  # the gravity torque the gears carry, from the controller's model
             zeros = builder.AddNamedSystem("zero_velocity", ConstantVectorSource(np.zeros(6)))
             q_state = builder.AddNamedSystem("sampled_q_as_state", Multiplexer([6, 6]))

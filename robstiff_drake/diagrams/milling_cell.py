@@ -265,7 +265,8 @@ def build_compensator(sc, robot, station, *, path, workpiece, t_ref=None, q_ref=
         calibration=payload_calibration(sc, robot), model_dh=robot.dh, model_stiffness_Nm_per_rad=model_stiffness(
             sc, robot), tool_m=station.tool_m, predictive=predictive, preview=preview,
         lost_motion_rad=sc.model.lost_motion_rad or None, coupling_c23_rad_per_Nm=sc.model.coupling_c23_rad_per_Nm,
-        controller_plant=station.controller_plant, lost_motion_take_up_Nm=sc.model.lost_motion_take_up_Nm or None)
+        controller_plant=station.controller_plant, lost_motion_take_up_Nm=sc.model.lost_motion_take_up_Nm or None,
+        lost_motion_law=sc.model.lost_motion_law, lost_motion_friction_Nm=sc.model.lost_motion_friction_Nm or None)
 
 
 def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model_wrench=None, q_reference=None):

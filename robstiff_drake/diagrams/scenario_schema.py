@@ -343,6 +343,18 @@ class ModelConfig:
     lost_motion_take_up_Nm: list[float] = vec([], (0, 6), 0.01, 1e4, "N*m",
                                               why="from a fraction of a N*m (a tight small reducer) to the "
                                                   "largest arms' kN*m")
+    # The compensator's law of the lost motion (model/compensator.PLAY_LAWS): "hysteretic" (the default: each
+    # gear's position in its gap tracked from the history of the torque it carries, model/play_hysteresis.py;
+    # a gear with friction in its play stays on the flank it last pressed until the torque passes the
+    # friction the other way, which no single-valued law follows: docs/run_diagnosis.md, "Gear play") or
+    # "smooth" (b tanh(tau / take-up)).  Preview mode keeps the smooth law (its table is memoryless).
+    lost_motion_law: str = choice("hysteretic", ("hysteretic", "smooth"))
+    # The hysteretic law's friction inside each gear's play (N*m), identified from a campaign's reversals
+    # (identification/stiffness/play_law.fit_hysteretic_play); empty: the fallback, 1.5 % of each gear's rated
+    # torque (model/transmission.gap_friction_Nm, the plant's own default).
+    lost_motion_friction_Nm: list[float] = vec([], (0, 6), 0.0, 1000.0, "N*m",
+                                               why="a reducer's internal friction is a few % of its rated torque, "
+                                                   "at most some hundred N*m on the largest arms")
     coupling_c23_rad_per_Nm: float = num(0.0, -1e-5, 1e-5, "rad/(N*m)")
     # Preview mode's damping of the arm: the modal damping ratio of each mode
     # of the links on their gears (lowest frequency first; one number: every

@@ -18,11 +18,15 @@ from collections import deque
 
 import numpy as np
 
-from robstiff_drake.model import transmission
+from robstiff_drake.model import play_hysteresis, transmission
 from robstiff_drake.model.filters import SampleFilter
 from robstiff_drake.model.kinematics import rpy_to_rotation
 from robstiff_drake.model.payload import payload_weight
 from robstiff_drake.model.wrench_frames import wrench_to_tool_base
+
+# The compensator's lost-motion laws: "smooth" (model/transmission.twist: b tanh(tau / TAU_B), single-valued)
+# and "hysteretic" (model/play_hysteresis.py: the gear's position in its gap tracked from the torque's history).
+PLAY_LAWS = ("hysteretic", "smooth")
 
 
 def guard_accepts(w, held, max_jump_N):
@@ -73,17 +77,30 @@ class DeflectionModel:
     flange (deg)."""
 
     def __init__(self, predictor, tool_m, mount_rpy_deg=(0.0, 0.0, 0.0), lost_motion_rad=None,
-                 coupling_c23_rad_per_Nm=0.0, take_up_Nm=None):
-        """``take_up_Nm`` (6,): the lost motion's take-up torque per joint
+                 coupling_c23_rad_per_Nm=0.0, take_up_Nm=None, law="smooth", friction_Nm=None):
+        """``take_up_Nm`` (6,): the smooth law's take-up torque per joint
         (N*m), identified from a campaign; None: the fallback
-        (model/transmission.fallback_take_up_Nm, from the compliance)."""
+        (model/transmission.fallback_take_up_Nm, from the compliance).
+        ``law``: "smooth" (model/transmission.twist, single-valued) or
+        "hysteretic" (model/play_hysteresis.py: the gear's position in its
+        gap is a state, which ``dq`` does not keep: see ``play_dq``);
+        ``friction_Nm`` (6,) the hysteretic law's friction inside the play
+        (N*m), identified from a campaign; None: 1.5 % of the rated torque
+        (model/transmission.gap_friction_Nm, from the compliance)."""
+        if law not in PLAY_LAWS:
+            raise ValueError(f"lost-motion law {law!r}: one of {', '.join(PLAY_LAWS)}")
         self._pred = predictor
         self.lost = None if lost_motion_rad is None or not np.any(np.asarray(lost_motion_rad) != 0) else \
             np.asarray(lost_motion_rad, dtype=float)
-        self.take_up = None
+        self.law = law
+        self.take_up = self.friction = None
         if self.lost is not None:
             self.take_up = (transmission.fallback_take_up_Nm(predictor.joint_compliance) if take_up_Nm is None
                             or not len(take_up_Nm) else np.asarray(take_up_Nm, dtype=float))
+            if law == "hysteretic":
+                self.friction = (transmission.gap_friction_Nm(1.0 / np.asarray(predictor.joint_compliance))
+                                 if friction_Nm is None or not len(friction_Nm)
+                                 else np.asarray(friction_Nm, dtype=float))
         self.c23 = float(coupling_c23_rad_per_Nm)
         R_mount = rpy_to_rotation(np.deg2rad(mount_rpy_deg))
         self._R_mount = tuple(R_mount.ravel().tolist())
@@ -104,12 +121,46 @@ class DeflectionModel:
         """The predicted joint deflection (rad, list or array); with lost
         motion, ``static_torque`` (6, N*m) is the torque the gears hold the
         arm with before the cut (gravity compensation's)."""
-        tau = self._pred.joint_torques(q, self.tool_wrench(process_wrench, q))
+        tau = self.process_torque(process_wrench, q)
         if self.lost is None and not self.c23:
             return [c * t for c, t in zip(self._pred.joint_compliance_list, tau)]
+        if self.hysteretic:
+            raise ValueError("the hysteretic play law needs the gears' positions in their gaps: play_dq")
         static = np.zeros(6) if static_torque is None else static_torque
         return transmission.static_deflection(static, tau, self._pred.joint_compliance, self.lost, self.c23,
                                               self.take_up)
+
+    @property
+    def hysteretic(self):
+        """Whether the model has play with the hysteretic law."""
+        return self.lost is not None and self.law == "hysteretic"
+
+    def process_torque(self, process_wrench, q):
+        """J(q)^T W (6, N*m): the process load's joint torques."""
+        return self._pred.joint_torques(q, self.tool_wrench(process_wrench, q))
+
+    def play_positions(self, tau_process, static_torque, positions=None):
+        """(6,) the gears' positions in their gaps (rad) after they carry
+        ``static_torque - tau_process`` (N*m) from ``positions`` (None: at
+        rest under it, the touch-off)."""
+        carried = np.asarray(static_torque, dtype=float) - np.asarray(tau_process, dtype=float)
+        if positions is None:
+            return play_hysteresis.start(carried, self.lost)
+        return play_hysteresis.step(positions, carried, self.lost, self.friction)
+
+    def play_crossing(self, tau_process, static_torque, positions, rates, inertia_kgm2, dt_s):
+        """(positions, rates) of the gears in their gaps after ``dt_s``
+        carrying ``static_torque - tau_process``, each link crossing its gap
+        with its inertia ``inertia_kgm2`` (model/play_hysteresis.crossing_step)."""
+        carried = np.asarray(static_torque, dtype=float) - np.asarray(tau_process, dtype=float)
+        return play_hysteresis.crossing_step(positions, rates, carried, self.lost, self.friction, inertia_kgm2, dt_s)
+
+    def play_dq(self, tau_process, static_torque, positions, reference):
+        """The predicted joint deflection (rad, (6,)) with the hysteretic
+        law: the gears at ``positions`` in their gaps (``play_positions``),
+        the touch-off's at ``reference``."""
+        return play_hysteresis.deflection(static_torque, tau_process, positions, reference,
+                                          self._pred.joint_compliance, self.lost, self.c23)
 
 
 class Compensator:

@@ -12,15 +12,16 @@ gear actually carries.
 ``c`` is the joint compliance (rad/(N*m)), ``b`` the lost motion (rad: half
 the backlash or the gear's play, taken up in the direction of the load).
 The sign of the load is smoothed over TAU_B_j (per joint: identified from a
-campaign, else ``fallback_take_up_Nm``; diagnose-run keeps TAU_B_NM for
-every joint): near zero torque the play is
+campaign, else ``fallback_take_up_Nm``, which diagnose-run uses too):
+near zero torque the play is
 taken up gradually (friction and the gear's preload), not in a jump that a
 few newton-metres either way would flip.  Where the total torque keeps its
 sign, the lost motion is a constant offset that any static model absorbs;
 it shows only where the total torque changes sign.
 
-Plain numpy.  That smooth law is the compensator's model and
-``diagnose-run``'s lost-motion cause.  The plant's gears have play
+Plain numpy.  That smooth law is ``diagnose-run``'s lost-motion cause and
+one of the compensator's two laws (the other, hysteretic:
+model/play_hysteresis.py).  The plant's gears have play
 (``play_torque``): a dead zone of total width 2b in which the gear
 transmits no torque, the gear's stiffness outside it; which flank is in
 contact is the link's own state (where it sits in the gap), so a load that
@@ -31,7 +32,7 @@ How the impacts at the flanks are damped: systems/gear_transmission.py.
 
 import numpy as np
 
-TAU_B_NM = 50.0  # diagnose-run's torque over which the lost motion is taken up (tanh scale), N*m, every joint
+TAU_B_NM = 50.0  # the former take-up torque (tanh scale) of every joint, N*m: twist's default without take_up_Nm
 
 # The compensator's take-up torque TAU_B per joint is identified from a campaign that loads each joint both ways
 # (identification/stiffness/play_law.py; diagrams/play_campaign.py runs one on the plant).  Without one, the

@@ -13,6 +13,7 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.identification.runs import tables as rt
 from robstiff_drake.identification.runs import scan_statistics as ss
 from robstiff_drake.identification.runs.signals import GRID_HZ, gear_law_deviation
+from robstiff_drake.model.transmission import fallback_take_up_Nm
 
 
 ALPHA = 1e-3  # per test; about 10 causes are tried per round
@@ -96,16 +97,18 @@ def candidates(sig):
                              [Param(f"r{j + 1}", "%", 100.0, -0.5, 1.0)],
                              f"joint {j + 1}'s compliance differs from the model's"))
     law = (sig.tau_static_Nm, sig.tau_touch_off_Nm, sig.tau_inertia_Nm, sig.tau_Nm)
+    take_up = fallback_take_up_Nm(c)  # each joint's, as the compensator's (signals.gear_law_deviation)
     unit = np.eye(6)
     # ASSUMPTION: lost motion up to 300 urad (1 arcmin); industrial gears are specified at 10-60 urad
     out.append(Candidate("lost_motion",
-                         np.column_stack([_along(sig, gear_law_deviation(*law, unit[j], 0.0)) for j in range(6)]),
+                         np.column_stack([_along(sig, gear_law_deviation(*law, unit[j], 0.0, take_up))
+                                          for j in range(6)]),
                          [Param(f"b{j + 1}", "urad", 1e6, 0.0, 3e-4, True) for j in range(6)],
                          "lost motion (backlash) in the gears beyond the model's, taken up where the total torque "
                          "a gear carries (weight, inertia and cut) changes sign"))
     # ASSUMPTION: |c23| <= 0.3 sqrt(c2 c3); a positive-definite compliance needs < 1
     c23 = 0.3 * np.sqrt(c[1] * c[2])
-    out.append(Candidate("joint_coupling", _along(sig, gear_law_deviation(*law, None, 1.0))[:, None],
+    out.append(Candidate("joint_coupling", _along(sig, gear_law_deviation(*law, None, 1.0, take_up))[:, None],
                          [Param("c23", "rad/(N*m)", 1.0, -c23, c23)],
                          "a joint 2-3 coupling beyond the model's (of the total torque)"))
     if sig.tau_per_sensor_force is not None:

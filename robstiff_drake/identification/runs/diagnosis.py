@@ -38,7 +38,10 @@ predictive) offered when it moves the face by at least the floor.  Causes
                          compliance off by r_N (the controller's gravity
                          model is calibrated on the arm: the weight's part
                          is not this cause's)
-  lost_motion            sum_N b_N J_z,N (tanh(T0_N / 50) - tanh(T_N / 50)),
+  lost_motion            sum_N b_N J_z,N (tanh(T0_N / B_N) - tanh(T_N / B_N)),
+                         B_N joint N's take-up torque (the compensator's
+                         fallback, 1.5 % of the rated torque of the
+                         model's stiffness: model/transmission.py),
                          T the total torque the gear carries (weight +
                          inertia - J^T W), T0 at the touch-off: joints 1-6
                          (where T keeps its sign, or the joint cannot move

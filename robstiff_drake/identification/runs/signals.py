@@ -17,7 +17,7 @@ from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.joint_dynamics import DEFAULT_MODAL_DAMPING_RATIO
 from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
 from robstiff_drake.model.servo import ServoParameters
-from robstiff_drake.model.transmission import static_deflection, twist
+from robstiff_drake.model.transmission import fallback_take_up_Nm, static_deflection, twist
 from robstiff_drake.model.wrench_frames import sensor_to_tool_base
 
 # ASSUMPTION: the sensor's reading is smoothed (zero phase) before it drives the arm's model, over the
@@ -247,11 +247,12 @@ def signals_at(ctx, arm, damping_ratio, damping=None):
     J, Jg = x["J"], x["J"][k]
     dz = np.einsum("nj,njk->nk", J[:, 2, :], np.concatenate([dev, motion[..., None]], axis=2))
     # what the compensator predicts: its model's law under the process load (model/compensator.DeflectionModel)
-    model_dq = static_deflection(x["g"], x["tau"], x["c"], s.lost_motion_rad, s.coupling_c23_rad_per_Nm)
+    take_up = fallback_take_up_Nm(x["c"])
+    model_dq = static_deflection(x["g"], x["tau"], x["c"], s.lost_motion_rad, s.coupling_c23_rad_per_Nm, take_up)
     # the loop's tracking error with the plant as the model believes it: its stiffness (dynamic), and its
     # lost motion and coupling (quasi-static, the law of the total torque)
     believed = gear_law_deviation(x["g"], x["g0"], x["tau_i"], x["tau"], s.lost_motion_rad,
-                                  s.coupling_c23_rad_per_Nm)
+                                  s.coupling_c23_rad_per_Nm, take_up)
     dz_loop = dz[k, 0] + dz[k, 1] + np.einsum("nj,nj->n", Jg[:, 2, :], believed)
     return RunSignals(x["grid"], x["q_nom"], x["corr"], x["W_f"][k], x["tau"], x["g"], x["tau_i"], x["g0"],
                       Jg[:, 2, :], kin.tool_position(x["robot"].dh, x["q_nom"], x["tool"]), x["c"], model_dq,
@@ -259,14 +260,18 @@ def signals_at(ctx, arm, damping_ratio, damping=None):
                       x["tau_per_sensor_force"])
 
 
-def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost_motion_rad, coupling_c23):
+def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost_motion_rad, coupling_c23,
+                       take_up_Nm):
     """(n, 6) rad: how far the links move beyond the linear gears' deflection
     (the controller's gravity model and the compensator's stiffness cover
     that) from the gears' lost motion and 2-3 coupling (model/transmission.py),
     of the total torque the gears carry: the weight (its change from the
     touch-off, where the work offset was set), the inertia and the process
-    load (a generalized force on the links: the gears carry minus it)."""
+    load (a generalized force on the links: the gears carry minus it).
+    ``take_up_Nm`` (6,): each joint's take-up torque of the lost motion
+    (N*m; the compensator's: model/transmission.fallback_take_up_Nm of the
+    model's compliance, as the settings carry no identified one)."""
     carried = tau_static + tau_inertia - tau_process
     zero = np.zeros(6)
-    return -(twist(carried, zero, lost_motion_rad, coupling_c23) - twist(tau_touch_off, zero, lost_motion_rad,
-                                                                          coupling_c23))
+    return -(twist(carried, zero, lost_motion_rad, coupling_c23, take_up_Nm)
+             - twist(tau_touch_off, zero, lost_motion_rad, coupling_c23, take_up_Nm))
