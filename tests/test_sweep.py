@@ -242,8 +242,12 @@ def test_loop_model_needs_the_payload_inertia_at_a_resonance(robot, tmp_path):
     grows at the arm's second mode (7.5 Hz: the sensor reads the payload's
     inertia as cutting load, and the chain feeds it back); the loop model
     follows the simulation to 50 % with the inertia in its sensor, and
-    without it calls the loop stable and misses the error by more than 10x
-    (the compensator holding the plant's own model, as the loop model does)."""
+    without it calls the loop stable and misses the error by more than 6x
+    (the compensator holding the plant's own model, as the loop model does).
+    On the plant with the 5 % stated on the drives-closed modes: 0.76 mm
+    simulated, 0.86 the model, 0.078 blind (9.7x); stated on the
+    motors-held modes (3.6 % on the first with the drives closed) the ring
+    grew faster: above 1 mm, blind more than 10x below."""
     from robstiff_drake.diagrams import loop_prediction
 
     path = tmp_path / "interrupted_cut.yaml"
@@ -252,17 +256,18 @@ def test_loop_model_needs_the_payload_inertia_at_a_resonance(robot, tmp_path):
     combo = {"period_ms": 2.0, "delay_steps": 1, "cutoff_hz": 50.0, "mode": "plain"}
     row = run_one(str(path), combo, predict=False)
     sim = max(row["surface_error_mm"]["entry_max_abs"], row["surface_error_mm"]["exit_max_abs"])
-    assert sim > 1.0  # mm: it rings
+    assert sim > 0.5  # mm: it rings (the settled cut leaves under 0.1 mm)
     p = loop_prediction.predict(sc, robot, combo)
     # a growing oscillation's size at the window's end, on the plant's own cutting law: its chip follows the
     # tool's vibration along the feed and slows the growth the model (the compensator's law, the chip from the
-    # plan) predicts: 4.25 mm against 2.30 (1.84 on the linear law, cutting.plant_law: linear)
+    # plan) predicts: 0.86 mm against 0.76 (on the plant with the damping on the motors-held modes: 4.25 mm
+    # against 2.30, 1.84 on the linear law, cutting.plant_law: linear)
     model = max(p["surface_error_mm"]["entry_max_abs"], p["surface_error_mm"]["exit_max_abs"])
     assert sim / 1.5 < model < 3.0 * sim, (model, sim)
     assert p["spectral_radius"] > 1.0
     blind = loop_prediction.predict(sc, robot, combo, sensor_feels_inertia=False)
     assert blind["spectral_radius"] < 1.0
-    assert max(blind["surface_error_mm"]["entry_max_abs"], blind["surface_error_mm"]["exit_max_abs"]) < 0.1 * sim
+    assert max(blind["surface_error_mm"]["entry_max_abs"], blind["surface_error_mm"]["exit_max_abs"]) < sim / 6
 
 
 @pytest.mark.parametrize("key, content, message", [
