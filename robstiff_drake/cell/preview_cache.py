@@ -13,8 +13,9 @@ else, is computed again; one that cannot be written is skipped.  Files go
 in plant.cache_dir(), written to a temporary file and renamed
 (diagrams/reference_cache.py does the same for the path's IK).
 
-``python -m robstiff_drake.cell.preview_cache`` (the background build)
-reads its inputs as JSON on stdin, builds the table and writes the file;
+``python -m robstiff_drake.cell.preview_build`` (the background build,
+``BUILD_MODULE``; a module of its own above cell/preview_job.py, so this
+one imports nothing of the job's) reads its inputs as JSON on stdin, builds the table and writes the file;
 it runs at normal scheduling in its own interpreter, so the loop's
 real-time thread never shares Python's lock with the hours of arithmetic
 a long job's table can take.
@@ -102,9 +103,12 @@ def load(file):
                        servo=ServoModel(**dict(zip(SERVO, servo.tolist()))))
 
 
+BUILD_MODULE = "robstiff_drake.cell.preview_build"
+
+
 def build_command():
     """The command line of the background build (its inputs go on stdin: ``build_input``)."""
-    return [sys.executable, "-m", __name__]
+    return [sys.executable, "-m", BUILD_MODULE]
 
 
 def build_input(*, job, robot_yaml, k_Nm_per_rad, period_s, filter_ba, rate_hz, delay_steps, servo_option, file):
@@ -114,27 +118,3 @@ def build_input(*, job, robot_yaml, k_Nm_per_rad, period_s, filter_ba, rate_hz, 
                        "delay_steps": int(delay_steps),
                        "servo": None if servo_option is None else [float(v) for v in servo_option],
                        "file": str(file)})
-
-
-def main():
-    """The background build: the job's table into the cache file; exit status 0, or 2 with one line."""
-    from robstiff_drake.cell.preview_job import build_plan, load_job
-    from robstiff_drake.errors import InputError
-
-    spec = json.loads(sys.stdin.read())
-    try:
-        sc, robot = load_job(spec["job"], spec["robot"], period_s=spec["period_s"])
-        plan = build_plan(sc, robot, np.asarray(spec["k"]), period_s=spec["period_s"],
-                          filter_ba=tuple(np.asarray(x) for x in spec["filter_ba"]), rate_hz=spec["rate_hz"],
-                          delay_steps=spec["delay_steps"], servo_option=spec["servo"])
-    except InputError as e:
-        print(f"robstiff: error: {e}", file=sys.stderr)
-        return 2
-    if not save(plan, spec["file"]):
-        print(f"robstiff: error: cannot write the preview's table to {spec['file']}", file=sys.stderr)
-        return 2
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
