@@ -197,7 +197,7 @@ def main():
     rows.append(("  the same, the tool's tilt left out", "plant", tilt_share(res1, prediction.path)))
     for label, st in proof.items():
         if label.endswith("preview"):
-            label += " (its feed-forward counted twice)"
+            label += " (only what its scale estimate adds)"
         rows.append((label, "plant", st))
     rows.append(("corrected program + online plain on the whole measured wrench (the deflection corrected twice)",
                  "plant", double))

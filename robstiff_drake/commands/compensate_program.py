@@ -13,7 +13,10 @@ and the command writes, into DIR (all or nothing):
   whose targets carry the corrected orientation too.
 
 Then (unless ``--no-simulate``) the proof: the program as written and the
-corrected one on the job's plant, surface error before and after."""
+corrected one on the job's plant, surface error before and after, and the
+corrected program with online compensation on top (plain, hearing the
+measured wrench less the model's; preview, sending only what its scale
+estimate adds to the program's correction)."""
 
 import datetime
 import sys
@@ -32,7 +35,7 @@ def _say(text):
 
 
 def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot_yaml=None, simulate=True,
-        online=("plain",), show_progress=None, rounds=2):
+        online=("plain", "preview"), show_progress=None, rounds=2):
     from robstiff_drake.paths import find_scenario, unknown_scenario
 
     found = find_scenario(job)
