@@ -132,6 +132,22 @@ def tilt_share(res, path):
     return {k: st[k] for k in ("mean", "rms", "max_abs")}
 
 
+def reference_reading(sc, robot, program_file, prediction):
+    """The plant's floor error (mm stats) of the corrected joint reference
+    with the plant reading the chip's direction and feed off the corrected
+    program ``program_file``'s path instead of the programmed one (the
+    RAPID module's proof with the plant reading the module's own path)."""
+    import copy
+
+    from robstiff_drake.diagrams.experiment import run_cut
+    from robstiff_drake.diagrams.milling_cell import build_milling_cell
+
+    run_sc = copy.deepcopy(load_scenario(sc.source, toolpath=program_file))
+    cell = build_milling_cell(run_sc, robot, compensation=False, q_reference=oc.corrected_reference(prediction))
+    return oc._short(oc.scanned_against_program(run_cut(run_sc, robot, compensation=False, cell=cell),
+                                                prediction.path))
+
+
 def double_correction(sc, robot, program_file, prediction):
     """The plant's floor error (mm stats) with online plain compensation
     on top of the corrected program hearing the whole measured wrench (not
@@ -183,6 +199,8 @@ def main():
         module = oc.rapid_text(sc, robot, "face_and_contour",
                                oc.rapid_targets(sc, robot, program, corr0, prediction, back0.moves), ["study"])
         rapid = rapid_run(sc, robot, module, draft0, prediction)
+        rapid_own = rapid_run(sc, robot, module, draft0, prediction, plant_reads="module")
+        reading = reference_reading(sc, robot, draft0, prediction)
     rows.append(("program as written", "compensator's model (twin)", before))
     for k, h in enumerate(history):
         name = "corrected program, the preview's correction as written" if k == 0 else \
@@ -202,6 +220,9 @@ def main():
     rows.append(("corrected program + online plain on the whole measured wrench (the deflection corrected twice)",
                  "plant", double))
     rows.append(("RAPID module (read back; the preview's correction, the tool turned)", "plant", rapid))
+    rows.append(("  the same, the plant reading the chip's direction off the module's own path", "plant", rapid_own))
+    rows.append(("corrected joint reference, the plant reading the chip's direction off that path", "plant",
+                 reading))
     rows.append(("position-only correction (no program, the tool kept vertical)", "plant",
                  position_only(sc, robot, prediction)))
     figure(sc, program, read_program(written, "c.nc"), refined, FIGURE, prediction)
