@@ -108,3 +108,65 @@ def test_the_plans_table_is_put_on_the_corrected_programs_clock():
     assert abs(t[moving][-1] - u[moving][-1]) > 0.5  # the clocks differ: the mapping is not the identity
     same = clock_on(plan, plan, u)
     assert np.max(np.abs(same[moving] - u[moving])) < 0.003
+
+
+# ---------------------------------------------------------------- the feed planner's feeds in the corrected program
+
+
+def _plan(adopted, line_ranges):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(adopted=adopted, line_ranges=line_ranges, tolerance_mm=0.05, notes=[])
+
+
+def _feeds_along(path):
+    """[(end point mm, feed mm/min)] of the program's feed moves, read back."""
+    from robstiff_drake.model.gcode.program import read_program
+
+    back = read_program(path.read_text(), "c.nc")
+    assert back.warnings == []
+    return [(np.asarray(m.end_mm), m.feed_mm_per_min) for m in back.moves if m.kind != "rapid"]
+
+
+def test_the_corrected_program_carries_the_planned_feeds(tmp_path, monkeypatch):
+    """compensate-program --advise: where the feed planner lowers the feed
+    (here a plan that slows the last 6 mm of the closing G1 Y70. to F600),
+    the corrected program's F words are the plan's, everywhere else the
+    program's own; a plan that lowers nothing leaves the program's feeds."""
+    import json
+
+    from robstiff_drake.commands import compensate_program
+    from robstiff_drake.commands.main import main
+    from test_compensate_program import short_job
+
+    job = short_job(tmp_path / "job")
+    line = next(n for n, ln in enumerate((tmp_path / "job" / "short.nc").read_text().splitlines(), 1)
+                if ln.startswith("N80"))
+    monkeypatch.setattr(compensate_program, "plan_feeds",
+                        lambda sc, robot: _plan(True, {line: [(0.0, 4.0, 1200.0), (4.0, 10.0, 600.0)]}))
+    out = tmp_path / "slowed"
+    assert main(["compensate-program", str(job), "--out", str(out), "--no-simulate", "--refine-rounds", "0",
+                 "--advise", "--json", str(tmp_path / "s.json")]) == 0
+    summary = json.loads((tmp_path / "s.json").read_text())
+    assert summary["feed_plan"]["adopted"] and summary["feed_plan"]["lowered"] == {str(line): [[0.0, 4.0, 1200.0],
+                                                                                              [4.0, 10.0, 600.0]]}
+    text = (out / "short_compensated.nc").read_text()
+    assert "FEEDS LOWERED" in text
+    feeds = _feeds_along(out / "short_compensated.nc")
+    # (block ends within the correction, < 1 mm, of the programmed ones)
+    slowed = [f for p, f in feeds if abs(p[0] - 60.0) < 1.0 and p[1] > 65.0]  # the last 6 mm of G1 Y70.
+    assert slowed and set(slowed) == {600.0}
+    assert {f for p, f in feeds if p[1] < 63.0} == {1200.0}  # the rest at the program's own feed
+
+    monkeypatch.setattr(compensate_program, "plan_feeds", lambda sc, robot: _plan(False, {}))
+    kept = tmp_path / "kept"
+    assert main(["compensate-program", str(job), "--out", str(kept), "--no-simulate", "--refine-rounds", "0",
+                 "--advise"]) == 0
+    text = (kept / "short_compensated.nc").read_text()
+    assert "FEEDS LOWERED" not in text
+    assert {f for _, f in _feeds_along(kept / "short_compensated.nc")} == {1200.0}
+    # the same program as without --advise
+    plain = tmp_path / "plain"
+    assert main(["compensate-program", str(job), "--out", str(plain), "--no-simulate", "--refine-rounds", "0"]) == 0
+    strip = [ln for ln in text.splitlines() if "ROBSTIFF" not in ln]
+    assert strip == [ln for ln in (plain / "short_compensated.nc").read_text().splitlines() if "ROBSTIFF" not in ln]
