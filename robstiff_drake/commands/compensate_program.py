@@ -80,6 +80,8 @@ def advised(sc, robot, text, program_file, folder):
     path = Path(folder) / program_file.name
     path.write_text(new_text)
     sc2 = load_scenario(sc.source, toolpath=path)
+    # (messages name the user's program; their line numbers are those of the program with the planner's feeds)
+    sc2._program.path = f"{program_file} (with the feed planner's feeds)"
     return sc2, sc2._program, new_text, summary
 
 

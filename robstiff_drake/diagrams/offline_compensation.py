@@ -276,7 +276,8 @@ def proof_runs(job_sc, robot, corrected_program, prediction, *, modes=("off", "p
             out["corrected joint reference"] = _short(res.surface_error_mm)
         else:
             if say:
-                say(f"proof: the corrected program, on the plant, online {mode} compensation of the model's residual")
+                say(f"proof: the corrected program, on the plant, online {mode} compensation " +
+                    ("of the model's residual" if mode != "preview" else "(what its scale estimate adds)"))
             run_sc.controller.mode = mode
             user_models.resolve(run_sc, robot, prediction.q_ref_rad[0])
             if mode == "preview":  # the whole measured wrench; it sends only what its scales add to the program's
