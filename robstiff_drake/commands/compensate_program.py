@@ -205,7 +205,7 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
     if summary["simulated"]:
         show("surface error on the plant, scanned against the programmed surface (mm):")
         for label, st in summary["simulated"].items():
-            show(f"  {label:<32} mean {st['mean']:+.3f}  rms {st['rms']:.3f}  max {st['max_abs']:.3f}")
+            show(f"  {label:<34} mean {st['mean']:+.3f}  rms {st['rms']:.3f}  max {st['max_abs']:.3f}")
     wrote(out, ", ".join(names.values()), folder=True, to_stderr=stderr)
     wrote(json_out, "the summary", to_stderr=stderr)
     return 0
