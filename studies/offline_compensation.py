@@ -9,7 +9,7 @@ docs/offline_compensation_path.png: the corrected path against the
 programmed one (the correction magnified), and the correction along the
 path.
 
-    python studies/offline_compensation.py     # about 5 minutes on a quiet 2-core machine
+    python studies/offline_compensation.py     # about 7 minutes on a 2-core machine
 """
 
 import sys
