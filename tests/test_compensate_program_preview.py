@@ -170,3 +170,38 @@ def test_the_corrected_program_carries_the_planned_feeds(tmp_path, monkeypatch):
     assert main(["compensate-program", str(job), "--out", str(plain), "--no-simulate", "--refine-rounds", "0"]) == 0
     strip = [ln for ln in text.splitlines() if "ROBSTIFF" not in ln]
     assert strip == [ln for ln in (plain / "short_compensated.nc").read_text().splitlines() if "ROBSTIFF" not in ln]
+
+
+def test_in_the_closed_loop_the_preview_on_top_sends_almost_nothing_with_an_exact_model(tmp_path):
+    """The cell's wiring (diagrams/milling_cell.build_milling_cell with
+    ``offline_plan``): the short job on the compensator's own model as the
+    plant (offline_refinement.model_twin: the nominal model's stiffness,
+    damping, servo and linear cutting law), its program taken as the
+    corrected one and the plan as the one it was corrected for: the preview
+    on top sends a small fraction of what the preview on the program as
+    written sends (its whole feed-forward)."""
+    import copy
+
+    from robstiff_drake.diagrams import user_model as user_models
+    from robstiff_drake.diagrams.experiment import run_cut
+    from robstiff_drake.diagrams.milling_cell import build_milling_cell, planned_path
+    from robstiff_drake.diagrams.offline_refinement import model_twin
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+    from test_compensate_program import short_job
+
+    sc = load_scenario(short_job(tmp_path / "job"))
+    robot = scenario_robot(sc)
+    plan = planned_path(sc, robot, robot.tool_point(where="test"))
+    user_models.resolve(sc, robot, plan[2][0])
+    twin = model_twin(sc, robot)
+    twin.controller.mode = "preview"
+    sizes = {}
+    for offline in (None, plan):
+        run_sc = copy.deepcopy(twin)
+        cell = build_milling_cell(run_sc, robot, compensation=True, offline_plan=offline)
+        res = run_cut(run_sc, robot, compensation=True, cell=cell)
+        t, dq = res.logs["dq"]
+        sizes[offline is not None] = float(np.mean(np.abs(dq), axis=0).max())
+    print(f"mean |dq|, largest joint: preview {sizes[False] * 1e6:.1f} urad, on top {sizes[True] * 1e6:.2f} urad")
+    assert sizes[False] > 20e-6
+    assert sizes[True] < 0.1 * sizes[False]
