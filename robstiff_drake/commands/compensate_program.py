@@ -13,7 +13,10 @@ and the command writes, into DIR (all or nothing):
   whose targets carry the corrected orientation too.
 
 Then (unless ``--no-simulate``) the proof: the program as written and the
-corrected one on the job's plant, surface error before and after."""
+corrected one on the job's plant, surface error before and after, and the
+corrected program with online compensation on top (plain, hearing the
+measured wrench less the model's; preview, sending only what its scale
+estimate adds to the program's correction)."""
 
 import datetime
 import sys
@@ -32,7 +35,58 @@ def _say(text):
 
 
 def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot_yaml=None, simulate=True,
-        online=("plain",), show_progress=None, rounds=2):
+        online=("plain", "preview"), show_progress=None, rounds=2, advise=False):
+    """The command (module docstring); ``advise``: lower the feeds where
+    ``simulate --advise`` would (the feed planner, diagrams/feed_plan.py)
+    and correct the program with those feeds."""
+    with tempfile.TemporaryDirectory(prefix="robstiff-compensate-program-") as tmp:
+        return _run(job=job, out=out, json_out=json_out, chord_mm=chord_mm, max_correction_mm=max_correction_mm,
+                    robot_yaml=robot_yaml, simulate=simulate, online=online, show_progress=show_progress,
+                    rounds=rounds, advise=advise, tmp=Path(tmp))
+
+
+def plan_feeds(sc, robot):
+    """The feed plan of job ``sc`` as ``simulate --advise`` makes it."""
+    import copy
+
+    from robstiff_drake.diagrams.feed_plan import plan_feeds as planner
+
+    return planner(copy.deepcopy(sc), robot)
+
+
+def advised(sc, robot, text, program_file, folder):
+    """(scenario, program, text, plan summary): the job with its program's
+    feeds lowered where the feed planner lowers them (its program written
+    into ``folder`` under its own name), or the job as it is when the plan
+    lowers nothing (a plan is used only when it is predicted to improve on
+    the program as written)."""
+    from robstiff_drake.diagrams.scenario import load_scenario
+    from robstiff_drake.model.feed_plan import check_rewritable, rewrite_program
+
+    if not sc.path.tolerance_mm > 0:
+        raise InputError(f"{sc.source}: --advise: no tolerance to hold: set path.tolerance_mm in the job")
+    try:
+        check_rewritable(text, sc._program.moves)
+    except ValueError as e:
+        raise InputError(f"--advise: {program_file}: {e}") from None
+    _say("the feed planner (as simulate --advise): the job on the compensator's model")
+    plan = plan_feeds(sc, robot)
+    summary = {"adopted": bool(plan.adopted), "tolerance_mm": plan.tolerance_mm,
+               "lowered": {str(line): [[a, b, v] for a, b, v in parts] for line, parts in plan.line_ranges.items()},
+               "notes": list(plan.notes)}
+    if not (plan.adopted and plan.line_ranges):
+        return sc, sc._program, text, summary
+    new_text = rewrite_program(text, sc._program.moves, plan.line_ranges)
+    path = Path(folder) / program_file.name
+    path.write_text(new_text)
+    sc2 = load_scenario(sc.source, toolpath=path)
+    # (messages name the user's program; their line numbers are those of the program with the planner's feeds)
+    sc2._program.path = f"{program_file} (with the feed planner's feeds)"
+    return sc2, sc2._program, new_text, summary
+
+
+def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulate, online, show_progress, rounds,
+         advise, tmp):
     from robstiff_drake.paths import find_scenario, unknown_scenario
 
     found = find_scenario(job)
@@ -56,6 +110,9 @@ def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot
                          "warning: fix the input first)")
     text = program_file.read_bytes().decode("utf-8-sig")
     robot = scenario_robot(sc, robot_yaml)
+    feeds = None
+    if advise:
+        sc, program, text, feeds = advised(sc, robot, text, program_file, tmp)
 
     def bar(total):
         return progress(total, show_progress, "preview along the program", unit="cycle")
@@ -100,6 +157,9 @@ def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot
               f"PREDICTED SURFACE ERROR MM ON THAT MODEL: BEFORE MEAN {before['mean']:+.3f} MAX "
               f"{before['max_abs']:.3f}, AFTER MEAN {after['mean']:+.3f} MAX {after['max_abs']:.3f}; CHORD "
               f"{chord_mm:g} MM"]
+    if feeds is not None and feeds["lowered"]:
+        header.append("FEEDS LOWERED WHERE THE FEED PLANNER (SIMULATE --ADVISE) LOWERS THEM, TOLERANCE "
+                      f"{feeds['tolerance_mm']:g} MM")
     corrected_text, _ = rewrite_corrected(text, program.moves, corrections, header)
     stem = program_file.stem
     names = {"program": f"{stem}_compensated.nc", "rapid": f"{stem}_compensated.mod",
@@ -113,7 +173,7 @@ def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot
                "refinement_rounds": int(rounds),
                "segments_added": int(added), "corrected_moves": len(corrections),
                "max_correction_mm": float(largest), "chord_mm": chord_mm,
-               "prediction_seconds": float(prediction.seconds), "simulated": None}
+               "prediction_seconds": float(prediction.seconds), "simulated": None, "feed_plan": feeds}
     with RunFolder(out) as folder:
         folder.write(names["program"], corrected_text)
         folder.write(names["reference"], oc.reference_text(robot, prediction, folder.run_id, job))
@@ -145,7 +205,7 @@ def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot
     if summary["simulated"]:
         show("surface error on the plant, scanned against the programmed surface (mm):")
         for label, st in summary["simulated"].items():
-            show(f"  {label:<32} mean {st['mean']:+.3f}  rms {st['rms']:.3f}  max {st['max_abs']:.3f}")
+            show(f"  {label:<34} mean {st['mean']:+.3f}  rms {st['rms']:.3f}  max {st['max_abs']:.3f}")
     wrote(out, ", ".join(names.values()), folder=True, to_stderr=stderr)
     wrote(json_out, "the summary", to_stderr=stderr)
     return 0

@@ -156,7 +156,7 @@ def _dispatch(args):
         return compensate_program.run(job=args.job, out=args.out, json_out=args.json, chord_mm=args.chord_mm,
                                       max_correction_mm=args.max_correction_mm, robot_yaml=args.robot,
                                       simulate=not args.no_simulate, show_progress=args.progress,
-                                      rounds=args.refine_rounds)
+                                      rounds=args.refine_rounds, advise=args.advise)
     if args.command == "examples":
         from robstiff_drake.commands import examples
 

@@ -296,6 +296,9 @@ def build_parser():
     p.add_argument("--refine-rounds", type=_number_in(0, 10, integer=True), default=2, metavar="N",
                    help="rounds of refining the corrected program's floor on the compensator's model (each one "
                         "simulation of the job; 0: the preview's correction as it is; default: %(default)s)")
+    p.add_argument("--advise", action="store_true",
+                   help="lower the feeds where `simulate --advise` would (the feed planner: the job run on the "
+                        "compensator's model two or more times) and write them into the corrected program")
     p.add_argument("--no-simulate", action="store_true", help="skip the proof runs on the plant")
     p.add_argument("--progress", action="store_true", default=None, help="show the progress bar even off a terminal")
     _add_robot_option(p, "the robot (default: the job's `robot:`, else irb6400)")

@@ -14,6 +14,7 @@ rest on the path's first point.
 """
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from pydrake.common import RandomGenerator
@@ -40,6 +41,7 @@ from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.arm_dynamics import ArmInertia
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.preview import preview_table
+from robstiff_drake.model.program_correction import clock_on
 from robstiff_drake.systems.predictive_wrench import PredictiveWrench
 from robstiff_drake.systems.preview_correction import PreviewCorrection, PreviewModel
 
@@ -181,7 +183,8 @@ def check_plant_step(sc, robot):
     build_station(sc, robot, q_modes_rad=path_poses(q_ref))
 
 
-def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_ba, modal_damping=None):
+def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_ba, modal_damping=None,
+                    offline=False, clock=None):
     """A function (kinematics, deflection model) -> PreviewCorrection: the
     scenario's preview compensator, from the compensator's own models (its
     stiffness, its servo model, its force model per coefficient group;
@@ -189,7 +192,12 @@ def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_
     of the rest (diagrams/user_measurements.py: the robot file's inertias
     as a user's file has them, the tool point from a TCP calibration, the
     workpiece's top from a probe, the damping from ``modal_damping(sc)``,
-    a modal test on the station)."""
+    a modal test on the station).  ``offline``: the cell runs a program
+    corrected offline for this plan (``path``, ``t_ref``, ``q_ref``: the
+    plan of the program as written), so the preview sends only what its
+    scale estimate adds (systems/preview_correction.py); ``clock``: the
+    plan's times -> the cell's (model/program_correction.clock_on), or None
+    (the same clock)."""
     ss, ctl = sc.sensor, sc.controller
     T = ctl.period_ms / 1e3
     servo = user_models.servo_model(sc)
@@ -223,6 +231,8 @@ def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_
             if len(_PREVIEWS) >= 8:
                 del _PREVIEWS[next(iter(_PREVIEWS))]
             _PREVIEWS[key] = table
+        if clock is not None:
+            table = (clock(table[0]),) + tuple(table[1:])
         # a correction computed at a tick reaches the robot controller's
         # sampling of its targets after the delay line and the correction's
         # own update (Drake's same-instant semantics: each discrete block
@@ -231,24 +241,32 @@ def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_
         # sensor samples (sensor, guard)
         return PreviewCorrection(table=table, deflection=deflection, filter_ba=filter_ba, rate_hz=ss.rate_hz,
                                  period_s=T, lead_s=(ctl.delay_steps + 1) * T,
-                                 lag_s=servo.dead_time_s + 2.0 / ss.rate_hz, scale_sigma=sigma)
+                                 lag_s=servo.dead_time_s + 2.0 / ss.rate_hz, scale_sigma=sigma, offline=offline)
 
     return make
 
 
-def build_compensator(sc, robot, station, *, path, workpiece, t_ref=None, q_ref=None):
+def build_compensator(sc, robot, station, *, path, workpiece, t_ref=None, q_ref=None, offline_plan=None):
     """The scenario's compensator: its own stiffness model, payload
     calibration and (in predictive and preview modes) cutting-force model;
-    preview mode needs the path's joint references (``t_ref``, ``q_ref``)."""
+    preview mode needs the path's joint references (``t_ref``, ``q_ref``).
+    ``offline_plan``: (path, t_ref, q_ref) of the program as written when
+    the cell runs a program corrected offline for it (the preview then
+    sends only what its scale estimate adds)."""
     ss, ctl = sc.sensor, sc.controller
     T = ctl.period_ms / 1e3
     cutter, _, _ = cutting_setup(sc)
     ba = filter_coefficients(ctl.filter, ss.rate_hz, cutter.spindle_rpm)
     predictive = preview = None
     if ctl.mode == "preview":
-        preview = preview_factory(sc, robot, path=path, workpiece=workpiece, t_ref=t_ref, q_ref=q_ref,
+        plan, clock = (path, t_ref, q_ref), None
+        if offline_plan is not None:  # the table on the plan the program was corrected for, put on the cell's clock
+            plan = offline_plan
+            clock = partial(clock_on, offline_plan[0], path)
+        preview = preview_factory(sc, robot, path=plan[0], workpiece=workpiece, t_ref=plan[1], q_ref=plan[2],
                                   tool_m=station.tool_m, filter_ba=ba,
-                                  modal_damping=lambda s: user_measured_damping(s, robot, station, q_ref[0]))
+                                  modal_damping=lambda s: user_measured_damping(s, robot, station, q_ref[0]),
+                                  offline=offline_plan is not None, clock=clock)
     if ctl.mode == "predictive":
         _, model_forces, _ = model_cutting_setup(sc)
         # a correction computed now acts after the delay line, half a hold,
@@ -269,20 +287,25 @@ def build_compensator(sc, robot, station, *, path, workpiece, t_ref=None, q_ref=
         lost_motion_law=sc.model.lost_motion_law, lost_motion_friction_Nm=sc.model.lost_motion_friction_Nm or None)
 
 
-def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model_wrench=None, q_reference=None):
+def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model_wrench=None, q_reference=None,
+                       offline_plan=None):
     """Build the closed-loop diagram of scenario ``sc``: the station, the
     path and (always built, connected only with ``compensation``) the
     compensator.  ``model_wrench``: (times s, (N, 6) sensor-frame wrench)
     subtracted from the measured wrench before the compensator (the part a
     corrected program already compensates: diagrams/offline_compensation.py);
     ``q_reference``: (times s, (N, 6) rad) joint references streamed instead
-    of the path's own (a corrected joint reference)."""
+    of the path's own (a corrected joint reference); ``offline_plan``:
+    (path, t_ref, q_ref) of the program as written, when the scenario's
+    program is that program corrected offline (preview mode then sends only
+    what its scale estimate adds: build_compensator)."""
     tool = robot.tool_point(where="the closed loop")
     _, fmodel, workpiece = cutting_setup(sc)
     path, t_ref, q_ref = planned_path(sc, robot, tool)
     station = build_station(sc, robot, q_modes_rad=path_poses(q_ref), path=path)
     user_models.resolve(sc, robot, q_ref[0])
-    comp = build_compensator(sc, robot, station, path=path, workpiece=workpiece, t_ref=t_ref, q_ref=q_ref)
+    comp = build_compensator(sc, robot, station, path=path, workpiece=workpiece, t_ref=t_ref, q_ref=q_ref,
+                             offline_plan=offline_plan)
 
     builder = DiagramBuilder()
     st = builder.AddSystem(station.diagram)

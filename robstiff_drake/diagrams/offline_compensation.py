@@ -218,11 +218,13 @@ def model_wrench_cell(sc, robot, prediction):
     minus the model's (the part the corrected program already holds), at
     the lag the measured one has behind the path (the arm's dead time and
     two sensor samples)."""
-    from robstiff_drake.diagrams.milling_cell import build_milling_cell
+    from robstiff_drake.diagrams.milling_cell import build_milling_cell, planned_path
+    from robstiff_drake.model.program_correction import clock_on
 
     lag = prediction.servo.dead_time_s + 2.0 / sc.sensor.rate_hz
-    return build_milling_cell(sc, robot, compensation=True,
-                              model_wrench=(prediction.u_s + lag, prediction.sensor_wrench))
+    path, _, _ = planned_path(sc, robot, robot.tool_point(where="the closed loop"))
+    u = clock_on(prediction.path, path, prediction.u_s)  # the plan's times on the corrected program's clock
+    return build_milling_cell(sc, robot, compensation=True, model_wrench=(u + lag, prediction.sensor_wrench))
 
 
 def corrected_reference(prediction):
@@ -245,8 +247,9 @@ def reference_text(robot, prediction, run_id, job):
 
 def proof_runs(job_sc, robot, corrected_program, prediction, *, modes=("off", "plain"), progress=None, say=None):
     """{"uncompensated": stats, "corrected program": stats, "corrected joint
-    reference": stats, "corrected program + online plain": stats}: the
-    plant's surface error (mm), scanned against the programmed surface."""
+    reference": stats, "corrected program + online <mode>": stats for the
+    other ``modes`` (plain, preview)}: the plant's surface error (mm),
+    scanned against the programmed surface."""
     from robstiff_drake.diagrams import user_model as user_models
     from robstiff_drake.diagrams.experiment import run_cut
     from robstiff_drake.diagrams.milling_cell import build_milling_cell
@@ -273,10 +276,15 @@ def proof_runs(job_sc, robot, corrected_program, prediction, *, modes=("off", "p
             out["corrected joint reference"] = _short(res.surface_error_mm)
         else:
             if say:
-                say(f"proof: the corrected program, on the plant, online {mode} compensation of the model's residual")
+                say(f"proof: the corrected program, on the plant, online {mode} compensation " +
+                    ("of the model's residual" if mode != "preview" else "(what its scale estimate adds)"))
             run_sc.controller.mode = mode
             user_models.resolve(run_sc, robot, prediction.q_ref_rad[0])
-            cell = model_wrench_cell(run_sc, robot, prediction)
+            if mode == "preview":  # the whole measured wrench; it sends only what its scales add to the program's
+                cell = build_milling_cell(run_sc, robot, compensation=True, offline_plan=(
+                    prediction.path, prediction.t_ref_s, prediction.q_ref_rad))
+            else:
+                cell = model_wrench_cell(run_sc, robot, prediction)
             res = run_cut(run_sc, robot, compensation=True, cell=cell, progress=progress)
             out[f"corrected program + online {mode}"] = _short(scanned_against_program(res, prediction.path))
     return out

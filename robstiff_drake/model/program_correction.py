@@ -254,3 +254,31 @@ def correct_moves(moves, samples_of_move, *, chord_mm, max_correction_mm, round_
         out[m.line] = MoveCorrection(m.line, pieces, float(size.max()))
         written_end = pieces[-1].end_mm
     return out
+
+
+def clock_on(path_from, path_to, u_s, period_s=0.002):
+    """Times (s) on ``path_to``'s clock when its tool passes the points
+    ``path_from`` (model/path.py) reaches at times ``u_s``: each point
+    projected onto ``path_to`` (the corrected program's path, within its
+    correction of the planned one) and the first time ``path_to`` reaches
+    that arc length (sampled every ``period_s``, linear between); where
+    ``path_from`` stands still (its dwell, a stop) the last offset is held.
+    A table computed on the planned path (the preview's, the model's
+    wrench) is put on the clock of the corrected program that runs instead
+    (their blocks differ, so do their speed profiles: a few milliseconds
+    through a cut, more where the corners differ).  Strictly increasing."""
+    u_s = np.asarray(u_s, dtype=float)
+    ts = np.arange(0.0, path_to.duration_s + period_s, period_s)
+    ss = np.array([path_to.arc_length(t) for t in ts])
+    out = np.empty(len(u_s))
+    s, offset = 0.0, 0.0
+    for k, u in enumerate(u_s):
+        if 0.0 <= u <= path_from.duration_s and path_from.speed(u) > 1e-6:
+            s = path_to.project(path_from.position(u), s, max_step_m=0.05, iterations=20)
+            i = int(np.searchsorted(ss, s, side="left"))
+            if 0 < i < len(ss):
+                a = (s - ss[i - 1]) / (ss[i] - ss[i - 1])
+                offset = ts[i - 1] + a * (ts[i] - ts[i - 1]) - u
+        out[k] = u + offset
+    out = np.maximum.accumulate(out)
+    return out + np.arange(len(out)) * 1e-9  # strictly increasing (held stretches)

@@ -19,6 +19,24 @@ force against the replica's groups, updated every period while the cut
 is loaded: a force model off by 20 % is corrected once the cut has been
 felt, so the corners and exits after it are previewed at the right size.
 
+On top of a program already corrected offline for the same model
+(``offline=True``: diagrams/offline_compensation.py, the program written
+with the model's correction at scale 1 and the path's inertia), the
+feed-forward the program holds is not sent again: only what the scale
+estimate adds to it,
+
+    dq = -sum_g (s_g - 1) c_g(t + lead)
+         + C J^T [W_measured - filter(sum_g s_g W_g + W_inertia)]
+
+with the table computed on the plan the program was corrected for (the
+programmed path, where the corrected program puts the tool): with an exact
+model the measured wrench is the replica's, the scales stay at one, and
+the correction is zero.  There the scales learn only where the model's
+force is steady (STEADY_WINDOW_S): at a cut's entry the measured force
+rises later than the model's (its engagement's timing, not its
+coefficients), and a scale learned there would take back part of the
+program's correction.
+
 The arithmetic of the bracket's deflection is model/compensator.
 DeflectionModel's, shared with the plain chain."""
 
@@ -30,6 +48,12 @@ from scipy.interpolate import CubicSpline
 from robstiff_drake.model.preview import GROUPS, N_FORCE_GROUPS
 
 MIN_GROUP_FORCE_N = 10.0  # the scales learn only while the model's filtered group forces reach this
+# on top of a program corrected offline, the scales learn only where the model's force is steady: over the last
+# STEADY_WINDOW_S its change stays within STEADY_FRACTION of it (at an entry the model's engagement timing, not its
+# coefficients, is what differs from the cut's: measured on face_and_contour, the force rising ~50 ms after the
+# model's at the plate's edge drove every scale to its lower limit within 40 ms)
+STEADY_WINDOW_S = 0.05
+STEADY_FRACTION = 0.1
 SCALE_LIMITS = (0.3, 2.0)  # a scale beyond these is not a coefficient error but another process
 
 
@@ -91,10 +115,13 @@ class PreviewCorrection(LeafSystem):
     behind the model's at the same path time (the arm's dead time behind its
     reference and two sensor samples); ``scale_sigma``: the prior's
     standard deviation of each group's scale; ``noise_N``: of the filtered
-    force against the model's."""
+    force against the model's; ``offline``: the reference is a program
+    already corrected for the table's model at scale 1 (module docstring),
+    so the feed-forward sent is only each force group's part times its
+    scale less one (the inertia's part none)."""
 
     def __init__(self, *, table, deflection, filter_ba, rate_hz, period_s, lead_s, lag_s, scale_sigma=0.25,
-                 noise_N=3.0, scale_walk_per_s=0.01, learn=True):
+                 noise_N=3.0, scale_walk_per_s=0.01, learn=True, offline=False):
         super().__init__()
         self._u, self._c, self._s = (np.asarray(a, dtype=float) for a in table)
         self._model = deflection
@@ -107,6 +134,7 @@ class PreviewCorrection(LeafSystem):
         self._nf = A.shape[0]
         self._ng = len(GROUPS)
         self._learn = bool(learn)
+        self._offline = bool(offline)
         self._P0 = np.eye(N_FORCE_GROUPS) * scale_sigma ** 2
         self._R = np.eye(3) * noise_N ** 2
         self._Q = np.eye(N_FORCE_GROUPS) * scale_walk_per_s ** 2 * period_s
@@ -148,6 +176,14 @@ class PreviewCorrection(LeafSystem):
         y = (self._C @ X if self._nf else 0.0) + self._D * u
         return np.asarray(y).reshape(self._ng, 6)
 
+    def _steady(self, t):
+        """Whether the model's force (all groups, before the filter) at the
+        path time the measurement at tick ``t`` belongs to has changed by
+        less than STEADY_FRACTION of itself over STEADY_WINDOW_S."""
+        now = self._at(self._s, t - self._lag)[:N_FORCE_GROUPS, :3].sum(axis=0)
+        then = self._at(self._s, t - self._lag - STEADY_WINDOW_S)[:N_FORCE_GROUPS, :3].sum(axis=0)
+        return float(np.linalg.norm(now - then)) <= STEADY_FRACTION * float(np.linalg.norm(now))
+
     def _update(self, context, discrete_state):
         x = context.get_discrete_state(self._state).value()
         X, s, P, t_last = self._split(x)
@@ -155,7 +191,7 @@ class PreviewCorrection(LeafSystem):
         if self._learn and t > 0:
             Y = self._replica(X, t_last)  # what the measurement sampled at the last tick is compared with
             Phi = Y[:N_FORCE_GROUPS, :3].T  # (3 force components, 3 groups)
-            if np.max(np.abs(Phi)) > MIN_GROUP_FORCE_N:
+            if np.max(np.abs(Phi)) > MIN_GROUP_FORCE_N and (not self._offline or self._steady(t_last)):
                 y = self._w.Eval(context)[:3] - Y[-1, :3]
                 P = P + self._Q
                 S = Phi @ P @ Phi.T + self._R
@@ -176,7 +212,8 @@ class PreviewCorrection(LeafSystem):
         q = self._q.Eval(context)
         bracket = self._w.Eval(context) - model
         dq_fb = np.asarray(self._model.dq(bracket, q), dtype=float)
-        c = weights @ self._at(self._c, context.get_time() + self._lead)
+        ff = np.r_[s - 1.0, 0.0] if self._offline else weights  # what the reference does not already hold
+        c = ff @ self._at(self._c, context.get_time() + self._lead)
         output.SetFromVector(dq_fb - c)
 
     def _calc_scales(self, context, output):
