@@ -207,6 +207,7 @@ def double_correction(sc, robot, program_file, prediction):
 
 def main():
     from robstiff_drake.diagrams.experiment import run_cut
+    from robstiff_drake.diagrams import offline_refinement
     from robstiff_drake.diagrams.offline_refinement import refine
     from robstiff_drake.diagrams.rapid_proof import rapid_run
 
@@ -228,7 +229,7 @@ def main():
         draft0.write_text(rewrite_corrected(text, program.moves, corr0)[0])
         draft = Path(tmp) / "face_and_contour_compensated.nc"
         draft.write_text(written)
-        before, after = oc.predicted_errors(sc, robot, refined, draft, after=history[-1])
+        before, after = offline_refinement.predicted_errors(sc, robot, refined, draft, after=history[-1])
         print("  predicted on the model: done", file=sys.stderr, flush=True)
         res0 = run_cut(load_scenario(sc.source, toolpath=draft0), robot, compensation=False)
         plant0 = oc._short(oc.scanned_against_program(res0, prediction.path))

@@ -95,6 +95,7 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
     job = str(found)
     check_outputs(inputs=[job], files={"--json": json_out}, folders={"--out": out})
     from robstiff_drake.diagrams import offline_compensation as oc
+    from robstiff_drake.diagrams import offline_refinement
     from robstiff_drake.diagrams.scenario import load_scenario, resolve, scenario_robot
     from robstiff_drake.model.gcode.writer import ProgramWriteError, rewrite_corrected
     from robstiff_drake.model.program_correction import CorrectionError
@@ -124,10 +125,9 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
                                           max_correction_mm=max_correction_mm)
         preview_corrections = corrections  # the RAPID module's positions (its targets carry the orientation too)
         if rounds > 0:  # the floor refined on the compensator's model (diagrams/offline_refinement.py)
-            from robstiff_drake.diagrams.offline_refinement import refine
-
-            prediction, history = refine(sc, robot, program, text, prediction, rounds=rounds, chord_mm=chord_mm,
-                                         max_correction_mm=max_correction_mm, progress=show_progress, say=_say)
+            prediction, history = offline_refinement.refine(sc, robot, program, text, prediction, rounds=rounds,
+                                                            chord_mm=chord_mm, max_correction_mm=max_correction_mm,
+                                                            progress=show_progress, say=_say)
             corrections = oc.move_corrections(sc, program, prediction, chord_mm=chord_mm,
                                               max_correction_mm=max_correction_mm)
     except CorrectionError as e:
@@ -150,8 +150,8 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
     with tempfile.TemporaryDirectory(prefix="robstiff-compensate-program-") as tmp:
         draft = Path(tmp) / program_file.name
         draft.write_text(plain_text)
-        before, after = oc.predicted_errors(sc, robot, prediction, draft, progress=show_progress, say=_say,
-                                            after=history[-1] if history else None)
+        before, after = offline_refinement.predicted_errors(sc, robot, prediction, draft, progress=show_progress,
+                                                            say=_say, after=history[-1] if history else None)
     header = [f"ROBSTIFF COMPENSATE-PROGRAM {datetime.date.today().isoformat()}: {program_file.name} corrected for "
               f"the arm's deflection predicted by the {model} of {Path(job).name}",
               f"PREDICTED SURFACE ERROR MM ON THAT MODEL: BEFORE MEAN {before['mean']:+.3f} MAX "

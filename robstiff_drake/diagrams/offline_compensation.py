@@ -182,26 +182,6 @@ def move_corrections(sc, program, prediction, *, chord_mm, max_correction_mm):
                             round_mm=1e-4, is_cutting=is_cutting, label=program.path)
 
 
-def predicted_errors(sc, robot, prediction, corrected_program, *, progress=None, say=None, after=None):
-    """The predicted surface error (mm: mean, max_abs, ...) on the
-    compensator's model, before (the program as written) and after (the
-    corrected program): each run on the model's twin of the cell
-    (diagrams/offline_refinement.model_twin: the identified stiffness, its
-    damping, servo, linear force model and sensor bias as the plant), scanned
-    against the programmed surface.  ``after``: the corrected program's
-    stats when already known (the refinement's last round)"""
-    from robstiff_drake.diagrams.offline_refinement import twin_run
-
-    if say:
-        say("the compensator's model (its twin of the cell): the program as written" +
-            (" and the corrected one" if after is None else ""))
-    before = twin_run(sc, robot, prediction, progress=progress).surface_error_mm
-    if after is None:
-        res = twin_run(sc, robot, prediction, corrected_program, progress=progress)
-        after = _short(scanned_against_program(res, prediction.path))
-    return _short(before), after
-
-
 def scanned_against_program(res, program_path):
     """Surface-error statistics (mm) of a run, scanned against the
     programmed path's commanded surface (not the corrected program's)."""

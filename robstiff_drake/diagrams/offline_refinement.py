@@ -96,6 +96,26 @@ def twin_run(sc, robot, prediction, program_file=None, *, progress=None):
     return run_cut(model_twin(sc2, robot), robot, compensation=False, progress=progress)
 
 
+def predicted_errors(sc, robot, prediction, corrected_program, *, progress=None, say=None, after=None):
+    """The predicted surface error (mm: mean, max_abs, ...) on the
+    compensator's model, before (the program as written) and after (the
+    corrected program): each run on the model's twin of the cell
+    (model_twin: the identified stiffness, its
+    damping, servo, linear force model and sensor bias as the plant), scanned
+    against the programmed surface.  ``after``: the corrected program's
+    stats when already known (the refinement's last round)"""
+    from robstiff_drake.diagrams.offline_compensation import _short, scanned_against_program
+
+    if say:
+        say("the compensator's model (its twin of the cell): the program as written" +
+            (" and the corrected one" if after is None else ""))
+    before = twin_run(sc, robot, prediction, progress=progress).surface_error_mm
+    if after is None:
+        res = twin_run(sc, robot, prediction, corrected_program, progress=progress)
+        after = _short(scanned_against_program(res, prediction.path))
+    return _short(before), after
+
+
 def refine(sc, robot, program, text, prediction, *, rounds, chord_mm, max_correction_mm, progress=None, say=None):
     """(the refined Prediction, [twin surface-error stats mm per round]):
     ``rounds`` rounds of the floor's fixed-point iteration (module
