@@ -20,17 +20,24 @@ MAX_INSTANTS = 8
 
 
 # The chip (its feed and its direction) follows the tool's horizontal
-# velocity, averaged over a revolution (the chip's window) and low-passed as
-# a vector at this frequency (Hz), below the arm's first mode (about 5 Hz):
-# the path's speed ramps (0.5 s), its turns and the tool's lag behind its
-# plan pass, its vibration at the arm's modes does not (a direction that
-# followed the vibration would feed the cutting force back as a damping of
-# |F|/v, about 1e4 N*s/m, a step behind: the same instability as below).  The chip's feedback at those modes (process
+# velocity relative to the workpiece, averaged over a revolution (the chip's
+# window: a revolution's chips are its displacement shared by the teeth),
+# its speed low-passed at this frequency (Hz), below the arm's first mode
+# (about 5 Hz): the path's speed ramps (0.5 s) and the tool's lag behind its
+# plan pass, its vibration at the arm's modes does not (a direction or a
+# feed that followed the vibration would feed the cutting force back at
+# about |F|/v, 1e4 N*s/m, a step behind).  The chip's feedback at those modes (process
 # damping, regenerative and mode-coupling chatter) is real physics this
 # plant leaves out: computed at the force's 4 ms update, a step behind, it
 # is no damping but a numerical instability (the paper's forces on the
 # block ring within 5 s without this filter).
 FEED_CUTOFF_HZ = 2.0
+# The direction's own cutoff (Hz): the feed's.  MEASURED on the face-and-contour job
+# (diagrams/face_and_contour.yaml, uncompensated): without it (the revolution's average alone) the force
+# rings at 10.7 Hz (+-70 N) on the last pass; at 5 and 10 Hz the steady pass's mean error grows by 0.012 and
+# 0.028 mm.  Its cost: the direction lags a turn by its time constant (80 ms: 1.6 mm at 20 mm/s), where
+# the tool's real chip turns within a revolution (17 ms).
+DIRECTION_CUTOFF_HZ = FEED_CUTOFF_HZ
 # Below this smoothed horizontal speed the tool stands still (a dwell, a
 # plunge): no feed, no chip; the direction stays the last one.
 STANDSTILL_M_PER_S = 1e-5
@@ -115,7 +122,8 @@ class MillingForceSource(LeafSystem):
         n_sub = max(1, int(round(period_s * force_model.cutter.tooth_pass_hz * samples_per_tooth)))
         self._sub_t = np.arange(n_sub) * (period_s / n_sub)
         self._period = float(period_s)
-        self._feed_gain = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)  # (smoothed_feed)
+        self._feed_gain = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)  # (smoothed_velocity)
+        self._direction_gain = 1.0 - math.exp(-2.0 * math.pi * DIRECTION_CUTOFF_HZ * self._period)
         self._sensor_period = float(sensor_period_s or period_s)
         self._q = self.DeclareVectorInputPort("q", 6)
         # held: flange rotation (9) and tool point (3; tooth mode only, where it is read); the period's wrench
@@ -252,18 +260,28 @@ class MillingForceSource(LeafSystem):
         return ((h[-2] - ref[1]) / span, (h[-1] - ref[2]) / span), np.array(h)
 
     def smoothed_velocity(self, v_now, u_held, feed_held):
-        """(feed direction (2,), feed m/s) the chip follows: the tool's
-        revolution-averaged horizontal velocity low-passed as a vector at
-        FEED_CUTOFF_HZ (first order, one step per update) from the held one
-        (feed_held along u_held); at standstill (a dwell, a plunge, a tool
-        held back) the feed dies away and the direction stays the last."""
-        g = self._feed_gain
-        vx = feed_held * u_held[0] + g * (v_now[0] - feed_held * u_held[0])
-        vy = feed_held * u_held[1] + g * (v_now[1] - feed_held * u_held[1])
-        feed = math.hypot(vx, vy)
+        """(feed direction (2,), feed m/s) the chip follows from the tool's
+        revolution-averaged horizontal velocity ``v_now`` (m/s) and the
+        held direction and feed: the feed is its speed low-passed at
+        FEED_CUTOFF_HZ, the direction its vector low-passed at
+        DIRECTION_CUTOFF_HZ (first order, one step per update; the held
+        vector is the held feed along the held direction, so a turn at
+        speed swings the direction without thinning the chip, and after a
+        standstill the new motion sets it at once); at standstill (a
+        dwell, a plunge, a tool held back) the feed dies away and the
+        direction stays the last."""
+        speed = math.hypot(v_now[0], v_now[1])
+        feed = feed_held + self._feed_gain * (speed - feed_held)
         if feed < STANDSTILL_M_PER_S:
             return (float(u_held[0]), float(u_held[1])), 0.0
-        return (vx / feed, vy / feed), feed
+        ux, uy = float(u_held[0]), float(u_held[1])
+        g = self._direction_gain
+        vx = feed_held * ux + g * (v_now[0] - feed_held * ux)
+        vy = feed_held * uy + g * (v_now[1] - feed_held * uy)
+        n = math.hypot(vx, vy)
+        if n < 1e-12:
+            return (ux, uy), feed
+        return (vx / n, vy / n), feed
 
     def step_wrench(self, t, q, process, hist, instants=()):
         """(wrench over the period starting at t as a list, pose, the
