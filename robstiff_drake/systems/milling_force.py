@@ -32,12 +32,17 @@ MAX_INSTANTS = 8
 # is no damping but a numerical instability (the paper's forces on the
 # block ring within 5 s without this filter).
 FEED_CUTOFF_HZ = 2.0
-# The direction's own cutoff (Hz): the feed's.  MEASURED on the face-and-contour job
-# (diagrams/face_and_contour.yaml, uncompensated): without it (the revolution's average alone) the force
-# rings at 10.7 Hz (+-70 N) on the last pass; at 5 and 10 Hz the steady pass's mean error grows by 0.012 and
-# 0.028 mm.  Its cost: the direction lags a turn by its time constant (80 ms: 1.6 mm at 20 mm/s), where
-# the tool's real chip turns within a revolution (17 ms).
-DIRECTION_CUTOFF_HZ = FEED_CUTOFF_HZ
+# The direction turns toward the tool's over this much travel (m, at the
+# smoothed feed): the feed's 2 Hz at the examples' F1200 (20 mm/s / (2 pi
+# 2 Hz)).  MEASURED on the face-and-contour job (diagrams/face_and_contour.yaml):
+# the revolution's average alone rings the force at 10.7 Hz (+-70 N) on the
+# last pass (uncompensated); a 2 Hz time filter lets the arm's ringing and
+# deflection swing the direction where the tool starts slowly after the
+# plunge, and the tool dips 0.2 mm there (preview, identified model: +0.116
+# mean / 0.215 max mm, against +0.057 / 0.098 with this filter).  Its cost:
+# the direction lags a turn by about this length, where the tool's real
+# chip turns within a revolution's travel (0.33 mm at F1200, S3600).
+DIRECTION_LENGTH_M = 0.02 / (2.0 * math.pi * FEED_CUTOFF_HZ)
 # Below this smoothed horizontal speed the tool stands still (a dwell, a
 # plunge): no feed, no chip; the direction stays the last one.
 STANDSTILL_M_PER_S = 1e-5
@@ -123,7 +128,6 @@ class MillingForceSource(LeafSystem):
         self._sub_t = np.arange(n_sub) * (period_s / n_sub)
         self._period = float(period_s)
         self._feed_gain = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)  # (smoothed_velocity)
-        self._direction_gain = 1.0 - math.exp(-2.0 * math.pi * DIRECTION_CUTOFF_HZ * self._period)
         self._sensor_period = float(sensor_period_s or period_s)
         self._q = self.DeclareVectorInputPort("q", 6)
         # held: flange rotation (9) and tool point (3; tooth mode only, where it is read); the period's wrench
@@ -263,25 +267,28 @@ class MillingForceSource(LeafSystem):
         """(feed direction (2,), feed m/s) the chip follows from the tool's
         revolution-averaged horizontal velocity ``v_now`` (m/s) and the
         held direction and feed: the feed is its speed low-passed at
-        FEED_CUTOFF_HZ, the direction its vector low-passed at
-        DIRECTION_CUTOFF_HZ (first order, one step per update; the held
-        vector is the held feed along the held direction, so a turn at
-        speed swings the direction without thinning the chip, and after a
-        standstill the new motion sets it at once); at standstill (a
-        dwell, a plunge, a tool held back) the feed dies away and the
-        direction stays the last."""
+        FEED_CUTOFF_HZ (first order, one step per update); the direction
+        turns toward its direction by the distance the tool moved this
+        update over DIRECTION_LENGTH_M (first order in the distance
+        travelled: the material ahead of the cutter, which sets its
+        engagement, changes as the tool moves, not with time).  At
+        standstill (a dwell, a plunge, a tool held back) the feed dies away
+        and the direction stays the last."""
         speed = math.hypot(v_now[0], v_now[1])
         feed = feed_held + self._feed_gain * (speed - feed_held)
         if feed < STANDSTILL_M_PER_S:
             return (float(u_held[0]), float(u_held[1])), 0.0
         ux, uy = float(u_held[0]), float(u_held[1])
-        g = self._direction_gain
-        vx = feed_held * ux + g * (v_now[0] - feed_held * ux)
-        vy = feed_held * uy + g * (v_now[1] - feed_held * uy)
-        n = math.hypot(vx, vy)
-        if n < 1e-12:
-            return (ux, uy), feed
-        return (vx / n, vy / n), feed
+        if speed > STANDSTILL_M_PER_S:
+            g = 1.0 - math.exp(-feed * self._period / DIRECTION_LENGTH_M)
+            ux += g * (v_now[0] / speed - ux)
+            uy += g * (v_now[1] / speed - uy)
+            n = math.hypot(ux, uy)
+            if n > 1e-9:
+                ux, uy = ux / n, uy / n
+            else:
+                ux, uy = float(u_held[0]), float(u_held[1])
+        return (ux, uy), feed
 
     def step_wrench(self, t, q, process, hist, instants=()):
         """(wrench over the period starting at t as a list, pose, the
