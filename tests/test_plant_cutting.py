@@ -156,3 +156,47 @@ def test_a_speed_ramp_thins_the_chip(arm):
     _, p = kin.flange_rotation_and_tool_point(moved(kin, q0, np.zeros(3)))
     np.testing.assert_allclose(w, law.average_wrench(p, (1.0, 0.0), wp, 0.01), rtol=0.02, atol=0.5)
     assert np.linalg.norm(w[:3] - law.average_wrench(p, (1.0, 0.0), wp, 0.02)[:3]) > 10.0
+
+
+def test_a_short_kinked_block_the_tool_smooths_out_does_not_turn_the_force(arm):
+    """A corrected program's short block (0.2 mm, 16 degrees off the pass)
+    that the tool's lag smooths out: the tool runs straight along +x at
+    20 mm/s through it, and the plant's force stays the straight cut's at
+    every update (a force taking its direction from the program's path
+    turns 16 degrees for the block's 10 ms)."""
+    kin, tool, q0 = arm
+    _, p0 = kin.flange_rotation_and_tool_point(q0)
+    a = np.deg2rad(16.0)
+    kink = p0 + 0.2e-3 * np.array([np.cos(a), np.sin(a), 0.0])
+    path = PlannedPath([p0 - [0.1, 0, 0], p0, kink, kink + [0.1, 0, 0]], 0.02)
+    wp = Workpiece.from_boxes([[p0[0] - 0.2, p0[0] + 0.2, p0[1] - 0.2, p0[1] + 0.2, p0[2] + 0.003]])
+    law = PlantCuttingLaw(LINEAR, PlantCuttingPhysics.linear())
+    T = 0.002
+    src = MillingForceSource(force_model=law, workpiece=wp, path=path, kinematics=kin, tool_point_m=tool,
+                             period_s=T, spindle_body_index=BodyIndex(7))
+    sim = Simulator(src)
+    ctx = sim.get_mutable_context()
+    times = 5.0 + T * np.arange(40)  # the tool from 20 mm before the kink to 0.36 mm beyond it
+    ctx.SetTime(times[0] - 1e-9)
+    process = ctx.get_mutable_discrete_state(int(src._process))
+    process.SetFromVector([1.0, 0.0, 0.02, 0.0])
+    n = src._n_hist  # the tool came along +x at 20 mm/s (its history: time, x, y)
+    back = times[0] - T * np.arange(n, 0, -1)
+    ctx.get_mutable_discrete_state(int(src._hist)).SetFromVector(
+        np.c_[back, p0[0] + 0.02 * (back - times[-1]) + 0.36e-3, np.full(n, p0[1])].ravel())
+    worst, on_block = 0.0, 0
+    for t in times:
+        dx = np.array([0.02 * (t - times[-1]) + 0.36e-3, 0.0, 0.0])
+        q = moved(kin, q0, dx)
+        src.get_input_port().FixValue(ctx, q)
+        sim.AdvanceTo(t + 1e-6)
+        w = ctx.get_discrete_state(int(src._w)).CopyToVector()
+        _, p = kin.flange_rotation_and_tool_point(q)
+        straight = law.average_wrench(p, (1.0, 0.0), wp, 0.02)
+        worst = max(worst, np.linalg.norm(w[:3] - straight[:3]) / np.linalg.norm(straight[:3]))
+        if 0.0 < dx[0] < 0.2e-3 * np.cos(a):  # the tool beside the kinked block
+            on_block += 1
+            turned = law.average_wrench(p, (np.cos(a), np.sin(a)), wp, 0.02)
+            assert np.linalg.norm(turned[:3] - straight[:3]) > 0.2 * np.linalg.norm(straight[:3])
+    assert on_block >= 3
+    assert worst < 0.01, worst
