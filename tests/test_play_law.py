@@ -138,3 +138,26 @@ def test_the_hysteretic_fit_needs_a_reversal_that_crossed():
     c = 1e-6
     with pytest.raises(ValueError, match="no reversal"):  # +-5 N*m never overcame the friction
         fit_hysteretic_play([5.0, -5.0, 5.0], [1e-4 + 5 * c, 1e-4, 1e-4], c)
+
+
+def test_the_compensators_crossing_lands_on_the_flank_at_rest():
+    """With ``soft_landing`` (the compensator's crossing) the link never
+    moves faster than the torque pressing it onto the flank ahead can stop
+    it over the distance left (sqrt(2 |tau| / J d), plus one step's
+    deceleration), still reaches that flank, and no sooner than the free
+    crossing; it accelerates as the free one until the braking starts."""
+    b, fr, J, dt = np.full(6, B), np.full(6, FR), np.full(6, 200.0), 1e-3
+    tau = np.full(6, 28.0)
+    p, v = -b.copy(), np.zeros(6)
+    pf, vf = -b.copy(), np.zeros(6)
+    n = 0
+    while p[1] < B and n < 2000:
+        p_new, v = play_hysteresis.crossing_step(p, v, tau, b, fr, J, dt, soft_landing=True)
+        pf, vf = play_hysteresis.crossing_step(pf, vf, tau, b, fr, J, dt)
+        assert abs(v[1]) <= np.sqrt(2 * 28.0 / 200.0 * (B - p[1])) + 28.0 / 200.0 * dt + 1e-15 or v[1] == 0.0
+        if n < 5:
+            assert p_new[1] == pytest.approx(pf[1], abs=1e-15)
+        p = p_new
+        n += 1
+    t_free = np.sqrt(2 * 2 * B * 200.0 / 10.0)
+    assert p[1] == B and v[1] == 0.0 and t_free < n * dt < 2 * t_free

@@ -104,14 +104,24 @@ def replay(tau_Nm, play_rad, friction_Nm, compliance_rad_per_Nm, coupling_c23_ra
     return out
 
 
-def crossing_step(position_rad, rate_rad_per_s, tau_Nm, play_rad, friction_Nm, inertia_kgm2, dt_s):
+def crossing_step(position_rad, rate_rad_per_s, tau_Nm, play_rad, friction_Nm, inertia_kgm2, dt_s, soft_landing=False):
     """(positions (6, rad), rates (6, rad/s)) of the gears in their gaps
     after ``dt_s`` carrying ``tau_Nm``, the link crossing its gap under the
     torque beyond the friction, ``inertia_kgm2`` (6,) the link's inertia
     about its joint (its motor held by the servo): phi'' = (tau - T_c
     sign(phi')) / J while moving, no motion while |tau| <= T_c at rest; a
     flank stops it.  The quasi-static ``step`` crosses at once instead; a
-    link of an arm takes a few hundred ms to cross a few hundred urad."""
+    link of an arm takes a few hundred ms to cross a few hundred urad.
+
+    ``soft_landing``: the compensator's crossing (model/compensator.
+    DeflectionModel.play_crossing) ends at rest on the flank ahead: its speed
+    is held to what the torque pressing the link onto that flank, |tau|,
+    can take off over the distance left (v <= sqrt(2 |tau| / J d)).  The
+    correction follows this position, and a correction that stops dead at
+    the flank drives the motor into a stop the lightly pressed link cannot
+    follow: in studies/play_diagnosis.py's pass (b2 = 150 urad) the plant's
+    link then lifts 60-70 urad off its flank for about 0.1 s and the face
+    keeps that overcut."""
     tau = np.asarray(tau_Nm, dtype=float)
     b = np.asarray(play_rad, dtype=float)
     fr = np.asarray(friction_Nm, dtype=float)
@@ -120,6 +130,14 @@ def crossing_step(position_rad, rate_rad_per_s, tau_Nm, play_rad, friction_Nm, i
     net = np.where(moving, tau - fr * np.sign(v), np.where(np.abs(tau) > fr, tau - fr * np.sign(tau), 0.0))
     v_new = v + net / np.asarray(inertia_kgm2, dtype=float) * dt_s
     v_new = np.where(moving & (v_new * v < 0.0), 0.0, v_new)  # friction stops it, never reverses it
+    if soft_landing:
+        # the flank ahead reached at rest: at most sqrt(2 a d) + a dt, d the distance left, a = |tau| / J the
+        # deceleration the torque pressing the link onto that flank can give it (the a dt: one step's worth,
+        # so that the flank is reached in a finite number of steps)
+        p0 = np.asarray(position_rad, dtype=float)
+        ahead = np.maximum(np.where(v_new > 0.0, b - p0, p0 + b), 0.0)
+        a = np.abs(tau) / np.asarray(inertia_kgm2, dtype=float)
+        v_new = np.sign(v_new) * np.minimum(np.abs(v_new), np.sqrt(2.0 * a * ahead) + a * dt_s)
     p = np.asarray(position_rad, dtype=float) + v_new * dt_s
     hit = (p >= b) & (v_new > 0.0) | (p <= -b) & (v_new < 0.0)
     return np.clip(p, -b, b), np.where(hit | (b <= 0.0), 0.0, v_new)
