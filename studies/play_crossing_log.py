@@ -11,7 +11,7 @@ the model predicts (N*m), the predicted joint deflection and the
 correction (urad) and the tool's depth error (commanded minus actual
 tool z, mm: positive cuts more), then the face's statistics.
 
-    python3 studies/play_crossing_log.py [--b-urad 150] [--friction-Nm F] [--hard-landing] [--from-s 2.0] [--to-s 3.2] [--every-s 0.04]
+    python3 studies/play_crossing_log.py [--b-urad 150] [--friction-Nm F] [--hard-landing] [--landing-fraction F] [--from-s 2.0] [--to-s 3.2] [--every-s 0.04]
 """
 
 import argparse
@@ -49,6 +49,8 @@ def main():
     ap.add_argument("--friction-Nm", type=float, default=None, help="the law's friction (default: the fallback)")
     ap.add_argument("--hard-landing", action="store_true",
                     help="the law's crossing without its soft landing (as it was before it)")
+    ap.add_argument("--landing-fraction", type=float, default=None,
+                    help="the law's play_hysteresis.LANDING_FRACTION (default: the module's)")
     ap.add_argument("--from-s", type=float, default=2.0)
     ap.add_argument("--to-s", type=float, default=3.2)
     ap.add_argument("--every-s", type=float, default=0.04)
@@ -60,6 +62,10 @@ def main():
         text = text.replace("  lost_motion_law: hysteretic\n",
                             f"  lost_motion_law: hysteretic\n  lost_motion_friction_Nm: [{f:g}, {f:g}, {f:g}, {f:g}, {f:g}, {f:g}]\n")
     rows = recorded_updates()
+    if args.landing_fraction is not None:
+        from robstiff_drake.model import play_hysteresis
+
+        play_hysteresis.LANDING_FRACTION = args.landing_fraction
     if args.hard_landing:
         from robstiff_drake.model import compensator, play_hysteresis
 

@@ -35,6 +35,14 @@ import numpy as np
 
 from robstiff_drake.model import transmission
 
+# The compensator's crossing lands on its flank decelerating at no more than this fraction of |tau| / J (``crossing_step``'s
+# soft_landing).  CHOSEN, with its evidence, not derived: the correction reaches the motor through the rate limit,
+# the delay and the servo, and the arm rings on its flank after the impact, so the link keeps less than the whole
+# pressing torque to follow a decelerating motor.  On the balanced pass (studies/play_diagnosis.py, joint 2, 20-300
+# urad) 1 leaves the link lifting 19 urad off its flank at 150 urad and 0.098 mm rms; 0.5: 0.080; 0.25: 0.056; 0.1:
+# 0.046 (the face without play: 0.049).  0.25, not less: a slower landing lags a plant that has landed already.
+LANDING_FRACTION = 0.25
+
 
 def start(tau_Nm, play_rad):
     """(6,) the gears' positions in their gaps (rad) at rest under the
@@ -115,8 +123,9 @@ def crossing_step(position_rad, rate_rad_per_s, tau_Nm, play_rad, friction_Nm, i
 
     ``soft_landing``: the compensator's crossing (model/compensator.
     DeflectionModel.play_crossing) ends at rest on the flank ahead: its speed
-    is held to what the torque pressing the link onto that flank, |tau|,
-    can take off over the distance left (v <= sqrt(2 |tau| / J d)).  The
+    is held to what the torque pressing the link onto that flank, a
+    fraction of |tau| (LANDING_FRACTION), can take off over the distance
+    left (v <= sqrt(2 LANDING_FRACTION |tau| / J d)).  The
     correction follows this position, and a correction that stops dead at
     the flank drives the motor into a stop the lightly pressed link cannot
     follow: in studies/play_diagnosis.py's pass (b2 = 150 urad) the plant's
@@ -131,12 +140,12 @@ def crossing_step(position_rad, rate_rad_per_s, tau_Nm, play_rad, friction_Nm, i
     v_new = v + net / np.asarray(inertia_kgm2, dtype=float) * dt_s
     v_new = np.where(moving & (v_new * v < 0.0), 0.0, v_new)  # friction stops it, never reverses it
     if soft_landing:
-        # the flank ahead reached at rest: at most sqrt(2 a d) + a dt, d the distance left, a = |tau| / J the
+        # the flank ahead reached at rest: at most sqrt(2 a d) + a dt, d the distance left, a = f |tau| / J the
         # deceleration the torque pressing the link onto that flank can give it (the a dt: one step's worth,
         # so that the flank is reached in a finite number of steps)
         p0 = np.asarray(position_rad, dtype=float)
         ahead = np.maximum(np.where(v_new > 0.0, b - p0, p0 + b), 0.0)
-        a = np.abs(tau) / np.asarray(inertia_kgm2, dtype=float)
+        a = LANDING_FRACTION * np.abs(tau) / np.asarray(inertia_kgm2, dtype=float)
         v_new = np.sign(v_new) * np.minimum(np.abs(v_new), np.sqrt(2.0 * a * ahead) + a * dt_s)
     p = np.asarray(position_rad, dtype=float) + v_new * dt_s
     hit = (p >= b) & (v_new > 0.0) | (p <= -b) & (v_new < 0.0)
