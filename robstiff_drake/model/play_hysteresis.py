@@ -129,7 +129,7 @@ def crossing_step(position_rad, rate_rad_per_s, tau_Nm, play_rad, friction_Nm, i
     correction follows this position, and a correction that stops dead at
     the flank drives the motor into a stop the lightly pressed link cannot
     follow: in studies/play_diagnosis.py's pass (b2 = 150 urad) the plant's
-    link then lifts 60-70 urad off its flank for about 0.1 s and the face
+    link then lifts about 70 urad off its flank for about 0.1 s and the face
     keeps that overcut."""
     tau = np.asarray(tau_Nm, dtype=float)
     b = np.asarray(play_rad, dtype=float)
