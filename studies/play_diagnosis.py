@@ -26,7 +26,11 @@ cause keeps the smooth law.
    causes it names (and b2 fitted), the arm's damping it reads, and the
    verdict of its verification cuts (each candidate fix cut once more on
    the same simulated machine, decided from the cuts' scans only; see
-   studies/run_diagnosis_cases.py).
+   studies/run_diagnosis_cases.py).  Last column, the play's share: the
+   rms of each compensated face less the face of the pass without play
+   (same compensator, b = 0), point by point: what the play and each
+   law's miss of it leave, apart from the loop's own tracking error (which
+   the play's uncompensated undercut can happen to cancel).
 
     python3 studies/play_diagnosis.py [--out DIR] [--b-urad 0,20,40,80,150,300]
 """
@@ -72,6 +76,18 @@ def surface(folder, name, text):
     return summary["surface_error_mm"]["compensated"]
 
 
+def face(folder, name):
+    """The compensated run's machined-face error along the pass (mm, NaN off the face) of ``surface``'s run."""
+    rows = np.genfromtxt(folder / name / "sim_surface_compensated.csv", delimiter=",", names=True, skip_header=2)
+    return rows["error_mm"]
+
+
+def play_share(e, e0):
+    """rms of the face less the face without play (mm): what the play (and a law's miss of it) leaves."""
+    d = (e - e0)[~np.isnan(e - e0)]
+    return float(np.sqrt(np.mean(d ** 2)))
+
+
 def laws_table():
     print("1. The smooth law against the play at rest: (twist of the smooth law - twist of the play) / b, on the "
           "flank the torque presses (both laws share the elastic part c tau)")
@@ -101,9 +117,12 @@ def main():
           "(mm)")
     print("| b2 (urad) | compensator without lost motion | compensator's smooth law at the true b | compensator's "
           "hysteretic law at the true b | diagnose-run: traced (fitted) | the arm's damping it used | decided from "
-          "the verification cuts | after the decided fix (mm) |")
-    print("|---|---|---|---|---|---|---|---|")
+          "the verification cuts | after the decided fix (mm) | the play's share: rms of the face less the face "
+          "without play, without lost motion / smooth / hysteretic (mm) |")
+    print("|---|---|---|---|---|---|---|---|---|")
     base = predictive(BALANCED)
+    surface(out, "no_play_face", base)
+    e0 = face(out, "no_play_face")
     for b_urad in (float(v) for v in args.b_urad.split(",")):
         b = b_urad * 1e-6
         text = with_play(base, b) if b else base
@@ -111,10 +130,15 @@ def main():
         rep, verified, _ = close_loop(text, out, name)
         s0 = rep["surface_error_before_mm"]
         laws = {"smooth": "-", "hysteretic": "-"}
+        share = "-"
         if b:
+            surface(out, f"{name}_no_law", text)
+            shares = [play_share(face(out, f"{name}_no_law"), e0)]
             for law in laws:
                 s1 = surface(out, f"{name}_{law}_law", with_play(text, b, "model", law))
                 laws[law] = f"{s1['mean']:+.4f} / {s1['rms']:.4f} / {s1['max_abs']:.4f}"
+                shares.append(play_share(face(out, f"{name}_{law}_law"), e0))
+            share = " / ".join(f"{v:.4f}" for v in shares)
         d = rep["damping"]
         damping = f"{d['used']:.0%} ({'from the run' if d.get('ratio') is not None else 'assumed'})"
         if verified is None:
@@ -126,7 +150,7 @@ def main():
             a = rows[verified["verification"]["best"]]
             after = f"{a['mean']:+.4f} / {a['rms']:.4f} / {a['max_abs']:.4f}"
         print(f"| {b_urad:g} | {s0['mean']:+.4f} / {s0['rms']:.4f} / {s0['max_abs']:.4f} | {laws['smooth']} | {laws['hysteretic']} | {traced(rep)} | "
-              f"{damping} | {decided} | {after} |", flush=True)
+              f"{damping} | {decided} | {after} | {share} |", flush=True)
     if args.out is None:
         shutil.rmtree(out, ignore_errors=True)
 

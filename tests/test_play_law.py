@@ -138,3 +138,34 @@ def test_the_hysteretic_fit_needs_a_reversal_that_crossed():
     c = 1e-6
     with pytest.raises(ValueError, match="no reversal"):  # +-5 N*m never overcame the friction
         fit_hysteretic_play([5.0, -5.0, 5.0], [1e-4 + 5 * c, 1e-4, 1e-4], c)
+
+
+def test_the_compensators_crossing_lands_on_the_flank_at_rest():
+    """With ``soft_landing`` (the compensator's crossing) the link never
+    moves faster than the torque pressing it onto the flank ahead, the
+    fraction LANDING_FRACTION of it, can stop it over the distance left
+    (sqrt(2 a d) plus one step's deceleration, a = f |tau| / J), accelerates
+    as the free one until the braking starts and lands at rest after the
+    two phases' time: accelerating at (tau - T_c) / J over x1, then braking
+    at a over 2b - x1, (tau - T_c) x1 = f tau (2b - x1)."""
+    b, fr, J, dt = np.full(6, B), np.full(6, FR), np.full(6, 200.0), 1e-4
+    tau = np.full(6, 28.0)
+    f = play_hysteresis.LANDING_FRACTION
+    a = f * 28.0 / 200.0
+    p, v = -b.copy(), np.zeros(6)
+    pf, vf = -b.copy(), np.zeros(6)
+    n = 0
+    while p[1] < B and n < 100000:
+        p_new, v = play_hysteresis.crossing_step(p, v, tau, b, fr, J, dt, soft_landing=True)
+        pf, vf = play_hysteresis.crossing_step(pf, vf, tau, b, fr, J, dt)
+        assert abs(v[1]) <= np.sqrt(2 * a * (B - p[1])) + a * dt + 1e-15 or v[1] == 0.0
+        if n < 50:
+            assert p_new[1] == pytest.approx(pf[1], abs=1e-15)
+        p = p_new
+        n += 1
+    net = 28.0 - FR
+    x1 = 2 * B * f * 28.0 / (net + f * 28.0)
+    t1 = np.sqrt(2 * x1 * 200.0 / net)
+    t_land = t1 + net / 200.0 * t1 / a
+    assert p[1] == B and v[1] == 0.0
+    assert n * dt == pytest.approx(t_land, rel=0.03)

@@ -153,7 +153,8 @@ class DeflectionModel:
         carrying ``static_torque - tau_process``, each link crossing its gap
         with its inertia ``inertia_kgm2`` (model/play_hysteresis.crossing_step)."""
         carried = np.asarray(static_torque, dtype=float) - np.asarray(tau_process, dtype=float)
-        return play_hysteresis.crossing_step(positions, rates, carried, self.lost, self.friction, inertia_kgm2, dt_s)
+        return play_hysteresis.crossing_step(positions, rates, carried, self.lost, self.friction, inertia_kgm2, dt_s,
+                                             soft_landing=True)
 
     def play_dq(self, tau_process, static_torque, positions, reference):
         """The predicted joint deflection (rad, (6,)) with the hysteretic

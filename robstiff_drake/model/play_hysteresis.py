@@ -35,6 +35,14 @@ import numpy as np
 
 from robstiff_drake.model import transmission
 
+# The compensator's crossing lands on its flank decelerating at no more than this fraction of |tau| / J (``crossing_step``'s
+# soft_landing).  CHOSEN, with its evidence, not derived: the correction reaches the motor through the rate limit,
+# the delay and the servo, and the arm rings on its flank after the impact, so the link keeps less than the whole
+# pressing torque to follow a decelerating motor.  On the balanced pass (studies/play_diagnosis.py, joint 2, 20-300
+# urad) 1 leaves the link lifting 19 urad off its flank at 150 urad and 0.098 mm rms; 0.5: 0.080; 0.25: 0.056; 0.1:
+# 0.046 (the face without play: 0.049).  0.25, not less: a slower landing lags a plant that has landed already.
+LANDING_FRACTION = 0.25
+
 
 def start(tau_Nm, play_rad):
     """(6,) the gears' positions in their gaps (rad) at rest under the
@@ -104,14 +112,25 @@ def replay(tau_Nm, play_rad, friction_Nm, compliance_rad_per_Nm, coupling_c23_ra
     return out
 
 
-def crossing_step(position_rad, rate_rad_per_s, tau_Nm, play_rad, friction_Nm, inertia_kgm2, dt_s):
+def crossing_step(position_rad, rate_rad_per_s, tau_Nm, play_rad, friction_Nm, inertia_kgm2, dt_s, soft_landing=False):
     """(positions (6, rad), rates (6, rad/s)) of the gears in their gaps
     after ``dt_s`` carrying ``tau_Nm``, the link crossing its gap under the
     torque beyond the friction, ``inertia_kgm2`` (6,) the link's inertia
     about its joint (its motor held by the servo): phi'' = (tau - T_c
     sign(phi')) / J while moving, no motion while |tau| <= T_c at rest; a
     flank stops it.  The quasi-static ``step`` crosses at once instead; a
-    link of an arm takes a few hundred ms to cross a few hundred urad."""
+    link of an arm takes a few hundred ms to cross a few hundred urad.
+
+    ``soft_landing``: the compensator's crossing (model/compensator.
+    DeflectionModel.play_crossing) ends at rest on the flank ahead: its speed
+    is held to what the torque pressing the link onto that flank, a
+    fraction of |tau| (LANDING_FRACTION), can take off over the distance
+    left (v <= sqrt(2 LANDING_FRACTION |tau| / J d)).  The
+    correction follows this position, and a correction that stops dead at
+    the flank drives the motor into a stop the lightly pressed link cannot
+    follow: in studies/play_diagnosis.py's pass (b2 = 150 urad) the plant's
+    link then lifts about 70 urad off its flank for about 0.1 s and the face
+    keeps that overcut."""
     tau = np.asarray(tau_Nm, dtype=float)
     b = np.asarray(play_rad, dtype=float)
     fr = np.asarray(friction_Nm, dtype=float)
@@ -120,6 +139,14 @@ def crossing_step(position_rad, rate_rad_per_s, tau_Nm, play_rad, friction_Nm, i
     net = np.where(moving, tau - fr * np.sign(v), np.where(np.abs(tau) > fr, tau - fr * np.sign(tau), 0.0))
     v_new = v + net / np.asarray(inertia_kgm2, dtype=float) * dt_s
     v_new = np.where(moving & (v_new * v < 0.0), 0.0, v_new)  # friction stops it, never reverses it
+    if soft_landing:
+        # the flank ahead reached at rest: at most sqrt(2 a d) + a dt, d the distance left, a = f |tau| / J the
+        # deceleration the torque pressing the link onto that flank can give it (the a dt: one step's worth,
+        # so that the flank is reached in a finite number of steps)
+        p0 = np.asarray(position_rad, dtype=float)
+        ahead = np.maximum(np.where(v_new > 0.0, b - p0, p0 + b), 0.0)
+        a = LANDING_FRACTION * np.abs(tau) / np.asarray(inertia_kgm2, dtype=float)
+        v_new = np.sign(v_new) * np.minimum(np.abs(v_new), np.sqrt(2.0 * a * ahead) + a * dt_s)
     p = np.asarray(position_rad, dtype=float) + v_new * dt_s
     hit = (p >= b) & (v_new > 0.0) | (p <= -b) & (v_new < 0.0)
     return np.clip(p, -b, b), np.where(hit | (b <= 0.0), 0.0, v_new)
