@@ -39,7 +39,8 @@ def full(data, kind="Rob"):
 
 
 def layouts():
-    base = [rsi.encode_rob(1_000_000, Q0, Q0), KRC, KRC.replace(b"<ASPos", b"<Other").replace(b"</ASPos", b"</Other")]
+    base = [rsi.encode_rob(1_000_000, Q0, Q0), KRC, KRC.replace(b"<ASPos", b"<Other").replace(b"</ASPos", b"</Other"),
+            KRC.replace(b"\n", b"\r\n").replace(b"<IPOC>", b"<IPOC>\r\n ")]
     out = []
     for data in base:
         layout = RobLayout.learn(data, "Rob", ("AIPos", "ASPos"), rsi.AXES, rsi.decode_rob(data))
@@ -147,7 +148,7 @@ def test_the_answer_read_back_is_the_parsers():
 
 
 def test_the_layout_is_learnt_only_from_simple_documents():
-    for data in (KRC.replace(b"\n", b"\r\n"), KRC.replace(b"<Rob", b"<?xml version='1.0'?><Rob"),
+    for data in (KRC.replace(b"<Digin>0", b"<Digin>&amp;0"), KRC.replace(b"<Rob", b"<?xml version='1.0'?><Rob"),
                  KRC.replace(b"<Digin>0", b"<Digin><x/>0"), KRC.replace(b"Y=\"0.0\"", b"xmlY=\"0.0\"", 1)):
         decoded = rsi.decode_rob(data)
         assert RobLayout.learn(data, "Rob", ("AIPos", "ASPos"), rsi.AXES, decoded) is None

@@ -156,6 +156,7 @@ class RsiLink(PCLink):
         self.previous_seq = None  # ... of the session before
         self._aks = deque(maxlen=RECENT_CORRECTIONS)  # corrections sent in this session (deg), newest last
         self._layout = None  # the controller's datagram layout, learnt from one the XML parser accepted
+        self._learn_in = 0  # datagrams the parser reads before the next try to learn a layout
 
     def _decode_rob(self, data):
         """decode_rob's result, read by the learnt layout when the datagram
@@ -166,7 +167,11 @@ class RsiLink(PCLink):
             if got is not None:
                 return got
         got = decode_rob(data)
-        self._layout = RobLayout.learn(data, "Rob", ("AIPos", "ASPos"), AXES, got)
+        if self._learn_in <= 0:  # (a layout it cannot learn is tried again 1 s of messages later: bounded cost)
+            self._layout = RobLayout.learn(data, "Rob", ("AIPos", "ASPos"), AXES, got)
+            self._learn_in = 0 if self._layout is not None else 250
+        else:
+            self._learn_in -= 1
         return got
 
     def _new_session(self, here_deg, seq):
