@@ -51,6 +51,7 @@ import xml.etree.ElementTree as ET
 from collections import deque
 
 from robstiff_drake.cell.link import ControllerSide, Message, MessageError, PCLink
+from robstiff_drake.cell.rsi_layout import RobLayout
 from robstiff_drake.cell.session import MAX_JUMP, REORDER_WINDOW
 
 MAX_BYTES = 4096  # a Rob datagram is a few hundred bytes
@@ -104,19 +105,37 @@ def decode_rob(data):
     return _ipoc(root), _axes(root, "AIPos"), setpoints
 
 
+_ROB = ('<Rob Type="KUKA"><AIPos A1="%.6f" A2="%.6f" A3="%.6f" A4="%.6f" A5="%.6f" A6="%.6f" />'
+        '<ASPos A1="%.6f" A2="%.6f" A3="%.6f" A4="%.6f" A5="%.6f" A6="%.6f" /><Delay D="0" /><IPOC>%d</IPOC></Rob>')
+_SEN = ('<Sen Type="ImFree"><EStr>robstiff</EStr>'
+        '<AK A1="%.6f" A2="%.6f" A3="%.6f" A4="%.6f" A5="%.6f" A6="%.6f" /><IPOC>%d</IPOC></Sen>')
+
+
 def encode_rob(ipoc, actual_deg, setpoint_deg):
-    a = " ".join(f'{n}="{v:.6f}"' for n, v in zip(AXES, actual_deg))
-    s = " ".join(f'{n}="{v:.6f}"' for n, v in zip(AXES, setpoint_deg))
-    return (f'<Rob Type="KUKA"><AIPos {a} /><ASPos {s} /><Delay D="0" /><IPOC>{int(ipoc)}</IPOC></Rob>').encode()
+    return (_ROB % (*actual_deg, *setpoint_deg, int(ipoc))).encode()
 
 
 def encode_sen(ipoc, corrections_deg):
-    ak = " ".join(f'{n}="{v:.6f}"' for n, v in zip(AXES, corrections_deg))
-    return f'<Sen Type="ImFree"><EStr>robstiff</EStr><AK {ak} /><IPOC>{int(ipoc)}</IPOC></Sen>'.encode()
+    return (_SEN % (*corrections_deg, int(ipoc))).encode()
+
+
+# The PC's own answer in the one layout encode_sen writes, its numbers as
+# "%.6f" writes finite ones and the IPOC as 1 to 19 ASCII digits.  A byte
+# string this matches (whole) is that XML document and nothing else, so its
+# numbers read here are what the XML parser would read from the same bytes;
+# anything else (a non-finite value, another layout) goes to the parser.
+_NUMBER = rb'"(-?[0-9]+\.[0-9]{6})"'
+_SEN_RE = re.compile(rb'<Sen Type="ImFree"><EStr>robstiff</EStr><AK '
+                     + b" ".join(a.encode() + b"=" + _NUMBER for a in AXES)
+                     + rb' /><IPOC>([0-9]{1,19})</IPOC></Sen>\Z')
 
 
 def decode_sen(data):
     """(IPOC, AK deg) of a PC's answer."""
+    m = _SEN_RE.match(data)
+    if m is not None:
+        g = m.groups()
+        return int(g[6]), [float(v) for v in g[:6]]
     root = _parse(data, "Sen")
     return _ipoc(root), _axes(root, "AK")
 
@@ -136,6 +155,24 @@ class RsiLink(PCLink):
         self.last_seq = None  # the newest IPOC / period of this session
         self.previous_seq = None  # ... of the session before
         self._aks = deque(maxlen=RECENT_CORRECTIONS)  # corrections sent in this session (deg), newest last
+        self._layout = None  # the controller's datagram layout, learnt from one the XML parser accepted
+        self._learn_in = 0  # datagrams the parser reads before the next try to learn a layout
+
+    def _decode_rob(self, data):
+        """decode_rob's result, read by the learnt layout when the datagram
+        matches it (rsi_layout: the same values), else by the XML parser
+        (and the layout learnt again from what it accepted)."""
+        if self._layout is not None and len(data) <= MAX_BYTES:
+            got = self._layout.read(data)
+            if got is not None:
+                return got
+        got = decode_rob(data)
+        if self._learn_in <= 0:  # (a layout it cannot learn is tried again 1 s of messages later: bounded cost)
+            self._layout = RobLayout.learn(data, "Rob", ("AIPos", "ASPos"), AXES, got)
+            self._learn_in = 0 if self._layout is not None else 250
+        else:
+            self._learn_in -= 1
+        return got
 
     def _new_session(self, here_deg, seq):
         self.previous_seq = self.last_seq
@@ -146,7 +183,7 @@ class RsiLink(PCLink):
         self.commanded = [list(here_deg)] * 2  # at its start the controller stands still there
 
     def decode(self, data):
-        ipoc, actual, setpoint = decode_rob(data)
+        ipoc, actual, setpoint = self._decode_rob(data)
         here = setpoint if setpoint is not None else actual
         seq = int(round(ipoc / self.period_ms))
         new = False
