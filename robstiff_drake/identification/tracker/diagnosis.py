@@ -252,9 +252,13 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
     if floor.sigma_mm is not None:
         resid_eq = np.zeros(3 * problem.n)
         resid_eq[rows_to_eq(rows)] = e_after[rows].reshape(-1)
-        Xfull = np.zeros((3 * problem.n, X_final.shape[1]))
-        Xfull[rows_to_eq(rows)] = X_final
+        if np.array_equal(rows, np.arange(problem.n)):  # every row used: the final columns are the full ones
+            Xfull = X_final
+        else:
+            Xfull = np.zeros((3 * problem.n, X_final.shape[1]))
+            Xfull[rows_to_eq(rows)] = X_final
         lof = nf.lack_of_fit(resid_eq, Xfull, folds, rows, groups, floor)
+        Xfull = None
         unexplained = nf.unexplained_mm(rms_after, floor.sigma_mm)
     trends = [b.name for b in kept_blocks if b.kind == "trend"]
     explains, verdict = _verdict(floor, lof, rms_after, trends, leads, unexplained or 0.0)
