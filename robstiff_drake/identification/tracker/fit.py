@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from robstiff_drake.identification.tracker.model import (GEOM, geometry_jacobian, gravity, jacobian_v,
+from robstiff_drake.identification.tracker.model import (GEOM, cross, geometry_jacobian, gravity, jacobian_v,
                                                          perturbed_dh, tool_points)
 from robstiff_drake.identification.tracker.terms import Eval
 from robstiff_drake.model import kinematics as kin
@@ -163,7 +163,7 @@ class Problem:
         # one (n, 3, P) array written block by block (no list of blocks concatenated into a second copy)
         X = np.empty((len(v), 3, i))
         for k in range(3):
-            X[:, :, k] = np.cross(np.eye(3)[k], v)
+            X[:, :, k] = cross(np.eye(3)[k], v)
             X[:, :, 3 + k] = np.eye(3)[k]
             X[:, :, 6 + k] = R6[:, :, k] @ fit.R.T
         for _, b in parts[1:]:
