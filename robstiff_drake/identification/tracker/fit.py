@@ -21,6 +21,7 @@ GN_ITER = 10
 # about 3e-3, per step)
 SAG_ITER = 1
 GN_TOL = 1e-9  # relative step
+POSE_CHUNK = 2000  # poses a step when LinearCV.fit sums each pose's scores (memory, not results)
 RANK_TOL = 1e-3  # a column whose part outside the others' span is below this (unit norm) is not identifiable
 
 
@@ -311,9 +312,14 @@ class LinearCV:
         d = self._solve(A, self.b[cols])
         Xc = self.Xs if np.array_equal(cols, np.arange(self.Xs.shape[1])) else self.Xs[:, cols]
         e = self.r - Xc @ d
-        W = Xc[self.order]  # the rows in pose order, each times its residual (one n x p array)
-        W *= e[self.order][:, None]
-        U = np.add.reduceat(W, self.starts, axis=0)  # per pose
+        U = np.empty((len(self.starts), Xc.shape[1]))  # per pose: the sum of its rows times their residuals
+        ends = np.r_[self.starts[1:], len(self.order)]
+        for g0 in range(0, len(self.starts), POSE_CHUNK):  # a chunk of poses at a time (no n x p copy)
+            g1 = min(g0 + POSE_CHUNK, len(self.starts))
+            take = self.order[self.starts[g0]:ends[g1 - 1]]
+            W = Xc[take]
+            W *= e[take][:, None]
+            U[g0:g1] = np.add.reduceat(W, self.starts[g0:g1] - self.starts[g0], axis=0)
         W = Xc = None
         G = len(U)
         bread = np.linalg.pinv(A)
