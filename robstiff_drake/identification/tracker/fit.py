@@ -77,7 +77,7 @@ class Problem:
         """Gravity in the base frame (None: the base's -z); the weight's torques at the nominal chain."""
         self.g_base = g_base
         # the nominal chain's frames (N x 7 x 4 x 4) are made here and freed, not kept (90 MB at 100,000 rows)
-        self.tau, self.moment = gravity(self.robot, kin.frames(self.robot.dh, self.q), self.q, self.force,
+        self.tau, self.moment = gravity(self.robot, kin.frames(self.robot.dh, self.q, rows=3), self.q, self.force,
                                         self.tool_guess, g_base)
 
     def evaluate(self, fit, rows):
@@ -94,13 +94,13 @@ class Problem:
         if self.sag:
             dq = tau * (x * self.c_nom)
             for _ in range(SAG_ITER):
-                T = kin.frames(dh, q + dq)
+                T = kin.frames(dh, q + dq, rows=3)
                 tau, moment = gravity(self.robot, T, q + dq, None if self.force is None else self.force[rows],
                                       self.tool_guess, self.g_base)
                 dq = tau * (x * self.c_nom)
                 T = None  # (freed before the next frames are made)
             q = q + dq
-        T = kin.frames(dh, q)
+        T = kin.frames(dh, q, rows=3)  # (rotations and origins only: what the fit reads)
         p = tool_points(T, fit.u)
 
         def sub(x):

@@ -86,7 +86,7 @@ def perturbed_dh(dh, delta):
 
 
 def tool_points(T, u):
-    """(N, 3) the point u (flange frame) in the base frame, from frames T (N, 7, 4, 4)."""
+    """(N, 3) the point u (flange frame) in the base frame, from frames T (N, 7, 3 or 4, 4)."""
     return T[:, 6, :3, 3] + T[:, 6, :3, :3] @ u
 
 
