@@ -143,7 +143,6 @@ class Problem:
         ev, dh = self.evaluate(fit, rows) if at is None else at
         v, _ = self.parts(fit, ev)  # R (p + dp): what the registration's rotation turns
         R6 = ev.T[:, 6, :3, :3]
-        parts = [(9, None)]  # (width, the block's (n, 3, width) columns, made when written)
         slices, i = {"registration_rotation": slice(0, 3), "registration_translation": slice(3, 6),
                      "measured_point": slice(6, 9)}, 9
         Jg = None
@@ -158,7 +157,6 @@ class Problem:
                 width = len(b.geo)
             else:
                 width = len(b.params)
-            parts.append((width, b))
             slices[b.name] = slice(i, i + width)
             i += width
         # one (n, 3, P) array written block by block (no list of blocks concatenated into a second copy)
@@ -167,7 +165,7 @@ class Problem:
             X[:, :, k] = cross(np.eye(3)[k], v)
             X[:, :, 3 + k] = np.eye(3)[k]
             X[:, :, 6 + k] = R6[:, :, k] @ fit.R.T
-        for _, b in parts[1:]:
+        for b in blocks:  # each block's (n, 3, width) columns, made when written
             sl = slices[b.name]
             if b.frame == "geometry":
                 Z = np.stack([Jg[:, :, k, GEOM.index(kind)] for k, kind in b.geo], axis=-1)
