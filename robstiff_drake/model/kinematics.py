@@ -57,8 +57,10 @@ def link_transforms(dh, q_rad):
     return A
 
 
-def frames(dh, q_rad):
-    """Poses of DH frames 0..6 in the base frame, shape (..., 7, 4, 4).
+def frames(dh, q_rad, rows=4):
+    """Poses of DH frames 0..6 in the base frame, shape (..., 7, 4, 4);
+    ``rows=3``: without the constant last row, (..., 7, 3, 4) (a quarter
+    less memory for callers that read only rotations and origins).
 
     Frame 0 is the base (moved by the chain's fixed base transform, if any);
     frame i (i >= 1) moves with link i; frame 6 is the flange (the wrist
@@ -72,9 +74,12 @@ def frames(dh, q_rad):
     q = np.asarray(q_rad, dtype=float)
     batch = q.shape[:-1]
     base = np.eye(4) if dh.base is None else np.asarray(dh.base, dtype=float)
-    T = np.zeros(batch + (7, 4, 4))
-    T[..., 0, :, :] = base
-    T[..., :, 3, 3] = 1.0
+    if rows not in (3, 4):
+        raise ValueError(f"rows must be 3 or 4, not {rows}")
+    T = np.zeros(batch + (7, rows, 4))
+    T[..., 0, :, :] = base[:rows]
+    if rows == 4:
+        T[..., :, 3, 3] = 1.0
     theta = q + dh.home_rad
     ct, st = np.cos(theta), np.sin(theta)
     ca, sa = np.cos(dh.alpha_rad), np.sin(dh.alpha_rad)

@@ -135,15 +135,23 @@ def moments(X, folds, rows, groups_rows, rho):
     n = len(eq_all)
     pos = np.full(int(eq_all.max()) + 1, -1)
     pos[eq_all] = np.arange(n)
-    Xr = X[eq_all]
+    every = n == len(X) and np.array_equal(eq_all, np.arange(n))  # all the equations in order: no gathered copy
+    Xr = X[eq_all] if not every else X
     scale = np.linalg.norm(Xr, axis=0)
     scale[scale == 0] = 1.0
-    Xr = Xr / scale
+    Xr = Xr / scale if every else np.divide(Xr, scale, out=Xr)
     p = Xr.shape[1]
     g_eq = np.repeat(np.asarray(groups_rows), 3) * 3 + np.tile(np.arange(3), len(rows))
     Xb, n_g = _group_sum(Xr, g_eq) if rho else (np.zeros_like(Xr), np.ones(n))
-    Y = (1 - rho) * Xr + rho * Xb  # S X
-    SY = (1 - rho) * Y + rho * ((1 - rho) * Xb + rho * n_g[:, None] * Xb)  # S^2 X
+    # S X = (1 - rho) X + rho P X and S^2 X = (1 - rho) S X + rho ((1 - rho) P X + rho n_g P X), written in place
+    # (the same operations in the same order: one temporary at a time, not five n x p arrays)
+    Y = (1 - rho) * Xr
+    Y += rho * Xb
+    SY = (1 - rho) * Xb
+    SY += rho * n_g[:, None] * Xb
+    Xb = None
+    SY *= rho
+    SY += (1 - rho) * Y
     tests = [pos[rows_to_eq(test)] for _, test in folds]
     K = len(tests)
     A = [Xr[t].T @ Xr[t] for t in tests]  # X^T E_f X

@@ -142,7 +142,8 @@ def _candidate_blocks(problem, fit, rows, free, Xgeo, extra=()):
             skipped.append({"name": b.name, "reason": why})
             continue
         X, sl, _ = problem.columns(fit, [b], rows, at=at, cache=cache)
-        Z = X[:, sl[b.name]]
+        Z = X[:, sl[b.name]].copy()  # (a view would keep the whole 3N x (9 + p) array alive per block)
+        X = None
         if b.frame != "geometry":
             kept = independent_columns(np.hstack([Xgeo, Z]), list(range(Xgeo.shape[1] + Z.shape[1])))
             if len(kept) < Xgeo.shape[1] + Z.shape[1]:
@@ -207,9 +208,18 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         X0, _, ev0 = problem.columns(fit0, [], all_rows)
         r0 = (problem.m - problem.predict(fit0, all_rows, ev0)).reshape(-1)
         tests = [rows_to_eq(test) for _, test in folds]
-        cv = LinearCV(np.hstack([X0] + [Z for _, Z in cands]), r0, tests, np.repeat(groups, 3), copy=False)
-        cands = [(b, np.empty((0, Z.shape[1]))) for b, Z in cands]  # (the columns are in cv: the search needs
-        # only their count; 3N x P floats freed)
+        # the columns side by side, each block's freed once copied (the columns are then in cv: the search
+        # needs only their count)
+        X = np.empty((len(X0), X0.shape[1] + sum(Z.shape[1] for _, Z in cands)))
+        X[:, :X0.shape[1]], i = X0, X0.shape[1]
+        X0 = None
+        for j, (b, Z) in enumerate(cands):
+            X[:, i:i + Z.shape[1]] = Z
+            i += Z.shape[1]
+            cands[j] = (b, np.empty((0, Z.shape[1])))
+        Z = None
+        cv = LinearCV(X, r0, tests, np.repeat(groups, 3), copy=False)
+        X = None
         info = {"ev": ev0, "c_nom": problem.c_nom}
         kept, rounds, leads, dropped, rms_decl, rms_lin, _ = _search(cv, np.arange(9), cands, info, bar)
         by_name = {b.name: b for b, _ in cands}
@@ -252,9 +262,13 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
     if floor.sigma_mm is not None:
         resid_eq = np.zeros(3 * problem.n)
         resid_eq[rows_to_eq(rows)] = e_after[rows].reshape(-1)
-        Xfull = np.zeros((3 * problem.n, X_final.shape[1]))
-        Xfull[rows_to_eq(rows)] = X_final
+        if np.array_equal(rows, np.arange(problem.n)):  # every row used: the final columns are the full ones
+            Xfull = X_final
+        else:
+            Xfull = np.zeros((3 * problem.n, X_final.shape[1]))
+            Xfull[rows_to_eq(rows)] = X_final
         lof = nf.lack_of_fit(resid_eq, Xfull, folds, rows, groups, floor)
+        Xfull = None
         unexplained = nf.unexplained_mm(rms_after, floor.sigma_mm)
     trends = [b.name for b in kept_blocks if b.kind == "trend"]
     explains, verdict = _verdict(floor, lof, rms_after, trends, leads, unexplained or 0.0)

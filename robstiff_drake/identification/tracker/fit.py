@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from robstiff_drake.identification.tracker.model import (GEOM, geometry_jacobian, gravity, jacobian_v,
+from robstiff_drake.identification.tracker.model import (GEOM, cross, geometry_jacobian, gravity, jacobian_v,
                                                          perturbed_dh, tool_points)
 from robstiff_drake.identification.tracker.terms import Eval
 from robstiff_drake.model import kinematics as kin
@@ -21,6 +21,7 @@ GN_ITER = 10
 # about 3e-3, per step)
 SAG_ITER = 1
 GN_TOL = 1e-9  # relative step
+POSE_CHUNK = 2000  # poses a step when LinearCV.fit sums each pose's scores (memory, not results)
 RANK_TOL = 1e-3  # a column whose part outside the others' span is below this (unit norm) is not identifiable
 
 
@@ -63,7 +64,6 @@ class Problem:
         self.q_ctrl = np.deg2rad(np.asarray(q_deg, dtype=float))
         self.G = robot.joint_map.G
         self.c_nom = 1.0 / np.asarray(robot.joint_stiffness_Nm_per_rad, dtype=float)
-        self.T0 = kin.frames(robot.dh, self.q)
         self.force, self.tool_guess = force_N, tool_guess_m
         self.sag = True  # the robot file's masses and stiffness are part of the declared model
         self.set_gravity(None)
@@ -76,7 +76,9 @@ class Problem:
     def set_gravity(self, g_base):
         """Gravity in the base frame (None: the base's -z); the weight's torques at the nominal chain."""
         self.g_base = g_base
-        self.tau, self.moment = gravity(self.robot, self.T0, self.q, self.force, self.tool_guess, g_base)
+        # the nominal chain's frames (N x 7 x 4 x 4) are made here and freed, not kept (90 MB at 100,000 rows)
+        self.tau, self.moment = gravity(self.robot, kin.frames(self.robot.dh, self.q, rows=3), self.q, self.force,
+                                        self.tool_guess, g_base)
 
     def evaluate(self, fit, rows):
         """The Eval of rows ``rows`` at the fit's geometry and measured point,
@@ -92,13 +94,13 @@ class Problem:
         if self.sag:
             dq = tau * (x * self.c_nom)
             for _ in range(SAG_ITER):
-                T = kin.frames(dh, q + dq)
+                T = kin.frames(dh, q + dq, rows=3)
                 tau, moment = gravity(self.robot, T, q + dq, None if self.force is None else self.force[rows],
                                       self.tool_guess, self.g_base)
                 dq = tau * (x * self.c_nom)
                 T = None  # (freed before the next frames are made)
             q = q + dq
-        T = kin.frames(dh, q)
+        T = kin.frames(dh, q, rows=3)  # (rotations and origins only: what the fit reads)
         p = tool_points(T, fit.u)
 
         def sub(x):
@@ -140,11 +142,7 @@ class Problem:
         Jacobian is computed once)."""
         ev, dh = self.evaluate(fit, rows) if at is None else at
         v, _ = self.parts(fit, ev)  # R (p + dp): what the registration's rotation turns
-        cols = [np.cross(np.eye(3)[k], v) for k in range(3)]
-        cols += [np.tile(np.eye(3)[k], (len(v), 1)) for k in range(3)]
         R6 = ev.T[:, 6, :3, :3]
-        cols += [(R6[:, :, k]) @ fit.R.T for k in range(3)]
-        X = [np.stack(cols, axis=-1)]
         slices, i = {"registration_rotation": slice(0, 3), "registration_translation": slice(3, 6),
                      "measured_point": slice(6, 9)}, 9
         Jg = None
@@ -156,16 +154,26 @@ class Problem:
                         Jg = geometry_jacobian(ev.T, ev.p, dh)
                     if cache is not None:
                         cache["Jg"] = Jg
-                Z = np.stack([Jg[:, :, k, GEOM.index(kind)] for k, kind in b.geo], axis=-1)
-                Z = np.einsum("ij,njp->nip", fit.R, Z)
-            elif b.frame in ("base", "joint"):
-                Z = np.einsum("ij,njp->nip", fit.R, b.columns(ev))
+                width = len(b.geo)
             else:
-                Z = b.columns(ev)
-            X.append(Z)
-            slices[b.name] = slice(i, i + Z.shape[-1])
-            i += Z.shape[-1]
-        X = np.concatenate(X, axis=-1)
+                width = len(b.params)
+            slices[b.name] = slice(i, i + width)
+            i += width
+        # one (n, 3, P) array written block by block (no list of blocks concatenated into a second copy)
+        X = np.empty((len(v), 3, i))
+        for k in range(3):
+            X[:, :, k] = cross(np.eye(3)[k], v)
+            X[:, :, 3 + k] = np.eye(3)[k]
+            X[:, :, 6 + k] = R6[:, :, k] @ fit.R.T
+        for b in blocks:  # each block's (n, 3, width) columns, made when written
+            sl = slices[b.name]
+            if b.frame == "geometry":
+                Z = np.stack([Jg[:, :, k, GEOM.index(kind)] for k, kind in b.geo], axis=-1)
+                X[:, :, sl] = np.einsum("ij,njp->nip", fit.R, Z)
+            elif b.frame in ("base", "joint"):
+                X[:, :, sl] = np.einsum("ij,njp->nip", fit.R, b.columns(ev))
+            else:
+                X[:, :, sl] = b.columns(ev)
         return X.reshape(-1, X.shape[-1]), slices, ev
 
     def apply(self, fit, blocks, delta, slices):
@@ -212,13 +220,13 @@ def normal_solve(X, r):
     less than an SVD of X), a tiny ridge against exact rank loss."""
     scale = np.linalg.norm(X, axis=0)
     scale[scale == 0] = 1.0
-    Xs = X / scale
-    A = Xs.T @ Xs
+    # X^T X and X^T r of the unscaled columns, then scaled (no scaled copy of X)
+    A = (X.T @ X) / np.outer(scale, scale)
     A[np.diag_indices_from(A)] += 1e-12 * len(A)
     try:
-        step = np.linalg.solve(A, Xs.T @ r)
+        step = np.linalg.solve(A, (X.T @ r) / scale)
     except np.linalg.LinAlgError:
-        step = np.linalg.lstsq(Xs, r, rcond=None)[0]
+        step = np.linalg.lstsq(X / scale, r, rcond=None)[0]
     return step / scale
 
 
@@ -266,8 +274,12 @@ class LinearCV:
             self.Xs /= self.scale
         self.r = r
         self.tests = tests
-        self.Gh = [self.Xs[te].T @ self.Xs[te] for te in tests]
-        self.bh = [self.Xs[te].T @ r[te] for te in tests]
+        self.Gh, self.bh = [], []
+        for te in tests:  # each fold's rows copied once (all the rows in order: none)
+            Xt = self.Xs if len(te) == len(r) and np.array_equal(te, np.arange(len(r))) else self.Xs[te]
+            self.Gh.append(Xt.T @ Xt)
+            self.bh.append(Xt.T @ r[te])
+            Xt = None
         self.rrh = [float(r[te] @ r[te]) for te in tests]
         self.Gm, self.b = sum(self.Gh), sum(self.bh)
         self.n_eq = sum(len(te) for te in tests)
@@ -296,8 +308,17 @@ class LinearCV:
         cols = np.asarray(cols)
         A = self.Gm[np.ix_(cols, cols)]
         d = self._solve(A, self.b[cols])
-        e = self.r - self.Xs[:, cols] @ d
-        U = np.add.reduceat((self.Xs[:, cols] * e[:, None])[self.order], self.starts, axis=0)  # per pose
+        Xc = self.Xs if np.array_equal(cols, np.arange(self.Xs.shape[1])) else self.Xs[:, cols]
+        e = self.r - Xc @ d
+        U = np.empty((len(self.starts), Xc.shape[1]))  # per pose: the sum of its rows times their residuals
+        ends = np.r_[self.starts[1:], len(self.order)]
+        for g0 in range(0, len(self.starts), POSE_CHUNK):  # a chunk of poses at a time (no n x p copy)
+            g1 = min(g0 + POSE_CHUNK, len(self.starts))
+            take = self.order[self.starts[g0]:ends[g1 - 1]]
+            W = Xc[take]
+            W *= e[take][:, None]
+            U[g0:g1] = np.add.reduceat(W, self.starts[g0:g1] - self.starts[g0], axis=0)
+        W = Xc = None
         G = len(U)
         bread = np.linalg.pinv(A)
         cov = bread @ (U.T @ U) @ bread * (G / max(G - 1, 1))

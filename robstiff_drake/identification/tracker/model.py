@@ -39,6 +39,15 @@ PARALLEL_SIN = np.sin(np.deg2rad(10.0))
 LEVEL_DEG = 5.0
 
 
+def cross(a, b):
+    """a x b along the last axis (broadcast): np.cross's products and
+    differences, without its general-shape handling and copies (the fit
+    makes hundreds of them over every row)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack(np.broadcast_arrays(a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0), axis=-1)
+
+
 def gravity_in_base(R):
     """Gravity (m/s^2) in the base frame of a registration R (base to
     instrument): the instrument's -z when it is within LEVEL_DEG of the
@@ -77,7 +86,7 @@ def perturbed_dh(dh, delta):
 
 
 def tool_points(T, u):
-    """(N, 3) the point u (flange frame) in the base frame, from frames T (N, 7, 4, 4)."""
+    """(N, 3) the point u (flange frame) in the base frame, from frames T (N, 7, 3 or 4, 4)."""
     return T[:, 6, :3, 3] + T[:, 6, :3, :3] @ u
 
 
@@ -85,25 +94,26 @@ def jacobian_v(T, p):
     """(N, 3, 6) linear Jacobian of the point p (N, 3) from frames T."""
     z = T[:, :6, :3, 2]
     o = T[:, :6, :3, 3]
-    return np.swapaxes(np.cross(z, p[:, None, :] - o), 1, 2)
+    return np.swapaxes(cross(z, p[:, None, :] - o), 1, 2)
 
 
 def geometry_jacobian(T, p, dh):
-    """(N, 3, 6, 5): d p / d (link, GEOM kind) at frames T."""
+    """(N, 3, 6, 5): d p / d (link, GEOM kind) at frames T (a view of an
+    (N, 6, 5, 3) array: each derivative is written as whole rows)."""
     N = len(p)
-    out = np.zeros((N, 3, 6, 5))
+    out = np.empty((N, 6, 5, 3))
     beta = np.zeros(6) if dh.beta_rad is None else dh.beta_rad
     for k in range(6):
         z, o = T[:, k, :3, 2], T[:, k, :3, 3]
         R1, o1 = T[:, k + 1, :3, :3], T[:, k + 1, :3, 3]
         u = R1 @ np.array([np.cos(beta[k]), 0.0, np.sin(beta[k])])  # x after Rz(theta), before Ry(beta)
         y1 = R1[:, :, 1]
-        out[:, :, k, 0] = np.cross(z, p - o)
-        out[:, :, k, 1] = z
-        out[:, :, k, 2] = u
-        out[:, :, k, 3] = np.cross(u, p - o1)
-        out[:, :, k, 4] = np.cross(y1, p - o1)
-    return out
+        out[:, k, 0] = cross(z, p - o)
+        out[:, k, 1] = z
+        out[:, k, 2] = u
+        out[:, k, 3] = cross(u, p - o1)
+        out[:, k, 4] = cross(y1, p - o1)
+    return out.transpose(0, 3, 1, 2)
 
 
 def gravity(robot, T, q, applied_force_N=None, tool_m=None, g_base=None):
@@ -138,9 +148,9 @@ def gravity(robot, T, q, applied_force_N=None, tool_m=None, g_base=None):
     for j in range(5, -1, -1):
         while k >= 0 and body_of[k] >= j:
             c, f = forces[k]
-            S_M += np.cross(c, f)
+            S_M += cross(c, f)
             S_F += f
             k -= 1
         z, o = T[:, j, :3, 2], T[:, j, :3, 3]
-        tau[:, j] = np.sum(z * (S_M - np.cross(o, S_F)), axis=1)
+        tau[:, j] = np.sum(z * (S_M - cross(o, S_F)), axis=1)
     return tau, S_M.copy()

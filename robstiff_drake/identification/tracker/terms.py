@@ -78,7 +78,7 @@ TORQUE_REL_MIN = 1e-6
 class Eval:
     """The campaign at the current model, what every block's columns need."""
 
-    T: np.ndarray  # (N, 7, 4, 4) frames of the current chain
+    T: np.ndarray  # (N, 7, 3, 4) frames of the current chain (rotations and origins)
     p: np.ndarray  # (N, 3) m, the measured point in the base frame
     Jv: np.ndarray  # (N, 3, 6)
     tau: np.ndarray  # (N, 6) N*m: the weight's (and loads') torques
