@@ -322,7 +322,8 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model
     if model_wrench is None:
         builder.Connect(st.GetOutputPort("wrench_measured"), cp.GetInputPort("wrench"))
     elif len(model_wrench) == 3:  # heard only where the model's force is steady (systems/steady_residual.py)
-        residual = builder.AddNamedSystem("wrench_residual", SteadyResidual(*model_wrench, period_s=1.0 / sc.sensor.rate_hz))
+        residual = builder.AddNamedSystem("wrench_residual",
+                                          SteadyResidual(*model_wrench, period_s=1.0 / sc.sensor.rate_hz))
         builder.Connect(st.GetOutputPort("wrench_measured"), residual.get_input_port())
         builder.Connect(residual.get_output_port(), cp.GetInputPort("wrench"))
     else:
