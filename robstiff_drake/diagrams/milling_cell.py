@@ -38,6 +38,7 @@ from robstiff_drake.diagrams.user_measurements import (
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.path import PathError, PlannedPath
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.systems.steady_residual import SteadyResidual
 from robstiff_drake.model.arm_dynamics import ArmInertia
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.preview import preview_table
@@ -293,7 +294,9 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model
     path and (always built, connected only with ``compensation``) the
     compensator.  ``model_wrench``: (times s, (N, 6) sensor-frame wrench)
     subtracted from the measured wrench before the compensator (the part a
-    corrected program already compensates: diagrams/offline_compensation.py);
+    corrected program already compensates: diagrams/offline_compensation.py),
+    or (times, wrench, (N,) bool steady): subtracted only where steady, the
+    last residual held elsewhere (systems/steady_residual.py);
     ``q_reference``: (times s, (N, 6) rad) joint references streamed instead
     of the path's own (a corrected joint reference); ``offline_plan``:
     (path, t_ref, q_ref) of the program as written, when the scenario's
@@ -318,6 +321,11 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model
     builder.Connect(path_src.get_output_port(), path_demux.get_input_port())
     if model_wrench is None:
         builder.Connect(st.GetOutputPort("wrench_measured"), cp.GetInputPort("wrench"))
+    elif len(model_wrench) == 3:  # heard only where the model's force is steady (systems/steady_residual.py)
+        residual = builder.AddNamedSystem("wrench_residual",
+                                          SteadyResidual(*model_wrench, period_s=1.0 / sc.sensor.rate_hz))
+        builder.Connect(st.GetOutputPort("wrench_measured"), residual.get_input_port())
+        builder.Connect(residual.get_output_port(), cp.GetInputPort("wrench"))
     else:
         t_w, w = model_wrench
         known = builder.AddNamedSystem("model_wrench", TrajectorySource(

@@ -193,18 +193,23 @@ def scanned_against_program(res, program_path):
     return stats
 
 
-def model_wrench_cell(sc, robot, prediction):
+def model_wrench_cell(sc, robot, prediction, *, steady=True):
     """A milling cell whose online compensator hears the measured wrench
     minus the model's (the part the corrected program already holds), at
     the lag the measured one has behind the path (the arm's dead time and
-    two sensor samples)."""
+    two sensor samples); ``steady``: heard only where the model's force is
+    steady (model/program_correction.steady_mask; elsewhere the last
+    residual held: at an entry the plant's force follows the tool's real
+    motion, later than the model's), else everywhere."""
     from robstiff_drake.diagrams.milling_cell import build_milling_cell, planned_path
-    from robstiff_drake.model.program_correction import clock_on
+    from robstiff_drake.model.program_correction import clock_on, steady_mask
 
     lag = prediction.servo.dead_time_s + 2.0 / sc.sensor.rate_hz
     path, _, _ = planned_path(sc, robot, robot.tool_point(where="the closed loop"))
     u = clock_on(prediction.path, path, prediction.u_s)  # the plan's times on the corrected program's clock
-    return build_milling_cell(sc, robot, compensation=True, model_wrench=(u + lag, prediction.sensor_wrench))
+    w = prediction.sensor_wrench
+    model = (u + lag, w, steady_mask(u, w[:, :3])) if steady else (u + lag, w)
+    return build_milling_cell(sc, robot, compensation=True, model_wrench=model)
 
 
 def corrected_reference(prediction):

@@ -282,3 +282,27 @@ def clock_on(path_from, path_to, u_s, period_s=0.002):
         out[k] = u + offset
     out = np.maximum.accumulate(out)
     return out + np.arange(len(out)) * 1e-9  # strictly increasing (held stretches)
+
+
+STEADY_WINDOW_S = 0.6  # the model's force must have stayed steady this long before its difference is heard (s)
+STEADY_FRACTION = 0.1  # ... within this fraction of itself (or STEADY_FLOOR_N)
+STEADY_FLOOR_N = 5.0
+
+
+def steady_mask(t_s, force_N, *, window_s=STEADY_WINDOW_S, fraction=STEADY_FRACTION, floor_N=STEADY_FLOOR_N):
+    """(N,) bool: where the model's force (N, k) at times ``t_s`` (s) has
+    stayed within ``fraction`` of itself (at least ``floor_N``) over the
+    last ``window_s``.  The window: at face_and_contour's entry the plant's
+    force, its chip turning with the tool's real motion, reached the
+    model's ~0.5 s after the model's had (measured: measured less model
+    above 20 N from 2.95 to 3.6 s)."""
+    t = np.asarray(t_s, dtype=float)
+    F = np.asarray(force_N, dtype=float).reshape(len(t), -1)
+    out = np.empty(len(t), dtype=bool)
+    j = 0
+    for i in range(len(t)):
+        while t[j] < t[i] - window_s:
+            j += 1
+        dev = np.linalg.norm(F[j:i + 1] - F[i], axis=1).max()
+        out[i] = dev <= max(fraction * np.linalg.norm(F[i]), floor_N)
+    return out
