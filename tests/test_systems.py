@@ -56,11 +56,11 @@ def test_milling_force_source_outputs(robot):
         sim = Simulator(src)
         ctx = sim.get_mutable_context()
         src.get_input_port().FixValue(ctx, Q)
-        # the tool came along +x at 0.02 m/s: its history (time, x, y) before t = 0
+        # the tool came along the path at 0.02 m/s: its history (time, arc length) before t = 0
         n = src._n_hist
         back = 0.002 * np.arange(n, 0, -1)
-        ctx.get_mutable_discrete_state(int(src._hist)).SetFromVector(np.c_[-back, p[0] - 0.02 * back,
-                                                                           np.full(n, p[1])].ravel())
+        ctx.get_mutable_discrete_state(int(src._hist)).SetFromVector(np.c_[-back, 0.1 - 0.02 * back,
+                                                                           np.zeros(n)].ravel())
         ctx.get_mutable_discrete_state(int(src._process)).SetFromVector([1.0, 0.0, 0.02, 0.0])  # its feed, held
         sim.AdvanceTo(1e-4)  # the update at t = 0 has run
         held = ctx.get_discrete_state(1).CopyToVector()  # the period's wrench
@@ -260,8 +260,7 @@ def test_the_sensor_reads_the_tooth_ripple_from_the_sources_table_as_its_port_gi
     src.get_input_port().FixValue(ctx, Q)
     n = src._n_hist  # the tool came along the path at 0.02 m/s (its feed makes the chip)
     back = 0.002 * np.arange(n, 0, -1)
-    ctx.get_mutable_discrete_state(int(src._hist)).SetFromVector(np.c_[-back, p[0] - 0.02 * back,
-                                                                       np.full(n, p[1])].ravel())
+    ctx.get_mutable_discrete_state(int(src._hist)).SetFromVector(np.c_[-back, 0.1 - 0.02 * back, np.zeros(n)].ravel())
     ctx.get_mutable_discrete_state(int(src._process)).SetFromVector([1.0, 0.0, 0.02, 0.0])
     hits = 0
     for k in range(1, 12):

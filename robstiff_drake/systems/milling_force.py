@@ -19,33 +19,15 @@ from robstiff_drake.model.wrench_frames import to_sensor_frame
 MAX_INSTANTS = 8
 
 
-# The chip (its feed and its direction) follows the tool's horizontal
-# velocity relative to the workpiece, averaged over a revolution (the chip's
-# window: a revolution's chips are its displacement shared by the teeth),
-# its speed low-passed at this frequency (Hz), below the arm's first mode
-# (about 5 Hz): the path's speed ramps (0.5 s) and the tool's lag behind its
-# plan pass, its vibration at the arm's modes does not (a direction or a
-# feed that followed the vibration would feed the cutting force back at
-# about |F|/v, 1e4 N*s/m, a step behind).  The chip's feedback at those modes (process
+# The chip follows the tool's progress along its path low-passed at this
+# frequency (Hz), below the arm's first mode (about 5 Hz): the path's speed
+# ramps (0.5 s) and the tool's lag behind its plan pass, its vibration at
+# the arm's modes does not.  The chip's feedback at those modes (process
 # damping, regenerative and mode-coupling chatter) is real physics this
 # plant leaves out: computed at the force's 4 ms update, a step behind, it
 # is no damping but a numerical instability (the paper's forces on the
 # block ring within 5 s without this filter).
 FEED_CUTOFF_HZ = 2.0
-# The direction turns toward the tool's over this much travel (m, at the
-# smoothed feed): the feed's 2 Hz at the examples' F1200 (20 mm/s / (2 pi
-# 2 Hz)).  MEASURED on the face-and-contour job (diagrams/face_and_contour.yaml):
-# the revolution's average alone rings the force at 10.7 Hz (+-70 N) on the
-# last pass (uncompensated); a 2 Hz time filter lets the arm's ringing and
-# deflection swing the direction where the tool starts slowly after the
-# plunge, and the tool dips 0.2 mm there (preview, identified model: +0.116
-# mean / 0.215 max mm, against +0.057 / 0.098 with this filter).  Its cost:
-# the direction lags a turn by about this length, where the tool's real
-# chip turns within a revolution's travel (0.33 mm at F1200, S3600).
-DIRECTION_LENGTH_M = 0.02 / (2.0 * math.pi * FEED_CUTOFF_HZ)
-# Below this smoothed horizontal speed the tool stands still (a dwell, a
-# plunge): no feed, no chip; the direction stays the last one.
-STANDSTILL_M_PER_S = 1e-5
 
 
 def chip_window_s(cutter):
@@ -71,9 +53,8 @@ class MillingForceSource(LeafSystem):
     cutting load at the actual tool point, the chip from the tool's actual
     horizontal motion: its displacement over the chip's window
     (``chip_window_s``: a revolution; interpolated in the history of
-    updates) over that window, low-passed as a vector at FEED_CUTOFF_HZ, is
-    the feed (m/s) whose feed per tooth is the chip, and its direction the
-    feed direction (``motion``, ``smoothed_velocity``).  So a tool that lags
+    updates) over that window is the feed (m/s) whose feed per tooth is the
+    chip, and its direction the feed direction.  So a tool that lags
     its plan turns a corner where it turns, and a speed ramp thins the
     chip; the planned path gives only the direction before the tool first
     moves.  ``force_model``: the plant's law (model/plant_cutting.py's
@@ -127,7 +108,7 @@ class MillingForceSource(LeafSystem):
         n_sub = max(1, int(round(period_s * force_model.cutter.tooth_pass_hz * samples_per_tooth)))
         self._sub_t = np.arange(n_sub) * (period_s / n_sub)
         self._period = float(period_s)
-        self._feed_gain = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)  # (smoothed_velocity)
+        self._feed_gain = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)  # (smoothed_feed)
         self._sensor_period = float(sensor_period_s or period_s)
         self._q = self.DeclareVectorInputPort("q", 6)
         # held: flange rotation (9) and tool point (3; tooth mode only, where it is read); the period's wrench
@@ -233,62 +214,42 @@ class MillingForceSource(LeafSystem):
         return {"cut_length_m": travel_m} if self._wears else {}
 
     def motion(self, t, p, hist):
-        """(the tool point's horizontal velocity (2,) m/s, the history with
-        (t, x, y) added) from the tool point p (m) now and ``hist`` (3 n:
-        t, x, y per update, oldest first, NaN before the first): its
-        displacement since t - window (interpolated in the history; the
-        chip's window, a revolution: the revolution's chips are that
-        displacement shared by its teeth) over the window.  The path the
-        program runs plays no part: a tool that lags its plan, smooths a
-        short kinked block or slows down cuts as it moves.  A vertical
-        move (a plunge) has no horizontal velocity: no chip."""
+        """(feed direction (2,), horizontal feed m/s, the history with (t,
+        s) added) from the tool point p (m) now and ``hist`` (3 n: t, s,
+        0 per update, oldest first, NaN before the first): s is where along
+        its path the tool really is (the path's point nearest it, found
+        from the last update's; at the first, from a search of the whole
+        path), the feed its progress since t - window
+        (interpolated in the history) over the window, times the path's
+        horizontal slope there (a plunge makes no horizontal chip), along
+        the path's direction there; a tool that goes back cuts no chip."""
         h = hist.tolist() if hasattr(hist, "tolist") else list(hist)
-        h = h[3:] + [t, float(p[0]), float(p[1])]
+        last_t, last_s = h[-3], h[-2]
+        s = self._path.project(p, last_s) if not math.isnan(last_t) else self._path.nearest_s(p)
+        h = h[3:] + [t, s, 0.0]
         # the known updates (a suffix of the history: NaN before the first), oldest first
         first = 0
         while math.isnan(h[first]):
             first += 3
         t0 = t - self._window
         if len(h) - first < 6 or h[first] >= t0:
-            ref = h[first:first + 3]
+            ref_t, ref_s = h[first], h[first + 1]
         else:
             i = first + 3  # (numpy's searchsorted: the first known time >= t0; interpolated from the one before)
             while h[i] < t0:
                 i += 3
-            a, b = h[i - 3:i], h[i:i + 3]
-            f = (t0 - a[0]) / (b[0] - a[0])
-            ref = [a[k] + f * (b[k] - a[k]) for k in range(3)]
-        span = t - ref[0]
-        if span <= 0:
-            return (0.0, 0.0), np.array(h)
-        return ((h[-2] - ref[1]) / span, (h[-1] - ref[2]) / span), np.array(h)
+            a_t, a_s, b_t, b_s = h[i - 3], h[i - 2], h[i], h[i + 1]
+            f = (t0 - a_t) / (b_t - a_t)
+            ref_t, ref_s = a_t + f * (b_t - a_t), a_s + f * (b_s - a_s)
+        span = t - ref_t
+        rate = (s - ref_s) / span if span > 0 else 0.0
+        tg = self._path.tangent_at(s)
+        return self._path.feed_direction_at(s), max(rate, 0.0) * math.hypot(tg[0], tg[1]), np.array(h)
 
-    def smoothed_velocity(self, v_now, u_held, feed_held):
-        """(feed direction (2,), feed m/s) the chip follows from the tool's
-        revolution-averaged horizontal velocity ``v_now`` (m/s) and the
-        held direction and feed: the feed is its speed low-passed at
-        FEED_CUTOFF_HZ (first order, one step per update); the direction
-        turns toward its direction by the distance the tool moved this
-        update over DIRECTION_LENGTH_M (first order in the distance
-        travelled: the material ahead of the cutter, which sets its
-        engagement, changes as the tool moves, not with time).  At
-        standstill (a dwell, a plunge, a tool held back) the feed dies away
-        and the direction stays the last."""
-        speed = math.hypot(v_now[0], v_now[1])
-        feed = feed_held + self._feed_gain * (speed - feed_held)
-        if feed < STANDSTILL_M_PER_S:
-            return (float(u_held[0]), float(u_held[1])), 0.0
-        ux, uy = float(u_held[0]), float(u_held[1])
-        if speed > STANDSTILL_M_PER_S:
-            g = 1.0 - math.exp(-feed * self._period / DIRECTION_LENGTH_M)
-            ux += g * (v_now[0] / speed - ux)
-            uy += g * (v_now[1] / speed - uy)
-            n = math.hypot(ux, uy)
-            if n > 1e-9:
-                ux, uy = ux / n, uy / n
-            else:
-                ux, uy = float(u_held[0]), float(u_held[1])
-        return (ux, uy), feed
+    def smoothed_feed(self, feed_now, feed_held):
+        """The feed the chip follows (m/s): the tool's progress low-passed
+        at FEED_CUTOFF_HZ (first order, one step per update)."""
+        return feed_held + self._feed_gain * (feed_now - feed_held)
 
     def step_wrench(self, t, q, process, hist, instants=()):
         """(wrench over the period starting at t as a list, pose, the
@@ -304,9 +265,9 @@ class MillingForceSource(LeafSystem):
         """step_wrench with the wrench as an array."""
         pose = self._kin.pose_only(q)
         p = pose[9:]
-        v, hist = self.motion(t, p, hist)
-        u0, u1, feed_held, travel = process.tolist() if hasattr(process, "tolist") else process
-        u, feed = self.smoothed_velocity(v, (u0, u1), feed_held)
+        u, feed, hist = self.motion(t, p, hist)
+        _, _, feed_held, travel = process.tolist() if hasattr(process, "tolist") else process
+        feed = self.smoothed_feed(feed, feed_held)
         wear = self._wear_args(travel)
         inst = None
         if self._mode == "tooth":
