@@ -14,6 +14,7 @@ from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.diagrams.scenario_models import cutting_setup, plant_damping_ratios
 from robstiff_drake.diagrams.user_measurements import user_measured_damping
 from robstiff_drake.diagrams.user_model import _exact_servo
+from robstiff_drake.model.milling import Workpiece
 from robstiff_drake.identification.stiffness.modes import era_modes, impulse_response, merge_close
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -123,3 +124,28 @@ def test_the_bound_reads_the_exact_values(robot, captured):
     np.testing.assert_array_equal(seen["tool_m"], tool)
     np.testing.assert_array_equal(seen["model"].wp.top_m, workpiece.top_m)
     np.testing.assert_allclose(seen["damping_ratios"], plant_damping_ratios(sc))
+
+
+@pytest.mark.parametrize("name, value", [("chip_exponent", 0.6), ("runout_mm", 0.03), ("flank_wear_mm", 0.1),
+                                         ("flank_wear_mm_per_m", 0.01)])
+def test_the_model_twin_reads_no_plant_only_cutting_parameter(robot, name, value):
+    """The twin the feed planner and the preview's predictions run (the
+    compensator's model of the cell) cuts with the compensator's linear,
+    revolution-averaged law: the plant's chip exponent, runout and flank
+    wear, which no user measures, change nothing of it."""
+    from robstiff_drake.diagrams.feed_plan import twin_scenario
+    from robstiff_drake.diagrams.scenario_models import plant_cutting_setup
+
+    sc = load_scenario(ROOT / "diagrams" / "face_and_contour.yaml")
+    sc.model.source = "nominal"  # (the exact model: the cutting law is the only difference left)
+    other = copy.deepcopy(sc)
+    setattr(other.cutting, name, value)
+    p = np.array([1.65, 0.0, 0.698])
+    laws = [plant_cutting_setup(twin_scenario(s, robot, 1.0))[1] for s in (sc, other)]
+    a, b = (law.average_wrench(p, (1.0, 0.0), Workpiece.from_boxes([[1.6, 1.72, -0.04, 0.04, 0.7]]), 0.02)
+            for law in laws)
+    np.testing.assert_array_equal(a, b)
+    linear = cutting_setup(sc)[1].average_wrench(p, (1.0, 0.0), Workpiece.from_boxes([[1.6, 1.72, -0.04, 0.04, 0.7]]),
+                                                 0.02)
+    np.testing.assert_allclose(a, linear, rtol=1e-9, atol=1e-9)
+    assert np.linalg.norm(a[:3]) > 100.0  # (in the material)

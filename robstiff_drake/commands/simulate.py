@@ -147,8 +147,7 @@ def summary(results, sc, warnings=()):
                    for r in results]
     out["spindle_power_W"] = max(r.spindle["power_W_max"] for r in results)
     out["spindle_rating_W"] = sc.cutter.spindle_rating_W
-    cw = res0.logs["cutting_wrench"][1]
-    mid = cw[len(cw) // 2]
+    mid = mid_pass_wrench(res0.logs["cutting_wrench"][1])
     out["cutting_wrench_at_mid_pass"] = {"force_N": mid[:3], "moment_Nm": mid[3:]}
     out["natural_frequencies_hz"] = res0.cell.natural_frequencies_hz  # motors held
     f, z = res0.cell.closed_loop_modes  # the arm's first three (the drives' own modes are above them)
@@ -161,13 +160,29 @@ def summary(results, sc, warnings=()):
     return out
 
 
+def mid_pass_wrench(cw, in_cut_N=1.0):
+    """The cutting wrench (6,) at mid-pass from its log ``cw`` (N, 6): the
+    log's middle sample when the cutter is in the material there (force
+    above ``in_cut_N``), else the middle of the samples where it is (a job
+    with turns may be between passes at its middle)."""
+    cw = np.asarray(cw, dtype=float)
+    if len(cw) == 0:
+        return np.zeros(6)
+    mid = cw[len(cw) // 2]
+    if np.linalg.norm(mid[:3]) <= in_cut_N:
+        cutting = np.flatnonzero(np.linalg.norm(cw[:, :3], axis=1) > in_cut_N)
+        if cutting.size:
+            mid = cw[cutting[len(cutting) // 2]]
+    return mid
+
+
 def format_table(summ):
     lines = [f"{summ['name']}: surface error (mm, + = cut more)",
              "                  mean      rms   max|e|       PV"]
     for name, s in summ["surface_error_mm"].items():
         lines.append(f"  {name:14s} {s['mean']:+7.3f}  {s['rms']:7.3f}  {s['max_abs']:7.3f}  {s['pv']:7.3f}")
-    f = summ["cutting_wrench_at_mid_pass"]["force_N"]
-    lines.append(f"cutting force at mid-pass (N, base frame): ({f[0]:.0f}, {f[1]:.0f}, {f[2]:.0f}); spindle power up "
+    f = [int(round(float(v))) for v in summ["cutting_wrench_at_mid_pass"]["force_N"]]  # (no "-0")
+    lines.append(f"cutting force at mid-pass (N, base frame): ({f[0]}, {f[1]}, {f[2]}); spindle power up "
                  f"to {summ['spindle_power_W'] / 1e3:.2f} kW (rating {summ['spindle_rating_W'] / 1e3:.2f} kW)")
     lines.append("first natural frequencies at the start pose (Hz): "
                  + ", ".join(f"{v:.1f}" for v in summ["natural_frequencies_hz"]) + " (motors held); with the drives "

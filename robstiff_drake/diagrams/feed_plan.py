@@ -63,7 +63,9 @@ class FeedPlan:
 
 def twin_scenario(sc, robot, coefficient_factor):
     """The compensator's model of the cell as a scenario: the plant is what
-    the model believes, the cutting coefficients the model's times
+    the model believes, its cutting law the model's (linear,
+    revolution-averaged: no chip exponent, runout or wear, which only the
+    plant has), the cutting coefficients the model's times
     ``coefficient_factor``, the compensator the scenario's with its model."""
     tw = copy.deepcopy(sc)
     k = model_stiffness(sc, robot)
@@ -86,6 +88,7 @@ def twin_scenario(sc, robot, coefficient_factor):
     um = user_model_of(sc)
     factors = um.coefficient_factors if um is not None else {}
     c = tw.cutting
+    c.plant_law = "linear"  # the compensator's law (linear, revolution-averaged): the plant's richer one is the plant's
     for name in ("Ktc_N_per_mm2", "Krc_N_per_mm2", "Kac_N_per_mm2", "Kte_N_per_mm", "Kre_N_per_mm", "Kae_N_per_mm"):
         setattr(c, name, getattr(c, name) * factors.get(name, 1.0) * sc.model.force_model_scale * coefficient_factor)
     tw.model.source = "nominal"

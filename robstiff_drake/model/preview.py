@@ -14,7 +14,11 @@ own numbers:
 with q the link angles, theta the motors' (link-side units), K the
 compensator's (identified) joint stiffness, D its modal damping (each mode
 of the links on their gears, M against K, gets the damping ratio zeta_i:
-D = M Phi diag(2 zeta_i omega_i) Phi^T M), W the cutting wrench at the
+D = M Phi diag(2 zeta_i omega_i) Phi^T M; the stated ratios are the
+drives-closed modes', what a modal test with the drives on measures, and
+zeta_i the motors-held ratios that realise them with the compensator's
+drives at the path's first pose, as the plant's joints do:
+model/joint_dynamics.realise_drives_closed), W the cutting wrench at the
 tool point, M the robot file's nominal inertias (ArmInertia) and J_m the
 motors' rotor inertias (the robot file's, or its stated assumption).  For
 the links to stay on the path q_p the motors must lead it by the gears'
@@ -56,6 +60,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import linalg, optimize
+
+from robstiff_drake.model import joint_dynamics
+from robstiff_drake.model.servo import ServoParameters
 
 N_FORCE_GROUPS = 3  # tangential, radial, axial coefficient groups
 GROUPS = ("tangential", "radial", "axial", "inertia")  # the parts of the preview
@@ -157,8 +164,9 @@ class PreviewStream:
     (3, 6) at the planned tool point, ``jacobian(q)``, ``flange_rotation(q)``
     (row-major 9), ``mass(q)`` and ``payload_com_jacobian(q)``;
     ``compliance`` (6,) rad/(N*m); ``damping_ratios`` the modal damping
-    ratio of each mode of the links on their gears (one number: every
-    mode); ``servo`` a ServoModel; ``motor_inertia_kgm2`` (6,) the motors'
+    ratio of each of the arm's modes with the drives closed (one number:
+    every mode; ``held_ratios``: the motors-held ratios that realise them);
+    ``servo`` a ServoModel; ``motor_inertia_kgm2`` (6,) the motors'
     rotor inertias reflected to the joints; ``tool_m`` the tool point in the
     sensor frame."""
 
@@ -166,7 +174,8 @@ class PreviewStream:
         self.m = model
         self.T = float(period_s)
         self.C = np.asarray(compliance, dtype=float)
-        self.zeta = np.broadcast_to(np.asarray(damping_ratios, dtype=float), (6,)).copy()
+        self.zeta_closed = np.broadcast_to(np.asarray(damping_ratios, dtype=float), (6,)).copy()
+        self.zeta = None  # the motors-held ratios (held_ratios), at the first pose
         self.servo = servo
         self.Jm = np.asarray(motor_inertia_kgm2, dtype=float)
         self.tool = np.asarray(tool_m, dtype=float)
@@ -186,9 +195,24 @@ class PreviewStream:
         drives' velocity gains (``_modal_terms``)."""
         return self._modal_terms(self.m.mass(q))
 
+    def held_ratios(self, M):
+        """(6,) the motors-held damping ratios whose drives-closed modes have
+        the stated ratios, on the compensator's joints at mass matrix M (its
+        stiffness and drives, the weight's stiffness left out as in
+        ``_modal_terms``)."""
+        sv = self.servo
+        drives = ServoParameters(position_gain_per_s=sv.position_gain_per_s,
+                                 velocity_bandwidth_hz=sv.velocity_bandwidth_hz, velocity_feedforward=1.0,
+                                 interpolator_delay_s=sv.dead_time_s, velocity_integral_hz=sv.velocity_integral_hz)
+        jm = joint_dynamics.linear_joints(M, np.zeros((6, 6)), np.diag(1.0 / self.C), self.zeta_closed, drives,
+                                          self.Jm, stated_on="drives_closed")
+        return jm.held_ratios()
+
     def _modal_terms(self, M):
         """For mass matrix M: (M, the gears' twist filter over a period (Phi =
         e^{-D^-1 K T}, D the modal damping), the drives' velocity gains K_v (6,))."""
+        if self.zeta is None:
+            self.zeta = self.held_ratios(M)
         K = 1.0 / self.C
         Kd = np.diag(K)
         w2, Phi = linalg.eigh(Kd, M)  # Phi^T M Phi = I, Phi^T K Phi = diag(omega^2)
