@@ -167,9 +167,7 @@ class LoopGuard:
         along["largest_stable_cutoff_hz"] = f
         if self.result is not None:
             self.result["overridden"] = bool(self.result.get("overridden") or self.allow)
-        modes_text = " and ".join("in air" if m == "air" else "cutting" for m in v.unstable)
-        radii = ", ".join(f"{v.radius[m]:.4f} {'in air' if m == 'air' else 'cutting'}" for m in v.unstable)
-        filt = f"--cutoff-hz {self.cutoff_hz:g}" if self.filter_kind == "lowpass" else f"--filter {self.filter_kind}"
+        modes_text, radii, filt = self._unstable_parts(v)
         line = (f"the correction loop is predicted UNSTABLE {modes_text} along {what} at {pose} with {filt}: spectral "
                 f"radius {radii} per {T_ms:g} ms period with {loop_check.MARGIN_DAMPING_RATIO * 100:g} % modal "
                 f"damping (the check's margin); {self._best_cutoff_text(f)} there")
@@ -177,6 +175,14 @@ class LoopGuard:
             raise InputError(f"{line}; nothing was sent ({OVERRIDE} runs it anyway)")
         self.warning = f"{OVERRIDE}: running anyway: {line}"
         return self.warning
+
+    def _unstable_parts(self, v):
+        """(the unstable modes, their spectral radii, the filter option) as
+        the refusal's line names them, for a verdict ``v``."""
+        modes_text = " and ".join("in air" if m == "air" else "cutting" for m in v.unstable)
+        radii = ", ".join(f"{v.radius[m]:.4f} {'in air' if m == 'air' else 'cutting'}" for m in v.unstable)
+        filt = f"--cutoff-hz {self.cutoff_hz:g}" if self.filter_kind == "lowpass" else f"--filter {self.filter_kind}"
+        return modes_text, radii, filt
 
     def largest_stable_cutoff(self, q_ctrl_deg, modes):
         """The largest low-pass cutoff (Hz) stable at a pose (None: none)."""
@@ -204,10 +210,8 @@ class LoopGuard:
             return (f"the correction loop is stable at the start pose ({where}) by the loop model: spectral radius "
                     f"{v.radius['air']:.4f} in air, {v.radius['cutting']:.4f} cutting per {T_ms:g} ms period with "
                     f"{loop_check.MARGIN_DAMPING_RATIO * 100:g} % modal damping (checked in {seconds:.2f} s)")
-        modes_text = " and ".join("in air" if m == "air" else "cutting" for m in v.unstable)
-        radii = ", ".join(f"{v.radius[m]:.4f} {'in air' if m == 'air' else 'cutting'}" for m in v.unstable)
+        modes_text, radii, filt = self._unstable_parts(v)
         assumed = ", ".join(f"{v.radius_assumed[m]:.4f}" for m in v.unstable)
-        filt = f"--cutoff-hz {self.cutoff_hz:g}" if self.filter_kind == "lowpass" else f"--filter {self.filter_kind}"
         best = self._best_cutoff_text(v.largest_stable_cutoff_hz)
         line = (f"the correction loop is predicted UNSTABLE {modes_text} at the start pose ({where}: "
                 f"{_pose_text(q_ctrl_deg)} deg) with {filt}: spectral radius {radii} per {T_ms:g} ms period with "
