@@ -43,6 +43,7 @@ import numpy as np
 
 from robstiff_drake.cell.health import Counters
 from robstiff_drake.cell.loop_stats import loop_stats
+from robstiff_drake.cell.realtime_thread import collect_if_due
 from robstiff_drake.cell.reference import Reference  # noqa: F401 (the loop's reference; commands import it here)
 from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_limits_deg, pose_problem_within, \
     supervision_tolerances
@@ -114,6 +115,9 @@ class CompensatorLoop(LoopStart, SensorIntake):
         self.saturated = False
         self.last_sent = None
         self.ended_by = "interrupt"
+        # cell/realtime_thread.quiet_gc's token when the automatic collector is off for the run: the loop
+        # collects after its answers (``_safe_point``); None: the collector left as it is
+        self.gc_token = None
         G = robot.joint_map.G
         self._identity = robot.joint_map.is_identity
         self._Ginv = np.linalg.inv(G)
@@ -287,6 +291,14 @@ class CompensatorLoop(LoopStart, SensorIntake):
         self.n.unanswered_refused += 1
         return False
 
+    def _safe_point(self):
+        """After the answer has left and its log rows are made: the garbage
+        collection due, if any (timed), never on the way to an answer."""
+        if self.gc_token is not None:
+            t0 = time.perf_counter()
+            if collect_if_due(self.gc_token) >= 0:
+                self.n.gc_ms.add((time.perf_counter() - t0) * 1e3)
+
     # ------------------------------------------------------------ the loop
 
     def run(self, first):
@@ -310,6 +322,7 @@ class CompensatorLoop(LoopStart, SensorIntake):
                         break
                     if self.log is not None:
                         self.log.tick(now)
+                    self._safe_point()
                     continue
                 accepted = []
                 for m, t in got:  # every datagram's sequence and clock, oldest first
@@ -349,6 +362,7 @@ class CompensatorLoop(LoopStart, SensorIntake):
                 self.cycle(msg, t_arr, dt)
                 if self.log is not None:
                     self.log.tick(time.monotonic())
+                self._safe_point()
         except KeyboardInterrupt:
             self.event("interrupted: the run ends")
         except Terminated:  # a service manager's stop: end the run and write its log, as on Ctrl-C

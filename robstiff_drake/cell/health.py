@@ -148,5 +148,6 @@ class Counters:
     compute_ms: Histogram = field(default_factory=Histogram)
     age_ms: Histogram = field(default_factory=Histogram)
     gap_ms: Histogram = field(default_factory=Histogram)
+    gc_ms: Histogram = field(default_factory=Histogram)  # the loop's own collections, after an answer
     events: list = field(default_factory=list)  # (t_s, text), the first MAX_EVENTS_KEPT
     lost_estimate: LostEstimate = field(default_factory=LostEstimate)

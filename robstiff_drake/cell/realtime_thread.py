@@ -1,14 +1,25 @@
 """The compensator process's scheduling: its loop's thread under
-SCHED_FIFO (``--rt-priority``) with the threads it started before, and the
-garbage collector kept out of the loop's way.  The start's own work runs
-below the loop (cell/start_gate.below_the_loop)."""
+SCHED_FIFO (``--rt-priority``) with the threads it started before, on a
+CPU of its own (``--cpu``), and the garbage collector kept out of the
+answer's way: the objects made before the loop frozen, the automatic
+collector off while the loop runs, and the collections it would have made
+run by the loop itself after an answer has left (``collect_if_due``),
+never between a message's arrival and its answer.  The start's own work
+runs below the loop (cell/start_gate.below_the_loop)."""
 
-import sys
+import gc
+import os
+
+# the CPUs the process could run on before the loop's thread was pinned (threads the loop starts later,
+# which inherit its pin, are given them back: cell/start_gate.below_the_loop); None: not pinned
+_ALL_CPUS = None
+
 
 def realtime(priority):
     """Run the loop's thread under SCHED_FIFO at ``priority`` (1-99), as a
     real-time PC would; 0: leave the scheduling alone.  Not permitted (no
-    privilege): a warning, and the loop runs anyway.
+    privilege): the warning line returned (None when it worked), and the
+    loop runs anyway: a scheduling wish never ends a run.
 
     The process's threads started before it (the sensor reader's) go to
     SCHED_FIFO one below the loop: they take Python's interpreter lock to
@@ -17,41 +28,95 @@ def realtime(priority):
     slice (the loop's own priority does not help it then).  Threads started
     later (the log's writer) inherit the loop's scheduling."""
     if not priority:
-        return
-    import os
+        return None
     import threading
 
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
     except (AttributeError, PermissionError, OSError) as e:
-        print(f"robstiff: warning: --rt-priority {priority}: cannot switch to real-time scheduling ({e}); running "
-              "without it", file=sys.stderr)
-        return
+        return f"--rt-priority {priority}: cannot switch to real-time scheduling ({e}); running without it"
     me = threading.get_native_id()
     try:
         tids = [int(t) for t in os.listdir("/proc/self/task")]
     except OSError:
-        return  # (not Linux: the loop's thread only)
+        return None  # (not Linux: the loop's thread only)
     for tid in tids:
         if tid != me:
             try:
                 os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(max(int(priority) - 1, 1)))
             except OSError:
                 pass  # (a thread that ended meanwhile)
+    return None
+
+
+def pin_to_cpu(cpu):
+    """Keep the loop's thread on CPU ``cpu`` (None: leave it where the
+    scheduler puts it): on a PC whose other work is kept off that CPU
+    (isolcpus, or a load pinned elsewhere) nothing else runs there.  The
+    threads started before it (the sensor reader's) stay where they were.
+    Returns None, or the warning line when the machine does not allow it
+    (the run goes on unpinned: a scheduling wish never ends a run)."""
+    global _ALL_CPUS
+    if cpu is None:
+        return None
+    try:
+        allowed = os.sched_getaffinity(0)
+        if int(cpu) not in allowed:
+            return (f"--cpu {cpu}: not one of the CPUs this process may use ({', '.join(map(str, sorted(allowed)))}); "
+                    "running unpinned")
+        os.sched_setaffinity(0, {int(cpu)})  # (Linux: 0 is the calling thread, the loop's)
+    except (AttributeError, OSError) as e:
+        return f"--cpu {cpu}: cannot pin the loop's thread ({e}); running unpinned"
+    _ALL_CPUS = allowed
+    return None
+
+
+def unpin_this_thread():
+    """A thread the loop started (it inherited the loop's CPU): back on
+    every CPU the process had."""
+    if _ALL_CPUS is not None:
+        try:
+            os.sched_setaffinity(0, _ALL_CPUS)
+        except (AttributeError, OSError):
+            pass
 
 
 def quiet_gc():
-    """Freeze the objects made so far out of the garbage collector's reach
-    (fewer and shorter collection pauses in the loop)."""
-    import gc
-
+    """Collect once, freeze the objects made so far out of the collector's
+    reach (the later collections walk only what the run makes) and turn
+    the automatic collector off: it would run inside whatever allocation
+    crosses its threshold, on the way to an answer.  The loop collects at
+    its safe points instead (``collect_if_due``).  Returns the token for
+    ``restore_gc``."""
     gc.collect()
     gc.freeze()
-    return True
+    thresholds = gc.get_threshold()
+    enabled = gc.isenabled()
+    gc.disable()
+    return thresholds, enabled
 
 
-def restore_gc(frozen):
-    import gc
+def collect_if_due(token):
+    """At a safe point of the loop (its answer has left): the collection
+    the automatic collector would have made by now, if any (generation 0
+    after its threshold of new objects, an older one when its own count is
+    due, as Python schedules them); the generation collected, or -1.  With
+    the collector left on (``token`` None, or the loop run by a test
+    without ``quiet_gc``): nothing."""
+    if token is None or gc.isenabled():
+        return -1
+    (t0, t1, t2), _ = token
+    c0, c1, c2 = gc.get_count()
+    if t0 <= 0 or c0 <= t0:
+        return -1
+    gen = 2 if c2 > t2 else 1 if c1 > t1 else 0
+    gc.collect(gen)
+    return gen
 
-    if frozen:
+
+def restore_gc(token):
+    if token:
+        _, enabled = token
+        if enabled:
+            gc.enable()
         gc.unfreeze()

@@ -67,6 +67,9 @@ class NetworkStats:
     late_answers: int = 0  # ticks that took an answer to an older message (the one due came late)
     answered: int = 0  # EGM messages followed by an answer before the next one
     unanswered: int = 0
+    # of ``unanswered``, those since the last answer: a run whose compensator stopped on purpose (its
+    # --duration-s) while this controller streams on ends with them; a gap it answered after is not among them
+    trailing_unanswered: int = 0
     late_ticks: int = 0  # ticks sent more than half a period late
     skipped_ticks: int = 0  # periods the schedule slipped because the loop was more than a period late
     tick_error_s: list = field(default_factory=list)
@@ -270,6 +273,7 @@ class CellNetwork:
                     break  # the compensator stopped answering (EGM's CommTimeout)
                 if targets is None:
                     st.unanswered += 1
+                    st.trailing_unanswered += 1
                 else:
                     st.late_answers += 1
             dropped.discard(need)
@@ -286,6 +290,7 @@ class CellNetwork:
                 elif fresh:
                     st.answered += 1
                 st.last_answer_t = t - t_eng
+                st.trailing_unanswered = 0
             self._q_prev = np.degrees(q_before) if engaged else None  # the command of the tick before
             te = t - t_eng if engaged else -1.0  # fault clock
             t_s0 = time.perf_counter()

@@ -84,7 +84,12 @@ def below_the_loop():
     every normal process, so that it is never preempted by one while it
     holds Python's interpreter lock (the loop would wait for that process's
     time slice: 6.7 ms measured at load 5 with the normal policy), and
-    below the loop and the sensor's reader, which preempt it."""
+    below the loop and the sensor's reader, which preempt it; and back on
+    every CPU when the loop's thread is pinned to one (``--cpu``: this
+    thread inherited its pin)."""
+    from robstiff_drake.cell.realtime_thread import unpin_this_thread
+
+    unpin_this_thread()
     try:
         if os.sched_getscheduler(0) == os.SCHED_FIFO:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(os.sched_get_priority_min(os.SCHED_FIFO)))

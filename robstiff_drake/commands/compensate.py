@@ -32,7 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.errors import InputError, excerpt
-from robstiff_drake.cell.realtime_thread import quiet_gc as _quiet_gc, realtime as _realtime, restore_gc as _restore_gc
+from robstiff_drake.cell.realtime_thread import pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
+    realtime as _realtime, restore_gc as _restore_gc
 from robstiff_drake.progress import info, wrote
 
 # How far the first joint feedback may be from the reference's start (deg)
@@ -149,7 +150,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         max_jump_N=1000.0, max_jump_Nm=None, saturation_deg=0.5, rate_limit_deg_per_s=5.0, delay_steps=0,
         netft_counts=None, netft_units=None, netft_http_port=80, netft_open_s=2.0,
         wait_s=30.0, duration_s=0.0, idle_exit_s=0.0,
-        sensor_timeout_ms=20.0, rt_priority=0, controller="127.0.0.1", protocol="egm", servo=None,
+        sensor_timeout_ms=20.0, rt_priority=0, cpu=None, controller="127.0.0.1", protocol="egm", servo=None,
         cutter_diameter_mm=None, allow_unstable_loop=False, mode="plain", job=None, preview_sync_ms=25.0,
         preview_force_bound_N=150.0):
     from robstiff_drake.io import check_outputs
@@ -298,12 +299,14 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         link.open()
         print(f"robstiff: compensate: sensor {host}:{port} streaming (calibration {cal_text}); waiting for "
               f"{link.name} messages from {where} on UDP port {link.port}", file=sys.stderr, flush=True)
-        gc_frozen = _quiet_gc()
+        loop.gc_token = gc_frozen = _quiet_gc()  # (the collector off: the loop collects after its answers)
         # the sensor's records come through pynetft's thread: let it have the interpreter within half a
         # millisecond when the loop is busy (the default switch interval, 5 ms, is longer than a cycle)
         switch = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
-        _realtime(rt_priority)
+        for line in filter(None, (_pin_to_cpu(cpu), _realtime(rt_priority))):  # (not allowed: the run goes on)
+            print(f"robstiff: warning: compensate: {line}", file=sys.stderr, flush=True)
+            stream_log is not None and stream_log.event(0.0, 0.0, f"warning: {line}")
         first = loop.first_message(wait_s)
         q0 = first[0].joints_deg
         if ref.q is None:

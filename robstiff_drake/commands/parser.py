@@ -409,6 +409,9 @@ def build_parser():
                    help="a sensor silent or invalid this long ramps the correction to zero (default: %(default)s)")
     p.add_argument("--rt-priority", type=_number_in(0, 99, integer=True), default=0,
                    help="run the loop under SCHED_FIFO at this priority (Linux, needs the privilege; 0: off)")
+    p.add_argument("--cpu", type=_number_in(0, 4095, integer=True), default=None,
+                   help="keep the loop's thread on this CPU (Linux; a warning and unpinned when not allowed; "
+                        "default: where the scheduler puts it)")
 
     p = sub.add_parser("examples", help="the packaged scenarios, G-code programs, robot files and example "
                                         "campaigns; --copy DIR copies them to edit")

@@ -73,6 +73,16 @@ class SampleFilter:
     def step(self, u):
         """One sample of six channels in, six out (lists)."""
         b, a, n = self._b, self._a, self._n
+        if n == 2:  # (a biquad, the default order: the loop below unrolled, the same operations in the same order)
+            b0, b1, b2 = b
+            a1, a2 = a[1], a[2]
+            out = []
+            for x, z in zip(u, self._z):
+                y = b0 * x + z[0]
+                z[0] = b1 * x - a1 * y + z[1]
+                z[1] = b2 * x - a2 * y
+                out.append(y)
+            return out
         out = []
         for c, x in enumerate(u):
             z = self._z[c]
