@@ -2,7 +2,7 @@
 does not resolve a gear's flank impacts or the tooth pass is refused
 naming the step that would; at that step the impacts' restitution and the
 tooth force's twist come out as converged; the friction inside the play
-stops the rattle."""
+stops the rattle and holds a torque below it."""
 
 import copy
 

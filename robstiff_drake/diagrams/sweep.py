@@ -15,7 +15,6 @@ from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
-from robstiff_drake.diagrams.scenario import bounding_step_s
 from robstiff_drake.diagrams.sweep_config import configure
 from robstiff_drake.errors import InputError
 from robstiff_drake.progress import progress as progress_bar
@@ -32,6 +31,8 @@ def combinations(periods_ms, delay_steps, cutoffs_hz, modes):
 
 def check_combinations(sc, combos, plant_step_ms=None):
     """Refuse, before anything runs, a combination the scenario cannot take."""
+    from robstiff_drake.diagrams.scenario import bounding_step_s  # (Drake's: after the arguments' checks)
+
     for c in combos:
         step_ms = plant_step_ms or bounding_step_s(sc) * 1e3
         if c["period_ms"] < step_ms - 1e-9:
