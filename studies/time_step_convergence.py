@@ -32,7 +32,9 @@
    joints' response, and the wrist mode the step makes of the 126 Hz one
    (JointModel.step_modes); the compensator's lost-motion law identified
    from a play campaign (diagrams/play_campaign.py) against the 50 N*m
-   take-up; and the steps the station asks for (it refuses coarser ones).
+   take-up; and the steps the station asks for (it refuses coarser ones),
+   and the "default step" rows: the step it takes for a scenario with that
+   play, or a tooth-resolved force, that gives no plant_config.time_step.
 
 docs/results.md quotes `python3 studies/time_step_convergence.py`.
 """
@@ -124,8 +126,11 @@ def _release(robot, q, servo, h, friction, duration_s):
     return np.array(e), n, d
 
 
+_DEFAULT = " (the default step)"  # the row of the step the station takes when the scenario gives none
+
+
 def play_and_teeth():
-    from robstiff_drake.diagrams import compliant_arm, tooth_response
+    from robstiff_drake.diagrams import compliant_arm, plant_step, tooth_response
     from robstiff_drake.diagrams.play_campaign import play_campaign
     from robstiff_drake.identification.stiffness.play_law import fit_play_law
     from robstiff_drake.model import transmission
@@ -145,10 +150,11 @@ def play_and_teeth():
     print("| plant step (ms) | omega_c h | restitution min - max | worst off the converged | flank crossings | "
           "rattle after the release (s) |")
     print("|---|---|---|---|---|---|")
-    for h in (2e-3, 1e-3, 5e-4, 2.5e-4):
+    h_play = plant_step.chosen_step(jm, play)[0]  # the step a scenario with this play and no step given gets
+    for h in sorted({2e-3, 1e-3, 5e-4, 2.5e-4, h_play}, reverse=True):
         e, n, d = _release(robot, q, servo, h, np.zeros(6), 1.2)
-        print(f"| {h * 1e3:g} | {2 * np.pi * f_c * h:.2f} | {e.min():.3f} - {e.max():.3f} | "
-              f"{np.max(np.abs(e / converged - 1.0)):.1%} | {min(n)}-{max(n)} | {min(d):.2f}-{max(d):.2f} |",
+        print(f"| {h * 1e3:g}{_DEFAULT if abs(h - h_play) < 1e-12 else ''} | {2 * np.pi * f_c * h:.2f} | "
+              f"{e.min():.3f} - {e.max():.3f} | {np.max(np.abs(e / converged - 1.0)):.1%} | {min(n)}-{max(n)} | {min(d):.2f}-{max(d):.2f} |",
               flush=True)
     fr = transmission.gap_friction_Nm(K)[5]
     for h in (2e-3, 5e-4):
@@ -164,10 +170,12 @@ def play_and_teeth():
           f"{exact:.3e} rad/(N*m), wrist mode {f0[-1]:.1f} Hz / {z0[-1]:.1%}")
     print("| plant step (ms) | twist per N*m (rad/(N*m)) | against the continuous | wrist mode the step makes |")
     print("|---|---|---|---|")
-    for h in (2e-3, 1e-3, 5e-4, 2.5e-4):
+    h_tooth = plant_step.chosen_step(jm, None, 360.0)[0]  # a tooth-resolved scenario's with no step given
+    for h in sorted({2e-3, 1e-3, 5e-4, 2.5e-4, h_tooth}, reverse=True):
         tw = tooth_response.twist_per_Nm(robot, q, step_s=h, servo=servo)
         fs, zs = jm.step_modes(h)
-        print(f"| {h * 1e3:g} | {tw:.3e} | {tw / exact - 1.0:+.1%} | {fs[-1]:.1f} Hz / {zs[-1]:.1%} |", flush=True)
+        print(f"| {h * 1e3:g}{_DEFAULT if abs(h - h_tooth) < 1e-12 else ''} | {tw:.3e} | {tw / exact - 1.0:+.1%} | "
+              f"{fs[-1]:.1f} Hz / {zs[-1]:.1%} |", flush=True)
     print()
     c = 1.0 / robot.joint_stiffness_Nm_per_rad[5]
     tau, phi = play_campaign(robot, q, joint=5, play_rad=play, step_s=5e-4, servo=servo)
@@ -187,6 +195,9 @@ def play_and_teeth():
           f"tooth-resolved 360 Hz {compliant_arm.tooth_resolving_step_s(jm, 360.0) * 1e3:g} ms; at 2 ms:")
     print("  " + compliant_arm.under_resolved_play_message(jm, play, 2e-3))
     print("  " + compliant_arm.unresolved_tooth_message(jm, 360.0, 2e-3))
+    print("With no plant_config.time_step given (diagrams/plant_step.chosen_step):")
+    print("  " + plant_step.chosen_step(jm, play)[1])
+    print("  " + plant_step.chosen_step(jm, None, 360.0)[1])
 
 
 def main():

@@ -2,7 +2,7 @@
 does not resolve a gear's flank impacts or the tooth pass is refused
 naming the step that would; at that step the impacts' restitution and the
 tooth force's twist come out as converged; the friction inside the play
-stops the rattle."""
+stops the rattle and holds a torque below it."""
 
 import copy
 
@@ -13,6 +13,7 @@ from robstiff_drake.diagrams import gear_impacts, tooth_response
 from robstiff_drake.diagrams.compliant_arm import (
     contact_frequencies_hz,
     controller_model,
+    gravity_holding_torque,
     joint_model,
     resolving_step_s,
     tooth_resolving_step_s,
@@ -20,7 +21,7 @@ from robstiff_drake.diagrams.compliant_arm import (
 from robstiff_drake.diagrams.milling_cell import check_plant_step
 from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.errors import InputError
-from robstiff_drake.model import ik, joint_dynamics
+from robstiff_drake.model import ik, joint_dynamics, transmission
 from robstiff_drake.model.servo import ServoParameters
 from robstiff_drake.paths import DIAGRAMS_DIR
 
@@ -117,6 +118,27 @@ def test_friction_inside_the_play_stops_the_rattle(robot, pose):
     assert crossings >= 10 and duration > 0.5
     _, crossings, duration = runs["plant"]
     assert crossings <= 2 and duration < 0.02
+
+
+@pytest.mark.parametrize("share, holds", [(0.9, True), (-0.9, True), (1.5, False)])
+def test_friction_inside_the_play_holds_a_torque_below_it(robot, pose, share, holds):
+    """Joint 6 at rest in the middle of its play (its gear carrying nothing)
+    with a constant torque on its link: below the friction in the play
+    (+-0.9 x 3.3 N*m) the link sticks to its motor (the twist moves less
+    than 5 % of the half-width in 2 s; the friction read from the rate
+    alone let it creep onto a flank within 0.2 s); above it (1.5 x) it
+    slides onto the flank within 50 ms."""
+    tc = transmission.gap_friction_Nm(joint_dynamics.stiffness_matrix(robot.joint_stiffness_Nm_per_rad))[5]
+    assert tc == pytest.approx(3.3)
+    g6 = gravity_holding_torque(controller_model(robot), pose)[5]  # (the load that leaves the gear nothing)
+    t, phi, _ = gear_impacts.joint_load_run(robot, pose, gear_impacts.JointLoadStep(5, g6 + share * tc, 1e9),
+                                            step_s=5e-4, play_rad=PLAY6, joint=5, initial_load_Nm=g6,
+                                            duration_s=2.0, servo=SERVO)
+    assert abs(phi[0]) < 1e-9
+    if holds:
+        assert np.max(np.abs(phi - phi[0])) < 0.05 * B6
+    else:
+        assert np.any(np.abs(phi[t < 0.05]) > B6)
 
 
 def test_tooth_force_twist_converged_at_the_resolving_step(robot, pose, joints):

@@ -21,6 +21,7 @@ import numpy as np
 
 # Drake comes with the diagrams' modules, imported where they are used: a
 # bad argument is refused before that import (as fast as --help).
+from robstiff_drake.diagrams.plant_step import step_choice
 from robstiff_drake.diagrams.job_checks import job_warnings, worse_reason
 from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, WORSE_PREFIX, run_warnings
 from robstiff_drake.errors import InputError
@@ -153,6 +154,7 @@ def summary(results, sc, warnings=()):
     f, z = res0.cell.closed_loop_modes  # the arm's first three (the drives' own modes are above them)
     out["drives_closed_modes"] = [{"frequency_hz": float(a), "damping_ratio": float(b)} for a, b in zip(f[:3], z[:3])]
     out["plant_time_step_s"] = res0.cell.plant_time_step_s
+    out["plant_time_step_choice"] = step_choice(sc)  # why the station took it (None: the scenario gave it)
     out["transport_delay_s"] = res0.cell.transport_delay_s
     errs = out["surface_error_mm"]
     out["compensation_made_it_worse"] = (bool(errs["compensated"]["rms"] > WORSE_FACTOR * errs["uncompensated"]["rms"])
@@ -188,6 +190,8 @@ def format_table(summ):
                  + ", ".join(f"{v:.1f}" for v in summ["natural_frequencies_hz"]) + " (motors held); with the drives "
                  "closed " + ", ".join(f"{m['frequency_hz']:.1f} ({100 * m['damping_ratio']:.1f} %)"
                                        for m in summ["drives_closed_modes"]))
+    if summ.get("plant_time_step_choice"):
+        lines.append(summ["plant_time_step_choice"])
     lines.append(simulated_line(summ["runs"]))
     return "\n".join(lines)
 
@@ -215,7 +219,7 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
     from robstiff_drake.diagrams import user_model as user_models
     from robstiff_drake.diagrams.cell_record import check_same_robot, scenario_with_compensator
     from robstiff_drake.diagrams.milling_cell import planned_path as cell_path
-    from robstiff_drake.diagrams.scenario import load_scenario
+    from robstiff_drake.diagrams.scenario import load_scenario, plant_step_s
 
     sc = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset, stock=stock)
     if compensator is not None:
@@ -227,6 +231,7 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
         sc = scenario_with_compensator(sc, settings, robot)
     if noise_seed is not None:
         sc.sensor.seed = sc.scan.seed = int(noise_seed)
+    plant_step_s(sc, robot)  # (not given: the step the station takes for this arm, said once, before the run)
     return sc
 
 

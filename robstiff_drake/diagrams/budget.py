@@ -91,6 +91,7 @@ import numpy as np
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.milling_cell import build_milling_cell, planned_path
+from robstiff_drake.diagrams.scenario import plant_step_s
 from robstiff_drake.diagrams.scenario_models import cutting_setup, exact_payload_calibration, plant_stiffness
 from robstiff_drake.model import budget_fields
 from robstiff_drake.model.filters import noise_std_factor
@@ -188,10 +189,10 @@ def without(sc, robot, removed, model):
             s._payload_calibration_override = um.calibration
         robot = scaled_robot(robot, EPSILON)
         gravity = 1.0 / EPSILON
-        s.plant_config.time_step = min(float(s.plant_config.time_step), FAST_STEP_S)
+        s.plant_config.time_step = min(plant_step_s(s, robot), FAST_STEP_S)
     if "sampling period and delay" in removed:
         s.controller.delay_steps = 0
-        s.plant_config.time_step = min(float(s.plant_config.time_step), FINE_PERIOD_S)
+        s.plant_config.time_step = min(plant_step_s(s, robot), FINE_PERIOD_S)
         s.controller.period_ms = FINE_PERIOD_S * 1e3
         s.servo.interpolator_period_ms = FINE_PERIOD_S * 1e3
         s.sensor.rate_hz = max(s.sensor.rate_hz, 1.0 / FINE_PERIOD_S)

@@ -3,8 +3,9 @@ MultibodyPlant of the links, each driven through its gear (stiffness,
 play, modal damping) by a motor with its rotor's inertia that a
 torque-level drive turns, the robot controller's absolute-accuracy gravity
 model (its reference and its torque feed-forward) and the interpolator's
-dead time; the joints' linear model (model/joint_dynamics.py) at a pose,
-and the check that the plant's step keeps every mode stable."""
+dead time; the joints' linear model (model/joint_dynamics.py) at a pose.
+The checks of the plant's step (its modes stable, the play and a
+tooth-resolved force resolved) are diagrams/plant_step.py's."""
 
 import numpy as np
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant
@@ -21,6 +22,18 @@ from pydrake.systems.primitives import (
 
 from robstiff_drake.model import joint_dynamics, transmission
 from robstiff_drake.model import servo as servo_model
+from robstiff_drake.diagrams.plant_step import (  # noqa: F401  (the step's checks, imported from here too)
+    RESOLVED_OMEGA_H,
+    TOOTH_STEPS_PER_PASS,
+    contact_frequencies_hz,
+    resolving_step_s,
+    step_on_grid_s,
+    tooth_resolving_step_s,
+    twist_inertia_kgm2,
+    under_resolved_play_message,
+    unresolved_tooth_message,
+    unstable_step_message,
+)
 from robstiff_drake.plant import add_robot, check_plant_matches
 from robstiff_drake.systems.gear_transmission import GearPlay
 
@@ -111,115 +124,6 @@ def arm_joints(controller_plant, robot, q_modes_rad, stiffness_matrix, damping_r
 
 
 _ARM_JOINTS = {}  # arm_joints' results per setup (a cell's runs build the same station several times)
-
-
-def unstable_step_message(jm, time_step_s):
-    """None when the plant step keeps every mode of the joints ``jm``
-    stable, else why not and the step that would do (one line)."""
-    if jm.is_stable_step(time_step_s):
-        return None
-    lam = np.linalg.eigvals(jm.continuous()[0])
-    worst = lam[np.argmax(lam.real)]
-    if worst.real >= 0.0:  # no step helps: the loop itself grows
-        return (f"the joints' loop is unstable whatever the step: its {abs(worst) / (2 * np.pi):.1f} Hz mode grows "
-                f"(the drives' loops against too lightly damped gears): raise plant.modal_damping_ratio or "
-                f"plant.damping_ratios, or lower servo.velocity_integral_hz")
-    f_top = max(jm.closed_loop_modes()[0].max(), joint_dynamics.free_modes_hz(
-        jm.M, jm.K, jm.G, jm.motor_inertia_kgm2).max())
-    ok = jm.largest_stable_step_s(time_step_s)
-    ok_ms = np.floor(ok * 1e4) / 10.0  # rounded down to 0.1 ms
-    return (f"a {time_step_s * 1e3:g} ms plant step is unstable for the arm's {f_top:.0f} Hz mode (the gears' "
-            f"explicit step needs omega h < 2 in every mode): use at most {ok_ms:g} ms "
-            f"(plant_config.time_step: {ok_ms / 1e3:g})")
-
-
-def twist_inertia_kgm2(jm):
-    """(6,) J_eff of each gear's twist phi = theta - q (kg*m^2): its link
-    (1 / (M^-1)_jj, the rest of the arm free) in series with its motor."""
-    return 1.0 / (np.diag(np.linalg.inv(jm.M)) + 1.0 / jm.motor_inertia_kgm2)
-
-
-def contact_frequencies_hz(jm):
-    """(6,) each gear's contact mode (Hz): its stiffness on the twist's
-    inertia (``twist_inertia_kgm2``), the mode a flank impact rings in."""
-    return np.sqrt(np.diag(jm.K) / twist_inertia_kgm2(jm)) / (2 * np.pi)
-
-
-# A tooth-resolved cutting force is resolved by the plant's step when the step takes at least TOOTH_STEPS_PER_PASS
-# samples of each tooth pass (the step's mean then keeps 98 % of the tooth-pass harmonic, and nothing folds
-# down) and keeps every mode of the arm within omega h <= RESOLVED_OMEGA_H.  On the IRB 6400 with the paper's
-# 360 Hz tooth pass that is 0.25 ms: there joint 6's twist per N*m of tooth force is 3 % above the continuous
-# model's and its 126 Hz / 5.5 % wrist mode comes out 126.9 Hz / 5.3 % (joint_dynamics.JointModel.step_modes);
-# at 0.5 ms 10 % above, at 2 ms 19 times (the tooth pass folded to 140 Hz, the mode moved to 153 Hz / 3.6 %;
-# studies/time_step_convergence.py).
-TOOTH_STEPS_PER_PASS = 10.0
-
-
-def step_on_grid_s(step_s):
-    """``step_s`` rounded down to a step that divides 1 ms (1 ms / n) below
-    1 ms, to 0.1 ms above: the sensor's and controller's periods stay
-    whole numbers of plant steps."""
-    if step_s >= 1e-3:
-        return float(np.floor(step_s * 1e4 + 1e-9) / 1e4)
-    return 1e-3 / np.ceil(1e-3 / step_s - 1e-9)
-
-
-def tooth_resolving_step_s(jm, tooth_pass_hz):
-    """The largest plant step (s) that resolves a tooth-resolved force of
-    ``tooth_pass_hz`` on the joints ``jm`` (TOOTH_STEPS_PER_PASS)."""
-    f_top = jm.closed_loop_modes()[0].max()
-    return step_on_grid_s(min(1.0 / (TOOTH_STEPS_PER_PASS * tooth_pass_hz), RESOLVED_OMEGA_H / (2 * np.pi * f_top)))
-
-
-def unresolved_tooth_message(jm, tooth_pass_hz, time_step_s):
-    """None when the plant step resolves a tooth-resolved force of
-    ``tooth_pass_hz`` (Hz), else why not and the step that would (one
-    line)."""
-    ok = tooth_resolving_step_s(jm, tooth_pass_hz)
-    if time_step_s <= ok * (1 + 1e-9):
-        return None
-    ok_ms = round(ok * 1e3, 4)
-    return (f"a {time_step_s * 1e3:g} ms plant step does not resolve the tooth-resolved force (cutting.mode: "
-            f"tooth, {tooth_pass_hz:.0f} Hz tooth pass) on an arm whose stiffest mode is "
-            f"{jm.closed_loop_modes()[0].max():.0f} Hz: the step's mean folds it down next to that mode and the "
-            f"step moves the mode; use at most {ok_ms:g} ms (plant_config.time_step: {ok_ms / 1e3:g}) or "
-            f"cutting.mode: averaged")
-
-
-# A flank impact lasts half a period of the gear's contact mode.  The explicit step locates no contact inside
-# itself: the restitution of an impact comes out within 5 % of its converged value (whatever the phase of the
-# impact on the step's grid) while omega_c h <= RESOLVED_OMEGA_H (studies/time_step_convergence.py measures
-# it on the IRB 6400's joint 6, and the test of tests/test_gear_play_resolution.py keeps it).
-RESOLVED_OMEGA_H = 0.4
-
-
-def resolving_step_s(jm, play_rad):
-    """The largest plant step (s) that resolves every gear with play's flank
-    impacts (RESOLVED_OMEGA_H), or None without play."""
-    b = np.asarray(play_rad, dtype=float)
-    if not np.any(b > 0):
-        return None
-    w = 2 * np.pi * contact_frequencies_hz(jm)[b > 0]
-    return step_on_grid_s(RESOLVED_OMEGA_H / w.max())
-
-
-def under_resolved_play_message(jm, play_rad, time_step_s):
-    """None when the plant step resolves the flank impacts of every gear
-    with play, else which joint it does not and the step that would (one
-    line)."""
-    b = np.asarray(play_rad, dtype=float)
-    f = contact_frequencies_hz(jm)
-    if time_step_s <= resolving_step_s(jm, b) * (1 + 1e-9):
-        return None
-    bad = [j for j in range(6) if b[j] > 0 and 2 * np.pi * f[j] * time_step_s > RESOLVED_OMEGA_H * (1 + 1e-9)]
-    if not bad:
-        return None
-    j = max(bad, key=lambda i: f[i])
-    ok_ms = round(resolving_step_s(jm, b) * 1e3, 4)
-    return (f"joint {j + 1}'s play ({b[j] * 1e3:.3g} mrad, plant.lost_motion_rad) hits its flanks in a "
-            f"{f[j]:.0f} Hz contact mode that a {time_step_s * 1e3:g} ms plant step does not resolve (its impacts' "
-            f"restitution comes out wrong, energy created): use at most {ok_ms:g} ms (plant_config.time_step: "
-            f"{ok_ms / 1e3:g}) or no play on that joint")
 
 
 def controller_model(robot):
@@ -339,6 +243,8 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     # (the touch-off absorbs their static part at the start pose).
     k_model = k
     h = float(plant_config.time_step)
+    if not h > 0:  # (a scenario's step not given: diagrams/plant_step.scenario_step_s chooses it first)
+        raise ValueError(f"the plant step must be given here (got {h:g} s)")
     plant, _ = AddMultibodyPlant(plant_config, builder)
     plant.set_name("plant")
     add_robot(plant, robot)

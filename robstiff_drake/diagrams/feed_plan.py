@@ -22,7 +22,7 @@ import numpy as np
 
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.experiment import run_cut
-from robstiff_drake.diagrams.scenario import planned_path
+from robstiff_drake.diagrams.scenario import planned_path, plant_step_s
 from robstiff_drake.diagrams.scenario_models import (
     model_damping_ratios, model_stiffness, payload_calibration, user_model_of
 )
@@ -71,7 +71,7 @@ def twin_scenario(sc, robot, coefficient_factor):
     k = model_stiffness(sc, robot)
     cal = payload_calibration(sc, robot)
     servo = user_models.servo_model(sc)
-    h = float(sc.plant_config.time_step)
+    h = plant_step_s(sc, robot)
     tw.plant.joint_stiffness_Nm_per_rad = [float(v) for v in k]
     tw.plant.damping_ratios = [float(v) for v in model_damping_ratios(sc)]
     tw.plant.lost_motion_rad = list(sc.model.lost_motion_rad)

@@ -138,9 +138,34 @@ def apply_program(sc):
         sc.cutter.spindle_rpm = float(_dominant(speeds))
 
 
-def plant_step_s(sc):
-    """The plant's discrete step (s)."""
-    return float(sc.plant_config.time_step)
+def plant_step_s(sc, robot=None):
+    """The plant's discrete step (s): plant_config.time_step, or, when the
+    scenario gives none, the step the station takes for its arm (``robot``,
+    else the scenario's: diagrams/plant_step.scenario_step_s, which writes
+    it into the scenario)."""
+    h = float(sc.plant_config.time_step)
+    if h > 0:
+        return h
+    from robstiff_drake.diagrams.plant_step import scenario_step_s
+
+    return scenario_step_s(sc, robot)
+
+
+def bounding_step_s(sc):
+    """The plant step the checks of a scenario's size take before the arm
+    is built: the step given, or when none is, the largest the station
+    could take (diagrams/plant_step.DEFAULT_MAX_STEP_S, a tooth-resolved
+    force's TOOTH_STEPS_PER_PASS bound; a gear's play may ask for less)."""
+    from robstiff_drake.diagrams import plant_step
+
+    h = float(sc.plant_config.time_step)
+    if h > 0:
+        return h
+    if sc.cutting.mode == "tooth":
+        tooth_hz = sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth
+        return min(plant_step.DEFAULT_MAX_STEP_S,
+                   plant_step.step_on_grid_s(1.0 / (plant_step.TOOTH_STEPS_PER_PASS * tooth_hz)))
+    return plant_step.DEFAULT_MAX_STEP_S
 
 
 def _fail(sc, key, what):
@@ -168,7 +193,7 @@ def check_scenario(sc):
         if taps > MAX_FILTER_TAPS:
             _fail(sc, "controller.filter.kind", f"a revolution average at {c.spindle_rpm:g} rpm and "
                                                 f"{sen.rate_hz:g} Hz needs {taps:.0f} taps (at most {MAX_FILTER_TAPS})")
-    step_ms = plant_step_s(sc) * 1e3
+    step_ms = bounding_step_s(sc) * 1e3
     if ctl.period_ms < step_ms - 1e-9:
         _fail(sc, "controller.period_ms", f"{ctl.period_ms:g} ms is below the plant step ({step_ms:g} ms)")
     for i, b in enumerate(sc.workpiece.boxes_mm):
@@ -233,7 +258,7 @@ def _check_sizes(sc):
     duration_s = path.duration_s
     length_mm = path.total_length * 1e3
     checks = (
-        ("plant_config.time_step", duration_s / plant_step_s(sc), MAX_PLANT_STEPS, "plant steps"),
+        ("plant_config.time_step", duration_s / bounding_step_s(sc), MAX_PLANT_STEPS, "plant steps"),
         ("sensor.rate_hz", duration_s * sc.sensor.rate_hz, MAX_SENSOR_SAMPLES, "sensor samples"),
         ("path.reference_period_ms", duration_s / (p.reference_period_ms / 1e3), MAX_REFERENCE_SAMPLES,
          "joint-reference (IK) samples"),
@@ -244,7 +269,7 @@ def _check_sizes(sc):
                            f"{n:.3g} {what}, more than the {limit:.0e} a run may take; shorten the path or raise "
                            "the feed")
     if sc.cutting.mode == "tooth":
-        per_step = plant_step_s(sc) * sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth * sc.cutting.samples_per_tooth
+        per_step = bounding_step_s(sc) * sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth * sc.cutting.samples_per_tooth
         if per_step > MAX_TOOTH_SAMPLES_PER_STEP:
             _fail(sc, "cutting.samples_per_tooth", f"{per_step:.3g} force samples per plant step (at most "
                                                    f"{MAX_TOOTH_SAMPLES_PER_STEP}); lower the spindle speed, the "

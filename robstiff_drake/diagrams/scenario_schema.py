@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
 
+from robstiff_drake.diagrams.plant_step import NOT_GIVEN
 from robstiff_drake.diagrams.schema import choice, drake_config, num, rows, text, vec
 from robstiff_drake.model.joint_dynamics import DEFAULT_MODAL_DAMPING_RATIO
 from robstiff_drake.model.robot_file import STIFFNESS_RANGE_NM_PER_RAD
@@ -26,8 +27,11 @@ MAX_PLAY_RAD = 2e-3
 
 def _plant_config():
     # No contact: the gears are explicit forces (the plant's step is symplectic Euler, see
-    # model/joint_dynamics.py); 2 ms keeps the IRB 6400's stiffest mode (125 Hz) stable.
-    return MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap")
+    # model/joint_dynamics.py).  time_step 0 (NOT_GIVEN, also when the file leaves it out): the station takes
+    # the largest step up to 2 ms that keeps every mode stable and resolves the scenario's play and
+    # tooth-resolved force (diagrams/plant_step.scenario_step_s); a step given is used as it is (and refused,
+    # naming the step that would do, if it does not).
+    return MultibodyPlantConfig(time_step=NOT_GIVEN, discrete_contact_approximation="sap")
 
 
 @dataclass
@@ -408,7 +412,7 @@ class Scenario:
     # Drake's own configuration of the plant (its step, s, and discrete
     # solver) and of the simulator, as Drake's hardware_sim embeds them.
     plant_config: MultibodyPlantConfig = drake_config(
-        _plant_config, ranges={"time_step": (5e-5, 0.02, "s")},
+        _plant_config, ranges={"time_step": (5e-5, 0.02, "s", NOT_GIVEN)},
         choices={"discrete_contact_approximation": ("sap", "lagged", "similar")})
     simulator_config: SimulatorConfig = drake_config(
         SimulatorConfig, ranges={"target_realtime_rate": (0.0, 1e6, ""), "start_time": (0.0, 0.0, "s")})

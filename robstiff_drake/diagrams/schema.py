@@ -56,7 +56,8 @@ def rows(width, lo, hi, unit, *, min_rows=0, max_rows=10000, names="", why=""):
 def drake_config(factory, ranges=None, choices=None):
     """A field holding one of Drake's own config structs (MultibodyPlantConfig,
     SimulatorConfig): its keys are checked against the struct's fields, its
-    values against their types, and ``ranges`` ({field: (lo, hi, unit)}) and
+    values against their types, and ``ranges`` ({field: (lo, hi, unit)}, or
+    (lo, hi, unit, marker): the marker value allowed too) and
     ``choices`` ({field: options}) where given."""
     return field(default_factory=factory, metadata=_meta("drake", ranges=ranges or {}, choices=choices or {}))
 
@@ -174,8 +175,11 @@ class _Checker:
 
     def _drake_value(self, q, key, v, kind, m):
         if key in m["ranges"]:
-            lo, hi, unit = m["ranges"][key]
-            self.number(q, v, dict(lo=lo, hi=hi, unit=unit, integer=False, lo_open=False, hi_open=False))
+            lo, hi, unit, *marker = m["ranges"][key]
+            if marker and isinstance(v, (int, float)) and not isinstance(v, bool) and v == marker[0]:
+                return
+            self.number(q, v, dict(lo=lo, hi=hi, unit=unit, integer=False, lo_open=False, hi_open=False,
+                                   why=f"or {marker[0]:g}: not given" if marker else ""))
         elif key in m["choices"]:
             self._choice(q, v, {"options": m["choices"][key]})
         elif kind is bool and not isinstance(v, bool):

@@ -44,7 +44,7 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Demultiplexer
 
-from robstiff_drake.diagrams.scenario import plant_step_s
+from robstiff_drake.diagrams.plant_step import NOT_GIVEN, scenario_step_s, step_choice
 from robstiff_drake.diagrams.scenario_models import exact_payload_calibration, plant_damping_ratios, plant_stiffness
 from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (the arm's helpers, imported from here too)
     add_compliant_arm,
@@ -209,10 +209,14 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
     compliant_arm.path_poses, the first first) whose modes set the damping
     and tune the drives (and choose their integral corner: scenario
     servo.velocity_integral, which the chosen corner is written back to).
-    Raises ValueError if the plant step is unstable for these joints
-    (unless ``check_stability`` is false)."""
+    The plant step: the scenario's plant_config.time_step, or when it gives
+    none the step chosen for this arm (diagrams/plant_step.scenario_step_s,
+    written into the scenario).  Raises ValueError if the plant step is
+    unstable for these joints (unless ``check_stability`` is false)."""
     tool = robot.tool_point(where="the closed loop")
-    h = plant_step_s(sc)
+    if step_choice(sc) is not None:  # a step chosen, not given: chosen again for this arm and its physics
+        sc.plant_config.time_step = NOT_GIVEN
+    h = scenario_step_s(sc, robot, q_modes_rad)
     k = np.asarray(plant_stiffness(sc, robot), dtype=float)
     servo = servo_parameters(sc)
     builder = DiagramBuilder()

@@ -31,8 +31,10 @@ def combinations(periods_ms, delay_steps, cutoffs_hz, modes):
 
 def check_combinations(sc, combos, plant_step_ms=None):
     """Refuse, before anything runs, a combination the scenario cannot take."""
+    from robstiff_drake.diagrams.scenario import bounding_step_s  # (Drake's: after the arguments' checks)
+
     for c in combos:
-        step_ms = plant_step_ms or sc.plant_config.time_step * 1e3
+        step_ms = plant_step_ms or bounding_step_s(sc) * 1e3
         if c["period_ms"] < step_ms - 1e-9:
             raise InputError(f"sweep: period {c['period_ms']:g} ms is below the plant step "
                              f"({step_ms:g} ms); pass --plant-step-ms {c['period_ms']:g} or drop it")

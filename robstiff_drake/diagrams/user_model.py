@@ -33,7 +33,7 @@ import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 
-from robstiff_drake.diagrams.scenario import planned_path
+from robstiff_drake.diagrams.scenario import planned_path, plant_step_s
 from robstiff_drake.diagrams.scenario_models import plant_stiffness
 from robstiff_drake.diagrams.station import make_milling_station
 from robstiff_drake.diagrams.user_model_record import UserModel, disk_path, from_json, signature, to_json
@@ -95,7 +95,7 @@ class _Bench:
                                                 q_modes_rad=q)
                 except ValueError:
                     s = copy.deepcopy(s)
-                    s.plant_config.time_step = float(s.plant_config.time_step) / 2.0
+                    s.plant_config.time_step = plant_step_s(s, robot) / 2.0
                     s.servo.interpolator_period_ms = max(s.servo.interpolator_period_ms,
                                                          float(s.plant_config.time_step) * 1e3)
             return make_milling_station(s, robot, path=path, force_model=self.load, workpiece=workpiece,
@@ -343,5 +343,5 @@ def _exact_servo(sc):
     """The scenario's servo keys as a ServoModel."""
     s = sc.servo
     # the station's dead time: the interpolator's and its servo's own discrete update (one plant step)
-    return ServoModel(s.interpolator_delay_ms / 1e3 + float(sc.plant_config.time_step), s.position_gain_per_s,
+    return ServoModel(s.interpolator_delay_ms / 1e3 + plant_step_s(sc), s.position_gain_per_s,
                       s.velocity_bandwidth_hz, s.velocity_integral_hz)

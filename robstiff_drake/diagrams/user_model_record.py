@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robstiff_drake.diagrams.scenario import plant_step_s
 from robstiff_drake.diagrams.scenario_models import plant_stiffness
 from robstiff_drake.model.payload import PayloadCalibration
 from robstiff_drake.model.preview import ServoModel
@@ -64,7 +65,7 @@ def signature(sc, robot, q0):
             tuple(np.round(plant_stiffness(sc, robot), 6)), sc.plant.modal_damping_ratio,
             tuple(sc.plant.damping_ratios), None if motors is None else tuple(np.asarray(motors, dtype=float)),
             tuple(sc.plant.lost_motion_rad), tuple(sc.plant.gap_friction_Nm), sc.plant.coupling_c23_rad_per_Nm,
-            float(sc.plant_config.time_step),
+            plant_step_s(sc, robot),
             tuple(sc.sensor.force_bias_N), tuple(sc.sensor.torque_bias_Nm), sc.sensor.noise_N, sc.sensor.noise_Nm,
             sc.sensor.rate_hz, sc.servo.interpolator_delay_ms, sc.servo.interpolator_period_ms,
             sc.servo.position_gain_per_s, sc.servo.velocity_bandwidth_hz, sc.servo.velocity_feedforward,

@@ -1,0 +1,205 @@
+"""The plant's step: whether a step keeps every mode of the arm stable and
+resolves its physics (the gears' flank impacts in their play, a
+tooth-resolved cutting force), the step that would, and, for a scenario
+that gives no step, the step the station takes (``scenario_step_s``):
+the largest one up to DEFAULT_MAX_STEP_S that does all of it."""
+
+import sys
+
+import numpy as np
+
+from robstiff_drake.model import joint_dynamics
+
+# A scenario that gives no plant_config.time_step (or gives 0: the schema's default, the marker of "not given";
+# Drake's 0, a continuous plant, is no step the station runs): the station takes the largest step up to this
+# that keeps every mode stable and resolves what the scenario contains (``chosen_step``).  2 ms was every
+# scenario's explicit step before, and is the step without play or a tooth-resolved force
+# (studies/time_step_convergence.py: the averaged passes within 0.1 um of 0.5 ms).
+DEFAULT_MAX_STEP_S = 0.002
+NOT_GIVEN = 0.0
+
+
+def unstable_step_message(jm, time_step_s):
+    """None when the plant step keeps every mode of the joints ``jm``
+    stable, else why not and the step that would do (one line)."""
+    if jm.is_stable_step(time_step_s):
+        return None
+    lam = np.linalg.eigvals(jm.continuous()[0])
+    worst = lam[np.argmax(lam.real)]
+    if worst.real >= 0.0:  # no step helps: the loop itself grows
+        return (f"the joints' loop is unstable whatever the step: its {abs(worst) / (2 * np.pi):.1f} Hz mode grows "
+                f"(the drives' loops against too lightly damped gears): raise plant.modal_damping_ratio or "
+                f"plant.damping_ratios, or lower servo.velocity_integral_hz")
+    f_top = max(jm.closed_loop_modes()[0].max(), joint_dynamics.free_modes_hz(
+        jm.M, jm.K, jm.G, jm.motor_inertia_kgm2).max())
+    ok = jm.largest_stable_step_s(time_step_s)
+    ok_ms = np.floor(ok * 1e4) / 10.0  # rounded down to 0.1 ms
+    return (f"a {time_step_s * 1e3:g} ms plant step is unstable for the arm's {f_top:.0f} Hz mode (the gears' "
+            f"explicit step needs omega h < 2 in every mode): use at most {ok_ms:g} ms "
+            f"(plant_config.time_step: {ok_ms / 1e3:g})")
+
+
+def twist_inertia_kgm2(jm):
+    """(6,) J_eff of each gear's twist phi = theta - q (kg*m^2): its link
+    (1 / (M^-1)_jj, the rest of the arm free) in series with its motor."""
+    return 1.0 / (np.diag(np.linalg.inv(jm.M)) + 1.0 / jm.motor_inertia_kgm2)
+
+
+def contact_frequencies_hz(jm):
+    """(6,) each gear's contact mode (Hz): its stiffness on the twist's
+    inertia (``twist_inertia_kgm2``), the mode a flank impact rings in."""
+    return np.sqrt(np.diag(jm.K) / twist_inertia_kgm2(jm)) / (2 * np.pi)
+
+
+# A tooth-resolved cutting force is resolved by the plant's step when the step takes at least TOOTH_STEPS_PER_PASS
+# samples of each tooth pass (the step's mean then keeps 98 % of the tooth-pass harmonic, and nothing folds
+# down) and keeps every mode of the arm within omega h <= RESOLVED_OMEGA_H.  On the IRB 6400 with the paper's
+# 360 Hz tooth pass that is 0.25 ms: there joint 6's twist per N*m of tooth force is 3 % above the continuous
+# model's and its 126 Hz / 5.5 % wrist mode comes out 126.9 Hz / 5.3 % (joint_dynamics.JointModel.step_modes);
+# at 0.5 ms 10 % above, at 2 ms 19 times (the tooth pass folded to 140 Hz, the mode moved to 153 Hz / 3.6 %;
+# studies/time_step_convergence.py).
+TOOTH_STEPS_PER_PASS = 10.0
+
+
+def step_on_grid_s(step_s):
+    """``step_s`` rounded down to a step that divides 1 ms (1 ms / n) below
+    1 ms, to 0.1 ms above: the sensor's and controller's periods stay
+    whole numbers of plant steps."""
+    if step_s >= 1e-3:
+        return float(np.floor(step_s * 1e4 + 1e-9) / 1e4)
+    return 1e-3 / np.ceil(1e-3 / step_s - 1e-9)
+
+
+def tooth_resolving_step_s(jm, tooth_pass_hz):
+    """The largest plant step (s) that resolves a tooth-resolved force of
+    ``tooth_pass_hz`` on the joints ``jm`` (TOOTH_STEPS_PER_PASS)."""
+    f_top = jm.closed_loop_modes()[0].max()
+    return step_on_grid_s(min(1.0 / (TOOTH_STEPS_PER_PASS * tooth_pass_hz), RESOLVED_OMEGA_H / (2 * np.pi * f_top)))
+
+
+def unresolved_tooth_message(jm, tooth_pass_hz, time_step_s):
+    """None when the plant step resolves a tooth-resolved force of
+    ``tooth_pass_hz`` (Hz), else why not and the step that would (one
+    line)."""
+    ok = tooth_resolving_step_s(jm, tooth_pass_hz)
+    if time_step_s <= ok * (1 + 1e-9):
+        return None
+    ok_ms = round(ok * 1e3, 4)
+    return (f"a {time_step_s * 1e3:g} ms plant step does not resolve the tooth-resolved force (cutting.mode: "
+            f"tooth, {tooth_pass_hz:.0f} Hz tooth pass) on an arm whose stiffest mode is "
+            f"{jm.closed_loop_modes()[0].max():.0f} Hz: the step's mean folds it down next to that mode and the "
+            f"step moves the mode; use at most {ok_ms:g} ms (plant_config.time_step: {ok_ms / 1e3:g}) or "
+            f"cutting.mode: averaged")
+
+
+# A flank impact lasts half a period of the gear's contact mode.  The explicit step locates no contact inside
+# itself: the restitution of an impact comes out within 5 % of its converged value (whatever the phase of the
+# impact on the step's grid) while omega_c h <= RESOLVED_OMEGA_H (studies/time_step_convergence.py measures
+# it on the IRB 6400's joint 6, and the test of tests/test_gear_play_resolution.py keeps it).
+RESOLVED_OMEGA_H = 0.4
+
+
+def resolving_step_s(jm, play_rad):
+    """The largest plant step (s) that resolves every gear with play's flank
+    impacts (RESOLVED_OMEGA_H), or None without play."""
+    b = np.asarray(play_rad, dtype=float)
+    if not np.any(b > 0):
+        return None
+    w = 2 * np.pi * contact_frequencies_hz(jm)[b > 0]
+    return step_on_grid_s(RESOLVED_OMEGA_H / w.max())
+
+
+def under_resolved_play_message(jm, play_rad, time_step_s):
+    """None when the plant step resolves the flank impacts of every gear
+    with play, else which joint it does not and the step that would (one
+    line)."""
+    b = np.asarray(play_rad, dtype=float)
+    f = contact_frequencies_hz(jm)
+    if time_step_s <= resolving_step_s(jm, b) * (1 + 1e-9):
+        return None
+    bad = [j for j in range(6) if b[j] > 0 and 2 * np.pi * f[j] * time_step_s > RESOLVED_OMEGA_H * (1 + 1e-9)]
+    if not bad:
+        return None
+    j = max(bad, key=lambda i: f[i])
+    ok_ms = round(resolving_step_s(jm, b) * 1e3, 4)
+    return (f"joint {j + 1}'s play ({b[j] * 1e3:.3g} mrad, plant.lost_motion_rad) hits its flanks in a "
+            f"{f[j]:.0f} Hz contact mode that a {time_step_s * 1e3:g} ms plant step does not resolve (its impacts' "
+            f"restitution comes out wrong, energy created): use at most {ok_ms:g} ms (plant_config.time_step: "
+            f"{ok_ms / 1e3:g}) or no play on that joint")
+
+
+def chosen_step(jm, play_rad=None, tooth_pass_hz=None, max_step_s=DEFAULT_MAX_STEP_S):
+    """(step s, why: one line) the station takes when the scenario gives
+    none: the largest step up to ``max_step_s`` on the sensor's grid
+    (``step_on_grid_s``) that keeps every mode of the joints ``jm`` stable,
+    resolves the flank impacts of every gear with play (``play_rad``, half
+    widths) and a tooth-resolved force of ``tooth_pass_hz`` (None: averaged)."""
+    needs = []  # (step s, what needs it)
+    stable = jm.largest_stable_step_s(max_step_s)
+    if stable < max_step_s:
+        f_top = max(jm.closed_loop_modes()[0].max(),
+                    joint_dynamics.free_modes_hz(jm.M, jm.K, jm.G, jm.motor_inertia_kgm2).max())
+        needs.append((step_on_grid_s(stable), f"the arm's {f_top:.0f} Hz mode stable"))
+    b = np.zeros(6) if play_rad is None or not len(play_rad) else np.asarray(play_rad, dtype=float)
+    if np.any(b > 0):
+        f = contact_frequencies_hz(jm)
+        j = max((i for i in range(6) if b[i] > 0), key=lambda i: f[i])
+        needs.append((resolving_step_s(jm, b), f"joint {j + 1}'s play (its {f[j]:.0f} Hz contact mode)"))
+    if tooth_pass_hz:
+        needs.append((tooth_resolving_step_s(jm, tooth_pass_hz),
+                      f"the tooth-resolved force ({tooth_pass_hz:.0f} Hz tooth pass)"))
+    h = min([max_step_s] + [s for s, _ in needs])
+    what = "; ".join(f"{w} needs {round(s * 1e3, 4):g} ms" for s, w in sorted(needs))
+    return h, (f"plant step {round(h * 1e3, 4):g} ms (plant_config.time_step not given: the largest step up to "
+               f"{max_step_s * 1e3:g} ms that resolves the scenario's physics; "
+               + (what if needs else "no play and no tooth-resolved force need a finer one") + ")")
+
+
+_SAID = set()
+
+
+def scenario_step_s(sc, robot=None, q_modes_rad=None):
+    """The plant step (s) of scenario ``sc``: its plant_config.time_step
+    when given; when not (NOT_GIVEN), ``chosen_step`` for its arm
+    (``robot``, else the scenario's) at ``q_modes_rad`` (else the poses its
+    path visits, diagrams/milling_cell.planned_path), written into
+    sc.plant_config.time_step with the reason in sc._plant_step_choice
+    (step, why, robot source) and said once on stderr."""
+    h = float(sc.plant_config.time_step)
+    if h > 0:
+        return h
+    from robstiff_drake.diagrams import compliant_arm, scenario
+    from robstiff_drake.diagrams.scenario import scenario_robot
+    from robstiff_drake.diagrams.scenario_models import plant_damping_ratios, plant_stiffness
+
+    robot = robot if robot is not None else scenario_robot(sc)
+    if q_modes_rad is None:
+        from robstiff_drake.diagrams.milling_cell import planned_path
+
+        q_modes_rad = compliant_arm.path_poses(planned_path(sc, robot, robot.tool_point(where="the plant step"))[2])
+    from robstiff_drake.diagrams.station import servo_parameters
+
+    K = joint_dynamics.stiffness_matrix(np.asarray(plant_stiffness(sc, robot), dtype=float),
+                                        sc.plant.coupling_c23_rad_per_Nm)
+    jm = compliant_arm.arm_joints(compliant_arm.controller_model(robot), robot, q_modes_rad, K,
+                                  plant_damping_ratios(sc), servo_parameters(sc), sc.plant.damping_on)
+    tooth = sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth if sc.cutting.mode == "tooth" else None
+    h, why = chosen_step(jm, sc.plant.lost_motion_rad, tooth)
+    n = scenario.planned_path(sc).duration_s / h  # (the size checks took the largest step: checked again at it)
+    if n > scenario.MAX_PLANT_STEPS:
+        scenario._fail(sc, "plant_config.time_step", f"{why}: the pass takes {n:.3g} plant steps at it, more "
+                                                     f"than the {scenario.MAX_PLANT_STEPS:.0e} a run may take; "
+                                                     "shorten the path or raise the feed")
+    sc.plant_config.time_step = h
+    sc._plant_step_choice = (h, why, robot.source)
+    if why not in _SAID:
+        _SAID.add(why)
+        print(f"robstiff: {why}", file=sys.stderr)
+    return h
+
+
+def step_choice(sc):
+    """The one line of why the station took the scenario's plant step
+    (``scenario_step_s``), or None when the scenario gave it."""
+    c = getattr(sc, "_plant_step_choice", None)
+    return c[1] if c is not None and abs(float(sc.plant_config.time_step) - c[0]) < 1e-15 else None
