@@ -17,6 +17,7 @@ from robstiff_drake.model import tick_kernels as tk
 from robstiff_drake.model.compensator import DeflectionModel, GravityRemover, rate_limited_step
 from robstiff_drake.model.payload import _GRAVITY, PayloadCalibration
 from robstiff_drake.model.realtime import DeflectionPredictor
+from robstiff_drake.model.wrench_frames import to_sensor_frame
 from robstiff_drake.systems.compensator_tick import saturate
 
 CAL = PayloadCalibration(mass_kg=40.0, com_mm=[5.0, -3.0, 180.0], force_bias_N=[2, -1, 3],
@@ -88,3 +89,21 @@ def test_the_correction_step_is_the_reference(compiled, delay_steps):
         np.testing.assert_array_equal(out[6 * delay_steps:], ref_c)  # bit for bit
         line, c = out[:6 * delay_steps], out[6 * delay_steps:]
     assert held == 3 and np.any(c != 0)
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python original"])
+def test_the_sensor_ripples_are_to_sensor_frame(robot, compiled):
+    if compiled and not jit.available():
+        pytest.skip("numba is not installed: the milling force runs the plain-Python loop (tested here too)")
+    fn = tk.sensor_ripples if compiled else tk.sensor_ripples.py_func
+    kin = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, robot.payload.tool_point_m)
+    rng = np.random.default_rng(6)
+    tool = np.array(robot.payload.tool_point_m, dtype=float)
+    for k in (1, 5, 8):
+        pose = np.array(kin._forward(tuple(rng.uniform(-2.0, 2.0, 6).tolist()), None))
+        inst, w = rng.normal(0.0, 300.0, (k, 6)), rng.normal(0.0, 300.0, 6)
+        values = np.zeros((8, 12))
+        fn(inst, w, pose, tool, values)
+        for i, d in enumerate((inst - w).tolist()):
+            np.testing.assert_array_equal(values[i, 6:], to_sensor_frame(pose[:9].tolist(), tool.tolist(), d))
+        assert not values[k:].any() and not values[:, :6].any()

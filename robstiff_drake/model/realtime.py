@@ -111,8 +111,9 @@ class DeflectionPredictor:
         """``pose`` without the Jacobian (for a caller that needs only the
         tool's pose: less arithmetic): with numba the compiled kernel
         (model/tick_kernels.py; the same arithmetic to round-off), else a
-        memoised chain if there is one or the chain's plain arithmetic.  (Not on the ``compensate``
-        process's path: a first call may compile; ``warm_up`` first.)"""
+        memoised chain if there is one or the chain's plain arithmetic.
+        (Not on the ``compensate`` process's path: a first call may
+        compile; tick_kernels.warm_up first.)"""
         if jit.available():
             out = np.empty(12)
             tick_kernels.pose_and_deflection(np.asarray(q_rad, dtype=float), self.chain_constants(), _NONE, _NONE,
@@ -130,11 +131,6 @@ class DeflectionPredictor:
             k = self._chain_k = np.array(self._home + self._d + self._a + self._ca + self._sa + self._tool
                                          + list(self._base), dtype=float)
         return k
-
-    def warm_up(self):
-        """Load (or compile) pose_only's kernel now (nothing without numba)."""
-        if jit.available():
-            tick_kernels.pose_and_deflection(np.zeros(6), self.chain_constants(), _NONE, _NONE, _NONE, np.empty(12))
 
     def _chain_uncached(self, q_rad):
         axes = []

@@ -32,6 +32,7 @@ import math
 
 import numpy as np
 
+from robstiff_drake.model import jit
 from robstiff_drake.model.jit import kernel
 
 CHAIN_SIZE = 45
@@ -167,3 +168,40 @@ def correction_step(dq, line, c, lo, hi, step, out):
             out[n6 + i] = x + (b if b < step[i] else step[i])
         else:
             out[n6 + i] = x
+
+
+@kernel
+def sensor_ripples(inst, w, pose, tool, values):
+    """The tooth-resolved milling force's table (systems/milling_force.py):
+    for each row i of ``inst`` (k, 6: instantaneous wrenches, base frame,
+    at the tool point), the ripple ``inst[i] - w`` as the wrist sensor sees
+    it (model/wrench_frames.to_sensor_frame with the flange rotation
+    ``pose[:9]`` and the tool point ``tool`` (3, m, flange frame)) written to
+    ``values[i, 6:12]``."""
+    R = pose
+    tx, ty, tz = tool[0], tool[1], tool[2]
+    for i in range(inst.shape[0]):
+        d0, d1, d2 = inst[i, 0] - w[0], inst[i, 1] - w[1], inst[i, 2] - w[2]
+        d3, d4, d5 = inst[i, 3] - w[3], inst[i, 4] - w[4], inst[i, 5] - w[5]
+        f0 = R[0] * d0 + R[3] * d1 + R[6] * d2
+        f1 = R[1] * d0 + R[4] * d1 + R[7] * d2
+        f2 = R[2] * d0 + R[5] * d1 + R[8] * d2
+        m0 = R[0] * d3 + R[3] * d4 + R[6] * d5
+        m1 = R[1] * d3 + R[4] * d4 + R[7] * d5
+        m2 = R[2] * d3 + R[5] * d4 + R[8] * d5
+        values[i, 6], values[i, 7], values[i, 8] = f0, f1, f2
+        values[i, 9] = m0 + ty * f2 - tz * f1
+        values[i, 10] = m1 + tz * f0 - tx * f2
+        values[i, 11] = m2 + tx * f1 - ty * f0
+
+
+def warm_up(chain):
+    """Load (or compile) the milling force's kernels now (the tool's pose
+    for the chain constants ``chain``, the sensor ripples), not in the first
+    update of a timed simulation (nothing without numba).  The compensator
+    tick loads its own (CompensatorTick.warm_up)."""
+    if jit.available():
+        none = np.empty(0)
+        pose = np.zeros(12)
+        pose_and_deflection(np.zeros(6), chain, none, none, none, pose)
+        sensor_ripples(np.zeros((1, 6)), np.zeros(6), pose, np.zeros(3), np.zeros((2, 12)))
