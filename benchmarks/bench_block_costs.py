@@ -17,7 +17,10 @@ Best of ``REPEATS`` runs (the machine is shared): the whole tick's best,
 each block's best.  Times are CPU time (the whole run's: the process's; a
 callback's: its thread's), so that other jobs on a shared machine do not
 count: what an idle machine's wall clock would show, about.  The
-simulation alone is timed (the pass to the path's end).  No target: figures only.
+simulation alone is timed (the pass to the path's end).  With numba the
+blocks' arithmetic runs compiled (model/jit.py: the line "compiled
+kernels" says whether); ROBSTIFF_NO_JIT=1 times the plain-Python
+references.  No target: figures only.
 Run: python3 benchmarks/bench_block_costs.py
 """
 
@@ -35,6 +38,7 @@ import robstiff_drake.systems
 from robstiff_drake.diagrams import station  # noqa: F401  (ToolPose)
 from robstiff_drake.diagrams.milling_cell import build_milling_cell, make_simulator
 from robstiff_drake.diagrams.scenario import load_scenario
+from robstiff_drake.model import jit
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import DIAGRAMS_DIR
 
@@ -142,7 +146,8 @@ def main():
     timer = CallbackTimer()
     plain_runs = {label: min(one_run(sc, robot)[:2] for _ in range(REPEATS)) for label, sc in cases}
     instrument(timer)  # from here on, new systems are built with timed callbacks
-    print(f"load average {os.getloadavg()[0]:.2f} / {os.getloadavg()[1]:.2f} / {os.getloadavg()[2]:.2f}")
+    print(f"load average {os.getloadavg()[0]:.2f} / {os.getloadavg()[1]:.2f} / {os.getloadavg()[2]:.2f}; compiled "
+          f"kernels: {'yes (numba)' if jit.available() else 'no (numba not installed or ROBSTIFF_NO_JIT set)'}")
     print(f"closed-loop block pass, compensation on, best of {REPEATS} runs; microseconds per controller tick "
           f"({base.controller.period_ms:g} ms), exclusive time of each Python block:")
     for label, sc in cases:

@@ -4,12 +4,15 @@ DeflectionPrediction, Saturation, the transport delay, RateLimitedCorrection)
 in one simulation: the same outputs, bit for bit, for every delay, with NaN
 and saturated deflections on the way."""
 
+import contextlib
+
 import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import DiscreteTimeDelay, Saturation, ZeroOrderHold
 
+from robstiff_drake.model import jit
 from robstiff_drake.model.compensator import DeflectionModel
 from robstiff_drake.model.payload import PayloadCalibration
 from robstiff_drake.model.realtime import DeflectionPredictor
@@ -43,8 +46,18 @@ class Signals(LeafSystem):
         out.SetFromVector(w)
 
 
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled update", "reference update"])
 @pytest.mark.parametrize("delay_steps", [0, 1, 3])
-def test_the_tick_is_the_separate_blocks_exactly(robot, delay_steps):
+def test_the_tick_is_the_separate_blocks_exactly(robot, delay_steps, compiled):
+    """With numba (model/tick_kernels.py) and without (model/jit.disabled):
+    the compiled update is the reference's arithmetic, bit for bit here."""
+    if compiled and not jit.available():
+        pytest.skip("numba is not installed: the tick runs its reference update (tested here too)")
+    with contextlib.nullcontext() if compiled else jit.disabled():
+        _tick_against_separate_blocks(robot, delay_steps)
+
+
+def _tick_against_separate_blocks(robot, delay_steps):
     tool = robot.payload.tool_point_m
     cal = PayloadCalibration(mass_kg=40.0, com_mm=[5.0, -3.0, 180.0], force_bias_N=[2, -1, 3],
                              torque_bias_Nm=[0.1, 0.0, -0.2])

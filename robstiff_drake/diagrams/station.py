@@ -63,7 +63,7 @@ from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (the arm's he
     unresolved_tooth_message,
     unstable_step_message,
 )
-from robstiff_drake.model import joint_dynamics, transmission
+from robstiff_drake.model import joint_dynamics, tick_kernels, transmission
 from robstiff_drake.model import servo as servo_model
 from robstiff_drake.model.payload import payload_wrench
 from robstiff_drake.model.realtime import DeflectionPredictor
@@ -244,6 +244,7 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
     builder.Connect(plant.get_state_output_port(), state_demux.get_input_port())
     q_link = state_demux.get_output_port(0)
     fk = DeflectionPredictor(robot.dh, k, tool)
+    tick_kernels.warm_up(fk.chain_constants())  # (the milling force's compiled kernels loaded now, not in a timed run)
     milling = builder.AddNamedSystem("milling_force", MillingForceSource(
         force_model=force_model, workpiece=workpiece, path=path, kinematics=fk, tool_point_m=tool,
         period_s=cutting_force_period_s(sc.cutting.mode, h),

@@ -16,7 +16,10 @@ import math
 
 import numpy as np
 
+from robstiff_drake.model import jit, tick_kernels
+
 MEMO_SIZE = 4
+_NONE = np.empty(0)  # (an unused argument of the compiled kernel)
 _SHARED_CHAINS = {}  # arm and tool -> {q: chain}, insertion-ordered
 
 
@@ -106,10 +109,28 @@ class DeflectionPredictor:
 
     def pose_only(self, q_rad):
         """``pose`` without the Jacobian (for a caller that needs only the
-        tool's pose: less arithmetic); a memoised chain is used if there is one."""
+        tool's pose: less arithmetic): with numba the compiled kernel
+        (model/tick_kernels.py; the same arithmetic to round-off), else a
+        memoised chain if there is one or the chain's plain arithmetic.
+        (Not on the ``compensate`` process's path: a first call may
+        compile; tick_kernels.warm_up first.)"""
+        if jit.available():
+            out = np.empty(12)
+            tick_kernels.pose_and_deflection(np.asarray(q_rad, dtype=float), self.chain_constants(), _NONE, _NONE,
+                                             _NONE, out)
+            return tuple(out.tolist())
         q = tuple(q_rad.tolist() if hasattr(q_rad, "tolist") else q_rad)
         chain = self._memo.get(q)
         return chain[1] if chain is not None else self._forward(q, None)
+
+    def chain_constants(self):
+        """The chain's constants as model/tick_kernels.py packs them (a
+        float array of CHAIN_SIZE, kept)."""
+        k = getattr(self, "_chain_k", None)
+        if k is None:
+            k = self._chain_k = np.array(self._home + self._d + self._a + self._ca + self._sa + self._tool
+                                         + list(self._base), dtype=float)
+        return k
 
     def _chain_uncached(self, q_rad):
         axes = []

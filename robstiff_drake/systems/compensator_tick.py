@@ -20,6 +20,12 @@ A predictor with state of its own (predictive or preview mode, or lost
 motion in the model with its static torque) stays a block of its own:
 then ``dq`` is an input (computed from this block's sampled outputs), and
 this block samples, removes gravity, saturates, delays and corrects.
+
+With numba installed the update runs as two compiled kernels
+(model/tick_kernels.py: the same arithmetic to round-off), loaded while
+the block is built; without it (or with ROBSTIFF_NO_JIT set, or within
+model/jit.disabled) the plain-Python reference below, which the kernels
+are tested against.
 """
 
 import math
@@ -27,7 +33,12 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
+from robstiff_drake.model import jit, tick_kernels
 from robstiff_drake.model.compensator import GravityRemover, rate_limited_step
+from robstiff_drake.model.payload import _GRAVITY
+
+
+_NONE = np.empty(0)  # (an empty delay line)
 
 
 def saturate(v, lo, hi):
@@ -79,6 +90,39 @@ class CompensatorTick(LeafSystem):
         if self._dq is not None:
             self.DeclareStateOutputPort("dq", self._dq)
         self.DeclareStateOutputPort("correction", self._c)
+        self._compiled = self._kernel_constants(deflection, sat, period_s, rate_limit_rad_per_s)
+        self.warm_up()
+
+    def _kernel_constants(self, deflection, sat, period_s, rate_limit_rad_per_s):
+        """The compiled update's constants (model/tick_kernels.py), or None
+        where it does not apply (a model with coupling, or a model whose
+        kinematics is not gravity removal's)."""
+        chain = tick_kernels.chain_constants(self._remove._kin)
+        gravity = tick_kernels.gravity_constants(self._remove, _GRAVITY)
+        if deflection is None:
+            model = np.empty(0)
+        elif (deflection.lost is not None or deflection.c23
+              or not np.array_equal(tick_kernels.chain_constants(deflection._pred), chain)):
+            return None
+        else:
+            model = tick_kernels.model_constants(deflection)
+        step = np.asarray(rate_limit_rad_per_s, dtype=float) * period_s * np.ones(6)
+        return chain, gravity, model, -sat, sat, step
+
+    def warm_up(self):
+        """Load (or compile) the update's kernels now, not in the first tick
+        of a timed simulation (nothing without numba)."""
+        if self._compiled is None or not jit.available():
+            return
+        chain, gravity, model, lo, hi, step = self._compiled
+        held = np.zeros(6)
+        held.flags.writeable = False  # (a state's value, as the update reads it)
+        line = np.zeros(6 * self._n)
+        line.flags.writeable = not self._n  # (the state's, or the empty line's)
+        for dq in (held, np.zeros(6)):  # (the held dq, or the dq input's)
+            tick_kernels.correction_step(dq, line, held, lo, hi, step, np.empty(6 * self._n + 6))
+        tick_kernels.pose_and_deflection(np.zeros(6), chain, np.zeros(6), gravity, model,
+                                         np.empty(18 if self._model is None else 24))
 
     @property
     def model(self):
@@ -109,6 +153,32 @@ class CompensatorTick(LeafSystem):
             context.SetDiscreteState(int(self._dq), dq)
 
     def _update(self, context, discrete_state):
+        if self._compiled is not None and jit.available():
+            self._update_compiled(context, discrete_state)
+        else:
+            self._update_reference(context, discrete_state)
+
+    def _update_compiled(self, context, discrete_state):
+        """_update_reference's arithmetic in two compiled kernels."""
+        chain, gravity, model, lo, hi, step = self._compiled
+        dq = context.get_discrete_state(self._dq).value() if self._dq is not None else self._dq_in.Eval(context)
+        n6 = 6 * self._n
+        out = np.empty(n6 + 6)
+        tick_kernels.correction_step(dq, context.get_discrete_state(self._line).value() if n6 else _NONE,
+                                     context.get_discrete_state(self._c).value(), lo, hi, step, out)
+        if n6:
+            discrete_state.set_value(int(self._line), out[:n6])
+        discrete_state.set_value(int(self._c), out[n6:])
+        w, q = self._w_in.Eval(context), self._q_in.Eval(context)
+        res = np.empty(18 if self._dq is None else 24)
+        tick_kernels.pose_and_deflection(q, chain, w, gravity, model, res)
+        discrete_state.set_value(int(self._w), w)
+        discrete_state.set_value(int(self._q), q)
+        discrete_state.set_value(int(self._p), res[12:18])
+        if self._dq is not None:
+            discrete_state.set_value(int(self._dq), res[18:24])
+
+    def _update_reference(self, context, discrete_state):
         # the deflection of the previous tick's sample, saturated
         dq = (context.get_discrete_state(self._dq).value() if self._dq is not None
               else self._dq_in.Eval(context)).tolist()

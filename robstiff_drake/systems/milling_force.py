@@ -13,6 +13,7 @@ from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
 from pydrake.systems.framework import LeafSystem
 
+from robstiff_drake.model import jit, tick_kernels
 from robstiff_drake.model.wrench_frames import to_sensor_frame
 
 # The most instants a tooth-resolved update tabulates (its own, the sensor's samples, its end).
@@ -101,6 +102,7 @@ class MillingForceSource(LeafSystem):
         self._path = path
         self._kin = kinematics
         self._tool = tuple(float(v) for v in tool_point_m)
+        self._tool_a = np.array(self._tool)
         self._mode = mode
         self._phase = phase_rad
         self._body = spindle_body_index
@@ -293,14 +295,18 @@ class MillingForceSource(LeafSystem):
         discrete.set_value(int(self._process), process)
         discrete.set_value(int(self._hist), hist)
         if inst is not None:
-            discrete.set_value(int(self._pose), np.array(pose))  # (read between updates in tooth mode only)
+            pose = np.array(pose)
+            discrete.set_value(int(self._pose), pose)  # (read between updates in tooth mode only)
             times = np.full(MAX_INSTANTS, np.nan)
             times[:len(instants)] = instants
             values = np.zeros((MAX_INSTANTS, 12))
             values[:len(inst), :6] = inst
-            R = list(pose[:9])
-            for i, d in enumerate((inst - w).tolist()):  # (the ripple, as _ripple: one subtraction for the rows)
-                values[i, 6:] = to_sensor_frame(R, self._tool, d)
+            if jit.available():  # (the loop below compiled: model/tick_kernels.py)
+                tick_kernels.sensor_ripples(inst, w, pose, self._tool_a, values)
+            else:
+                R = pose[:9].tolist()
+                for i, d in enumerate((inst - w).tolist()):  # (the ripple, as _ripple: one subtraction for the rows)
+                    values[i, 6:] = to_sensor_frame(R, self._tool, d)
             discrete.set_value(int(self._inst), values.ravel())
             discrete.set_value(int(self._inst_t), times)
         state.get_mutable_abstract_state(int(self._force)).set_value([self._spatial_force(w)])

@@ -1,0 +1,207 @@
+"""The closed loop's per-tick kinematics and compensator arithmetic as one
+compiled kernel (model/jit.py): the tool's pose from the link angles (the
+milling force's update, model/realtime.DeflectionPredictor.pose_only) and
+the compensator tick's whole update (systems/compensator_tick.py: gravity
+removal, the deflection prediction dq = C J(q)^T W, the saturation, the
+delay line and the rate-limited correction).
+
+The same scalar operations in the same order as the plain-Python
+references they replace (model/realtime.DeflectionPredictor._forward and
+_chain_uncached, model/payload.payload_weight, model/wrench_frames,
+model/compensator.rate_limited_step, compensator_tick.saturate), so the
+compiled results equal them to round-off (tests/test_tick_kernels.py).
+Without numba (or with ROBSTIFF_NO_JIT set) the callers keep those
+references: the kernel's Python original, indexing numpy arrays one value
+at a time, would be slower than them.  The real-time ``compensate``
+process (cell/compensate.py, model/compensator.Compensator) does not call
+these kernels: it stays on the references, so no compilation can land in
+its loop.
+
+Constant packing (float64 arrays): ``chain`` (CHAIN_SIZE, ``chain_constants``):
+the DH home angles, d, a (m), cos alpha, sin alpha (6 each), the tool point in
+the flange frame (3, m), the base rotation (9, row-major) and origin (3, m);
+``gravity`` (GRAVITY_SIZE, ``gravity_constants``): the bias (6: N, N*m), the
+payload's mass (kg) and centre of mass (3, m, sensor frame), the sensor
+mount's rotation as the calibration has it (9), the base-frame gravity (3,
+m/s^2); ``model`` (MODEL_SIZE, ``model_constants``): the deflection model's
+mount rotation (9), 1.0 when it is the identity (else 0.0), the tool point in
+the sensor frame (3, m) and the joint compliances (6, rad/(N*m)).
+"""
+
+import math
+
+import numpy as np
+
+from robstiff_drake.model import jit
+from robstiff_drake.model.jit import kernel
+
+CHAIN_SIZE = 45
+GRAVITY_SIZE = 22
+MODEL_SIZE = 19
+
+
+def chain_constants(predictor):
+    """``chain`` (see the module docstring) of a model/realtime.DeflectionPredictor."""
+    return np.array(predictor.chain_constants(), dtype=float)
+
+
+def gravity_constants(remover, gravity_m_per_s2):
+    """``gravity`` of a model/compensator.GravityRemover."""
+    return np.array(list(remover._bias) + [remover._m] + list(remover._c) + list(remover._R_mount)
+                    + list(gravity_m_per_s2), dtype=float)
+
+
+def model_constants(model):
+    """``model`` of a model/compensator.DeflectionModel (linear: no lost motion, no coupling)."""
+    return np.array(list(model._R_mount) + [1.0 if model._identity_mount else 0.0] + list(model._r_s)
+                    + list(model._pred.joint_compliance_list), dtype=float)
+
+
+@kernel
+def pose_and_deflection(q, chain, w, gravity, model, out):
+    """Writes the tool's pose (row-major flange rotation 9, tool point 3,
+    m, base frame) to ``out[:12]`` for link angles ``q`` (6, rad); with
+    ``out`` of 18 or more, also the process wrench ``w`` - bias - the
+    payload's weight at q (6, sensor frame) to ``out[12:18]``; with ``out``
+    of 24, dq = C J(q)^T W (6, rad) of it to ``out[18:24]``."""
+    r0, r1, r2, r3, r4, r5 = chain[33], chain[34], chain[35], chain[36], chain[37], chain[38]
+    r6, r7, r8, px, py, pz = chain[39], chain[40], chain[41], chain[42], chain[43], chain[44]
+    axes = np.empty((6, 6))
+    for i in range(6):
+        axes[i, 0], axes[i, 1], axes[i, 2], axes[i, 3], axes[i, 4], axes[i, 5] = r2, r5, r8, px, py, pz
+        th = q[i] + chain[i]
+        ct, st = math.cos(th), math.sin(th)
+        c, s, a, d = chain[18 + i], chain[24 + i], chain[12 + i], chain[6 + i]
+        n0 = r0 * ct + r1 * st
+        n3 = r3 * ct + r4 * st
+        n6 = r6 * ct + r7 * st
+        m0 = -r0 * st + r1 * ct
+        m3 = -r3 * st + r4 * ct
+        m6 = -r6 * st + r7 * ct
+        px += a * n0 + d * r2
+        py += a * n3 + d * r5
+        pz += a * n6 + d * r8
+        r0, r1, r2 = n0, m0 * c + r2 * s, -m0 * s + r2 * c
+        r3, r4, r5 = n3, m3 * c + r5 * s, -m3 * s + r5 * c
+        r6, r7, r8 = n6, m6 * c + r8 * s, -m6 * s + r8 * c
+    tx, ty, tz = chain[30], chain[31], chain[32]
+    px += r0 * tx + r1 * ty + r2 * tz
+    py += r3 * tx + r4 * ty + r5 * tz
+    pz += r6 * tx + r7 * ty + r8 * tz
+    R = (r0, r1, r2, r3, r4, r5, r6, r7, r8)
+    for i in range(9):
+        out[i] = R[i]
+    out[9], out[10], out[11] = px, py, pz
+    if out.shape[0] < 18:
+        return
+    # the payload's weight (model/payload.payload_weight) and the process wrench (GravityRemover)
+    G0, G1, G2 = gravity[19], gravity[20], gravity[21]
+    v0 = r0 * G0 + r3 * G1 + r6 * G2
+    v1 = r1 * G0 + r4 * G1 + r7 * G2
+    v2 = r2 * G0 + r5 * G1 + r8 * G2
+    M = gravity[10:19]
+    gx = M[0] * v0 + M[3] * v1 + M[6] * v2
+    gy = M[1] * v0 + M[4] * v1 + M[7] * v2
+    gz = M[2] * v0 + M[5] * v1 + M[8] * v2
+    mass = gravity[6]
+    fx, fy, fz = mass * gx, mass * gy, mass * gz
+    cx, cy, cz = gravity[7], gravity[8], gravity[9]
+    weight = (fx, fy, fz, cy * fz - cz * fy, cz * fx - cx * fz, cx * fy - cy * fx)
+    for i in range(6):
+        out[12 + i] = w[i] - gravity[i] - weight[i]
+    if out.shape[0] < 24:
+        return
+    # the wrench at the tool point, base frame (DeflectionModel.tool_wrench, wrench_to_tool_base)
+    if model[9] == 0.0:
+        Mm = model[:9]
+        Rs = np.empty(9)
+        for i in range(3):
+            for j in range(3):
+                Rs[3 * i + j] = R[3 * i] * Mm[j] + R[3 * i + 1] * Mm[3 + j] + R[3 * i + 2] * Mm[6 + j]
+        s0, s1, s2, s3, s4, s5, s6, s7, s8 = Rs[0], Rs[1], Rs[2], Rs[3], Rs[4], Rs[5], Rs[6], Rs[7], Rs[8]
+    else:
+        s0, s1, s2, s3, s4, s5, s6, s7, s8 = r0, r1, r2, r3, r4, r5, r6, r7, r8
+    wx, wy, wz, mx, my, mz = out[12], out[13], out[14], out[15], out[16], out[17]
+    rx, ry, rz = model[10], model[11], model[12]
+    bx, by, bz = mx - (ry * wz - rz * wy), my - (rz * wx - rx * wz), mz - (rx * wy - ry * wx)
+    F = (s0 * wx + s1 * wy + s2 * wz, s3 * wx + s4 * wy + s5 * wz, s6 * wx + s7 * wy + s8 * wz,
+         s0 * bx + s1 * by + s2 * bz, s3 * bx + s4 * by + s5 * bz, s6 * bx + s7 * by + s8 * bz)
+    # tau = J^T W (the Jacobian's columns z x (p - o), z: DeflectionPredictor._chain_uncached), dq = C tau
+    for i in range(6):
+        zx, zy, zz, ox, oy, oz = axes[i, 0], axes[i, 1], axes[i, 2], axes[i, 3], axes[i, 4], axes[i, 5]
+        ex, ey, ez = px - ox, py - oy, pz - oz
+        tau = ((zy * ez - zz * ey) * F[0] + (zz * ex - zx * ez) * F[1] + (zx * ey - zy * ex) * F[2]
+               + zx * F[3] + zy * F[4] + zz * F[5])
+        out[18 + i] = model[13 + i] * tau
+
+
+@kernel
+def correction_step(dq, line, c, lo, hi, step, out):
+    """The compensator tick's saturation, delay line and rate-limited
+    correction (systems/compensator_tick.CompensatorTick's update): ``dq``
+    (6, rad) the deflection of the last sample, ``line`` (6 n, oldest
+    first) the delay line, ``c`` (6, rad) the held correction.  Writes the
+    new line to ``out[:6 n]`` and the new correction to ``out[6 n:]`` (the
+    held one when the delayed deflection is not finite)."""
+    n6 = line.shape[0]
+    s = np.empty(6)
+    for i in range(6):
+        v = dq[i]
+        s[i] = lo[i] if v < lo[i] else (hi[i] if v > hi[i] else v)
+    if n6:
+        d = line[:6].copy()
+        for i in range(n6 - 6):
+            out[i] = line[6 + i]
+        for i in range(6):
+            out[n6 - 6 + i] = s[i]
+    else:
+        d = s
+    total = 0.0
+    for i in range(6):
+        total += d[i]
+    finite = math.isfinite(total)
+    for i in range(6):
+        x = c[i]
+        if finite:  # (rate_limited_step: x + min(s, max(-s, -d - x)), Python's min and max exactly)
+            a = -d[i] - x
+            b = a if a > -step[i] else -step[i]
+            out[n6 + i] = x + (b if b < step[i] else step[i])
+        else:
+            out[n6 + i] = x
+
+
+@kernel
+def sensor_ripples(inst, w, pose, tool, values):
+    """The tooth-resolved milling force's table (systems/milling_force.py):
+    for each row i of ``inst`` (k, 6: instantaneous wrenches, base frame,
+    at the tool point), the ripple ``inst[i] - w`` as the wrist sensor sees
+    it (model/wrench_frames.to_sensor_frame with the flange rotation
+    ``pose[:9]`` and the tool point ``tool`` (3, m, flange frame)) written to
+    ``values[i, 6:12]``."""
+    R = pose
+    tx, ty, tz = tool[0], tool[1], tool[2]
+    for i in range(inst.shape[0]):
+        d0, d1, d2 = inst[i, 0] - w[0], inst[i, 1] - w[1], inst[i, 2] - w[2]
+        d3, d4, d5 = inst[i, 3] - w[3], inst[i, 4] - w[4], inst[i, 5] - w[5]
+        f0 = R[0] * d0 + R[3] * d1 + R[6] * d2
+        f1 = R[1] * d0 + R[4] * d1 + R[7] * d2
+        f2 = R[2] * d0 + R[5] * d1 + R[8] * d2
+        m0 = R[0] * d3 + R[3] * d4 + R[6] * d5
+        m1 = R[1] * d3 + R[4] * d4 + R[7] * d5
+        m2 = R[2] * d3 + R[5] * d4 + R[8] * d5
+        values[i, 6], values[i, 7], values[i, 8] = f0, f1, f2
+        values[i, 9] = m0 + ty * f2 - tz * f1
+        values[i, 10] = m1 + tz * f0 - tx * f2
+        values[i, 11] = m2 + tx * f1 - ty * f0
+
+
+def warm_up(chain):
+    """Load (or compile) the milling force's kernels now (the tool's pose
+    for the chain constants ``chain``, the sensor ripples), not in the first
+    update of a timed simulation (nothing without numba).  The compensator
+    tick loads its own (CompensatorTick.warm_up)."""
+    if jit.available():
+        none = np.empty(0)
+        pose = np.zeros(12)
+        pose_and_deflection(np.zeros(6), chain, none, none, none, pose)
+        sensor_ripples(np.zeros((1, 6)), np.zeros(6), pose, np.zeros(3), np.zeros((2, 12)))
