@@ -78,10 +78,11 @@ def controller_robot(robot, seed):
     return dataclasses.replace(robot, dh=dataclasses.replace(robot.dh, home_rad=robot.dh.home_rad + d))
 
 
-def paper_scenario(name, robot=None, seed=0):
+def paper_scenario(name, robot=None, seed=0, yaml=None):
     """The part's scenario with the paper's forces and the imperfections
-    above (the joint zero errors of draw ``seed``; None: none)."""
-    sc = load_scenario(ROOT / "diagrams" / ("block_milling.yaml" if name == "block" else "cylinder_head.yaml"))
+    above (the joint zero errors of draw ``seed``; None: none); ``yaml``:
+    another scenario file for the part (studies/cylinder_head_deck.py's deck)."""
+    sc = load_scenario(yaml or ROOT / "diagrams" / ("block_milling.yaml" if name == "block" else "cylinder_head.yaml"))
     forces = load_scenario(ROOT / "diagrams" / "block_milling_paper_forces.yaml").cutting
     sc.cutting.tangential_radial_scale = forces.tangential_radial_scale
     sc.cutting.axial_scale = forces.axial_scale
