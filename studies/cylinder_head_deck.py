@@ -27,6 +27,7 @@ lowered 0.1 mm per run without cutting force.
     python studies/cylinder_head_deck.py            # stand-in and deck, draw "none"; about 15 cuts, 10-20 minutes
     python studies/cylinder_head_deck.py --draw 0   # the same with mastering draw 0
     python studies/cylinder_head_deck.py --deck-only --zigzag  # the deck with the middle pass back along -x
+    python studies/cylinder_head_deck.py --one-pass 2 --without "force filter lag"  # one pass, one removal (a cut)
 """
 
 import argparse
@@ -238,13 +239,43 @@ def standin_readings(robot, seed, fields=None):
     return row
 
 
+def one_pass_profile(robot, k, zigzag=False, removed=(), lines_y_mm=(2.5, 20.0)):
+    """Pass k alone, compensated, with the budget's ``removed`` sources
+    (diagrams/budget.py: e.g. "force filter lag", "stiffness model error",
+    "lost motion"): per scan line, the depth's range (mm, against the
+    commanded surface) over each stretch of material, as text."""
+    from robstiff_drake.diagrams import budget
+
+    sc = pass_scenario(pr.paper_scenario("cylinder head", robot, None, yaml=DECK_YAML), k, zigzag)
+    sc.scan.lines_y_mm = list(lines_y_mm)
+    s, r = budget.without(sc, robot, set(removed), None)[:2]
+    res = run_cut(s, r, compensation=True)
+    out = []
+    for line in res.scans:
+        e, x = np.asarray(line.error_m) * 1e3, np.asarray(line.x_m) * 1e3
+        edges = np.flatnonzero(np.diff(np.r_[0, np.isfinite(e).astype(int), 0]))
+        cells = " ".join(f"[{x[a]:.0f}-{x[b - 1]:.0f}: {e[a:b].min():+.2f}..{e[a:b].max():+.2f}]"
+                         for a, b in zip(edges[::2], edges[1::2]))
+        out.append(f"y {line.y_m * 1e3:g} mm: {cells}")
+    return "\n".join(out)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--draw", type=int, default=None, help="mastering draw (default: none)")
     ap.add_argument("--deck-only", action="store_true", help="leave out the stand-in (its 3 cuts)")
     ap.add_argument("--zigzag", action="store_true", help="the middle pass back along -x (default: all along +x)")
     ap.add_argument("--save", type=Path, help="write the depth fields (mm) here (.npz), to look at them again")
+    ap.add_argument("--one-pass", type=int, choices=range(1, len(PASSES_Y_MM) + 1),
+                    help="only this pass, compensated, its depth along two lines (with --without: a removal)")
+    ap.add_argument("--without", action="append", default=[], choices=pr.budgets.SOURCES,
+                    help="with --one-pass: a source removed as the budget removes it (repeatable)")
     args = ap.parse_args(argv)
+    if args.one_pass:
+        print(f"pass {args.one_pass}{' (zigzag)' if args.zigzag else ''}, compensated, without "
+              f"{', '.join(args.without) or 'nothing'}, depth (mm) against the commanded surface:")
+        print(one_pass_profile(pr.load_robot(), args.one_pass - 1, args.zigzag, args.without))
+        return 0
     if args.save is not None and not args.save.parent.is_dir():
         print(f"--save: {args.save.parent}: no such folder", file=sys.stderr)
         return 2

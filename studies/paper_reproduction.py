@@ -19,7 +19,9 @@ paper made its own, each imperfection at a size from the literature:
 | position repeatability | 0.05-0.1 mm RP (ISO 9283: 3.62 sigma per axis), one height error per touch pass | the paper, Section 6 |
 
 The cylinder head is the project's stand-in (four pads, docs/results.md):
-the paper shows no drawing of its part.  The paint-and-touch range is read
+the paper shows no drawing of its part.  A four-cylinder deck (chambers
+wider than the cutter, three side-by-side passes) beside it:
+studies/cylinder_head_deck.py.  The paint-and-touch range is read
 as the paper read it (``touch_reading``): the tool lowered 0.1 mm per pass,
 the first pass that touches the paint and the first that cleans it,
 against the same program's pass without cutting force
