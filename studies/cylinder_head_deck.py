@@ -12,7 +12,8 @@ gives each number with its source or ASSUMPTION):
   them that one pass cannot show;
 * its combustion chambers (the bore, 84.8 mm, wider than the cutter) open
   in it, so the pass along the bores leaves the material entirely and
-  re-enters it at every cylinder: transients the 2 Hz filter cannot follow.
+  re-enters it at every cylinder: transients the 2 Hz filter and the
+  loop's other lags cannot follow.
 
 Each pass is a cut of its own (the arm in air between them, its filter
 settled) against the material the passes before it left (``pass_boxes_mm``:
@@ -20,11 +21,17 @@ nominally, a pass removes the stripe its cutter swept; the thin sliver a
 later pass re-cuts where it runs lower than the earlier one is in the
 surface but not in the force: ASSUMPTION, at most a few tenths of a mm of
 a 3 mm cut).  The finished face is the lowest of the passes' envelopes
-(``deck_surface_mm``), and paint and touch reads it as the paper did
+(``deck_depth_mm``), and paint and touch reads it as the paper did
 (paper_reproduction.touch_reading): the same program, all its passes,
 lowered 0.1 mm per run without cutting force.
 
-    python studies/cylinder_head_deck.py            # stand-in and deck, draw "none"; about 15 cuts, 10-20 minutes
+What it found (docs/results.md, "The cylinder head as a four-cylinder
+deck"): read the paper's way the deck gives 0.4-0.6 -> 0.4 mm over the
+mastering draws (the paper 0.9 -> 0.4; the stand-in 0.6-0.7 -> 0.1): the
+compensated figure from the re-entries after the chambers, the
+uncompensated one short because nothing on the deck is cut less.
+
+    python studies/cylinder_head_deck.py            # stand-in and deck, draw "none"; 12 cuts, 10-20 minutes
     python studies/cylinder_head_deck.py --draw 0   # the same with mastering draw 0
     python studies/cylinder_head_deck.py --deck-only --zigzag  # the deck with the middle pass back along -x
     python studies/cylinder_head_deck.py --one-pass 2 --without "force filter lag"  # one pass, one removal (a cut)
