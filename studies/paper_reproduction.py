@@ -19,7 +19,9 @@ paper made its own, each imperfection at a size from the literature:
 | position repeatability | 0.05-0.1 mm RP (ISO 9283: 3.62 sigma per axis), one height error per touch pass | the paper, Section 6 |
 
 The cylinder head is the project's stand-in (four pads, docs/results.md):
-the paper shows no drawing of its part.  The paint-and-touch range is read
+the paper shows no drawing of its part.  A four-cylinder deck (chambers
+wider than the cutter, three side-by-side passes) beside it:
+studies/cylinder_head_deck.py.  The paint-and-touch range is read
 as the paper read it (``touch_reading``): the tool lowered 0.1 mm per pass,
 the first pass that touches the paint and the first that cleans it,
 against the same program's pass without cutting force
@@ -78,10 +80,11 @@ def controller_robot(robot, seed):
     return dataclasses.replace(robot, dh=dataclasses.replace(robot.dh, home_rad=robot.dh.home_rad + d))
 
 
-def paper_scenario(name, robot=None, seed=0):
+def paper_scenario(name, robot=None, seed=0, yaml=None):
     """The part's scenario with the paper's forces and the imperfections
-    above (the joint zero errors of draw ``seed``; None: none)."""
-    sc = load_scenario(ROOT / "diagrams" / ("block_milling.yaml" if name == "block" else "cylinder_head.yaml"))
+    above (the joint zero errors of draw ``seed``; None: none); ``yaml``:
+    another scenario file for the part (studies/cylinder_head_deck.py's deck)."""
+    sc = load_scenario(yaml or ROOT / "diagrams" / ("block_milling.yaml" if name == "block" else "cylinder_head.yaml"))
     forces = load_scenario(ROOT / "diagrams" / "block_milling_paper_forces.yaml").cutting
     sc.cutting.tangential_radial_scale = forces.tangential_radial_scale
     sc.cutting.axial_scale = forces.axial_scale
