@@ -19,10 +19,13 @@ part along the spindle axis, over the revolution: its velocity v):
             same smoothed vector
   raw       v's own direction (no filter), the feed |v| low-passed at 2 Hz
   tooth     raw over one tooth period, the force updated every plant step
+  vtooth    v over one tooth period unfiltered, feed and direction (the
+            chip as it is), the force updated every plant step
 
     python studies/chip_direction.py            # the block's laws, then face_and_contour's (about 10 minutes)
     python studies/chip_direction.py --block    # the block only (about 4 minutes)
     python studies/chip_direction.py --face-and-contour    # face_and_contour only
+    python studies/chip_direction.py --law vtooth --law path --plant-step-ms 0.25    # at a finer plant step
 """
 
 import argparse
@@ -67,7 +70,7 @@ class ToolMotionChip(BASE):
         fm = kw["force_model"]
         self._plant = isinstance(fm, PlantCuttingLaw) and fm.physics != PlantCuttingPhysics.linear()
         self._on = self._plant and self.LAW != "path"
-        teeth = self.LAW == "tooth"
+        teeth = self.LAW in ("tooth", "vtooth")
         self._win = (1.0 / kw["force_model"].cutter.tooth_pass_hz) if teeth else mf.chip_window_s(
             kw["force_model"].cutter)
         self._pts = collections.deque()
@@ -94,8 +97,8 @@ class ToolMotionChip(BASE):
         law = self.LAW
         ux, uy = u_held
         speed = math.hypot(*v)
-        if law.startswith("vector"):
-            g = 1.0 - math.exp(-2.0 * math.pi * float(law.split(":")[1]) * self._period)
+        if law.startswith("vector") or law == "vtooth":
+            g = 1.0 if law == "vtooth" else 1.0 - math.exp(-2.0 * math.pi * float(law.split(":")[1]) * self._period)
             vx, vy = feed_held * ux + g * (v[0] - feed_held * ux), feed_held * uy + g * (v[1] - feed_held * uy)
             feed = math.hypot(vx, vy)
             return ((vx / feed, vy / feed) if feed > STANDSTILL_M_PER_S else (ux, uy)), feed
@@ -129,7 +132,7 @@ def run(law, sc, robot, compensation=True):
     ToolMotionChip.LAW, ToolMotionChip.log = law, []
     saved = station.AVERAGED_FORCE_PERIOD_S
     station.MillingForceSource = ToolMotionChip
-    if law == "tooth":
+    if law in ("tooth", "vtooth"):
         station.AVERAGED_FORCE_PERIOD_S = 0.0  # every plant step
     try:
         res = run_cut(copy.deepcopy(sc), robot, compensation=compensation)
@@ -149,33 +152,44 @@ def exit_summary(log, t_exit):
 
 
 def coupling(robot):
-    """The chip direction's coupling on the block: the plant's force's
-    change per m/s of lateral (y) tool velocity at 20 mm/s along +x (the
-    direction turned by v_y / 20 mm/s), mid-pass and where the cutter's
-    front has left the block."""
+    """The chip's coupling on the block: the plant's force's change per
+    m/s of tool velocity at 20 mm/s along +x (along x: the feed; across,
+    y: the direction turned by v_y / 20 mm/s), mid-pass and where the
+    cutter's front has left the block; a negative eigenvalue of the
+    in-plane part's symmetric half is a direction of motion the chip
+    pushes along (negative damping: the mode coupling)."""
     from robstiff_drake.diagrams.scenario_models import plant_cutting_setup
     _, law, wp = plant_cutting_setup(pr.paper_scenario("block", robot, 0))
     v, d = 0.02, math.radians(0.5)
-    print("The chip direction's coupling on the block (the force's change per m/s of lateral tool velocity):")
-    print("| tool at x (mm) | force (N) | dF/dv_y (N*s/m) |")
-    print("|---|---|---|")
+    print("The chip's coupling on the block (the force's change per m/s of tool velocity, G):")
+    print("| tool at x (mm) | force (N) | dF/dv_x (N*s/m) | dF/dv_y (N*s/m) | the in-plane coupling's damping "
+          "(eigenvalues of -(G + G^T) / 2, N*s/m) |")
+    print("|---|---|---|---|---|")
     for x in (1.600, 1.640):
         p = [x, 0.0, 0.700]
         f0 = law.average_wrench(p, (1.0, 0.0), wp, v)[:3]
         fp, fm = (law.average_wrench(p, (math.cos(d), sg * math.sin(d)), wp, v)[:3] for sg in (1.0, -1.0))
         g = (fp - fm) / (2.0 * d) / v
-        print(f"| {x * 1e3:.0f} | ({f0[0]:.0f}, {f0[1]:.0f}, {f0[2]:.0f}) | ({g[0]:.0f}, {g[1]:.0f}, {g[2]:.0f}) |")
+        gx = (law.average_wrench(p, (1.0, 0.0), wp, 1.01 * v)[:3] - law.average_wrench(p, (1.0, 0.0), wp,
+                                                                                     0.99 * v)[:3]) / (0.02 * v)
+        G = np.array([[gx[0], g[0]], [gx[1], g[1]]])  # in-plane force per in-plane velocity
+        lam = np.linalg.eigvalsh(-0.5 * (G + G.T))
+        print(f"| {x * 1e3:.0f} | ({f0[0]:.0f}, {f0[1]:.0f}, {f0[2]:.0f}) | ({gx[0]:.0f}, {gx[1]:.0f}, {gx[2]:.0f}) | "
+              f"({g[0]:.0f}, {g[1]:.0f}, {g[2]:.0f}) | {lam[0]:.0f}, {lam[1]:.0f} |")
     print()
 
 
-def block(robot, laws):
-    print("The paper's block, draw 0, compensated (plain), play on every joint:")
+def block(robot, laws, step_s=None):
+    print("The paper's block, draw 0, compensated (plain), play on every joint"
+          + (f", the plant's step {step_s * 1e3:g} ms:" if step_s else ":"))
     print("| direction law | play | mean (mm) | max (mm) | face from x = 1610 mm on, mean (mm) | "
           "after the cutter's front leaves the block (t 8.2-8.9 s): direction (deg) | tool y (um) | "
           "tool's lowest (um) |")
     print("|---|---|---|---|---|---|---|---|")
     for law, play in laws:
         sc = pr.paper_scenario("block", robot, 0)
+        if step_s:
+            sc.plant_config.time_step = step_s
         if not play:
             sc.plant.lost_motion_rad = [0.0] * 6
         res, log = run(law, sc, robot)
@@ -204,12 +218,17 @@ def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--block", action="store_true", help="the block only")
     ap.add_argument("--face-and-contour", action="store_true", help="face_and_contour only")
+    ap.add_argument("--law", action="append", help="the block with this law only (repeatable; play on every joint)")
+    ap.add_argument("--plant-step-ms", type=float, help="the block's plant step, ms (default: the study's 0.5)")
     args = ap.parse_args(argv)
     robot = load_robot()
+    step_s = args.plant_step_ms / 1e3 if args.plant_step_ms else None
+    if args.law:
+        return block(robot, [(law, True) for law in args.law], step_s)
     if not args.face_and_contour:
         coupling(robot)
         block(robot, [("path", True), ("travel", True), ("vector:2", True), ("vector:5", True), ("vector:10", True),
-                      ("raw", True), ("tooth", True), ("path", False), ("travel", False)])
+                      ("raw", True), ("tooth", True), ("vtooth", True), ("path", False), ("travel", False)], step_s)
     if not args.block:
         face_and_contour(robot, ["path", "travel", "vector:2", "raw"])
 

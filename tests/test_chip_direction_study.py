@@ -21,7 +21,7 @@ import chip_direction as cd  # noqa: E402
 from test_plant_cutting import LINEAR, arm, at_an_angle, straight_path_source  # noqa: E402,F401
 
 
-@pytest.mark.parametrize("law", ["path", "travel", "vector:2"])
+@pytest.mark.parametrize("law", ["path", "travel", "vector:2", "vtooth"])
 def test_the_studys_source_turns_the_force_with_the_tool_only_under_a_tool_motion_law(arm, law):  # noqa: F811
     kin, tool, q0 = arm
     cut = PlantCuttingLaw(LINEAR)
