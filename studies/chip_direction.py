@@ -58,9 +58,10 @@ class ToolMotionChip(BASE):
     the tool point's own motion by ``LAW`` (see the module docstring); the
     compensator's own sources (not a PlantCuttingLaw) keep the plant's
     law (the compensator's twin cuts with the linear law: a source whose
-    law is not the plant's rich one is left as it is).  Averaged mode only.  Its history of tool points is Python-side
-    (one forward simulation); ``log`` collects (t, u_x, u_y, feed m/s,
-    force N (3), tool point m (3)) per update."""
+    law is not the plant's rich one is left as it is).  Averaged mode
+    only.  Its history of tool points is Python-side (one forward
+    simulation); ``log`` collects (t, u_x, u_y, feed m/s, force N (3),
+    tool point m (3)) per update of the plant's source."""
 
     LAW = "path"
     log = []
