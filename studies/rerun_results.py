@@ -43,6 +43,8 @@ FIGURES = [
      PY + ["studies/face_and_contour.py", "--finishing"]),
     ("posted_program", "A job with turns: the posted program", "1 min", PY + ["studies/face_and_contour.py", "--posted"]),
     ("plant_physics", "The plant's own cutting physics", "10 min", PY + ["studies/plant_physics_mismatch.py"]),
+    ("chip_direction", "The plant's own cutting physics: the chip's direction from the tool's own motion", "8 min",
+     PY + ["studies/chip_direction.py"]),
     ("fc_budget", "The error budget (face and contour)", "30-60 min (results.md)",
      CLI + ["simulate", "diagrams/face_and_contour.yaml", "--compensation", "on", "--budget", "--out", "{out}/fc_budget"]),
     ("paper_reproduction", "The paper's figures from stated imperfections", "10 min",

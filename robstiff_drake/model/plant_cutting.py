@@ -4,12 +4,14 @@ tested against a force it does not share.  Plain numpy; no Drake.
 
 What differs from the compensator's model (each with its size and source):
 
-- Chip thickness and feed direction come from the tool's ACTUAL velocity
-  relative to the (fixed) workpiece, given by the caller
-  (systems/milling_force.py: J(q) v of the plant's links), not from the
-  planned path at clock time: the feed per tooth is |v_xy| / tooth-pass
-  frequency, so a tool that lags the plan, slows in a ramp or turns a
-  corner late makes its chip (and force direction) where it really is.
+- Chip thickness and feed direction come from where the tool ACTUALLY
+  is and how fast it progresses, given by the caller
+  (systems/milling_force.py: the tool's progress along its path over a
+  revolution, low-passed at 2 Hz, and the path's direction where the tool
+  is), not from the planned path at clock time: the feed per tooth is that
+  feed / tooth-pass frequency, so a tool that lags the plan, slows in a
+  ramp or reaches a corner late makes its chip (and force direction) where
+  it really is.
 - A nonlinear chip-thickness law (Kienzle): the cutting part of each
   force per unit depth is k_c h_ref^m_c h^(1 - m_c).  1 - m_c = 0.75
   (m_c = 0.25): Sandvik Coromant's value for its ISO N (aluminium)

@@ -1,7 +1,8 @@
 """The milling force source: the cutting wrench on the tool from the actual
 tool position against the workpiece (the process loop) and the tool's
-actual motion (the chip's feed per tooth and direction: a tool that lags
-its plan cuts where and how it really moves), applied to the spindle body
+actual progress along its path (the chip's feed per tooth: a tool that lags
+its plan cuts where and as fast as it really moves; the chip's direction
+is the program's where the tool is, see ``motion``), applied to the spindle body
 as a spatial force, so the flange-spindle weld carries it and the wrist
 sensor feels it as it would on a real cell."""
 
@@ -52,13 +53,19 @@ def _arange(start, stop, step):
 class MillingForceSource(LeafSystem):
     """Samples the robot's link angles every ``period_s`` and computes the
     cutting load at the actual tool point, the chip from the tool's actual
-    horizontal motion: its displacement over the chip's window
+    progress: where along its path the tool really is (the path's point
+    nearest the actual tool point), its progress over the chip's window
     (``chip_window_s``: a revolution; interpolated in the history of
-    updates) over that window is the feed (m/s) whose feed per tooth is the
-    chip, and its direction the feed direction.  So a tool that lags
-    its plan turns a corner where it turns, and a speed ramp thins the
-    chip; the planned path gives only the direction before the tool first
-    moves.  ``force_model``: the plant's law (model/plant_cutting.py's
+    updates) over that window, low-passed at FEED_CUTOFF_HZ, is the feed
+    (m/s) whose feed per tooth is the chip, and the program's direction
+    there the feed direction (``motion``).  So a tool that lags its plan
+    turns a corner where it reaches it, not at the plan's clock, and a
+    speed ramp thins the chip.  The direction is not taken from the tool's
+    own motion: that couples the chip to the arm's modes, which a force
+    computed a step behind cannot carry, and every filtered version tried
+    is an artefact of its filter (docs/results.md, "the chip's direction
+    from the tool's own motion"; studies/chip_direction.py).
+    ``force_model``: the plant's law (model/plant_cutting.py's
     PlantCuttingLaw, which also takes the cutting travel so far, its flank
     wear's clock) or a linear MillingForceModel.
 
