@@ -1,14 +1,14 @@
 """A scenario that gives no plant step: the station takes the largest step
 up to 2 ms that keeps every mode stable and resolves the scenario's play
-and tooth-resolved force (diagrams/plant_step.scenario_step_s), says which
+and tooth-resolved force (diagrams/scenario_step.scenario_step_s), says which
 and why in one line, and builds at it; a step given is used as it is."""
 
 import pytest
 
 from robstiff_drake.diagrams.milling_cell import check_plant_step
-from robstiff_drake.diagrams import plant_step
-from robstiff_drake.diagrams.plant_step import step_choice
-from robstiff_drake.diagrams.scenario import load_scenario, plant_step_s
+from robstiff_drake.diagrams import scenario_step
+from robstiff_drake.diagrams.scenario import load_scenario
+from robstiff_drake.diagrams.scenario_step import plant_step_s, step_choice
 from robstiff_drake.errors import InputError
 from robstiff_drake.paths import DIAGRAMS_DIR
 
@@ -30,7 +30,7 @@ def _scenario(tmp_path, step_line="", extra=""):
 ])
 def test_a_scenario_without_a_step_gets_the_largest_that_resolves_it(tmp_path, robot, capsys, play, mode, step_s,
                                                                      says):
-    plant_step._SAID.clear()  # (said once per process: said here)
+    scenario_step._SAID.clear()  # (said once per process: said here)
     sc = _scenario(tmp_path)
     assert sc.plant_config.time_step == 0.0  # (not given)
     sc.plant.lost_motion_rad, sc.cutting.mode = list(play), mode

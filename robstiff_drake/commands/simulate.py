@@ -219,7 +219,8 @@ def load_for_run(scenario, robot, *, compensator=None, noise_seed=None, toolpath
     from robstiff_drake.diagrams import user_model as user_models
     from robstiff_drake.diagrams.cell_record import check_same_robot, scenario_with_compensator
     from robstiff_drake.diagrams.milling_cell import planned_path as cell_path
-    from robstiff_drake.diagrams.scenario import load_scenario, plant_step_s
+    from robstiff_drake.diagrams.scenario import load_scenario
+    from robstiff_drake.diagrams.scenario_step import plant_step_s
 
     sc = load_scenario(scenario, toolpath=toolpath, work_offset=work_offset, stock=stock)
     if compensator is not None:

@@ -139,8 +139,8 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
         raise InputError(f"sweep: --plant-step-ms must be > 0, got {plant_step_ms}")
     # Drake comes with these: after the checks of the arguments above
     from robstiff_drake.diagrams.milling_cell import check_plant_step
-    from robstiff_drake.diagrams.plant_step import step_choice
-    from robstiff_drake.diagrams.scenario import load_scenario, plant_step_s, scenario_robot
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+    from robstiff_drake.diagrams.scenario_step import plant_step_s, step_choice
     from robstiff_drake.diagrams.scenario_models import model_stiffness, payload_calibration
 
     sc = load_scenario(scenario)
@@ -208,7 +208,7 @@ def shortest_period_step(sc, periods_ms, json_out=None):
     them comparable, and a finer step changes the block test's result by
     less than 0.1 um, studies/time_step_convergence.py).  None: the
     scenario's step serves."""
-    from robstiff_drake.diagrams.scenario import plant_step_s
+    from robstiff_drake.diagrams.scenario_step import plant_step_s
 
     step_ms = plant_step_s(sc) * 1e3
     shortest = min(periods_ms)

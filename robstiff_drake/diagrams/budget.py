@@ -91,7 +91,7 @@ import numpy as np
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.milling_cell import build_milling_cell, planned_path
-from robstiff_drake.diagrams.scenario import plant_step_s
+from robstiff_drake.diagrams.scenario_step import plant_step_s
 from robstiff_drake.diagrams.scenario_models import cutting_setup, exact_payload_calibration, plant_stiffness
 from robstiff_drake.model import budget_fields
 from robstiff_drake.model.filters import noise_std_factor

@@ -26,7 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.diagrams.scenario import check_scenario, plant_step_s, robot_spec
+from robstiff_drake.diagrams.scenario import check_scenario, robot_spec
+from robstiff_drake.diagrams.scenario_step import plant_step_s
 from robstiff_drake.diagrams.scenario_models import model_stiffness, payload_calibration
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.runs import logs as rl

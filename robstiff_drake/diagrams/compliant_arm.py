@@ -243,7 +243,7 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     # (the touch-off absorbs their static part at the start pose).
     k_model = k
     h = float(plant_config.time_step)
-    if not h > 0:  # (a scenario's step not given: diagrams/plant_step.scenario_step_s chooses it first)
+    if not h > 0:  # (a scenario's step not given: diagrams/scenario_step.scenario_step_s chooses it first)
         raise ValueError(f"the plant step must be given here (got {h:g} s)")
     plant, _ = AddMultibodyPlant(plant_config, builder)
     plant.set_name("plant")

@@ -22,7 +22,8 @@ import numpy as np
 
 from robstiff_drake.diagrams import user_model as user_models
 from robstiff_drake.diagrams.experiment import run_cut
-from robstiff_drake.diagrams.scenario import planned_path, plant_step_s
+from robstiff_drake.diagrams.scenario import planned_path
+from robstiff_drake.diagrams.scenario_step import plant_step_s
 from robstiff_drake.diagrams.scenario_models import (
     model_damping_ratios, model_stiffness, payload_calibration, user_model_of
 )

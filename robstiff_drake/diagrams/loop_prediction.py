@@ -10,7 +10,8 @@ import numpy as np
 from robstiff_drake.diagrams.experiment import ScanLine, material_top, zone_stats
 from robstiff_drake.diagrams.compensator import filter_coefficients
 from robstiff_drake.diagrams.milling_cell import planned_path as cell_planned_path
-from robstiff_drake.diagrams.scenario import planned_path, plant_step_s
+from robstiff_drake.diagrams.scenario import planned_path
+from robstiff_drake.diagrams.scenario_step import plant_step_s
 from robstiff_drake.diagrams.scenario_models import (
     cutting_setup, model_stiffness, plant_damping_ratios, plant_stiffness
 )

@@ -4,7 +4,6 @@ tooth-resolved cutting force), the step that would, and, for a scenario
 that gives no step, the step the station takes (``scenario_step_s``):
 the largest one up to DEFAULT_MAX_STEP_S that does all of it."""
 
-import sys
 
 import numpy as np
 
@@ -155,51 +154,8 @@ def chosen_step(jm, play_rad=None, tooth_pass_hz=None, max_step_s=DEFAULT_MAX_ST
                + (what if needs else "no play and no tooth-resolved force need a finer one") + ")")
 
 
-_SAID = set()
-
-
-def scenario_step_s(sc, robot=None, q_modes_rad=None):
-    """The plant step (s) of scenario ``sc``: its plant_config.time_step
-    when given; when not (NOT_GIVEN), ``chosen_step`` for its arm
-    (``robot``, else the scenario's) at ``q_modes_rad`` (else the poses its
-    path visits, diagrams/milling_cell.planned_path), written into
-    sc.plant_config.time_step with the reason in sc._plant_step_choice
-    (step, why, robot source) and said once on stderr."""
-    h = float(sc.plant_config.time_step)
-    if h > 0:
-        return h
-    from robstiff_drake.diagrams import compliant_arm, scenario
-    from robstiff_drake.diagrams.scenario import scenario_robot
-    from robstiff_drake.diagrams.scenario_models import plant_damping_ratios, plant_stiffness
-
-    robot = robot if robot is not None else scenario_robot(sc)
-    if q_modes_rad is None:
-        from robstiff_drake.diagrams.milling_cell import planned_path
-
-        q_modes_rad = compliant_arm.path_poses(planned_path(sc, robot, robot.tool_point(where="the plant step"))[2])
-    from robstiff_drake.diagrams.station import servo_parameters
-
-    K = joint_dynamics.stiffness_matrix(np.asarray(plant_stiffness(sc, robot), dtype=float),
-                                        sc.plant.coupling_c23_rad_per_Nm)
-    jm = compliant_arm.arm_joints(compliant_arm.controller_model(robot), robot, q_modes_rad, K,
-                                  plant_damping_ratios(sc), servo_parameters(sc), sc.plant.damping_on)
-    tooth = sc.cutter.spindle_rpm / 60.0 * sc.cutter.n_teeth if sc.cutting.mode == "tooth" else None
-    h, why = chosen_step(jm, sc.plant.lost_motion_rad, tooth)
-    n = scenario.planned_path(sc).duration_s / h  # (the size checks took the largest step: checked again at it)
-    if n > scenario.MAX_PLANT_STEPS:
-        scenario._fail(sc, "plant_config.time_step", f"{why}: the pass takes {n:.3g} plant steps at it, more "
-                                                     f"than the {scenario.MAX_PLANT_STEPS:.0e} a run may take; "
-                                                     "shorten the path or raise the feed")
-    sc.plant_config.time_step = h
-    sc._plant_step_choice = (h, why, robot.source)
-    if why not in _SAID:
-        _SAID.add(why)
-        print(f"robstiff: {why}", file=sys.stderr)
-    return h
-
-
 def step_choice(sc):
     """The one line of why the station took the scenario's plant step
-    (``scenario_step_s``), or None when the scenario gave it."""
+    (diagrams/scenario_step.scenario_step_s), or None when the scenario gave it."""
     c = getattr(sc, "_plant_step_choice", None)
     return c[1] if c is not None and abs(float(sc.plant_config.time_step) - c[0]) < 1e-15 else None

@@ -138,19 +138,6 @@ def apply_program(sc):
         sc.cutter.spindle_rpm = float(_dominant(speeds))
 
 
-def plant_step_s(sc, robot=None):
-    """The plant's discrete step (s): plant_config.time_step, or, when the
-    scenario gives none, the step the station takes for its arm (``robot``,
-    else the scenario's: diagrams/plant_step.scenario_step_s, which writes
-    it into the scenario)."""
-    h = float(sc.plant_config.time_step)
-    if h > 0:
-        return h
-    from robstiff_drake.diagrams.plant_step import scenario_step_s
-
-    return scenario_step_s(sc, robot)
-
-
 def bounding_step_s(sc):
     """The plant step the checks of a scenario's size take before the arm
     is built: the step given, or when none is, the largest the station

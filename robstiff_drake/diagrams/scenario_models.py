@@ -17,6 +17,7 @@ from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingFor
 from robstiff_drake.model.payload import PayloadCalibration
 from robstiff_drake.model.plant_cutting import PlantCuttingLaw, PlantCuttingPhysics
 from robstiff_drake.model.robot_file import STIFFNESS_RANGE_NM_PER_RAD
+from robstiff_drake.model.servo import ServoParameters
 from robstiff_drake.user_files import load_json, load_yaml, read_user_text
 
 def user_model_of(sc):
@@ -231,3 +232,12 @@ def scenario_warnings(sc, robot):
             out.append(f"sensor.rate_hz: {sc.sensor.rate_hz:g} Hz samples below twice the tooth-passing frequency "
                        f"({tooth_hz:g} Hz) in tooth-resolved mode: the tooth force aliases into the loop")
     return out
+
+
+def servo_parameters(sc):
+    """The scenario's controller servo (model/servo.ServoParameters)."""
+    s = sc.servo
+    return ServoParameters(position_gain_per_s=s.position_gain_per_s, velocity_bandwidth_hz=s.velocity_bandwidth_hz,
+                           velocity_feedforward=s.velocity_feedforward,
+                           interpolator_delay_s=s.interpolator_delay_ms / 1e3,
+                           velocity_integral_hz=s.velocity_integral_hz, integral_rule=s.velocity_integral)

@@ -29,7 +29,7 @@ def _plant_config():
     # No contact: the gears are explicit forces (the plant's step is symplectic Euler, see
     # model/joint_dynamics.py).  time_step 0 (NOT_GIVEN, also when the file leaves it out): the station takes
     # the largest step up to 2 ms that keeps every mode stable and resolves the scenario's play and
-    # tooth-resolved force (diagrams/plant_step.scenario_step_s); a step given is used as it is (and refused,
+    # tooth-resolved force (diagrams/scenario_step.scenario_step_s); a step given is used as it is (and refused,
     # naming the step that would do, if it does not).
     return MultibodyPlantConfig(time_step=NOT_GIVEN, discrete_contact_approximation="sap")
 

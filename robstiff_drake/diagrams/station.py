@@ -44,8 +44,10 @@ import numpy as np
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Demultiplexer
 
-from robstiff_drake.diagrams.plant_step import NOT_GIVEN, scenario_step_s, step_choice
-from robstiff_drake.diagrams.scenario_models import exact_payload_calibration, plant_damping_ratios, plant_stiffness
+from robstiff_drake.diagrams.plant_step import NOT_GIVEN
+from robstiff_drake.diagrams.scenario_step import scenario_step_s, step_choice
+from robstiff_drake.diagrams.scenario_models import (  # noqa: F401 (servo_parameters re-exported)
+    exact_payload_calibration, plant_damping_ratios, plant_stiffness, servo_parameters)
 from robstiff_drake.diagrams.compliant_arm import (  # noqa: F401  (the arm's helpers, imported from here too)
     add_compliant_arm,
     arm_joints,
@@ -70,14 +72,6 @@ from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.servo import ServoParameters
 from robstiff_drake.systems.milling_force import MillingForceSource
 from robstiff_drake.systems.wrist_sensor import LagFreeCuttingSensor, WristForceSensor, add_random_inputs
-
-
-def servo_parameters(sc):
-    s = sc.servo
-    return ServoParameters(position_gain_per_s=s.position_gain_per_s, velocity_bandwidth_hz=s.velocity_bandwidth_hz,
-                           velocity_feedforward=s.velocity_feedforward,
-                           interpolator_delay_s=s.interpolator_delay_ms / 1e3,
-                           velocity_integral_hz=s.velocity_integral_hz, integral_rule=s.velocity_integral)
 
 
 def resolve_integral_corner(sc, robot, q_rad):
@@ -210,7 +204,7 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
     and tune the drives (and choose their integral corner: scenario
     servo.velocity_integral, which the chosen corner is written back to).
     The plant step: the scenario's plant_config.time_step, or when it gives
-    none the step chosen for this arm (diagrams/plant_step.scenario_step_s,
+    none the step chosen for this arm (diagrams/scenario_step.scenario_step_s,
     written into the scenario).  Raises ValueError if the plant step is
     unstable for these joints (unless ``check_stability`` is false)."""
     tool = robot.tool_point(where="the closed loop")

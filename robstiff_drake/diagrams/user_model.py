@@ -33,7 +33,8 @@ import numpy as np
 from pydrake.common import RandomGenerator
 from pydrake.systems.analysis import Simulator
 
-from robstiff_drake.diagrams.scenario import planned_path, plant_step_s
+from robstiff_drake.diagrams.scenario import planned_path
+from robstiff_drake.diagrams.scenario_step import plant_step_s
 from robstiff_drake.diagrams.scenario_models import plant_stiffness
 from robstiff_drake.diagrams.station import make_milling_station
 from robstiff_drake.diagrams.user_model_record import UserModel, disk_path, from_json, signature, to_json

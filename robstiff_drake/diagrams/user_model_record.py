@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.diagrams.scenario import plant_step_s
+from robstiff_drake.diagrams.scenario_step import plant_step_s
 from robstiff_drake.diagrams.scenario_models import plant_stiffness
 from robstiff_drake.model.payload import PayloadCalibration
 from robstiff_drake.model.preview import ServoModel
