@@ -108,15 +108,16 @@ def test_a_softer_joint_is_traced_and_its_fix_verified(tmp_path, capsys):
     assert (run_dir / "diagnosis" / "diagnosis.png").exists()
 
 
-def test_gear_play_the_smooth_law_cannot_follow_is_left_unexplained(tmp_path, capsys):
+def test_gear_play_is_traced_with_the_hysteretic_law(tmp_path, capsys):
     """150 urad of play (a dead zone) in joint 2 on a pass where its gear's
-    total torque crosses zero: the link falls across the gap, the face is
-    off by tenths of a millimetre, and diagnose-run's smooth lost-motion
-    law (tanh over joint 2's take-up, 18 N*m) does not explain it (with
-    50 N*m it needed b2 past its plausibility bound; with 18 N*m its fit
-    is not significant, p = 0.28 when written): no cause is named and the
-    report says the model leaves the error unexplained, not a confident
-    wrong fix (studies/play_diagnosis.py has 20-300 urad)."""
+    total torque crosses zero: the link crosses the gap, the face is off by
+    tenths of a millimetre, and diagnose-run's lost_motion cause, the
+    compensator's hysteretic law (the gear on its flank until the torque
+    passes the friction, 18 N*m, the other way; the link crossing with its
+    inertia), names it with b2 near the truth (127 urad when written; the
+    smooth law it replaced named nothing, p = 0.28) and writes it into the
+    candidate compensator's lost_motion_rad (studies/play_diagnosis.py has
+    20-300 urad)."""
     run_dir = simulate(tmp_path, with_plant(BALANCED, "lost_motion_rad: [0.0, 1.5e-4, 0.0, 0.0, 0.0, 0.0]"),
                        "play")
     # the physics the test relies on, from the controller's model and the logs (independent of the diagnosis)
@@ -124,13 +125,16 @@ def test_gear_play_the_smooth_law_cannot_follow_is_left_unexplained(tmp_path, ca
     robot = run_robot(run_dir)
     sig = run_signals(files, robot, ArmModel(robot))
     total = sig.tau_static_Nm + sig.tau_inertia_Nm - sig.tau_Nm  # what the gears carry
-    assert total[:, 1].min() < -20.0 and total[:, 1].max() > 20.0  # joint 2's changes sign
+    assert total[:, 1].min() < -20.0 and total[:, 1].max() > 20.0  # joint 2's changes sign past 18 N*m
     rep = diagnose(run_dir, capsys)
     assert rep["rms_before_mm"] > 0.1
-    assert rep["causes"] == [] and rep["fix"] is None
-    assert not rep["explains_data"] and rep["unexplained_mm"] > 0.1
-    why = round_of(rep, "lost_motion")["why_not"]
-    assert "plausibility bound" in why or why.startswith("p = "), why
+    assert [c["name"] for c in rep["causes"]] == ["lost_motion"]
+    b2 = rep["causes"][0]["params"]["b2 (urad)"]
+    assert b2 == pytest.approx(150.0, rel=0.25)
+    assert rep["rms_after_mm"] < 0.3 * rep["rms_before_mm"]
+    _, fixed = rs.read_settings(run_dir / "diagnosis" / rep["fix"]["settings"])
+    assert fixed.lost_motion_rad[1] == pytest.approx(b2 * 1e-6, rel=1e-3)
+    assert not any("catalogued" in w for w in rep["warnings"])  # 150 urad is within 1 arcmin
 
 
 def test_lost_motion_in_gears_that_carry_the_weight_is_not_named(tmp_path, capsys):
@@ -198,12 +202,15 @@ def test_the_known_part_is_what_the_machine_did(exact_run):
 
 
 def test_the_lost_motion_law_takes_each_joints_take_up_torque(exact_run):
-    """diagnose-run's smooth lost-motion law (what the compensator's model
-    predicts, and the lost_motion cause's columns) takes each joint's
-    take-up torque, the compensator's fallback from the model's compliance
-    (18 N*m on joint 2, 3.3 N*m on joint 6), not 50 N*m for every joint."""
+    """diagnose-run's smooth lost-motion law (what a smooth compensator's
+    model predicts) takes each joint's take-up torque, the compensator's
+    fallback from the model's compliance (18 N*m on joint 2, 3.3 N*m on
+    joint 6), not 50 N*m for every joint; the lost_motion cause's columns
+    are the hysteretic law's (the compensator's default), each joint's gear
+    switching flanks where its total torque passes its friction (the same
+    fallback, 1.5 % of the rated torque: 3.3 N*m on joint 6)."""
     from robstiff_drake.identification.runs.causes import candidates
-    from robstiff_drake.model import transmission
+    from robstiff_drake.model import play_hysteresis, transmission
 
     robot = run_robot(exact_run)
     files = rf.load_run_files(exact_run)
@@ -218,8 +225,16 @@ def test_the_lost_motion_law_takes_each_joints_take_up_torque(exact_run):
     assert np.abs(sig.model_dq_rad - old).max() > 1e-7
     lost = next(c for c in candidates(sig) if c.name == "lost_motion")
     carried = sig.tau_static_Nm + sig.tau_inertia_Nm - sig.tau_Nm
-    j = 5  # joint 6's column per unit b: -(tanh(T / B6) - tanh(T0 / B6)) along the tool's vertical
-    col = -sig.Jz[:, j] * (np.tanh(carried[:, j] / take_up[j]) - np.tanh(sig.tau_touch_off_Nm[j] / take_up[j]))
+    friction = transmission.gap_friction_Nm(1.0 / sig.compliance)
+    assert friction[5] == pytest.approx(3.3)
+    j = 5  # joint 6's column per unit b (b -> 0: the relay): -(p(t) - p(touch-off)) along the tool's vertical
+    unit = np.eye(6)[j]
+    p = p0 = play_hysteresis.start(sig.tau_touch_off_Nm, unit)
+    relay = []
+    for tau in carried:
+        p = play_hysteresis.step(p, tau, unit, friction)
+        relay.append(p[j])
+    col = -sig.Jz[:, j] * (np.array(relay) - p0[j])
     np.testing.assert_allclose(lost.columns[:, j], col, rtol=1e-9, atol=1e-15)
 
 

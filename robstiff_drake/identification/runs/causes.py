@@ -4,7 +4,7 @@ method): the candidates' columns, the face's envelope, the nested fits,
 forward selection, the noise floor and the damping's profile.  Plain numpy
 and scipy."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -12,8 +12,10 @@ from scipy.optimize import least_squares
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.runs import tables as rt
 from robstiff_drake.identification.runs import scan_statistics as ss
-from robstiff_drake.identification.runs.signals import GRID_HZ, gear_law_deviation
-from robstiff_drake.model.transmission import fallback_take_up_Nm
+from robstiff_drake.identification.runs.signals import (
+    GRID_HZ, gear_law_deviation, play_crossing_deviation, play_relay_deviation,
+)
+from robstiff_drake.model.transmission import fallback_take_up_Nm, gap_friction_Nm
 
 
 ALPHA = 1e-3  # per test; about 10 causes are tried per round
@@ -31,6 +33,15 @@ FORCE_BIAS_N = 20.0
 # ASSUMPTION: a direction of the force bias that moves the face less than a tenth as much as the one that moves it
 # most is confounded with it on this pass (its estimate would be the noise's): it is not fitted
 BIAS_DIRECTION_TOL = 0.1
+# ASSUMPTION: the lost motion a fit may name is bounded by a physical limit, not by the catalogue: 2 mrad (7
+# arcmin), a worn-out reducer (the plant's own limit, diagrams/scenario_schema.MAX_PLAY_RAD; RV gears are
+# catalogued at <= 1 arcmin, robot reducers at 0.1-0.3 mrad).  A gap that wide moves the tool of an arm reaching
+# 1.5 m by up to 6 mm (2 b L) at a reversal, which a cell sees without a scan.  A size beyond the catalogue is
+# reported as a finding (LOST_MOTION_CATALOGUE_RAD: diagnosis.py's warning), not refused
+LOST_MOTION_LIMIT_RAD = 2e-3
+LOST_MOTION_CATALOGUE_RAD = 2.91e-4  # 1 arcmin: the RV gears' catalogued lost motion (Nabtesco RV-E: <= 1 arcmin)
+REBUILDS = 4  # refits of a cause not linear in its parameters (lost motion: the crossing), each at the last's
+REBUILD_RTOL = 0.01  # ... until its parameters move by less than 1 %
 ALIKE = 1.0  # causes whose mean-square residuals differ by less than ALIKE x floor^2 are alike
 
 
@@ -55,6 +66,9 @@ class Candidate:
     # parameters = basis @ the fitted ones, named basis_names (SI), as reported
     basis: np.ndarray = None
     basis_names: tuple = ()
+    # where the cause is not linear in its parameters: a callable of the parameters (SI, all of them) giving
+    # the columns per unit parameter there (try_cause refits with them, REBUILDS times)
+    rebuild: object = None
 
 
 def loop_lag_ms(sig):
@@ -98,14 +112,18 @@ def candidates(sig):
                              f"joint {j + 1}'s compliance differs from the model's"))
     law = (sig.tau_static_Nm, sig.tau_touch_off_Nm, sig.tau_inertia_Nm, sig.tau_Nm)
     take_up = fallback_take_up_Nm(c)  # each joint's, as the compensator's (signals.gear_law_deviation)
-    unit = np.eye(6)
-    # ASSUMPTION: lost motion up to 300 urad (1 arcmin); industrial gears are specified at 10-60 urad
-    out.append(Candidate("lost_motion",
-                         np.column_stack([_along(sig, gear_law_deviation(*law, unit[j], 0.0, take_up))
-                                          for j in range(6)]),
-                         [Param(f"b{j + 1}", "urad", 1e6, 0.0, 3e-4, True) for j in range(6)],
-                         "lost motion (backlash) in the gears beyond the model's, taken up where the total torque "
-                         "a gear carries (weight, inertia and cut) changes sign"))
+    # the compensator's hysteretic law (its default, model/play_hysteresis.py; the plant's too): a relay per
+    # gear switching where the total torque passes its friction, the compensator's fallback (the settings
+    # carry no identified one: 1.5 % of the rated torque of the model's stiffness, model/compensator.py)
+    friction = gap_friction_Nm(1.0 / np.asarray(c, dtype=float))
+    relay = play_relay_deviation(*law, friction)
+    cross = _crossing_columns(sig, law, friction, relay) if sig.twist_inertia_kgm2 is not None else None
+    out.append(Candidate("lost_motion", np.column_stack([_along(sig, relay * np.eye(6)[j]) for j in range(6)]),
+                         [Param(f"b{j + 1}", "urad", 1e6, 0.0, LOST_MOTION_LIMIT_RAD, True) for j in range(6)],
+                         "lost motion (backlash) in the gears beyond the model's: each gear stays on the flank "
+                         "it last pressed until the total torque it carries (weight, inertia and cut) passes "
+                         "the friction in its play the other way, and its link then crosses the gap with its "
+                         "inertia (the compensator's hysteretic law)", rebuild=cross))
     # ASSUMPTION: |c23| <= 0.3 sqrt(c2 c3); a positive-definite compliance needs < 1
     c23 = 0.3 * np.sqrt(c[1] * c[2])
     out.append(Candidate("joint_coupling", _along(sig, gear_law_deviation(*law, None, 1.0, take_up))[:, None],
@@ -116,6 +134,18 @@ def candidates(sig):
     out.append(Candidate("setup_offset", -np.ones((len(sig.t_s), 1)), [Param("offset", "mm", 1e3, -1e-3, 1e-3)],
                          "a constant: tool length or workpiece height (+ = cut more)"))
     return out
+
+
+def _crossing_columns(sig, law, friction_Nm, relay):
+    """The lost_motion cause's columns per unit b at b (a callable of the six
+    b, rad): the links crossing their gaps with their twist inertia (a wider
+    gap takes longer: signals.play_crossing_deviation), the relay where b = 0."""
+    def columns(b):
+        b = np.maximum(np.asarray(b, dtype=float), 0.0)
+        dev = play_crossing_deviation(*law, b, friction_Nm, sig.twist_inertia_kgm2, sig.t_s)
+        per = np.where(b > 0, dev / np.where(b > 0, b, 1.0), relay)
+        return np.column_stack([_along(sig, per * np.eye(6)[j]) for j in range(6)])
+    return columns
 
 
 def _force_bias(Jz, c, tau_per_force):
@@ -301,6 +331,15 @@ def try_cause(env, base, cand, y, floor_m, stats_ctx):
         if not dropped:
             break
         keep = [k for j, k in enumerate(keep) if n_old + j not in dropped]
+    if cand.rebuild is not None:  # a cause not linear in its parameters: its columns where the fit put them
+        for _ in range(REBUILDS):
+            full = np.zeros(len(cand.params))
+            full[keep] = fit.theta[n_old:]
+            cand = replace(cand, columns=cand.rebuild(full))
+            prev = fit.theta[n_old:].copy()
+            fit = fit_model(env, base.causes + [cand], base.keep + [keep], y, base)
+            if np.allclose(fit.theta[n_old:], prev, rtol=REBUILD_RTOL, atol=0.0):
+                break
     n = y.size
     n_eff, tau = ss.effective_points(fit.residual * 1e3, stats_ctx["segs"], stats_ctx["length_mm"],
                                      stats_ctx["cutter_mm"])

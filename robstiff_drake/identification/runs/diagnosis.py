@@ -38,14 +38,27 @@ predictive) offered when it moves the face by at least the floor.  Causes
                          compliance off by r_N (the controller's gravity
                          model is calibrated on the arm: the weight's part
                          is not this cause's)
-  lost_motion            sum_N b_N J_z,N (tanh(T0_N / B_N) - tanh(T_N / B_N)),
-                         B_N joint N's take-up torque (the compensator's
-                         fallback, 1.5 % of the rated torque of the
-                         model's stiffness: model/transmission.py),
-                         T the total torque the gear carries (weight +
-                         inertia - J^T W), T0 at the touch-off: joints 1-6
-                         (where T keeps its sign, or the joint cannot move
-                         the tool vertically, there is no data)
+  lost_motion            sum_N J_z,N d_N(t; b_N), the compensator's
+                         hysteretic law (model/play_hysteresis.py, the
+                         plant's too): gear N stays on the flank it last
+                         pressed until the total torque T_N it carries
+                         (weight + inertia - J^T W) passes its friction
+                         T_c,N the other way (the compensator's fallback,
+                         1.5 % of the rated torque of the model's
+                         stiffness: model/transmission.gap_friction_Nm),
+                         and its link then crosses the gap with its twist
+                         inertia (link in series with motor) under the
+                         torque beyond T_c,N; d_N = -(p_N(t) - p_N at the
+                         touch-off), p_N in [-b_N, b_N].  Not linear in b
+                         (a wider gap takes longer to cross): fitted first
+                         with the relay (b -> 0), then refitted with the
+                         columns at the fitted b (causes.REBUILDS).
+                         Bounded by 2 mrad, a worn-out reducer; named
+                         beyond the catalogue's 1 arcmin with a warning
+                         (a worn gear or a loose joint), not refused.
+                         Joints 1-6 (where T keeps within +-T_c or the
+                         joint cannot move the tool vertically, there is
+                         no data)
   joint_coupling         c23 of the total torque's change since the touch-off
   force_bias             -sum_a F_a J_z C J^T w_a, w_a a unit force along the
                          sensor's axis a (the compensator corrected for a
@@ -65,7 +78,10 @@ at least SIZE_FACTOR x the floor (RMS over the scan) from the smaller
 model's, and it needs no parameter at a plausibility bound.  A fit that
 extends a model starts from that model's solution (it is never worse); a
 parameter that cannot move the surface by NO_DATA x the floor over its
-whole range has no data in this run and is dropped.  Causes whose fits
+whole range has no data in this run and is dropped.  Each test's n_eff is
+that of the residual with the cause in (a cause that explains the face
+leaves the scan's white noise: n_eff near n); the report's own n_eff is the
+final model's.  Causes whose fits
 differ by less than the floor (mean square) are alike: one pass cannot tell
 them apart, and verification cuts decide (identification/runs/verification.py:
 scans and settings only).
@@ -85,7 +101,8 @@ from robstiff_drake.identification.runs import tables as rt
 from robstiff_drake.identification.runs import verification as rv
 from robstiff_drake.identification.runs import scan_statistics as ss
 from robstiff_drake.identification.runs.causes import (
-    ALIKE, ALPHA, EXPLAIN_ALPHA, LOOP, MAX_CAUSES, NO_DATA, SIZE_FACTOR, Envelope, Fit, alternatives, candidates,
+    ALIKE, ALPHA, EXPLAIN_ALPHA, LOOP, LOST_MOTION_CATALOGUE_RAD, MAX_CAUSES, NO_DATA, SIZE_FACTOR, Envelope, Fit,
+    alternatives, candidates,
     cause_params, fit_model, loop_lag_ms, noise_floor, rms, si_params, trace, try_cause, without,
 )
 from robstiff_drake.identification.runs.damping import profile_damping
@@ -298,8 +315,25 @@ def diagnose_run(run_dir, robot, arm, *, noise_mm=None, verify=(), scan=None):
         report["verification"] = verdict
         extras["cut_scans"] = [(n, c.scan) for n, c in matched]
         report["fix"] = _verified_fix(report, verdict)
+    warnings.extend(_beyond_catalogue(si_params(final)))
     report["warnings"] = warnings
     return report, extras
+
+
+def _beyond_catalogue(causes):
+    """Warning lines for a lost motion named beyond an RV gear's catalogued
+    1 arcmin (LOST_MOTION_CATALOGUE_RAD): a finding about the gear, which
+    the fit does not refuse (causes.LOST_MOTION_LIMIT_RAD gives why)."""
+    out = []
+    for name, v in causes.get("lost_motion", {}).items():
+        if v > LOST_MOTION_CATALOGUE_RAD:
+            j = name[1:]
+            out.append(f"lost motion {name} = {v * 1e6:.0f} urad on joint {j}: beyond an RV gear's catalogued lost "
+                       f"motion ({LOST_MOTION_CATALOGUE_RAD * 1e6:.0f} urad, 1 arcmin): a worn gear or a loose "
+                       f"joint; check it with a lost-motion test of joint {j}: the joint loaded both ways to +-3 % "
+                       "of its rated torque, the link's angle measured (a dial gauge on the link or a laser tracker at the "
+                       "tool), as reducer makers measure it")
+    return out
 
 
 def _loop_report(row, params, size_mm, mode, fix):

@@ -14,6 +14,7 @@ from robstiff_drake.identification.runs import arm_response
 from robstiff_drake.identification.runs import settings as rs
 from robstiff_drake.identification.runs.arm_response import SEGMENT_S, STEP_S, delayed
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model import play_hysteresis
 from robstiff_drake.model.joint_dynamics import DEFAULT_MODAL_DAMPING_RATIO
 from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
 from robstiff_drake.model.servo import ServoParameters
@@ -64,6 +65,9 @@ class RunSignals:
     # (n, 6, 3) N*m per N: the generalized force of a unit force in the sensor's frame (x, y, z), about the
     # sensor origin, at the arm's pose: what a bias of the sensor's force reading adds to tau_Nm
     tau_per_sensor_force: np.ndarray = None
+    # (n, 6) kg*m^2: each gear's twist inertia (its link in series with its motor), what a link crossing its
+    # gear's play moves (``play_crossing_deviation``)
+    twist_inertia_kgm2: np.ndarray = None
 
 
 def _fill_dropouts(t, w, path):
@@ -151,7 +155,7 @@ def _arm_response(arm, ctx, damping_ratio):
     measured load, the payload's inertia taken out, and under the logged
     correction (n, 6, 2))."""
     x = ctx
-    full, bare, inertia_maps = [], [], []
+    full, bare, inertia_maps, twist_inertia = [], [], [], []
     damping_torque = np.empty_like(x["g_rate"])
     per = x["per"]
     for n0 in x["firsts"]:
@@ -165,6 +169,9 @@ def _arm_response(arm, ctx, damping_ratio):
         # the gears' damping of the gravity twist's rate, D d/dt(C g)
         damping_torque[n0:n0 + per] = (x["c"] * x["g_rate"][n0:n0 + per]) @ jm.D.T
         inertia_maps.append(L)
+        # each gear's twist inertia there: its link (1 / (M^-1)_jj, the rest of the arm free) in series with its
+        # motor (as diagrams/plant_step.twist_inertia_kgm2): what a link crossing its play moves
+        twist_inertia.append(1.0 / (np.diag(np.linalg.inv(jm.M)) + 1.0 / np.asarray(jm.motor_inertia_kgm2)))
     Ls = np.array(inertia_maps)[x["seg"]]
     motion_torque = damping_torque - x["velocity_terms"]
     motion = arm_response.responses(full, x["seg"], [(motion_torque, None, x["path"])])[..., 0]
@@ -172,7 +179,7 @@ def _arm_response(arm, ctx, damping_ratio):
     W_cut = x["W_f"] - np.einsum("nrj,nj->nr", Ls, acc)
     tau_cut = np.einsum("nrj,nr->nj", x["J"], W_cut)
     dev = arm_response.responses(bare, x["seg"], [(tau_cut, None, None), (None, x["corr_servo"], None)])
-    return motion, dev
+    return motion, dev, np.array(twist_inertia)[x["seg"]]
 
 
 def run_signals(files, robot, arm, damping_ratio=None):
@@ -243,7 +250,7 @@ def signals_at(ctx, arm, damping_ratio, damping=None):
     """RunSignals of a run (``run_context``) with the gears' modal damping
     ratio ``damping_ratio``."""
     x, s, k = ctx, ctx["settings"], ctx["k"]
-    motion, dev = _arm_response(arm, ctx, damping_ratio)
+    motion, dev, twist_inertia = _arm_response(arm, ctx, damping_ratio)
     J, Jg = x["J"], x["J"][k]
     dz = np.einsum("nj,njk->nk", J[:, 2, :], np.concatenate([dev, motion[..., None]], axis=2))
     # what the compensator predicts: its model's law under the process load (model/compensator.DeflectionModel)
@@ -257,7 +264,7 @@ def signals_at(ctx, arm, damping_ratio, damping=None):
     return RunSignals(x["grid"], x["q_nom"], x["corr"], x["W_f"][k], x["tau"], x["g"], x["tau_i"], x["g0"],
                       Jg[:, 2, :], kin.tool_position(x["robot"].dh, x["q_nom"], x["tool"]), x["c"], model_dq,
                       dz[k, 2], dz_loop, x["servo"], damping_ratio, x["cutoff"], damping,
-                      x["tau_per_sensor_force"])
+                      x["tau_per_sensor_force"], twist_inertia[k])
 
 
 def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost_motion_rad, coupling_c23,
@@ -275,3 +282,51 @@ def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost
     zero = np.zeros(6)
     return -(twist(carried, zero, lost_motion_rad, coupling_c23, take_up_Nm)
              - twist(tau_touch_off, zero, lost_motion_rad, coupling_c23, take_up_Nm))
+
+
+def play_relay_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, friction_Nm):
+    """(n, 6) rad per rad of play: how far the links move, per unit half-width
+    b of each gear's play, under the compensator's hysteretic law
+    (model/play_hysteresis.py, the plant's own: systems/gear_transmission.py):
+    each gear stays on the flank it last pressed until the total torque it
+    carries (weight + inertia - process load, as ``gear_law_deviation``)
+    passes its friction ``friction_Nm`` (6,) N*m the other way, a relay
+    whose output is linear in b; the touch-off (``play_hysteresis.start``
+    under ``tau_touch_off``) took up where each gear sat then.  The elastic
+    twist the gear loses while inside its gap (C tau, |tau| <= T_c) is
+    left out: under a micro-radian."""
+    carried = np.asarray(tau_static, dtype=float) + np.asarray(tau_inertia, dtype=float) \
+        - np.asarray(tau_process, dtype=float)
+    unit = np.ones(6)
+    p0 = play_hysteresis.start(tau_touch_off, unit)
+    p, out = p0, np.empty_like(carried)
+    for i, tau in enumerate(carried):
+        p = play_hysteresis.step(p, tau, unit, friction_Nm)
+        out[i] = p
+    return -(out - p0)
+
+
+def play_crossing_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, play_rad, friction_Nm,
+                            twist_inertia_kgm2, t_s):
+    """(n, 6) rad: how far the links move from the gears' play of half-width
+    ``play_rad`` (6,) as the plant's gear (systems/gear_transmission.py) and
+    the compensator's hysteretic law (model/play_hysteresis.crossing_step)
+    move them: each link stays where it is in its gap while the total torque
+    it carries (as ``play_relay_deviation``) is within its friction
+    ``friction_Nm`` (6,) N*m, and crosses to the other flank with its twist
+    inertia ``twist_inertia_kgm2`` ((n, 6) kg*m^2) under the torque beyond
+    the friction when it passes it, landing on the flank (the plant's: no
+    soft landing).  The touch-off took up where each gear sat then.  Not
+    linear in b: a wider gap takes longer to cross (sqrt(4 b J / T))."""
+    carried = np.asarray(tau_static, dtype=float) + np.asarray(tau_inertia, dtype=float) \
+        - np.asarray(tau_process, dtype=float)
+    b = np.asarray(play_rad, dtype=float)
+    J = np.broadcast_to(np.asarray(twist_inertia_kgm2, dtype=float), carried.shape)
+    dt = np.diff(np.asarray(t_s, dtype=float), prepend=t_s[0])
+    p0 = play_hysteresis.start(tau_touch_off, b)
+    p, v, out = p0, np.zeros(6), np.empty_like(carried)
+    for i, tau in enumerate(carried):
+        p, v = play_hysteresis.crossing_step(p, v, tau, b, friction_Nm, J[i], dt[i])
+        out[i] = p
+    return -(out - p0)
+
