@@ -34,6 +34,26 @@ def _urdf_cache(tmp_path_factory):
 
 
 @pytest.fixture(autouse=True)
+def _sigint_left_as_found(request):
+    """After each test, Ctrl-C's handler is Python's own again.  A test that leaves SIGINT ignored in its
+    pytest worker (SIG_IGN) makes every command a later test starts there inherit it: the children of an
+    ignoring parent ignore Ctrl-C (CPython installs its handler only where SIGINT is at its default), so the
+    tests that interrupt a command saw it run to its end (exit 0; seen once under load, in two tests of one
+    worker).  Restored here, and named in a warning, so the test that left it is found."""
+    import signal
+    import threading
+    import warnings
+
+    yield
+    if threading.current_thread() is not threading.main_thread():
+        return
+    handler = signal.getsignal(signal.SIGINT)
+    if handler is not signal.default_int_handler:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        warnings.warn(f"{request.node.nodeid} left SIGINT's handler as {handler!r}: restored")
+
+
+@pytest.fixture(autouse=True)
 def _collect_on_the_main_thread():
     """After each test, the garbage cycles it left are collected here, on the main thread.  Left to chance, a
     collection can run in whatever thread allocates next (a Dask client's event loop in test_sweep did): a cycle
