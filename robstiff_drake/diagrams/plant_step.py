@@ -40,8 +40,9 @@ def unstable_step_message(jm, time_step_s):
 
 def twist_inertia_kgm2(jm):
     """(6,) J_eff of each gear's twist phi = theta - q (kg*m^2): its link
-    (1 / (M^-1)_jj, the rest of the arm free) in series with its motor."""
-    return 1.0 / (np.diag(np.linalg.inv(jm.M)) + 1.0 / jm.motor_inertia_kgm2)
+    (1 / (M^-1)_jj, the rest of the arm free) in series with its motor:
+    model/joint_dynamics.JointModel.twist_inertia_kgm2)."""
+    return jm.twist_inertia_kgm2()
 
 
 def contact_frequencies_hz(jm):

@@ -21,9 +21,6 @@ def plant_step_s(sc, robot=None):
     scenario gives none, the step the station takes for its arm (``robot``,
     else the scenario's: ``scenario_step_s``, which writes
     it into the scenario)."""
-    h = float(sc.plant_config.time_step)
-    if h > 0:
-        return h
     return scenario_step_s(sc, robot)
 
 

@@ -83,6 +83,11 @@ class SampleFilter:
                 z[1] = b2 * x - a2 * y
                 out.append(y)
             return out
+        return self._step_general(u)
+
+    def _step_general(self, u):
+        """``step`` for any order: the direct-form loop."""
+        b, a, n = self._b, self._a, self._n
         out = []
         for c, x in enumerate(u):
             z = self._z[c]

@@ -209,6 +209,11 @@ class JointModel:
     servo: object  # model.servo.ServoParameters
     velocity_gain: np.ndarray  # (6,) N m s/rad
 
+    def twist_inertia_kgm2(self):
+        """(6,) J_eff of each gear's twist phi = theta - q (kg*m^2): its link
+        (1 / (M^-1)_jj, the rest of the arm free) in series with its motor."""
+        return 1.0 / (np.diag(np.linalg.inv(self.M)) + 1.0 / self.motor_inertia_kgm2)
+
     def continuous(self):
         """(A (30, 30), B (30, 24)): state (q, q', theta, theta', z), input
         (theta_ref, omega_ref, tau_ff (6 each, into the drives), tau_ext (6,

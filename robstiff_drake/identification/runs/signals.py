@@ -170,8 +170,8 @@ def _arm_response(arm, ctx, damping_ratio):
         damping_torque[n0:n0 + per] = (x["c"] * x["g_rate"][n0:n0 + per]) @ jm.D.T
         inertia_maps.append(L)
         # each gear's twist inertia there: its link (1 / (M^-1)_jj, the rest of the arm free) in series with its
-        # motor (as diagrams/plant_step.twist_inertia_kgm2): what a link crossing its play moves
-        twist_inertia.append(1.0 / (np.diag(np.linalg.inv(jm.M)) + 1.0 / np.asarray(jm.motor_inertia_kgm2)))
+        # motor: what a link crossing its play moves
+        twist_inertia.append(jm.twist_inertia_kgm2())
     Ls = np.array(inertia_maps)[x["seg"]]
     motion_torque = damping_torque - x["velocity_terms"]
     motion = arm_response.responses(full, x["seg"], [(motion_torque, None, x["path"])])[..., 0]
@@ -267,6 +267,13 @@ def signals_at(ctx, arm, damping_ratio, damping=None):
                       x["tau_per_sensor_force"], twist_inertia[k])
 
 
+def carried_torque(tau_static, tau_inertia, tau_process):
+    """(n, 6) N*m: the total torque the gears carry, the weight, the
+    inertia and minus the process load (a generalized force on the links)."""
+    return np.asarray(tau_static, dtype=float) + np.asarray(tau_inertia, dtype=float) \
+        - np.asarray(tau_process, dtype=float)
+
+
 def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost_motion_rad, coupling_c23,
                        take_up_Nm):
     """(n, 6) rad: how far the links move beyond the linear gears' deflection
@@ -278,7 +285,7 @@ def gear_law_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, lost
     ``take_up_Nm`` (6,): each joint's take-up torque of the lost motion
     (N*m; the compensator's: model/transmission.fallback_take_up_Nm of the
     model's compliance, as the settings carry no identified one)."""
-    carried = tau_static + tau_inertia - tau_process
+    carried = carried_torque(tau_static, tau_inertia, tau_process)
     zero = np.zeros(6)
     return -(twist(carried, zero, lost_motion_rad, coupling_c23, take_up_Nm)
              - twist(tau_touch_off, zero, lost_motion_rad, coupling_c23, take_up_Nm))
@@ -295,8 +302,7 @@ def play_relay_deviation(tau_static, tau_touch_off, tau_inertia, tau_process, fr
     under ``tau_touch_off``) took up where each gear sat then.  The elastic
     twist the gear loses while inside its gap (C tau, |tau| <= T_c) is
     left out: under a micro-radian."""
-    carried = np.asarray(tau_static, dtype=float) + np.asarray(tau_inertia, dtype=float) \
-        - np.asarray(tau_process, dtype=float)
+    carried = carried_torque(tau_static, tau_inertia, tau_process)
     unit = np.ones(6)
     p0 = play_hysteresis.start(tau_touch_off, unit)
     p, out = p0, np.empty_like(carried)
@@ -318,8 +324,7 @@ def play_crossing_deviation(tau_static, tau_touch_off, tau_inertia, tau_process,
     the friction when it passes it, landing on the flank (the plant's: no
     soft landing).  The touch-off took up where each gear sat then.  Not
     linear in b: a wider gap takes longer to cross (sqrt(4 b J / T))."""
-    carried = np.asarray(tau_static, dtype=float) + np.asarray(tau_inertia, dtype=float) \
-        - np.asarray(tau_process, dtype=float)
+    carried = carried_torque(tau_static, tau_inertia, tau_process)
     b = np.asarray(play_rad, dtype=float)
     J = np.broadcast_to(np.asarray(twist_inertia_kgm2, dtype=float), carried.shape)
     dt = np.diff(np.asarray(t_s, dtype=float), prepend=t_s[0])
