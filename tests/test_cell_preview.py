@@ -9,6 +9,7 @@ cut at the block's entry is closer to the path."""
 import json
 import os
 import subprocess
+import threading
 
 import numpy as np
 import pytest
@@ -209,17 +210,33 @@ def test_a_cold_cache_computes_the_table_in_the_background_while_the_stream_runs
 
     cache = tmp_path / "cache"
     egm_port, netft_port = free_udp_port(), free_udp_port()
-    # lockstep, never faster than real time: 8 s of the controller's clock are at least 8 s here, time enough for
-    # the table's process (its interpreter's start and the job's 1156 cycles) on a loaded machine
-    th, net = start_cell(robot, reference, egm_port=egm_port, netft_port=netft_port, duration_s=600.0,
-                         wrench=cutting_wrench(t0=5.0, ramp_s=0.05), lockstep=True, cut_s=8.0, answer_timeout_s=60.0)
     log = tmp_path / "log"
+    # lockstep, ended by what the run says, not by a clock: the cell runs until the compensator's events say the
+    # table is taken, then 1 s more (previewed cycles), or at most 300 s of its controller's time.  (A fixed 8 s
+    # cut failed on a loaded machine: the table's process, its interpreter's start and the job's 1156 cycles, took
+    # longer than the cut, and the run ended plain throughout.)
+    th, net = start_cell(robot, reference, egm_port=egm_port, netft_port=netft_port, duration_s=900.0,
+                         wrench=cutting_wrench(t0=5.0, ramp_s=0.05), lockstep=True, cut_s=300.0, answer_timeout_s=60.0)
+    done = threading.Event()
+
+    def stop_once_taken():
+        events = log / "events.csv"
+        while not done.is_set():
+            if events.exists() and "preview: the job's table is ready" in events.read_text():
+                done.wait(1.0)
+                net.stop = True
+                return
+            done.wait(0.2)
+
+    watcher = threading.Thread(target=stop_once_taken, daemon=True)
+    watcher.start()
     try:
         p = subprocess.run(compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=str(log),
                                           extra=["--mode", "preview", "--job", SHORT, "--idle-exit-s", "5"]),
                            cwd=ROOT, capture_output=True, text=True, timeout=900,
                            env=dict(os.environ, ROBSTIFF_CACHE_DIR=str(cache)))
     finally:
+        done.set()
         net.stop = True
         th.join(30)
         net.close()
