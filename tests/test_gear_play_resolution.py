@@ -195,3 +195,27 @@ def test_the_hysteretic_play_law_at_the_true_play_beats_the_law_free_model_on_a_
     free, hyst = faces["law_free"], faces["hysteretic"]
     assert hyst["rms"] < 0.85 * free["rms"], faces
     assert hyst["max_abs"] < free["max_abs"] and hyst["pv"] < free["pv"], faces
+
+
+def test_friction_after_the_flanks_part_drags_the_link_the_way_the_twist_moves():
+    """The first step inside the play after a contact: the last step's torque
+    is the flank's push (200 N*m, far beyond the friction's 3.3 N*m) and the
+    twist now closes (phi' < 0, the link running ahead of its motor).  The
+    friction drags the link back toward its motor (a torque of the twist
+    rate's sign); reading the rest of the torque from the contact's gave
+    +T_c, the contact's sign, for that step.  Away from a contact the law
+    is unchanged (the rest read from the last step)."""
+    from robstiff_drake.systems.gear_transmission import HOLD_GAIN, GearPlay
+
+    b, tc, J, h = 2.9e-4, 3.3, 0.2, 5e-4
+    gear = GearPlay(stiffness_Nm_per_rad=np.diag(np.full(6, 1e5)), damping_Nms_per_rad=np.zeros((6, 6)),
+                    play_rad=np.full(6, b), gap_friction_Nm=np.full(6, tc), gap_inertia_kgm2=np.full(6, J), step_s=h)
+    motor = np.zeros(12)
+    link = np.zeros(12)
+    link[6:] = 0.002  # phi' = -0.002 rad/s: the link ahead of its motor, the twist closing; phi = 0 (in the gap)
+    last = np.concatenate([np.full(6, 200.0), np.full(6, -0.004)])  # a contact's push at the last step
+    tau = gear.torque(motor, link, last)
+    np.testing.assert_allclose(tau, HOLD_GAIN * J / h * -0.002)  # (-0.4 N*m: inside the clip, the twist's sign)
+    assert np.all(tau < 0.0)
+    quiet = np.concatenate([np.full(6, 1.0), np.full(6, -0.001)])  # friction (1 N*m < T_c) at the last step
+    np.testing.assert_allclose(gear.torque(motor, link, quiet), 1.0 + HOLD_GAIN * J / h * (2 * -0.002 + 0.001))

@@ -39,7 +39,10 @@ twist rate then: J_eff a = J_eff (phi'_k - phi'_k-1) / h + tau_k-1), so
 
     tau_k = clip(tau_k-1 + g J_eff (2 phi'_k - phi'_k-1) / h, -T_c, T_c),
 
-g = HOLD_GAIN.  With g J_eff the twist's true inertia over a step, a
+g = HOLD_GAIN; on the first step after the flanks part (the last step's
+torque beyond T_c: a contact's) the rest is taken as nil, tau_k =
+clip(g J_eff phi'_k / h), since the contact's torque, which changed within
+that step, says nothing about it.  With g J_eff the twist's true inertia over a step, a
 constant a below T_c / J_eff would be held in one step (deadbeat); the law
 is stable while g J_eff is below 4/3 of the true inertia.  J_eff (the rest
 of the arm free) is not quite the plant's: at g = 1 joint 6 of the
@@ -104,8 +107,13 @@ class GearPlay(LeafSystem):
         tau = np.where(contact & ~pulls, tau, 0.0)
         if self._Tc is not None:
             last = np.zeros(12) if last is None else np.asarray(last, dtype=float)
-            # the torque that stops the twist by the next step, the rest's torque read from the last step
-            hold = last[:6] + self._J_per_h * (2.0 * rate - last[6:])
+            # the torque that stops the twist by the next step, the rest's torque read from the last step; after
+            # a step in contact (a torque beyond the friction's clip) the rest is taken as nil: the contact's
+            # torque changed within that step, so reading the rest from it gave the flank's push (hundreds of
+            # N*m) and a friction of the contact's sign for a step after the flanks separated, whatever the
+            # twist's direction
+            after_contact = np.abs(last[:6]) > self._Tc * (1.0 + 1e-9)
+            hold = np.where(after_contact, self._J_per_h * rate, last[:6] + self._J_per_h * (2.0 * rate - last[6:]))
             tau = np.where(contact, tau, np.clip(hold, -self._Tc, self._Tc))
         return tau
 
