@@ -15,6 +15,7 @@ one warning.
 
 import contextlib
 import os
+import types
 import warnings
 
 DISABLE_ENV = "ROBSTIFF_NO_JIT"
@@ -81,7 +82,19 @@ class Kernel:
         numba = _numba()
         if numba is None or _STATE["failed"]:
             return self.py_func
-        return numba.njit(cache=True, nogil=True)(self.py_func)
+        fn = self.py_func
+        # a kernel that calls other kernels calls their compiled versions (numba sees them through the globals)
+        inner = {name: value for name, value in fn.__globals__.items()
+                 if name in fn.__code__.co_names and isinstance(value, Kernel)}
+        if inner:
+            scope = dict(fn.__globals__)
+            for name, value in inner.items():
+                if value._impl is None:
+                    value._impl = value._compile()
+                scope[name] = value._impl
+            fn = types.FunctionType(fn.__code__, scope, fn.__name__, fn.__defaults__, fn.__closure__)
+            fn.__qualname__, fn.__module__ = self.py_func.__qualname__, self.py_func.__module__
+        return numba.njit(cache=True, nogil=True)(fn)
 
 
 def kernel(fn):
