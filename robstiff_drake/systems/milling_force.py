@@ -141,6 +141,9 @@ class MillingForceSource(LeafSystem):
         self._applied.p_BoBq_B = np.array(self._tool)  # the spindle's frame is the flange's
         self._force = self.DeclareAbstractState(AbstractValue.Make([self._spatial_force([0.0] * 6)]))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
+        # the averaged update straight to the compiled kernel (unless a subclass changes the step: a study's)
+        self._lean = self._fused is not None and type(self)._step is MillingForceSource._step
+        self._indices = (int(self._w), int(self._process), int(self._hist), int(self._force))
         self.DeclareStateOutputPort("spatial_force", self._force)
         if mode == "averaged":
             self.DeclareStateOutputPort("wrench", self._w)
@@ -333,6 +336,21 @@ class MillingForceSource(LeafSystem):
         return w, pose, inst, np.array([float(u[0]), float(u[1]), feed, travel]), hist
 
     def _update(self, context, state):
+        i_w, i_process, i_hist, i_force = self._indices
+        held = context.get_discrete_state()
+        hist = held.get_value(i_hist)
+        if self._lean and jit.available() and not math.isnan(hist[-3]):
+            # (_step's compiled averaged update, with no more calls into Drake than it needs)
+            out = np.empty(22 + hist.shape[0])
+            force_step_kernels.averaged_force_step(self._q.Eval(context), context.get_time(), hist,
+                                                   held.get_value(i_process), *self._fused, out)
+            discrete = state.get_mutable_discrete_state()
+            discrete.set_value(i_w, out[:6])
+            discrete.set_value(i_process, out[6:10])
+            discrete.set_value(i_hist, out[22:])
+            self._applied.F_Bq_W = SpatialForce(out[3:6], out[:3])
+            state.get_mutable_abstract_state(i_force).set_value([self._applied])
+            return
         q = self._q.Eval(context)
         t = context.get_time()
         instants = self._read_offsets(t) if self._mode == "tooth" else ()
