@@ -123,3 +123,18 @@ def test_a_path_with_arcs_keeps_the_references(cell):
                               period_s=T, spindle_body_index=BodyIndex(7))
     assert arcs._fused is None and arcs._lines is None
     assert fk.line_constants(src._path) is not None and src._fused is not None
+
+
+def test_the_fused_kernels_disk_cache_goes_stale_with_the_kernels_it_calls(cell):
+    """numba keys a kernel's disk cache on its own file; the averaged update
+    calls the pose and force kernels of two other files, so its cache's
+    stamp carries theirs too (model/jit.py): editing them compiles it again."""
+    if not jit.available():
+        pytest.skip("numba is not installed: nothing is compiled or cached")
+    from robstiff_drake.model import cutting_kernels, tick_kernels
+    impl = fk.averaged_force_step._impl or fk.averaged_force_step._compile()
+    cache_file = getattr(getattr(impl, "_cache", None), "_cache_file", None)
+    if cache_file is None:
+        pytest.skip("this numba keeps its cache otherwise: the stamp is its own")
+    files = {entry[0] for entry in cache_file._source_stamp[1:]}
+    assert {tick_kernels.__file__, cutting_kernels.__file__} <= files
