@@ -14,7 +14,9 @@ one warning.
 """
 
 import contextlib
+import inspect
 import os
+import types
 import warnings
 
 DISABLE_ENV = "ROBSTIFF_NO_JIT"
@@ -81,7 +83,55 @@ class Kernel:
         numba = _numba()
         if numba is None or _STATE["failed"]:
             return self.py_func
-        return numba.njit(cache=True, nogil=True)(self.py_func)
+        fn = self.py_func
+        # a kernel that calls other kernels calls their compiled versions (numba sees them through the globals)
+        inner = _called(fn)
+        if inner:
+            scope = dict(fn.__globals__)
+            for name, value in inner.items():
+                if value._impl is None:
+                    value._impl = value._compile()
+                scope[name] = value._impl
+            fn = types.FunctionType(fn.__code__, scope, fn.__name__, fn.__defaults__, fn.__closure__)
+            fn.__qualname__, fn.__module__ = self.py_func.__qualname__, self.py_func.__module__
+        compiled = numba.njit(cache=True, nogil=True)(fn)
+        if inner:
+            _stamp_with_callees(compiled, self)
+        return compiled
+
+
+def _called(fn):
+    """{name: Kernel} of the kernels the function ``fn`` calls."""
+    return {name: value for name, value in fn.__globals__.items()
+            if name in fn.__code__.co_names and isinstance(value, Kernel)}
+
+
+def _source_files(k, seen=None):
+    """The source files of kernel ``k`` and of every kernel it calls, sorted."""
+    seen = set() if seen is None else seen
+    if id(k) not in seen:
+        seen.add(id(k))
+        yield inspect.getsourcefile(k.py_func)
+        for inner in _called(k.py_func).values():
+            yield from _source_files(inner, seen)
+
+
+def _stamp_with_callees(compiled, k):
+    """numba's disk cache of a kernel is fresh while the kernel's own file
+    is unchanged (its modification time and size); a kernel that calls
+    kernels of other files would keep their old code after they change.
+    The stamp of its cache is made that of every file involved, so that
+    editing any of them compiles it again.  (numba's cache internals: if
+    they are not there, the cache stays keyed on the kernel's own file.)"""
+    try:
+        cache_file = compiled._cache._cache_file
+        stamps = [cache_file._source_stamp]
+        for path in sorted(set(_source_files(k)) - {inspect.getsourcefile(k.py_func)}):
+            st = os.stat(path)
+            stamps.append((path, st.st_mtime, st.st_size))
+        cache_file._source_stamp = tuple(stamps)
+    except (AttributeError, OSError, TypeError):
+        pass
 
 
 def kernel(fn):

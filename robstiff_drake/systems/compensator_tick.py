@@ -161,11 +161,12 @@ class CompensatorTick(LeafSystem):
     def _update_compiled(self, context, discrete_state):
         """_update_reference's arithmetic in two compiled kernels."""
         chain, gravity, model, lo, hi, step = self._compiled
-        dq = context.get_discrete_state(self._dq).value() if self._dq is not None else self._dq_in.Eval(context)
+        held = context.get_discrete_state()  # (one call into Drake for the three values read)
+        dq = held.get_value(int(self._dq)) if self._dq is not None else self._dq_in.Eval(context)
         n6 = 6 * self._n
         out = np.empty(n6 + 6)
-        tick_kernels.correction_step(dq, context.get_discrete_state(self._line).value() if n6 else _NONE,
-                                     context.get_discrete_state(self._c).value(), lo, hi, step, out)
+        tick_kernels.correction_step(dq, held.get_value(int(self._line)) if n6 else _NONE,
+                                     held.get_value(int(self._c)), lo, hi, step, out)
         if n6:
             discrete_state.set_value(int(self._line), out[:n6])
         discrete_state.set_value(int(self._c), out[n6:])

@@ -14,7 +14,7 @@ from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
 from pydrake.systems.framework import LeafSystem
 
-from robstiff_drake.model import jit, tick_kernels
+from robstiff_drake.model import force_step_kernels, jit, tick_kernels
 from robstiff_drake.model.wrench_frames import to_sensor_frame
 
 # The most instants a tooth-resolved update tabulates (its own, the sensor's samples, its end).
@@ -133,11 +133,17 @@ class MillingForceSource(LeafSystem):
         self._window = chip_window_s(force_model.cutter)
         self._n_hist = max(2, math.ceil(self._window / self._period + 1e-9) + 2)
         self._hist = self.DeclareDiscreteState(np.full(3 * self._n_hist, np.nan))
+        self._lines = force_step_kernels.line_constants(path)  # (compiled motion: a path of lines only)
+        self._fused = self._fused_constants(force_model, kinematics) if mode == "averaged" else None
+        self._warm_up()
         self._applied = ExternallyAppliedSpatialForce()  # reused: only its force changes
         self._applied.body_index = self._body
         self._applied.p_BoBq_B = np.array(self._tool)  # the spindle's frame is the flange's
         self._force = self.DeclareAbstractState(AbstractValue.Make([self._spatial_force([0.0] * 6)]))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
+        # the averaged update straight to the compiled kernel (unless a subclass changes the step: a study's)
+        self._lean = self._fused is not None and type(self)._step is MillingForceSource._step
+        self._indices = (int(self._w), int(self._process), int(self._hist), int(self._force))
         self.DeclareStateOutputPort("spatial_force", self._force)
         if mode == "averaged":
             self.DeclareStateOutputPort("wrench", self._w)
@@ -157,6 +163,31 @@ class MillingForceSource(LeafSystem):
             # instant up itself (ripple_from_table), and reads ripple_sensor only at an instant not in it
             self.DeclareStateOutputPort("instant_table", self._inst)
             self.DeclareStateOutputPort("instant_times", self._inst_t)
+
+    def _fused_constants(self, law, kinematics):
+        """The constants of the averaged update as one compiled kernel
+        (model/force_step_kernels.averaged_force_step), or None where it does
+        not apply (a path with arcs, a law other than the plant's)."""
+        if self._lines is None or not hasattr(law, "edge_coefficients") or not hasattr(kinematics, "chain_constants"):
+            return None
+        from robstiff_drake.model import plant_cutting
+        return (kinematics.chain_constants(), self._window, *self._lines, self._feed_gain, self._period,
+                force_step_kernels.law_constants(law), np.asarray(law.Kc, dtype=float),
+                np.asarray(law.Ke, dtype=float), law._boxes(self._workpiece), law._k, law._dR,
+                plant_cutting._GAUSS_X, plant_cutting._GAUSS_W)
+
+    def _warm_up(self):
+        """Load (or compile) the compiled motion and averaged update now,
+        for the arrays a simulation passes them (the context's, read-only),
+        not in the first update of a timed run (nothing without numba)."""
+        if self._lines is None or not jit.available():
+            return
+        q, hist, process = np.zeros(6), np.zeros(3 * self._n_hist), np.zeros(4)  # (q: the input's, writeable)
+        for a in (hist, process):
+            a.flags.writeable = False
+        force_step_kernels.line_motion(0.0, 0.0, 0.0, 0.0, hist, self._window, *self._lines, np.empty(hist.shape[0]))
+        if self._fused is not None:
+            force_step_kernels.averaged_force_step(q, 0.0, hist, process, *self._fused, np.empty(22 + hist.shape[0]))
 
     @staticmethod
     def ripple_from_table(t, table, times):
@@ -232,6 +263,13 @@ class MillingForceSource(LeafSystem):
         (interpolated in the history) over the window, times the path's
         horizontal slope there (a plunge makes no horizontal chip), along
         the path's direction there; a tool that goes back cuts no chip."""
+        if self._lines is not None and jit.available() and not math.isnan(hist[-3]):
+            # (the arithmetic below, compiled: model/force_step_kernels.py)
+            hist = np.asarray(hist, dtype=float)
+            out = np.empty(hist.shape[0])
+            u0, u1, feed = force_step_kernels.line_motion(t, float(p[0]), float(p[1]), float(p[2]), hist,
+                                                          self._window, *self._lines, out)
+            return (u0, u1), feed, out
         h = hist.tolist() if hasattr(hist, "tolist") else list(hist)
         last_t, last_s = h[-3], h[-2]
         s = self._path.project(p, last_s) if not math.isnan(last_t) else self._path.nearest_s(p)
@@ -272,6 +310,13 @@ class MillingForceSource(LeafSystem):
 
     def _step(self, t, q, process, hist, instants=()):
         """step_wrench with the wrench as an array."""
+        if self._fused is not None and jit.available() and not math.isnan(hist[-3]):
+            # (the averaged update below in one compiled call: model/force_step_kernels.py)
+            hist = np.asarray(hist, dtype=float)
+            out = np.empty(22 + hist.shape[0])
+            force_step_kernels.averaged_force_step(np.asarray(q, dtype=float), float(t), hist,
+                                                   np.asarray(process, dtype=float), *self._fused, out)
+            return out[:6], out[10:22], None, out[6:10], out[22:]
         pose = self._kin.pose_only(q)
         p = pose[9:]
         u, feed, hist = self.motion(t, p, hist)
@@ -291,16 +336,29 @@ class MillingForceSource(LeafSystem):
         return w, pose, inst, np.array([float(u[0]), float(u[1]), feed, travel]), hist
 
     def _update(self, context, state):
+        i_w, i_process, i_hist, i_force = self._indices
+        held = context.get_discrete_state()
+        hist = held.get_value(i_hist)
+        if self._lean and jit.available() and not math.isnan(hist[-3]):
+            # (_step's compiled averaged update, with no more calls into Drake than it needs)
+            out = np.empty(22 + hist.shape[0])
+            force_step_kernels.averaged_force_step(self._q.Eval(context), context.get_time(), hist,
+                                                   held.get_value(i_process), *self._fused, out)
+            discrete = state.get_mutable_discrete_state()
+            discrete.set_value(i_w, out[:6])
+            discrete.set_value(i_process, out[6:10])
+            discrete.set_value(i_hist, out[22:])
+            self._applied.F_Bq_W = SpatialForce(out[3:6], out[:3])
+            state.get_mutable_abstract_state(i_force).set_value([self._applied])
+            return
         q = self._q.Eval(context)
         t = context.get_time()
         instants = self._read_offsets(t) if self._mode == "tooth" else ()
-        process = context.get_discrete_state(self._process).value()
-        hist = context.get_discrete_state(self._hist).value()
-        w, pose, inst, process, hist = self._step(t, q, process, hist, instants)
+        w, pose, inst, process, hist = self._step(t, q, held.get_value(i_process), hist, instants)
         discrete = state.get_mutable_discrete_state()
-        discrete.set_value(int(self._w), w)
-        discrete.set_value(int(self._process), process)
-        discrete.set_value(int(self._hist), hist)
+        discrete.set_value(i_w, w)
+        discrete.set_value(i_process, process)
+        discrete.set_value(i_hist, hist)
         if inst is not None:
             pose = np.array(pose)
             discrete.set_value(int(self._pose), pose)  # (read between updates in tooth mode only)
@@ -316,4 +374,4 @@ class MillingForceSource(LeafSystem):
                     values[i, 6:] = to_sensor_frame(R, self._tool, d)
             discrete.set_value(int(self._inst), values.ravel())
             discrete.set_value(int(self._inst_t), times)
-        state.get_mutable_abstract_state(int(self._force)).set_value([self._spatial_force(w)])
+        state.get_mutable_abstract_state(i_force).set_value([self._spatial_force(w)])

@@ -131,18 +131,20 @@ class WrenchGuard(LeafSystem):
         self.DeclarePeriodicDiscreteUpdateEvent(1.0 / rate_hz, 0.0, self._update)
         self.DeclareStateOutputPort("wrench", self._state)
         self.DeclareStateOutputPort("rejected", self._count)
+        self._indices = (int(self._state), int(self._count), int(self._run))
 
     def _update(self, context, discrete_state):
         # discrete_state arrives holding the current state: overwrite it in
         # place when the sample is good, count it when it is not
         w = self._in.Eval(context)
-        held = discrete_state.get_mutable_vector(int(self._state)).get_mutable_value()
-        run = discrete_state.get_mutable_vector(int(self._run)).get_mutable_value()
+        i_state, i_count, i_run = self._indices
+        held = discrete_state.get_mutable_value(i_state)
+        run = discrete_state.get_mutable_value(i_run)
         if guard_accepts(w.tolist(), held[:3].tolist(), self._max_jump):  # (model/compensator.py)
             held[:] = w
             run[0] = 0.0
         else:
-            discrete_state.get_mutable_vector(int(self._count)).get_mutable_value()[0] += 1.0
+            discrete_state.get_mutable_value(i_count)[0] += 1.0
             run[0] += 1.0
             if run[0] > self._rearm and np.all(np.isfinite(w)):  # re-armed on the new level
                 held[:] = w
