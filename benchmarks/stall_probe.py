@@ -40,7 +40,9 @@ def probe(cpu, priority, seconds):
     """Run the probe on ``cpu`` for ``seconds``; {wakeups, gaps_over_1ms,
     gaps_over_3ms, max_gap_ms (the longest, None when none was over 1 ms),
     cpu, scheduling (what it got), steal_s (the CPU's steal time meanwhile,
-    s; None where unknown)}."""
+    s; None where unknown), phases_ms (where the wake-ups after a gap over
+    3 ms fell on a 100 ms grid of the monotonic clock, ms: a host's CPU
+    quota per 100 ms period puts them at one phase)}."""
     sched = "normal"
     try:
         os.sched_setaffinity(0, {cpu})
@@ -56,18 +58,22 @@ def probe(cpu, priority, seconds):
     t_end = time.monotonic() + seconds
     last = time.monotonic()
     over = []  # (the gaps over GAP_S only)
+    phases = []  # (the phase of the wake-ups after a gap over 3 ms on a 100 ms grid of time.monotonic, ms)
     n = 0
     while last < t_end:
         time.sleep(SLEEP_S)
         now = time.monotonic()
         if now - last > GAP_S:
             over.append(now - last)
+            if now - last > 0.003 and len(phases) < 50:
+                phases.append(round((now % 0.1) * 1e3, 1))
         last = now
         n += 1
     s1 = steal_jiffies(cpu) if cpu is not None else None
     return {"wakeups": n, "gaps_over_1ms": len(over), "gaps_over_3ms": sum(g > 0.003 for g in over),
            "max_gap_ms": max(over) * 1e3 if over else None, "cpu": cpu, "scheduling": sched,
-           "steal_s": (s1 - s0) / 100.0 if s0 is not None and s1 is not None else None}
+           "steal_s": (s1 - s0) / 100.0 if s0 is not None and s1 is not None else None,
+           "phases_ms": phases}
 
 
 def longest(r):
@@ -87,7 +93,9 @@ def main():
     else:
         print(f"CPU {r['cpu']}, {r['scheduling']}, {a.seconds:g} s: {r['wakeups']} wake-ups, {r['gaps_over_1ms']} "
               f"gaps over 1 ms ({r['gaps_over_3ms']} over 3 ms){longest(r)}; steal "
-              f"{r['steal_s']} s; load average {os.getloadavg()[0]:.2f}")
+              f"{r['steal_s']} s; load average {os.getloadavg()[0]:.2f}"
+              + (f"; the wake-ups after a gap over 3 ms at {', '.join(map(str, r['phases_ms']))} ms of a 100 ms "
+                 "grid" if r["phases_ms"] else ""))
     return 0
 
 
