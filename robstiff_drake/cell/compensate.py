@@ -241,6 +241,7 @@ class CompensatorLoop(LoopStart, SensorIntake):
         self._count_saturation()  # (after the answer: counting only)
         age = t_done - self.latest_sample_time if self.latest_sample_time is not None else float("nan")
         self.n.compute_ms.add((t_done - t_arr) * 1e3)
+        self.n.response_ms.add((t_done - t_arr + msg.queued_s) * 1e3)  # (NaN without the kernel's stamp: not added)
         self.n.age_ms.add(age * 1e3)
         # (stale when old on both clocks, as the sensor's silence is judged: in lockstep on a loaded PC the
         # newest record can be old on this PC's clock and of this very cycle on the controller's)

@@ -145,7 +145,10 @@ class Counters:
     fault_onsets: int = 0
     sensor_faults: int = 0  # of them, the sensor's (silent, invalid, rejected by the guard)
     events_dropped: int = 0
-    compute_ms: Histogram = field(default_factory=Histogram)
+    compute_ms: Histogram = field(default_factory=Histogram)  # the message read -> its answer sent
+    # the datagram's arrival at this PC (the kernel's time stamp) -> its answer sent: compute_ms and the time
+    # it waited to be read (the loop's wake-up, a stall of the machine); empty where the system gives no stamp
+    response_ms: Histogram = field(default_factory=Histogram)
     age_ms: Histogram = field(default_factory=Histogram)
     gap_ms: Histogram = field(default_factory=Histogram)
     gc_ms: Histogram = field(default_factory=Histogram)  # the loop's own collections, after an answer

@@ -7,7 +7,11 @@ controller heard, and one way out for joint targets.
   one) is dropped and counted in ``strangers``, never decoded, never
   answered; the controller's are decoded by the protocol (``decode``) and
   returned in arrival order with their arrival times; one that does not
-  decode is counted in ``malformed``.
+  decode is counted in ``malformed``.  Each message's ``queued_s`` says
+  how long its datagram waited at this PC before the loop read it (from
+  the kernel's receive time stamp, SO_TIMESTAMPNS on Linux): the loop's
+  wake-up, and any stall of this machine meanwhile, which the arrival time
+  (taken when the loop reads it) does not see.
 * ``send_targets(message, targets_deg, envelope)``: the only way a target
   leaves: the protocol's ``encode``, then the pose the controller will
   command on reading those bytes (``commanded_deg``: for RSI its start plus
@@ -19,8 +23,11 @@ controller heard, and one way out for joint targets.
 """
 
 import ipaddress
+import math
 import select
 import socket
+import struct
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -29,6 +36,10 @@ from robstiff_drake.errors import InputError
 
 MAX_DRAIN = 256  # datagrams read per receive (a flood cannot hold the loop)
 MAX_DATAGRAM = 65536
+# the kernel's receive time stamp of a datagram (struct timespec, CLOCK_REALTIME): Linux's SO_TIMESTAMPNS (35 on
+# x86, ARM and most ABIs; Python's socket module does not name it); elsewhere none (queued_s NaN)
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35 if sys.platform.startswith("linux") else None)
+_TIMESPEC = struct.Struct("@ll")  # (tv_sec, tv_nsec: the C longs of the old, native time stamp)
 
 
 class MessageError(ValueError):
@@ -46,6 +57,30 @@ class Message:
     joints_deg: list
     echo: object = None
     extra: dict = field(default_factory=dict)
+    # how long (s) the datagram waited at this PC from its arrival (the kernel's receive time stamp) to its
+    # read; NaN where the system gives no stamp
+    queued_s: float = float("nan")
+
+
+def stamp_s(ancdata):
+    """The kernel's receive time (s, CLOCK_REALTIME) in a datagram's
+    ancillary data (``socket.recvmsg``), or None when it carries none."""
+    for level, kind, data in ancdata:
+        if level == socket.SOL_SOCKET and kind == SO_TIMESTAMPNS and len(data) >= _TIMESPEC.size:
+            sec, nsec = _TIMESPEC.unpack_from(data)
+            return sec + nsec * 1e-9
+    return None
+
+
+def queued_s(stamp, now_realtime_s):
+    """How long a datagram stamped at ``stamp`` (s, CLOCK_REALTIME; None:
+    no stamp) had waited when read at ``now_realtime_s`` (the same clock,
+    read at once: a step of the wall clock between the two is all that can
+    err); NaN when unknown or negative (a clock stepped back)."""
+    if stamp is None:
+        return float("nan")
+    q = now_realtime_s - stamp
+    return q if 0.0 <= q < 3600.0 and math.isfinite(q) else float("nan")
 
 
 def split_host_port(text, default_port, what):
@@ -100,6 +135,14 @@ class PCLink:
                              "is another compensator running?)") from None
         self.sock.setblocking(False)
         self.port = self.sock.getsockname()[1]
+        self._stamped = False  # (the kernel's receive time stamps on: ``queued_s``)
+        if SO_TIMESTAMPNS is not None and hasattr(self.sock, "recvmsg"):
+            try:
+                self.sock.setsockopt(socket.SOL_SOCKET, SO_TIMESTAMPNS, 1)
+                self._stamped = True
+            except OSError:
+                pass
+        self._anc = socket.CMSG_SPACE(_TIMESPEC.size) + 64 if self._stamped else 0
         self.reply_to = None if self.controller_port is None else (self.controller_ip, self.controller_port)
         self.strangers = 0
         self.stranger_example = None
@@ -167,12 +210,16 @@ class PCLink:
         out = []
         for _ in range(MAX_DRAIN):
             try:
-                data, addr = self.sock.recvfrom(MAX_DATAGRAM)
+                if self._stamped:
+                    data, anc, _, addr = self.sock.recvmsg(MAX_DATAGRAM, self._anc)
+                else:
+                    data, addr = self.sock.recvfrom(MAX_DATAGRAM)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError:
                 break
             t = time.monotonic()
+            waited = queued_s(stamp_s(anc), time.time()) if self._stamped else float("nan")
             if not self._from_controller(addr):
                 self.strangers += 1
                 if self.stranger_example is None:
@@ -186,6 +233,7 @@ class PCLink:
                 continue
             if self.controller_port is None:
                 self.reply_to = addr  # the controller's own port (EGM sends from any)
+            msg.queued_s = waited
             out.append((msg, t))
         return out
 

@@ -2,7 +2,7 @@
 counters (cell/health.py): the dict summary.json and the last lines
 print."""
 
-from robstiff_drake.cell.health import verdict
+from robstiff_drake.cell.health import BIN_MS, verdict
 
 
 def loop_stats(loop):
@@ -27,9 +27,13 @@ def loop_stats(loop):
             "clock_faults": n.clock_faults, "strangers_dropped": loop.link.strangers,
             "malformed": loop.link.malformed, "targets_refused": n.refused,
             "compute_ms": n.compute_ms.summary(), "correction_age_ms": n.age_ms.summary(),
+            # (from the datagram's arrival at this PC, the kernel's stamp: with the wait to be read; the answers
+            # later than a period after it, the controller's cycle)
+            "response_ms": dict(n.response_ms.summary(), stamped=n.response_ms.n,
+                                over_period=int(sum(n.response_ms.counts[int(T * 1e3 / BIN_MS):]))),
             "message_gap_ms": n.gap_ms.summary(),
             "gc_ms": dict(n.gc_ms.summary(), collections=n.gc_ms.n), "missed_cycles": int(n.skipped + n.late),
-            "controller_gaps": n.gaps_over, "over_budget": int(sum(n.compute_ms.counts[int(T * 1e3 / 0.01):])),
+            "controller_gaps": n.gaps_over, "over_budget": int(sum(n.compute_ms.counts[int(T * 1e3 / BIN_MS):])),
             "sensor_records": n.sensor_records, "sensor_clipped": n.sensor_clipped,
             "moment_spikes": n.moment_spikes, "saturated_cycles": n.saturated_cycles,
             "stale_correction_s": n.stale_s, "fault_onsets": n.fault_onsets, "ended_by": loop.ended_by,

@@ -15,7 +15,8 @@ run folder (docs/run_files.md) so that ``robstiff diagnose-run`` reads it:
   correction, q*_deg commanded);
 * ``cycles.csv``: per answered message, the sequence number, the measured
   joints, the computation time, the correction's age, whether a fault was
-  on and whether its own target was sent;
+  on, whether its own target was sent and how long the message had waited
+  to be read (cell/link.py's ``queued_s``);
 * ``events.csv``: every fault and event with its time;
 * ``summary.json`` at the end: the settings, the loop check, the cycle
   figures, the health verdict;
@@ -50,7 +51,7 @@ FILES = {
                                    + [f"correction_q{j}_rad" for j in range(1, 7)]
                                    + [f"q{j}_deg" for j in range(1, 7)]),
     "cycles.csv": (["t_s", "seqno"] + [f"measured_q{j}_deg" for j in range(1, 7)]
-                   + ["compute_ms", "age_ms", "fault", "sent"]),
+                   + ["compute_ms", "age_ms", "fault", "sent", "queued_ms"]),
     "events.csv": ["t_s", "t_controller_s", "event"],
 }
 NOTES = {
@@ -69,7 +70,10 @@ NOTES = {
     "cycles.csv": "cycles: per answered message: the controller's sequence number, the measured joints (deg, "
                   "controller), the computation time from the message's arrival to the answer (ms), the "
                   "correction's age (ms since the newest sensor record it used arrived), whether a fault held the "
-                  "correction at a ramp to zero (1), and whether its own target was sent (0: the last safe one).",
+                  "correction at a ramp to zero (1), whether its own target was sent (0: the last safe one), and "
+                  "how long the message had waited at this PC before it was read (ms, from the kernel's receive "
+                  "time stamp: the loop's wake-up; empty where the system gives no stamp; compute_ms + queued_ms: "
+                  "from its arrival to the answer).",
     "events.csv": "events: every fault's start and end and every event of the run, with its time (t_s: s since "
                   "the first message, this PC's clock; t_controller_s: the controller's clock, the other logs' t_s).",
 }
@@ -219,4 +223,4 @@ class StreamLog:
             + [_num(v) for v in comp.dq] + [_num(v) for v in corr_rad] + [format(v, ".10g") for v in q_cmd]) + "\n")
         c["cycles.csv"].append(",".join([t, str(msg.seq)] + [format(v, ".7g") for v in loop.q_deg]
                                         + [_num(compute_s * 1e3), _num(age_s * 1e3), "1" if loop.faults else "0",
-                                           "1" if sent else "0"]) + "\n")
+                                           "1" if sent else "0", _num(msg.queued_s * 1e3)]) + "\n")

@@ -71,6 +71,11 @@ class NetworkStats:
     # --duration-s) while this controller streams on ends with them; a gap it answered after is not among them
     trailing_unanswered: int = 0
     late_ticks: int = 0  # ticks sent more than half a period late
+    # per unanswered tick (the first MAX_DETAIL): (tick k, ms from the send of the message whose answer was due
+    # to this tick: the time the compensator had, a period or two at a hard real-time controller; ms that
+    # message left after its own schedule: this simulated controller's lateness, not the compensator's)
+    unanswered_detail: list = field(default_factory=list)
+    MAX_DETAIL = 1000
     skipped_ticks: int = 0  # periods the schedule slipped because the loop was more than a period late
     tick_error_s: list = field(default_factory=list)
     step_ms: list = field(default_factory=list)  # the station's computation per engaged cycle (ms)
@@ -208,6 +213,7 @@ class CellNetwork:
         t_stepped = 0.0  # (this PC's clock at the last tick)
         k_clock = 0  # the tick the controller's clock (header.tm) counts from: 0, or the last restart's
         answers = {}  # message k -> targets (deg) received
+        sent_at = {}  # message k -> (this PC's clock when it left, s after its schedule): the last few
         dropped = set()  # messages lost on the way (nothing to answer)
         hold = getattr(self.station, "hold", None)
         while True:
@@ -274,6 +280,9 @@ class CellNetwork:
                 if targets is None:
                     st.unanswered += 1
                     st.trailing_unanswered += 1
+                    if need in sent_at and len(st.unanswered_detail) < st.MAX_DETAIL:
+                        t_sent, late = sent_at[need]
+                        st.unanswered_detail.append((k, (t_stepped - t_sent) * 1e3, late * 1e3))
                 else:
                     st.late_answers += 1
             dropped.discard(need)
@@ -318,6 +327,9 @@ class CellNetwork:
                 # only this simulation's ticks jitter (stamping the wall clock made the targets'
                 # spacing, and so the servo's velocity feed-forward, jitter by a millisecond)
                 self.egm.send_state(k, joints, np.degrees(q_cmd), (k - k_clock) * T * 1e3, f.egm_wrong_type)
+                t_sent = time.monotonic()
+                sent_at[k] = (t_sent, t_sent - t0 - k * T)
+                sent_at.pop(k - 8 - D, None)
             else:
                 self.egm.skip()
                 dropped.add(k)  # nothing to answer

@@ -341,7 +341,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     stats = loop.stats()
     cm = stats["compute_ms"]
     print(f"robstiff: compensate: {stats['messages']} messages, {stats['answered']} answered; computation per message "
-          f"median {cm['median']:.3f} ms, p99 {cm['p99']:.3f} ms, max {cm['max']:.3f} ms; correction age median "
+          f"median {cm['median']:.3f} ms, p99 {cm['p99']:.3f} ms, max {cm['max']:.3f} ms{_response(stats)}; correction "
+          f"age median "
           f"{stats['correction_age_ms']['median']:.2f} ms; {stats['late']} late, {stats['unanswered']} unanswered; "
           f"{stats['fault_onsets']} faults; {stats['strangers_dropped']} datagrams from strangers dropped",
           file=sys.stderr)
@@ -381,6 +382,16 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                                ("tool.cutter_diameter_mm (--cutter-diameter-mm)", cutter_diameter_mm)) if v is None)
                   + "; diagnose-run needs them", file=sys.stderr)
     return 0
+
+
+def _response(stats):
+    """The end line's part on the time from a datagram's arrival at this PC
+    (the kernel's stamp) to its answer ("" where the system gives none)."""
+    r = stats["response_ms"]
+    if not r["stamped"]:
+        return ""
+    return (f" (from its arrival at this PC, with the wait to be read: p99 {r['p99']:.3f} ms, max {r['max']:.3f} ms, "
+            f"{r['over_period']} over a period)")
 
 
 def _hold_check(remote, q0):
