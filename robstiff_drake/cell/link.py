@@ -24,6 +24,7 @@ controller heard, and one way out for joint targets.
 
 import ipaddress
 import math
+import platform
 import select
 import socket
 import struct
@@ -36,9 +37,12 @@ from robstiff_drake.errors import InputError
 
 MAX_DRAIN = 256  # datagrams read per receive (a flood cannot hold the loop)
 MAX_DATAGRAM = 65536
-# the kernel's receive time stamp of a datagram (struct timespec, CLOCK_REALTIME): Linux's SO_TIMESTAMPNS (35 on
-# x86, ARM and most ABIs; Python's socket module does not name it); elsewhere none (queued_s NaN)
-SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35 if sys.platform.startswith("linux") else None)
+# the kernel's receive time stamp of a datagram (struct timespec, CLOCK_REALTIME): Linux's SO_TIMESTAMPNS, 35 in
+# asm-generic/socket.h, which x86, ARM, RISC-V and PowerPC use (Python's socket module does not name it); on the
+# architectures with their own numbers (Alpha, MIPS, PA-RISC, SPARC) and off Linux none: no option set, queued_s NaN
+_GENERIC_SOCKET_ABI = ("x86_64", "i386", "i686", "aarch64", "armv7l", "armv8l", "riscv64", "ppc64le", "ppc64")
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35 if sys.platform.startswith("linux")
+                         and platform.machine() in _GENERIC_SOCKET_ABI else None)
 _TIMESPEC = struct.Struct("@ll")  # (tv_sec, tv_nsec: the C longs of the old, native time stamp)
 
 
