@@ -123,8 +123,11 @@ def scheme_table(cut, x_mm):
             ("vector:2", dict(window_s=rev, cutoff_hz=2.0), 0.5e-3, four),
             ("vector:5", dict(window_s=rev, cutoff_hz=5.0), 0.5e-3, four),
             ("vector:10", dict(window_s=rev, cutoff_hz=10.0), 0.5e-3, four),
-            ("raw (over a revolution, unfiltered)", dict(window_s=rev), 0.5e-3, four)]
-    laws += [(f"vtooth (over a tooth, every step) at {h * 1e3:g} ms", {}, h, 1)
+            ("raw (over a revolution: the direction unfiltered, the feed at 2 Hz)",
+             dict(window_s=rev, along=(1.0, 0.0), along_cutoff_hz=FEED_CUTOFF_HZ), 0.5e-3, four),
+            ("tooth (the same over a tooth, the force every step)",
+             dict(along=(1.0, 0.0), along_cutoff_hz=FEED_CUTOFF_HZ), 0.5e-3, 1)]
+    laws += [(f"vtooth (over a tooth, feed and direction unfiltered, every step) at {h * 1e3:g} ms", {}, h, 1)
              for h in (0.5e-3, 0.25e-3, 0.125e-3, 0.0625e-3)]
     print(f"The plant's discrete scheme at x = {x_mm:.0f} mm (the force source's map over its period; growth "
           "= ln(spectral radius) / period)")
@@ -140,6 +143,13 @@ def scheme_table(cut, x_mm):
     print(f"| (continuous, exact) | 0 | 0 | | {exact_rightmost(arm, chip).real:+.2f} | "
           f"{cc.mode_of(exact_rightmost(arm, chip))[0]:.1f} |")
 
+    def tooth_stable(h):
+        return cc.spectral_radius(cc.scheme_map(arm, chip, h)) <= cc.STABLE_MARGIN
+    h_tooth = cc.largest_stable_step_s(tooth_stable, cut.T, lower_s=2e-5)
+    print(f"\nThe chip over a tooth every step (vtooth): largest stable step "
+          + (f"{h_tooth * 1e3:.3f} ms" if h_tooth else f"none from {2e-5 * 1e3:g} ms to a tooth period "
+                                                          f"({cut.T * 1e3:.2f} ms)"))
+
     # the numerical question alone: the velocity law (stable in continuous time) taken explicitly, the
     # tool's velocity as its displacement over the last step
     def vel_stable(h):
@@ -147,7 +157,7 @@ def scheme_table(cut, x_mm):
     Jv = arm.Cp[:, :6]
     m_app = 1.0 / np.linalg.eigvalsh(Jv @ np.linalg.inv(jm.M) @ Jv.T)[::-1][:2]
     c = np.abs(np.linalg.eigvals(chip.velocity_coupling[:2])).max()
-    print(f"\nThe velocity law taken explicitly (the chip from the tool's last step): largest stable step "
+    print(f"The velocity law taken explicitly (the chip from the tool's last step): largest stable step "
           f"{cc.largest_stable_step_s(vel_stable, 4e-3) * 1e3:.3f} ms; the tool's in-plane apparent masses "
           f"(links, 1 / eig(J M^-1 J^T)) {m_app[0]:.0f}, {m_app[1]:.0f} kg and the coupling's largest |eigenvalue| "
           f"{c:.0f} N*s/m: 2 m / c = {2 * m_app.min() / c * 1e3:.1f} ms.")
@@ -239,7 +249,7 @@ def depth_and_direction(cut, x_mm):
     print(f"What would be stable at x = {x_mm:.0f} mm (the arm's pose kept; the depth: the tool raised in the "
           "block; the feed direction: the cut turned about the spindle by psi from +x)")
     print("| feed direction psi (deg) | rightmost root at 3 mm: growth (1/s) | frequency (Hz) | damping ratio | "
-          "largest stable depth (mm) |")
+          "largest stable depth (mm, searched up to 3) |")
     print("|---|---|---|---|---|")
     chip = cut.chip(np.array([x_mm / 1e3, 0.0, 0.700]))
     for deg in range(0, 360, 45):
@@ -250,7 +260,7 @@ def depth_and_direction(cut, x_mm):
     n = cut.cutter.n_teeth
     print(f"The spindle speed (the feed per tooth kept, the feed direction +x), x = {x_mm:.0f} mm:")
     print("| spindle (rpm) | tooth pass (Hz) | rightmost root at 3 mm: growth (1/s) | frequency (Hz) | "
-          "damping ratio | largest stable depth (mm) |")
+          "damping ratio | largest stable depth (mm, searched up to 3) |")
     print("|---|---|---|---|---|---|")
     for rpm in (1800, 2400, 3000, 3600, 4200, 4800, 6000, 7200, 9000, 12000):
         s = exact_rightmost(arm, at_spindle_speed(chip, rpm, n))

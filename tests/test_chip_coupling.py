@@ -196,3 +196,39 @@ def test_pade_matches_the_delay_at_low_frequency():
         assert abs(H - np.exp(-1j * w * T)) < {1: 0.08, 2: 2e-3, 4: 1e-7}[n]
     with pytest.raises(ValueError, match="Pade order"):
         cc.pade_delay(0, T)
+
+
+def planar_arm(m_kg=1.0, k_N_per_m=(1.0e4, 2.0e4)):
+    """Two uncoupled mass-springs, x and y: a LinearArm with a 2-D tool point."""
+    arms = [cc.mass_spring(m_kg, k) for k in k_N_per_m]
+    A = np.zeros((4, 4))
+    A[:2, :2], A[2:, 2:] = arms[0].A, arms[1].A
+    Bw = np.zeros((4, 2))
+    Bw[1, 0] = Bw[3, 1] = 1.0 / m_kg
+    Cp = np.zeros((2, 4))
+    Cp[0, 0] = Cp[1, 2] = 1.0
+
+    def step(h):
+        (P0, G0), (P1, G1) = (a.step(h) for a in arms)
+        P, G = np.zeros((4, 4)), np.zeros((4, 2))
+        P[:2, :2], P[2:, 2:], G[:2, 0], G[2:, 1] = P0, P1, G0[:, 0], G1[:, 0]
+        return P, G
+
+    return cc.LinearArm(A=A, Bw=Bw, Cp=Cp, step=step)
+
+
+def test_the_programs_direction_leaves_the_cross_feed_chip_out_and_raw_keeps_it():
+    arm = planar_arm()
+    Kf = np.array([[-2.0e3, -5.0e3], [2.5e3, -2.0e2]])
+    cross_off = Kf.copy()
+    cross_off[:, 1] = 0.0
+    chips = [cc.LinearisedChip(Kp=np.zeros((2, 2)), Kf=K, tooth_period_s=0.003, chip_rows=np.eye(2))
+             for K in (Kf, cross_off)]
+    kw = dict(window_s=0.016, period_steps=4)
+    path = [cc.scheme_map(arm, c, 1e-3, along=(1.0, 0.0), cutoff_hz=2.0, **kw) for c in chips]
+    np.testing.assert_array_equal(path[0], path[1])  # the program's direction: the chip across it never moves
+    raw = [cc.scheme_map(arm, c, 1e-3, along=(1.0, 0.0), along_cutoff_hz=2.0, **kw) for c in chips]
+    assert not np.allclose(raw[0], raw[1])
+    # (without a cross term the two laws are one: their maps differ only in the unused cross state's row)
+    assert cc.spectral_radius(raw[1]) == pytest.approx(cc.spectral_radius(path[1]), rel=1e-12)
+    assert cc.spectral_radius(raw[0]) != pytest.approx(cc.spectral_radius(path[0]), rel=1e-6)

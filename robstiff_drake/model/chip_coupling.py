@@ -277,16 +277,21 @@ def mode_of(s):
 
 # ---- discrete time: the plant's scheme ----
 
-def scheme_map(arm, chip, step_s, *, period_steps=1, window_s=None, along=None, cutoff_hz=None, coupled=True):
+def scheme_map(arm, chip, step_s, *, period_steps=1, window_s=None, along=None, cutoff_hz=None,
+               along_cutoff_hz=None, coupled=True):
     """The linear map of the plant's scheme over one force period (see the
     module docstring): state (x, the tool's displacements at the last m
     updates, the filter's chip) at the updates.  ``window_s`` (None: the
     tooth period): the span the chip's displacement is taken over, scaled
-    to a tooth; ``along`` (None: the chip as a vector): a unit in-plane
-    feed direction, only the chip's component along it follows the tool
-    (the plant's law); ``cutoff_hz``: the chip low-passed (first order,
-    one step per update); ``coupled`` False: the chip left out (Kp only).
-    Returns the map (a square array)."""
+    to a tooth.  Without ``along``: the chip as a vector, low-passed at
+    ``cutoff_hz`` (first order, one step per update; None: unfiltered).
+    ``along``, the program's unit in-plane feed direction: only the chip's
+    component along it follows the tool, low-passed at ``cutoff_hz`` (the
+    plant's law: the direction is the program's); with ``along_cutoff_hz``
+    as well, that component is low-passed at ``along_cutoff_hz`` and the
+    one across it follows the tool, low-passed at ``cutoff_hz`` (None:
+    unfiltered; studies/chip_direction.py's ``raw``).  ``coupled`` False:
+    the chip left out (Kp only).  Returns the map (a square array)."""
     h = float(step_s)
     r = int(period_steps)
     P = r * h
@@ -305,33 +310,43 @@ def scheme_map(arm, chip, step_s, *, period_steps=1, window_s=None, along=None, 
     frac = W / P - j
     m = j + (1 if frac > 1e-12 else 0)  # past updates kept
     nc = chip.chip_rows.shape[0]
-    S = chip.chip_rows
+    # the chip's basis: along the program's feed and across it (the identity without ``along``)
+    U = np.eye(nc)
+    keep = np.ones(nc)
+    gains = [None] * nc
     if along is not None:
-        u = np.asarray(along, dtype=float).reshape(-1, 1)
-        S = u @ (u.T @ S) / (u.T @ u).item()  # the chip's component along the feed (the direction fixed)
-    nf = nc if cutoff_hz is not None else 0
+        u = np.asarray(along, dtype=float).ravel()
+        u = u / np.linalg.norm(u)
+        U = np.array([u, [-u[1], u[0]]]) if nc == 2 else u.reshape(1, 1)
+        if along_cutoff_hz is None:
+            keep[1:] = 0.0  # the direction fixed: only the feed follows the tool
+        gains[0] = along_cutoff_hz if along_cutoff_hz is not None else cutoff_hz
+        gains[1:] = [cutoff_hz if along_cutoff_hz is not None else None] * (nc - 1)  # (a fixed one: none)
+    else:
+        gains = [cutoff_hz] * nc
+    filtered = any(g is not None for g in gains)
+    g = np.array([1.0 if c is None else 1.0 - math.exp(-2.0 * math.pi * c * P) for c in gains])
+    nf = nc if filtered else 0
     N = arm.n + m * npp + nf
-    # selectors: p now = Cp x; past update i (1..m) in block i - 1
-    Pnow = arm.Cp
+    Pn = np.zeros((npp, N))
+    Pn[:, :arm.n] = arm.Cp
 
     def past(i):
         Z = np.zeros((npp, N))
         Z[:, arm.n + (i - 1) * npp: arm.n + i * npp] = np.eye(npp)
         return Z
 
-    Pn = np.zeros((npp, N))
-    Pn[:, :arm.n] = Pnow
     # p(t - W): between updates j and j + 1 back (update 0 = now)
     pj = Pn if j == 0 else past(j)
     p_back = pj if frac <= 1e-12 else (1 - frac) * pj + frac * past(j + 1)
-    chip_now = (T / W) * S @ (Pn - p_back)  # (nc, N): the chip's change, per tooth
-    if cutoff_hz is not None:
-        g = 1.0 - math.exp(-2.0 * math.pi * cutoff_hz * P)
+    chip_now = (keep[:, None] * U) @ ((T / W) * chip.chip_rows @ (Pn - p_back))  # (nc, N), in U's basis
+    if filtered:
         F = np.zeros((nf, N))
         F[:, N - nf:] = np.eye(nf)
-        chip_used = F + g * (chip_now - F)  # the filter's new value, used now
+        chip_b = F + g[:, None] * (chip_now - F)  # the filter's new value, used now
     else:
-        chip_used = chip_now
+        chip_b = chip_now
+    chip_used = U.T @ chip_b  # back to the chip's coordinates
     W_row = chip.Kp @ Pn + (chip.Kf @ chip_used if coupled else 0.0)  # (nw, N): the wrench from the state
     out = np.zeros((N, N))
     out[:arm.n, :arm.n] = Phi
@@ -341,7 +356,7 @@ def scheme_map(arm, chip, step_s, *, period_steps=1, window_s=None, along=None, 
         for i in range(1, m):
             out[arm.n + i * npp: arm.n + (i + 1) * npp] = past(i)
     if nf:
-        out[N - nf:] = chip_used
+        out[N - nf:] = chip_b
     return out
 
 
