@@ -49,8 +49,9 @@ plant's law: the direction is the program's) and optionally low-passed
 (first order, ``cutoff_hz``, one step per update), then held over the
 period.  Its spectral radius over one period decides the scheme's stability.
 
-What this cannot say: it is linear (no play, no tooth-resolved force, the
-engagement's edges where Kp jumps are one-sided), at one pose and one
+What this cannot say: it is linear (no play, no tooth-resolved force;
+where the engagement has an edge and Kp jumps, the central difference
+averages its two sides), at one pose and one
 operating point, with the compensator's loop and the force sensor left
 out (the compensator acts below 2 Hz), and the arm's damping is the
 scenario's modal assumption.
@@ -165,8 +166,8 @@ def mass_spring(m_kg, k_N_per_m, c_N_s_per_m=0.0):
 
 def velocity_law_matrix(arm, chip):
     """The coupled system's matrix with the chip's velocity law (the
-    low-frequency limit): x' = (A + Bw (Kp Cp + C S Cp A)) x ... solved for
-    x' (the tool's velocity Cp x' feeds the wrench, which feeds x')."""
+    low-frequency limit): x' = A x + Bw (Kp Cp x + C S Cp x'), solved for
+    x' (the tool's velocity Cp x' makes the wrench, which makes x')."""
     S = chip.chip_rows @ arm.Cp
     A0 = arm.A + arm.Bw @ chip.Kp @ arm.Cp
     Bc = arm.Bw @ chip.velocity_coupling
