@@ -45,6 +45,8 @@ FIGURES = [
     ("plant_physics", "The plant's own cutting physics", "10 min", PY + ["studies/plant_physics_mismatch.py"]),
     ("chip_direction", "The plant's own cutting physics: the chip's direction from the tool's own motion", "8 min",
      PY + ["studies/chip_direction.py"]),
+    ("chip_coupling", "The plant's own cutting physics: the arm with its own chip, linearised (physics or numerics)",
+     "15 min", PY + ["studies/chip_coupling_stability.py", "--face-and-contour", "--drake", "--drake-play"]),
     ("fc_budget", "The error budget (face and contour)", "30-60 min (results.md)",
      CLI + ["simulate", "diagrams/face_and_contour.yaml", "--compensation", "on", "--budget", "--out", "{out}/fc_budget"]),
     ("paper_reproduction", "The paper's figures from stated imperfections", "10 min",

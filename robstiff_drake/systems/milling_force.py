@@ -26,9 +26,14 @@ MAX_INSTANTS = 8
 # ramps (0.5 s) and the tool's lag behind its plan pass, its vibration at
 # the arm's modes does not.  The chip's feedback at those modes (process
 # damping, regenerative and mode-coupling chatter) is real physics this
-# plant leaves out: computed at the force's 4 ms update, a step behind, it
-# is no damping but a numerical instability (the paper's forces on the
-# block ring within 5 s without this filter).
+# plant leaves out.  It is not left out for a numerical reason alone: the
+# regenerative chip (the tool's displacement over a tooth) makes the
+# linearised arm on the paper's block chatter in continuous time (+37 1/s
+# at 69 Hz, arm modes 4 and 5; model/chip_coupling.py,
+# studies/chip_coupling_stability.py, docs/results.md "the chip's
+# direction from the tool's own motion"); and even the chip's stable
+# low-frequency limit (a velocity coupling) taken explicitly needs a force
+# update under 1.8 ms there, not the averaged force's 4 ms.
 FEED_CUTOFF_HZ = 2.0
 
 
@@ -61,10 +66,12 @@ class MillingForceSource(LeafSystem):
     there the feed direction (``motion``).  So a tool that lags its plan
     turns a corner where it reaches it, not at the plan's clock, and a
     speed ramp thins the chip.  The direction is not taken from the tool's
-    own motion: that couples the chip to the arm's modes, which a force
-    computed a step behind cannot carry, and every filtered version tried
-    is an artefact of its filter (docs/results.md, "the chip's direction
-    from the tool's own motion"; studies/chip_direction.py).
+    own motion: that couples the chip to the arm's modes, and on the
+    paper's block the regenerative chip that results chatters in the
+    linearised physics, not only in the step (studies/chip_coupling_stability.py),
+    while every filtered version tried is an artefact of its filter
+    (docs/results.md, "the chip's direction from the tool's own motion";
+    studies/chip_direction.py).
     ``force_model``: the plant's law (model/plant_cutting.py's
     PlantCuttingLaw, which also takes the cutting travel so far, its flank
     wear's clock) or a linear MillingForceModel.
