@@ -34,6 +34,7 @@ uncompensated one short because nothing on the deck is cut less.
     python studies/cylinder_head_deck.py            # stand-in and deck, draw "none"; 12 cuts, 10-20 minutes
     python studies/cylinder_head_deck.py --draw 0   # the same with mastering draw 0
     python studies/cylinder_head_deck.py --deck-only --zigzag  # the deck with the middle pass back along -x
+    python studies/cylinder_head_deck.py --deck-only --zigzag --mode preview  # compensated reading the program ahead
     python studies/cylinder_head_deck.py --one-pass 2 --without "force filter lag"  # one pass, one removal (a cut)
 """
 
@@ -210,11 +211,15 @@ def pass_steps_mm(boxes, depth):
     return [float(np.nanmean(depth[(y >= a) & (y < b)])) for a, b in zip(lo, hi)]
 
 
-def deck_readings(robot, seed, fields=None, zigzag=False):
+def deck_readings(robot, seed, fields=None, zigzag=False, mode="plain"):
+    """``mode``: the compensated runs' compensator (controller.mode; the
+    study's is "plain", the paper's loop)."""
     sc = pr.paper_scenario("cylinder head", robot, seed, yaml=DECK_YAML)
     boxes = sc.workpiece.boxes_mm
     off = run_passes(sc, robot, False, zigzag=zigzag)
-    on = run_passes(sc, robot, True, zigzag=zigzag)
+    sc_on = copy.deepcopy(sc)
+    sc_on.controller.mode = mode
+    on = run_passes(sc_on, robot, True, zigzag=zigzag)
     free = run_passes(sc, robot, False, unloaded=True, zigzag=zigzag)
     x, y = grid_mm(boxes)
     ref = envelope_grid_mm([r[0] for r in free], x, y)
@@ -272,6 +277,8 @@ def main(argv=None):
     ap.add_argument("--draw", type=int, default=None, help="mastering draw (default: none)")
     ap.add_argument("--deck-only", action="store_true", help="leave out the stand-in (its 3 cuts)")
     ap.add_argument("--zigzag", action="store_true", help="the middle pass back along -x (default: all along +x)")
+    ap.add_argument("--mode", choices=("plain", "predictive", "preview"), default="plain",
+                    help="the deck's compensated passes with this compensator (controller.mode; default: plain)")
     ap.add_argument("--save", type=Path, help="write the depth fields (mm) here (.npz), to look at them again")
     ap.add_argument("--one-pass", type=int, choices=range(1, len(PASSES_Y_MM) + 1),
                     help="only this pass, compensated, its depth along two lines (with --without: a removal)")
@@ -291,7 +298,8 @@ def main(argv=None):
     if not args.deck_only:
         rows.append(("stand-in (one pass, four pads)", standin_readings(robot, args.draw, fields)))
     rows.append((f"deck ({len(PASSES_Y_MM)} passes {'zigzag' if args.zigzag else 'one way'}, four {BORE_MM:g} mm "
-                  "chambers)", deck_readings(robot, args.draw, fields, args.zigzag)))
+                  f"chambers{', ' + args.mode + ' compensator' if args.mode != 'plain' else ''})",
+                 deck_readings(robot, args.draw, fields, args.zigzag, args.mode)))
     if args.save is not None:
         x, y = grid_mm(deck_boxes_mm())
         np.savez(args.save, deck_x_mm=x, deck_y_mm=y, **fields)

@@ -55,6 +55,8 @@ FIGURES = [
      PY + ["studies/paper_reproduction.py", "--no-budget", "--part", "cylinder head"]),
     ("paper_cylinder_head_deck", "The cylinder head as a four-cylinder deck (mastering draw 0)", "10 min",
      PY + ["studies/cylinder_head_deck.py", "--draw", "0"]),
+    ("deck_zigzag_trace", "The cylinder head as a four-cylinder deck: why the zigzag pass cuts deeper compensated",
+     "4 min", PY + ["studies/deck_pass_trace.py", "--zigzag"]),
     ("paper_budgets", "The paper's figures: the budgets' field split", "25 min",
      PY + ["studies/paper_reproduction.py", "--budget-only", "--one-at-a-time"]),
     ("paper_budgets_ordered", "The paper's figures: the ordered budgets", "40 min (results.md)",
