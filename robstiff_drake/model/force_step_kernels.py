@@ -63,6 +63,22 @@ def law_constants(law):
 
 
 @kernel
+def element_at(s, knots, n):
+    """The element of a path of n at arc length s (m): bisect_right in
+    ``knots`` minus one, clamped to 0..n-1 (PlannedPath._element)."""
+    lo, hi = 0, n + 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if s < knots[mid]:
+            hi = mid
+        else:
+            lo = mid + 1
+    i = lo - 1
+    i = 0 if 0 > i else i
+    return n - 1 if n - 1 < i else i
+
+
+@kernel
 def line_motion(t, px, py, pz, hist, window_s, lines, knots, hist_out):
     """MillingForceSource.motion for a path of lines, the history's last
     update known (not NaN): writes the history with (t, s, 0) added to
@@ -75,16 +91,7 @@ def line_motion(t, px, py, pz, hist, window_s, lines, knots, hist_out):
     s = 0.0 if 0.0 > s else s
     s = total if total < s else s
     for _ in range(ITERATIONS):
-        lo, hi = 0, n + 1  # (bisect_right in knots, minus one, clamped to an element)
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if s < knots[mid]:
-                hi = mid
-            else:
-                lo = mid + 1
-        i = lo - 1
-        i = 0 if 0 > i else i
-        i = n - 1 if n - 1 < i else i
+        i = element_at(s, knots, n)
         ls = s - knots[i]
         ls = 0.0 if 0.0 > ls else ls
         ls = lines[i, 6] if lines[i, 6] < ls else ls
@@ -117,16 +124,7 @@ def line_motion(t, px, py, pz, hist, window_s, lines, knots, hist_out):
         ref_t, ref_s = a_t + f * (b_t - a_t), a_s + f * (b_s - a_s)
     span = t - ref_t
     rate = (s - ref_s) / span if span > 0 else 0.0
-    lo, hi = 0, n + 1  # (the element at s, as above)
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if s < knots[mid]:
-            hi = mid
-        else:
-            lo = mid + 1
-    i = lo - 1
-    i = 0 if 0 > i else i
-    i = n - 1 if n - 1 < i else i
+    i = element_at(s, knots, n)
     rate = 0.0 if 0.0 > rate else rate
     return lines[i, 7], lines[i, 8], rate * lines[i, 9]
 
