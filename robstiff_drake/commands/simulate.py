@@ -65,6 +65,9 @@ def summary(results, sc, warnings=()):
     out["plant_time_step_s"] = res0.cell.plant_time_step_s
     out["plant_time_step_choice"] = step_choice(sc)  # why the station took it (None: the scenario gave it)
     out["transport_delay_s"] = res0.cell.transport_delay_s
+    # the regenerative chip's stability at the cut's poses of largest force (diagrams/chatter_check.py; None: not
+    # checked: the tooth-resolved mode or no cut)
+    out["chatter_check"] = getattr(sc, "_chatter_check", None)
     errs = out["surface_error_mm"]
     out["compensation_made_it_worse"] = (bool(errs["compensated"]["rms"] > WORSE_FACTOR * errs["uncompensated"]["rms"])
                                          if len(errs) == 2 else None)
@@ -165,6 +168,7 @@ def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warn
     from robstiff_drake.diagrams.feed_plan import plan_feeds
     from robstiff_drake.diagrams.milling_cell import planned_path as cell_path
     from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+    from robstiff_drake.diagrams.chatter_check import chatter_check, chatter_warning
     from robstiff_drake.diagrams.scenario_models import scenario_warnings
 
     robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset, stock=stock),
@@ -178,6 +182,11 @@ def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warn
     user_models.resolve(sc, robot, q_ref[0])  # the compensator's model (for the warnings too)
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot) + job_warnings(sc))
+        # would the real cut chatter? (the plant leaves the regenerative chip out; diagrams/chatter_check.py)
+        sc._chatter_check = chatter_check(sc, robot, q_ref)
+        line = chatter_warning(sc._chatter_check)
+        if line:
+            warnings.add(line)
     sc_comp = sc
     if sc.path.tolerance_mm > 0 and True in MODES[compensation]:
         plan = plan_feeds(sc, robot)

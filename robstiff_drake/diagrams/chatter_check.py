@@ -1,0 +1,222 @@
+"""Would the cut chatter?  A check of a scenario before it runs (robstiff
+simulate's warnings).
+
+The plant's chip takes its direction from the program
+(systems/milling_force.py): the regenerative chip, the tool's in-plane
+displacement over one tooth period, is left out, so a simulated surface
+assumes a stable cut.  model/chip_coupling.py couples the station's linear
+joints to the plant's law linearised at one pose with the regenerative
+chip; studies/chip_coupling_stability.py found the arm unstable on the
+paper's block at the paper's forces (+36.7 1/s at 68.6 Hz, docs/results.md,
+"Physics or numerics: the arm with its own chip, linearised") and stable
+on diagrams/block_milling.yaml at its own forces.
+
+This check does what that study does at a few poses of the cut, chosen
+without running the simulation: the path sampled at ``SAMPLES`` times, the
+plant's revolution-averaged wrench there, and up to ``MAX_POSES`` poses of
+the largest in-plane force at least a ``MIN_SPACING`` of the cut's span
+apart.  At each: the station's joints (diagrams/compliant_arm.arm_joints,
+the same call as the station's, so its cache serves the run) moved to the
+pose's mass matrix, the law linearised there, and the delay law's
+rightmost root (Pade [``PADE_ORDER``/``PADE_ORDER``] refined by Newton on
+the exact characteristic equation: the study shows [4/4] within 0.005
+1/s of [8/8]).  Only for the revolution-averaged cutting mode (the
+tooth-resolved plant is another law) and a cut that touches the workpiece.
+
+What it rests on: the arm's modal damping is the scenario's plant damping
+(plant.damping_ratios / plant.modal_damping_ratio, an assumption unless
+measured), the cutting coefficients independent of speed, the law linear
+about the pose (model/chip_coupling.py's docstring says what it cannot say).
+"""
+
+import math
+
+import numpy as np
+
+from robstiff_drake.model import chip_coupling as cc
+from robstiff_drake.model import joint_dynamics as jd
+from robstiff_drake.model import kinematics as kin
+
+SAMPLES = 41  # times along the cut where the wrench is evaluated (a wrench is about 20 us)
+MAX_POSES = 3  # poses linearised (each about 25 ms: the Pade roots and their refinement)
+MIN_SPACING = 0.2  # of the cut's span between two poses checked
+PADE_ORDER = 4  # studies/chip_coupling_stability.py: [4/4] within 0.005 1/s of [8/8] and of Newton's root
+REFINED = 4  # the rightmost Pade roots refined (with [4/4] converged, the rightmost exact root is the first's)
+MAX_HZ = 400.0  # the roots searched up to this frequency (the arms' modes are below 130 Hz)
+IN_CUT_N = 1.0  # an in-plane force above this: the tool cuts
+DEPTH_RESOLUTION_MM = 0.05  # the largest stable depth's bisection
+
+
+def poses_to_check(path, law, wp, samples=SAMPLES, max_poses=MAX_POSES, min_spacing=MIN_SPACING):
+    """[(t s, p (3,) m, u (2,) unit feed direction, in-plane force N, feed
+    m/s)]: up to
+    ``max_poses`` times of the largest in-plane revolution-averaged force,
+    at least ``min_spacing`` of the cut's span apart, largest first; [] when
+    the tool never cuts."""
+    t0, t1 = path.dwell_s, path.duration_s - path.dwell_s
+    if not t1 > t0:
+        return []
+    rows = []
+    for t in np.linspace(t0, t1, samples):
+        p = np.asarray(path.position(t), dtype=float)
+        u = np.asarray(path.feed_direction(t), dtype=float)[:2]
+        if not np.linalg.norm(u) > 0:
+            continue
+        u = u / np.linalg.norm(u)
+        feed = feed_at(path, t, law)
+        F = float(np.linalg.norm(law.average_wrench(p, u, wp, feed)[:2]))
+        if F > IN_CUT_N:
+            rows.append((float(t), p, u, F, feed))
+    chosen = []
+    for r in sorted(rows, key=lambda r: -r[3]):
+        if all(abs(r[0] - c[0]) >= min_spacing * (t1 - t0) for c in chosen):
+            chosen.append(r)
+        if len(chosen) == max_poses:
+            break
+    return chosen
+
+
+def feed_at(path, t, law):
+    """The feed (m/s) the chip follows at t: the programmed speed of the move
+    the tool is on (a program's own feeds), else the scenario's feed."""
+    v = float(path.programmed_speed(t)) if hasattr(path, "programmed_speed") else 0.0
+    return v if v > 0 else law.feed_m_per_s
+
+
+def rightmost_root(arm, chip, refined=REFINED):
+    """The delay law's rightmost exact root (1/s, complex): the ``refined``
+    rightmost Pade roots each refined by Newton on the exact characteristic
+    equation (model/chip_coupling.refine_root), the rightmost of those that
+    converge (the Pade root itself if none does)."""
+    pade = cc.pade_roots(arm, chip, PADE_ORDER, MAX_HZ)
+    A0, A1 = cc.delay_matrices(arm, chip)
+    exact = [r for r in (cc.refine_root(A0, A1, chip.tooth_period_s, s) for s in pade[:refined]) if r is not None]
+    return max((complex(r.real, abs(r.imag)) for r in exact), key=lambda r: r.real, default=pade[0])
+
+
+def modes_involved(jm, arm, chip, s, top=2):
+    """[(mode number, drives-closed frequency Hz, share)]: the arm's modes
+    (motors held, numbered from the lowest) the root's link motion is most
+    made of (mass-weighted shares, as the study's ``unstable_mode``)."""
+    A0, A1 = cc.delay_matrices(arm, chip)
+    lam, V = np.linalg.eig(A0 + A1 * np.exp(-s * chip.tooth_period_s))
+    v = V[:, np.argmin(np.abs(lam - s))]
+    _, Phi = jd.held_modes(jm.M, jm.K, jm.G)
+    share = np.abs(Phi.T @ jm.M @ v[:6]) ** 2
+    share /= share.sum()
+    f_closed = jm.arm_modes()[0]
+    return [(int(i) + 1, float(f_closed[i]), float(share[i])) for i in np.argsort(-share)[:top]]
+
+
+def largest_stable_depth_mm(arm, chip_at, p_m, depth_mm):
+    """The largest depth of cut (mm) at the pose the delay law keeps stable
+    (the tool raised in the workpiece, the arm's pose kept; the law
+    linearised there by ``chip_at(p)``), by bisection to
+    DEPTH_RESOLUTION_MM; 0.0 when not even the shallowest is."""
+    def stable(d_mm):
+        p = np.array(p_m, dtype=float)
+        p[2] += (depth_mm - d_mm) / 1e3
+        return rightmost_root(arm, chip_at(p)).real < 0
+    if not stable(DEPTH_RESOLUTION_MM):
+        return 0.0
+    lo, hi = DEPTH_RESOLUTION_MM, float(depth_mm)
+    while hi - lo > DEPTH_RESOLUTION_MM:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo
+
+
+def depth_of_cut_mm(boxes_mm, p_m):
+    """The depth of cut (mm) at the tool point p (m, the cutter's bottom):
+    the highest top of the workpiece boxes under the tool's axis (of all
+    boxes when none is) less the tool's height."""
+    b = np.asarray(boxes_mm, dtype=float).reshape(-1, 5)
+    x, y = p_m[0] * 1e3, p_m[1] * 1e3
+    under = (b[:, 0] <= x) & (x <= b[:, 1]) & (b[:, 2] <= y) & (y <= b[:, 3])
+    return float(np.max(b[under if under.any() else slice(None), 4]) - p_m[2] * 1e3)
+
+
+def chatter_check(sc, robot, q_ref_rad=None):
+    """The check's result (a dict for summary.json's "chatter_check": stable,
+    growth_per_s, frequency_hz, t_s, x_mm, y_mm, z_mm, modes,
+    damping_ratio_assumed, ...), or None when it does not apply (the
+    tooth-resolved mode, no cut).  ``q_ref_rad``: the path's joint
+    references (N, 6) if the caller has them (the station's damping is
+    fitted over them)."""
+    if sc.cutting.mode != "averaged":
+        return None
+    from robstiff_drake.diagrams.compliant_arm import (arm_joints, controller_model, mass_and_weight_stiffness,
+                                                       path_poses)
+    from robstiff_drake.diagrams.path_references import planned_path
+    from robstiff_drake.diagrams.scenario_models import (plant_cutting_setup, plant_damping_ratios, plant_stiffness,
+                                                         servo_parameters)
+
+    tool = robot.tool_point()
+    path, t_ref, q_ref = planned_path(sc, robot, tool)
+    if q_ref_rad is not None:
+        q_ref = np.asarray(q_ref_rad, dtype=float)
+    cutter, law, wp = plant_cutting_setup(sc)
+    poses = poses_to_check(path, law, wp)
+    if not poses:
+        return None
+    plant = controller_model(robot)
+    K = jd.stiffness_matrix(plant_stiffness(sc, robot), sc.plant.coupling_c23_rad_per_Nm)
+    zeta = plant_damping_ratios(sc)
+    jm0 = arm_joints(plant, robot, path_poses(q_ref), K, zeta, servo_parameters(sc), sc.plant.damping_on)
+    T = 1.0 / cutter.tooth_pass_hz
+
+    def chip_at(p, u, feed):
+        return cc.linearise_law(lambda pp, d, f: law.average_wrench(pp, d, wp, f), p, u, feed, T)
+
+    worst = None
+    for t, p, u, F, feed in poses:
+        q = q_ref[min(int(np.argmin(np.abs(np.asarray(t_ref) - t))), len(q_ref) - 1)]
+        jm = jm0.at_pose(*mass_and_weight_stiffness(plant, q))
+        arm = cc.arm_from_joint_model(jm, kin.jacobian(robot.dh, q, tool))
+        chip = chip_at(p, u, feed)
+        s = rightmost_root(arm, chip)
+        if worst is None or s.real > worst[0].real:
+            worst = (s, t, p, u, F, feed, jm, arm, chip)
+    s, t, p, u, F, feed, jm, arm, chip = worst
+    f_hz, ratio = cc.mode_of(s)
+    out = {"stable": bool(s.real < 0), "growth_per_s": float(s.real), "frequency_hz": float(f_hz),
+           "t_s": float(t), "x_mm": float(p[0] * 1e3), "y_mm": float(p[1] * 1e3), "z_mm": float(p[2] * 1e3),
+           "in_plane_force_N": float(F), "feed_mm_per_s": float(feed * 1e3), "poses_checked": len(poses),
+           "damping_ratio_assumed": [float(z) for z in zeta], "damping_on": sc.plant.damping_on,
+           "tooth_pass_hz": float(cutter.tooth_pass_hz), "modes": None, "largest_stable_depth_mm": None,
+           "depth_mm": None}
+    if s.real >= 0:
+        out["modes"] = [{"mode": m, "drives_closed_hz": f, "share": sh}
+                        for m, f, sh in modes_involved(jm, arm, chip, s)]
+        depth = depth_of_cut_mm(sc.workpiece.boxes_mm, p)
+        if depth > DEPTH_RESOLUTION_MM:
+            out["depth_mm"] = float(depth)
+            out["largest_stable_depth_mm"] = float(largest_stable_depth_mm(arm, lambda pp: chip_at(pp, u, feed), p,
+                                                                            depth))
+    return out
+
+
+def chatter_warning(check):
+    """The warning line of a check (``chatter_check``), or None if stable or not checked."""
+    if not check or check["stable"]:
+        return None
+    z = check["damping_ratio_assumed"]
+    zs = f"{100 * z[0]:g} %" if len(set(z)) == 1 else "(" + ", ".join(f"{100 * v:g}" for v in z) + ") %"
+    modes = " and ".join(f"{m['mode']} ({m['drives_closed_hz']:.1f} Hz, share {m['share']:.2f})"
+                         for m in check["modes"] or [])
+    depth = ""
+    if check["largest_stable_depth_mm"] is not None:
+        depth = (f"; at that pose a depth of cut up to {check['largest_stable_depth_mm']:.2f} mm (now "
+                 f"{check['depth_mm']:.2f}) would be stable")
+    on = check["damping_on"].replace("_", "-")
+    g = check["growth_per_s"]
+    doubling_s = math.log(2.0) / g if g > 0 else math.inf
+    doubling = f"{doubling_s * 1e3:.0f} ms" if doubling_s < 1.0 else f"{doubling_s:.1f} s"
+    return (f"chatter: with the regenerative chip (the tool's displacement over a tooth) the arm at x = "
+            f"{check['x_mm']:.0f}, y = {check['y_mm']:.0f} mm (t = {check['t_s']:.2f} s) is unstable: growth "
+            f"{g:+.{1 if g >= 1 else 2}f} 1/s (doubling in {doubling}) at {check['frequency_hz']:.1f} Hz, "
+            f"arm modes {modes}; the simulation's plant leaves the regenerative chip out, so its surface figures "
+            f"assume a stable cut. This rests on the arm's modal damping ratio {zs} on its "
+            f"{on} modes (the scenario's plant damping, an assumption unless "
+            f"measured): a modal test of the arm's modes near {check['frequency_hz']:.0f} Hz would decide it"
+            f"{depth}; a faster spindle may avoid it (docs/results.md: the arm with its own chip)")

@@ -1,0 +1,106 @@
+"""diagrams/chatter_check.py: the paper's block at the paper's forces
+chatters (studies/chip_coupling_stability.py: +36.7 1/s at 68.6 Hz, arm
+modes 4 and 5, stable up to 1.74 mm at x = 1600 mm), the block at its own
+forces does not (-1.77 1/s), and the check stays silent where it does not
+apply."""
+
+import copy
+
+import numpy as np
+import pytest
+
+from robstiff_drake.diagrams.chatter_check import (MAX_POSES, MIN_SPACING, chatter_check, chatter_warning,
+                                                   poses_to_check)
+from robstiff_drake.diagrams.path_references import planned_path
+from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+from robstiff_drake.diagrams.scenario_models import plant_cutting_setup
+from robstiff_drake.paths import scenario_file
+
+
+@pytest.fixture(scope="module")
+def block():
+    sc = load_scenario(scenario_file("block_milling"))
+    return sc, scenario_robot(sc)
+
+
+@pytest.fixture(scope="module")
+def paper_block():
+    # the paper's block with the paper's forces: the study's paper_reproduction scenario differs from it only in
+    # what the linear arm does not see (the gears' play, the controller's mode, the plant step, the compensator's
+    # model)
+    sc = load_scenario(scenario_file("block_milling_paper_forces"))
+    return sc, scenario_robot(sc)
+
+
+def test_the_paper_block_at_the_papers_forces_is_flagged(paper_block):
+    sc, robot = paper_block
+    c = chatter_check(sc, robot)
+    assert c is not None and not c["stable"]
+    assert c["growth_per_s"] == pytest.approx(36.7, abs=1.5)  # the study: +36.66 at x = 1600 mm
+    assert c["frequency_hz"] == pytest.approx(68.6, abs=1.0)
+    assert {m["mode"] for m in c["modes"]} == {4, 5}
+    assert c["modes"][0]["drives_closed_hz"] == pytest.approx(39.0, abs=1.0)
+    assert 1525.0 <= c["x_mm"] <= 1640.0  # fully engaged, the cutter's front still on the block
+    assert c["depth_mm"] == pytest.approx(3.0, abs=1e-6)
+    assert c["largest_stable_depth_mm"] == pytest.approx(1.74, abs=0.1)  # the study's bisection: 1.74 mm
+    assert c["damping_ratio_assumed"] == [pytest.approx(0.05)] * 6
+    line = chatter_warning(c)
+    assert line.startswith("chatter: ")
+    for part in ("+36.", "68.6 Hz", "arm modes 4", "leaves the regenerative chip out", "5 %", "modal test",
+                 "1.7", "faster spindle"):
+        assert part in line
+
+
+def test_the_block_at_its_own_forces_is_not_flagged(block):
+    sc, robot = block
+    c = chatter_check(sc, robot)
+    assert c is not None and c["stable"]
+    assert c["growth_per_s"] == pytest.approx(-1.77, abs=0.3)  # the study: -1.77 1/s at x = 1600 mm
+    assert c["modes"] is None and c["largest_stable_depth_mm"] is None
+    assert chatter_warning(c) is None
+
+
+def test_less_damping_is_flagged_more(block):
+    """The check follows the scenario's damping assumption: the block at
+    its own forces with 0.5 % modal damping is no longer stable."""
+    sc, robot = block
+    sc = copy.deepcopy(sc)
+    sc.plant.modal_damping_ratio = 0.005
+    c = chatter_check(sc, robot)
+    assert c["damping_ratio_assumed"] == [pytest.approx(0.005)] * 6
+    assert c["growth_per_s"] > chatter_check(block[0], robot)["growth_per_s"]
+
+
+def test_not_checked_without_an_averaged_cut(block):
+    sc, robot = block
+    tooth = copy.deepcopy(sc)
+    tooth.cutting.mode = "tooth"
+    assert chatter_check(tooth, robot) is None
+    away = copy.deepcopy(sc)
+    away.workpiece.boxes_mm = [[0.0, 10.0, 500.0, 510.0, 0.0]]  # far from the path: no cut
+    assert chatter_check(away, robot) is None
+    assert chatter_warning(None) is None
+
+
+def test_the_poses_are_few_spread_and_of_the_largest_force(paper_block):
+    sc, robot = paper_block
+    path, _, _ = planned_path(sc, robot, robot.tool_point())
+    _, law, wp = plant_cutting_setup(sc)
+    poses = poses_to_check(path, law, wp)
+    assert 1 <= len(poses) <= MAX_POSES
+    span = path.duration_s - 2 * path.dwell_s
+    t = np.array([p[0] for p in poses])
+    assert np.all(np.abs(t[:, None] - t[None, :])[np.triu_indices(len(t), 1)] >= MIN_SPACING * span - 1e-9)
+    F = [p[3] for p in poses]
+    assert F == sorted(F, reverse=True)
+    every = poses_to_check(path, law, wp, max_poses=1000, min_spacing=0.0)
+    assert F[0] == pytest.approx(max(p[3] for p in every))
+
+
+def test_the_depth_is_under_the_tools_axis():
+    from robstiff_drake.diagrams.chatter_check import depth_of_cut_mm
+
+    boxes = [[0.0, 100.0, -10.0, 10.0, 703.0], [200.0, 300.0, -10.0, 10.0, 710.0]]
+    assert depth_of_cut_mm(boxes, np.array([0.05, 0.0, 0.700])) == pytest.approx(3.0)
+    assert depth_of_cut_mm(boxes, np.array([0.25, 0.0, 0.700])) == pytest.approx(10.0)
+    assert depth_of_cut_mm(boxes, np.array([0.15, 0.0, 0.700])) == pytest.approx(10.0)  # over none: the highest
