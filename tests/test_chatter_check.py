@@ -104,3 +104,20 @@ def test_the_depth_is_under_the_tools_axis():
     assert depth_of_cut_mm(boxes, np.array([0.05, 0.0, 0.700])) == pytest.approx(3.0)
     assert depth_of_cut_mm(boxes, np.array([0.25, 0.0, 0.700])) == pytest.approx(10.0)
     assert depth_of_cut_mm(boxes, np.array([0.15, 0.0, 0.700])) == pytest.approx(10.0)  # over none: the highest
+
+
+def test_a_root_at_the_edge_is_worded_as_the_damping_assumptions_to_decide():
+    """A growth that is less than MARGINAL_DAMPING of negative damping (the
+    shipped cylinder head: +0.22 1/s at 11.2 Hz, 0.3 %) is called the edge of
+    stability, which the assumed damping decides, not an unstable cut; a
+    clear one (+36.9 1/s at 68.6 Hz, 8.6 %) is called unstable."""
+    from robstiff_drake.diagrams.chatter_check import MARGINAL_DAMPING
+
+    check = {"stable": False, "damping_ratio_assumed": [0.05] * 6, "damping_on": "drives_closed", "x_mm": 1622.0,
+             "y_mm": 0.0, "t_s": 11.15, "modes": [{"mode": 3, "drives_closed_hz": 11.1, "share": 0.74}],
+             "largest_stable_depth_mm": None, "depth_mm": None}
+    edge = chatter_warning(dict(check, growth_per_s=0.22, frequency_hz=11.2))
+    assert 0.22 / (2 * np.pi * 11.2) < MARGINAL_DAMPING
+    assert "at the edge of stability (short of 0.31 % of damping" in edge and "is unstable" not in edge
+    clear = chatter_warning(dict(check, growth_per_s=36.9, frequency_hz=68.6))
+    assert "is unstable: growth +36.9 1/s" in clear and "edge" not in clear
