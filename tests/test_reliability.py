@@ -428,7 +428,11 @@ def test_ctrl_c_during_a_simulation_leaves_nothing_behind(tmp_path):
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err
-    assert err.strip() == "robstiff: interrupted"
+    # the last line says so, before it only the job's warnings (at 1 mm/s the chatter check's edge of stability:
+    # a chip 20 times thinner is stiffer under the plant's exponent law), no traceback
+    lines = err.strip().splitlines()
+    assert lines[-1] == "robstiff: interrupted", err
+    assert all(line.startswith("robstiff: warning: ") for line in lines[:-1]), err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["slow.yaml"]
 
 
