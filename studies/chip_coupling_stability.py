@@ -170,13 +170,8 @@ def unstable_mode(cut, x_mm):
     arm, jm = cut.arm(p)
     chip = cut.chip(p)
     s = exact_rightmost(arm, chip)
-    A0, A1 = cc.delay_matrices(arm, chip)
-    lam, V = np.linalg.eig(A0 + A1 * np.exp(-s * chip.tooth_period_s))
-    v = V[:, np.argmin(np.abs(lam - s))]
-    w, Phi = jd.held_modes(jm.M, jm.K, jm.G)
-    share = np.abs(Phi.T @ jm.M @ v[:6]) ** 2
-    share /= share.sum()
-    f_closed = jm.arm_modes()[0]
+    v, share, f_closed = cc.root_modes(jm, arm, chip, s)
+    w = jd.held_modes(jm.M, jm.K, jm.G)[0]  # (motors held, rad/s)
     tool = arm.Cp @ v
     tool = tool / np.abs(tool).max()
     K, C = chip.Kf[:3] / 1e6, chip.velocity_coupling[:3]

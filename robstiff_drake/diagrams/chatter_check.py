@@ -102,13 +102,7 @@ def modes_involved(jm, arm, chip, s, top=2):
     """[(mode number, drives-closed frequency Hz, share)]: the arm's modes
     (motors held, numbered from the lowest) the root's link motion is most
     made of (mass-weighted shares, as the study's ``unstable_mode``)."""
-    A0, A1 = cc.delay_matrices(arm, chip)
-    lam, V = np.linalg.eig(A0 + A1 * np.exp(-s * chip.tooth_period_s))
-    v = V[:, np.argmin(np.abs(lam - s))]
-    _, Phi = jd.held_modes(jm.M, jm.K, jm.G)
-    share = np.abs(Phi.T @ jm.M @ v[:6]) ** 2
-    share /= share.sum()
-    f_closed = jm.arm_modes()[0]
+    _, share, f_closed = cc.root_modes(jm, arm, chip, s)
     return [(int(i) + 1, float(f_closed[i]), float(share[i])) for i in np.argsort(-share)[:top]]
 
 

@@ -278,6 +278,22 @@ def mode_of(s):
 
 # ---- discrete time: the plant's scheme ----
 
+def root_modes(jm, arm, chip, s):
+    """(v, share, f_closed_hz): the coupled arm's eigenvector at the root s
+    of the delay law (its state: links first), the shares of the arm's
+    modes (motors held, from the lowest; mass-weighted, summing to one) in
+    its link motion, and the arm's drives-closed frequencies (Hz); ``jm`` a
+    model/joint_dynamics.JointModel at the pose."""
+    from robstiff_drake.model import joint_dynamics as jd
+
+    A0, A1 = delay_matrices(arm, chip)
+    lam, V = np.linalg.eig(A0 + A1 * np.exp(-s * chip.tooth_period_s))
+    v = V[:, np.argmin(np.abs(lam - s))]
+    _, Phi = jd.held_modes(jm.M, jm.K, jm.G)
+    share = np.abs(Phi.T @ jm.M @ v[:6]) ** 2
+    return v, share / share.sum(), jm.arm_modes()[0]
+
+
 def scheme_map(arm, chip, step_s, *, period_steps=1, window_s=None, along=None, cutoff_hz=None,
                along_cutoff_hz=None, coupled=True):
     """The linear map of the plant's scheme over one force period (see the
