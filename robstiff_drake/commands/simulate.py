@@ -183,7 +183,7 @@ def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warn
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot) + job_warnings(sc))
         # would the real cut chatter? (the plant leaves the regenerative chip out; diagrams/chatter_check.py)
-        sc._chatter_check = chatter_check(sc, robot, q_ref)
+        sc._chatter_check = chatter_check(sc, robot)
         line = chatter_warning(sc._chatter_check)
         if line:
             warnings.add(line)

@@ -134,13 +134,11 @@ def depth_of_cut_mm(boxes_mm, p_m):
     return float(np.max(b[under if under.any() else slice(None), 4]) - p_m[2] * 1e3)
 
 
-def chatter_check(sc, robot, q_ref_rad=None):
+def chatter_check(sc, robot):
     """The check's result (a dict for summary.json's "chatter_check": stable,
     growth_per_s, frequency_hz, t_s, x_mm, y_mm, z_mm, modes,
     damping_ratio_assumed, ...), or None when it does not apply (the
-    tooth-resolved mode, no cut).  ``q_ref_rad``: the path's joint
-    references (N, 6) if the caller has them (the station's damping is
-    fitted over them)."""
+    tooth-resolved mode, no cut)."""
     if sc.cutting.mode != "averaged":
         return None
     from robstiff_drake.diagrams.compliant_arm import (arm_joints, controller_model, mass_and_weight_stiffness,
@@ -150,9 +148,7 @@ def chatter_check(sc, robot, q_ref_rad=None):
                                                          servo_parameters)
 
     tool = robot.tool_point()
-    path, t_ref, q_ref = planned_path(sc, robot, tool)
-    if q_ref_rad is not None:
-        q_ref = np.asarray(q_ref_rad, dtype=float)
+    path, t_ref, q_ref = planned_path(sc, robot, tool)  # (the run's own references: kept once per process)
     cutter, law, wp = plant_cutting_setup(sc)
     poses = poses_to_check(path, law, wp)
     if not poses:
