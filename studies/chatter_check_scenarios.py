@@ -1,12 +1,23 @@
 """Which packaged scenarios would chatter?  diagrams/chatter_check.py (the
-check `robstiff simulate` runs before a cut: the regenerative chip at up to
-3 poses of the largest planned force) on every packaged scenario, and its
+check `robstiff simulate` runs before a cut: the regenerative chip at every
+sampled pose that cuts) on every packaged scenario, and its
 wall time per scenario (the first call in this process builds the arm's
 joints, which the station's run then reuses; the law's compiled kernels are
 warmed first, as a run compiles them anyway).  A few seconds.
 
     python studies/chatter_check_scenarios.py
     python studies/chatter_check_scenarios.py --simulate-timing   # and a whole simulate call with and without it
+    python studies/chatter_check_scenarios.py --dense             # and the check at every in-cut sample (a minute)
+
+The second table: for each warned scenario, the modal damping that would
+make the cut stable (diagrams/chatter_damping.py: the involved modes alone,
+and the same ratio on every mode, by bisection).
+
+``--dense``: the check as it was before issue 29's step 3 (3 poses of
+the largest force, a fifth of the cut apart, each refined) against the
+check now (every one of the SAMPLES times that cuts, the REFINED_POSES of
+the rightmost Pade roots refined): does a verdict or the worst growth
+change?
 
 ``--simulate-timing``: `simulate` of block_milling (both runs) in fresh
 processes, alternately with the check and with it replaced by one that
@@ -54,10 +65,15 @@ def simulate_timing(scenario="block_milling", repeats=3):
         print(f"| {'with' if check else 'without'} | " + " | ".join(f"{t:.2f}" for t in times[check]) + " |")
 
 
-def table():
+def warm_up():
     sc = load_scenario(scenario_file("short_block"))
     _, law, wp = plant_cutting_setup(sc)
     law.average_wrench(np.array([1.6, 0.0, 0.7]), np.array([1.0, 0.0]), wp, law.feed_m_per_s)
+
+
+def table():
+    warm_up()
+    checks = {}
     print("| scenario | cutting mode | stable | growth (1/s) | frequency (Hz) | where: t (s), x, y (mm) | arm modes "
           "(drives closed, Hz) | largest stable depth (mm) | check's wall time (ms) |")
     print("|---|---|---|---|---|---|---|---|---|")
@@ -68,6 +84,7 @@ def table():
         t0 = time.perf_counter()
         c = chatter_check(sc, robot)
         ms = (time.perf_counter() - t0) * 1e3
+        checks[name] = c
         if c is None:
             print(f"| {name} | {sc.cutting.mode} | not checked | | | | | | {ms:.0f} |")
             continue
@@ -76,17 +93,77 @@ def table():
         print(f"| {name} | {sc.cutting.mode} | {'yes' if c['stable'] else 'no'} | {c['growth_per_s']:+.2f} | "
               f"{c['frequency_hz']:.1f} | {c['t_s']:.2f}, {c['x_mm']:.0f}, {c['y_mm']:.0f} | {modes} | {depth} | "
               f"{ms:.0f} |", flush=True)
+    return checks
+
+
+def pct(v):
+    return "not within 50" if v is None else f"{100 * v:.1f}"
+
+
+def damping_table(checks):
+    """The damping that would make each warned cut stable (its check's damping_to_stabilise)."""
+    print("\n| scenario | growth (1/s) | frequency (Hz) | arm modes | their damping now (drives closed, %) | stable "
+          "from, on these modes alone (drives closed, %) | stable from, the same stated on every mode (%) |")
+    print("|---|---|---|---|---|---|---|")
+    for name, c in checks.items():
+        d = c and c.get("damping_to_stabilise")
+        if not d:
+            continue
+        need = ("not within 50" if d["realised_on_these_modes"] is None else
+                " / ".join(f"{100 * v:.2f}" for v in d["realised_on_these_modes"]))
+        print(f"| {name} | {c['growth_per_s']:+.2f} | {c['frequency_hz']:.1f} | "
+              f"{', '.join(str(m) for m in d['modes'])} | {' / '.join(f'{100 * v:.2f}' for v in d['ratio_now'])} | "
+              f"{need} | {pct(d['on_every_mode'])} |")
+
+
+FEW_POSES, FEW_SPACING = 3, 0.2  # the check's poses before: 3 of the largest force, a fifth of the cut apart
+
+
+def dense_table():
+    """The check at the FEW_POSES poses of the largest force against every in-cut sample (the default now)."""
+    from robstiff_drake.diagrams import chatter_check as ch
+    from robstiff_drake.diagrams.chatter_check import SAMPLES
+    warm_up()
+    print(f"\n| scenario | {FEW_POSES} poses of the largest force: stable, growth (1/s), Hz, t (s) | every in-cut "
+          f"sample of {SAMPLES}: poses, stable, growth (1/s), Hz, t (s) | verdict changes | growth change (1/s) | "
+          f"wall time (ms): {FEW_POSES} poses, every sample |")
+    print("|---|---|---|---|---|---|")
+    for name in packaged_scenarios():
+        sc = load_scenario(scenario_file(name))
+        robot = scenario_robot(sc)
+        planned_path(sc, robot, robot.tool_point())
+        t0 = time.perf_counter()
+        refined, ch.REFINED_POSES = ch.REFINED_POSES, FEW_POSES  # (each of the 3 refined, as it was)
+        few = chatter_check(sc, robot, max_poses=FEW_POSES, min_spacing=FEW_SPACING)
+        ch.REFINED_POSES = refined
+        t1 = time.perf_counter()
+        every = chatter_check(sc, robot)
+        t2 = time.perf_counter()
+        if few is None:
+            print(f"| {name} | not checked | | | | |")
+            continue
+
+        def row(c):
+            return (f"{'yes' if c['stable'] else 'no'}, {c['growth_per_s']:+.2f}, {c['frequency_hz']:.1f}, "
+                    f"{c['t_s']:.2f}")
+        print(f"| {name} | {row(few)} | {every['poses_checked']}: {row(every)} | "
+              f"{'YES' if few['stable'] != every['stable'] else 'no'} | "
+              f"{every['growth_per_s'] - few['growth_per_s']:+.2f} | {(t1 - t0) * 1e3:.0f}, {(t2 - t1) * 1e3:.0f} |",
+              flush=True)
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--simulate-timing", action="store_true", help="a whole simulate call with and without the check")
+    ap.add_argument("--dense", action="store_true", help="and the check at 3 poses of the largest force against every sample")
     ap.add_argument("--one", nargs=2, metavar=("SCENARIO", "ON_OFF"), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.one:
         print(f"{one_simulate(scenario_file(args.one[0]), args.one[1] == 'on'):.3f}")
         return
-    table()
+    damping_table(table())
+    if args.dense:
+        dense_table()
     if args.simulate_timing:
         simulate_timing()
 
