@@ -7,7 +7,8 @@ warmed first, as a run compiles them anyway).  A few seconds.
 
     python studies/chatter_check_scenarios.py
     python studies/chatter_check_scenarios.py --simulate-timing   # and a whole simulate call with and without it
-    python studies/chatter_check_scenarios.py --dense             # and the check at every in-cut sample (a minute)
+    python studies/chatter_check_scenarios.py --dense             # and 3 poses against every sample (10 s)
+    python studies/chatter_check_scenarios.py --slow-feed         # and block_milling at slower feeds (5 s)
 
 The second table: for each warned scenario, the modal damping that would
 make the cut stable (diagrams/chatter_damping.py: the involved modes alone,
@@ -152,10 +153,62 @@ def dense_table():
               flush=True)
 
 
+def slow_feed_table(feeds_mm_per_s=(1.0, 2.0, 3.6, 5.0, 10.0, 20.0)):
+    """block_milling at slower feeds: the check with the law linearised at
+    the real chip (below MIN_CHIP_M too, as before) and at no less than
+    the law's validity (the check now); at 1 mm/s the law's parts taken
+    out one by one (which of them makes the root)."""
+    import dataclasses
+
+    from robstiff_drake.diagrams import chatter_check as ch
+    from robstiff_drake.diagrams import scenario_models as sm
+    from robstiff_drake.model.plant_cutting import PlantCuttingLaw
+    warm_up()
+    sc0 = load_scenario(scenario_file("block_milling"))
+    robot = scenario_robot(sc0)
+    floor = ch.min_chip_m
+
+    def check(feed, extrapolated=False, **physics):
+        sc = load_scenario(scenario_file("block_milling"))
+        sc.path.feed_mm_per_s = feed
+        setup = sm.plant_cutting_setup
+        if physics:
+            def altered(s):
+                cutter, law, wp = setup(s)
+                return cutter, PlantCuttingLaw(law.linear, dataclasses.replace(law.physics, **physics)), wp
+            sm.plant_cutting_setup = altered
+        ch.min_chip_m = (lambda law: 0.0) if extrapolated else floor
+        try:
+            c = ch.chatter_check(sc, robot)
+        finally:
+            sm.plant_cutting_setup, ch.min_chip_m = setup, floor
+        return f"{c['growth_per_s']:+.2f} at {c['frequency_hz']:.1f} Hz"
+
+    _, law, _ = sm.plant_cutting_setup(sc0)
+    print(f"\nblock_milling at slower feeds (tooth pass {law.cutter.tooth_pass_hz:.0f} Hz; the law linearised "
+          f"at a feed per tooth of at least {floor(law) * 1e6:.0f} um now):")
+    print("| feed (mm/s) | feed per tooth (um) | the law linearised at the real chip: growth (1/s) at | at no less "
+          "than its validity (now) |")
+    print("|---|---|---|---|")
+    for feed in feeds_mm_per_s:
+        print(f"| {feed:g} | {law.cutter.feed_per_tooth_m(feed / 1e3) * 1e6:.1f} | {check(feed, True)} | "
+              f"{check(feed)} |", flush=True)
+    print("\nat 1 mm/s, linearised at the real chip, the law's parts taken out:")
+    print("| law | growth (1/s) at |")
+    print("|---|---|")
+    for label, physics in (("the plant's law", {}), ("edge forces in full at any chip (no ramp)",
+                                                     {"edge_ramp_chip_m": 0.0}),
+                           ("no runout", {"runout_m": 0.0}), ("chip exponent 1 (no Kienzle)", {"chip_exponent": 1.0}),
+                           ("no runout, no ramp, exponent 1", {"runout_m": 0.0, "edge_ramp_chip_m": 0.0,
+                                                               "chip_exponent": 1.0})):
+        print(f"| {label} | {check(1.0, True, **physics)} |", flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser()
     ap.add_argument("--simulate-timing", action="store_true", help="a whole simulate call with and without the check")
     ap.add_argument("--dense", action="store_true", help="and the check at 3 poses of the largest force against every sample")
+    ap.add_argument("--slow-feed", action="store_true", help="and block_milling at slower feeds (the chip's floor)")
     ap.add_argument("--one", nargs=2, metavar=("SCENARIO", "ON_OFF"), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.one:
@@ -164,6 +217,8 @@ def main(argv=None):
     damping_table(table())
     if args.dense:
         dense_table()
+    if args.slow_feed:
+        slow_feed_table()
     if args.simulate_timing:
         simulate_timing()
 
