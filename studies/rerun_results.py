@@ -48,7 +48,7 @@ FIGURES = [
     ("chip_coupling", "The plant's own cutting physics: the arm with its own chip, linearised (physics or numerics)",
      "15 min", PY + ["studies/chip_coupling_stability.py", "--face-and-contour", "--drake", "--drake-play"]),
     ("chatter_check", "The plant's own cutting physics: the check robstiff simulate runs (chatter)", "1 min",
-     PY + ["studies/chatter_check_scenarios.py", "--simulate-timing"]),
+     PY + ["studies/chatter_check_scenarios.py", "--dense", "--slow-feed", "--simulate-timing"]),
     ("fc_budget", "The error budget (face and contour)", "30-60 min (results.md)",
      CLI + ["simulate", "diagrams/face_and_contour.yaml", "--compensation", "on", "--budget", "--out", "{out}/fc_budget"]),
     ("paper_reproduction", "The paper's figures from stated imperfections", "10 min",

@@ -187,6 +187,35 @@ def test_linearise_law_recovers_a_linear_laws_matrices():
     np.testing.assert_allclose(lin.velocity_coupling, B * T, rtol=1e-6)
 
 
+def test_a_chip_below_the_minimum_is_linearised_at_the_minimum():
+    """A law whose chip force is h^0.75 (stiffer as the chip thins) with a
+    feed per tooth of 2.8 um: with ``min_chip_m`` = 10 um its chip slope is
+    the law's at 10 um, not at 2.8 um (a thicker feed is left as it is);
+    the engagement's slope Kp stays the law's at the real feed."""
+    T, k = 1.0 / 360.0, 1e5  # N per m^0.75
+
+    def wrench(p, u, feed):
+        f = np.asarray(u) * feed * T
+        h = np.linalg.norm(f)
+        return np.r_[k * h ** 0.75 * f / h, 1e3 * feed * p[2], 0.0, 0.0, 0.0]
+
+    def slope(h):  # d|F|/dh along the feed
+        return 0.75 * k * h ** -0.25
+
+    thin = 1e-3  # m/s: 2.8 um a tooth
+    plain = cc.linearise_law(wrench, np.zeros(3), (1.0, 0.0), thin, T)
+    floored = cc.linearise_law(wrench, np.zeros(3), (1.0, 0.0), thin, T, min_chip_m=10e-6)
+    assert plain.Kf[0, 0] == pytest.approx(slope(thin * T), rel=1e-3)
+    assert floored.Kf[0, 0] == pytest.approx(slope(10e-6), rel=1e-3)
+    assert floored.Kf[0, 0] < 0.75 * plain.Kf[0, 0]
+    assert floored.Kf[1, 1] == pytest.approx(k * 10e-6 ** 0.75 / 10e-6, rel=1e-3)  # the force turning with the chip
+    np.testing.assert_allclose(floored.Kp, plain.Kp)
+    assert floored.Kp[2, 2] == pytest.approx(1e3 * thin)
+    thick = 0.02  # 55.6 um a tooth: above the minimum, unchanged
+    np.testing.assert_allclose(cc.linearise_law(wrench, np.zeros(3), (1.0, 0.0), thick, T, min_chip_m=10e-6).Kf,
+                               cc.linearise_law(wrench, np.zeros(3), (1.0, 0.0), thick, T).Kf)
+
+
 def test_pade_matches_the_delay_at_low_frequency():
     T = 0.01
     for n in (1, 2, 4):

@@ -65,7 +65,7 @@ def summary(results, sc, warnings=()):
     out["plant_time_step_s"] = res0.cell.plant_time_step_s
     out["plant_time_step_choice"] = step_choice(sc)  # why the station took it (None: the scenario gave it)
     out["transport_delay_s"] = res0.cell.transport_delay_s
-    # the regenerative chip's stability at the cut's poses of largest force (diagrams/chatter_check.py; None: not
+    # the regenerative chip's stability at the cut's sampled poses (diagrams/chatter_check.py; None: not
     # checked: the tooth-resolved mode or no cut)
     out["chatter_check"] = getattr(sc, "_chatter_check", None)
     errs = out["surface_error_mm"]

@@ -11,16 +11,20 @@ paper's block at the paper's forces (+36.7 1/s at 68.6 Hz, docs/results.md,
 "Physics or numerics: the arm with its own chip, linearised") and stable
 on diagrams/block_milling.yaml at its own forces.
 
-This check does what that study does at a few poses of the cut, chosen
-without running the simulation: the path sampled at ``SAMPLES`` times, the
-plant's revolution-averaged wrench there, and up to ``MAX_POSES`` poses of
-the largest in-plane force at least a ``MIN_SPACING`` of the cut's span
-apart.  At each: the station's joints (diagrams/compliant_arm.arm_joints,
-the same call as the station's, so its cache serves the run) moved to the
-pose's mass matrix, the law linearised there, and the delay law's
-rightmost root (Pade [``PADE_ORDER``/``PADE_ORDER``] refined by Newton on
-the exact characteristic equation: the study shows [4/4] within 0.005
-1/s of [8/8]).  Only for the revolution-averaged cutting mode (the
+This check does what that study does along the cut, without running the
+simulation: the path sampled at ``SAMPLES`` times, the plant's
+revolution-averaged wrench there, and every time that cuts a pose checked
+(``MAX_POSES``; the poses of the largest force alone miss the partial
+engagement of a cutter entering the block, where the KR 240's block is at
+the edge of stability: studies/chatter_check_scenarios.py --dense).  At
+each: the station's joints (diagrams/compliant_arm.arm_joints, the same
+call as the station's, so its cache serves the run) moved to the pose's
+mass matrix, the law linearised there, and the delay law's rightmost root
+by Pade [``PADE_ORDER``/``PADE_ORDER``] (the study shows [4/4] within
+0.005 1/s of [8/8]); at the ``REFINED_POSES`` poses of the rightmost Pade
+roots those are refined by Newton on the exact characteristic equation.
+Where it grows, diagrams/chatter_damping.py finds the modal damping that
+would make it stable.  Only for the revolution-averaged cutting mode (the
 tooth-resolved plant is another law) and a cut that touches the workpiece.
 
 What it rests on: the arm's modal damping is the scenario's plant damping
@@ -33,13 +37,15 @@ import math
 
 import numpy as np
 
+from robstiff_drake.diagrams.chatter_damping import damping_phrase, damping_to_stabilise
 from robstiff_drake.model import chip_coupling as cc
 from robstiff_drake.model import joint_dynamics as jd
 from robstiff_drake.model import kinematics as kin
 
 SAMPLES = 41  # times along the cut where the wrench is evaluated (a wrench is about 20 us)
-MAX_POSES = 3  # poses linearised (each about 25 ms: the Pade roots and their refinement)
-MIN_SPACING = 0.2  # of the cut's span between two poses checked
+MAX_POSES = SAMPLES  # poses linearised: every time that cuts (each about 3 ms for the Pade roots and the joints)
+MIN_SPACING = 0.0  # of the cut's span between two poses checked
+REFINED_POSES = 3  # the poses of the rightmost Pade roots whose roots are refined by Newton (each about 3 ms)
 PADE_ORDER = 4  # studies/chip_coupling_stability.py: [4/4] within 0.005 1/s of [8/8] and of Newton's root
 REFINED = 4  # the rightmost Pade roots refined (with [4/4] converged, the rightmost exact root is the first's)
 MAX_HZ = 400.0  # the roots searched up to this frequency (the arms' modes are below 130 Hz)
@@ -49,6 +55,19 @@ DEPTH_RESOLUTION_MM = 0.05  # the largest stable depth's bisection
 # the root is at the edge of stability, well inside what the assumed modal damping (its 1 %-point uncertainty at
 # least, when not measured) can decide, and the warning says so instead of calling the cut unstable
 MARGINAL_DAMPING = 0.005
+# The chip (feed per tooth) below which the law is not linearised (model/chip_coupling.linearise_law's min_chip_m;
+# a thinner one is taken at this size): the plant law's edge ramp (model/plant_cutting.py: 10 um, the hone of a sharp
+# insert for aluminium, ASSUMPTION 5-20 um by grade).  Below it no chip forms (the minimum chip thickness is 0.2-0.4
+# of the edge radius: Liu, DeVor and Kapoor, J. Manuf. Sci. Eng. 126(4), 2004): the law's force there is its ramp, a
+# stand-in for ploughing, whose slope (edge coefficient / ramp) would be taken for a chip stiffness and whose process
+# damping the linear model leaves out (docs/results.md: the slow feed).  A law without a ramp: this default.
+MIN_CHIP_M = 10e-6
+
+
+def min_chip_m(law):
+    """The chip (m) below which ``law`` is not linearised: its edge ramp, else MIN_CHIP_M."""
+    ramp = float(getattr(getattr(law, "physics", None), "edge_ramp_chip_m", 0.0) or 0.0)
+    return ramp if ramp > 0 else MIN_CHIP_M
 
 
 def poses_to_check(path, law, wp, samples=SAMPLES, max_poses=MAX_POSES, min_spacing=MIN_SPACING):
@@ -87,12 +106,13 @@ def feed_at(path, t, law):
     return v if v > 0 else law.feed_m_per_s
 
 
-def rightmost_root(arm, chip, refined=REFINED):
+def rightmost_root(arm, chip, refined=REFINED, pade=None):
     """The delay law's rightmost exact root (1/s, complex): the ``refined``
-    rightmost Pade roots each refined by Newton on the exact characteristic
-    equation (model/chip_coupling.refine_root), the rightmost of those that
-    converge (the Pade root itself if none does)."""
-    pade = cc.pade_roots(arm, chip, PADE_ORDER, MAX_HZ)
+    rightmost Pade roots (``pade``: given, else computed) each refined by
+    Newton on the exact characteristic equation
+    (model/chip_coupling.refine_root), the rightmost of those that converge
+    (the Pade root itself if none does)."""
+    pade = cc.pade_roots(arm, chip, PADE_ORDER, MAX_HZ) if pade is None else pade
     A0, A1 = cc.delay_matrices(arm, chip)
     exact = [r for r in (cc.refine_root(A0, A1, chip.tooth_period_s, s) for s in pade[:refined]) if r is not None]
     return max((complex(r.real, abs(r.imag)) for r in exact), key=lambda r: r.real, default=pade[0])
@@ -134,11 +154,12 @@ def depth_of_cut_mm(boxes_mm, p_m):
     return float(np.max(b[under if under.any() else slice(None), 4]) - p_m[2] * 1e3)
 
 
-def chatter_check(sc, robot):
+def chatter_check(sc, robot, max_poses=MAX_POSES, min_spacing=MIN_SPACING):
     """The check's result (a dict for summary.json's "chatter_check": stable,
     growth_per_s, frequency_hz, t_s, x_mm, y_mm, z_mm, modes,
-    damping_ratio_assumed, ...), or None when it does not apply (the
-    tooth-resolved mode, no cut)."""
+    damping_ratio_assumed, damping_to_stabilise, ...), or None when it does
+    not apply (the tooth-resolved mode, no cut).  ``max_poses`` and
+    ``min_spacing``: ``poses_to_check``'s (a denser check: a study's)."""
     if sc.cutting.mode != "averaged":
         return None
     from robstiff_drake.diagrams.compliant_arm import (arm_joints, controller_model, mass_and_weight_stiffness,
@@ -150,7 +171,7 @@ def chatter_check(sc, robot):
     tool = robot.tool_point()
     path, t_ref, q_ref = planned_path(sc, robot, tool)  # (the run's own references: kept once per process)
     cutter, law, wp = plant_cutting_setup(sc)
-    poses = poses_to_check(path, law, wp)
+    poses = poses_to_check(path, law, wp, max_poses=max_poses, min_spacing=min_spacing)
     if not poses:
         return None
     plant = controller_model(robot)
@@ -160,17 +181,24 @@ def chatter_check(sc, robot):
     T = 1.0 / cutter.tooth_pass_hz
 
     def chip_at(p, u, feed):
-        return cc.linearise_law(lambda pp, d, f: law.average_wrench(pp, d, wp, f), p, u, feed, T)
+        return cc.linearise_law(lambda pp, d, f: law.average_wrench(pp, d, wp, f), p, u, feed, T,
+                                min_chip_m=min_chip_m(law))
 
-    worst = None
+    def q_at(t):
+        return q_ref[min(int(np.argmin(np.abs(np.asarray(t_ref) - t))), len(q_ref) - 1)]
+
+    at = []  # (Pade roots, t, p, u, F, feed, jm, arm, chip) per pose
     for t, p, u, F, feed in poses:
-        q = q_ref[min(int(np.argmin(np.abs(np.asarray(t_ref) - t))), len(q_ref) - 1)]
+        q = q_at(t)
         jm = jm0.at_pose(*mass_and_weight_stiffness(plant, q))
         arm = cc.arm_from_joint_model(jm, kin.jacobian(robot.dh, q, tool))
         chip = chip_at(p, u, feed)
-        s = rightmost_root(arm, chip)
+        at.append((cc.pade_roots(arm, chip, PADE_ORDER, MAX_HZ),) + (t, p, u, F, feed, jm, arm, chip))
+    worst = None
+    for pade, *rest in sorted(at, key=lambda a: -a[0][0].real)[:REFINED_POSES]:
+        s = rightmost_root(rest[-2], rest[-1], pade=pade)
         if worst is None or s.real > worst[0].real:
-            worst = (s, t, p, u, F, feed, jm, arm, chip)
+            worst = (s, *rest)
     s, t, p, u, F, feed, jm, arm, chip = worst
     f_hz, ratio = cc.mode_of(s)
     out = {"stable": bool(s.real < 0), "growth_per_s": float(s.real), "frequency_hz": float(f_hz),
@@ -178,10 +206,13 @@ def chatter_check(sc, robot):
            "in_plane_force_N": float(F), "feed_mm_per_s": float(feed * 1e3), "poses_checked": len(poses),
            "damping_ratio_assumed": [float(z) for z in zeta], "damping_on": sc.plant.damping_on,
            "tooth_pass_hz": float(cutter.tooth_pass_hz), "modes": None, "largest_stable_depth_mm": None,
-           "depth_mm": None}
+           "depth_mm": None, "damping_to_stabilise": None}
     if s.real >= 0:
-        out["modes"] = [{"mode": m, "drives_closed_hz": f, "share": sh}
-                        for m, f, sh in modes_involved(jm, arm, chip, s)]
+        involved = modes_involved(jm, arm, chip, s)
+        out["modes"] = [{"mode": m, "drives_closed_hz": f, "share": sh} for m, f, sh in involved]
+        J = kin.jacobian(robot.dh, q_at(t), tool)
+        out["damping_to_stabilise"] = damping_to_stabilise(jm, J, chip, rightmost_root, zeta,
+                                                           [m for m, _, _ in involved], sc.plant.damping_on)
         depth = depth_of_cut_mm(sc.workpiece.boxes_mm, p)
         if depth > DEPTH_RESOLUTION_MM:
             out["depth_mm"] = float(depth)
@@ -217,4 +248,5 @@ def chatter_warning(check):
             f"assume a stable cut. This rests on the arm's modal damping ratio {zs} on its "
             f"{on} modes (the scenario's plant damping, an assumption unless "
             f"measured): a modal test of the arm's modes near {check['frequency_hz']:.0f} Hz would decide it"
-            f"{depth}; a faster spindle may avoid it (docs/results.md: the arm with its own chip)")
+            f"{damping_phrase(check.get('damping_to_stabilise'))}{depth}; a faster spindle may avoid it "
+            "(docs/results.md: the arm with its own chip)")

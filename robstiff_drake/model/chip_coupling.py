@@ -82,18 +82,22 @@ class LinearisedChip:
         return self.Kf * self.tooth_period_s
 
 
-def linearise_law(wrench_of, p0_m, feed_dir_xy, feed_m_per_s, tooth_period_s, dp_m=2e-5, rel_df=0.02):
+def linearise_law(wrench_of, p0_m, feed_dir_xy, feed_m_per_s, tooth_period_s, dp_m=2e-5, rel_df=0.02,
+                  min_chip_m=0.0):
     """The LinearisedChip of ``wrench_of(p (3,) m, u (2,) unit, feed m/s)
     -> (6,) wrench`` at the tool point p0, the feed direction u and the
     feed: central differences, the tool point by ``dp_m`` along each base
     axis, the chip vector f = feed T u by ``rel_df`` of |f| along each of
     x, y (its direction turned and its size changed as the tool's motion
-    would)."""
+    would).  ``min_chip_m``: the chip vector's size (the feed per tooth, m)
+    below which the law is not linearised: a thinner one is taken at this
+    size (the law's slope at the edge of its validity, not extrapolated
+    below it: diagrams/chatter_check.MIN_CHIP_M says why)."""
     p0 = np.asarray(p0_m, dtype=float)
     u = np.asarray(feed_dir_xy, dtype=float)
     u = u / np.linalg.norm(u)
     T = float(tooth_period_s)
-    f0 = u * feed_m_per_s * T
+    f0 = u * max(feed_m_per_s * T, float(min_chip_m))
     Kp = np.empty((6, 3))
     for i in range(3):
         d = np.zeros(3)
