@@ -265,6 +265,22 @@ def test_the_command_writes_a_program_simulate_reads(written):
     assert len(t) > 100 and np.shape(q)[1] == 6
 
 
+def test_the_job_is_checked_for_chatter_before_it_is_corrected(written):
+    """The corrected program leaves the cut's forces as they are: the summary carries the chatter check of the
+    job (diagrams/chatter_check.py, as simulate's) and its warning when the cut would chatter."""
+    from robstiff_drake.diagrams.chatter_check import chatter_check
+    from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
+
+    _, job, _, summary = written
+    sc = load_scenario(job)
+    direct = chatter_check(sc, scenario_robot(sc))
+    got = summary["chatter_check"]
+    assert got is not None and direct is not None
+    assert got["stable"] == direct["stable"] and got["poses_checked"] == direct["poses_checked"] > 0
+    assert got["growth_per_s"] == pytest.approx(direct["growth_per_s"], rel=1e-9, abs=1e-9)
+    assert any(w.startswith("chatter:") for w in summary["warnings"]) == (not got["stable"])
+
+
 def test_the_rapid_module_follows_the_program_with_the_preview_correction(written, tmp_path):
     """The RAPID targets turn the tool, so they take the preview's six-axis
     correction as it is: block for block the program written with no floor

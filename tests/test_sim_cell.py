@@ -93,6 +93,10 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     assert cell.returncode == 0, (cerr, comp.stderr)
     assert comp.returncode == 0, comp.stderr
     res = json.loads(out.read_text())
+    # the cut checked for chatter before the cell started (diagrams/chatter_check.py), its warning when unstable
+    chk = res["chatter_check"]
+    assert chk is not None and chk["poses_checked"] > 0, res
+    assert any(w.startswith("chatter:") for w in res["warnings"]) == (not chk["stable"]), res["warnings"]
     surf, diagram = res["surface_error_mm"], short_compensated.surface_error_mm
     print("uncompensated (diagram)", plain["mean"], "compensated: diagram", diagram["mean"], "over EGM/RDT",
           surf["mean"], "late cycles", res["late_ticks"], "of", res["cycles"])

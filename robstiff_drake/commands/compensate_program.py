@@ -115,6 +115,14 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
     if advise:
         sc, program, text, feeds = advised(sc, robot, text, program_file, tmp)
 
+    # would the cut chatter? (the program's correction leaves the forces as they are; the proof runs' plant leaves
+    # the regenerative chip out: diagrams/chatter_check.py) -- before the long computation
+    from robstiff_drake.diagrams.chatter_check import check_job
+    from robstiff_drake.io import Warnings
+
+    warnings = Warnings()
+    chatter = check_job(sc, robot, warnings)
+
     def bar(total):
         return progress(total, show_progress, "preview along the program", unit="cycle")
 
@@ -173,7 +181,8 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
                "refinement_rounds": int(rounds),
                "segments_added": int(added), "corrected_moves": len(corrections),
                "max_correction_mm": float(largest), "chord_mm": chord_mm,
-               "prediction_seconds": float(prediction.seconds), "simulated": None, "feed_plan": feeds}
+               "prediction_seconds": float(prediction.seconds), "simulated": None, "feed_plan": feeds,
+               "chatter_check": chatter, "warnings": []}
     with RunFolder(out) as folder:
         folder.write(names["program"], corrected_text)
         folder.write(names["reference"], oc.reference_text(robot, prediction, folder.run_id, job))
@@ -191,6 +200,7 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
                 summary["simulated"]["RAPID module (read back)"] = rapid_run(sc, robot, module, source, prediction,
                                                                              progress=show_progress)
     summary["run_id"] = folder.run_id
+    summary["warnings"] = list(warnings)
     if json_out is not None:
         emit_json(summary, json_out)
     stderr = json_out == "-"

@@ -63,6 +63,11 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
     if robot.speed_limit_deg_per_s is None:
         raise InputError(f"{robot.source}: key 'joint_limits.speed_deg_per_s': missing; the simulated controller's "
                          "supervision needs the axis speeds")
+    # would the cut chatter? (the cell's station leaves the regenerative chip out: diagrams/chatter_check.py)
+    from robstiff_drake.diagrams.chatter_check import check_job
+
+    warnings = Warnings()
+    chatter = check_job(sc, robot, warnings)
     T = period_ms / 1e3
     station = CellStation(sc, robot, period_s=T)
     limits = (np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad), robot.speed_limit_deg_per_s,
@@ -78,7 +83,6 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
                       netft_units=netft_units, link=link, transport_delay_cycles=transport_delay_cycles)
     # in lockstep the pass may run slower than real time: allow ten times it
     run_s = wait_s + station.t_end * (10.0 if lockstep else 1.0) + 5.0
-    warnings = Warnings()
     th = None
     try:
         th = threading.Thread(target=net.run, daemon=True,
@@ -147,7 +151,7 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
            "health": {"verdict": word, "reasons": reasons, "compensation_lost_fraction": lost, "line": line,
                       "seen_of_the_other_side": {"fresh_answers": stats.answered, "late_answers": stats.late_answers,
                                                  "missing_answers": stats.unanswered}},
-           "warnings": list(warnings)}
+           "chatter_check": chatter, "warnings": list(warnings)}
     if json_out is not None:
         emit_json(res, json_out)
     if json_out != "-":

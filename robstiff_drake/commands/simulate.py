@@ -168,7 +168,7 @@ def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warn
     from robstiff_drake.diagrams.feed_plan import plan_feeds
     from robstiff_drake.diagrams.milling_cell import planned_path as cell_path
     from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
-    from robstiff_drake.diagrams.chatter_check import chatter_check, chatter_warning
+    from robstiff_drake.diagrams.chatter_check import check_job
     from robstiff_drake.diagrams.scenario_models import scenario_warnings
 
     robot = robot or scenario_robot(load_scenario(scenario, toolpath=toolpath, work_offset=work_offset, stock=stock),
@@ -183,10 +183,7 @@ def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warn
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot) + job_warnings(sc))
         # would the real cut chatter? (the plant leaves the regenerative chip out; diagrams/chatter_check.py)
-        sc._chatter_check = chatter_check(sc, robot)
-        line = chatter_warning(sc._chatter_check)
-        if line:
-            warnings.add(line)
+        sc._chatter_check = check_job(sc, robot, warnings)
     sc_comp = sc
     if sc.path.tolerance_mm > 0 and True in MODES[compensation]:
         plan = plan_feeds(sc, robot)

@@ -221,6 +221,17 @@ def chatter_check(sc, robot, max_poses=MAX_POSES, min_spacing=MIN_SPACING):
     return out
 
 
+def check_job(sc, robot, warnings):
+    """The check of a job before it runs (``simulate``, ``compensate-program``,
+    ``sim-cell``): its result (``chatter_check``'s, for the summary's
+    "chatter_check"), its warning line added to ``warnings`` (io.Warnings)."""
+    check = chatter_check(sc, robot)
+    line = chatter_warning(check)
+    if line:
+        warnings.add(line)
+    return check
+
+
 def chatter_warning(check):
     """The warning line of a check (``chatter_check``), or None if stable or not checked."""
     if not check or check["stable"]:
