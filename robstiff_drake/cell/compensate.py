@@ -242,6 +242,7 @@ class CompensatorLoop(LoopStart, SensorIntake):
         target = [r + c for r, c in zip(ref_deg, corr_deg)]
         env = Envelope(self._lo, self._hi, tuple(ref_deg), tuple(c + m for c, m in zip(self._clamp, m1)),
                        tuple(self.q_deg), tuple(c + m for c, m in zip(self._clamp, mf)), *self._supervision)
+        unanswered = self.n.unanswered_refused
         sent = self._send(msg, target, env)
         t_done = time.monotonic()
         self._count_saturation()  # (after the answer: counting only)
@@ -249,7 +250,8 @@ class CompensatorLoop(LoopStart, SensorIntake):
         self.n.compute_ms.add((t_done - t_arr) * 1e3)
         response_s = t_done - t_arr + msg.queued_s
         self.n.response_ms.add(response_s * 1e3)  # (NaN without the kernel's stamp: not added)
-        if judge and not late and response_s > self.deadline_s:  # (NaN: unknown, not counted)
+        # (an answer that left; NaN: unknown, not counted; a message left unanswered is counted there)
+        if judge and not late and response_s > self.deadline_s and self.n.unanswered_refused == unanswered:
             self.n.over_deadline += 1
             late = True
         self.n.age_ms.add(age * 1e3)
