@@ -89,8 +89,8 @@ def test_the_loop_answers_plain_until_the_table_is_ready_then_previews(job):
     models = []
     cycle = loop.cycle
 
-    def watched(msg, t_arr, dt):
-        out = cycle(msg, t_arr, dt)
+    def watched(msg, t_arr, dt, **how):  # (how: whether it counts late, cell/compensate's)
+        out = cycle(msg, t_arr, dt, **how)
         models.append((msg.seq, loop.comp.model, loop.preview))
         return out
 

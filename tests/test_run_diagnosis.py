@@ -215,6 +215,8 @@ def test_the_lost_motion_law_takes_each_joints_take_up_torque(exact_run):
     robot = run_robot(exact_run)
     files = rf.load_run_files(exact_run)
     files.settings.lost_motion_rad = [0.0, 1e-4, 0.0, 0.0, 0.0, 2e-4]
+    assert files.settings.lost_motion_law == "hysteretic"  # (the scenario's default, as the run's compensator.yaml logs it)
+    files.settings.lost_motion_law = "smooth"  # (the hysteretic law's prediction: tests/test_run_diagnosis_play_law.py)
     sig = run_signals(files, robot, ArmModel(robot))
     take_up = transmission.fallback_take_up_Nm(sig.compliance)
     assert take_up[1] == pytest.approx(18.15) and take_up[5] == pytest.approx(3.3)

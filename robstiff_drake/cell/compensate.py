@@ -126,6 +126,8 @@ class CompensatorLoop(LoopStart, SensorIntake):
         self._clamp = clamp_deg(robot, settings.saturation_deg).tolist()
         self._supervision = supervision_tolerances(robot, settings.period_s)  # axis speeds and accelerations
         self._sat = [math.radians(settings.saturation_deg)] * 6
+        # an answer later than this after its datagram's arrival (s) missed the controller's next cycle
+        self.deadline_s = getattr(link, "answer_deadline_periods", 1.0) * settings.period_s
 
     # ------------------------------------------------------------ events
 
@@ -211,9 +213,13 @@ class CompensatorLoop(LoopStart, SensorIntake):
                                          "compensating again")
         return True, dt
 
-    def cycle(self, msg, t_arr, dt):
+    def cycle(self, msg, t_arr, dt, late=False, judge=False):
         """Answer one controller message that the session clock accepted
-        (``dt``: its step, s): returns whether its own target was sent."""
+        (``dt``: its step, s): returns whether its own target was sent.
+        ``late``: the run counted it late already (the next message was
+        waiting); ``judge``: an answer that leaves more than the deadline
+        after the datagram's arrival (the kernel's stamp) counts late
+        (``Counters.over_deadline``; not before the start's catch-up)."""
         self.n.received += 1
         self.t_session += dt
         self._feedback(msg.joints_deg, t_arr)
@@ -236,12 +242,18 @@ class CompensatorLoop(LoopStart, SensorIntake):
         target = [r + c for r, c in zip(ref_deg, corr_deg)]
         env = Envelope(self._lo, self._hi, tuple(ref_deg), tuple(c + m for c, m in zip(self._clamp, m1)),
                        tuple(self.q_deg), tuple(c + m for c, m in zip(self._clamp, mf)), *self._supervision)
+        unanswered = self.n.unanswered_refused
         sent = self._send(msg, target, env)
         t_done = time.monotonic()
         self._count_saturation()  # (after the answer: counting only)
         age = t_done - self.latest_sample_time if self.latest_sample_time is not None else float("nan")
         self.n.compute_ms.add((t_done - t_arr) * 1e3)
-        self.n.response_ms.add((t_done - t_arr + msg.queued_s) * 1e3)  # (NaN without the kernel's stamp: not added)
+        response_s = t_done - t_arr + msg.queued_s
+        self.n.response_ms.add(response_s * 1e3)  # (NaN without the kernel's stamp: not added)
+        # (an answer that left; NaN: unknown, not counted; a message left unanswered is counted there)
+        if judge and not late and response_s > self.deadline_s and self.n.unanswered_refused == unanswered:
+            self.n.over_deadline += 1
+            late = True
         self.n.age_ms.add(age * 1e3)
         # (stale when old on both clocks, as the sensor's silence is judged: in lockstep on a loaded PC the
         # newest record can be old on this PC's clock and of this very cycle on the controller's)
@@ -256,7 +268,8 @@ class CompensatorLoop(LoopStart, SensorIntake):
             for t_w, w in self._wrench_rows:
                 self.log.wrench(t_w, w)
             self._wrench_rows.clear()
-            self.log.cycle(self, msg, t_arr, ref_deg, corr, corr_deg, target if sent else None, t_done - t_arr, age)
+            self.log.cycle(self, msg, t_arr, ref_deg, corr, corr_deg, target if sent else None, t_done - t_arr, age,
+                           late)
         return sent
 
     def _count_saturation(self):
@@ -348,7 +361,7 @@ class CompensatorLoop(LoopStart, SensorIntake):
                         self.n.late += 1
                     else:
                         self.n.start_backlog += 1
-                    self.cycle(m, t, dt)
+                    self.cycle(m, t, dt, late=started)
                 msg, t_arr, dt = accepted[-1]
                 gap = t_arr - self.t_last_msg
                 self.n.gap_ms.add(gap * 1e3)
@@ -356,11 +369,14 @@ class CompensatorLoop(LoopStart, SensorIntake):
                     self.t_sensor_grace = t_arr
                 if gap > 1.5 * T:
                     self.n.gaps_over += 1
-                if self.t_last_answer > t_arr and started:
+                late = self.t_last_answer > t_arr and started
+                if late:
                     self.n.late += 1
                 self.t_last_msg = t_arr
                 self.fault_off("silent", f"{self.link.name}: messages again")
-                self.cycle(msg, t_arr, dt)
+                # (answered before the next message was read, but more than the controller's cycle after its
+                # own arrival: late too, as the controller counts it: its cycle runs on its own clock)
+                self.cycle(msg, t_arr, dt, late=late, judge=started)
                 if self.log is not None:
                     self.log.tick(time.monotonic())
                 self._safe_point()

@@ -64,6 +64,9 @@ class EgmLink(PCLink):
 
     name = "EGM"
     option = "--egm-port"
+    # the IRC5 takes the newest EgmSensor it has at each cycle: an answer after the next cycle is a held cycle
+    # (the last target held, then two steps at once: docs/real_cell.md, \LpFilter)
+    answer_deadline_periods = 1.0
 
     def __init__(self, port, controller):
         self.pb2 = _egm_pb2()

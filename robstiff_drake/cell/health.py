@@ -30,9 +30,10 @@ N_BINS = 10000  # 0-100 ms
 GOOD_LOST = 0.05
 POOR_LOST = 0.20
 GOOD_UNANSWERED = 0.01
-# Answers sent after the next message had come (this PC fell behind):
-# harmless to a controller that reads its targets a cycle later (EGM's
-# transport delay), so only a larger share degrades the verdict.
+# Late answers (sent after the next message had come, or more than the
+# controller's cycle after their own message arrived: Counters.late,
+# over_deadline): harmless to a controller that reads its targets a cycle
+# later (EGM's transport delay), so only a larger share degrades the verdict.
 GOOD_LATE = 0.05
 
 
@@ -67,8 +68,12 @@ class Histogram:
 
 
 def verdict(*, cycles, answered, late, unanswered, faults, lost_fraction, refused=0, stopped="",
-            unanswered_good=GOOD_UNANSWERED, seen=""):
-    """(word, reasons list, one line) of a run's health; ``stopped``: why
+            unanswered_good=GOOD_UNANSWERED, seen="", over_deadline=0, deadline_ms=float("nan")):
+    """(word, reasons list, one line) of a run's health; ``late``: every
+    answer the controller had no fresh target from at its next cycle, of
+    which ``over_deadline`` left more than ``deadline_ms`` (its cycle)
+    after their datagram arrived at this PC, the next message not yet
+    read; ``stopped``: why
     the run stopped before its end ("": it did not); ``seen``: what this
     side saw of the other (the line ends with it: the compensator's and the
     controller's verdicts on one run count different things, and each says
@@ -81,7 +86,9 @@ def verdict(*, cycles, answered, late, unanswered, faults, lost_fraction, refuse
     if faults:
         reasons.append(f"{faults} faults")
     if missed:
-        reasons.append(f"{missed} of {cycles} cycles without a fresh answer ({late} late, {unanswered} unanswered)")
+        how = (f"; {over_deadline} of them more than {deadline_ms:g} ms after their message arrived"
+               if over_deadline else "")
+        reasons.append(f"{missed} of {cycles} cycles without a fresh answer ({late} late{how}, {unanswered} unanswered)")
     lost_txt = "unknown" if not math.isfinite(lost_fraction) else f"{100 * lost_fraction:.1f} %"
     if refused or stopped or (math.isfinite(lost_fraction) and lost_fraction >= POOR_LOST) or missed > 0.2 * n:
         word = "poor"
@@ -126,6 +133,10 @@ class Counters:
     received: int = 0  # controller messages decoded
     answered: int = 0
     late: int = 0  # answers sent after the next message had arrived
+    # answers sent before the next message was read but more than the controller's deadline (its cycle: the
+    # link's ``answer_deadline_periods``) after their own datagram arrived (the kernel's stamp): the controller's
+    # next cycle had passed without them (it runs on its own clock; only this PC saw the next message late)
+    over_deadline: int = 0
     start_backlog: int = 0  # messages waiting before the first answer (the controller held its own pose: not late)
     skipped: int = 0  # messages never answered: a newer one was already waiting
     refused: int = 0  # targets the safety check refused

@@ -126,6 +126,11 @@ class PCLink:
 
     name = "controller"
     option = "--listen-port"
+    # The answer's deadline, in the controller's periods from its message's arrival at this PC (the kernel's
+    # stamp): a controller runs its cycle on its own clock and takes at each cycle the newest target it has, so
+    # an answer that leaves later missed that cycle even when this PC saw the next message late (a late
+    # datagram, not a late controller).  Each protocol states its own (EgmLink, RsiLink, StreamMotionLink).
+    answer_deadline_periods = 1.0
 
     def __init__(self, listen_port, controller):
         self.controller_ip, self.controller_port = controller

@@ -18,9 +18,16 @@ def loop_stats(loop):
             f"1.5 periods; of the sensor: {n.sensor_records} records, {sensor_faults} sensor faults; the "
             "controller sees only the answers (its own verdict counts those), not the correction this side "
             "ramped down for its faults")
-    word, reasons, line = verdict(cycles=cycles, answered=n.answered, late=n.late, unanswered=unanswered,
-                                  faults=n.fault_onsets, lost_fraction=lost, refused=n.refused, seen=seen)
-    return {"messages": n.received, "cycles": cycles, "answered": n.answered, "late": n.late,
+    late = n.late + n.over_deadline
+    deadline_ms = loop.deadline_s * 1e3
+    word, reasons, line = verdict(cycles=cycles, answered=n.answered, late=late, unanswered=unanswered,
+                                  faults=n.fault_onsets, lost_fraction=lost, refused=n.refused, seen=seen,
+                                  over_deadline=n.over_deadline, deadline_ms=deadline_ms)
+    # late: every answer the controller's next cycle came without: the next message already waiting when it
+    # left (late_next_waiting), or it left more than the controller's cycle after its own arrival at this PC,
+    # the kernel's stamp (late_over_deadline: the controller runs on its own clock)
+    return {"messages": n.received, "cycles": cycles, "answered": n.answered, "late": late,
+            "late_next_waiting": n.late, "late_over_deadline": n.over_deadline, "answer_deadline_ms": deadline_ms,
             "start_backlog": n.start_backlog,
             "unanswered": unanswered, "skipped": n.skipped, "lost_in_network": n.lost,
             "duplicates_dropped": n.duplicates, "old_dropped": n.old, "sequence_jumps": n.jumps,
@@ -32,7 +39,7 @@ def loop_stats(loop):
             "response_ms": dict(n.response_ms.summary(), stamped=n.response_ms.n,
                                 over_period=int(sum(n.response_ms.counts[int(T * 1e3 / BIN_MS):]))),
             "message_gap_ms": n.gap_ms.summary(),
-            "gc_ms": dict(n.gc_ms.summary(), collections=n.gc_ms.n), "missed_cycles": int(n.skipped + n.late),
+            "gc_ms": dict(n.gc_ms.summary(), collections=n.gc_ms.n), "missed_cycles": int(n.skipped + late),
             "controller_gaps": n.gaps_over, "over_budget": int(sum(n.compute_ms.counts[int(T * 1e3 / BIN_MS):])),
             "sensor_records": n.sensor_records, "sensor_clipped": n.sensor_clipped,
             "moment_spikes": n.moment_spikes, "saturated_cycles": n.saturated_cycles,

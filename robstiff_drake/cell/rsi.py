@@ -146,6 +146,9 @@ class RsiLink(PCLink):
 
     name = "RSI"
     option = "--listen-port"
+    # RSI expects the <Sen> with its IPOC back within the interpolation cycle; a later one is a late packet,
+    # counted towards the ETHERNET object's limit that stops the robot (module docstring; docs/real_cell.md)
+    answer_deadline_periods = 1.0
 
     def __init__(self, port, controller, period_s):
         super().__init__(port, controller)

@@ -51,7 +51,7 @@ FILES = {
                                    + [f"correction_q{j}_rad" for j in range(1, 7)]
                                    + [f"q{j}_deg" for j in range(1, 7)]),
     "cycles.csv": (["t_s", "seqno"] + [f"measured_q{j}_deg" for j in range(1, 7)]
-                   + ["compute_ms", "age_ms", "fault", "sent", "queued_ms"]),
+                   + ["compute_ms", "age_ms", "fault", "sent", "queued_ms", "late"]),
     "events.csv": ["t_s", "t_controller_s", "event"],
 }
 NOTES = {
@@ -73,7 +73,9 @@ NOTES = {
                   "correction at a ramp to zero (1), whether its own target was sent (0: the last safe one), and "
                   "how long the message had waited at this PC before it was read (ms, from the kernel's receive "
                   "time stamp: the loop's wake-up; empty where the system gives no stamp; compute_ms + queued_ms: "
-                  "from its arrival to the answer).",
+                  "from its arrival to the answer), and whether the answer was late (1: the controller's next cycle "
+                  "came without it: the next message was already waiting when it left, or it left more than the "
+                  "controller's cycle after the message's arrival).",
     "events.csv": "events: every fault's start and end and every event of the run, with its time (t_s: s since "
                   "the first message, this PC's clock; t_controller_s: the controller's clock, the other logs' t_s).",
 }
@@ -209,7 +211,7 @@ class StreamLog:
     def wrench(self, t, w):
         self.chunks["wrench_log.csv"].append(",".join([format(t, ".6f")] + [_num(v) for v in w]) + "\n")
 
-    def cycle(self, loop, msg, t_arr, ref_deg, corr_rad, corr_deg, target_deg, compute_s, age_s):
+    def cycle(self, loop, msg, t_arr, ref_deg, corr_rad, corr_deg, target_deg, compute_s, age_s, late=False):
         t = format(loop.t_session, ".6f")
         comp = loop.comp
         sent = target_deg is not None
@@ -223,4 +225,5 @@ class StreamLog:
             + [_num(v) for v in comp.dq] + [_num(v) for v in corr_rad] + [format(v, ".10g") for v in q_cmd]) + "\n")
         c["cycles.csv"].append(",".join([t, str(msg.seq)] + [format(v, ".7g") for v in loop.q_deg]
                                         + [_num(compute_s * 1e3), _num(age_s * 1e3), "1" if loop.faults else "0",
-                                           "1" if sent else "0", _num(msg.queued_s * 1e3)]) + "\n")
+                                           "1" if sent else "0", _num(msg.queued_s * 1e3),
+                                           "1" if late else "0"]) + "\n")

@@ -79,6 +79,10 @@ class StreamMotionLink(PCLink):
 
     name = "Stream Motion"
     option = "--listen-port"
+    # a status packet every interpolation cycle, each answered by a command echoing its sequence number: the
+    # command is for that cycle.  ASSUMPTION: one arriving after the next cycle is missing for it (the J519
+    # packet definitions the module cites do not say what the robot does with it)
+    answer_deadline_periods = 1.0
 
     def decode(self, data):
         seq, tm, status, joints = decode_status(data)

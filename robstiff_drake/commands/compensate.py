@@ -165,6 +165,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
     from robstiff_drake.cell.link import parse_controller
     from robstiff_drake.cell.loop_guard import LoopGuard, feed_direction
+    from robstiff_drake.cell.play_note import job_play, play_note, read_play
     from robstiff_drake.cell.rdt import NetFTReader, calibration_problem, parse_host_port
     from robstiff_drake.cell.run_log import StreamLog
     from robstiff_drake.cell.safety import pose_problem
@@ -191,6 +192,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     else:
         robot = load_robot(robot_yaml)
     k = read_model(model, robot)
+    play = read_play(_json_doc(model, "--model"), f"--model {model}") or (job_play(sc_job, job) if job else None)
     try:
         cal = read_payload_calibration(payload)
     except RecursionError:
@@ -236,6 +238,10 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         along = guard.along(ref.q, what, ref.t, to_model=to_model)  # (and along it: the drives tuned at its start)
         if along:
             _say(along, guard)
+    # the gears' play the inputs carry: not compensated by the real-time chain; said once, with the twist ignored
+    play_line, play_summary = play_note(robot, play, None if ref.q is None else ref.q[0], "the reference's first row")
+    if play_line:
+        print(f"robstiff: warning: compensate: {play_line}", file=sys.stderr)
     if max_jump_Nm is None:
         max_jump_Nm = max_jump_N * max(float(np.linalg.norm(tool)) if tool is not None else 0.0, MIN_LEVER_M)
     predictor = DeflectionPredictor(robot.dh, k, tool)
@@ -372,8 +378,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                    "mode": mode, "job": str(job) if job else None,
                    "preview": loop.preview.summary() if loop.preview is not None else None,
                    "preview_table": table,
-                   "cycles": stats, "health": h, "loop_check": guard.result,
-                   "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])}
+                   "cycles": stats, "health": h, "loop_check": guard.result, "play": play_summary,
+                   "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])
+                   + ([play_line] if play_line else [])}
         written = stream_log.close(summary)
         wrote(log, ", ".join(written), folder=True, to_stderr=True)
         if servo is None or cutter_diameter_mm is None:

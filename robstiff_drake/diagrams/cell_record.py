@@ -57,6 +57,10 @@ def compensator_settings(sc, robot, robot_ref=None):
         max_jump_N=float(sc.sensor.max_jump_N), spindle_rpm=float(sc.cutter.spindle_rpm),
         saturation_deg=float(c.saturation_deg), rate_limit_deg_per_s=float(c.rate_limit_deg_per_s),
         lost_motion_rad=[float(v) for v in (sc.model.lost_motion_rad or np.zeros(6))],
+        # the law the run's compensator applies to it (diagrams/compensator.py: preview keeps the smooth law)
+        lost_motion_law="smooth" if c.mode == "preview" else sc.model.lost_motion_law,
+        lost_motion_take_up_Nm=[float(v) for v in sc.model.lost_motion_take_up_Nm] or None,
+        lost_motion_friction_Nm=[float(v) for v in sc.model.lost_motion_friction_Nm] or None,
         coupling_c23_rad_per_Nm=float(sc.model.coupling_c23_rad_per_Nm),
         force_model_scale=float(sc.model.force_model_scale), robot=robot_ref or _robot_spec_text(sc, robot),
         servo=servo_settings(sc))
@@ -166,6 +170,9 @@ def scenario_with_compensator(sc, settings, robot):
     m.joint_stiffness_Nm_per_rad = [float(v) for v in settings.joint_stiffness_Nm_per_rad]
     m.identified_json = ""
     m.lost_motion_rad = [float(v) for v in settings.lost_motion_rad] if any(settings.lost_motion_rad) else []
+    m.lost_motion_law = settings.lost_motion_law
+    m.lost_motion_take_up_Nm = [float(v) for v in settings.lost_motion_take_up_Nm or []]
+    m.lost_motion_friction_Nm = [float(v) for v in settings.lost_motion_friction_Nm or []]
     m.coupling_c23_rad_per_Nm = float(settings.coupling_c23_rad_per_Nm)
     m.force_model_scale = float(settings.force_model_scale)
     check_scenario(out)

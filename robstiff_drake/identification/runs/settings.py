@@ -41,6 +41,14 @@ class CompensatorSettings:
     saturation_deg: float = 0.5
     rate_limit_deg_per_s: float = 5.0
     lost_motion_rad: list = field(default_factory=_zeros6)
+    # the compensator's law of that lost motion (model/compensator.PLAY_LAWS) and its identified take-up torques
+    # (the smooth law's) and friction in the play (the hysteretic law's), N*m per joint; None: the fallbacks
+    # (model/transmission.fallback_take_up_Nm, gap_friction_Nm of the model's stiffness).  ASSUMPTION: a file
+    # without lost_motion_law (written before it was logged) ran the compensator's default, hysteretic
+    # (diagrams/scenario_schema.ModelConfig)
+    lost_motion_law: str = "hysteretic"
+    lost_motion_take_up_Nm: list = None
+    lost_motion_friction_Nm: list = None
     coupling_c23_rad_per_Nm: float = 0.0
     force_model_scale: float = 1.0
     # the robot the model belongs to: a library name (`robstiff robots`) or a
@@ -93,6 +101,9 @@ _SETTINGS_LAYOUT = {
                "cutoff_hz": ("filter_cutoff_hz", "positive"), "order": ("filter_order", "int>=1")},
     "model": {"joint_stiffness_Nm_per_rad": ("joint_stiffness_Nm_per_rad", ("vector", 6, "positive")),
               "lost_motion_rad": ("lost_motion_rad", ("vector", 6, "nonneg")),
+              "lost_motion_law": ("lost_motion_law", ("choice", ("hysteretic", "smooth"))),
+              "lost_motion_take_up_Nm": ("lost_motion_take_up_Nm", ("vector", 6, "positive")),
+              "lost_motion_friction_Nm": ("lost_motion_friction_Nm", ("vector", 6, "nonneg")),
               "coupling_c23_rad_per_Nm": ("coupling_c23_rad_per_Nm", "number"),
               "force_model_scale": ("force_model_scale", "positive")},
     "payload_calibration": {"mass_kg": ("payload.mass_kg", "nonneg"),
@@ -112,7 +123,8 @@ _SETTINGS_LAYOUT = {
 SERVO_KEYS = tuple(_SETTINGS_LAYOUT["servo"])
 # servo.velocity_integral_hz: files written before it was logged lack it (run_diagnosis.servo_of
 # then takes model/servo.ServoParameters' default, an ASSUMPTION written there)
-_OPTIONAL = {"lost_motion_rad", "coupling_c23_rad_per_Nm", "force_model_scale", "robot", "servo.velocity_integral_hz"}
+_OPTIONAL = {"lost_motion_rad", "lost_motion_law", "lost_motion_take_up_Nm", "lost_motion_friction_Nm",
+             "coupling_c23_rad_per_Nm", "force_model_scale", "robot", "servo.velocity_integral_hz"}
 _OPTIONAL_SECTIONS = {"servo"}  # a file without it is read (servo None); diagnose-run refuses it
 _KEY_NOTES = {
     "robot": "the robot the model belongs to: a library name or a robot file (relative to this file)",
@@ -178,7 +190,7 @@ def settings_text(settings, run_id, notes=()):
         if isinstance(spec, dict):
             lines.append(f"  {key}:\n")
             lines.extend(f"    {sub}: {value(attr)}\n" for sub, (attr, _) in spec.items()
-                         if attr in src or attr not in _OPTIONAL)
+                         if (attr in src and src[attr] is not None) or attr not in _OPTIONAL)
         else:
             lines.append(f"  {key}: {value(spec[0])}\n")
     return "".join(lines)

@@ -18,7 +18,7 @@ from robstiff_drake.model import play_hysteresis
 from robstiff_drake.model.joint_dynamics import DEFAULT_MODAL_DAMPING_RATIO
 from robstiff_drake.model.payload import PayloadCalibration, payload_wrench
 from robstiff_drake.model.servo import ServoParameters
-from robstiff_drake.model.transmission import fallback_take_up_Nm, static_deflection, twist
+from robstiff_drake.model.transmission import fallback_take_up_Nm, gap_friction_Nm, static_deflection, twist
 from robstiff_drake.model.wrench_frames import sensor_to_tool_base
 
 # ASSUMPTION: the sensor's reading is smoothed (zero phase) before it drives the arm's model, over the
@@ -254,17 +254,71 @@ def signals_at(ctx, arm, damping_ratio, damping=None):
     J, Jg = x["J"], x["J"][k]
     dz = np.einsum("nj,njk->nk", J[:, 2, :], np.concatenate([dev, motion[..., None]], axis=2))
     # what the compensator predicts: its model's law under the process load (model/compensator.DeflectionModel)
-    take_up = fallback_take_up_Nm(x["c"])
-    model_dq = static_deflection(x["g"], x["tau"], x["c"], s.lost_motion_rad, s.coupling_c23_rad_per_Nm, take_up)
+    model_dq = model_deflection(s, x["g"], x["tau"], x["c"])
     # the loop's tracking error with the plant as the model believes it: its stiffness (dynamic), and its
-    # lost motion and coupling (quasi-static, the law of the total torque)
-    believed = gear_law_deviation(x["g"], x["g0"], x["tau_i"], x["tau"], s.lost_motion_rad,
-                                  s.coupling_c23_rad_per_Nm, take_up)
+    # lost motion and coupling (quasi-static, the law of the total torque; the play by the run's law)
+    believed = believed_gear_deviation(s, x["g"], x["g0"], x["tau_i"], x["tau"], x["c"], twist_inertia[k],
+                                       x["grid"])
     dz_loop = dz[k, 0] + dz[k, 1] + np.einsum("nj,nj->n", Jg[:, 2, :], believed)
     return RunSignals(x["grid"], x["q_nom"], x["corr"], x["W_f"][k], x["tau"], x["g"], x["tau_i"], x["g0"],
                       Jg[:, 2, :], kin.tool_position(x["robot"].dh, x["q_nom"], x["tool"]), x["c"], model_dq,
                       dz[k, 2], dz_loop, x["servo"], damping_ratio, x["cutoff"], damping,
                       x["tau_per_sensor_force"], twist_inertia[k])
+
+
+def play_law_of(settings, compliance):
+    """(law, take-up torques (6,) N*m, friction in the play (6,) N*m) of
+    the run's compensator (its settings: the law it applied to the model's
+    lost motion, and its identified take-up and friction, else the
+    compensator's fallbacks from the model's compliance)."""
+    c = np.asarray(compliance, dtype=float)
+    law = getattr(settings, "lost_motion_law", "hysteretic")
+    take_up = getattr(settings, "lost_motion_take_up_Nm", None)
+    friction = getattr(settings, "lost_motion_friction_Nm", None)
+    return (law, fallback_take_up_Nm(c) if take_up is None else np.asarray(take_up, dtype=float),
+            gap_friction_Nm(1.0 / c) if friction is None else np.asarray(friction, dtype=float))
+
+
+def model_deflection(settings, tau_static, tau_process, compliance):
+    """(n, 6) rad: the deflection the run's compensator predicted from the
+    process load (model/compensator.DeflectionModel): C tau with its lost
+    motion and coupling by its law, from the gravity torque the gears carry
+    (``tau_static``); with the hysteretic law each gear's place in its gap
+    stepped along the run from rest under the first sample's torque (the
+    diagram's block crosses with the link's inertia too: left out, this
+    only aligns the correction in time, ``loop_lag_ms``)."""
+    s, c = settings, np.asarray(compliance, dtype=float)
+    b = np.asarray(s.lost_motion_rad, dtype=float)
+    law, take_up, friction = play_law_of(s, c)
+    if law == "smooth" or not np.any(b):
+        return static_deflection(tau_static, tau_process, c, s.lost_motion_rad, s.coupling_c23_rad_per_Nm, take_up)
+    g, tau = np.atleast_2d(tau_static), np.atleast_2d(tau_process)
+    p = play_hysteresis.start(g[0] - tau[0], b)
+    ref, out = p, np.empty_like(tau)
+    for i in range(len(tau)):
+        p = play_hysteresis.step(p, g[i] - tau[i], b, friction)
+        out[i] = play_hysteresis.deflection(g[i], tau[i], p, ref, c, b, s.coupling_c23_rad_per_Nm)
+    return out
+
+
+def believed_gear_deviation(settings, tau_static, tau_touch_off, tau_inertia, tau_process, compliance,
+                            twist_inertia_kgm2, t_s):
+    """(n, 6) rad: ``gear_law_deviation`` of the model's lost motion and
+    coupling with the play by the law the run's compensator used (its
+    settings' ``lost_motion_law``): the smooth law's b tanh(tau / take-up),
+    or the hysteretic law's links crossing their gaps with their twist
+    inertia (``play_crossing_deviation``; without the inertia, the relay:
+    ``play_relay_deviation`` times b)."""
+    s = settings
+    b = np.asarray(s.lost_motion_rad, dtype=float)
+    law, take_up, friction = play_law_of(s, compliance)
+    args = (tau_static, tau_touch_off, tau_inertia, tau_process)
+    if law == "smooth" or not np.any(b):
+        return gear_law_deviation(*args, s.lost_motion_rad, s.coupling_c23_rad_per_Nm, take_up)
+    coupling = gear_law_deviation(*args, None, s.coupling_c23_rad_per_Nm, take_up)
+    if twist_inertia_kgm2 is None:
+        return coupling + play_relay_deviation(*args, friction) * b
+    return coupling + play_crossing_deviation(*args, b, friction, twist_inertia_kgm2, t_s)
 
 
 def carried_torque(tau_static, tau_inertia, tau_process):
