@@ -26,12 +26,12 @@ silent for --idle-exit-s end the run; --log DIR is written as the run goes
 
 import math
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.errors import InputError, excerpt
+from robstiff_drake.commands.compensate_inputs import json_doc, read_model, read_reference, wait_for_file
+from robstiff_drake.errors import InputError
 from robstiff_drake.cell.realtime_thread import pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
     realtime as _realtime, restore_gc as _restore_gc
 from robstiff_drake.progress import info, wrote
@@ -40,9 +40,6 @@ from robstiff_drake.progress import info, wrote
 # before the run is refused: the robot must be brought to the path's start
 # (MoveAbsJ) before streaming starts, or the first target would jump.
 START_TOLERANCE_DEG = 0.5
-# A model whose nominal stiffness differs from the robot file's by more
-# than this (relative) was identified against another robot file.
-NOMINAL_TOLERANCE = 1e-6
 # ASSUMPTION: without --max-jump-Nm, a moment jump is refused beyond what
 # a force jump of --max-jump-N makes at this lever (m) or at the tool
 # point's distance from the sensor, whichever is longer.
@@ -64,71 +61,6 @@ SWITCH_INTERVAL_S = 0.0005
 # learn 0.3-2.0 times the coefficients: systems/preview_correction.SCALE_LIMITS).
 FORCE_BOUND_FRACTION = 0.5
 PROTOCOL_PORTS = {"egm": None, "rsi": None, "stream-motion": 60015}  # the controller's port when not given
-
-
-def _json_doc(path, what):
-    """A user's JSON file through the project's one reader (size, depth,
-    one-line errors; user_files.py)."""
-    from robstiff_drake.user_files import load_json, read_user_text
-
-    return load_json(read_user_text(path, f"{what} file"), f"{what} {path}")
-
-
-def read_model(path, robot):
-    """The compensator's joint stiffness (N*m/rad) from `robstiff identify
-    --json`'s file; InputError if it is not one, or is for another robot."""
-    from robstiff_drake.diagrams.scenario_models import checked_joint_stiffness, numbers
-
-    doc = _json_doc(path, "--model")
-    if not isinstance(doc, dict) or "joint_stiffness_Nm_per_rad" not in doc:
-        raise InputError(f"--model {path}: no joint_stiffness_Nm_per_rad (write it with `robstiff identify DATA.csv "
-                         "--json OUT`)")
-    name = doc.get("robot")
-    if name is not None and name != robot.name:
-        raise InputError(f"--model {path}: identified for the robot {str(name)[:80]!r}, not for {robot.name!r} "
-                         f"({robot.source})")
-    nominal = doc.get("joint_stiffness_nominal_Nm_per_rad")
-    try:
-        if nominal is not None:
-            nom = numbers(nominal)  # None for text, a dict or a ragged list
-            if nom is None or nom.shape != (6,):
-                raise InputError(f"--model {path}: joint_stiffness_nominal_Nm_per_rad: expected six numbers, got "
-                                 f"{excerpt(nominal)}")
-            if not np.allclose(nom, robot.joint_stiffness_Nm_per_rad, rtol=NOMINAL_TOLERANCE, atol=0):
-                raise InputError(f"--model {path}: identified against another robot file (its nominal stiffness "
-                                 f"{np.round(nom, 0).tolist()} is not {robot.name}'s "
-                                 f"{np.round(robot.joint_stiffness_Nm_per_rad, 0).tolist()} N*m/rad)")
-        return checked_joint_stiffness(doc["joint_stiffness_Nm_per_rad"], where=f"--model {path}")
-    except RecursionError:  # a last guard: load_json bounds the depth
-        raise InputError(f"--model {path}: nested too deeply to be a model file") from None
-
-
-def read_reference(path, robot, period_s=0.004):
-    """(times s from 0, q (N, 6) controller angles in rad) of a joint reference CSV:
-    columns t_s, q1_deg .. q6_deg (header first; '#' lines are comments), read in one
-    pass (cell/reference_file.py), checked by cell/safety.check_reference."""
-    from robstiff_drake.cell.reference_file import read_reference_rows
-    from robstiff_drake.cell.safety import check_reference
-
-    t, q, numbers = read_reference_rows(path)
-    check_reference(str(Path(path)), robot, t, q, period_s, numbers)
-    t -= t[0]
-    return t, np.radians(q, out=q)
-
-
-def wait_for_file(path, wait_s, what="--reference"):
-    """Wait up to ``wait_s`` for ``path`` to appear (a simulated cell
-    writes it when it is ready), saying so once."""
-    p = Path(path)
-    if p.exists():
-        return
-    print(f"robstiff: compensate: waiting up to {wait_s:g} s for {what} {path} to appear", file=sys.stderr,
-          flush=True)
-    t_end = time.monotonic() + wait_s
-    while not p.exists():
-        if time.monotonic() > t_end:
-            raise InputError(f"{what} {path}: no such file (waited {wait_s:g} s for it to appear)")
-        time.sleep(0.05)
 
 
 def _link(protocol, listen_port, controller, period_s):
@@ -192,7 +124,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     else:
         robot = load_robot(robot_yaml)
     k = read_model(model, robot)
-    play = read_play(_json_doc(model, "--model"), f"--model {model}") or (job_play(sc_job, job) if job else None)
+    play = read_play(json_doc(model, "--model"), f"--model {model}") or (job_play(sc_job, job) if job else None)
     try:
         cal = read_payload_calibration(payload)
     except RecursionError:

@@ -1,0 +1,82 @@
+"""``robstiff compensate``'s input files: the compensator's model (`robstiff
+identify --json`), the joint reference it streams (a CSV, checked against
+the robot's limits by cell/safety.py), and the wait for a reference a
+simulated cell writes when it is ready.  Each bad file is one line naming
+it (exit 2), before any socket opens."""
+
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from robstiff_drake.errors import InputError, excerpt
+
+# A model whose nominal stiffness differs from the robot file's by more
+# than this (relative) was identified against another robot file.
+NOMINAL_TOLERANCE = 1e-6
+
+
+def json_doc(path, what):
+    """A user's JSON file through the project's one reader (size, depth,
+    one-line errors; user_files.py)."""
+    from robstiff_drake.user_files import load_json, read_user_text
+
+    return load_json(read_user_text(path, f"{what} file"), f"{what} {path}")
+
+
+def read_model(path, robot):
+    """The compensator's joint stiffness (N*m/rad) from `robstiff identify
+    --json`'s file; InputError if it is not one, or is for another robot."""
+    from robstiff_drake.diagrams.scenario_models import checked_joint_stiffness, numbers
+
+    doc = json_doc(path, "--model")
+    if not isinstance(doc, dict) or "joint_stiffness_Nm_per_rad" not in doc:
+        raise InputError(f"--model {path}: no joint_stiffness_Nm_per_rad (write it with `robstiff identify DATA.csv "
+                         "--json OUT`)")
+    name = doc.get("robot")
+    if name is not None and name != robot.name:
+        raise InputError(f"--model {path}: identified for the robot {str(name)[:80]!r}, not for {robot.name!r} "
+                         f"({robot.source})")
+    nominal = doc.get("joint_stiffness_nominal_Nm_per_rad")
+    try:
+        if nominal is not None:
+            nom = numbers(nominal)  # None for text, a dict or a ragged list
+            if nom is None or nom.shape != (6,):
+                raise InputError(f"--model {path}: joint_stiffness_nominal_Nm_per_rad: expected six numbers, got "
+                                 f"{excerpt(nominal)}")
+            if not np.allclose(nom, robot.joint_stiffness_Nm_per_rad, rtol=NOMINAL_TOLERANCE, atol=0):
+                raise InputError(f"--model {path}: identified against another robot file (its nominal stiffness "
+                                 f"{np.round(nom, 0).tolist()} is not {robot.name}'s "
+                                 f"{np.round(robot.joint_stiffness_Nm_per_rad, 0).tolist()} N*m/rad)")
+        return checked_joint_stiffness(doc["joint_stiffness_Nm_per_rad"], where=f"--model {path}")
+    except RecursionError:  # a last guard: load_json bounds the depth
+        raise InputError(f"--model {path}: nested too deeply to be a model file") from None
+
+
+def read_reference(path, robot, period_s=0.004):
+    """(times s from 0, q (N, 6) controller angles in rad) of a joint reference CSV:
+    columns t_s, q1_deg .. q6_deg (header first; '#' lines are comments), read in one
+    pass (cell/reference_file.py), checked by cell/safety.check_reference."""
+    from robstiff_drake.cell.reference_file import read_reference_rows
+    from robstiff_drake.cell.safety import check_reference
+
+    t, q, numbers = read_reference_rows(path)
+    check_reference(str(Path(path)), robot, t, q, period_s, numbers)
+    t -= t[0]
+    return t, np.radians(q, out=q)
+
+
+def wait_for_file(path, wait_s, what="--reference"):
+    """Wait up to ``wait_s`` for ``path`` to appear (a simulated cell
+    writes it when it is ready), saying so once."""
+    p = Path(path)
+    if p.exists():
+        return
+    print(f"robstiff: compensate: waiting up to {wait_s:g} s for {what} {path} to appear", file=sys.stderr,
+          flush=True)
+    t_end = time.monotonic() + wait_s
+    while not p.exists():
+        if time.monotonic() > t_end:
+            raise InputError(f"{what} {path}: no such file (waited {wait_s:g} s for it to appear)")
+        time.sleep(0.05)
