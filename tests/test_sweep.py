@@ -31,6 +31,10 @@ def test_sweep_cli_rows_and_plot(capsys, tmp_path):
     assert code == 0, err
     res = json.loads(out.read_text())
     assert res["complete"] and res["n_runs"] == 4
+    # the cut checked for chatter once, before the runs (diagrams/chatter_check.py), its warning when unstable
+    chk = res["chatter_check"]
+    assert chk is not None and chk["poses_checked"] > 0
+    assert any(w.startswith("chatter:") for w in res["warnings"]) == (not chk["stable"])
     for row in res["runs"]:
         assert {"period_ms", "delay_steps", "cutoff_hz", "mode", "surface_error_mm", "stable", "predicted"} <= set(row)
         assert {"mean", "rms", "max_abs", "pv", "entry_max_abs", "exit_max_abs"} <= set(row["surface_error_mm"])

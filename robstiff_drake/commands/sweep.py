@@ -161,15 +161,20 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
                                                 Path(robot_yaml).resolve())
     info(plan_line(sc, combos, periods_ms, delay_steps, cutoffs_hz, mode_list, workers, scheduler),
          file=sys.stderr if json_out == "-" else None)
+    # would the cut chatter? (every run's plant leaves the regenerative chip out, and the compensator's settings
+    # swept do not change the cut: one check, before the runs; diagrams/chatter_check.py)
+    from robstiff_drake.diagrams.chatter_check import check_job
+
+    warnings = Warnings()
+    chatter = check_job(sc, robot, warnings)
     rows = run_sweep(Path(scenario), combos, workers=workers, scheduler=scheduler, plant_step_ms=plant_step_ms,
                      progress=progress, predict=predict, robot_spec=spec)
-    warnings = Warnings()
     failed = [r for r in rows if "error" in r]
     if failed:
         warnings.add(f"{len(failed)} of {len(rows)} runs failed (see their 'error'); the first: {failed[0]['error']}")
     result = {"scenario": str(scenario), "robot": robot.name, "n_runs": len(rows), "n_failed": len(failed),
               "complete": not failed, "plant_step_ms": plant_step_s(sc) * 1e3,
-              "plant_step_choice": step_choice(sc), "runs": rows,
+              "plant_step_choice": step_choice(sc), "chatter_check": chatter, "runs": rows,
               "warnings": list(warnings)}
     with staged_outputs():  # the JSON and the plot, both or neither
         if json_out is not None:
