@@ -20,8 +20,10 @@ hardware_sim station and of the manipulation station):
              the encoders), wrench_measured (6: the sensor, sensor frame),
              tool_pose (12: flange rotation row-major and tool point, m,
              base frame, from the link angles: the truth a real cell does not
-             measure), plant_state (12), cutting_wrench (6: the truth, tool
-             point, base frame)
+             measure; only in a station built with ``tool_pose=True``, as the
+             user's measurements build it: a Python system that nothing of the
+             closed loop reads costs every plant step), plant_state (12),
+             cutting_wrench (6: the truth, tool point, base frame)
 
 (The error budget's "force filter lag removed" builds the station with a
 LagFreeCuttingSensor in the wrist sensor's place: its samples are the true
@@ -196,7 +198,7 @@ def cutting_force_period_s(mode, plant_step_s):
 
 
 def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad, check_stability=True,
-                         name="milling_station"):
+                         name="milling_station", tool_pose=False):
     """The station of scenario ``sc`` (see module docstring).  ``path`` (the
     planned path: the cut's feed direction) and ``force_model``/``workpiece``
     (the process), ``q_modes_rad`` the pose (or the path's poses,
@@ -206,7 +208,8 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
     The plant step: the scenario's plant_config.time_step, or when it gives
     none the step chosen for this arm (diagrams/scenario_step.scenario_step_s,
     written into the scenario).  Raises ValueError if the plant step is
-    unstable for these joints (unless ``check_stability`` is false)."""
+    unstable for these joints (unless ``check_stability`` is false).
+    ``tool_pose``: export the output ``tool_pose`` (see the module docstring)."""
     tool = robot.tool_point(where="the closed loop")
     if step_choice(sc) is not None:  # a step chosen, not given: chosen again for this arm and its physics
         sc.plant_config.time_step = NOT_GIVEN
@@ -268,8 +271,10 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
             builder.Connect(milling.GetOutputPort(port), sensor.GetInputPort(port))
     add_random_inputs(builder, sensor)
 
-    pose = builder.AddNamedSystem("tool_pose", ToolPose(fk))
-    builder.Connect(q_link, pose.get_input_port())
+    pose = None
+    if tool_pose or lag_free:
+        pose = builder.AddNamedSystem("tool_pose", ToolPose(fk))
+        builder.Connect(q_link, pose.get_input_port())
     if lag_free:
         builder.Connect(milling.GetOutputPort("wrench"), sensor.GetInputPort("cutting_wrench"))
         builder.Connect(pose.get_output_port(), sensor.GetInputPort("tool_pose"))
@@ -279,7 +284,8 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
     builder.ExportOutput(arm["reported_position"], "position_measured")
     builder.ExportOutput(arm["motor_position"], "motor_position")
     builder.ExportOutput(sensor.get_output_port(), "wrench_measured")
-    builder.ExportOutput(pose.get_output_port(), "tool_pose")
+    if tool_pose:
+        builder.ExportOutput(pose.get_output_port(), "tool_pose")
     builder.ExportOutput(plant.get_state_output_port(), "plant_state")
     builder.ExportOutput(milling.GetOutputPort("wrench"), "cutting_wrench")
     diagram = builder.Build()

@@ -93,14 +93,14 @@ class _Bench:
             for _ in range(4):
                 try:
                     return make_milling_station(s, robot, path=path, force_model=self.load, workpiece=workpiece,
-                                                q_modes_rad=q)
+                                                q_modes_rad=q, tool_pose=True)
                 except ValueError:
                     s = copy.deepcopy(s)
                     s.plant_config.time_step = plant_step_s(s, robot) / 2.0
                     s.servo.interpolator_period_ms = max(s.servo.interpolator_period_ms,
                                                          float(s.plant_config.time_step) * 1e3)
             return make_milling_station(s, robot, path=path, force_model=self.load, workpiece=workpiece,
-                                        q_modes_rad=q)
+                                        q_modes_rad=q, tool_pose=True)
 
         self._make = make
         self._q0 = np.asarray(q0, dtype=float)

@@ -2,8 +2,11 @@
 compilation (model/jit.py): its revolution average, the arithmetic of every
 averaged force update of the closed loop.  The same sums as the numpy
 reference (``PlantCuttingLaw.average_wrench`` with numba absent), in
-another order: equal to round-off (tests/test_jit_kernels.py).  Plain
-Python, no Drake.
+another order: equal to round-off (tests/test_jit_kernels.py).  Also the
+linear model's revolution average (MillingForceModel.average_wrench, which
+predictive compensation evaluates a few times a tick:
+``linear_average_wrench``), its operations in its order
+(tests/test_predictive_wrench.py).  Plain Python, no Drake.
 """
 
 import math
@@ -14,19 +17,13 @@ from robstiff_drake.model.jit import kernel
 
 
 @kernel
-def average_wrench_at(tool_x, tool_y, tool_z, u0, u1, boxes, c_f, h_scale, exponent, ramp_m, Kc, Ke, radius_m,
-                      k_back, dR, gauss_x, gauss_w):
-    """The revolution-averaged wrench (6,: force N, moment N*m about the
-    tool point, base frame) of the cutter at the tool point (``tool_x``,
-    ``tool_y``, ``tool_z``, m) in ``boxes`` ((B, 5): x0, x1, y0, y1, top,
-    m): the engaged arcs of the leading half as MillingForceModel's
-    ``lead_intervals`` finds them, each integrated with ``gauss_x``,
-    ``gauss_w`` (Gauss-Legendre nodes and weights on [-1, 1]), the feed
-    direction (u0, u1), feed per tooth ``c_f`` (m), the Kienzle law
-    ``h_scale`` h^``exponent`` (exponent 1: h), the edge forces ramped in up
-    to a chip of ``ramp_m`` (<= 0: a step), cutting and edge coefficients
-    ``Kc``, ``Ke`` (3, N/m^2 and N/m), the runout chip's ``k_back`` (n,) and
-    ``dR`` (n, n) (PlantCuttingLaw.chips_m)."""
+def lead_arcs(tool_x, tool_y, tool_z, u0, u1, boxes, radius_m):
+    """(arcs (k, 3), n): the first n rows are the engaged arcs of the
+    cutter's leading half (theta_a, theta_b rad, depth m) at the tool point
+    (``tool_x``, ``tool_y``, ``tool_z``, m) in ``boxes`` ((B, 5): x0, x1,
+    y0, y1, top, m) for the feed direction (u0, u1):
+    MillingForceModel.lead_intervals's operations in its order (the arcs
+    it returns, each the same floats)."""
     phi = math.atan2(u1, u0)
     half_pi = 0.5 * math.pi
     cuts = np.empty(2 + 8 * boxes.shape[0])
@@ -50,7 +47,7 @@ def average_wrench_at(tool_x, tool_y, tool_z, u0, u1, boxes, c_f, h_scale, expon
                 cuts[m], cuts[m + 1] = a - phi, math.pi - a - phi
                 m += 2
     if n_in == 0:
-        return np.zeros(6)
+        return np.empty((0, 3)), 0
     two_pi = 2 * math.pi
     angles = np.empty(m)
     k = 0
@@ -82,6 +79,56 @@ def average_wrench_at(tool_x, tool_y, tool_z, u0, u1, boxes, c_f, h_scale, expon
                         arcs[n_arcs, 0], arcs[n_arcs, 1], arcs[n_arcs, 2] = ta, tb, depth
                         n_arcs += 1
             prev = tb
+    return arcs, n_arcs
+
+
+@kernel
+def linear_average_wrench(tool_x, tool_y, tool_z, u0, u1, boxes, radius_m, basis):
+    """MillingForceModel.average_wrench at its own feed: the wrench (6,:
+    force N, moment N*m about the tool point, base frame) averaged over a
+    revolution at the tool point (``tool_x``, ``tool_y``, ``tool_z``, m) in
+    ``boxes`` ((B, 5), as ``lead_arcs``) for the feed direction (u0, u1);
+    ``basis`` (6, 5): the model's ``_basis`` (its rows' coefficients of the
+    integrals of 1, c, s, c s, c^2 over the engaged arcs)."""
+    arcs, n_arcs = lead_arcs(tool_x, tool_y, tool_z, u0, u1, boxes, radius_m)
+    S0 = S1 = S2 = S3 = S4 = 0.0
+    for i in range(n_arcs):
+        ta, tb, a = arcs[i, 0], arcs[i, 1], arcs[i, 2]
+        sa, ca, sb, cb = math.sin(ta), math.cos(ta), math.sin(tb), math.cos(tb)
+        # antiderivatives of 1, c, s, c s, c^2
+        S0 += a * (tb - ta)
+        S1 += a * (sb - sa)
+        S2 += a * (ca - cb)
+        S3 += a * 0.5 * (sb * sb - sa * sa)
+        S4 += a * 0.5 * ((tb - ta) + sb * cb - sa * ca)
+    w = np.empty(6)
+    for r in range(6):
+        w[r] = basis[r, 0] * S0 + basis[r, 1] * S1 + basis[r, 2] * S2 + basis[r, 3] * S3 + basis[r, 4] * S4
+    out = np.empty(6)
+    out[0] = w[0] * u0 - w[1] * u1
+    out[1] = w[0] * u1 + w[1] * u0
+    out[2] = w[2]
+    out[3] = w[3] * u0 - w[4] * u1
+    out[4] = w[3] * u1 + w[4] * u0
+    out[5] = w[5]
+    return out
+
+
+@kernel
+def average_wrench_at(tool_x, tool_y, tool_z, u0, u1, boxes, c_f, h_scale, exponent, ramp_m, Kc, Ke, radius_m,
+                      k_back, dR, gauss_x, gauss_w):
+    """The revolution-averaged wrench (6,: force N, moment N*m about the
+    tool point, base frame) of the cutter at the tool point (``tool_x``,
+    ``tool_y``, ``tool_z``, m) in ``boxes`` ((B, 5): x0, x1, y0, y1, top,
+    m): the engaged arcs of the leading half as MillingForceModel's
+    ``lead_intervals`` finds them, each integrated with ``gauss_x``,
+    ``gauss_w`` (Gauss-Legendre nodes and weights on [-1, 1]), the feed
+    direction (u0, u1), feed per tooth ``c_f`` (m), the Kienzle law
+    ``h_scale`` h^``exponent`` (exponent 1: h), the edge forces ramped in up
+    to a chip of ``ramp_m`` (<= 0: a step), cutting and edge coefficients
+    ``Kc``, ``Ke`` (3, N/m^2 and N/m), the runout chip's ``k_back`` (n,) and
+    ``dR`` (n, n) (PlantCuttingLaw.chips_m)."""
+    arcs, n_arcs = lead_arcs(tool_x, tool_y, tool_z, u0, u1, boxes, radius_m)
     if n_arcs == 0:
         return np.zeros(6)
     # the average over the arcs: Gauss-Legendre points in each, every tooth's chip there (runout), the law

@@ -11,13 +11,27 @@ model's wrench passed through an exact replica of the measurement chain (the
 same discrete filter at the sensor rate, fed two sensor samples late as the
 sensor and guard deliver it), so that the bracket is only the model's error:
 zero for an exact model even while the force changes, and the delayed error
-otherwise."""
+otherwise.
+
+The model's wrench is a function of the path time alone; a tick needs it
+at three times (the replica's next sample, the replica's output and the
+lead), and the replica's sample at a tick is the output's time of the tick
+before, so the last few are kept (keyed by the time, a float: a time
+computed another way is computed again).  The linear model's average runs
+compiled when numba is installed (model/cutting_kernels.py's
+``linear_average_wrench``: MillingForceModel.average_wrench's operations in
+its order)."""
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 from scipy import signal
 
+from robstiff_drake.model import jit
+from robstiff_drake.model.cutting_kernels import linear_average_wrench
+from robstiff_drake.model.milling import MillingForceModel
 from robstiff_drake.model.wrench_frames import to_sensor_frame
+
+_KEPT = 8  # model wrenches kept (a tick asks for three, one of them the tick before's)
 
 
 class PredictiveWrench(LeafSystem):
@@ -40,6 +54,11 @@ class PredictiveWrench(LeafSystem):
         A, B, C, D = signal.tf2ss(*filter_ba)
         self._A, self._B, self._C, self._D = A, B[:, 0], C[0], float(np.squeeze(D))
         self._nf = A.shape[0]
+        self._kept = {}  # {(t s, compiled): model wrench}
+        self._linear = None  # (boxes (B, 5) m, radius m, basis (6, 5)) for the compiled linear model
+        if type(force_model) is MillingForceModel:
+            self._linear = (np.array(workpiece.boxes, dtype=float).reshape(-1, 5),
+                            float(force_model.cutter.radius_m), np.array(force_model._basis, dtype=float))
         self._w = self.DeclareVectorInputPort("process_wrench", 6)
         self._q = self.DeclareVectorInputPort("q", 6)
         # replica filter states (nf x 6, column per channel) and the time of the last tick
@@ -51,7 +70,25 @@ class PredictiveWrench(LeafSystem):
 
     def model_wrench_base(self, t):
         """The model's wrench (tool point, base frame) on the planned path at t."""
+        compiled = self._linear is not None and jit.available()
+        kept = self._kept
+        w = kept.get((t, compiled))
+        if w is None:
+            w = self.model_wrench_reference(t) if not compiled else self._model_wrench_compiled(t)
+            if len(kept) >= _KEPT:
+                del kept[next(iter(kept))]  # (the oldest)
+            kept[(t, compiled)] = w
+        return w
+
+    def model_wrench_reference(self, t):
+        """``model_wrench_base`` in plain Python (the force model's own average)."""
         return self._model.average_wrench(self._path.position(t), self._path.feed_direction(t), self._wp)
+
+    def _model_wrench_compiled(self, t):
+        p, u = self._path.position(t), self._path.feed_direction(t)
+        boxes, radius_m, basis = self._linear
+        return linear_average_wrench(float(p[0]), float(p[1]), float(p[2]), float(u[0]), float(u[1]), boxes,
+                                     radius_m, basis)
 
     def _to_sensor(self, w, R):
         """A wrench at the tool point (base frame) as the sensor sees it, for
