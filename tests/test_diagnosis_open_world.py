@@ -38,10 +38,11 @@ def test_the_generator_shares_no_code_with_the_diagnosis():
     tree = ast.parse(Path(ow.__file__).read_text())
     imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
     imported |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
-    # the diagnosis (identification/diagnosis/*: candidates, dictionary, terms, selection, candidate_test, ...),
+    # the diagnosis (identification/diagnosis/*: candidates, dictionary, terms, selection, candidate_evaluation, ...),
     # the synthetic generator and the six-spring model
     forbidden = {"robstiff_drake.model.effects", "robstiff_drake.model.kinematics",
-                 "robstiff_drake.identification.stiffness.synth", "robstiff_drake.identification.stiffness.joint_stiffness"}
+                 "robstiff_drake.identification.stiffness.synth",
+                 "robstiff_drake.identification.stiffness.joint_stiffness"}
     shared = {m for m in imported if m in forbidden or m == "robstiff_drake.identification.diagnosis"
               or m.startswith("robstiff_drake.identification.diagnosis.")}
     assert not shared, shared

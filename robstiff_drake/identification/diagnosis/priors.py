@@ -45,7 +45,7 @@ PRIOR_PENALTY = 0.10
 
 @dataclass
 class Evidence:
-    """What ``decisive`` reads of a candidate (candidate_test.CandidateResult has
+    """What ``decisive`` reads of a candidate (candidate_evaluation.CandidateResult has
     these fields too) or of a kept term at the final fit."""
 
     rms_mm: float  # held out, with it

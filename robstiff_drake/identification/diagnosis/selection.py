@@ -3,7 +3,7 @@ add the candidate which earns its place on held-out poses, then a backward
 check that drops any that no longer does.  Plain numpy + scipy.
 
 Each round tries every candidate not yet in the model (the named library and
-the dictionary together) and measures (identification/diagnosis/candidate_test.py),
+the dictionary together) and measures (identification/diagnosis/candidate_evaluation.py),
 on the same pose-grouped folds:
 
   * its held-out RMS (all displacement components; every nonlinear parameter
@@ -38,7 +38,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from robstiff_drake.identification.diagnosis import plausibility as pl
-from robstiff_drake.identification.diagnosis.candidate_test import State, evaluate, implausible_terms, model_state
+from robstiff_drake.identification.diagnosis.candidate_evaluation import State, evaluate, implausible_terms, model_state
 from robstiff_drake.identification.diagnosis.priors import decisive, final_evidence, refusal, score
 from robstiff_drake.identification.diagnosis.cross_validation import clustered_wald, rows_to_eq
 from robstiff_drake.progress import progress
