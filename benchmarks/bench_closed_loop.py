@@ -52,7 +52,10 @@ from robstiff_drake.paths import DIAGRAMS_DIR
 REPEATS = 3
 
 
-def bare_plant_rtf(sc, robot, q0, t_end):
+def bare_plant_rtf(sc, robot, q0, t_end, extra=()):
+    """(real-time factor by wall time, by CPU time) of the bare station held
+    at ``q0`` for ``t_end`` s; ``extra``: systems added to its diagram
+    unconnected (benchmarks/bench_system_overhead.py)."""
     builder = DiagramBuilder()
     arm = add_compliant_arm(builder, robot=robot, plant_config=sc.plant_config,
                             joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
@@ -62,6 +65,8 @@ def bare_plant_rtf(sc, robot, q0, t_end):
     vel = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
     builder.Connect(cmd.get_output_port(), arm["position_command"])
     builder.Connect(vel.get_output_port(), arm["velocity_command"])
+    for system in extra:
+        builder.AddSystem(system)
     sim = Simulator(builder.Build())
     root = sim.get_mutable_context()
     arm["plant"].SetPositions(arm["plant"].GetMyMutableContextFromRoot(root), q0)

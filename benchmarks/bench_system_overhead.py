@@ -23,22 +23,19 @@ Run: python3 benchmarks/bench_system_overhead.py
 
 import os
 import sys
-import time
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import numpy as np  # noqa: E402 (after the thread settings)
-from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import ConstantVectorSource, PassThrough
+from pydrake.systems.framework import LeafSystem  # noqa: E402
+from pydrake.systems.primitives import PassThrough  # noqa: E402
 
-from robstiff_drake.diagrams.path_references import planned_path
-from robstiff_drake.diagrams.scenario import load_scenario
-from robstiff_drake.diagrams.scenario_models import plant_damping_ratios
-from robstiff_drake.diagrams.station import add_compliant_arm, gravity_holding_torque, servo_parameters, set_drives_at_rest
-from robstiff_drake.model.robot import load_robot
-from robstiff_drake.paths import DIAGRAMS_DIR
+from bench_closed_loop import bare_plant_rtf  # noqa: E402 (the bare station, as that benchmark's reference)
+from robstiff_drake.diagrams.path_references import planned_path  # noqa: E402
+from robstiff_drake.diagrams.scenario import load_scenario  # noqa: E402
+from robstiff_drake.model.robot import load_robot  # noqa: E402
+from robstiff_drake.paths import DIAGRAMS_DIR  # noqa: E402
 
 REPEATS = int(os.environ.get("REPEATS", 3))
 N = 5  # systems added at a time
@@ -56,24 +53,9 @@ class Idle(LeafSystem):
 
 
 def us_per_tick(sc, robot, q0, tick_s, add):
-    builder = DiagramBuilder()
-    arm = add_compliant_arm(builder, robot=robot, plant_config=sc.plant_config,
-                            joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
-                            damping_ratios=plant_damping_ratios(sc), q_modes_rad=q0, servo=servo_parameters(sc),
-                            interpolator_period_s=sc.servo.interpolator_period_ms / 1e3)
-    builder.Connect(builder.AddSystem(ConstantVectorSource(q0)).get_output_port(), arm["position_command"])
-    builder.Connect(builder.AddSystem(ConstantVectorSource(np.zeros(6))).get_output_port(), arm["velocity_command"])
-    for _ in range(N if add else 0):
-        builder.AddSystem(add())
-    sim = Simulator(builder.Build())
-    root = sim.get_mutable_context()
-    arm["plant"].SetPositions(arm["plant"].GetMyMutableContextFromRoot(root), q0)
-    theta = q0 + gravity_holding_torque(arm["controller_plant"], q0) / robot.joint_stiffness_Nm_per_rad
-    set_drives_at_rest(arm, root, theta, q0)
-    sim.Initialize()
-    c0 = time.process_time()
-    sim.AdvanceTo(SIM_S)
-    return (time.process_time() - c0) / (SIM_S / tick_s) * 1e6
+    """CPU time per controller tick (us) of the bare station with ``N`` systems ``add()`` added (none: None)."""
+    _, rtf_cpu = bare_plant_rtf(sc, robot, q0, SIM_S, extra=[add() for _ in range(N if add else 0)])
+    return tick_s / rtf_cpu * 1e6
 
 
 def main():
