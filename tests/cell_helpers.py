@@ -10,6 +10,7 @@ import socket
 import subprocess
 import sys
 import threading
+import time
 
 import numpy as np
 
@@ -189,6 +190,38 @@ class FakeSensor:
         self._stop.set()
         self.thread.join(5)
         self.server.close()
+
+
+class ScriptedLink:
+    """A controller link for CompensatorLoop that hands over scripted batches
+    of messages, one batch per read, each read after the answers before it
+    (as in lockstep); the script's end stops the loop (KeyboardInterrupt)."""
+
+    name, option, port = "EGM", "--egm-port", 0
+    strangers = malformed = 0
+    answer_deadline_periods = 1.0
+
+    def __init__(self, batches):
+        self.batches = batches
+
+    def send_targets(self, msg, target, env):
+        pass
+
+    def receive(self, timeout_s):
+        if not self.batches:
+            raise KeyboardInterrupt  # the script's end
+        t = time.monotonic()
+        return [(m, t) for m in self.batches.pop(0)]
+
+
+class HeldSensor:
+    """A sensor for CompensatorLoop whose every read is one record of ``w``."""
+
+    def __init__(self, w):
+        self.w = w
+
+    def drain(self):
+        return [(self.w, time.monotonic(), 0, False)]
 
 
 def hold_wrench(robot, q_rad):

@@ -19,31 +19,6 @@ from robstiff_drake.model.robot import load_robot
 Q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
 
 
-class Link:
-    name, option, port = "EGM", "--egm-port", 0
-    strangers = malformed = 0
-
-    def __init__(self, batches):
-        self.batches = batches
-
-    def send_targets(self, msg, target, env):
-        pass
-
-    def receive(self, timeout_s):
-        if not self.batches:
-            raise KeyboardInterrupt  # the script's end
-        t = time.monotonic()  # (each batch arrives after the answers before it, as in lockstep)
-        return [(m, t) for m in self.batches.pop(0)]
-
-
-class Sensor:
-    def __init__(self, w):
-        self.w = w
-
-    def drain(self):
-        return [(self.w, time.monotonic(), 0, False)]
-
-
 def _msg(k):
     return Message(k, (k - 1) * 4, Q0, echo=k)
 
@@ -57,7 +32,7 @@ def test_the_start_backlog_is_not_late_and_a_later_batch_is():
     # then one at a time (caught up), then a batch of three: this side fell behind, all three answered late
     batches = [[_msg(k) for k in range(2, 7)]] + [[_msg(k)] for k in range(7, 12)] + [[_msg(12), _msg(13),
                                                                                         _msg(14)]]
-    loop = CompensatorLoop(h.hold_compensator(robot, w), Link(batches), Sensor(w), ref, robot,
+    loop = CompensatorLoop(h.hold_compensator(robot, w), h.ScriptedLink(batches), h.HeldSensor(w), ref, robot,
                            LoopSettings(max_jump_Nm=350.0), log=None, out=open("/dev/null", "w"))
     loop.run((_msg(1), time.monotonic()))
     s = loop.stats()

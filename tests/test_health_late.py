@@ -23,32 +23,6 @@ Q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
 NAN = float("nan")
 
 
-class Link:
-    name, option, port = "EGM", "--egm-port", 0
-    strangers = malformed = 0
-    answer_deadline_periods = 1.0
-
-    def __init__(self, batches):
-        self.batches = batches
-
-    def send_targets(self, msg, target, env):
-        pass
-
-    def receive(self, timeout_s):
-        if not self.batches:
-            raise KeyboardInterrupt  # the script's end
-        t = time.monotonic()  # (each message read after the answer before it: never one waiting)
-        return [(m, t) for m in self.batches.pop(0)]
-
-
-class Sensor:
-    def __init__(self, w):
-        self.w = w
-
-    def drain(self):
-        return [(self.w, time.monotonic(), 0, False)]
-
-
 def _run(waits, log=None):
     """The loop over messages 2.. read one at a time, message k having
     waited ``waits[k - 2]`` s at this PC before its read (NaN: no stamp)."""
@@ -57,7 +31,7 @@ def _run(waits, log=None):
     ref = Reference(period_s=0.004)
     ref.hold(Q0)
     batches = [[Message(k, (k - 1) * 4, Q0, echo=k, queued_s=q)] for k, q in enumerate(waits, start=2)]
-    loop = CompensatorLoop(h.hold_compensator(robot, w), Link(batches), Sensor(w), ref, robot,
+    loop = CompensatorLoop(h.hold_compensator(robot, w), h.ScriptedLink(batches), h.HeldSensor(w), ref, robot,
                            LoopSettings(max_jump_Nm=350.0), log=log, out=open("/dev/null", "w"))
     loop.run((Message(1, 0, Q0, echo=1), time.monotonic()))
     return loop
@@ -97,7 +71,7 @@ def test_the_first_answer_is_not_judged():
     w = h.hold_wrench(robot, np.radians(Q0))(0.0).tolist()
     ref = Reference(period_s=0.004)
     ref.hold(Q0)
-    loop = CompensatorLoop(h.hold_compensator(robot, w), Link([]), Sensor(w), ref, robot,
+    loop = CompensatorLoop(h.hold_compensator(robot, w), h.ScriptedLink([]), h.HeldSensor(w), ref, robot,
                            LoopSettings(max_jump_Nm=350.0), log=None, out=open("/dev/null", "w"))
     loop.run((Message(1, 0, Q0, echo=1, queued_s=0.05), time.monotonic()))
     s = loop.stats()
