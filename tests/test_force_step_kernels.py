@@ -19,21 +19,10 @@ from robstiff_drake.model.path import PlannedPath
 from robstiff_drake.model.plant_cutting import PlantCuttingLaw, PlantCuttingPhysics
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.systems.milling_force import MillingForceSource
+from kernel_checks import assert_round_off, kernel
 
 LINEAR = MillingForceModel(Cutter(0.075, 6, 3600.0), CuttingCoefficients(631, 99, 273, 13, 10, 2.8), 0.02)
 T = 0.004
-
-
-def kernel(compiled, k):
-    if compiled and not jit.available():
-        pytest.skip("numba is not installed: the callers run the plain-Python references (tested here too)")
-    return k if compiled else k.py_func
-
-
-def assert_round_off(got, want):
-    got, want = np.asarray(got, dtype=float), np.asarray(want, dtype=float)
-    np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-13 * max(1.0, float(np.nanmax(np.abs(want)))))
-    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
 
 
 @pytest.fixture(scope="module")

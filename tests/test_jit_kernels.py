@@ -15,6 +15,7 @@ from robstiff_drake.model import cutting_kernels as ck
 from robstiff_drake.model import jit
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.plant_cutting import _GAUSS_W, _GAUSS_X, PlantCuttingLaw, PlantCuttingPhysics
+from kernel_checks import assert_round_off
 
 CUTTER = Cutter(0.075, 6, 3600.0)
 LINEAR = MillingForceModel(CUTTER, CuttingCoefficients(631, 99, 273, 13, 10, 2.8), 0.02)
@@ -52,11 +53,6 @@ def kernel_teeth(law, t, p, u, wp, phase, feed, travel, fn):
               np.array(wp.boxes, dtype=float).reshape(-1, 5))
 
 
-def assert_round_off(got, want):
-    scale = max(1.0, float(np.max(np.abs(want))))
-    np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-12 * scale)
-
-
 @pytest.mark.parametrize("name", sorted(LAWS))
 @pytest.mark.parametrize("wp", [ONE_BOX, TWO_BOXES], ids=["one box", "two boxes"])
 def test_the_kernels_python_originals_are_the_numpy_references(name, wp):
@@ -65,10 +61,10 @@ def test_the_kernels_python_originals_are_the_numpy_references(name, wp):
     for i, (p, u, feed, travel) in enumerate(cases(1)):
         want = law.average_wrench_reference(p, u, wp, feed, travel)
         engaged += bool(np.any(want != 0.0))
-        assert_round_off(kernel_average(law, p, u, wp, feed, travel, ck.average_wrench_at.py_func), want)
+        assert_round_off(kernel_average(law, p, u, wp, feed, travel, ck.average_wrench_at.py_func), want, rel=1e-12)
         t = np.linspace(0.0, 0.004, 7) + 0.001 * i
         assert_round_off(kernel_teeth(law, t, p, u, wp, 0.3, feed, travel, ck.tooth_wrenches_at.py_func),
-                         law.tooth_wrenches_reference(t, p, u, wp, 0.3, feed, travel))
+                         law.tooth_wrenches_reference(t, p, u, wp, 0.3, feed, travel), rel=1e-12)
     assert engaged > 10  # (the cases cut, not only air)
 
 
@@ -95,8 +91,8 @@ def test_the_compiled_kernels_are_the_numpy_references():
     for name, law in LAWS.items():
         for i, (p, u, feed, travel) in enumerate(cases(2, 40)):
             assert_round_off(law.average_wrench(p, u, TWO_BOXES, feed, travel),
-                             law.average_wrench_reference(p, u, TWO_BOXES, feed, travel))
+                             law.average_wrench_reference(p, u, TWO_BOXES, feed, travel), rel=1e-12)
             t = np.linspace(0.0, 0.002, 22) + 0.0007 * i
             assert_round_off(law.tooth_wrenches(t, p, u, TWO_BOXES, 0.3, feed, travel),
-                             law.tooth_wrenches_reference(t, p, u, TWO_BOXES, 0.3, feed, travel))
+                             law.tooth_wrenches_reference(t, p, u, TWO_BOXES, 0.3, feed, travel), rel=1e-12)
     assert ck.average_wrench_at._impl is not ck.average_wrench_at.py_func  # (it did run compiled)

@@ -15,26 +15,15 @@ import numpy as np
 import pytest
 
 from robstiff_drake.model import cutting_kernels as ck
-from robstiff_drake.model import jit
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.path import PlannedPath
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.systems.predictive_wrench import PredictiveWrench
+from kernel_checks import assert_round_off, kernel
 
 MODEL = MillingForceModel(Cutter(0.075, 6, 3600.0), CuttingCoefficients(631, 99, 273, 13, 10, 2.8), 0.02)
 # one wide box and a taller one overlapping it (m): edges, corners, a step in depth
 WORKPIECE = Workpiece.from_boxes([[0.0, 0.3, -0.1, 0.05, 0.003], [0.1, 0.2, -0.02, 0.02, 0.005]])
-
-
-def kernel(compiled, k):
-    if compiled and not jit.available():
-        pytest.skip("numba is not installed: the callers run the plain-Python references (tested here too)")
-    return k if compiled else k.py_func
-
-
-def assert_round_off(got, want):
-    got, want = np.asarray(got, dtype=float), np.asarray(want, dtype=float)
-    np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-13 * max(1.0, float(np.max(np.abs(want)))))
 
 
 def points(n=600, seed=3):

@@ -19,6 +19,7 @@ from robstiff_drake.model.payload import _GRAVITY, PayloadCalibration
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.wrench_frames import to_sensor_frame
 from robstiff_drake.systems.compensator_tick import saturate
+from kernel_checks import assert_round_off
 
 CAL = PayloadCalibration(mass_kg=40.0, com_mm=[5.0, -3.0, 180.0], force_bias_N=[2, -1, 3],
                          torque_bias_Nm=[0.1, 0.0, -0.2], sensor_mount_rpy_deg=[0.0, 0.0, 30.0])
@@ -29,10 +30,6 @@ def kernels(compiled):
         pytest.skip("numba is not installed: the callers run the plain-Python references (tested here too)")
     return ((tk.pose_and_deflection, tk.correction_step) if compiled
             else (tk.pose_and_deflection.py_func, tk.correction_step.py_func))
-
-
-def assert_round_off(got, want):
-    np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-13 * max(1.0, float(np.max(np.abs(want)))))
 
 
 @pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python original"])
