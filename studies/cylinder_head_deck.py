@@ -73,11 +73,11 @@ GRID_X_MM = 1.0  # the finished face's grid for paint and touch
 GRID_Y_MM = 5.0
 # The raw casting's deck is not flat before the cut: how far it may lie from its nominal height, +- mm, from
 # MRT Castings' published production tolerances for aluminium castings across a parting line or core, by projected
-# area (www.mrt-castings.co.uk, "design_lintolerances_mvt"; the deck, 414 x 150 mm = 621 cm2, in their 600-1500 cm2
-# row): gravity die cast with a metal core +-0.55, with a sand core +-1.0 (a semi-permanent-mould head), sand cast
-# +-1.5 mm.  The ends are used.  In ISO 8062-3:2007's Table 2 (a linear dimension of 100-160 mm: ASSUMPTION, the
-# head's height from its datum) these totals of 1.1-3.0 mm run from about DCTG 7 (1.2 mm) to between DCTG 9 (2.5)
-# and 10 (3.6).
+# area (https://www.mrt-castings.co.uk/design_lintolerances_mvt.html; the deck, 414 x 150 mm = 621 cm2, in their
+# 600-1500 cm2 row): gravity die cast with a metal core +-0.55, with a sand core +-1.0 (a semi-permanent-mould
+# head), sand cast +-1.5 mm; in addition to a dimension's own linear tolerance.  The ends are used.  In ISO
+# 8062-3:2007's Table 2 (a linear dimension of 100-160 mm: ASSUMPTION, the head's height from its datum) these
+# totals of 1.1-3.0 mm run from about DCTG 7 (1.2 mm) to between DCTG 9 (2.5) and 10 (3.6).
 RAW_DECK_TOLERANCE_MM = (0.55, 1.5)
 RAW_DECK_STEP_MM = 20.0  # the tilted raw face as flat steps this long along x (the workpiece model's boxes are flat)
 
