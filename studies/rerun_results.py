@@ -57,6 +57,9 @@ FIGURES = [
      PY + ["studies/paper_reproduction.py", "--no-budget", "--part", "cylinder head"]),
     ("paper_cylinder_head_deck", "The cylinder head as a four-cylinder deck (mastering draw 0)", "10 min",
      PY + ["studies/cylinder_head_deck.py", "--draw", "0"]),
+    ("paper_cylinder_head_raw_deck", "The cylinder head as a four-cylinder deck: a raw casting's tilted deck "
+     "(mastering draw 0, the published tolerance's upper end)", "20-40 min",
+     PY + ["studies/cylinder_head_deck.py", "--deck-only", "--draw", "0", "--raw-deck-tilt", "1.5"]),
     ("deck_zigzag_trace", "The cylinder head as a four-cylinder deck: why the zigzag pass cuts deeper compensated",
      "4 min", PY + ["studies/deck_pass_trace.py", "--zigzag"]),
     ("paper_budgets", "The paper's figures: the budgets' field split", "25 min",

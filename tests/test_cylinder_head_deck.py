@@ -77,3 +77,36 @@ def test_the_finished_face_is_the_lowest_pass_and_paint_and_touch_reads_its_step
     assert np.nanmean(d[y < -40.0]) == pytest.approx(0.1)
     assert pr.touch_reading(d) == pytest.approx((0.1, 0.3, 0.2))
     assert deck.pass_steps_mm(boxes, d) == pytest.approx([0.1, 0.3, 0.1], abs=1e-9)
+
+
+def test_the_tilted_raw_deck_keeps_the_footprint_and_tilts_the_stock_within_the_tolerance():
+    """The raw casting tilted within +-1.5 mm: the same material in x and y
+    (the area and the mask unchanged), the top within +-1.5 mm of nominal,
+    rising along x, each step at the tilt's height at its middle (so within
+    half a step's rise of the plane everywhere); a flat deck unchanged."""
+    boxes = deck.deck_boxes_mm()
+    assert deck.raw_deck_boxes_mm(boxes, 0.0) == boxes
+    tilt = deck.RAW_DECK_TOLERANCE_MM[1]
+    raw = deck.raw_deck_boxes_mm(boxes, tilt)
+    area = sum((b[1] - b[0]) * (b[3] - b[2]) for b in boxes)
+    assert sum((b[1] - b[0]) * (b[3] - b[2]) for b in raw) == pytest.approx(area, rel=1e-9)
+    x0, x1 = deck.deck_x_mm()
+    xs = np.linspace(x0 + 0.1, x1 - 0.1, 500)
+    for y in (-60.0, -20.0, 2.5, 40.0):
+        assert np.array_equal(deck.material_mask(raw, xs, y), deck.material_mask(boxes, xs, y))
+    tops = np.array([b[4] for b in raw])
+    assert tops.min() >= deck.TOP_MM - tilt - 1e-9 and tops.max() <= deck.TOP_MM + tilt + 1e-9
+    half_rise = tilt * deck.RAW_DECK_STEP_MM / (x1 - x0)
+    for b in raw:
+        plane = deck.TOP_MM + tilt * (2.0 * (b[0] + b[1]) / 2 - x0 - x1) / (x1 - x0)
+        assert b[4] == pytest.approx(plane, abs=1e-3)
+        assert b[1] - b[0] <= deck.RAW_DECK_STEP_MM + 1e-9
+    first = [b[4] for b in raw if b[0] == pytest.approx(x0)]
+    last = [b[4] for b in raw if b[1] == pytest.approx(x1)]
+    assert max(first) < deck.TOP_MM - tilt + half_rise + 1e-3 and min(last) > deck.TOP_MM + tilt - half_rise - 1e-3
+
+
+def test_the_raw_deck_tilt_outside_its_range_is_refused_before_any_cut(capsys):
+    assert deck.main(["--raw-deck-tilt", "3"]) == 2
+    err = capsys.readouterr().err
+    assert "--raw-deck-tilt" in err and "[0, 2.5]" in err
