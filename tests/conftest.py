@@ -13,6 +13,18 @@ REALTIME_FILES = {"test_cell_attacks.py", "test_cell_io.py", "test_cell_protocol
                   "test_cell_preview.py", "test_sim_cell.py"}
 
 
+def pytest_configure(config):
+    """A pytest started in the background by a non-interactive shell (`cmd &`, as a CI script or `nohup` may
+    start it) inherits SIGINT ignored, and CPython then leaves it ignored (it installs its own handler only where
+    SIGINT is at its default): the commands the tests start would inherit that too, and a test that interrupts
+    one would see it run to its end.  Python's own handler from the start, as in a terminal (before, the first
+    test was named by _sigint_left_as_found below for a state it had inherited)."""
+    import signal
+
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.path.name in REALTIME_FILES:
