@@ -1,5 +1,5 @@
 import sys
 
-from robstiff_drake.commands.main import main
+from robstiff_drake.cli import main
 
 sys.exit(main())

@@ -440,6 +440,43 @@ def test_ctrl_c_during_a_simulation_leaves_nothing_behind(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["slow.yaml"]
 
 
+def _import_failing(monkeypatch, error):
+    import builtins
+
+    real = builtins.__import__
+
+    def imp(name, *a, **k):
+        if name == "robstiff_drake.commands.main":
+            error()
+        return real(name, *a, **k)
+
+    monkeypatch.setattr(builtins, "__import__", imp)
+
+
+def test_ctrl_c_while_the_command_is_still_importing_is_one_line(monkeypatch, capsys):
+    """A Ctrl-C in the first tenth of a second lands in numpy's import, which turns it into an ImportError: it
+    printed numpy's traceback and exited 1 (a SIGINT 50 ms after `robstiff simulate` started); now the one line
+    and 130, as later on.  An ImportError of another cause is raised as it was."""
+    from robstiff_drake import cli
+
+    def interrupted_import():
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise ImportError("PyCapsule_Import could not import module \"datetime\"")
+
+    _import_failing(monkeypatch, interrupted_import)
+    assert cli.main(["robots"]) == 130
+    assert capsys.readouterr().err == "robstiff: interrupted\n"
+
+    def broken_install():
+        raise ImportError("no module named numpy")
+
+    _import_failing(monkeypatch, broken_install)
+    with pytest.raises(ImportError, match="numpy"):
+        cli.main(["robots"])
+
+
 # ------------------------------------------------- issue 19: small contract breaks
 
 
