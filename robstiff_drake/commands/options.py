@@ -71,6 +71,13 @@ def parse_tool(text):
 
 SCENARIO_HELP = "a scenario file, or the name of a packaged one (`robstiff examples` lists them)"
 ROBOT_HELP = "a library robot (see `robstiff robots`) or a robot file (YAML); default: irb6400"
+
+
+def add_robot_option(p, help_text=ROBOT_HELP):
+    """A subcommand's ``--robot NAME|YAML`` option."""
+    p.add_argument("--robot", metavar="NAME|YAML", default=None, help=help_text)
+
+
 TOOL_DEFAULT = "the robot file's payload.tool_point_mm"
 
 
