@@ -34,7 +34,7 @@ import numpy as np
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.compensator import PLAY_LAWS
 
-# the ranges of a scenario's model block (diagrams/scenario_schema.ModelConfig), the same keys
+# the ranges of a scenario's model block (diagrams/model_schema.ModelConfig), the same keys
 MAX_PLAY_RAD = 0.01
 TAKE_UP_RANGE_NM = (0.01, 1e4)
 FRICTION_RANGE_NM = (0.0, 1000.0)

@@ -45,7 +45,7 @@ class CompensatorSettings:
     # (the smooth law's) and friction in the play (the hysteretic law's), N*m per joint; None: the fallbacks
     # (model/transmission.fallback_take_up_Nm, gap_friction_Nm of the model's stiffness).  ASSUMPTION: a file
     # without lost_motion_law (written before it was logged) ran the compensator's default, hysteretic
-    # (diagrams/scenario_schema.ModelConfig)
+    # (diagrams/model_schema.ModelConfig)
     lost_motion_law: str = "hysteretic"
     lost_motion_take_up_Nm: list = None
     lost_motion_friction_Nm: list = None
