@@ -292,13 +292,13 @@ def model_deflection(settings, tau_static, tau_process, compliance):
     law, take_up, friction = play_law_of(s, c)
     if law == "smooth" or not np.any(b):
         return static_deflection(tau_static, tau_process, c, s.lost_motion_rad, s.coupling_c23_rad_per_Nm, take_up)
-    g, tau = np.atleast_2d(tau_static), np.atleast_2d(tau_process)
-    p = play_hysteresis.start(g[0] - tau[0], b)
-    ref, out = p, np.empty_like(tau)
-    for i in range(len(tau)):
-        p = play_hysteresis.step(p, g[i] - tau[i], b, friction)
-        out[i] = play_hysteresis.deflection(g[i], tau[i], p, ref, c, b, s.coupling_c23_rad_per_Nm)
-    return out
+    # play_hysteresis.deflection at each sample: the held twist, plus the touch-off's place in the gaps, less the
+    # twist of the torque carried, the gears stepped along the run (play_hysteresis.replay)
+    g = np.atleast_2d(np.asarray(tau_static, dtype=float))
+    carried = g - np.atleast_2d(np.asarray(tau_process, dtype=float))
+    ref = play_hysteresis.start(carried[0], b)
+    return (twist(g, c, None, s.coupling_c23_rad_per_Nm) + ref
+            - play_hysteresis.replay(carried, b, friction, c, s.coupling_c23_rad_per_Nm))
 
 
 def believed_gear_deviation(settings, tau_static, tau_touch_off, tau_inertia, tau_process, compliance,
