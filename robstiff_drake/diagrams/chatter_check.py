@@ -200,7 +200,7 @@ def chatter_check(sc, robot, max_poses=MAX_POSES, min_spacing=MIN_SPACING):
         if worst is None or s.real > worst[0].real:
             worst = (s, *rest)
     s, t, p, u, F, feed, jm, arm, chip = worst
-    f_hz, ratio = cc.mode_of(s)
+    f_hz, _ = cc.mode_of(s)
     out = {"stable": bool(s.real < 0), "growth_per_s": float(s.real), "frequency_hz": float(f_hz),
            "t_s": float(t), "x_mm": float(p[0] * 1e3), "y_mm": float(p[1] * 1e3), "z_mm": float(p[2] * 1e3),
            "in_plane_force_N": float(F), "feed_mm_per_s": float(feed * 1e3), "poses_checked": len(poses),
@@ -246,9 +246,10 @@ def chatter_warning(check):
                  f"{check['depth_mm']:.2f}) would be stable")
     on = check["damping_on"].replace("_", "-")
     # what to measure: the modes the root is made of (the chip moves the root off them: 39-40 Hz -> 69 Hz)
-    hz = sorted(m["drives_closed_hz"] for m in check["modes"] or [])
-    tested = (f"the arm's modes near {hz[0]:.0f}{'' if round(hz[0]) == round(hz[-1]) else f'-{hz[-1]:.0f}'} Hz "
-              "with the drives on" if hz else f"the arm's modes near {check['frequency_hz']:.0f} Hz")
+    hz = sorted({round(m["drives_closed_hz"]) for m in check["modes"] or []})
+    span = f"{hz[0]}-{hz[-1]}" if len(hz) > 1 else f"{hz[0]}" if hz else None
+    tested = (f"the arm's modes near {span} Hz with the drives on" if span else
+              f"the arm's modes near {check['frequency_hz']:.0f} Hz")
     g = check["growth_per_s"]
     doubling_s = math.log(2.0) / g if g > 0 else math.inf
     doubling = f"{doubling_s * 1e3:.0f} ms" if doubling_s < 1.0 else f"{doubling_s:.1f} s"
