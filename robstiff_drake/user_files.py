@@ -16,7 +16,8 @@ short line.
   a duplicated key is refused (PyYAML keeps the last one silently).
   Returns the document and the line of every key.
 * ``load_json(text, source)``: JSON nested at most MAX_DEPTH levels (checked
-  on the text before the parser recurses).
+  on the text before the parser recurses); a duplicated key in an object is
+  refused, naming it and its line (json keeps the last one silently).
 
 Values quoted in an error go through ``errors.excerpt`` (short, escaped).
 """
@@ -188,6 +189,48 @@ def json_depth(text):
     return int(np.cumsum(step, dtype=np.int64).max()) if step.size else 0
 
 
+class _DuplicatedKey(Exception):
+    def __init__(self, key):
+        self.key = key
+
+
+def _no_duplicates(pairs):
+    """json's object_pairs_hook: the object as a dict, _DuplicatedKey when a key comes twice (json.loads keeps the
+    last one silently: a model file's joint_stiffness_Nm_per_rad given twice would be read as its second)."""
+    d = dict(pairs)
+    if len(d) != len(pairs):
+        seen = set()
+        for k, _ in pairs:
+            if k in seen:
+                raise _DuplicatedKey(k)
+            seen.add(k)
+    return d
+
+
+_JSON_STRING_OR_BRACKET = re.compile(r'"(?:[^"\\]|\\.)*"(\s*:)?|[{}\[\]]')
+
+
+def _duplicate_line(text, key):
+    """The line of ``key``'s second occurrence in one object of the JSON ``text`` (None if not found)."""
+    stack = []  # per open bracket: the keys of an object, None for an array
+    for m in _JSON_STRING_OR_BRACKET.finditer(text):
+        tok = m.group()
+        if tok == "{" or tok == "[":
+            stack.append(set() if tok == "{" else None)
+        elif tok == "}" or tok == "]":
+            if stack:
+                stack.pop()
+        elif m.group(1) and stack and stack[-1] is not None:  # (a string followed by ':': a key)
+            try:
+                k = json.loads(tok[:tok.rindex('"') + 1])
+            except ValueError:
+                continue
+            if k == key and k in stack[-1]:
+                return text.count("\n", 0, m.start()) + 1
+            stack[-1].add(k)
+    return None
+
+
 def load_json(text, source):
     """A user's JSON document, nested at most MAX_DEPTH levels;
     UserFileError naming ``source``."""
@@ -195,7 +238,11 @@ def load_json(text, source):
     if depth > MAX_DEPTH:
         raise UserFileError(f"{source}: nested {depth} levels deep (at most {MAX_DEPTH})")
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=_no_duplicates)
+    except _DuplicatedKey as e:
+        line = _duplicate_line(text, e.key)
+        raise UserFileError(f"{source}: duplicated key '{excerpt(e.key)[1:-1]}' in one object"
+                            + (f" (line {line})" if line else "") + "; a second value would silently replace the first") from None
     except ValueError as e:
         raise UserFileError(f"{source}: not a JSON file (line {getattr(e, 'lineno', '?')}, column "
                             f"{getattr(e, 'colno', '?')}: {excerpt(getattr(e, 'msg', str(e)), 80)[1:-1]})") from None
