@@ -114,6 +114,7 @@ class CompensatorLoop(LoopStart, SensorIntake):
         self.reseed_candidate = None  # the first finite record while pending_reseed (the wrench, 6)
         self.saturated = False
         self.last_sent = None
+        self._corr_sent = [0.0] * 6  # the correction (rad, model joints) of the last target sent
         self.ended_by = "interrupt"
         # cell/realtime_thread.quiet_gc's token when the automatic collector is off for the run: the loop
         # collects after its answers (``_safe_point``); None: the collector left as it is
@@ -244,6 +245,14 @@ class CompensatorLoop(LoopStart, SensorIntake):
                        tuple(self.q_deg), tuple(c + m for c, m in zip(self._clamp, mf)), *self._supervision)
         unanswered = self.n.unanswered_refused
         sent = self._send(msg, target, env)
+        if sent:
+            self._corr_sent = corr
+        else:
+            # the controller holds what it was last told (the last safe target again, or nothing): the correction
+            # goes on from the one it carried, so that no answer moves it more than MAX_STEP_PERIODS periods of
+            # the rate limit (before, the refused cycles' ramp went on unsent: the next answer's step was refused
+            # by the motion check, and the last safe target held the old correction for good)
+            self.comp.correction = list(self._corr_sent)
         t_done = time.monotonic()
         self._count_saturation()  # (after the answer: counting only)
         age = t_done - self.latest_sample_time if self.latest_sample_time is not None else float("nan")
