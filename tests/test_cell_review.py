@@ -350,3 +350,97 @@ def test_after_refused_targets_the_correction_ramps_down_from_the_one_the_contro
     assert size[zero] == 0.0 and np.all(np.diff(size[n_good - 1:zero + 1]) <= 1e-12), size[n_good - 1:zero + 1]
     assert size[-1] > 0.15, size[-20:]  # compensating again
     assert "target: 25 consistent messages and the correction at zero; compensating again" in loop.out.getvalue()
+
+
+# ---------------------------------------------------------------------------------------------- RSI: lost datagrams
+
+
+def _rsi_session(robot, speed_deg_per_s, *, lost_at=300, lost=7, epoch_ms=0, n=400, restart=False):
+    """An RSI controller that keeps its session (its start S: every pose it commands is S + the AK it read) along
+    a path moving q1 at ``speed_deg_per_s``, answered by an RsiLink as the loop answers (target = the reference,
+    the envelope of cell/compensate.py); at message ``lost_at`` ``lost`` datagrams were lost on the way (its IPOC
+    skips them; ``epoch_ms`` more: a new IPOC epoch; ``restart``: the controller restarts RSI there instead, its
+    start the pose it stands at).  Arrival times as data (4 ms a message on the PC's clock).
+    Returns (the largest |commanded - reference| (deg), the link's refusals); the link (closed) in ``_rsi_last``."""
+    lo, hi = tuple(np.degrees(robot.q_lower_rad)), tuple(np.degrees(robot.q_upper_rad))
+    clamp = clamp_deg(robot, 0.5)
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", 0))
+    link = rsi.RsiLink(0, ("127.0.0.1", None), T)
+    link.reply_to = sink.getsockname()
+    q0 = np.asarray(Q0)
+    start, pose, ipoc, t_pc, worst, refused = q0.copy(), q0.copy(), 1_000_000, 0.0, 0.0, []
+    try:
+        for i in range(n):
+            skipped = lost if i == lost_at else 0
+            if restart and i == lost_at:
+                start = pose.copy()
+            ipoc += 4 * (1 + skipped) + (epoch_ms if i == lost_at else 0)
+            t_pc += T * (1 + skipped)
+            link.arrival_s = 1000.0 + t_pc
+            msg = link.decode(rsi.encode_rob(ipoc, pose, pose))
+            ref = q0 + [speed_deg_per_s * t_pc, 0, 0, 0, 0, 0]
+            env = Envelope(lo, hi, tuple(ref), tuple(clamp + speed_deg_per_s * T), tuple(pose),
+                           tuple(clamp + speed_deg_per_s * (T + 0.1)), *supervision_tolerances(robot, T))
+            try:
+                link.send_targets(msg, ref.tolist(), env)
+            except UnsafeTarget as e:
+                refused.append(str(e))
+                continue
+            pose = start + rsi.decode_sen(sink.recv(65536))[1]
+            worst = max(worst, float(np.abs(pose - ref).max()))
+    finally:
+        link.close()
+        sink.close()
+        _rsi_last[:] = [link]
+    return worst, refused
+
+
+_rsi_last = []
+
+
+@pytest.mark.parametrize("speed", [1.0, 2.0])
+def test_rsi_lost_datagrams_are_not_taken_for_a_restart_that_moves_the_arm(robot, speed):
+    """Seven datagrams lost in a row mid-path: the IPOC skips more than the
+    session check's window, as at a restart, but the controller keeps its
+    session and its start.  Before: the link learnt a new start (the pose
+    the controller commands now) and its one answer, AK from that start,
+    made the controller command 2.4 deg (2 deg/s path) from the reference,
+    back towards the session's start, passing its own check (the docstring's
+    "residual risk").  A skip no longer than the time this PC saw pass may
+    be lost datagrams: the answer must be safe under the old start too
+    (else refused: the controller stops), so nothing beyond the bounds is
+    commanded."""
+    clamp = float(clamp_deg(robot, 0.5).max())
+    worst, refused = _rsi_session(robot, speed)
+    assert worst <= clamp + speed * T + 1e-6, worst
+    assert refused and "the old start" in refused[0], refused[:1]
+
+
+def test_rsi_restart_with_a_new_ipoc_epoch_is_still_taken(robot):
+    """A skip far beyond the time this PC saw pass (a new IPOC epoch, as the
+    simulated KRC restarts) cannot be lost datagrams: a controller that
+    restarted there (its start the pose it stands at) is answered on as
+    before, within the bounds."""
+    worst, refused = _rsi_session(robot, 2.0, epoch_ms=10_000_000, restart=True)
+    assert not refused and worst <= float(clamp_deg(robot, 0.5).max()) + 2.0 * T + 1e-6, (worst, refused[:1])
+
+
+def test_rsi_restart_that_looks_like_lost_datagrams_is_not_answered_far_from_the_old_start(robot):
+    """The price: a restart whose IPOC goes on with the time (no new epoch)
+    at a pose far from the session's start (2.4 deg along the path) cannot
+    be told from lost datagrams; its answers are refused (the controller
+    stops) rather than risk the jump above."""
+    worst, refused = _rsi_session(robot, 2.0, restart=True)
+    assert refused and "the old start" in refused[0], refused[:1]
+
+
+def test_rsi_restart_near_the_old_start_is_answered_and_the_setpoint_tells_it_a_restart(robot):
+    """A restart without a new epoch 0.45 deg along the path (0.375 deg/s)
+    from the old start: answers safe from either start go out; once the path
+    has moved on by more than the setpoint check's tolerance, the setpoint
+    (the new start plus an AK sent, not the old start plus any) ends the
+    doubt."""
+    worst, refused = _rsi_session(robot, 0.45 / (300 * T), restart=True, n=800)
+    assert not refused and worst <= float(clamp_deg(robot, 0.5).max()) + 1e-3, (worst, refused[:1])
+    assert _rsi_last[0]._maybe_old is None and _rsi_last[0].session == 2

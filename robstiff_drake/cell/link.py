@@ -158,6 +158,9 @@ class PCLink:
         self.malformed = 0
         self.malformed_example = ""
         self.sent = 0
+        # when the datagram being decoded came (s, time.monotonic; the kernel's stamp when there is one): a
+        # protocol's decode may compare the controller's clock with it (RsiLink: lost datagrams or a restart)
+        self.arrival_s = None
         # the poses the controller was told to command (deg), newest last (two
         # kept: its step and the change of its step); a new session of the
         # protocol (RSI's restart) starts them again from its start
@@ -234,6 +237,7 @@ class PCLink:
                 if self.stranger_example is None:
                     self.stranger_example = f"{addr[0]}:{addr[1]}"
                 continue
+            self.arrival_s = t - waited if math.isfinite(waited) else t
             try:
                 msg = self.decode(data)
             except MessageError as e:

@@ -39,18 +39,31 @@ answer is checked on the pose the controller will command, its start plus
 the AK decoded from the answer's bytes (``commanded_deg``), and the
 controller's setpoint must be its start plus one of the recent corrections
 sent (``answer_problem``): a setpoint that is not says the PC's start is not
-the controller's, and nothing more is answered.  ASSUMPTION: lost datagrams
-that make the IPOC skip more than the window while the controller keeps its
-session look like a restart; the setpoint check then refuses from the next
-message on (the one answer in between is the residual risk, bounded by the
-controller's own axis-speed supervision).
+the controller's, and nothing more is answered.
+
+Lost datagrams.  Datagrams lost in a row make the IPOC skip beyond the
+window too while the controller keeps its session and its start; its
+setpoint then is its start plus the last AK it read, the very pose a
+restarted controller stands at, so one message cannot tell the two apart,
+and an answer from the wrong start moves the arm by the path travelled
+since the session's start (2.4 deg on a 2 deg/s path: tests/
+test_cell_review.py).  A forward skip no longer than the time that passed
+at this PC (the datagrams' arrival stamps, ``LOST_ALIKE_MARGIN_MS`` more)
+may be lost datagrams: until a setpoint shows the new start (it is the new
+start plus an AK sent and not the old start plus any), every answer must
+also be safe as the old session would read it, the old start plus the same
+AK (else refused: the controller stops).  A skip beyond that, or backwards,
+is a new IPOC epoch: a restart.  So a restart whose IPOC goes on with the
+time, at a pose away from the old start, is not answered.
 """
 
 import re
+import time
 import xml.etree.ElementTree as ET
 from collections import deque
 
 from robstiff_drake.cell.link import ControllerSide, Message, MessageError, PCLink
+from robstiff_drake.cell.safety import UnsafeTarget, unsafe_reason
 from robstiff_drake.cell.rsi_layout import RobLayout
 from robstiff_drake.cell.session import MAX_JUMP, REORDER_WINDOW
 
@@ -60,6 +73,10 @@ AXES = tuple(f"A{j}" for j in range(1, 7))
 # them (below 2**63: no float overflow, no sign, no other script's digits)
 _IPOC = re.compile(r"[0-9]{1,19}\Z", re.ASCII)
 RECENT_CORRECTIONS = 64  # the answers (4 ms each: 0.26 s) a controller's setpoint may still reflect
+# A forward IPOC skip (ms) no longer than the time that passed at this PC between the two datagrams' arrivals plus
+# this may be lost datagrams of the same session, not a new epoch.  ASSUMPTION: a controller's datagrams reach
+# this PC within a second of their IPOC's spacing (a wired link delays them by milliseconds).
+LOST_ALIKE_MARGIN_MS = 1000.0
 
 
 def _parse(data, root_tag):
@@ -158,6 +175,9 @@ class RsiLink(PCLink):
         self.last_seq = None  # the newest IPOC / period of this session
         self.previous_seq = None  # ... of the session before
         self._aks = deque(maxlen=RECENT_CORRECTIONS)  # corrections sent in this session (deg), newest last
+        self._t_last = None  # when the newest datagram of this session arrived (s, time.monotonic)
+        # (the session before's start, its recent corrections) while a new session may be lost datagrams instead
+        self._maybe_old = None
         self._layout = None  # the controller's datagram layout, learnt from one the XML parser accepted
         self._learn_in = 0  # datagrams the parser reads before the next try to learn a layout
 
@@ -177,7 +197,8 @@ class RsiLink(PCLink):
             self._learn_in -= 1
         return got
 
-    def _new_session(self, here_deg, seq):
+    def _new_session(self, here_deg, seq, lost_alike=False):
+        self._maybe_old = (list(self.start_deg), list(self._aks)) if lost_alike else None
         self.previous_seq = self.last_seq
         self.start_deg = list(here_deg)  # RSI_MOVECORR's start: corrections are from here
         self.session += 1
@@ -189,17 +210,24 @@ class RsiLink(PCLink):
         ipoc, actual, setpoint = self._decode_rob(data)
         here = setpoint if setpoint is not None else actual
         seq = int(round(ipoc / self.period_ms))
+        now = self.arrival_s if self.arrival_s is not None else time.monotonic()
         new = False
         if self.start_deg is None:
             self._new_session(here, seq)
+            self._t_last = now
         else:
             ds = seq - self.last_seq
             if -REORDER_WINDOW <= ds <= MAX_JUMP:
+                if seq > self.last_seq:
+                    self._t_last = now
                 self.last_seq = max(self.last_seq, seq)
             elif self.previous_seq is not None and abs(seq - self.previous_seq) <= REORDER_WINDOW:
                 raise MessageError(f"IPOC {ipoc}: a late datagram of the RSI session before the restart")
             else:
-                self._new_session(here, seq)
+                # (a forward skip within the time that passed here may be datagrams lost in a row: docstring)
+                waited_ms = (now - self._t_last) * 1e3
+                self._new_session(here, seq, lost_alike=0 < ds * self.period_ms <= waited_ms + LOST_ALIKE_MARGIN_MS)
+                self._t_last = now
                 new = True
         extra = {"session": self.session, "setpoint_deg": setpoint, "new_session": new,
                  "start_deg": list(self.start_deg)}
@@ -214,6 +242,14 @@ class RsiLink(PCLink):
         return [s + a for s, a in zip(self.start_deg, ak)]  # AXISCORR, absolute: the start plus AK
 
     def send_targets(self, message, targets_deg, envelope):
+        if self._maybe_old is not None and message.extra.get("session", self.session) == self.session:
+            # (perhaps lost datagrams, not a restart: the pose the controller commands if it kept its old start)
+            pose = [o + t - s for o, t, s in zip(self._maybe_old[0], targets_deg, self.start_deg)]
+            reason = unsafe_reason(pose, envelope)
+            if reason is not None:
+                raise UnsafeTarget(f"RSI: the IPOC skipped {message.seq - self.previous_seq} cycles, no more than the "
+                                   "time that passed here: lost datagrams, perhaps, not a restart; from the old start "
+                                   f"the controller would command {reason}")
         sent = super().send_targets(message, targets_deg, envelope)
         if sent:
             self._aks.append(self._last_ak)
@@ -227,8 +263,15 @@ class RsiLink(PCLink):
             return None
         tol = envelope.step_tol_deg or envelope.reference_tol_deg
         start = self.start_deg
+
+        def near(s, ak):
+            return all(abs(p - (x + a)) <= t + 1e-6 for p, x, a, t in zip(sp, s, ak, tol))
+
         for ak in [[0.0] * 6, *reversed(self._aks)]:
-            if all(abs(p - (s + a)) <= t + 1e-6 for p, s, a, t in zip(sp, start, ak, tol)):
+            if near(start, ak):
+                if self._maybe_old is not None and not any(
+                        near(self._maybe_old[0], a) for a in [*self._maybe_old[1], *self._aks]):
+                    self._maybe_old = None  # the setpoint shows the new start plus an AK sent: a restart
                 return None
         err = max(range(6), key=lambda j: min(abs(sp[j] - start[j] - a[j]) for a in [[0.0] * 6, *self._aks]))
         return (f"RSI: the controller's setpoint q{err + 1} {sp[err]:.4f} deg is not its start {start[err]:.4f} plus "
