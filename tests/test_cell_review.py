@@ -444,3 +444,60 @@ def test_rsi_restart_near_the_old_start_is_answered_and_the_setpoint_tells_it_a_
     worst, refused = _rsi_session(robot, 0.45 / (300 * T), restart=True, n=800)
     assert not refused and worst <= float(clamp_deg(robot, 0.5).max()) + 1e-3, (worst, refused[:1])
     assert _rsi_last[0]._maybe_old is None and _rsi_last[0].session == 2
+
+
+# ---------------------------------------------------------------------------------------------- malformed datagrams
+
+
+def _bad_datagrams(protocol):
+    """(link, a good datagram, [bad datagrams]) of a protocol: truncated, oversized, of another kind."""
+    import random
+
+    from robstiff_drake.cell import stream_motion
+    from robstiff_drake.cell.egm import ControllerLink, EgmLink
+
+    rng = random.Random(7)
+    noise = bytes(rng.getrandbits(8) for _ in range(60000))
+    if protocol == "egm":
+        side = ControllerLink("127.0.0.1", 1)
+        good = side.robot_message(Q0, tm_ms=4)
+        seven = side.robot_message(Q0 + [1.0], tm_ms=8)
+        command = side.robot_message(Q0, mtype=side.pb2.EgmHeader.MSGTYPE_COMMAND, tm_ms=12)
+        side.close()
+        return EgmLink(0, ("127.0.0.1", None)), good, [b"", good[:len(good) // 2], noise, seven, command]
+    if protocol == "rsi":
+        good = rsi.encode_rob(1000, Q0, Q0)
+        laughs = (b'<?xml version="1.0"?><!DOCTYPE r [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;">]>'
+                  b"<Rob><IPOC>&b;</IPOC></Rob>")
+        return (rsi.RsiLink(0, ("127.0.0.1", None), T), good,
+                [good[:-20], good + b" " * 5000, laughs, good.replace(b"<AIPos", b"<AXPos"), noise[:3000]])
+    good = stream_motion.encode_status(1, 4, Q0)
+    return (None, good, [good[:-1], good + b"\0", stream_motion.encode_status(2, 8, Q0, status=0x04),
+                         stream_motion.encode_command(3, Q0), noise[:len(good)]])
+
+
+@pytest.mark.parametrize("protocol", ["egm", "rsi", "stream-motion"])
+def test_truncated_oversized_and_foreign_datagrams_are_dropped_and_counted(protocol):
+    """From the controller's own address: each bad datagram is counted as
+    malformed and never decoded into a message; the good one after them is
+    read."""
+    from robstiff_drake.cell import stream_motion
+
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sender.bind(("127.0.0.1", 0))
+    link, good, bad = _bad_datagrams(protocol)
+    if link is None:
+        link = stream_motion.StreamMotionLink(0, ("127.0.0.1", sender.getsockname()[1]))
+    try:
+        for data in bad + [good]:
+            sender.sendto(data, ("127.0.0.1", link.port))
+        got = []
+        for _ in range(20):
+            got += link.receive(1.0)
+            if got:
+                break
+        assert len(got) == 1 and np.allclose(got[0][0].joints_deg, Q0), got
+        assert link.malformed == len(bad), (link.malformed, link.malformed_example)
+    finally:
+        link.close()
+        sender.close()
