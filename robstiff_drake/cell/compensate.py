@@ -247,11 +247,7 @@ class CompensatorLoop(LoopStart, SensorIntake):
         sent = self._send(msg, target, env)
         if sent:
             self._corr_sent = corr
-        else:
-            # the controller holds what it was last told (the last safe target again, or nothing): the correction
-            # goes on from the one it carried, so that no answer moves it more than MAX_STEP_PERIODS periods of
-            # the rate limit (before, the refused cycles' ramp went on unsent: the next answer's step was refused
-            # by the motion check, and the last safe target held the old correction for good)
+        else:  # the controller holds the last target sent: the ramp goes on from its correction (MAX_STEP_PERIODS)
             self.comp.correction = list(self._corr_sent)
         t_done = time.monotonic()
         self._count_saturation()  # (after the answer: counting only)
