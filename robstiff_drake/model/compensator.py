@@ -222,6 +222,10 @@ class Compensator:
         self.process_wrench = self.remove_gravity(self.filtered, q_rad)
         dq = self.model.dq(self.process_wrench, q_rad)
         self.dq = [min(s, max(-s, float(d))) for d, s in zip(dq, self.saturation)]
+        if not all(math.isfinite(float(d)) for d in dq):
+            # when in doubt, towards zero: a deflection not finite on any joint targets none on every joint
+            # (min(s, max(-s, nan)) would be -s, a full saturation the arm would follow)
+            self.dq = [0.0] * 6
         if self.delay_steps:
             self._delay.append(self.dq)
             dq_used = self._delay.popleft()
