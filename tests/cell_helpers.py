@@ -164,15 +164,20 @@ def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), w
 
 class FakeSensor:
     """A Net F/T on 127.0.0.1 (RDT and its calibration page) streaming
-    ``wrench(t)`` (N, N*m, sensor frame) at about 1 kHz from a thread."""
+    ``wrench(t)`` (N, N*m, sensor frame; ``by_record``: ``wrench(i)`` of the
+    record's index i among those sent to the client, so that what it
+    streams does not depend on this machine's pace) at about 1 kHz from a
+    thread; ``sent``: the records sent to the client so far."""
 
-    def __init__(self, wrench, units=("N", "N-m"), counts=(1e6, 1e6)):
+    def __init__(self, wrench, units=("N", "N-m"), counts=(1e6, 1e6), by_record=False):
         from robstiff_drake.cell.rdt import RDTServer
 
         self.server = RDTServer(0, http_port=0, units=units, counts_per_force=counts[0],
                                 counts_per_torque=counts[1])
         self.port, self.http_port = self.server.port, self.server.http_port
         self.wrench = wrench
+        self.by_record = by_record
+        self.sent = 0
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._run, daemon=True)
         self.thread.start()
@@ -183,7 +188,8 @@ class FakeSensor:
         t0 = time.monotonic()
         while not self._stop.is_set():
             self.server.poll()
-            self.server.send(list(self.wrench(time.monotonic() - t0)))
+            if self.server.send(list(self.wrench(self.sent if self.by_record else time.monotonic() - t0))):
+                self.sent += 1  # (a record counts once a client has started the stream)
             time.sleep(0.001)
 
     def close(self):
@@ -253,6 +259,11 @@ def hold_compensator(robot, w):
                        initial_wrench=w)
 
 
+# A bound on any wait of the scripted tests, never a deadline they are meant to meet: a wait ends at its event (an
+# answer, the process's exit); only a hung or starved compensator meets this
+HANG_GUARD_S = 60.0
+
+
 class ScriptedController:
     """A controller that sends EgmRobot messages exactly as a test says
     (sequence number, clock, joints) from 127.0.0.1 (or ``host``, another
@@ -281,7 +292,8 @@ class ScriptedController:
 
     def answers(self, timeout_s=0.0, want=1):
         """The joint targets (deg) of the answers waiting (after waiting up
-        to ``timeout_s`` for ``want`` of them)."""
+        to ``timeout_s`` for ``want`` of them; 0: those queued now, which
+        after the compensator's exit are all it ever sent here)."""
         import select
         import time
 
@@ -297,7 +309,7 @@ class ScriptedController:
             if len(out) >= want and timeout_s:
                 return out
 
-    def exchange(self, seq, tm_ms, joints_deg, timeout_s=5.0):
+    def exchange(self, seq, tm_ms, joints_deg, timeout_s=HANG_GUARD_S):
         self.send(seq, tm_ms, joints_deg)
         got = self.answers(timeout_s)
         return got[-1] if got else None
@@ -307,25 +319,82 @@ class ScriptedController:
 
 
 def start_compensate(model, payload, sensor, egm_port, *, reference=None, log=None, extra=()):
+    """`robstiff compensate` against a scripted controller: it ends when the
+    test says so (``finish``), not when the controller has been silent a
+    while (--idle-exit-s only as a hang guard: a test process paused on a
+    loaded machine is silent too; at 1 s such a pause once ended the run
+    mid-script, "a message unanswered")."""
     cmd = [sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port), "--netft",
            f"127.0.0.1:{sensor.port}", "--netft-http-port", str(sensor.http_port), "--model", model, "--payload",
-           payload, "--wait-s", "30", "--idle-exit-s", "1.0", "--sensor-timeout-ms", "200"]
+           payload, "--wait-s", "30", "--idle-exit-s", f"{HANG_GUARD_S:g}", "--sensor-timeout-ms", "200"]
     if reference:
         cmd += ["--reference", reference]
     if log:
         cmd += ["--log", log]
     proc = subprocess.Popen(cmd + list(extra), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     # ready when it says it waits for the controller (its port is bound); its earlier lines are kept
-    proc.early_err = ""
-    for line in proc.stderr:
+    proc.early_err, proc.err_bytes = "", b""
+    while True:
+        line = _err_line(proc)
         proc.early_err += line
-        if "waiting for" in line and "messages from" in line:
-            break
-    return proc
+        if not line or "waiting for" in line and "messages from" in line:
+            return proc
 
 
-def finish(proc, timeout=60):
-    """(exit status, the whole stderr) of a process started by start_compensate."""
+def _err_line(proc):
+    """The next line of the stderr of a process of start_compensate ("" at
+    its end), read from the pipe itself (so that ``_err_pending`` sees all
+    that is unread), within the hang guard."""
+    import select
+
+    fd = proc.stderr.fileno()
+    while b"\n" not in proc.err_bytes:
+        if not select.select([fd], [], [], HANG_GUARD_S)[0]:
+            raise TimeoutError(f"compensate wrote no line for {HANG_GUARD_S:g} s (hung?)")
+        chunk = os.read(fd, 65536)
+        if not chunk:
+            line, proc.err_bytes = proc.err_bytes, b""
+            return line.decode()
+        proc.err_bytes += chunk
+    line, _, proc.err_bytes = proc.err_bytes.partition(b"\n")
+    return line.decode() + "\n"
+
+
+def _err_pending(proc):
+    import select
+
+    return b"\n" in proc.err_bytes or bool(select.select([proc.stderr.fileno()], [], [], 0)[0])
+
+
+def finish(proc, timeout=HANG_GUARD_S, end=True):
+    """(exit status, the whole stderr) of a process started by
+    start_compensate.  ``end``: the script is over (its last answer
+    received), so the run is ended as a service manager stops it (SIGTERM:
+    the loop ends, writes its log, exit 0), once its loop is idle: it has
+    said the controller is silent (its "no message ... for 100 ms" line)
+    and no "messages again" line follows; an earlier silence's "again" line
+    was written before the answer to the message that ended it, so it is in
+    the pipe by now (the test had that answer).  Never mid-cycle: a SIGTERM
+    between an answer's send and its count left that answer uncounted.
+    ``end`` False: the process ends by itself (a refused start) and is
+    waited for."""
+    import signal
+
+    if end and proc.poll() is None:
+        silent = False
+        while not (silent and not _err_pending(proc)):
+            line = _err_line(proc)
+            proc.early_err += line
+            if not line:
+                break  # (it ended by itself)
+            if "no message from the controller for" in line:
+                silent = True
+            elif ": messages again" in line:
+                silent = False
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+    proc.early_err += proc.err_bytes.decode()
+    proc.err_bytes = b""
     out, err = proc.communicate(timeout=timeout)
     return proc.returncode, proc.early_err + err
 
