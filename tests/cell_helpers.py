@@ -14,6 +14,8 @@ import time
 
 import numpy as np
 
+from scripted_compensate import HANG_GUARD_S, ScriptedController, finish, start_compensate  # noqa: F401 (as h.*)
+
 from robstiff_drake.cell.sim_cell import CellNetwork, Faults, ServoArmStandIn
 from robstiff_drake.model import ik
 from robstiff_drake.model.payload import PayloadCalibration
@@ -164,15 +166,20 @@ def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), w
 
 class FakeSensor:
     """A Net F/T on 127.0.0.1 (RDT and its calibration page) streaming
-    ``wrench(t)`` (N, N*m, sensor frame) at about 1 kHz from a thread."""
+    ``wrench(t)`` (N, N*m, sensor frame; ``by_record``: ``wrench(i)`` of the
+    record's index i among those sent to the client, so that what it
+    streams does not depend on this machine's pace) at about 1 kHz from a
+    thread; ``sent``: the records sent to the client so far."""
 
-    def __init__(self, wrench, units=("N", "N-m"), counts=(1e6, 1e6)):
+    def __init__(self, wrench, units=("N", "N-m"), counts=(1e6, 1e6), by_record=False):
         from robstiff_drake.cell.rdt import RDTServer
 
         self.server = RDTServer(0, http_port=0, units=units, counts_per_force=counts[0],
                                 counts_per_torque=counts[1])
         self.port, self.http_port = self.server.port, self.server.http_port
         self.wrench = wrench
+        self.by_record = by_record
+        self.sent = 0
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._run, daemon=True)
         self.thread.start()
@@ -183,7 +190,8 @@ class FakeSensor:
         t0 = time.monotonic()
         while not self._stop.is_set():
             self.server.poll()
-            self.server.send(list(self.wrench(time.monotonic() - t0)))
+            if self.server.send(list(self.wrench(self.sent if self.by_record else time.monotonic() - t0))):
+                self.sent += 1  # (a record counts once a client has started the stream)
             time.sleep(0.001)
 
     def close(self):
@@ -251,83 +259,6 @@ def hold_compensator(robot, w):
                        filter_ba=filter_coefficients("lowpass", 10.0, 2, 1000.0, 3600.0), max_jump_N=1000.0,
                        saturation_rad=math.radians(0.5), rate_limit_rad_per_s=math.radians(5.0), delay_steps=0,
                        initial_wrench=w)
-
-
-class ScriptedController:
-    """A controller that sends EgmRobot messages exactly as a test says
-    (sequence number, clock, joints) from 127.0.0.1 (or ``host``, another
-    loopback address) and collects the answers: one message, then its
-    answer (lockstep, no timing on a loaded machine)."""
-
-    def __init__(self, compensate_port, host="127.0.0.1"):
-        from robstiff_drake.cell.egm import _egm_pb2
-
-        self.pb2 = _egm_pb2()
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind((host, 0))
-        self.addr = ("127.0.0.1", compensate_port)
-        self.port = self.sock.getsockname()[1]
-
-    def message(self, seq, tm_ms, joints_deg):
-        m = self.pb2.EgmRobot()
-        m.header.seqno = int(seq)
-        m.header.tm = int(tm_ms) & 0xFFFFFFFF
-        m.header.mtype = self.pb2.EgmHeader.MSGTYPE_DATA
-        m.feedBack.joints.joints.extend([float(v) for v in joints_deg])
-        return m.SerializeToString()
-
-    def send(self, seq, tm_ms, joints_deg):
-        self.sock.sendto(self.message(seq, tm_ms, joints_deg), self.addr)
-
-    def answers(self, timeout_s=0.0, want=1):
-        """The joint targets (deg) of the answers waiting (after waiting up
-        to ``timeout_s`` for ``want`` of them)."""
-        import select
-        import time
-
-        out, t_end = [], time.monotonic() + timeout_s
-        while True:
-            r, _, _ = select.select([self.sock], [], [], max(t_end - time.monotonic(), 0.0))
-            if not r:
-                return out
-            data, _ = self.sock.recvfrom(65536)
-            m = self.pb2.EgmSensor()
-            m.ParseFromString(data)
-            out.append(list(m.planned.joints.joints))
-            if len(out) >= want and timeout_s:
-                return out
-
-    def exchange(self, seq, tm_ms, joints_deg, timeout_s=5.0):
-        self.send(seq, tm_ms, joints_deg)
-        got = self.answers(timeout_s)
-        return got[-1] if got else None
-
-    def close(self):
-        self.sock.close()
-
-
-def start_compensate(model, payload, sensor, egm_port, *, reference=None, log=None, extra=()):
-    cmd = [sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port), "--netft",
-           f"127.0.0.1:{sensor.port}", "--netft-http-port", str(sensor.http_port), "--model", model, "--payload",
-           payload, "--wait-s", "30", "--idle-exit-s", "1.0", "--sensor-timeout-ms", "200"]
-    if reference:
-        cmd += ["--reference", reference]
-    if log:
-        cmd += ["--log", log]
-    proc = subprocess.Popen(cmd + list(extra), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    # ready when it says it waits for the controller (its port is bound); its earlier lines are kept
-    proc.early_err = ""
-    for line in proc.stderr:
-        proc.early_err += line
-        if "waiting for" in line and "messages from" in line:
-            break
-    return proc
-
-
-def finish(proc, timeout=60):
-    """(exit status, the whole stderr) of a process started by start_compensate."""
-    out, err = proc.communicate(timeout=timeout)
-    return proc.returncode, proc.early_err + err
 
 
 def logging_run(tmp, answered, timeout_s=60.0):

@@ -23,12 +23,22 @@ def pytest_configure(config):
 
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+    config.addinivalue_line("markers", "heavy(weight): a long test (a doc page of tests/test_wheel_install.py), run "
+                                       "first, the heaviest first (weight: a rough relative size)")
 
 
 def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.path.name in REALTIME_FILES:
             item.add_marker(pytest.mark.realtime)
+    # the long tests first, the heaviest first, the rest behind them in their order: pytest-xdist hands the
+    # first tests out to its workers in turn, so the long ones start at once on both and the short ones fill
+    # in at the end (one 753 s test collected last was CI's critical path, issue 32)
+    def weight(item):
+        m = item.get_closest_marker("heavy")
+        return -1 if m is None else m.args[0]
+
+    items.sort(key=lambda item: -weight(item) if weight(item) >= 0 else 1)
 
 
 @pytest.fixture(scope="session", autouse=True)

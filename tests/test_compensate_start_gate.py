@@ -70,8 +70,10 @@ def _run(job):
     ref = Reference(period_s=0.004)
     ref.hold(Q0)
     loop = CompensatorLoop(h.hold_compensator(robot, w), link, _Sensor(w), ref, robot,
-                           LoopSettings(max_jump_Nm=350.0, idle_exit_s=0.5), out=io.StringIO(),
+                           LoopSettings(max_jump_Nm=350.0, idle_exit_s=h.HANG_GUARD_S), out=io.StringIO(),
                            start_jobs=[("the stand-in check", job)])
+    # (--idle-exit-s a hang guard only: the test ends the run with _end; at 0.5 s a test thread that waited that
+    # long for the start's work on a loaded machine ended the run mid-script)
     raised = []
 
     def body():
@@ -85,6 +87,12 @@ def _run(job):
     th = threading.Thread(target=body, daemon=True)
     th.start()
     return loop, ctrl, th, raised
+
+
+def _end(loop, th):
+    """The script is over: the loop ends at its next silence (its 0.1 s receive), after the last cycle."""
+    loop.s.idle_exit_s = 1e-3
+    th.join(WAIT_S)
 
 
 def _held_start(loop, ctrl, entered):
@@ -112,7 +120,7 @@ def test_the_first_answer_does_not_wait_for_the_start_and_compensation_ramps_in_
         targets = [ctrl.exchange(k) for k in range(HELD_CYCLES, HELD_CYCLES + 40)]
     finally:
         release.set()
-        th.join(WAIT_S)
+        _end(loop, th)
         ctrl.side.close()
     assert not raised and loop.gate is None
     corr = np.asarray(targets) - Q0
@@ -147,7 +155,7 @@ def test_a_refused_start_ends_the_run_with_only_zero_correction_sent():
         ctrl.got.update(dict(ctrl.side.answers()))
     finally:
         release.set()
-        th.join(WAIT_S)
+        _end(loop, th)
         ctrl.side.close()
     assert len(raised) == 1 and "refuses the start" in str(raised[0])
     assert loop.ended_by == "start refused"

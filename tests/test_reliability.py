@@ -396,6 +396,11 @@ def test_a_sweep_run_that_fails_makes_the_sweep_incomplete(monkeypatch):
     assert rows[0]["stable"] is False and "MemoryError" in rows[0]["error"]
 
 
+def _marked(marker):
+    """The ids of the processes whose command line holds ``marker``."""
+    return subprocess.run(["pgrep", "-f", marker], capture_output=True, text=True).stdout.split()
+
+
 def test_sigterm_stops_a_sweep_and_its_workers(tmp_path):
     scen = tmp_path / "sigterm_marker_scenario.yaml"
     scen.write_text((ROOT / "diagrams" / "cylinder_head.yaml").read_text())
@@ -403,8 +408,14 @@ def test_sigterm_stops_a_sweep_and_its_workers(tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "sweep", str(scen), "--period-ms",
                              "4,8,12,16,24,32,48,64", "--cutoff-hz", "2,3,4,5", "--workers", "2", "--json", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
-    time.sleep(6.0)  # the workers are running by now
+    # until its two workers run (the sweep and its forked workers carry this scenario's path in their command line:
+    # this test's own, whatever else runs on the machine), however
+    # long this machine takes to start them (before: 6 s, on a loaded machine possibly before the workers came)
+    t_end = time.monotonic() + 300.0  # a hang guard only
+    while len(_marked(str(scen))) < 3 and proc.poll() is None and time.monotonic() < t_end:
+        time.sleep(0.1)
     assert proc.poll() is None, "the sweep ended before it could be interrupted"
+    assert len(_marked(str(scen))) >= 3, "the sweep's two workers never ran"
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err

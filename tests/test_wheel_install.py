@@ -8,15 +8,20 @@ from the code.
 
 Slow (a wheel build, the help examples and the doc pages; about two
 minutes on a quiet machine): marked ``slow``; it runs with the rest
-(deselect with ``-m "not slow"``).  For speed the wheel is built without
+(deselect with ``-m "not slow"``).  Each doc page and each help example is
+a test of its own, so that pytest-xdist spreads them over its workers (one
+test running every page was the suite's critical path: 753 s of an 856 s
+CI run); they run first, the heaviest first (tests/conftest.py's
+``heavy`` marker), and the rest of the suite fills in behind them.  For
+speed the wheel is built without
 build isolation and installed with --no-deps; the new environment reaches
 the test environment's packages (drake, numpy, ...) through a .pth line
 naming its site-packages (a venv made from a venv with
 --system-site-packages would see the base interpreter's packages instead),
 which does not run the editable install's import hook, so
 ``robstiff_drake`` can only come from the wheel.  One environment serves
-every test here; the doc pages run two at a time (each page in its own
-folder, its blocks in order).
+every test here (one per xdist worker: the build and install take
+seconds); each doc page runs in its own folder, its blocks in order.
 """
 
 import json
@@ -29,7 +34,6 @@ import subprocess
 import sys
 import time
 import zipfile
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -46,7 +50,7 @@ HELP_NEEDS_A_CELL = {
                   "compensate against sim-cell on 127.0.0.1)",
     "sim-cell": "waits for a compensator on the network (tests/test_sim_cell.py runs the pair on 127.0.0.1)",
 }
-BLOCK_TIMEOUT_S = 600
+BLOCK_TIMEOUT_S = 1800  # a hang guard only: a block of 110 s at load 4 takes several times that on a loaded CI
 
 
 def run(cmd, cwd, env, timeout=300):
@@ -55,7 +59,7 @@ def run(cmd, cwd, env, timeout=300):
     return proc.stdout
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def installed(tmp_path_factory):
     """The wheel, and a fresh environment with it installed: SimpleNamespace(wheel, venv, python, env, tmp)."""
     tmp = tmp_path_factory.mktemp("wheel")
@@ -208,62 +212,87 @@ def _doc_commands():
     return out
 
 
-def _run_help_examples(root, env):
-    """Every --help example not run as written by a doc block, each in its own empty folder."""
-    failures, skips, timings = [], [], []
-    in_docs = _doc_commands()
-    for name, example in EXAMPLES.items():
-        if name in HELP_NEEDS_A_CELL:
-            skips.append(f"robstiff {name} --help's example: {HELP_NEEDS_A_CELL[name]}")
-            continue
-        if example in in_docs:
-            skips.append(f"robstiff {name} --help's example: run as written by {in_docs[example]}")
-            continue
-        folder = root / name.replace(" ", "_")
-        folder.mkdir(parents=True)
-        code, out, err, seconds = shell(example, folder, env)
-        timings.append((seconds, f"robstiff {name} --help's example"))
-        if code != 0:
-            failures.append(f"robstiff {name} --help's example `{example}` exited {code}:\n{err[-2000:]}")
-    return failures, skips, timings
+# the long commands and their rough relative cost (about 30 s each unit on this project's 2-core machine at load 4:
+# a page's blocks as the old single test timed them, e.g. toolpaths.md's three simulations 113 s, offline_compensation's
+# compensate-program 101 s); only the order of the tests hangs on it
+HEAVY = re.compile(r"robstiff (simulate|sweep|demo|diagnose-run|diagnose|compensate-program) ")
+COST = {"simulate": 1.0, "sweep": 2.0, "demo": 2.0, "diagnose-run": 1.0, "diagnose": 0.5, "compensate-program": 3.0}
 
 
-HEAVY = re.compile(r"robstiff (simulate|sweep|demo|diagnose-run|diagnose) ")
+def _cost(text):
+    return sum(COST[m] for m in HEAVY.findall(text + " "))
 
 
 def _weight(page):
     """How long a page's blocks take, roughly: its closed-loop and diagnosis commands (the longest first)."""
-    return sum(len(HEAVY.findall(" ".join(b.commands()))) for b in blocks(page)
-               if b.marker is not None and "skip" not in b.clauses)
+    return sum(_cost(" ".join(b.commands())) for b in blocks(page) if b.marker is not None and "skip" not in b.clauses)
+
+
+def _runnable(page):
+    return any(b.marker is not None and b.shows_commands() and "skip" not in b.clauses for b in blocks(page))
+
+
+def _help_examples_run():
+    """{name: example} of the --help examples run here (not needing a cell, not run as written by a doc block)."""
+    in_docs = _doc_commands()
+    return {name: ex for name, ex in EXAMPLES.items() if name not in HELP_NEEDS_A_CELL and ex not in in_docs}
+
+
+def test_help_examples_not_run_here_say_why():
+    """Every --help example is run here or said why not (a cell needed, or a doc block runs it as written)."""
+    in_docs = _doc_commands()
+    for name, example in EXAMPLES.items():
+        if name in HELP_NEEDS_A_CELL:
+            print(f"SKIPPED robstiff {name} --help's example: {HELP_NEEDS_A_CELL[name]}")
+        elif example in in_docs:
+            print(f"SKIPPED robstiff {name} --help's example: run as written by {in_docs[example]}")
+    assert set(_help_examples_run()) | set(HELP_NEEDS_A_CELL) | {n for n, e in EXAMPLES.items() if e in in_docs} \
+        == set(EXAMPLES)
+
+
+def _report(results, t0, cpu0):
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu_s = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
+    failures, skips, timings = results
+    for seconds, where in timings:
+        print(f"{seconds:6.1f} s  {where}")
+    for skip in skips:
+        print(f"SKIPPED {skip}")
+    print(f"run: {len(timings)}, skipped: {len(skips)}; {time.perf_counter() - t0:.0f} s wall, {cpu_s:.0f} s of CPU "
+          f"(load average {os.getloadavg()[0]:.1f})")
+    assert not failures, "\n\n".join(failures)
 
 
 @pytest.mark.slow
-def test_every_help_example_and_doc_block_runs_from_an_empty_folder(installed):
-    """What a reader copies from `robstiff COMMAND --help` or from docs/*.md works as written, from the
-    wheel, each page in its own empty folder (its blocks in order), each help example in its own."""
-    jobs = {page: (lambda page=page: _run_page(page, installed.tmp / "docs", installed.env))
-            for page in sorted(pages(), key=_weight, reverse=True)}
-    jobs["--help examples"] = lambda: _run_help_examples(installed.tmp / "help", installed.env)
+@pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.heavy(_weight(p)))
+                                  for p in pages() if _runnable(p)])
+def test_every_doc_block_runs_from_an_empty_folder(installed, page):
+    """What a reader copies from docs/PAGE works as written, from the wheel, the page in its own empty folder
+    (its blocks in order)."""
     t0, cpu0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        results = dict(zip(jobs, pool.map(lambda job: job(), jobs.values())))
-    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu_s = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
-    failures = [f for r in results.values() for f in r[0]]
-    for r in results.values():
-        for seconds, where in r[2]:
-            print(f"{seconds:6.1f} s  {where}")
-    for r in results.values():
-        for skip in r[1]:
-            print(f"SKIPPED {skip}")
-    print(f"run: {sum(len(r[2]) for r in results.values())}, skipped: {sum(len(r[1]) for r in results.values())}; "
-          f"{time.perf_counter() - t0:.0f} s wall, {cpu_s:.0f} s of CPU (load average {os.getloadavg()[0]:.1f})")
-    assert not failures, "\n\n".join(failures)
-    # the demo (docs/results.md, the help's example) found its scenario, robot and cutting data in the installed
-    # package: the block test's result; it wrote nothing but its folder
-    demo = installed.tmp / "docs" / "results"
-    rep = json.loads((demo / "robstiff-out" / "demo.json").read_text())
-    unc, comp = rep["surface_error_mm"]["uncompensated"], rep["surface_error_mm"]["compensated"]
-    assert 0.15 <= unc["mean"] <= 0.5 and abs(comp["mean"]) <= 0.02
-    assert list((installed.tmp / "cache").glob("irb6400-*.urdf"))  # the URDF went to the cache
-    assert sorted(p.name for p in (installed.tmp / "help" / "diagnose-run").iterdir()) == ["cut1"]  # nothing else
+    _report(_run_page(page, installed.tmp / "docs", installed.env), t0, cpu0)
+    if page == "results.md":
+        # the demo (docs/results.md, the help's example) found its scenario, robot and cutting data in the
+        # installed package: the block test's result; it wrote nothing but its folder
+        demo = installed.tmp / "docs" / "results"
+        rep = json.loads((demo / "robstiff-out" / "demo.json").read_text())
+        unc, comp = rep["surface_error_mm"]["uncompensated"], rep["surface_error_mm"]["compensated"]
+        assert 0.15 <= unc["mean"] <= 0.5 and abs(comp["mean"]) <= 0.02
+        assert list((installed.tmp / "cache").glob("irb6400-*.urdf"))  # the URDF went to the cache
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.heavy(_cost(e)))
+                                  for n, e in _help_examples_run().items()])
+def test_every_help_example_runs_from_an_empty_folder(installed, name):
+    """What a reader copies from `robstiff NAME --help` works as written, from the wheel, in its own empty
+    folder."""
+    example = EXAMPLES[name]
+    folder = installed.tmp / "help" / name.replace(" ", "_")
+    folder.mkdir(parents=True)
+    t0, cpu0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
+    code, out, err, seconds = shell(example, folder, installed.env)
+    failures = [] if code == 0 else [f"robstiff {name} --help's example `{example}` exited {code}:\n{err[-2000:]}"]
+    _report((failures, [], [(seconds, f"robstiff {name} --help's example")]), t0, cpu0)
+    if name == "diagnose-run":
+        assert sorted(p.name for p in folder.iterdir()) == ["cut1"]  # it wrote nothing else

@@ -75,6 +75,12 @@ def format_fit(fit, campaign, robot, no_intervals=()):
     return "\n".join(lines)
 
 
+# identify fits the six-spring law only: the gears' play is not in its model, so its --json has no lost_motion_* keys
+# (those compensate --model and a scenario's model: block read: cell/play_note.py); diagnose fits it on the same file
+PLAY_NOT_IDENTIFIED = ("play (lost motion) not identified: this fit is the six-spring law (Eq. 8) and its JSON has "
+                       "no lost_motion_* keys; `robstiff diagnose DATA.csv` estimates it (effect lost_motion, b1-b3)")
+
+
 def plot_fit(fit, campaign, robot, no_intervals=()):
     import matplotlib
 
@@ -168,6 +174,7 @@ def _run_tracker(data, robot, tool_m, json_out, warnings):
             print(f"  joint {j + 1}: {k[j]:12.4g} N*m/rad   {note}")
         print()
         print(format_report(rep))
+        print(PLAY_NOT_IDENTIFIED)
     return 0
 
 
@@ -211,6 +218,7 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
             save_figure_atomic(plot_fit(fit, campaign, robot, no_intervals), plot, dpi=100)
     if json_out != "-":
         print(format_fit(fit, campaign, robot, no_intervals))
+        print(PLAY_NOT_IDENTIFIED)
     wrote(json_out, "the identified model (compensate --model, a scenario's model.identified_json)",
           to_stderr=json_out == "-")
     wrote(plot, to_stderr=json_out == "-")
