@@ -16,6 +16,7 @@ and diagrams/block_milling.yaml at its own forces.
     python studies/regenerative_chatter.py --paper          # the paper's block only
     python studies/regenerative_chatter.py --own            # block_milling.yaml only
     python studies/regenerative_chatter.py --paper --step-ms 0.125 --until-s 2.6   # a finer step, a short window
+    python studies/regenerative_chatter.py --paper --memory-revolutions 8           # the chip's memory doubled
     (--cache DIR keeps each run's log and statistics, so that the tables can be printed again without the runs)
 """
 
@@ -35,9 +36,11 @@ import paper_reproduction as pr  # noqa: E402
 from robstiff_drake.diagrams import experiment  # noqa: E402
 from robstiff_drake.diagrams.chatter_check import chatter_check  # noqa: E402
 from robstiff_drake.diagrams.scenario import load_scenario  # noqa: E402
+from robstiff_drake.model import regenerative_chip as rch  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
 from robstiff_drake.systems.regenerative_force import RegenerativeForceSource  # noqa: E402
 
+MEMORY_DEFAULT = rch.MEMORY_REVOLUTIONS
 MEAN_WINDOW_S = 0.02  # the vibration and the force's oscillation: off their mean over this (the arm's low modes,
 # 4-15 Hz, and the path's ramps leave; at 40-70 Hz 77-120 % of an oscillation stays)
 ENVELOPE_S = 0.01  # the envelope's window
@@ -210,7 +213,9 @@ def case(name, sc, robot, args):
     step = args.step_ms / 1e3
     plants = (("default", "the default (program's chip, averaged)", sc),
               ("tooth", "program's chip, tooth-resolved", tooth_resolved(sc, step, "program")),
-              ("regen", "regenerative", tooth_resolved(sc, step, "regenerative")))
+              ("regen", "regenerative" + (f" (memory {rch.MEMORY_REVOLUTIONS} revolutions)"
+                                          if rch.MEMORY_REVOLUTIONS != MEMORY_DEFAULT else ""),
+               tooth_resolved(sc, step, "regenerative")))
     for kind, plant, s in plants:
         if args.until_s and kind != "regen":
             continue
@@ -218,8 +223,10 @@ def case(name, sc, robot, args):
             if args.until_s and comp:
                 continue
             h_ms = float(s.plant_config.time_step) * 1e3
+            memory = rch.MEMORY_REVOLUTIONS if kind == "regen" else MEMORY_DEFAULT
             key = f"{name.split()[0]}-{kind}-{h_ms:g}-{'comp' if comp else 'plain'}" + (
-                f"-until{args.until_s:g}" if args.until_s else "")
+                f"-until{args.until_s:g}" if args.until_s else "") + (
+                f"-memory{memory}" if memory != MEMORY_DEFAULT else "")
             stats, log, wall = run(s, robot, comp, args.cache, key, args.until_s)
             rows.append((plant, comp, stats, log, wall, float(s.plant_config.time_step)))
             print(f"  ({plant}, {'compensated' if comp else 'uncompensated'}: {wall:.0f} s wall)", flush=True)
@@ -269,7 +276,10 @@ def main(argv=None):
     ap.add_argument("--step-ms", type=float, default=0.25, help="the regenerative plant's step (ms)")
     ap.add_argument("--until-s", type=float, help="the regenerative plant uncompensated only, up to this time (s)")
     ap.add_argument("--cache", help="a directory keeping each run (reused when there)")
+    ap.add_argument("--memory-revolutions", type=int, default=MEMORY_DEFAULT,
+                    help="the regenerative chip's memory (revolutions; the model's default 4): its sensitivity")
     args = ap.parse_args(argv)
+    rch.MEMORY_REVOLUTIONS = args.memory_revolutions
     robot = load_robot()
     if not args.own:
         case("paper's block (the paper's forces, draw 0, play on every joint)", pr.paper_scenario("block", robot, 0),
