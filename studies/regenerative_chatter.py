@@ -16,7 +16,7 @@ and diagrams/block_milling.yaml at its own forces.
     python studies/regenerative_chatter.py --paper          # the paper's block only
     python studies/regenerative_chatter.py --own            # block_milling.yaml only
     python studies/regenerative_chatter.py --paper --step-ms 0.125 --until-s 2.6   # a finer step, a short window
-    python studies/regenerative_chatter.py --paper --memory-revolutions 8           # the chip's memory doubled
+    python studies/regenerative_chatter.py --paper --memory-revolutions 16          # the chip's memory doubled
     (--cache DIR keeps each run's log and statistics, so that the tables can be printed again without the runs)
 """
 
@@ -277,7 +277,7 @@ def main(argv=None):
     ap.add_argument("--until-s", type=float, help="the regenerative plant uncompensated only, up to this time (s)")
     ap.add_argument("--cache", help="a directory keeping each run (reused when there)")
     ap.add_argument("--memory-revolutions", type=int, default=MEMORY_DEFAULT,
-                    help="the regenerative chip's memory (revolutions; the model's default 4): its sensitivity")
+                    help=f"the regenerative chip's memory (revolutions; the model's {MEMORY_DEFAULT}): its sensitivity")
     args = ap.parse_args(argv)
     rch.MEMORY_REVOLUTIONS = args.memory_revolutions
     robot = load_robot()
