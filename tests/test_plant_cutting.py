@@ -181,10 +181,10 @@ def straight_path_source(kin, tool, q0, law, cls=MillingForceSource):
                spindle_body_index=BodyIndex(7))
 
 
-@pytest.mark.xfail(strict=True, reason="issue 29: the plant's chip direction is the program's where the tool is; "
-                   "a filtered tool-motion direction is its filter's artefact on the paper's block, and the "
-                   "unfiltered chip over a tooth chatters there in the linearised physics, not only in the step "
-                   "(+37 1/s at 69 Hz: studies/chip_coupling_stability.py; docs/results.md)")
+@pytest.mark.xfail(strict=True, reason="issue 29: the default plant's chip direction is the program's where the "
+                   "tool is (cutting.chip: program); the chip that follows the tool is the option cutting.chip: "
+                   "regenerative (tests/test_regenerative_chip.py passes this situation with it), whose chatter "
+                   "on the paper's block studies/regenerative_chatter.py measures (docs/results.md)")
 def test_the_chip_turns_with_the_tools_motion_not_the_programs(arm):
     """The program runs along +x; the tool moves at 30 degrees to it (a
     tool pushed off its path): a chip that follows the tool is along its

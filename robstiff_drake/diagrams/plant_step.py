@@ -77,19 +77,22 @@ def tooth_resolving_step_s(jm, tooth_pass_hz):
     return step_on_grid_s(min(1.0 / (TOOTH_STEPS_PER_PASS * tooth_pass_hz), RESOLVED_OMEGA_H / (2 * np.pi * f_top)))
 
 
-def unresolved_tooth_message(jm, tooth_pass_hz, time_step_s):
+def unresolved_tooth_message(jm, tooth_pass_hz, time_step_s, regenerative=False):
     """None when the plant step resolves a tooth-resolved force of
     ``tooth_pass_hz`` (Hz), else why not and the step that would (one
-    line)."""
+    line); ``regenerative``: the force is the regenerative chip's
+    (cutting.chip: regenerative, which needs the teeth resolved)."""
     ok = tooth_resolving_step_s(jm, tooth_pass_hz)
     if time_step_s <= ok * (1 + 1e-9):
         return None
     ok_ms = round(ok * 1e3, 4)
-    return (f"a {time_step_s * 1e3:g} ms plant step does not resolve the tooth-resolved force (cutting.mode: "
-            f"tooth, {tooth_pass_hz:.0f} Hz tooth pass) on an arm whose stiffest mode is "
+    what, other = (("cutting.chip: regenerative", "cutting.chip: program with cutting.mode: averaged") if regenerative
+                   else ("cutting.mode: tooth", "cutting.mode: averaged"))
+    return (f"a {time_step_s * 1e3:g} ms plant step does not resolve the tooth-resolved force ({what}, "
+            f"{tooth_pass_hz:.0f} Hz tooth pass) on an arm whose stiffest mode is "
             f"{jm.closed_loop_modes()[0].max():.0f} Hz: the step's mean folds it down next to that mode and the "
             f"step moves the mode; use at most {ok_ms:g} ms (plant_config.time_step: {ok_ms / 1e3:g}) or "
-            f"cutting.mode: averaged")
+            f"{other}")
 
 
 # A flank impact lasts half a period of the gear's contact mode.  The explicit step locates no contact inside

@@ -180,6 +180,9 @@ def check_scenario(sc):
         if taps > MAX_FILTER_TAPS:
             _fail(sc, "controller.filter.kind", f"a revolution average at {c.spindle_rpm:g} rpm and "
                                                 f"{sen.rate_hz:g} Hz needs {taps:.0f} taps (at most {MAX_FILTER_TAPS})")
+    if sc.cutting.chip == "regenerative" and sc.cutting.mode != "tooth":
+        _fail(sc, "cutting.chip", "regenerative needs cutting.mode: tooth (each tooth's chip from the tool's own "
+                                  "motion over a tooth period), got cutting.mode: " + sc.cutting.mode)
     step_ms = bounding_step_s(sc) * 1e3
     if ctl.period_ms < step_ms - 1e-9:
         _fail(sc, "controller.period_ms", f"{ctl.period_ms:g} ms is below the plant step ({step_ms:g} ms)")

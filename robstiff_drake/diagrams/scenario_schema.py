@@ -129,6 +129,11 @@ class CuttingConfig:
 
     mode: str = choice("averaged", ("averaged", "tooth"))  # over a revolution, or tooth-resolved
     samples_per_tooth: int = num(20, 1, 200, "", integer=True)  # tooth mode: force samples per tooth pass
+    # the plant's chip: "program": its thickness from the tool's progress along the program, its direction the
+    # program's where the tool is (systems/milling_force.py); "regenerative": each tooth's chip the tool centre's
+    # own displacement since the earlier teeth's passes, a tooth with none out of the cut (model/regenerative_chip.py;
+    # tooth mode only)
+    chip: str = choice("program", ("program", "regenerative"))
     Ktc_N_per_mm2: float = num(631.0, 0.0, 1e4, "N/mm^2")
     Krc_N_per_mm2: float = num(99.0, -1e4, 1e4, "N/mm^2")
     Kac_N_per_mm2: float = num(273.0, -1e4, 1e4, "N/mm^2")

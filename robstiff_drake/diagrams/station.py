@@ -73,6 +73,7 @@ from robstiff_drake.model.payload import payload_wrench
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.servo import ServoParameters
 from robstiff_drake.systems.milling_force import MillingForceSource
+from robstiff_drake.systems.regenerative_force import RegenerativeForceSource
 from robstiff_drake.systems.wrist_sensor import LagFreeCuttingSensor, WristForceSensor, add_random_inputs
 
 
@@ -229,7 +230,9 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
     # the corner the drives got, where the run's settings and the compensator's servo model read it
     sc.servo.velocity_integral_hz = float(servo.velocity_integral_hz)
     plant = arm["plant"]
-    why = unresolved_tooth_message(arm["joints"], force_model.cutter.tooth_pass_hz, h) \
+    # the regenerative chip (cutting.chip; tooth-resolved only: a twin that averages the force keeps the program's)
+    regenerative = sc.cutting.chip == "regenerative" and sc.cutting.mode == "tooth"
+    why = unresolved_tooth_message(arm["joints"], force_model.cutter.tooth_pass_hz, h, regenerative) \
         if sc.cutting.mode == "tooth" and check_stability else None
     if why:
         raise ValueError(why)
@@ -242,7 +245,8 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
     q_link = state_demux.get_output_port(0)
     fk = DeflectionPredictor(robot.dh, k, tool)
     tick_kernels.warm_up(fk.chain_constants())  # (the milling force's compiled kernels loaded now, not in a timed run)
-    milling = builder.AddNamedSystem("milling_force", MillingForceSource(
+    source = RegenerativeForceSource if regenerative and hasattr(force_model, "chip_forces") else MillingForceSource
+    milling = builder.AddNamedSystem("milling_force", source(
         force_model=force_model, workpiece=workpiece, path=path, kinematics=fk, tool_point_m=tool,
         period_s=cutting_force_period_s(sc.cutting.mode, h),
         spindle_body_index=plant.GetBodyByName("spindle").index(), mode=sc.cutting.mode,

@@ -33,7 +33,10 @@ MAX_INSTANTS = 8
 # studies/chip_coupling_stability.py, docs/results.md "the chip's
 # direction from the tool's own motion"); and even the chip's stable
 # low-frequency limit (a velocity coupling) taken explicitly needs a force
-# update under 1.8 ms there, not the averaged force's 4 ms.
+# update under 1.8 ms there, not the averaged force's 4 ms.  The plant
+# option cutting.chip: regenerative (systems/regenerative_force.py)
+# simulates that feedback tooth by tooth instead, the chatter and its
+# limit cycle included (studies/regenerative_chatter.py).
 FEED_CUTOFF_HZ = 2.0
 
 
