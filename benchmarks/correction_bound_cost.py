@@ -12,8 +12,13 @@ and its check).  Target: the bound under a third of the tick's time and
 under 10 us a cycle (the fault's path: under the tick's time and 20 us: it
 runs only while the correction ramps down).  Prints the medians (us), the ratios and PASS/FAIL;
 exit status 1 when a target is missed.
+First it prints what the per-joint clamp (0.5 deg) allows at the tool
+there: each joint's alone and the worst of all signs together (the figures
+docs/real_cell.md and cell/correction_bound.py quote).
 Run: python3 benchmarks/correction_bound_cost.py
 """
+
+import itertools
 
 import math
 import os
@@ -61,6 +66,13 @@ def main():
                            fault_off=lambda *a: None)
     for _ in range(50):
         comp.tick(q0, T, True)
+    J = comp.model._pred.jacobian(q0)
+    clamp = math.radians(0.5)
+    alone = [float(np.linalg.norm(J[:3, j]) * clamp * 1e3) for j in range(6)]
+    worst = max(float(np.linalg.norm(J[:3] @ (np.array(s) * clamp))) * 1e3
+                for s in itertools.product((-1.0, 1.0), repeat=6))
+    print(f"the 0.5 deg clamp at the tool, IRB 6400 at {Q0} deg: each joint alone "
+          f"{', '.join(f'{v:.1f}' for v in alone)} mm; all joints, the worst signs, {worst:.1f} mm")
 
     def tick_standing(i):
         comp.tick(q0, T, True)

@@ -19,8 +19,9 @@ forward kinematics of commanded against reference: two chains a cycle
 (about 20 us each in plain Python) where the Jacobian is the one the
 model's prediction has just computed at the same joints (a memo hit) and
 J c is 36 multiply-adds (measured: ``python benchmarks/correction_bound_cost.py``).
-The second-order rest is |c| / 2 of the result at most (a 5 mm correction
-on a 1.5 m arm: 0.3 %), and the Jacobian is taken again when the measured
+The second-order rest is of the order of |c| (rad) of the result (a 5 mm
+correction on a 1.5 m arm: 0.3 %; tests/test_correction_bound.py holds it
+within 1 % of forward kinematics), and the Jacobian is taken again when the measured
 joints have moved REFRESH_RAD from where it was taken (a stale one is
 off by about that fraction): both far inside the bound's margin.
 
@@ -30,7 +31,9 @@ a cycle): J (s c) = s J c, so each step's tool displacement is below the
 last one's, which was inside the bound; a target beyond the bound is never
 sent.  The model still runs meanwhile (its wish is judged every cycle):
 the fault ends when the correction is zero and the model's wish has been
-inside the bound for ``clear_cycles`` messages.
+inside the bound for ``clear_messages`` messages (compensate's
+CLEAR_MESSAGES, 25, as a sequence fault's).  ``start_note``: the check
+before the run.
 """
 
 import math
