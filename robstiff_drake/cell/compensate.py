@@ -23,7 +23,8 @@ For every message the controller sends (every 4 ms on an IRC5; RSI 4 or
 
 Faults.  Each is one log line when it starts and one when it ends, and
 while any lasts the correction ramps to zero at the rate limit (never a
-jump, never a stale correction held): the sensor silent, invalid,
+jump, never a stale correction held): the correction moving the tool
+beyond its bound (cell/correction_bound.py); the sensor silent, invalid,
 clipped or rejected by the guard for ``sensor_timeout_s`` (silent: on
 this PC's clock and on the controller's); feedback not
 finite or outside the working ranges; the controller silent; its sequence
@@ -41,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from robstiff_drake.cell.correction_bound import CorrectionBound, bounded
 from robstiff_drake.cell.health import Counters
 from robstiff_drake.cell.loop_stats import loop_stats
 from robstiff_drake.cell.realtime_thread import collect_if_due
@@ -75,6 +77,9 @@ class LoopSettings:
     rate_limit_rad_per_s: float = math.radians(5.0)
     saturation_deg: float = 0.5
     max_jump_Nm: float = math.inf  # a moment jumping more than this from the last good sample is refused
+    # the correction's tool motion (mm, deg) beyond which it is a fault (cell/correction_bound.py; inf: none)
+    max_correction_mm: float = math.inf
+    max_correction_deg: float = math.inf
 
 
 class CompensatorLoop(LoopStart, SensorIntake):
@@ -127,6 +132,7 @@ class CompensatorLoop(LoopStart, SensorIntake):
         self._clamp = clamp_deg(robot, settings.saturation_deg).tolist()
         self._supervision = supervision_tolerances(robot, settings.period_s)  # axis speeds and accelerations
         self._sat = [math.radians(settings.saturation_deg)] * 6
+        self.bound = CorrectionBound.of(compensator, settings)  # (None: no bound)
         # an answer later than this after its datagram's arrival (s) missed the controller's next cycle
         self.deadline_s = getattr(link, "answer_deadline_periods", 1.0) * settings.period_s
 
@@ -231,8 +237,10 @@ class CompensatorLoop(LoopStart, SensorIntake):
             self._take_preview()
         if self.preview is not None:
             self.preview.update(self, msg)
-        active = not self.faults and self.gate is None
-        corr = self.comp.tick(self.q, min(dt, MAX_STEP_PERIODS * self.s.period_s), active)
+        # (the bound's fault alone: the model runs on, its wish judged each cycle; cell/correction_bound.py)
+        active = self.gate is None and all(name == "bound" for name in self.faults)
+        step_s = min(dt, MAX_STEP_PERIODS * self.s.period_s)
+        corr = bounded(self, self.comp.tick(self.q, step_s, active), step_s, active, CLEAR_MESSAGES)
         if self._identity:
             corr_deg = [math.degrees(c) for c in corr]
         else:
@@ -247,6 +255,8 @@ class CompensatorLoop(LoopStart, SensorIntake):
         sent = self._send(msg, target, env)
         if sent:
             self._corr_sent = corr
+            if self.bound is not None:
+                self.bound.sent()
         else:  # the controller holds the last target sent: the ramp goes on from its correction (MAX_STEP_PERIODS)
             self.comp.correction = list(self._corr_sent)
         t_done = time.monotonic()

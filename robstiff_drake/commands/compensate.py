@@ -34,6 +34,7 @@ from robstiff_drake.commands.compensate_inputs import json_doc, read_model, read
 from robstiff_drake.errors import InputError
 from robstiff_drake.cell.realtime_thread import pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
     realtime as _realtime, restore_gc as _restore_gc
+from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_DEG, DEFAULT_MAX_CORRECTION_MM
 from robstiff_drake.progress import info, wrote
 
 # How far the first joint feedback may be from the reference's start (deg)
@@ -80,6 +81,7 @@ def _link(protocol, listen_port, controller, period_s):
 def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, log=None, period_ms=4.0,
         sensor_rate_hz=1000.0, filter_kind="lowpass", cutoff_hz=DEFAULT_CUTOFF_HZ, filter_order=2, spindle_rpm=3600.0,
         max_jump_N=1000.0, max_jump_Nm=None, saturation_deg=0.5, rate_limit_deg_per_s=5.0, delay_steps=0,
+        max_correction_mm=DEFAULT_MAX_CORRECTION_MM, max_correction_deg=DEFAULT_MAX_CORRECTION_DEG,
         netft_counts=None, netft_units=None, netft_http_port=80, netft_open_s=2.0,
         wait_s=30.0, duration_s=0.0, idle_exit_s=0.0,
         sensor_timeout_ms=20.0, rt_priority=0, cpu=None, controller="127.0.0.1", protocol="egm", servo=None,
@@ -177,6 +179,14 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     if max_jump_Nm is None:
         max_jump_Nm = max_jump_N * max(float(np.linalg.norm(tool)) if tool is not None else 0.0, MIN_LEVER_M)
     predictor = DeflectionPredictor(robot.dh, k, tool)
+    bound_line = None  # (the bound against the model's deflection under --max-jump-N along the reference: a warning)
+    if ref.q is not None:
+        from robstiff_drake.cell.correction_bound import start_note
+
+        bound_line = start_note(predictor, ref.q, lambda q: robot.joint_map.to_model(np.radians(q)), max_jump_N,
+                                max_correction_mm, max_correction_deg, "the reference")
+        if bound_line:
+            print(f"robstiff: warning: compensate: {bound_line}", file=sys.stderr)
     link = _link(protocol, listen_port, ctrl, period_s)
     sensor = NetFTReader(host, port, counts=netft_counts, units=netft_units, http_port=netft_http_port)
     stream_log = background = remote = None
@@ -203,7 +213,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         settings = LoopSettings(period_s=period_s, sensor_timeout_s=sensor_timeout_ms / 1e3,
                                 feedback_timeout_s=sensor_timeout_ms / 1e3, idle_exit_s=idle_exit_s,
                                 duration_s=duration_s, rate_limit_rad_per_s=math.radians(rate_limit_deg_per_s),
-                                saturation_deg=saturation_deg, max_jump_Nm=max_jump_Nm)
+                                saturation_deg=saturation_deg, max_jump_Nm=max_jump_Nm,
+                                max_correction_mm=max_correction_mm, max_correction_deg=max_correction_deg)
         c = sensor.calibration
         cal_text = (f"{c[0]:g} counts/{c[2]}, {c[1]:g} counts/{c[3]} ({'from the sensor' if c[4] == 'sensor' else 'override'})"
                     if c else "unknown")
@@ -306,13 +317,14 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                        "cutoff_hz": cutoff_hz, "filter_order": filter_order, "max_jump_N": max_jump_N,
                        "max_jump_Nm": max_jump_Nm, "saturation_deg": saturation_deg,
                        "rate_limit_deg_per_s": rate_limit_deg_per_s, "delay_steps": delay_steps,
+                       "max_correction_mm": max_correction_mm, "max_correction_deg": max_correction_deg,
                        "sensor_timeout_ms": sensor_timeout_ms},
                    "mode": mode, "job": str(job) if job else None,
                    "preview": loop.preview.summary() if loop.preview is not None else None,
                    "preview_table": table,
                    "cycles": stats, "health": h, "loop_check": guard.result, "play": play_summary,
                    "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])
-                   + ([play_line] if play_line else [])}
+                   + ([play_line] if play_line else []) + ([bound_line] if bound_line else [])}
         written = stream_log.close(summary)
         wrote(log, ", ".join(written), folder=True, to_stderr=True)
         if servo is None or cutter_diameter_mm is None:

@@ -141,6 +141,7 @@ def _dispatch(args):
                               filter_kind=args.filter_kind, cutoff_hz=args.cutoff_hz, filter_order=args.filter_order,
                               spindle_rpm=args.spindle_rpm, max_jump_N=args.max_jump_N, max_jump_Nm=args.max_jump_Nm,
                               saturation_deg=args.saturation_deg, rate_limit_deg_per_s=args.rate_limit_deg_per_s,
+                              max_correction_mm=args.max_correction_mm, max_correction_deg=args.max_correction_deg,
                               delay_steps=args.delay_steps, netft_counts=counts, netft_units=units,
                               netft_http_port=args.netft_http_port,
                               netft_open_s=args.netft_open_s, wait_s=args.wait_s, duration_s=args.duration_s,

@@ -4,6 +4,7 @@ network: ``sim-cell`` (the scenario's simulated controller and sensor) and
 and sensor).  Every option with its range (commands/parser.py builds the
 rest and calls ``add_cell_commands`` where these two stand in the help)."""
 
+from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_DEG, DEFAULT_MAX_CORRECTION_MM
 from robstiff_drake.commands.options import SCENARIO_HELP, add_robot_option, number_in as _number_in
 
 
@@ -85,6 +86,11 @@ def add_cell_commands(sub):
                    help="a moment jumping more is refused (default: --max-jump-N times the tool point's distance "
                         "from the sensor, at least 0.1 m)")
     p.add_argument("--saturation-deg", type=_number_in(0.001, 10.0, "deg"), default=0.5, help="(default: %(default)s)")
+    p.add_argument("--max-correction-mm", type=_number_in(0.01, 100.0, "mm"), default=DEFAULT_MAX_CORRECTION_MM,
+                   help="the most the correction may move the tool point (mm); beyond it a fault: the correction "
+                        "ramps to zero (default: %(default)s; cell/correction_bound.py says why)")
+    p.add_argument("--max-correction-deg", type=_number_in(0.001, 10.0, "deg"), default=DEFAULT_MAX_CORRECTION_DEG,
+                   help="the most the correction may turn the tool (deg); beyond it a fault (default: %(default)s)")
     p.add_argument("--rate-limit-deg-per-s", type=_number_in(0.001, 1000.0, "deg/s"), default=5.0,
                    help="(default: %(default)s)")
     p.add_argument("--delay-steps", type=_number_in(0, 100, integer=True), default=0,
