@@ -20,15 +20,9 @@ import cell_helpers as h  # noqa: E402
 from robstiff_drake.cell import rsi  # noqa: E402
 from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, supervision_tolerances  # noqa: E402
 from robstiff_drake.errors import InputError  # noqa: E402
-from robstiff_drake.model.robot import load_robot  # noqa: E402
 
 T = 0.004
 Q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
-
-
-@pytest.fixture(scope="module")
-def robot():
-    return load_robot()
 
 
 def _envelope(robot, ref, measured=None):

@@ -15,15 +15,9 @@ sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
 
 from robstiff_drake.cell.safety import clamp_deg  # noqa: E402
-from robstiff_drake.model.robot import load_robot  # noqa: E402
 
 T = 0.004
 Q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
-
-
-@pytest.fixture(scope="module")
-def robot():
-    return load_robot()
 
 
 # ---------------------------------------------------------------------------------------------- the loop's faults

@@ -12,8 +12,9 @@ from pydrake.systems.analysis import Simulator
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.path import PlannedPath
 from robstiff_drake.model.plant_cutting import PlantCuttingLaw, PlantCuttingPhysics
-from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.systems.milling_force import MillingForceSource
+
+from arm_motion import arm_at_pose, moved
 
 CUTTER = Cutter(0.075, 6, 3600.0)
 COEFFS = CuttingCoefficients(631, 99, 273, 13, 10, 2.8)
@@ -76,21 +77,7 @@ def test_runout_makes_the_teeth_differ_and_repeat_once_a_revolution():
 
 @pytest.fixture(scope="module")
 def arm(robot):
-    tool = robot.payload.tool_point_m
-    kin = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool)
-    q0 = np.deg2rad([5.0, 15.0, 20.0, 10.0, 50.0, -20.0])
-    return kin, tool, q0
-
-
-def moved(kin, q0, dx):
-    """Link angles that put the tool point dx (m, base frame) from q0's, by Newton steps."""
-    _, p0 = kin.flange_rotation_and_tool_point(q0)
-    q = q0.copy()
-    for _ in range(5):
-        _, p = kin.flange_rotation_and_tool_point(q)
-        J = kin.jacobian(q)
-        q = q + np.linalg.lstsq(J[:3], p0 + dx - p, rcond=None)[0]
-    return q
+    return arm_at_pose(robot)
 
 
 def drive(src, kin, q0, times, points, feed0=0.0):

@@ -16,10 +16,11 @@ from robstiff_drake.diagrams.scenario import InputError, check_scenario, load_sc
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.path import PlannedPath
 from robstiff_drake.model.plant_cutting import PlantCuttingLaw
-from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.regenerative_chip import RegenerativeChip
 from robstiff_drake.paths import DIAGRAMS_DIR
 from robstiff_drake.systems.regenerative_force import RegenerativeForceSource
+
+from arm_motion import arm_at_pose, moved
 
 CUTTER = Cutter(0.075, 6, 3600.0)
 LINEAR = MillingForceModel(CUTTER, CuttingCoefficients(631, 99, 273, 13, 10, 2.8), 0.02)
@@ -82,21 +83,7 @@ def test_a_tool_retreating_faster_than_the_feed_cuts_nothing():
 
 @pytest.fixture(scope="module")
 def arm(robot):
-    tool = robot.payload.tool_point_m
-    kin = DeflectionPredictor(robot.dh, robot.joint_stiffness_Nm_per_rad, tool)
-    q0 = np.deg2rad([5.0, 15.0, 20.0, 10.0, 50.0, -20.0])
-    return kin, tool, q0
-
-
-def moved(kin, q0, dx):
-    """Link angles that put the tool point dx (m, base frame) from q0's, by Newton steps."""
-    _, p0 = kin.flange_rotation_and_tool_point(q0)
-    q = q0.copy()
-    for _ in range(5):
-        _, p = kin.flange_rotation_and_tool_point(q)
-        J = kin.jacobian(q)
-        q = q + np.linalg.lstsq(J[:3], p0 + dx - p, rcond=None)[0]
-    return q
+    return arm_at_pose(robot)
 
 
 def test_the_chip_turns_with_the_tools_motion_with_the_regenerative_option(arm):

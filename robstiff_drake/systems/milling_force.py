@@ -240,8 +240,12 @@ class MillingForceSource(LeafSystem):
         i = self._instant(context)
         if i is not None:
             return context.get_discrete_state(self._inst).value()[12 * i:12 * i + 6]
-        t = context.get_time()
-        p = context.get_discrete_state(self._pose).value()[9:]
+        return self._tooth_wrench_at(context, context.get_time(),
+                                     context.get_discrete_state(self._pose).value()[9:])
+
+    def _tooth_wrench_at(self, context, t, p):
+        """The instantaneous tooth wrench (base frame) at time t (s) with
+        the tool point held at p (m), an instant the update did not tabulate."""
         u0, u1, feed, travel = context.get_discrete_state(self._process).value().tolist()
         return self._model.tooth_wrenches([t], p, (u0, u1), self._workpiece, self._phase, feed,
                                           **self._wear_args(travel))[0]

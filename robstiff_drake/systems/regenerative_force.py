@@ -81,12 +81,7 @@ class RegenerativeForceSource(MillingForceSource):
             self.log.append((t, p[0], p[1], p[2], w[0], w[1], w[2], engaged, out))
         return w, pose, inst, np.array([float(u[0]), float(u[1]), feed, travel]), hist
 
-    def _tooth_wrench_now(self, context):
-        i = self._instant(context)
-        if i is not None:
-            return context.get_discrete_state(self._inst).value()[12 * i:12 * i + 6]
-        t = context.get_time()
-        p = context.get_discrete_state(self._pose).value()[9:]
+    def _tooth_wrench_at(self, context, t, p):
         travel = context.get_discrete_state(self._process).value()[3]
         past = context.get_discrete_state(self._tool_hist).value()
         if math.isnan(past[-3]):
