@@ -38,12 +38,12 @@ from robstiff_drake.diagrams.chatter_check import chatter_check  # noqa: E402
 from robstiff_drake.diagrams.scenario import load_scenario  # noqa: E402
 from robstiff_drake.model import regenerative_chip as rch  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
+# the vibration's definitions (off its 20 ms mean, the 10 ms envelope, the spectrum's peak): the package's, which
+# `robstiff simulate` applies to every run (diagrams/run_vibration.py)
+from robstiff_drake.model.vibration import ENVELOPE_S, envelope, moving_mean, off_mean, peak_hz  # noqa: E402
 from robstiff_drake.systems.regenerative_force import RegenerativeForceSource  # noqa: E402
 
 MEMORY_DEFAULT = rch.MEMORY_REVOLUTIONS
-MEAN_WINDOW_S = 0.02  # the vibration and the force's oscillation: off their mean over this (the arm's low modes,
-# 4-15 Hz, and the path's ramps leave; at 40-70 Hz 77-120 % of an oscillation stays)
-ENVELOPE_S = 0.01  # the envelope's window
 LIMIT_SPAN = (0.4, 0.8)  # the limit cycle's window: this span of the cut (first to last tooth engaged)
 LOG_COLUMNS = ("t", "x", "y", "z", "Fx", "Fy", "Fz", "engaged", "out")
 
@@ -85,19 +85,6 @@ def run(sc, robot, compensation, cache, key, until_s=None):
     return stats, (arr if arr.size else None), wall
 
 
-def moving_mean(t, v, window_s):
-    """v's centred mean over ``window_s`` (NaN where the window leaves the record)."""
-    k = max(1, int(round(window_s / (t[1] - t[0]))))
-    out = np.full(len(v), np.nan)
-    c = np.concatenate(([0.0], np.cumsum(v)))
-    out[k // 2:k // 2 + len(v) - k + 1] = (c[k:] - c[:-k]) / k
-    return out
-
-
-def off_mean(t, v, window_s=MEAN_WINDOW_S):
-    return v - moving_mean(t, v, window_s)
-
-
 def vibration(log):
     """(t, x mm, in-plane vibration um (n, 2), force oscillation N (n, 2),
     axial vibration um (n,), each off its MEAN_WINDOW_S mean; the force first averaged over a tooth
@@ -111,24 +98,6 @@ def vibration(log):
     F = np.stack([off_mean(t, F[:, i]) for i in (0, 1)], axis=1)
     xy = np.nan_to_num(xy)
     return t, log[:, 1] * 1e3, xy[:, :2], np.nan_to_num(F), xy[:, 2]
-
-
-def envelope(t, v):
-    """(window start times, largest |v| in each ENVELOPE_S window)."""
-    dt = t[1] - t[0]
-    n = max(1, int(round(ENVELOPE_S / dt)))
-    m = len(v) // n
-    a = np.abs(v[:m * n]).reshape(m, n, -1).max(axis=(1, 2))
-    return t[:m * n:n], a
-
-
-def peak_hz(t, v):
-    dt = t[1] - t[0]
-    y = (v - v.mean(axis=0)) * np.hanning(len(v))[:, None]
-    spec = np.abs(np.fft.rfft(y, 16 * len(v), axis=0)).sum(axis=1)
-    f = np.fft.rfftfreq(16 * len(v), dt)
-    band = (f > 15.0) & (f < 180.0)
-    return float(f[band][np.argmax(spec[band])])
 
 
 def chatter_summary(log, quiet_s=(0.3, 0.8)):

@@ -20,6 +20,7 @@ import numpy as np
 from robstiff_drake.diagrams.plant_step import step_choice
 from robstiff_drake.diagrams.job_checks import job_warnings, worse_reason
 from robstiff_drake.diagrams.run_checks import WORSE_FACTOR, WORSE_PREFIX, run_warnings
+from robstiff_drake.diagrams.run_vibration import vibration_summary, vibration_warnings
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.runs.logs import joint_reference_text
 from robstiff_drake.identification.runs.settings import read_settings
@@ -68,6 +69,9 @@ def summary(results, sc, warnings=()):
     # the regenerative chip's stability at the cut's sampled poses (diagrams/chatter_check.py; None: not
     # checked: the tooth-resolved mode or no cut)
     out["chatter_check"] = getattr(sc, "_chatter_check", None)
+    # the tool's in-plane vibration each run had (diagrams/run_vibration.py; null: a run that never cut)
+    vib = getattr(sc, "_vibration", None)
+    out["vibration"] = vib if vib is not None else vibration_summary(results)
     errs = out["surface_error_mm"]
     out["compensation_made_it_worse"] = (bool(errs["compensated"]["rms"] > WORSE_FACTOR * errs["uncompensated"]["rms"])
                                          if len(errs) == 2 else None)
@@ -197,9 +201,12 @@ def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warn
     if extras is not None:
         extras["compensated_scenario"] = sc_comp
     results = [run_cut(sc_comp if c else sc, robot, compensation=c, progress=progress) for c in MODES[compensation]]
+    # did the run itself vibrate? (its own logged signals, every plant mode: diagrams/run_vibration.py)
+    sc._vibration = vibration_summary(results)
     if warnings is not None:
         warnings.extend_from([w + worse_reason(sc, getattr(sc, "_program", None)) if w.startswith(WORSE_PREFIX) else w
                               for w in run_warnings(results, sc)])
+        warnings.extend_from(vibration_warnings(sc._vibration, sc))
     return sc, results
 
 
