@@ -58,6 +58,9 @@ from robstiff_drake.errors import InputError, Terminated
 # of its rate limit in one answer, whatever the time since the last one.
 MAX_STEP_PERIODS = 2.0
 CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
+# messages in a row behind the last one (each the next after the one before) that the loop logs once: more than
+# a sequence jump's MAX_JUMP, fewer than the reorder window's 64 (cell/session.py)
+BEHIND_LOGGED = 8
 STALE_PERIODS = 3.0  # a correction computed from a wrench older than this many periods is stale
 START_BACKLOG_S = 1.0  # the most of the controller's messages (s of its clock) waiting at the start not counted late
 
@@ -199,6 +202,12 @@ class CompensatorLoop(LoopStart, SensorIntake):
         if v == "old":
             self.n.old += 1
             self.n.lost = max(self.n.lost - 1, 0)  # (counted lost when a newer one came first)
+            if self.clock.behind_run == BEHIND_LOGGED:  # (once a run: safe, nothing sent, but not silent)
+                self.event(f"{self.link.name}: {BEHIND_LOGGED} messages in a row with sequence numbers behind the "
+                           f"last one ({msg.seq - BEHIND_LOGGED + 1} to {msg.seq} after {prev}; "
+                           f"{BEHIND_LOGGED * self.s.period_s * 1e3:.0f} ms of the controller's cycles): a restart "
+                           "of the controller within its first messages? nothing is answered until its numbering "
+                           f"passes {prev}")
             return False, 0.0
         if prev is not None and v in ("ok", "clock"):
             self.n.lost += max(0, (msg.seq - prev) % 2**32 - 1)
@@ -206,6 +215,9 @@ class CompensatorLoop(LoopStart, SensorIntake):
             self.n.jumps += 1
             restart = (msg.seq - (prev or 0)) % 2**32 >= 2**31 and msg.seq < 100  # numbering from the start again
             what = "the controller restarted" if restart else "the sequence jumped"
+            if self.clock.restarted_from is not None:  # (cell/session.py: a run numbered from the start again)
+                what = (f"the controller restarted ({msg.seq - self.clock.restarted_from + 1} messages in a row "
+                        f"numbered from {self.clock.restarted_from} again, behind the last one)")
             self.fault_on("sequence", f"{self.link.name}: {what} (sequence number {msg.seq} after {prev})")
         elif v == "clock":
             self.n.clock_faults += 1

@@ -55,6 +55,14 @@ also be safe as the old session would read it, the old start plus the same
 AK (else refused: the controller stops).  A skip beyond that, or backwards,
 is a new IPOC epoch: a restart.  So a restart whose IPOC goes on with the
 time, at a pose away from the old start, is not answered.
+
+The IPOC's wrap.  A millisecond counter of 32 bits wraps after 49.7 days of
+the controller's uptime (``IPOC_WRAPS_MS``: the assumption).  The IPOC
+before near the wrap and the next near 0, going on with the time passed
+here, is read as the counter gone round: the same session (or, past
+``MAX_JUMP``, lost datagrams as above), not a restart; every answer is
+checked as any other (a restart that happens to land there is the case
+above: the setpoint check tells it).
 """
 
 import re
@@ -65,7 +73,7 @@ from collections import deque
 from robstiff_drake.cell.link import ControllerSide, Message, MessageError, PCLink
 from robstiff_drake.cell.safety import UnsafeTarget, unsafe_reason
 from robstiff_drake.cell.rsi_layout import RobLayout
-from robstiff_drake.cell.session import MAX_JUMP, REORDER_WINDOW
+from robstiff_drake.cell.session import MAX_JUMP, REORDER_WINDOW, WRAP
 
 MAX_BYTES = 4096  # a Rob datagram is a few hundred bytes
 AXES = tuple(f"A{j}" for j in range(1, 7))
@@ -77,6 +85,15 @@ RECENT_CORRECTIONS = 64  # the answers (4 ms each: 0.26 s) a controller's setpoi
 # this may be lost datagrams of the same session, not a new epoch.  ASSUMPTION: a controller's datagrams reach
 # this PC within a second of their IPOC's spacing (a wired link delays them by milliseconds).
 LOST_ALIKE_MARGIN_MS = 1000.0
+# The IPOC's wrap (ms): after the largest value the counter starts from 0 again.  ASSUMPTION: no public source at
+# hand states the IPOC's width (KUKA's RSI manual calls it a time stamp; ROS-Industrial's kuka_rsi_hw_interface reads
+# it into a 64-bit integer; a third-party note on KUKA's $ROB_TIMER, a 1 ms counter, gives 32 bits signed, back to 0
+# after 2**31 - 1).  A controller whose IPOC is a 32-bit (or 31-bit) millisecond counter wraps every 49.7 (24.9) days
+# of uptime; the next IPOC is then small, a backwards jump that read plainly is a new epoch (a restart).  A previous
+# IPOC that reaches one of these wraps, going on with the time passed at this PC (module docstring: at most
+# MAX_JUMP periods, or the lost datagrams' rule), is the same counter gone round: the session goes on (or, past
+# MAX_JUMP, the lost-datagram case).  An IPOC of 2**32 ms or more says the counter is wider: no wrap is looked for.
+IPOC_WRAPS_MS = (2**32, 2**31)
 
 
 def _parse(data, root_tag):
@@ -178,6 +195,10 @@ class RsiLink(PCLink):
         self._t_last = None  # when the newest datagram of this session arrived (s, time.monotonic)
         # (the session before's start, its recent corrections) while a new session may be lost datagrams instead
         self._maybe_old = None
+        self._ipoc_last = None  # the newest IPOC of this session (ms), counted on across wraps
+        self._ipoc_offset_ms = 0  # what the wraps seen add to a raw IPOC (ms)
+        self._last_wrap_ms = None  # the wrap last crossed (one of IPOC_WRAPS_MS)
+        self.wraps = 0  # IPOC wraps crossed
         self._layout = None  # the controller's datagram layout, learnt from one the XML parser accepted
         self._learn_in = 0  # datagrams the parser reads before the next try to learn a layout
 
@@ -206,20 +227,46 @@ class RsiLink(PCLink):
         self._aks.clear()
         self.commanded = [list(here_deg)] * 2  # at its start the controller stands still there
 
+    def _unwrap(self, ipoc, now):
+        """The IPOC counted on across its wraps (ms): ``ipoc`` plus the
+        wraps seen, one more when the newest IPOC reaches a wrap of
+        IPOC_WRAPS_MS and ``ipoc`` goes on from it with the time passed here,
+        one fewer for a late datagram of before the last wrap."""
+        u = ipoc + self._ipoc_offset_ms
+        if self._ipoc_last is None or ipoc >= IPOC_WRAPS_MS[0]:
+            return u
+        d = u - self._ipoc_last
+        if d < -REORDER_WINDOW * self.period_ms:
+            waited_ms = (now - self._t_last) * 1e3
+            for w in IPOC_WRAPS_MS:  # (the raw IPOC before the newest was below w: a w-counter's)
+                if self._ipoc_last - self._ipoc_offset_ms < w and \
+                        0 < d + w <= max(MAX_JUMP * self.period_ms, waited_ms + LOST_ALIKE_MARGIN_MS):
+                    self._ipoc_offset_ms += w
+                    self._last_wrap_ms = w
+                    self.wraps += 1
+                    return u + w
+        elif d > MAX_JUMP * self.period_ms and self._last_wrap_ms is not None and \
+                -REORDER_WINDOW * self.period_ms <= d - self._last_wrap_ms < 0:
+            return u - self._last_wrap_ms  # a late datagram of before the wrap
+        return u
+
     def decode(self, data):
         ipoc, actual, setpoint = self._decode_rob(data)
         here = setpoint if setpoint is not None else actual
-        seq = int(round(ipoc / self.period_ms))
         now = self.arrival_s if self.arrival_s is not None else time.monotonic()
+        ipoc_u = self._unwrap(ipoc, now)
+        seq = int(round(ipoc_u / self.period_ms))
         new = False
         if self.start_deg is None:
             self._new_session(here, seq)
             self._t_last = now
+            self._ipoc_last = ipoc_u
         else:
             ds = seq - self.last_seq
             if -REORDER_WINDOW <= ds <= MAX_JUMP:
                 if seq > self.last_seq:
                     self._t_last = now
+                    self._ipoc_last = ipoc_u
                 self.last_seq = max(self.last_seq, seq)
             elif self.previous_seq is not None and abs(seq - self.previous_seq) <= REORDER_WINDOW:
                 raise MessageError(f"IPOC {ipoc}: a late datagram of the RSI session before the restart")
@@ -228,10 +275,12 @@ class RsiLink(PCLink):
                 waited_ms = (now - self._t_last) * 1e3
                 self._new_session(here, seq, lost_alike=0 < ds * self.period_ms <= waited_ms + LOST_ALIKE_MARGIN_MS)
                 self._t_last = now
+                self._ipoc_last = ipoc_u
                 new = True
         extra = {"session": self.session, "setpoint_deg": setpoint, "new_session": new,
                  "start_deg": list(self.start_deg)}
-        return Message(seq, ipoc, actual, echo=ipoc, extra=extra)
+        # (the clock the session check reads: the IPOC counted on across a wrap, modulo session.WRAP as it reads it)
+        return Message(seq, ipoc_u % WRAP, actual, echo=ipoc, extra=extra)
 
     def encode(self, message, targets_deg):
         return encode_sen(message.echo, [t - s for t, s in zip(targets_deg, self.start_deg)])
@@ -295,7 +344,7 @@ class RsiControllerLink(ControllerSide):
     def send_state(self, k, joints_deg, planned_deg, tm_ms, bad_type=False):
         if self.start is None:
             self.start = list(planned_deg)  # RSI_MOVECORR's start: the setpoint it stands at
-        ipoc = self.ipoc0 + int(round(tm_ms))
+        ipoc = (self.ipoc0 + int(round(tm_ms))) % IPOC_WRAPS_MS[0]  # (a 32-bit counter: rsi.IPOC_WRAPS_MS)
         self.sent_as(ipoc, k)
         return self.send(b"<Rob Type='KUKA'/>" if bad_type else encode_rob(ipoc, joints_deg, planned_deg))
 

@@ -19,12 +19,24 @@ stamp likewise) and the controller's clock (ms) must advance together.
   within ``MAX_JUMP`` periods (+ the tolerance): a bounded step per
   message, whatever the datagram says.
 
+* a run of older ones numbered on from 0 or 1 (``RESTART_RUN`` in a row,
+  each one after the last, their clock with them, none newer between):
+  a controller that restarted within the first ``REORDER_WINDOW``
+  messages (its numbering and clock from the start again, behind the
+  last seen): taken as a "jump" (its restart) on the run's last message,
+  the ones before it dropped; a run numbered from elsewhere stays "old"
+  (``behind_run`` counts it: the loop logs it).
+
 A controller whose clock does not run (every message stamped the same,
 e.g. tm = 0) is timed by its sequence numbers alone.
 """
 
 MAX_JUMP = 5  # cycles a sequence number may skip (lost datagrams) without a fault
 REORDER_WINDOW = 64  # how far back an old datagram is dropped quietly (not a fault)
+# Messages in a row, numbered on from 0 or 1 behind the last seen, that are a restart, not reordered datagrams (a
+# reordered datagram comes alone, or a few amid newer ones; a restarted controller sends nothing newer).  Three: two
+# of them dropped unanswered, then the restart's fault (ramp to zero) as for a restart later in a session.
+RESTART_RUN = 3
 WRAP = 2**32  # sequence numbers and clocks are uint32 on every protocol here
 
 
@@ -48,6 +60,25 @@ class SessionClock:
         self.tm = None
         self.clock_runs = None  # unknown until two messages have come
         self.counts = {"ok": 0, "clock": 0, "jump": 0, "duplicate": 0, "old": 0}
+        # the run of messages behind the last one seen, each one after the one before: [first seq, seq, tm, count]
+        self._behind = None
+        self.restarted_from = None  # the first sequence number of the run taken as a restart (last "jump")
+
+    @property
+    def behind_run(self):
+        """How many messages in a row came behind the last one seen, each the next after the one before (0: none)."""
+        return self._behind[3] if self._behind is not None else 0
+
+    def _run_behind(self, seq, tm):
+        """Extend (or start) the run of messages behind the last one; True when it is a restart."""
+        b = self._behind
+        with_clock = b is not None and (not self.clock_runs or abs(_signed(tm - b[2]) - self.T_ms) <= self.tol_ms)
+        if with_clock and _signed(seq - b[1]) == 1:
+            b[1], b[2], b[3] = seq, tm, b[3] + 1
+        else:
+            # (its clock behind the last one seen too, or not running: a restart's clock starts again)
+            b = self._behind = [seq, seq, tm, 1] if not self.clock_runs or _signed(tm - self.tm) <= 0 else None
+        return b is not None and b[0] <= 1 and b[3] >= RESTART_RUN
 
     def accept(self, seq, tm_ms):
         if self.seq is None:
@@ -59,8 +90,15 @@ class SessionClock:
             self.counts["duplicate"] += 1
             return "duplicate", 0.0
         if -REORDER_WINDOW <= ds < 0:
+            if self._run_behind(int(seq), int(tm_ms)):
+                self.restarted_from, self._behind = self._behind[0], None
+                self.seq, self.tm = int(seq), int(tm_ms)
+                self.counts["jump"] += 1
+                return "jump", self.T
             self.counts["old"] += 1
             return "old", 0.0
+        self._behind = None
+        self.restarted_from = None
         dtm = _signed(int(tm_ms) - self.tm)
         if self.clock_runs is None:
             self.clock_runs = dtm != 0
