@@ -16,13 +16,11 @@ import pytest
 
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
+from rsi_session import Q0, T, drive  # noqa: E402
 
 from robstiff_drake.cell import rsi  # noqa: E402
 from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, supervision_tolerances  # noqa: E402
 from robstiff_drake.errors import InputError  # noqa: E402
-
-T = 0.004
-Q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
 
 
 def _envelope(robot, ref, measured=None):
@@ -118,43 +116,14 @@ def test_compensate_refuses_it_in_one_line_before_any_socket_opens(tmp_path, rob
 
 
 def _rsi_session(robot, speed_deg_per_s, *, lost_at=300, lost=7, epoch_ms=0, n=400, restart=False):
-    """An RSI controller that keeps its session (its start S: every pose it commands is S + the AK it read) along
-    a path moving q1 at ``speed_deg_per_s``, answered by an RsiLink as the loop answers (target = the reference,
-    the envelope of cell/compensate.py); at message ``lost_at`` ``lost`` datagrams were lost on the way (its IPOC
-    skips them; ``epoch_ms`` more: a new IPOC epoch; ``restart``: the controller restarts RSI there instead, its
-    start the pose it stands at).  Arrival times as data (4 ms a message on the PC's clock).
-    Returns (the largest |commanded - reference| (deg), the link's refusals); the link (closed) in ``_rsi_last``."""
-    lo, hi = tuple(np.degrees(robot.q_lower_rad)), tuple(np.degrees(robot.q_upper_rad))
-    clamp = clamp_deg(robot, 0.5)
-    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sink.bind(("127.0.0.1", 0))
-    link = rsi.RsiLink(0, ("127.0.0.1", None), T)
-    link.reply_to = sink.getsockname()
-    q0 = np.asarray(Q0)
-    start, pose, ipoc, t_pc, worst, refused = q0.copy(), q0.copy(), 1_000_000, 0.0, 0.0, []
-    try:
-        for i in range(n):
-            skipped = lost if i == lost_at else 0
-            if restart and i == lost_at:
-                start = pose.copy()
-            ipoc += 4 * (1 + skipped) + (epoch_ms if i == lost_at else 0)
-            t_pc += T * (1 + skipped)
-            link.arrival_s = 1000.0 + t_pc
-            msg = link.decode(rsi.encode_rob(ipoc, pose, pose))
-            ref = q0 + [speed_deg_per_s * t_pc, 0, 0, 0, 0, 0]
-            env = Envelope(lo, hi, tuple(ref), tuple(clamp + speed_deg_per_s * T), tuple(pose),
-                           tuple(clamp + speed_deg_per_s * (T + 0.1)), *supervision_tolerances(robot, T))
-            try:
-                link.send_targets(msg, ref.tolist(), env)
-            except UnsafeTarget as e:
-                refused.append(str(e))
-                continue
-            pose = start + rsi.decode_sen(sink.recv(65536))[1]
-            worst = max(worst, float(np.abs(pose - ref).max()))
-    finally:
-        link.close()
-        sink.close()
-        _rsi_last[:] = [link]
+    """An RSI controller that keeps its session (tests/rsi_session.py) along a path moving q1 at
+    ``speed_deg_per_s``; at message ``lost_at`` ``lost`` datagrams were lost on the way (its IPOC skips them;
+    ``epoch_ms`` more: a new IPOC epoch; ``restart``: the controller restarts RSI there instead, its start the pose
+    it stands at).  Returns (the largest |commanded - reference| (deg), the link's refusals); the link (closed) in
+    ``_rsi_last``."""
+    link, worst, refused, _ = drive(robot, speed_deg_per_s=speed_deg_per_s, first_ipoc=1_000_004, event_at=lost_at,
+                                    n=n, lost=lost, epoch_ms=epoch_ms, restart=restart)
+    _rsi_last[:] = [link]
     return worst, refused
 
 

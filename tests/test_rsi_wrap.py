@@ -5,67 +5,25 @@ scripted RSI session crossing the wrap mid-path: the same session goes on
 learnt again from one datagram's setpoint).  A true restart (a new epoch)
 is still one.  No timing: the datagrams' arrival stamps are data."""
 
-import socket
+import os
+import sys
 
-import numpy as np
 import pytest
 
-from robstiff_drake.cell import rsi
-from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, supervision_tolerances
-from robstiff_drake.cell.session import SessionClock
+sys.path.insert(0, os.path.dirname(__file__))
+from rsi_session import T, drive  # noqa: E402
 
-T = 0.004
-Q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
+from robstiff_drake.cell.safety import clamp_deg  # noqa: E402
 
 
 def _session(robot, *, wrap_ms=2**32, ipoc0_before=200, n=400, lost=0, epoch_ms=0, restart=False, late=False):
-    """A KRC keeping its start S (every pose it commands: S + the AK it read) along a 2 deg/s path on q1; its IPOC
-    ``ipoc0_before`` messages before ``wrap_ms`` at the first message, going round modulo ``wrap_ms``; at the wrap
-    ``lost`` datagrams lost, ``epoch_ms`` more (a new epoch), ``restart``: a new RSI_MOVECORR there.  ``late``: the
-    datagram before the wrap comes again after it.  Returns (link, largest |commanded - reference| deg, refusals,
-    the session clock's verdicts)."""
-    speed = 2.0
-    lo, hi = tuple(np.degrees(robot.q_lower_rad)), tuple(np.degrees(robot.q_upper_rad))
-    clamp = clamp_deg(robot, 0.5)
-    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sink.bind(("127.0.0.1", 0))
-    link = rsi.RsiLink(0, ("127.0.0.1", None), T)
-    link.reply_to = sink.getsockname()
-    clock = SessionClock(T)
-    q0 = np.asarray(Q0)
-    start, pose, t_pc, worst, refused, verdicts = q0.copy(), q0.copy(), 0.0, 0.0, [], []
-    ipoc = wrap_ms - 4 * ipoc0_before
-    try:
-        for i in range(n):
-            at_wrap = i == ipoc0_before
-            skipped = lost if at_wrap else 0
-            if restart and at_wrap:
-                start = pose.copy()
-            if i:
-                ipoc = (ipoc + 4 * (1 + skipped) + (epoch_ms if at_wrap else 0)) % wrap_ms
-            t_pc += T * (1 + skipped)
-            link.arrival_s = 1000.0 + t_pc
-            if late and i == ipoc0_before + 1:  # the last datagram of before the wrap, again: late
-                old = link.decode(rsi.encode_rob(wrap_ms - 4, pose, pose))
-                verdicts.append(("late", clock.accept(old.seq, old.tm_ms)[0]))
-            msg = link.decode(rsi.encode_rob(ipoc, pose, pose))
-            verdicts.append((i, clock.accept(msg.seq, msg.tm_ms)[0]))
-            ref = q0 + [speed * t_pc, 0, 0, 0, 0, 0]
-            env = Envelope(lo, hi, tuple(ref), tuple(clamp + speed * T), tuple(pose),
-                           tuple(clamp + speed * (T + 0.1)), *supervision_tolerances(robot, T))
-            problem = link.answer_problem(msg, env)
-            assert problem is None, (i, problem)
-            try:
-                link.send_targets(msg, ref.tolist(), env)
-            except UnsafeTarget as e:
-                refused.append(str(e))
-                continue
-            pose = start + rsi.decode_sen(sink.recv(65536))[1]
-            worst = max(worst, float(np.abs(pose - ref).max()))
-    finally:
-        link.close()
-        sink.close()
-    return link, worst, refused, verdicts
+    """A KRC keeping its start along a 2 deg/s path on q1 (tests/rsi_session.py); its IPOC ``ipoc0_before``
+    messages before ``wrap_ms`` at the first message, going round modulo ``wrap_ms``; at the wrap ``lost``
+    datagrams lost, ``epoch_ms`` more (a new epoch), ``restart``: a new RSI_MOVECORR there.  ``late``: the
+    datagram before the wrap comes again after it.  Every setpoint must pass the link's check.  Returns (link,
+    largest |commanded - reference| deg, refusals, the session clock's verdicts)."""
+    return drive(robot, speed_deg_per_s=2.0, first_ipoc=wrap_ms - 4 * ipoc0_before, event_at=ipoc0_before, n=n,
+                 lost=lost, epoch_ms=epoch_ms, restart=restart, wrap_ms=wrap_ms, late=late, setpoints_checked=True)
 
 
 @pytest.mark.parametrize("wrap_ms", [2**32, 2**31], ids=["32-bit", "31-bit"])
