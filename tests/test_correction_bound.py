@@ -34,9 +34,10 @@ def robot():
     return load_robot()
 
 
-def _drive(robot, n, wrench_at, *, max_mm=MAX_MM, max_deg=MAX_DEG, initial=None):
+def _drive(robot, n, wrench_at, *, max_mm=MAX_MM, max_deg=MAX_DEG, initial=None, settings=None):
     """The loop over ``n`` messages holding Q0, the sensor reading ``wrench_at(seq)`` (N, N*m, 6) for each;
-    returns (loop, the poses the controller was told, deg)."""
+    returns (loop, the poses the controller was told, deg).  ``settings``: the loop's LoopSettings as given
+    (default: the moment guard at 350 N*m and the bound ``max_mm``, ``max_deg``)."""
     from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
 
     clock = [0.0, time.monotonic() + 100.0]
@@ -46,7 +47,8 @@ def _drive(robot, n, wrench_at, *, max_mm=MAX_MM, max_deg=MAX_DEG, initial=None)
     ref = Reference(period_s=T)
     ref.hold(Q0)
     comp = h.hold_compensator(robot, wrench_at(1) if initial is None else initial)
-    settings = LoopSettings(max_jump_Nm=350.0, max_correction_mm=max_mm, max_correction_deg=max_deg)
+    if settings is None:
+        settings = LoopSettings(max_jump_Nm=350.0, max_correction_mm=max_mm, max_correction_deg=max_deg)
     loop = CompensatorLoop(comp, link.link, sensor, ref, robot, settings, out=io.StringIO())
     real_cycle = loop.cycle
 
@@ -129,6 +131,50 @@ def test_a_force_growing_past_any_cut_ramps_the_correction_to_zero(robot):
     # without the bound the same run commands far more than the bound (the test can fail)
     _, free = _drive(robot, 200, wrench, max_mm=math.inf, max_deg=math.inf)
     assert _tool_motion(robot, free)[0].max() > 2 * MAX_MM
+
+
+def test_a_library_users_loop_settings_bound_the_correction_as_compensate_does(robot):
+    """LoopSettings built with no bound given (a library user's, not the command's): the command's bound and
+    moment guard, from the same constants as compensate's options (before: inf, none; the sensor in the wrong
+    unit then moved the tool 30 mm); math.inf turns each off, explicitly; a bound not above zero is refused."""
+    from robstiff_drake.cell.compensate import LoopSettings
+    from robstiff_drake.commands.parser import build_parser
+
+    args = build_parser().parse_args(["compensate", "--egm-port", "1", "--netft", "127.0.0.1:1", "--model", "m.json",
+                                      "--payload", "p.yaml"])
+    s = LoopSettings()
+    assert (s.max_correction_mm, s.max_correction_deg) == (args.max_correction_mm, args.max_correction_deg)
+    assert (s.max_correction_mm, s.max_correction_deg) == (MAX_MM, MAX_DEG)
+    w = (_hold(robot) + [300.0, -200.0, 0.0, 0.0, 0.0, 0.0]) * 100.0  # (the wrong unit: N*mm read as N*m)
+    loop, poses = _drive(robot, 80, lambda seq: w.tolist(), settings=LoopSettings())
+    d_mm, rot_deg = _tool_motion(robot, poses)
+    assert "bound" in loop.faults and d_mm.max() <= MAX_MM and rot_deg.max() <= MAX_DEG, (d_mm.max(), rot_deg.max())
+    off = LoopSettings(max_correction_mm=math.inf, max_correction_deg=math.inf)
+    loop_off, free = _drive(robot, 80, lambda seq: w.tolist(), settings=off)
+    d_off = _tool_motion(robot, free)[0].max()
+    print(f"the wrong unit's tool motion: {d_mm.max():.2f} mm with LoopSettings() (bounded), {d_off:.2f} mm with "
+          "the bound off (the old default)")
+    assert loop_off.bound is None and d_off > 4 * MAX_MM
+    # the moment guard: compensate's default (--max-jump-N at the tool point's lever, at least 0.1 m), not none
+    lever_m = max(float(np.linalg.norm(robot.payload.tool_point_m)), 0.1)
+    assert loop.s.max_jump_Nm == pytest.approx(1000.0 * lever_m) and LoopSettings().max_jump_Nm is None
+    for bad in (dict(max_correction_mm=0.0), dict(max_correction_deg=-1.0), dict(max_correction_mm=math.nan),
+                dict(max_jump_Nm=0.0), dict(max_correction_mm="5")):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            LoopSettings(**bad)
+
+
+def test_the_default_moment_guard_refuses_a_moment_spike(robot):
+    """A record whose moment jumps 2000 N*m (a spike: the force unchanged) among good ones, LoopSettings() as a
+    library user builds it: refused and counted (before: the moment guard's default was inf, so it reached the
+    filter)."""
+    from robstiff_drake.cell.compensate import LoopSettings
+
+    good = _hold(robot) + [300.0, -200.0, 0.0, 0.0, 0.0, 0.0]
+    spike = good + [0.0, 0.0, 0.0, 2000.0, 0.0, 0.0]
+    loop, _ = _drive(robot, 40, lambda seq: (spike if seq == 20 else good).tolist(), settings=LoopSettings())
+    assert loop.n.moment_spikes == 1, loop.out.getvalue()
+    assert "a moment jumped more than" in loop.out.getvalue()
 
 
 def test_the_fault_ends_once_the_model_is_inside_the_bound_again(robot):

@@ -36,20 +36,22 @@ degrees on the wire; wrenches in N and N*m, sensor frame; times in s.
 """
 
 import math
+import numbers
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from robstiff_drake.cell.correction_bound import CorrectionBound, bounded
+from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_DEG, DEFAULT_MAX_CORRECTION_MM, \
+    CorrectionBound, bounded
 from robstiff_drake.cell.health import Counters
 from robstiff_drake.cell.loop_stats import loop_stats
 from robstiff_drake.cell.realtime_thread import collect_if_due
 from robstiff_drake.cell.reference import Reference  # noqa: F401 (the loop's reference; commands import it here)
 from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_limits_deg, pose_problem_within, \
     supervision_tolerances
-from robstiff_drake.cell.sensor_intake import SensorIntake
+from robstiff_drake.cell.sensor_intake import SensorIntake, default_max_jump_Nm
 from robstiff_drake.cell.session import SessionClock
 from robstiff_drake.cell.start_gate import LoopStart
 from robstiff_drake.errors import InputError, Terminated
@@ -71,18 +73,37 @@ def _fmt(q_deg):
 
 @dataclass
 class LoopSettings:
+    """The loop's settings.  Every default is ``robstiff compensate``'s (a
+    library user who builds these gets the command's checks): no default
+    switches a check off.  A check is switched off only explicitly
+    (``max_correction_mm=math.inf, max_correction_deg=math.inf``: no bound
+    on the correction's tool motion; ``max_jump_Nm=math.inf``: no moment
+    guard); a bound that is not a number or not above zero is a ValueError."""
+
     period_s: float = 0.004
     sensor_timeout_s: float = 0.02  # 5 IRC5 cycles without a valid record
     feedback_timeout_s: float = 0.02
     egm_timeout_s: float = 0.1  # "no message" log line after this
+    # (0, never, is no missing check: a silent controller is commanded nothing, it holds its last target; the
+    # silence is a fault, logged, and the correction is ramped from zero when messages come again)
     idle_exit_s: float = 0.0  # end the run after this long without a message (0: never)
-    duration_s: float = 0.0  # end the run after this long (0: never)
-    rate_limit_rad_per_s: float = math.radians(5.0)
-    saturation_deg: float = 0.5
-    max_jump_Nm: float = math.inf  # a moment jumping more than this from the last good sample is refused
-    # the correction's tool motion (mm, deg) beyond which it is a fault (cell/correction_bound.py; inf: none)
-    max_correction_mm: float = math.inf
-    max_correction_deg: float = math.inf
+    duration_s: float = 0.0  # end the run after this long (0: never; as idle_exit_s: no check depends on it)
+    rate_limit_rad_per_s: float = math.radians(5.0)  # (compensate's --rate-limit-deg-per-s 5)
+    saturation_deg: float = 0.5  # (compensate's --saturation-deg)
+    # a moment jumping more than this (N*m) from the last good sample is refused; None: compensate's default,
+    # the compensator's max_jump_N at the tool point's lever (cell/sensor_intake.default_max_jump_Nm), taken by
+    # the loop (before: inf, no moment guard for a library user)
+    max_jump_Nm: float = None
+    # the correction's tool motion (mm, deg) beyond which it is a fault (cell/correction_bound.py: compensate's
+    # --max-correction-mm / --max-correction-deg defaults and why; before: inf, no bound for a library user)
+    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM
+    max_correction_deg: float = DEFAULT_MAX_CORRECTION_DEG
+
+    def __post_init__(self):
+        for name in ("max_correction_mm", "max_correction_deg", "max_jump_Nm"):
+            v = getattr(self, name)
+            if v is not None and not (isinstance(v, numbers.Real) and v > 0):  # (False for NaN)
+                raise ValueError(f"LoopSettings.{name} = {v!r}: a bound above zero (math.inf: no check)")
 
 
 class CompensatorLoop(LoopStart, SensorIntake):
@@ -91,6 +112,9 @@ class CompensatorLoop(LoopStart, SensorIntake):
 
     def __init__(self, compensator, link, sensor, reference, robot, settings, *, log=None, out=sys.stderr,
                  preview=None, start_jobs=()):
+        if settings.max_jump_Nm is None:  # (compensate's default: the guard's force at the tool point's lever)
+            settings = replace(settings, max_jump_Nm=default_max_jump_Nm(compensator.max_jump_N,
+                                                                         robot.payload.tool_point_m))
         self.comp, self.link, self.sensor, self.ref, self.robot, self.s = (compensator, link, sensor, reference,
                                                                             robot, settings)
         self.preview = preview  # cell/preview_table.PreviewDeflection (the chain's model) or None: plain

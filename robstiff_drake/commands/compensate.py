@@ -41,10 +41,6 @@ from robstiff_drake.progress import info, wrote
 # before the run is refused: the robot must be brought to the path's start
 # (MoveAbsJ) before streaming starts, or the first target would jump.
 START_TOLERANCE_DEG = 0.5
-# ASSUMPTION: without --max-jump-Nm, a moment jump is refused beyond what
-# a force jump of --max-jump-N makes at this lever (m) or at the tool
-# point's distance from the sensor, whichever is longer.
-MIN_LEVER_M = 0.1
 # The force filter's default low-pass cutoff (Hz).  Not 10 Hz (the old default): the loop model
 # (model/loop_check.py) at the block test's start on the IRB 6400, 4 ms period, 1 kHz sensor, calls 10 Hz
 # unstable (spectral radius per period 1.0003 in air and 1.0028 cutting at the plant's assumed 5 % modal
@@ -176,8 +172,10 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     play_line, play_summary = play_note(robot, play, None if ref.q is None else ref.q[0], "the reference's first row")
     if play_line:
         print(f"robstiff: warning: compensate: {play_line}", file=sys.stderr)
-    if max_jump_Nm is None:
-        max_jump_Nm = max_jump_N * max(float(np.linalg.norm(tool)) if tool is not None else 0.0, MIN_LEVER_M)
+    if max_jump_Nm is None:  # (the loop's default, said in summary.json: cell/sensor_intake.py)
+        from robstiff_drake.cell.sensor_intake import default_max_jump_Nm
+
+        max_jump_Nm = default_max_jump_Nm(max_jump_N, tool)
     predictor = DeflectionPredictor(robot.dh, k, tool)
     bound_line = None  # (the bound against the model's deflection under --max-jump-N along the reference: a warning)
     if ref.q is not None:
