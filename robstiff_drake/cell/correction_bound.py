@@ -33,7 +33,7 @@ sent.  The model still runs meanwhile (its wish is judged every cycle):
 the fault ends when the correction is zero and the model's wish has been
 inside the bound for ``clear_messages`` messages (compensate's
 CLEAR_MESSAGES, 25, as a sequence fault's).  ``start_note``: the check
-before the run.
+before the run (``hold_note``: at the hold pose, in the start's work).
 """
 
 import math
@@ -184,7 +184,8 @@ def start_note(predictor, q_rows_deg, to_model, force_N, max_mm, max_deg, what):
     process force of ``force_N`` (N, compensate's --max-jump-N: the largest
     force step its guard takes as physical) in the worst direction, at up to
     SAMPLES rows of the reference (controller deg, (N, 6); ``to_model``: their
-    map to the model's radians; ``what``: its name).  A warning line when it is beyond the bound (a cut that hard would
+    map to the model's radians; ``what``: its name; one row: a pose, the
+    hold pose without a reference).  A warning line when it is beyond the bound (a cut that hard would
     be stopped as this fault), else None.  Not a refusal: the job's forces are
     not known before the cut (the worst direction of 1000 N is a bound, not a
     prediction); the bound itself stops a correction beyond it."""
@@ -204,10 +205,41 @@ def start_note(predictor, q_rows_deg, to_model, force_N, max_mm, max_deg, what):
     d, rot, r = worst
     if d * 1e3 <= max_mm and math.degrees(rot) <= max_deg:
         return None
+    where = what if len(q_rows_deg) == 1 else f"{what}'s row {r + 1}"
     return (f"a process force of {force_N:g} N (--max-jump-N) in its worst direction deflects the tool "
-            f"{d * 1e3:.2f} mm and {math.degrees(rot):.3f} deg at {what}'s row {r + 1} by the model: beyond "
+            f"{d * 1e3:.2f} mm and {math.degrees(rot):.3f} deg at {where} by the model: beyond "
             f"--max-correction-mm {max_mm:g} / --max-correction-deg {max_deg:g}; a cut that hard would be stopped as a "
             "fault (the correction ramped to zero)")
 
 
 SAMPLES = 12  # rows of a reference start_note looks at (evenly spaced, the first and last among them)
+
+
+class _PlainKinematics:
+    """``start_note``'s predictor beside the loop's thread: model/kinematics'
+    Jacobian (the same convention), which keeps no memo; DeflectionPredictor's
+    chain memo is shared by every predictor of the arm and has no lock, and
+    the loop's thread uses it meanwhile."""
+
+    def __init__(self, robot, k_Nm_per_rad):
+        import numpy as np
+
+        self.dh, self.tool_m = robot.dh, robot.payload.tool_point_m
+        self.joint_compliance = 1.0 / np.asarray(k_Nm_per_rad, dtype=float)  # rad/(N*m)
+
+    def jacobian(self, q_rad):
+        from robstiff_drake.model import kinematics
+
+        return kinematics.jacobian(self.dh, q_rad, self.tool_m)
+
+
+def hold_note(robot, k_Nm_per_rad, q_deg, force_N, max_mm, max_deg):
+    """``start_note`` at the hold pose (``q_deg``: the controller's first
+    message, controller deg) without --reference or --job: a start job of
+    cell/start_gate.py, run beside the loop's thread (which answers with zero
+    correction meanwhile), so on plain kinematics (``_PlainKinematics``)."""
+    import numpy as np
+
+    return start_note(_PlainKinematics(robot, k_Nm_per_rad), [list(q_deg)],
+                      lambda q: robot.joint_map.to_model(np.radians(q)), force_N, max_mm, max_deg,
+                      "the hold pose (the controller's first message)")

@@ -35,10 +35,16 @@ from robstiff_drake.errors import InputError
 MALFORMED_FIRST = 25  # unusable datagrams from the controller before its first good one: refused at once
 
 
+class StartNote(str):
+    """A start job's line that is a note of the run's course (the log's
+    events.csv and the text, not the summary's list of faults and events):
+    a warning the command also puts in summary.json's warnings."""
+
+
 class StartGate:
     """``jobs``: [(what, function)], run in order in a thread; a function
-    returns None or a line for the log's events (a warning), or raises
-    InputError (the start refused).  ``done``: set when all have run or
+    returns None, a line for the log's events (a warning) or a StartNote,
+    or raises InputError (the start refused).  ``done``: set when all have run or
     one raised; then ``error`` (the InputError or None), ``notes`` (the
     lines returned) and ``seconds`` (the wall time it took)."""
 
@@ -172,7 +178,7 @@ class LoopStart:
             raise g.error
         self.gate = None
         for note in g.notes:
-            self.event(note)
+            (self.note if isinstance(note, StartNote) else self.event)(note)
         self.note(f"start: {g.what} done in {g.seconds:.3f} s (meanwhile answered with zero correction, the "
                   f"controller's own pose); {what_now}")
 

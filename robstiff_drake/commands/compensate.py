@@ -13,7 +13,8 @@ loop's stability at the start pose by the linear loop model
 calibration read and its stream started and the controller's first
 message awaited and checked before the loop; anything wrong there is one
 line and exit status 2.  The start's slow work (without --reference the
-loop check at the hold pose; the log folder's start) runs off the loop's
+loop check and the correction bound's check at the hold pose; the log
+folder's start) runs off the loop's
 thread while the controller is answered with its own pose
 (cell/start_gate.py), and --mode preview's table, when the disk cache
 does not hold it, in another process while the loop runs plain
@@ -185,6 +186,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                                 max_correction_mm, max_correction_deg, "the reference")
         if bound_line:
             print(f"robstiff: warning: compensate: {bound_line}", file=sys.stderr)
+    hold_said = []  # (without a reference: the bound's warning at the hold pose, from the start's work)
     link = _link(protocol, listen_port, ctrl, period_s)
     sensor = NetFTReader(host, port, counts=netft_counts, units=netft_units, http_port=netft_http_port)
     stream_log = background = remote = None
@@ -265,6 +267,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             if problem:
                 raise InputError(f"the hold pose (the controller's first message) is refused: {problem}")
             loop.start_jobs.append(("the loop check at the hold pose", lambda: _hold_check(remote, q0)))
+            # and the correction bound against 1000 N's deflection there, as --reference's rows before the run
+            loop.start_jobs.append(("the correction bound at the hold pose", lambda: _hold_bound(
+                hold_said, robot, k, q0, max_jump_N, max_correction_mm, max_correction_deg)))
         elif guard.warning and stream_log is not None:
             stream_log.event(0.0, 0.0, f"warning: {guard.warning}")  # (events.csv, before the first message's)
         off = np.abs(np.asarray(q0) - ref.q[0])
@@ -285,6 +290,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             remote.close()
         sensor.close()
         link.close()
+    bound_line = bound_line or (hold_said[0] if hold_said else None)
     stats = loop.stats()
     cm = stats["compute_ms"]
     print(f"robstiff: compensate: {stats['messages']} messages, {stats['answered']} answered; computation per message "
@@ -355,6 +361,22 @@ def _hold_check(remote, q0):
                                         "pose) was answered")) from None
     _say(line, guard)
     return f"warning: {guard.warning}" if guard.warning else None
+
+
+def _hold_bound(said, robot, k, q0, force_N, max_mm, max_deg):
+    """The correction bound's check at the hold pose (a start job: cell/
+    start_gate.py, beside the loop's thread): a warning for the log's events
+    (and ``said``, for summary.json) where ``force_N`` would deflect the tool
+    beyond the bound there, as --reference's before the run (a note: not
+    in the summary's list of faults and events, as that one)."""
+    from robstiff_drake.cell.correction_bound import hold_note
+    from robstiff_drake.cell.start_gate import StartNote
+
+    line = hold_note(robot, k, q0, force_N, max_mm, max_deg)
+    if line:
+        said.append(line)
+        return StartNote(f"warning: {line}")  # (as --reference's: a warning, not among the run's faults)
+    return None
 
 
 def _say(line, guard):
