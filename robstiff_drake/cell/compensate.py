@@ -4,7 +4,8 @@ For every message the controller sends (every 4 ms on an IRC5; RSI 4 or
 12 ms; Stream Motion its own cycle) from the configured controller only
 (cell/link.py drops anyone else's), the loop
 
-1. checks the sequence number and clock (cell/session.py): a duplicate or
+1. checks the sequence number and clock (cell/session.py, its faults
+   cell/session_faults.py): a duplicate or
    an older datagram is dropped unanswered; a jump or a clock that
    disagrees with the sequence is a fault; the reference advances by a
    bounded step;
@@ -36,85 +37,39 @@ degrees on the wire; wrenches in N and N*m, sensor frame; times in s.
 """
 
 import math
-import numbers
 import sys
 import time
-from dataclasses import dataclass, replace
 
 import numpy as np
 
-from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_DEG, DEFAULT_MAX_CORRECTION_MM, \
-    CorrectionBound, bounded
+from robstiff_drake.cell.correction_bound import CorrectionBound, bounded
 from robstiff_drake.cell.health import Counters
+from robstiff_drake.cell.loop_settings import LoopSettings  # noqa: F401 (tests and benchmarks import it here)
 from robstiff_drake.cell.loop_stats import loop_stats
 from robstiff_drake.cell.realtime_thread import collect_if_due
 from robstiff_drake.cell.reference import Reference  # noqa: F401 (the loop's reference; commands import it here)
 from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_limits_deg, pose_problem_within, \
     supervision_tolerances
-from robstiff_drake.cell.sensor_intake import SensorIntake, default_max_jump_Nm
+from robstiff_drake.cell.sensor_intake import SensorIntake
 from robstiff_drake.cell.session import SessionClock
+from robstiff_drake.cell.session_faults import CLEAR_MESSAGES, SessionFaults
 from robstiff_drake.cell.start_gate import LoopStart
-from robstiff_drake.errors import InputError, Terminated
+from robstiff_drake.errors import Terminated
 
 # The correction may move by at most this many controller periods' worth
 # of its rate limit in one answer, whatever the time since the last one.
 MAX_STEP_PERIODS = 2.0
-CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
-# messages in a row behind the last one (each the next after the one before) that the loop logs once: more than
-# a sequence jump's MAX_JUMP, fewer than the reorder window's 64 (cell/session.py)
-BEHIND_LOGGED = 8
 STALE_PERIODS = 3.0  # a correction computed from a wrench older than this many periods is stale
 START_BACKLOG_S = 1.0  # the most of the controller's messages (s of its clock) waiting at the start not counted late
 
 
-def _fmt(q_deg):
-    return "(" + ", ".join(f"{v:.3f}" for v in q_deg) + ")" if q_deg else "?"
-
-
-@dataclass
-class LoopSettings:
-    """The loop's settings.  Every default is ``robstiff compensate``'s (a
-    library user who builds these gets the command's checks): no default
-    switches a check off.  A check is switched off only explicitly
-    (``max_correction_mm=math.inf, max_correction_deg=math.inf``: no bound
-    on the correction's tool motion; ``max_jump_Nm=math.inf``: no moment
-    guard); a bound that is not a number or not above zero is a ValueError."""
-
-    period_s: float = 0.004
-    sensor_timeout_s: float = 0.02  # 5 IRC5 cycles without a valid record
-    feedback_timeout_s: float = 0.02
-    egm_timeout_s: float = 0.1  # "no message" log line after this
-    # (0, never, is no missing check: a silent controller is commanded nothing, it holds its last target; the
-    # silence is a fault, logged, and the correction is ramped from zero when messages come again)
-    idle_exit_s: float = 0.0  # end the run after this long without a message (0: never)
-    duration_s: float = 0.0  # end the run after this long (0: never; as idle_exit_s: no check depends on it)
-    rate_limit_rad_per_s: float = math.radians(5.0)  # (compensate's --rate-limit-deg-per-s 5)
-    saturation_deg: float = 0.5  # (compensate's --saturation-deg)
-    # a moment jumping more than this (N*m) from the last good sample is refused; None: compensate's default,
-    # the compensator's max_jump_N at the tool point's lever (cell/sensor_intake.default_max_jump_Nm), taken by
-    # the loop (before: inf, no moment guard for a library user)
-    max_jump_Nm: float = None
-    # the correction's tool motion (mm, deg) beyond which it is a fault (cell/correction_bound.py: compensate's
-    # --max-correction-mm / --max-correction-deg defaults and why; before: inf, no bound for a library user)
-    max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM
-    max_correction_deg: float = DEFAULT_MAX_CORRECTION_DEG
-
-    def __post_init__(self):
-        for name in ("max_correction_mm", "max_correction_deg", "max_jump_Nm"):
-            v = getattr(self, name)
-            if v is not None and not (isinstance(v, numbers.Real) and v > 0):  # (False for NaN)
-                raise ValueError(f"LoopSettings.{name} = {v!r}: a bound above zero (math.inf: no check)")
-
-
-class CompensatorLoop(LoopStart, SensorIntake):
+class CompensatorLoop(LoopStart, SensorIntake, SessionFaults):
     """The loop over a controller link (cell/link.PCLink) and a sensor
     reader (cell/rdt.NetFTReader, or stand-ins with the same methods)."""
 
     def __init__(self, compensator, link, sensor, reference, robot, settings, *, log=None, out=sys.stderr,
                  preview=None, start_jobs=()):
-        if settings.max_jump_Nm is None:  # (compensate's default: the guard's force at the tool point's lever)
-            settings = replace(settings, max_jump_Nm=default_max_jump_Nm(compensator.max_jump_N,
-                                                                         robot.payload.tool_point_m))
+        settings = settings.resolved(compensator, robot)  # (the defaults that depend on the arm: max_jump_Nm)
         self.comp, self.link, self.sensor, self.ref, self.robot, self.s = (compensator, link, sensor, reference,
                                                                             robot, settings)
         self.preview = preview  # cell/preview_table.PreviewDeflection (the chain's model) or None: plain
@@ -210,51 +165,6 @@ class CompensatorLoop(LoopStart, SensorIntake):
             self.fault_on("feedback", f"feedback: {problem}")
         elif t_now - self.t_q_good > self.s.feedback_timeout_s:
             self.fault_on("feedback", f"feedback: {problem} for {self.s.feedback_timeout_s * 1e3:.0f} ms")
-
-    def _session(self, msg):
-        """The clock's verdict; False: drop the message unanswered."""
-        prev = self.clock.seq
-        if msg.extra.get("new_session"):
-            # the controller restarted its session (RSI: a new RSI_MOVECORR): its corrections count from the
-            # pose it stands at now; the link learnt that start, the correction ramps to zero, then up again
-            self.fault_on("sequence", f"{self.link.name}: a new session (sequence number {msg.seq} after {prev}); "
-                                      f"its start {_fmt(msg.extra.get('start_deg'))} deg learnt again")
-        v, dt = self.clock.accept(msg.seq, msg.tm_ms)
-        if v == "duplicate":
-            self.n.duplicates += 1
-            return False, 0.0
-        if v == "old":
-            self.n.old += 1
-            self.n.lost = max(self.n.lost - 1, 0)  # (counted lost when a newer one came first)
-            if self.clock.behind_run == BEHIND_LOGGED:  # (once a run: safe, nothing sent, but not silent)
-                self.event(f"{self.link.name}: {BEHIND_LOGGED} messages in a row with sequence numbers behind the "
-                           f"last one ({msg.seq - BEHIND_LOGGED + 1} to {msg.seq} after {prev}; "
-                           f"{BEHIND_LOGGED * self.s.period_s * 1e3:.0f} ms of the controller's cycles): a restart "
-                           "of the controller within its first messages? nothing is answered until its numbering "
-                           f"passes {prev}")
-            return False, 0.0
-        if prev is not None and v in ("ok", "clock"):
-            self.n.lost += max(0, (msg.seq - prev) % 2**32 - 1)
-        if v == "jump":
-            self.n.jumps += 1
-            restart = (msg.seq - (prev or 0)) % 2**32 >= 2**31 and msg.seq < 100  # numbering from the start again
-            what = "the controller restarted" if restart else "the sequence jumped"
-            if self.clock.restarted_from is not None:  # (cell/session.py: a run numbered from the start again)
-                what = (f"the controller restarted ({msg.seq - self.clock.restarted_from + 1} messages in a row "
-                        f"numbered from {self.clock.restarted_from} again, behind the last one)")
-            self.fault_on("sequence", f"{self.link.name}: {what} (sequence number {msg.seq} after {prev})")
-        elif v == "clock":
-            self.n.clock_faults += 1
-            self.fault_on("clock", f"{self.link.name}: the controller's clock disagrees with its sequence "
-                                   f"(time stamp {msg.tm_ms} ms at sequence number {msg.seq}); the reference "
-                                   "advances by the sequence")
-        else:
-            self.ok_since_fault += 1
-            if self.ok_since_fault >= CLEAR_MESSAGES and all(abs(c) < 1e-12 for c in self.comp.correction):
-                for name in ("sequence", "clock", "target"):
-                    self.fault_off(name, f"{name}: {CLEAR_MESSAGES} consistent messages and the correction at zero; "
-                                         "compensating again")
-        return True, dt
 
     def cycle(self, msg, t_arr, dt, late=False, judge=False):
         """Answer one controller message that the session clock accepted

@@ -9,26 +9,11 @@ chain restarts on a new level only when two records in a row agree on it.
 Units: wrenches in N and N*m, sensor frame; times in s.
 """
 
-import math
-
 from robstiff_drake.model.compensator import guard_accepts
-
-# ASSUMPTION: without --max-jump-Nm (LoopSettings.max_jump_Nm None), a moment jump is refused beyond what a
-# force jump of --max-jump-N makes at this lever (m) or at the tool point's distance from the sensor, whichever
-# is longer.
-MIN_LEVER_M = 0.1
 
 # The newest records the chain restarts on at the session's start (their median: one spike among them moves
 # nothing); the rest of what piled up while the first message was awaited is dropped.
 START_RECORDS = 8
-
-
-def default_max_jump_Nm(max_jump_N, tool_m):
-    """The moment guard's default (N*m): the force guard's ``max_jump_N`` (N)
-    at the tool point's lever (``tool_m``, m, sensor frame; None: none), at
-    least MIN_LEVER_M."""
-    lever = math.sqrt(sum(float(v) * float(v) for v in tool_m)) if tool_m is not None else 0.0
-    return float(max_jump_N) * max(lever, MIN_LEVER_M)
 
 
 def moments_within(w, ref, lim_Nm):

@@ -93,7 +93,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                          "servo: the preview's plan)")
     if job is not None and mode != "preview":
         raise InputError(f"--job {job} is read only with --mode preview (plain compensation needs no plan)")
-    from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
+    from robstiff_drake.cell.compensate import CompensatorLoop, Reference
+    from robstiff_drake.cell.loop_settings import LoopSettings
     from robstiff_drake.cell.link import parse_controller
     from robstiff_drake.cell.loop_guard import LoopGuard, feed_direction
     from robstiff_drake.cell.play_note import job_play, play_note, read_play
@@ -173,8 +174,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     play_line, play_summary = play_note(robot, play, None if ref.q is None else ref.q[0], "the reference's first row")
     if play_line:
         print(f"robstiff: warning: compensate: {play_line}", file=sys.stderr)
-    if max_jump_Nm is None:  # (the loop's default, said in summary.json: cell/sensor_intake.py)
-        from robstiff_drake.cell.sensor_intake import default_max_jump_Nm
+    if max_jump_Nm is None:  # (the loop's default, said in summary.json: cell/loop_settings.py)
+        from robstiff_drake.cell.loop_settings import default_max_jump_Nm
 
         max_jump_Nm = default_max_jump_Nm(max_jump_N, tool)
     predictor = DeflectionPredictor(robot.dh, k, tool)

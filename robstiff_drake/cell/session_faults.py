@@ -1,0 +1,69 @@
+"""The controller's sequence numbers and clock as the compensator loop's
+faults (a base of cell/compensate.CompensatorLoop): cell/session.
+SessionClock's verdict on each message turned into what the loop does
+with it: a duplicate or an older datagram dropped unanswered (counted; a
+run of them behind the last one logged once), a new session (RSI), a
+jump or a restart a sequence fault, a clock that disagrees with the
+sequence a clock fault (each ramps the correction to zero), and the
+faults cleared after CLEAR_MESSAGES consistent messages once the
+correction is at zero.
+"""
+
+CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
+# messages in a row behind the last one (each the next after the one before) that the loop logs once: more than
+# a sequence jump's MAX_JUMP, fewer than the reorder window's 64 (cell/session.py)
+BEHIND_LOGGED = 8
+
+
+def _fmt(q_deg):
+    return "(" + ", ".join(f"{v:.3f}" for v in q_deg) + ")" if q_deg else "?"
+
+
+class SessionFaults:
+    """The loop's session part (it reads and sets the loop's clock,
+    counters and faults)."""
+
+    def _session(self, msg):
+        """The clock's verdict; False: drop the message unanswered."""
+        prev = self.clock.seq
+        if msg.extra.get("new_session"):
+            # the controller restarted its session (RSI: a new RSI_MOVECORR): its corrections count from the
+            # pose it stands at now; the link learnt that start, the correction ramps to zero, then up again
+            self.fault_on("sequence", f"{self.link.name}: a new session (sequence number {msg.seq} after {prev}); "
+                                      f"its start {_fmt(msg.extra.get('start_deg'))} deg learnt again")
+        v, dt = self.clock.accept(msg.seq, msg.tm_ms)
+        if v == "duplicate":
+            self.n.duplicates += 1
+            return False, 0.0
+        if v == "old":
+            self.n.old += 1
+            self.n.lost = max(self.n.lost - 1, 0)  # (counted lost when a newer one came first)
+            if self.clock.behind_run == BEHIND_LOGGED:  # (once a run: safe, nothing sent, but not silent)
+                self.event(f"{self.link.name}: {BEHIND_LOGGED} messages in a row with sequence numbers behind the "
+                           f"last one ({msg.seq - BEHIND_LOGGED + 1} to {msg.seq} after {prev}; "
+                           f"{BEHIND_LOGGED * self.s.period_s * 1e3:.0f} ms of the controller's cycles): a restart "
+                           "of the controller within its first messages? nothing is answered until its numbering "
+                           f"passes {prev}")
+            return False, 0.0
+        if prev is not None and v in ("ok", "clock"):
+            self.n.lost += max(0, (msg.seq - prev) % 2**32 - 1)
+        if v == "jump":
+            self.n.jumps += 1
+            restart = (msg.seq - (prev or 0)) % 2**32 >= 2**31 and msg.seq < 100  # numbering from the start again
+            what = "the controller restarted" if restart else "the sequence jumped"
+            if self.clock.restarted_from is not None:  # (cell/session.py: a run numbered from the start again)
+                what = (f"the controller restarted ({msg.seq - self.clock.restarted_from + 1} messages in a row "
+                        f"numbered from {self.clock.restarted_from} again, behind the last one)")
+            self.fault_on("sequence", f"{self.link.name}: {what} (sequence number {msg.seq} after {prev})")
+        elif v == "clock":
+            self.n.clock_faults += 1
+            self.fault_on("clock", f"{self.link.name}: the controller's clock disagrees with its sequence "
+                                   f"(time stamp {msg.tm_ms} ms at sequence number {msg.seq}); the reference "
+                                   "advances by the sequence")
+        else:
+            self.ok_since_fault += 1
+            if self.ok_since_fault >= CLEAR_MESSAGES and all(abs(c) < 1e-12 for c in self.comp.correction):
+                for name in ("sequence", "clock", "target"):
+                    self.fault_off(name, f"{name}: {CLEAR_MESSAGES} consistent messages and the correction at zero; "
+                                         "compensating again")
+        return True, dt
