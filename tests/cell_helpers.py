@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from scripted_compensate import HANG_GUARD_S, ScriptedController, finish, start_compensate  # noqa: F401 (as h.*)
+from scripted_compensate import HANG_GUARD_S, EndWhenIdle, ScriptedController, finish, start_compensate  # noqa: F401
 
 from robstiff_drake.cell.sim_cell import CellNetwork, Faults, ServoArmStandIn
 from robstiff_drake.model import ik
@@ -119,11 +119,11 @@ def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=Non
     return th, net
 
 
-def compensate_cmd(model, payload, reference, *, egm_port, netft_port, log=None, extra=()):
+def compensate_cmd(model, payload, reference, *, egm_port, netft_port, log=None, extra=(), idle_exit_s=0.5):
     cmd = [sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(egm_port),
            "--netft", f"127.0.0.1:{netft_port}", "--netft-http-port", str(netft_port), "--model", model,
            "--payload", payload,
-           "--wait-s", "20", "--idle-exit-s", "0.5", "--sensor-rate-hz", "1000"]
+           "--wait-s", "20", "--idle-exit-s", f"{idle_exit_s:g}", "--sensor-rate-hz", "1000"]
     if reference:
         cmd += ["--reference", reference]
     if log:
@@ -138,9 +138,13 @@ def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), w
     ``stream_reference`` the compensator holds the start pose (no
     --reference) and the stand-in measures its error against that pose.
     ``lockstep`` (the tests' default): the cell steps when answered and
-    ends after ``duration_s`` of its controller's time, the compensator when
-    its messages stop (--idle-exit-s): the loop's logic whatever this
-    machine's load; False: both in real time for ``duration_s``."""
+    ends after ``duration_s`` of its controller's time, the compensator
+    when the test ends it (SIGTERM, scripted_compensate.EndWhenIdle) once
+    the cell is done and the loop has said the controller is silent: the
+    loop's logic whatever this machine's load (--idle-exit-s only a hang
+    guard: at 0.5 s a pause of the test process, whose thread is the
+    controller, ended the run mid-cut); False: both in real time for
+    ``duration_s``."""
     robot = load_robot()
     model, payload, ref, ref_fn = write_inputs(str(tmp), robot, duration_s=duration_s + 1.0)
     q0 = ref_fn(0.0)
@@ -155,13 +159,24 @@ def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), w
                          cut_s=duration_s if lockstep else None, answer_timeout_s=10.0 if lockstep else 1.0)
     end = [] if lockstep else ["--duration-s", str(duration_s)]
     proc = subprocess.Popen(compensate_cmd(model, payload, ref if stream_reference else None, egm_port=egm_port,
-                                           netft_port=netft_port, log=log, extra=list(extra) + end), cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    out, err = proc.communicate(timeout=wall_s + 60)
-    net.stop = True
-    th.join(30)
-    net.close()
-    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err), net.stats, log
+                                           netft_port=netft_port, log=log, extra=list(extra) + end,
+                                           idle_exit_s=HANG_GUARD_S if lockstep else 0.5), cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    watch = EndWhenIdle(proc)
+    try:
+        if lockstep:
+            t_end = time.monotonic() + wall_s
+            while th.is_alive() and proc.poll() is None and time.monotonic() < t_end:
+                th.join(0.1)  # (the cut's end or the cell's stop; or the process ended: a refused start)
+            watch.cell_done()
+        code, out, err = watch.wait(timeout=wall_s + 60 + HANG_GUARD_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        net.stop = True
+        th.join(30)
+        net.close()
+    return subprocess.CompletedProcess(proc.args, code, out, err), net.stats, log
 
 
 class FakeSensor:

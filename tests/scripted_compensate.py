@@ -150,3 +150,62 @@ def finish(proc, timeout=HANG_GUARD_S, end=True):
     proc.err_bytes = b""
     out, err = proc.communicate(timeout=timeout)
     return proc.returncode, proc.early_err + err
+
+
+class EndWhenIdle:
+    """``finish``'s end for a run whose controller is not the test's script
+    but a simulated cell in a thread (cell_helpers.run_compensate_against_cell,
+    lockstep): the process's stderr read as it comes (so that it never
+    fills its pipe) and, once the cell is done (``cell_done()``), SIGTERM as
+    soon as its loop is idle: it has said the controller is silent and no
+    "messages again" line follows, with nothing unread for POLL_S.  Never on
+    a silence alone (--idle-exit-s is a hang guard there: a test process
+    paused on a loaded machine is silent too).  ``wait``: (exit status,
+    stdout, stderr)."""
+
+    POLL_S = 0.05
+
+    def __init__(self, proc):
+        import threading
+
+        self.proc, self.err, self.out = proc, [], []
+        self.silent = False
+        self.done = threading.Event()
+        self._reader = threading.Thread(target=self._read_err, daemon=True)
+        self._out_reader = threading.Thread(target=lambda: self.out.append(proc.stdout.read().decode(errors="replace")),
+                                           daemon=True)
+        self._reader.start()
+        self._out_reader.start()
+
+    def cell_done(self):
+        self.done.set()
+
+    def _read_err(self):
+        import select
+        import signal
+
+        fd, buf, signalled = self.proc.stderr.fileno(), b"", False
+        while True:
+            if select.select([fd], [], [], self.POLL_S)[0]:
+                chunk = os.read(fd, 65536)
+                if not chunk:
+                    break  # (the process ended)
+                *lines, buf = (buf + chunk).split(b"\n")
+                for raw in lines:
+                    line = raw.decode(errors="replace")
+                    self.err.append(line + "\n")
+                    if "no message from the controller for" in line:
+                        self.silent = True
+                    elif ": messages again" in line:
+                        self.silent = False
+                continue  # (decide only once nothing is left unread)
+            if self.done.is_set() and self.silent and not signalled and self.proc.poll() is None:
+                self.proc.send_signal(signal.SIGTERM)
+                signalled = True
+        self.err.append(buf.decode(errors="replace"))
+
+    def wait(self, timeout):
+        self.proc.wait(timeout=timeout)
+        self._reader.join(HANG_GUARD_S)
+        self._out_reader.join(HANG_GUARD_S)
+        return self.proc.returncode, "".join(self.out), "".join(self.err)

@@ -86,9 +86,41 @@ def test_compensate_cancels_the_deflection_over_the_protocols(tmp_path):
     # most cycles answered (the simulated controller is a Python thread on a shared machine: under load it
     # leaves ticks out; benchmarks/bench_compensate.py measures the timing)
     assert summary["cycles"]["messages"] > 0.4 * 2.5 / PERIOD_S
-    # (the controller stopping is the run's end in lockstep: its "no message" lines are no fault)
-    assert [f for f in summary["cycles"]["faults"] if "no message" not in f["event"]] == [], summary["cycles"]
-    assert summary["cycles"]["ended_by"] == "idle", summary["cycles"]["ended_by"]
+    # (the controller stopping is the run's end in lockstep: its "no message" lines are no fault, nor the test's
+    # SIGTERM after it)
+    assert [f for f in summary["cycles"]["faults"] if "no message" not in f["event"]
+            and f["event"] != "terminated: the run ends"] == [], summary["cycles"]
+    # ended by the test (SIGTERM) once the cell was done and the loop had said the controller was silent, not by
+    # anything else (before: "idle", its --idle-exit-s 0.5, which a paused test process met mid-cut too)
+    assert summary["cycles"]["ended_by"] == "interrupt", summary["cycles"]["ended_by"]
+    events = [f["event"] for f in summary["cycles"]["faults"]]
+    assert events[-1] == "terminated: the run ends" and "no message from the controller" in events[-2], events
+
+
+def test_a_paused_test_process_does_not_end_the_lockstep_run(tmp_path):
+    """The test process paused 1.5 s mid-cut (a loaded machine; injected as a sleep in the simulated controller's
+    thread, in its process wrench at 0.6 s of its clock): the compensator says the controller is silent, then
+    that it is back, and the run goes on to the cut's end, every message answered, and ends by the test.
+    Before: compensate's --idle-exit-s 0.5 ended the run in the pause and the cell stopped for want of an
+    answer."""
+    paused, cut = [], h.cutting_wrench()
+
+    def wrench(t):
+        if t >= 0.6 and not paused:
+            paused.append(t)
+            time.sleep(1.5)
+        return cut(t)
+
+    cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=1.5, wrench=wrench)
+    assert paused, "the pause was not injected"
+    assert cp.returncode == 0, cp.stderr
+    assert stats.stop_reason == "", stats.stop_reason
+    assert stats.last_answer_t > 1.4, stats.last_answer_t  # (answered to the cut's end, 1.5 s)
+    err = cp.stderr
+    assert err.index("no message from the controller for") < err.index("EGM: messages again"), err
+    summary = json.load(open(os.path.join(log, "summary.json")))
+    assert summary["cycles"]["answered"] >= 1.4 / PERIOD_S, summary["cycles"]
+    assert summary["cycles"]["ended_by"] == "interrupt" and "terminated: the run ends" in err
 
 
 def test_saturation_is_counted_and_logged(tmp_path):
