@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robstiff_drake.commands.options import PROGRAM_MAX_CORRECTION_MM
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import RunFolder, check_outputs, emit_json
 from robstiff_drake.progress import info, progress, wrote
@@ -34,8 +35,8 @@ def _say(text):
     info(f"robstiff: compensate-program: {text}", file=sys.stderr)
 
 
-def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=1.0, robot_yaml=None, simulate=True,
-        online=("plain", "preview"), show_progress=None, rounds=2, advise=False):
+def run(*, job, out, json_out=None, chord_mm=0.005, max_correction_mm=PROGRAM_MAX_CORRECTION_MM, robot_yaml=None,
+        simulate=True, online=("plain", "preview"), show_progress=None, rounds=2, advise=False):
     """The command (module docstring); ``advise``: lower the feeds where
     ``simulate --advise`` would (the feed planner, diagrams/feed_plan.py)
     and correct the program with those feeds."""

@@ -15,6 +15,11 @@ VECTOR_RANGES = {"--tool": (-5000.0, 5000.0, "mm"), "--com-mm": (-2000.0, 2000.0
                  "--mount-rpy": (-360.0, 360.0, "deg"), "--stiffness": (1e3, 1e9, "N*m/rad"),
                  "--work-offset": (-10000.0, 10000.0, "mm")}
 
+# compensate-program's --max-correction-mm (mm): the largest predicted correction of a programmed point it writes
+# into a corrected program (beyond it the job is refused, naming the line); compensate's real-time bound of the
+# same name is cell/correction_bound.DEFAULT_MAX_CORRECTION_MM
+PROGRAM_MAX_CORRECTION_MM = 1.0
+
 
 def parse_vector(text, n, what):
     """'X,Y,Z' -> list of n floats, with an error that names the bad part

@@ -6,10 +6,13 @@ The dispatch is commands/main.py's."""
 import argparse
 
 from robstiff_drake.commands.help_examples import EXAMPLES
+from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_MM
+from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_MM
 from robstiff_drake.commands.parser_cell import add_cell_commands
 from robstiff_drake.commands.options import (
     FORCE_N,
     NOISE_MM,
+    PROGRAM_MAX_CORRECTION_MM,
     SCENARIO_HELP,
     SEED,
     TOOL_DEFAULT,
@@ -288,8 +291,12 @@ def build_parser():
     p.add_argument("--json", metavar="FILE", help="write the summary as JSON ('-' for stdout)")
     p.add_argument("--chord-mm", type=_number_in(1e-4, 1.0, "mm"), default=0.005,
                    help="largest distance of a written block from the corrected path (default: %(default)s mm)")
-    p.add_argument("--max-correction-mm", type=_number_in(1e-3, 10.0, "mm"), default=1.0,
-                   help="refuse a predicted correction larger than this (default: %(default)s mm)")
+    p.add_argument("--max-correction-mm", type=_number_in(1e-3, 10.0, "mm"), default=PROGRAM_MAX_CORRECTION_MM,
+                   help="offline, before anything is written: refuse the job (exit 2, naming the G-code line) "
+                        "when the model's predicted correction of a programmed point is larger than this (mm, "
+                        f"the tool point's translation). Not `compensate --max-correction-mm` (default "
+                        f"{DEFAULT_MAX_CORRECTION_MM:g}), the real-time bound on what the streamed correction moves "
+                        "the tool (default: %(default)s)")
     p.add_argument("--refine-rounds", type=_number_in(0, 10, integer=True), default=2, metavar="N",
                    help="rounds of refining the corrected program's floor on the compensator's model (each one "
                         "simulation of the job; 0: the preview's correction as it is; default: %(default)s)")

@@ -5,7 +5,8 @@ and sensor).  Every option with its range (commands/parser.py builds the
 rest and calls ``add_cell_commands`` where these two stand in the help)."""
 
 from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_DEG, DEFAULT_MAX_CORRECTION_MM
-from robstiff_drake.commands.options import SCENARIO_HELP, add_robot_option, number_in as _number_in
+from robstiff_drake.commands.options import PROGRAM_MAX_CORRECTION_MM, SCENARIO_HELP, add_robot_option, \
+    number_in as _number_in
 
 
 def add_cell_commands(sub):
@@ -87,8 +88,12 @@ def add_cell_commands(sub):
                         "from the sensor, at least 0.1 m)")
     p.add_argument("--saturation-deg", type=_number_in(0.001, 10.0, "deg"), default=0.5, help="(default: %(default)s)")
     p.add_argument("--max-correction-mm", type=_number_in(0.01, 100.0, "mm"), default=DEFAULT_MAX_CORRECTION_MM,
-                   help="the most the correction may move the tool point (mm); beyond it a fault: the correction "
-                        "ramps to zero (default: %(default)s; cell/correction_bound.py says why)")
+                   help="in real time, every cycle: the most the streamed correction may move the tool point "
+                        "from the reference (mm); beyond it a fault: the correction ramps to zero, the run goes "
+                        "on (default: %(default)s; cell/correction_bound.py says why). Not `compensate-program "
+                        f"--max-correction-mm` (default {PROGRAM_MAX_CORRECTION_MM:g}), the offline refusal of a "
+                        "program's predicted correction; a corrected program's correction is in its reference, not "
+                        "counted here")
     p.add_argument("--max-correction-deg", type=_number_in(0.001, 10.0, "deg"), default=DEFAULT_MAX_CORRECTION_DEG,
                    help="the most the correction may turn the tool (deg); beyond it a fault (default: %(default)s)")
     p.add_argument("--rate-limit-deg-per-s", type=_number_in(0.001, 1000.0, "deg/s"), default=5.0,
