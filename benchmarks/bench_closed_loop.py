@@ -38,7 +38,8 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402 (after the thread settings, which numpy reads when it loads)
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource
+from pydrake.systems.primitives import ConstantVectorSource, Demultiplexer, TrajectorySource
+from pydrake.trajectories import PiecewisePolynomial
 
 from robstiff_drake.diagrams.experiment import run_cut
 from robstiff_drake.diagrams.milling_cell import build_milling_cell
@@ -52,19 +53,37 @@ from robstiff_drake.paths import DIAGRAMS_DIR
 REPEATS = 3
 
 
-def bare_plant_rtf(sc, robot, q0, t_end, extra=()):
+def bare_plant_rtf(sc, robot, q0, t_end, extra=(), path=None):
     """(real-time factor by wall time, by CPU time) of the bare station held
     at ``q0`` for ``t_end`` s; ``extra``: systems added to its diagram
-    unconnected (benchmarks/bench_system_overhead.py)."""
+    unconnected, ``path``: (times s, (N, 6) rad) joint references it follows
+    instead (benchmarks/bench_system_overhead.py)."""
+    sim, _arm = bare_station_simulator(sc, robot, q0, extra, path)
+    t0, c0 = time.perf_counter(), time.process_time()
+    sim.AdvanceTo(t_end)
+    return t_end / (time.perf_counter() - t0), t_end / (time.process_time() - c0)
+
+
+def bare_station_simulator(sc, robot, q0, extra=(), path=None):
+    """(initialized Simulator, the arm's dict: keep it while the simulator
+    runs) of the bare station held at ``q0`` (see bare_plant_rtf; ``path``:
+    commanded as the cell commands it, a first-order hold and its slope)."""
     builder = DiagramBuilder()
     arm = add_compliant_arm(builder, robot=robot, plant_config=sc.plant_config,
                             joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
                             damping_ratios=plant_damping_ratios(sc), q_modes_rad=q0, servo=servo_parameters(sc),
                             interpolator_period_s=sc.servo.interpolator_period_ms / 1e3)
-    cmd = builder.AddSystem(ConstantVectorSource(q0))
-    vel = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
-    builder.Connect(cmd.get_output_port(), arm["position_command"])
-    builder.Connect(vel.get_output_port(), arm["velocity_command"])
+    if path is None:
+        cmd = builder.AddSystem(ConstantVectorSource(q0)).get_output_port()
+        vel = builder.AddSystem(ConstantVectorSource(np.zeros(6))).get_output_port()
+    else:
+        src = builder.AddSystem(TrajectorySource(PiecewisePolynomial.FirstOrderHold(
+            np.asarray(path[0], dtype=float), np.asarray(path[1], dtype=float).T), output_derivative_order=1))
+        demux = builder.AddSystem(Demultiplexer([6, 6]))
+        builder.Connect(src.get_output_port(), demux.get_input_port())
+        cmd, vel = demux.get_output_port(0), demux.get_output_port(1)
+    builder.Connect(cmd, arm["position_command"])
+    builder.Connect(vel, arm["velocity_command"])
     for system in extra:
         builder.AddSystem(system)
     sim = Simulator(builder.Build())
@@ -73,9 +92,7 @@ def bare_plant_rtf(sc, robot, q0, t_end, extra=()):
     theta = q0 + gravity_holding_torque(arm["controller_plant"], q0) / robot.joint_stiffness_Nm_per_rad
     set_drives_at_rest(arm, root, theta, q0)
     sim.Initialize()
-    t0, c0 = time.perf_counter(), time.process_time()
-    sim.AdvanceTo(t_end)
-    return t_end / (time.perf_counter() - t0), t_end / (time.process_time() - c0)
+    return sim, arm
 
 
 def timed_cut(sc, robot, cell, compiled=True):
