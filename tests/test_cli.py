@@ -152,3 +152,8 @@ def test_demo_writes_outputs(capsys, tmp_path):
     expl = rep["cut_more_explanation"]
     assert expl["dz_from_component_mm"][0] < 0 < expl["dz_from_component_mm"][2]  # feed pulls down, axial pushes up
     assert expl["dz_total_mm"] < -0.15
+    # each run's own vibration (simulate's check, the bound's too): the default plant's, far below the feed per
+    # tooth, no warning (tests/test_run_vibration_commands.py: a chattering cut's)
+    assert set(rep["vibration"]) == {"uncompensated", "compensated", "exact model"}
+    assert all(0.0 <= v["amplitude_um"] < 0.5 * v["feed_per_tooth_um"] for v in rep["vibration"].values()), rep
+    assert not any("the simulated cut vibrated" in w for w in rep["warnings"]), rep["warnings"]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from robstiff_drake.diagrams.run_vibration import PREFIX, vibration_warnings
-from robstiff_drake.model.vibration import run_vibration
+from robstiff_drake.model.vibration import in_plane_um, off_mean, run_vibration
 
 DT_S = 0.25e-3
 FEED_M_PER_S = 0.02
@@ -81,3 +81,88 @@ def test_simulate_summary_has_the_vibration_and_no_warning(short_run_folder):
     assert v["cut_s"][1] > v["cut_s"][0]
     assert 0.0 <= v["amplitude_um"] < 0.5 * v["feed_per_tooth_um"]
     assert not any(PREFIX in w for w in summ["warnings"])
+
+
+TILT_DEG = 30.0
+
+
+def tilted(p_m, tilt_deg=TILT_DEG, about=(1.4, 0.0, 0.7)):
+    """The points ``p_m`` (n, 3 m) turned by ``tilt_deg`` about base y through ``about``, and the spindle axis
+    (straight down before) turned with them."""
+    a = np.radians(tilt_deg)
+    R = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+    c = np.asarray(about)
+    return (p_m - c) @ R.T + c, R @ np.array([0.0, 0.0, -1.0])
+
+
+def test_a_spindle_down_axis_gives_base_x_and_y_to_the_bit():
+    """The plane normal to a spindle-down axis is base x-y: the figures of a spindle-down tool are unchanged."""
+    t = np.arange(0.0, 4.0, DT_S)
+    p, _ = growing_36hz(t)
+    old = np.nan_to_num(np.stack([off_mean(t, p[:, i]) for i in (0, 1)], axis=1) * 1e6)  # (the measure before)
+    new = in_plane_um(t, p, (0.0, 0.0, -1.0))
+    assert np.array_equal(np.abs(new), np.abs(old))
+    per_sample = np.tile([0.0, 0.0, -1.0], (len(t), 1))
+    assert run_vibration(t, p, (t > 0.5) & (t < 3.8), per_sample) == run_vibration(t, p, (t > 0.5) & (t < 3.8))
+
+
+@pytest.mark.parametrize("along", ["tool x", "spindle axis"])
+def test_a_tilted_tool_vibrates_in_the_plane_normal_to_its_axis(along):
+    """The whole cut (feed, 36 Hz vibration, spindle axis) turned 30 deg about base y: measured in the plane normal
+    to the tool's axis and along it, the figures are the upright cut's; in base x-y (the measure before) a
+    vibration along the tool's x showed cos 30 = 87 % of it, one along the spindle sin 30 = 50 % as in-plane."""
+    t = np.arange(0.0, 4.0, DT_S)
+    cut = (t > 0.5) & (t < 3.8)
+    p = path_m(t)
+    swing = 300e-6 * np.sin(2 * np.pi * 36.0 * t) * (t > 2.0)
+    p[:, 0 if along == "tool x" else 2] += swing
+    upright = run_vibration(t, p, cut)
+    pt, axis = tilted(p)
+    tool = run_vibration(t, pt, cut, axis)
+    base_xy = run_vibration(t, pt, cut)  # the spindle taken as straight down
+    assert tool["spindle_axis"] == pytest.approx(list(axis), abs=1e-12)
+    if along == "tool x":
+        assert upright["amplitude_um"] > 150.0 and upright["axial_um"] < 1e-6
+        assert tool["amplitude_um"] == pytest.approx(upright["amplitude_um"], rel=1e-9)
+        assert tool["axial_um"] < 1e-6
+        assert base_xy["amplitude_um"] == pytest.approx(np.cos(np.radians(TILT_DEG)) * upright["amplitude_um"],
+                                                        rel=1e-6)
+        assert tool["frequency_hz"] == pytest.approx(36.0, abs=1.0)
+    else:
+        assert upright["axial_um"] > 150.0 and upright["amplitude_um"] < 1e-6
+        assert tool["axial_um"] == pytest.approx(upright["axial_um"], rel=1e-9)
+        assert tool["amplitude_um"] < 1e-6
+        assert base_xy["amplitude_um"] == pytest.approx(np.sin(np.radians(TILT_DEG)) * upright["axial_um"], rel=1e-6)
+
+
+def test_the_warning_names_the_plane_and_the_axial_amplitude():
+    t = np.arange(0.0, 4.0, DT_S)
+    p, _ = growing_36hz(t)
+    pt, axis = tilted(p)
+    w = run_vibration(t, pt, (t > 0.5) & (t < 3.8), axis)
+    w["feed_per_tooth_um"] = 1e6 * FEED_M_PER_S / 360.0
+    sc = SimpleNamespace(cutting=SimpleNamespace(chip="regenerative", mode="tooth"))
+    (line,) = vibration_warnings({"uncompensated": w}, sc)
+    assert f"um at 36 Hz in the plane normal to the spindle axis ({w['axial_um']:.0f} um along it)" in line, line
+    assert w["axial_um"] < 1.0
+
+
+def test_the_spindle_axis_is_the_flange_z_at_the_logged_angles():
+    """tool_motion_m (the wiring's kinematics): the tool point and the flange z axis, spindle-down at the path's
+    first pose and tilted by a turn of the wrist's bending joint (q5)."""
+    from robstiff_drake.diagrams.run_vibration import tool_motion_m
+    from robstiff_drake.model import kinematics as kin
+    from robstiff_drake.model.ik import solve_for, tool_down_pose
+    from robstiff_drake.model.robot import load_robot
+
+    robot = load_robot()
+    tool = robot.tool_point(where="test")
+    q = solve_for(robot, tool_down_pose([1.6, 0.0, 0.7]), tool)
+    q2 = q.copy()
+    q2[4] += np.radians(TILT_DEG)
+    p, axis = tool_motion_m(robot, tool, np.array([q, q2]))
+    assert p[0] == pytest.approx([1.6, 0.0, 0.7], abs=1e-6)
+    assert axis[0] == pytest.approx([0.0, 0.0, -1.0], abs=1e-9)
+    assert np.degrees(np.arccos(-axis[1, 2])) == pytest.approx(TILT_DEG, abs=1e-6)
+    T6 = kin.frames(robot.dh, q2[None])[0, 6]
+    assert axis[1] == pytest.approx(T6[:3, 2], abs=1e-12)

@@ -39,6 +39,10 @@ def test_sweep_cli_rows_and_plot(capsys, tmp_path):
         assert {"period_ms", "delay_steps", "cutoff_hz", "mode", "surface_error_mm", "stable", "predicted"} <= set(row)
         assert {"mean", "rms", "max_abs", "pv", "entry_max_abs", "exit_max_abs"} <= set(row["surface_error_mm"])
         assert row["stable"] is True
+        # the run's own vibration (simulate's check, diagrams/run_vibration.py): the default plant's, no warning
+        v = row["vibration"]
+        assert v["cut_s"][1] > v["cut_s"][0] and 0.0 <= v["amplitude_um"] < 0.5 * v["feed_per_tooth_um"], v
+    assert not any("the simulated cut vibrated" in w for w in res["warnings"]), res["warnings"]
     plain = {r["period_ms"]: r for r in res["runs"] if r["mode"] == "plain"}
     # a longer period costs accuracy at the engagement changes
     assert plain[24.0]["surface_error_mm"]["entry_max_abs"] > plain[4.0]["surface_error_mm"]["entry_max_abs"]

@@ -50,6 +50,7 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
     from robstiff_drake.cell.rdt import parse_host_port
     from robstiff_drake.cell.sim_cell import CellNetwork
     from robstiff_drake.diagrams.cell_station import CellStation
+    from robstiff_drake.diagrams.run_vibration import cell_vibration, vibration_warnings
     from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot
 
     check_outputs(inputs=[scenario, robot_yaml], files={"--reference-out": reference_out, "--json": json_out,
@@ -118,6 +119,9 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
     if stats.late_ticks and not lockstep:
         warnings.add(f"{stats.late_ticks} of {stats.cycles} cycles were more than half a period late (this machine "
                      "is busy: the simulated controller is not hard real-time)")
+    # did the cut itself vibrate? (simulate's check, on the link angles the station logs once per cycle)
+    vib = cell_vibration(station)
+    warnings.extend_from(vibration_warnings({"sim-cell": vib}, sc))
     scans, surface = station.surface()
     cut = "mean" in surface
     if scan_out is not None and cut:
@@ -151,7 +155,7 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
            "health": {"verdict": word, "reasons": reasons, "compensation_lost_fraction": lost, "line": line,
                       "seen_of_the_other_side": {"fresh_answers": stats.answered, "late_answers": stats.late_answers,
                                                  "missing_answers": stats.unanswered}},
-           "chatter_check": chatter, "warnings": list(warnings)}
+           "chatter_check": chatter, "vibration": vib, "warnings": list(warnings)}
     if json_out is not None:
         emit_json(res, json_out)
     if json_out != "-":

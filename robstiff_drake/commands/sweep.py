@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robstiff_drake.diagrams.run_vibration import vibration_warnings
 from robstiff_drake.diagrams.sweep import check_combinations, combinations, run_sweep
 from robstiff_drake.errors import InputError
 from robstiff_drake.io import Warnings, check_outputs, emit_json, save_figure_atomic, staged_outputs
@@ -169,6 +170,8 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
     chatter = check_job(sc, robot, warnings)
     rows = run_sweep(Path(scenario), combos, workers=workers, scheduler=scheduler, plant_step_ms=plant_step_ms,
                      progress=progress, predict=predict, robot_spec=spec)
+    # did each run itself vibrate? (its row's `vibration`, from its own logs in the worker: simulate's check)
+    warnings.extend_from(vibration_warnings({run_name(r): r.get("vibration") for r in rows}, sc))
     failed = [r for r in rows if "error" in r]
     if failed:
         warnings.add(f"{len(failed)} of {len(rows)} runs failed (see their 'error'); the first: {failed[0]['error']}")
@@ -186,6 +189,12 @@ def run(*, scenario, periods, delays="1", cutoffs="5", modes="plain", json_out=N
     wrote(json_out, f"{len(rows)} runs", to_stderr=json_out == "-")
     wrote(plot_out, to_stderr=json_out == "-")
     return 0
+
+
+def run_name(row):
+    """A sweep run's name in a warning: 'compensated (period 4 ms, delay 1, cutoff 2 Hz, plain)'."""
+    return (f"compensated (period {row['period_ms']:g} ms, delay {row['delay_steps']}, cutoff {row['cutoff_hz']:g} Hz, "
+            f"{row['mode']})")
 
 
 def plan_line(sc, combos, periods_ms, delay_steps, cutoffs_hz, modes, workers, scheduler):

@@ -13,7 +13,9 @@ interface).
   controller's convention, rad) and every wrench sample the sensor took
   during the period (k, 6);
 * ``last_info``: (time s, link angles rad): the truth, for the scan after
-  the run;
+  the run; ``times``, ``q_link`` and ``cut_force_N`` (the cutting force's
+  size, N) at the end of every cycle: the scan's and the vibration check's
+  log (diagrams/run_vibration.cell_vibration);
 * ``done``: the path (and its run-out) is over.
 
 The station's clock starts at the first ``step``: the milling source reads
@@ -58,7 +60,7 @@ class CellStation:
         self._last_cmd = self.q_ref[0].copy()
         self._read = 0
         self.t_end = self.path.duration_s + RUN_OUT_S
-        self.times, self.q_link = [], []
+        self.times, self.q_link, self.cut_force_N = [], [], []
         self.last_info = None
         self.tool_m = tool
 
@@ -90,6 +92,7 @@ class CellStation:
         x = self._system.GetOutputPort("plant_state").Eval(self._ctx)
         self.times.append(t)
         self.q_link.append(x[:6].copy())
+        self.cut_force_N.append(float(np.linalg.norm(self._system.GetOutputPort("cutting_wrench").Eval(self._ctx)[:3])))
         self.last_info = (t, x[:6].copy())
         return self._report(), samples if len(samples) else np.atleast_2d(self._rest[2])
 

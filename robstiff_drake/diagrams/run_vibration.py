@@ -5,7 +5,12 @@ tooth-resolved cut): the tool point from the logged joint angles (as
 experiment.scan_surface computes it), the cutter in the material where
 the logged cutting force exceeds IN_CUT_N, and model/vibration.py's
 sustained amplitude, frequency and onset.  It reads only what every run
-logs, so it works for every plant mode.  Plain numpy (no Drake)."""
+logs, so it works for every plant mode; the in-plane vibration is in the
+plane normal to the spindle axis (the flange z axis at the logged angles,
+as experiment.spindle_load takes it), the axial one apart.  The same
+check serves `sweep` (each run's row), `demo` (its three runs) and
+`sim-cell` (cell_vibration: the link angles its station logs once per
+controller cycle).  Plain numpy (no Drake)."""
 
 import numpy as np
 
@@ -27,11 +32,17 @@ def label(res):
     return "compensated" if res.compensation else "uncompensated"
 
 
+def tool_motion_m(robot, tool_m, q_rad):
+    """(the tool point (n, 3) m, the spindle axis (n, 3): the flange z axis) at link angles ``q_rad`` (n, 6)."""
+    T6 = kin.frames(robot.dh, np.asarray(q_rad, dtype=float)[:, :6])[:, 6]
+    return T6[:, :3, 3] + T6[:, :3, :3] @ np.asarray(tool_m, dtype=float), T6[:, :3, 2]
+
+
 def tool_points_m(res):
-    """(times s, the actual tool point (n, 3) m) of a run (experiment.RunResult), from its logged link angles."""
+    """(times s, the actual tool point (n, 3) m, the spindle axis (n, 3)) of a run (experiment.RunResult), from
+    its logged link angles."""
     t, x = res.logs["state"]
-    T6 = kin.frames(res.cell.robot.dh, x[:, :6])[:, 6]
-    return t, T6[:, :3, 3] + T6[:, :3, :3] @ np.asarray(res.cell.tool_m, dtype=float)
+    return (t,) + tool_motion_m(res.cell.robot, res.cell.tool_m, x)
 
 
 def in_cut(res, t):
@@ -43,28 +54,46 @@ def in_cut(res, t):
     return np.linalg.norm(w[i, :3], axis=1) > IN_CUT_N
 
 
-def feed_per_tooth_um(res, t, cutting):
-    """The commanded feed per tooth (um) over the cut: the planned path's median speed where the cutter is in the
-    material over the tooth passing frequency (cutter.spindle_rpm / 60 x cutter.n_teeth)."""
-    cutter = res.cell.scenario.cutter
+def feed_per_tooth_um(path, cutter, t, cutting):
+    """The commanded feed per tooth (um) over the cut: the planned ``path``'s median speed where the cutter is in
+    the material over the tooth passing frequency (``cutter``.spindle_rpm / 60 x n_teeth)."""
     tooth_hz = cutter.spindle_rpm / 60.0 * cutter.n_teeth
     tc = t[cutting]
     if len(tc) < 2:
         return None
-    p = np.asarray(res.cell.path.positions(tc), dtype=float)
+    p = np.asarray(path.positions(tc), dtype=float)
     speed = np.linalg.norm(np.diff(p, axis=0), axis=1) / np.maximum(np.diff(tc), 1e-12)
     speed = speed[np.diff(tc) < 2.5 * (t[1] - t[0])]  # (within the cut, not across a gap between passes)
     return float(np.median(speed) / tooth_hz * 1e6) if speed.size else None
 
 
-def vibration_of(res):
-    """model/vibration.run_vibration's dict for one run (None: it never cut), with ``feed_per_tooth_um``."""
-    t, p = tool_points_m(res)
-    cutting = in_cut(res, t)
-    out = run_vibration(t, p, cutting)
+def vibration_from(t, p_m, axis, cutting, path, cutter):
+    """model/vibration.run_vibration's dict (None: it never cut) with ``feed_per_tooth_um``, from the tool
+    points ``p_m`` (n, 3 m) and spindle ``axis`` (n, 3) at uniform times ``t`` (s), the cutter in the material
+    where ``cutting`` (n, bool)."""
+    out = run_vibration(t, p_m, cutting, axis)
     if out is not None:
-        out["feed_per_tooth_um"] = feed_per_tooth_um(res, t, cutting)
+        out["feed_per_tooth_um"] = feed_per_tooth_um(path, cutter, t, cutting)
     return out
+
+
+def vibration_of(res):
+    """The vibration of one run (experiment.RunResult), from its logs (no simulation)."""
+    t, p, axis = tool_points_m(res)
+    return vibration_from(t, p, axis, in_cut(res, t), res.cell.path, res.cell.scenario.cutter)
+
+
+def cell_vibration(station):
+    """The vibration of `robstiff sim-cell`'s cut (diagrams/cell_station.CellStation): the link angles its
+    station logs at the end of each controller cycle (``times``, ``q_link``) and the cutting force's size there
+    (``cut_force_N``); so sampled once per cycle (4 ms: the spectrum up to 0.45 of 250 Hz, a 10 ms envelope
+    window of 2-3 samples, which sees less of a sine's peak than the plant-step log of simulate)."""
+    t = np.asarray(station.times, dtype=float)
+    if len(t) < 3:
+        return None
+    p, axis = tool_motion_m(station.robot, station.tool_m, np.asarray(station.q_link))
+    cutting = np.asarray(station.cut_force_N, dtype=float) > IN_CUT_N
+    return vibration_from(t, p, axis, cutting, station.path, station.sc.cutter)
 
 
 def vibration_summary(results):
@@ -88,7 +117,9 @@ def vibration_warnings(summary, sc):
                 where = f" from x = {x} mm, y = {y} mm (t = {v['onset_t_s']:.2f} s)"
             else:
                 where = ""
-            out.append(f"{name}: {PREFIX}: {v['amplitude_um']:.0f} um{hz} in the plane{where}, more than the "
+            axial = f" ({v['axial_um']:.0f} um along it)" if v.get("axial_um") is not None else ""
+            out.append(f"{name}: {PREFIX}: {v['amplitude_um']:.0f} um{hz} in the plane normal to the "
+                       f"spindle axis{axial}{where}, more than the "
                        f"{v['feed_per_tooth_um']:.0f} um feed per tooth ({why}); its surface figures are a "
                        "chattering cut's")
     return out

@@ -15,6 +15,7 @@ from concurrent.futures.process import BrokenProcessPool
 
 import numpy as np
 
+from robstiff_drake.diagrams.run_vibration import vibration_of
 from robstiff_drake.diagrams.sweep_config import configure
 from robstiff_drake.errors import InputError
 from robstiff_drake.progress import progress as progress_bar
@@ -82,7 +83,9 @@ def run_one(scenario_path, combo, plant_step_ms=None, predict=True, robot_spec=N
         finite = bool(np.all(np.isfinite(res.logs["state"][1])))
         stable = finite and bool(s) and s["max_abs"] < DIVERGED_SURFACE_MM and saturated < SATURATED_SHARE
         row.update(surface_error_mm=s, stable=stable, saturated_share=saturated,
-                   wall_seconds=res.wall_seconds, sim_seconds=res.sim_seconds)
+                   wall_seconds=res.wall_seconds, sim_seconds=res.sim_seconds,
+                   # did the run itself vibrate? (its own logs, numpy: diagrams/run_vibration.py)
+                   vibration=vibration_of(res))
         if not stable:
             row["why"] = ("state not finite" if not finite else "correction saturated" if saturated >= SATURATED_SHARE
                           else f"surface error above {DIVERGED_SURFACE_MM} mm")

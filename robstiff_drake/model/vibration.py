@@ -4,8 +4,9 @@ at what frequency, and where it started growing (chatter found in the
 run, not predicted).  Plain numpy; the definitions are those of
 studies/regenerative_chatter.py (which imports them from here):
 
-* the vibration: the tool point's in-plane motion (base x and y, um; the
-  plane of a spindle-down cut) off its centred MEAN_WINDOW_S (20 ms) mean:
+* the vibration: the tool point's in-plane motion (um: in the plane normal
+  to the spindle axis, base x and y for a spindle-down tool; the axial
+  motion apart, ``axial_um``) off its centred MEAN_WINDOW_S (20 ms) mean:
   the arm's low modes (4-15 Hz) and the path's ramps leave it, of an
   oscillation at 36 Hz about 68 % stays, at 40-70 Hz 77-120 % (so the
   amplitudes are this measure's, as the study's, not the sine's own);
@@ -86,10 +87,43 @@ def peak_hz(t, v, band_hz=BAND_HZ):
     return float(f[band][np.argmax(spec[band])]) if band.any() else math.nan
 
 
-def in_plane_um(t, p_m):
-    """The tool point's (n, 3 m) in-plane vibration (n, 2 um): base x and y off their MEAN_WINDOW_S mean
-    (0 at the record's ends, where the mean is not defined)."""
-    return np.nan_to_num(np.stack([off_mean(t, p_m[:, i]) for i in (0, 1)], axis=1) * 1e6)
+SPINDLE_DOWN = (0.0, 0.0, -1.0)  # the spindle axis (base frame) when none is given: a spindle-down tool
+
+
+def plane_axes(axis):
+    """(u1, u2, a), each (n, 3) or (3,): the unit spindle axis ``a`` (base frame; (3,) or (n, 3), one per
+    sample) and two unit vectors spanning the plane normal to it: u1 base x projected onto that plane (base y's
+    where the axis is within 30 deg of x), u2 = a x u1.  For a spindle-down axis u1, u2 are base x and -y
+    exactly (so the in-plane figures are base x and y's, to the bit)."""
+    a = np.asarray(axis, dtype=float)
+    a = a / np.linalg.norm(a, axis=-1, keepdims=True)
+    ex, ey = np.eye(3)[0], np.eye(3)[1]
+    ref = np.where((np.abs(a[..., :1]) > 0.866), ey, ex)  # (cos 30 deg: x too close to the axis)
+    u1 = ref - np.sum(ref * a, axis=-1, keepdims=True) * a
+    u1 = u1 / np.linalg.norm(u1, axis=-1, keepdims=True)
+    return u1, np.cross(a, u1), a
+
+
+def off_mean_m(t, p_m):
+    """The tool point's (n, 3 m) motion off its MEAN_WINDOW_S mean, each base axis (n, 3 m; 0 at the record's
+    ends, where the mean is not defined)."""
+    return np.nan_to_num(np.stack([off_mean(t, p_m[:, i]) for i in range(3)], axis=1))
+
+
+def in_plane_um(t, p_m, axis=SPINDLE_DOWN):
+    """The tool point's (n, 3 m) in-plane vibration (n, 2 um): its motion off its MEAN_WINDOW_S mean projected
+    on the plane normal to the spindle ``axis`` (base frame, (3,) or (n, 3) per sample; plane_axes): base x and y
+    for a spindle-down tool.  (The small motion is projected, not the position: a per-sample axis turning by a
+    milliradian turns a metre of position by a millimetre.)"""
+    d = off_mean_m(t, p_m)
+    u1, u2, _ = plane_axes(axis)
+    return np.stack([np.sum(d * u1, axis=-1), np.sum(d * u2, axis=-1)], axis=1) * 1e6
+
+
+def axial_um(t, p_m, axis=SPINDLE_DOWN):
+    """The tool point's (n, 3 m) vibration along the spindle ``axis`` (n, um; as in_plane_um)."""
+    _, _, a = plane_axes(axis)
+    return np.sum(off_mean_m(t, p_m) * a, axis=-1) * 1e6
 
 
 def running_median(a, n):
@@ -99,11 +133,14 @@ def running_median(a, n):
     return np.median(np.lib.stride_tricks.sliding_window_view(a, n), axis=1)
 
 
-def run_vibration(t, p_m, in_cut):
+def run_vibration(t, p_m, in_cut, axis=SPINDLE_DOWN):
     """The tool's vibration during the cut (the module's definitions) from the
-    run's uniformly sampled times ``t`` (n, s), tool points ``p_m`` (n, 3 m)
-    and whether the cutter was in the material ``in_cut`` (n, bool).
-    Returns a dict: amplitude_um (the sustained amplitude), frequency_hz,
+    run's uniformly sampled times ``t`` (n, s), tool points ``p_m`` (n, 3 m),
+    whether the cutter was in the material ``in_cut`` (n, bool) and the
+    spindle ``axis`` (base frame, (3,) or (n, 3) per sample; default
+    spindle-down).  Returns a dict: amplitude_um (the sustained amplitude
+    in the plane normal to the axis), axial_um (the same measure along
+    it), spindle_axis (its mean over the cut, unit), frequency_hz,
     quiet_um, onset_t_s, onset_mm ([x, y, z] of the tool point there) and
     growth_per_s (each None when it does not grow), cut_s ([first, last]
     time in the material); None when the run never cut."""
@@ -113,7 +150,7 @@ def run_vibration(t, p_m, in_cut):
     if len(t) < 3 or idx.size == 0:
         return None
     t0, t1 = t[idx[0]], t[idx[-1]]
-    xy = in_plane_um(t, p_m)
+    xy = in_plane_um(t, p_m, axis)
     te, a = envelope(t, xy)
     cut = (te >= t0) & (te + ENVELOPE_S <= t1)
     if not cut.any():
@@ -125,8 +162,11 @@ def run_vibration(t, p_m, in_cut):
     amp = float(sus[k])
     t_mid = tc[min(k + n_sus // 2, len(tc) - 1)] if len(ac) > n_sus else 0.5 * (t0 + t1)
     w = (t >= max(t0, t_mid - FREQUENCY_S / 2)) & (t < min(t1, t_mid + FREQUENCY_S / 2))
-    out = {"amplitude_um": amp, "frequency_hz": peak_hz(t[w], xy[w]), "quiet_um": None, "onset_t_s": None,
-           "onset_mm": None, "growth_per_s": None, "cut_s": [float(t0), float(t1)]}
+    _, a_ax = envelope(t, axial_um(t, p_m, axis))
+    ax = np.broadcast_to(plane_axes(axis)[2], p_m.shape)[idx].mean(axis=0)
+    out = {"amplitude_um": amp, "axial_um": float(running_median(a_ax[cut], n_sus).max()),
+           "spindle_axis": [float(v) for v in ax / np.linalg.norm(ax)], "frequency_hz": peak_hz(t[w], xy[w]),
+           "quiet_um": None, "onset_t_s": None, "onset_mm": None, "growth_per_s": None, "cut_s": [float(t0), float(t1)]}
     if math.isnan(out["frequency_hz"]):
         out["frequency_hz"] = None
     q = (tc >= t0 + QUIET_S[0]) & (tc < t0 + QUIET_S[1])
