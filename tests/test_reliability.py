@@ -488,6 +488,32 @@ def test_ctrl_c_while_the_command_is_still_importing_is_one_line(monkeypatch, ca
         cli.main(["robots"])
 
 
+def test_ctrl_c_in_a_commands_own_import_is_one_line(monkeypatch, capsys):
+    """The same later on: a Ctrl-C while a command imports Drake (`simulate` imports it lazily, seconds in on a
+    loaded machine) came out of pydrake's extension as "ImportError: initialization failed": a traceback and exit
+    1 (tests/test_ctrl_c_during_a_simulation_leaves_nothing_behind at load 5); now the one line and 130.  An
+    ImportError of another cause is raised as it was."""
+    from robstiff_drake import cli
+    from robstiff_drake.commands import robots
+
+    def interrupted(**kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as e:
+            raise ImportError("initialization failed") from e
+
+    monkeypatch.setattr(robots, "run", interrupted)
+    assert cli.main(["robots"]) == 130
+    assert capsys.readouterr().err == "robstiff: interrupted\n"
+
+    def broken(**kwargs):
+        raise ImportError("no module named pydrake")
+
+    monkeypatch.setattr(robots, "run", broken)
+    with pytest.raises(ImportError, match="pydrake"):
+        cli.main(["robots"])
+
+
 # ------------------------------------------------- issue 19: small contract breaks
 
 

@@ -179,6 +179,29 @@ def _diagram_run(name):
     return _DIAGRAMS[name]
 
 
+# The conventions' check is one of logic: the lockstep pair on this machine's scheduling must not decide it.  Two
+# of compensate's watchdogs run on this PC's wall clock as well, and a loaded machine tripped each mid-cut (the
+# correction ramped to zero and back, the filter restarted: the face 0.019 mm off the diagram's at load 6,
+# 0.09 mm at load 8-10, the steady corrections still within 0.5 %):
+# * the sensor's silence: 20 ms on both clocks.  The simulated Net F/T sends a cycle's records before that
+#   cycle's controller message, but compensate's reader thread, starved of a core, took them five cycles late
+#   (events.csv: "sensor: no record for 20 ms" at t = 2.104 s of the controller's clock, "valid records again"
+#   4 ms later).  Here the sensor never stops sending, so the test sets the timeout to a second (SENSOR_TIMEOUT_MS,
+#   compensate's --sensor-timeout-ms; 250 cycles, and lockstep is never faster than real time) and asserts that
+#   no sensor fault happened: with that timeout one is a real silence.
+# * the controller's silence: 100 ms without a message on this PC's clock (no option sets it), i.e. the
+#   lockstep controller itself stalled by the machine.  It is detected in compensate's events (a "messages
+#   again" after it: a silence inside the run, not the run's end); such a run judges the machine, so the pair
+#   runs once more, saying why, and the second run is asserted whatever it shows.
+SENSOR_TIMEOUT_MS = 1000
+
+
+def _controller_stalls(log_dir):
+    """compensate's events of a silence of the controller inside the run (one followed by "messages again")."""
+    events = [line for line in (log_dir / "events.csv").read_text().splitlines() if not line.startswith("#")][1:]
+    return [e for e in events if "messages again" in e]
+
+
 @pytest.mark.parametrize("name, protocol", [("kr240_r2900", "egm"), ("kr240_r2900", "rsi"),
                                             ("r2000ic_165f", "egm"), ("r2000ic_165f", "stream-motion")])
 def test_kuka_and_fanuc_conventions_over_the_protocols_match_the_diagram(tmp_path, name, protocol):
@@ -191,13 +214,23 @@ def test_kuka_and_fanuc_conventions_over_the_protocols_match_the_diagram(tmp_pat
     assert not robot.joint_map.is_identity
     diagram = _diagram_run(name)
     start = (robot.workspace.reference_tool_point_m * 1e3).tolist()
-    model, payload, _, _ = write_inputs(str(tmp_path), robot, duration_s=0.1, start_mm=start)
-    cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=True, scenario=OTHER_ROBOTS[name], robot=name,
-                                protocol=protocol)
-    assert cell.returncode == 0, (cell.stderr, comp.stderr)
-    assert comp.returncode == 0, comp.stderr
+    for attempt in (1, 2):
+        run_dir = tmp_path / f"run{attempt}"
+        run_dir.mkdir()
+        model, payload, _, _ = write_inputs(str(run_dir), robot, duration_s=0.1, start_mm=start)
+        cell, comp, out = _run_pair(run_dir, model, payload, lockstep=True, scenario=OTHER_ROBOTS[name], robot=name,
+                                    protocol=protocol, comp_extra=["--sensor-timeout-ms", str(SENSOR_TIMEOUT_MS)])
+        assert cell.returncode == 0, (cell.stderr, comp.stderr)
+        assert comp.returncode == 0, comp.stderr
+        stalls = _controller_stalls(run_dir / "log")
+        if not stalls or attempt == 2:
+            break
+        print(f"attempt 1: this machine stalled the lockstep controller for 100 ms or more ({stalls}): run again")
     res = json.loads(out.read_text())
-    _same_steady_corrections(tmp_path, diagram, f"{name} {protocol}")
+    summary = json.loads((run_dir / "log" / "summary.json").read_text())
+    # the simulated sensor sent every cycle's records: no silence of a second on both clocks
+    assert summary["health"]["seen_of_the_other_side"]["sensor_faults"] == 0, summary["health"]
+    _same_steady_corrections(run_dir, diagram, f"{name} {protocol}")
     print(name, protocol, "surface", res["surface_error_mm"]["mean"], "diagram", diagram.surface_error_mm["mean"])
     assert abs(res["surface_error_mm"]["mean"] - diagram.surface_error_mm["mean"]) < 0.005, (res, diagram)
     assert res["unanswered"] == 0, res

@@ -214,6 +214,15 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("robstiff: interrupted", file=sys.stderr)
         return 130
+    except ImportError as e:
+        # a Ctrl-C inside a command's own lazy import (Drake's, seconds into `simulate` on a loaded machine):
+        # the extension module turns it into "ImportError: initialization failed" (was a traceback, exit 1)
+        from robstiff_drake.cli import INTERRUPTED, _interrupted
+
+        if not _interrupted(e):
+            raise
+        print("robstiff: interrupted", file=sys.stderr)
+        return INTERRUPTED
     except Terminated:
         print("robstiff: terminated", file=sys.stderr)
         return 143
