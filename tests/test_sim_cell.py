@@ -10,6 +10,7 @@ loopback interface) removes most of the deflection the station's physics
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 
@@ -86,9 +87,20 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     # the payload calibration's bias is the scenario's sensor bias
     assert np.allclose(sc.sensor.force_bias_N, FORCE_BIAS_N) and np.allclose(sc.sensor.torque_bias_Nm, TORQUE_BIAS_NM)
     servo = servo_settings(sc)
-    cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=lockstep, cell_extra=[
-        "--scan-out", str(tmp_path / "my_scan.csv")], comp_extra=[
-        "--servo", ",".join(str(servo[k]) for k in SERVO_KEYS), "--cutter-diameter-mm", str(sc.cutter.diameter_mm)])
+    comp_extra = ["--servo", ",".join(str(servo[k]) for k in SERVO_KEYS), "--cutter-diameter-mm",
+                  str(sc.cutter.diameter_mm)]
+    if lockstep:  # judged on the loop's logic, not this machine's scheduling (SENSOR_TIMEOUT_MS below says why)
+        comp_extra += ["--sensor-timeout-ms", str(SENSOR_TIMEOUT_MS)]
+    for attempt in (1, 2):
+        cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=lockstep, cell_extra=[
+            "--scan-out", str(tmp_path / "my_scan.csv")], comp_extra=comp_extra)
+        if not lockstep or comp.returncode != 0 or attempt == 2 or not _controller_stalls(tmp_path / "log"):
+            break
+        print(f"attempt 1: this machine stalled the lockstep controller for 100 ms or more "
+              f"({_controller_stalls(tmp_path / 'log')}): run again")
+        shutil.rmtree(tmp_path / "log")
+        for name in ("cell_reference.csv", "cell.json", "my_scan.csv"):  # the second pair writes its own
+            (tmp_path / name).unlink(missing_ok=True)
     cerr = cell.stderr
     assert cell.returncode == 0, (cerr, comp.stderr)
     assert comp.returncode == 0, comp.stderr
