@@ -8,25 +8,14 @@ one line and exit status as a Ctrl-C later on (commands/main.py)."""
 
 import sys
 
-INTERRUPTED = 130
-
-
-def _interrupted(exc):
-    """Whether ``exc`` is, or was raised while handling, a KeyboardInterrupt."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return False
+from robstiff_drake.errors import INTERRUPTED, interrupted
 
 
 def main(argv=None):
     try:
         from robstiff_drake.commands.main import main as run
     except BaseException as e:  # (an interrupted import; anything else as it was)
-        if not _interrupted(e):
+        if not interrupted(e):
             raise
         print("robstiff: interrupted", file=sys.stderr)
         return INTERRUPTED

@@ -84,3 +84,17 @@ def _repr_into(value, parts, budget):
         text = text[:max(budget[0], 8)] + "..."
     budget[0] -= len(text)
     parts.append(text)
+
+
+INTERRUPTED = 130  # the exit status of a Ctrl-C (128 + SIGINT)
+
+
+def interrupted(exc):
+    """Whether ``exc`` is, or was raised while handling, a KeyboardInterrupt."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False

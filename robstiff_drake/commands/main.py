@@ -12,7 +12,7 @@ import sys
 from robstiff_drake.commands.help_examples import EXAMPLES  # noqa: F401 (re-exported for tests and tools)
 from robstiff_drake.commands.options import parse_vector, vector_values_kept
 from robstiff_drake.commands.parser import _subcommands, build_parser  # noqa: F401 (_subcommands: re-exported)
-from robstiff_drake.errors import InputError, Terminated, excerpt, one_line
+from robstiff_drake.errors import INTERRUPTED, InputError, Terminated, excerpt, interrupted, one_line
 
 def _dispatch(args):
     if args.command == "robots":
@@ -217,9 +217,7 @@ def main(argv=None):
     except ImportError as e:
         # a Ctrl-C inside a command's own lazy import (Drake's, seconds into `simulate` on a loaded machine):
         # the extension module turns it into "ImportError: initialization failed" (was a traceback, exit 1)
-        from robstiff_drake.cli import INTERRUPTED, _interrupted
-
-        if not _interrupted(e):
+        if not interrupted(e):
             raise
         print("robstiff: interrupted", file=sys.stderr)
         return INTERRUPTED
