@@ -88,8 +88,9 @@ def wait_for_file(path, wait_s, what="--reference"):
 # twice.  docs/offline_compensation.md's results table (studies/offline_compensation.py, face_and_contour.yaml): the
 # corrected program with online plain compensation on the whole measured wrench, against the corrected joint
 # reference streamed with no online correction (surface error, mean and largest |e|, mm).
-TWICE_FIGURES = ("+0.078 mm mean, 0.228 mm largest surface error, against -0.007 / 0.025 mm for the corrected "
-                 "joint reference streamed alone (docs/offline_compensation.md's results table)")
+TWICE_FIGURES = ("the corrected program with online compensation of the whole measured wrench, on the plant: "
+                 "+0.078 mm mean, 0.228 mm largest surface error, against -0.007 / 0.025 mm for the corrected joint "
+                 "reference streamed alone; docs/offline_compensation.md's results table")
 CORRECTED_FLAG = "--reference-is-corrected"
 
 
@@ -105,7 +106,7 @@ def check_reference_claim(reference, is_corrected):
     if mark and not is_corrected:
         raise InputError(f"--reference {reference}:{mark[0]}: a corrected reference (its mark there): its joint "
                          "references already carry the deflection's correction, and streaming it with online "
-                         "compensation corrects the deflection twice (on the plant: " + TWICE_FIGURES + "); stream "
+                         "compensation corrects the deflection twice (" + TWICE_FIGURES + "); stream "
                          f"it with {CORRECTED_FLAG} (the online correction held at zero), or compensate online "
                          "with the uncorrected path's reference; nothing was sent")
     if is_corrected and not mark:
