@@ -132,7 +132,7 @@ def compensate_cmd(model, payload, reference, *, egm_port, netft_port, log=None,
 
 
 def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), wrench=None, stream_reference=False,
-                                cell_rt_priority=0, lockstep=True):
+                                cell_rt_priority=0, lockstep=True, reference_first_line=None):
     """Start `robstiff compensate` as a separate process and the simulated
     cell; returns (completed process, network stats, log folder).  Without
     ``stream_reference`` the compensator holds the start pose (no
@@ -144,9 +144,15 @@ def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), w
     loop's logic whatever this machine's load (--idle-exit-s only a hang
     guard: at 0.5 s a pause of the test process, whose thread is the
     controller, ended the run mid-cut); False: both in real time for
-    ``duration_s``."""
+    ``duration_s``.  ``reference_first_line``: a line put before the
+    reference file's own (e.g. compensate-program's corrected mark)."""
     robot = load_robot()
     model, payload, ref, ref_fn = write_inputs(str(tmp), robot, duration_s=duration_s + 1.0)
+    if reference_first_line is not None:
+        with open(ref) as f:
+            text = f.read()
+        with open(ref, "w") as f:
+            f.write(reference_first_line + text)
     q0 = ref_fn(0.0)
     reference = ref_fn if stream_reference else (lambda t: q0)
     egm_port, netft_port = free_udp_port(), free_udp_port()

@@ -263,6 +263,14 @@ def test_the_command_writes_a_program_simulate_reads(written):
 
     t, q = read_reference(out / "joint_reference.csv", scenario_robot(sc))
     assert len(t) > 100 and np.shape(q)[1] == 6
+    # marked on its first line as a corrected reference (compensate --reference refuses it with online
+    # compensation: the deflection corrected twice; tests/test_compensate_corrected_reference.py)
+    from robstiff_drake.cell.reference_file import corrected_mark
+
+    first = (out / "joint_reference.csv").read_text().splitlines()[0]
+    assert corrected_mark(out / "joint_reference.csv") == (1, first)
+    assert first.startswith("# corrected_reference: ") and "compensate-program" in first
+    assert "model of short.yaml" in first and "--reference-is-corrected" in first
 
 
 def test_the_job_is_checked_for_chatter_before_it_is_corrected(written):

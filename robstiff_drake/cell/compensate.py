@@ -184,7 +184,8 @@ class CompensatorLoop(LoopStart, SensorIntake, SessionFaults):
         if self.preview is not None:
             self.preview.update(self, msg)
         # (the bound's fault alone: the model runs on, its wish judged each cycle; cell/correction_bound.py)
-        active = self.gate is None and all(name == "bound" for name in self.faults)
+        # (``correction_off``: the correction held at zero for the run, the model not run; cell/loop_settings.py)
+        active = self.gate is None and all(name == "bound" for name in self.faults) and self.s.correction_off is None
         step_s = min(dt, MAX_STEP_PERIODS * self.s.period_s)
         corr = bounded(self, self.comp.tick(self.q, step_s, active), step_s, active, CLEAR_MESSAGES)
         if self._identity:

@@ -58,6 +58,10 @@ class LoopSettings:
     # --max-correction-mm / --max-correction-deg defaults and why; before: inf, no bound for a library user)
     max_correction_mm: float = DEFAULT_MAX_CORRECTION_MM
     max_correction_deg: float = DEFAULT_MAX_CORRECTION_DEG
+    # why the online correction is held at zero for the whole run (None: it is computed, the default): a
+    # reference that already carries the deflection's correction (compensate's --reference-is-corrected) is
+    # streamed as it is; every check still runs (working ranges, steps, the start gate, the bound, the sensor)
+    correction_off: str = None
 
     def resolved(self, compensator, robot):
         """These settings with the defaults that depend on the compensator
@@ -68,6 +72,9 @@ class LoopSettings:
         return replace(self, max_jump_Nm=default_max_jump_Nm(compensator.max_jump_N, robot.payload.tool_point_m))
 
     def __post_init__(self):
+        if self.correction_off is not None and not (isinstance(self.correction_off, str) and self.correction_off):
+            raise ValueError(f"LoopSettings.correction_off = {self.correction_off!r}: None (the correction "
+                             "computed) or the reason it is held at zero")
         for name in ("max_correction_mm", "max_correction_deg", "max_jump_Nm"):
             v = getattr(self, name)
             if v is not None and not (isinstance(v, numbers.Real) and v > 0):  # (False for NaN)

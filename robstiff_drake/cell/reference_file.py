@@ -109,6 +109,26 @@ def _fast_block(texts, header, idx):
     return a if np.isfinite(a).all() else None
 
 
+def corrected_mark(path):
+    """(line number, the line) of the corrected reference's mark among the
+    comments before the header (identification/runs/logs.CORRECTED_MARK:
+    `robstiff compensate-program` writes it), or None: none there, or a
+    file not read here (its reader says why)."""
+    from robstiff_drake.identification.runs.logs import is_corrected_mark
+
+    try:
+        with open(path, "rb") as f:
+            for n, raw in enumerate(f, 1):
+                s = raw.decode("utf-8", "replace").lstrip("\ufeff").strip()
+                if s and not s.startswith("#"):
+                    return None  # (the header: the mark comes before it)
+                if is_corrected_mark(s):
+                    return n, s
+    except OSError:
+        return None
+    return None
+
+
 def read_reference_rows(path):
     """(times s, q (N, 6) deg, line numbers (N,)) of a joint reference CSV
     as in the file (checks of the values against a robot: cell/safety.py's

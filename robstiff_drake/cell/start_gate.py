@@ -151,6 +151,8 @@ class LoopStart:
             self.log.bind(self)  # (rows are kept in memory until the folder is open)
             jobs.append(("the log folder's start", self.log.open))
         self.gate = StartGate(jobs) if jobs else None
+        if self.s.correction_off is not None:
+            self.note(f"the online correction is held at zero for the whole run: {self.s.correction_off}")
         self._start_on_recent_records()
         self.cycle(msg, t_arr, self._session(msg)[1])
         if self.gate is not None:
@@ -161,7 +163,9 @@ class LoopStart:
         (the correction ramps in from zero at the rate limit); its refusal
         (InputError) ends the run."""
         if self.gate.done:
-            self._gate_ended("compensating from now on, the correction ramping in at the rate limit")
+            self._gate_ended("compensating from now on, the correction ramping in at the rate limit"
+                             if self.s.correction_off is None else
+                             f"the correction held at zero to the end ({self.s.correction_off})")
 
     def finish_start(self):
         """At the run's end: wait for the start's work if it has not ended

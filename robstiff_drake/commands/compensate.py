@@ -31,7 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.commands.compensate_inputs import json_doc, read_model, read_reference, wait_for_file
+from robstiff_drake.commands.compensate_inputs import CORRECTED_FLAG, check_reference_claim, json_doc, \
+    read_model, read_reference, wait_for_file
 from robstiff_drake.errors import InputError
 from robstiff_drake.cell.realtime_thread import pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
     realtime as _realtime, restore_gc as _restore_gc
@@ -59,8 +60,6 @@ SWITCH_INTERVAL_S = 0.0005
 # learn 0.3-2.0 times the coefficients: systems/preview_correction.SCALE_LIMITS).
 FORCE_BOUND_FRACTION = 0.5
 PROTOCOL_PORTS = {"egm": None, "rsi": None, "stream-motion": 60015}  # the controller's port when not given
-
-
 def _link(protocol, listen_port, controller, period_s):
     if protocol == "egm":
         from robstiff_drake.cell.egm import EgmLink
@@ -83,11 +82,20 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         wait_s=30.0, duration_s=0.0, idle_exit_s=0.0,
         sensor_timeout_ms=20.0, rt_priority=0, cpu=None, controller="127.0.0.1", protocol="egm", servo=None,
         cutter_diameter_mm=None, allow_unstable_loop=False, mode="plain", job=None, preview_sync_ms=25.0,
-        preview_force_bound_N=150.0):
+        preview_force_bound_N=150.0, reference_is_corrected=False):
     from robstiff_drake.io import check_outputs
 
     # before the heavy imports (scipy, Drake): a wrong --log or a missing --job is refused at once
     check_outputs(inputs=[model, payload, reference, robot_yaml, job], folders={"--log": log})
+    if reference_is_corrected and not reference:
+        raise InputError(f"{CORRECTED_FLAG} says what --reference FILE is: give the corrected reference with it")
+    if reference_is_corrected and mode == "preview":
+        raise InputError(f"{CORRECTED_FLAG} holds the online correction at zero: --mode preview would have nothing "
+                         "to add; stream the corrected reference in --mode plain, without --job")
+    # a corrected reference (compensate-program's) streamed with online compensation corrects twice: refused here
+    # (and again once a file waited for has appeared), before any socket is opened
+    exists = reference and Path(reference).exists()
+    correction_off = check_reference_claim(reference, reference_is_corrected) if exists else None
     if mode == "preview" and job is None:
         raise InputError("--mode preview needs --job SCENARIO.yaml (the job's program, tool, cutting model and "
                          "servo: the preview's plan)")
@@ -140,6 +148,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
 
         def given():
             wait_for_file(reference, wait_s)
+            check_reference_claim(reference, False)  # (preview: never a corrected reference)
             return read_reference(reference, robot, period_s)
 
         plan, table_file, t_ref, q_ref = job_reference(sc_job, robot, k, job=job, reference=reference,
@@ -151,6 +160,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         ref = Reference(t_ref, np.degrees(q_ref), period_s=period_s)
     elif reference:
         wait_for_file(reference, wait_s)
+        correction_off = check_reference_claim(reference, reference_is_corrected)
         t_ref, q_ref = read_reference(reference, robot, period_s)
         ref = Reference(t_ref, np.degrees(q_ref, out=q_ref), period_s=period_s)  # (in place: a long path is large)
         del t_ref, q_ref
@@ -215,7 +225,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                                 feedback_timeout_s=sensor_timeout_ms / 1e3, idle_exit_s=idle_exit_s,
                                 duration_s=duration_s, rate_limit_rad_per_s=math.radians(rate_limit_deg_per_s),
                                 saturation_deg=saturation_deg, max_jump_Nm=max_jump_Nm,
-                                max_correction_mm=max_correction_mm, max_correction_deg=max_correction_deg)
+                                max_correction_mm=max_correction_mm, max_correction_deg=max_correction_deg,
+                                correction_off=correction_off)
         c = sensor.calibration
         cal_text = (f"{c[0]:g} counts/{c[2]}, {c[1]:g} counts/{c[3]} ({'from the sensor' if c[4] == 'sensor' else 'override'})"
                     if c else "unknown")
@@ -325,6 +336,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                        "max_correction_mm": max_correction_mm, "max_correction_deg": max_correction_deg,
                        "sensor_timeout_ms": sensor_timeout_ms},
                    "mode": mode, "job": str(job) if job else None,
+                   # (None: the correction computed online; else why it was held at zero: a corrected reference)
+                   "correction_held_at_zero": correction_off,
                    "preview": loop.preview.summary() if loop.preview is not None else None,
                    "preview_table": table,
                    "cycles": stats, "health": h, "loop_check": guard.result, "play": play_summary,

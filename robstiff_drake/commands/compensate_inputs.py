@@ -1,8 +1,10 @@
 """``robstiff compensate``'s input files: the compensator's model (`robstiff
 identify --json`), the joint reference it streams (a CSV, checked against
 the robot's limits by cell/safety.py), and the wait for a reference a
-simulated cell writes when it is ready.  Each bad file is one line naming
-it (exit 2), before any socket opens."""
+simulated cell writes when it is ready, and whether the reference is a
+corrected one (compensate-program's mark) as ``--reference-is-corrected``
+says.  Each bad file is one line naming it (exit 2), before any socket
+opens."""
 
 import sys
 import time
@@ -80,3 +82,40 @@ def wait_for_file(path, wait_s, what="--reference"):
         if time.monotonic() > t_end:
             raise InputError(f"{what} {path}: no such file (waited {wait_s:g} s for it to appear)")
         time.sleep(0.05)
+
+
+# What streaming a corrected reference with online compensation on top did on the plant: the deflection corrected
+# twice.  docs/offline_compensation.md's results table (studies/offline_compensation.py, face_and_contour.yaml): the
+# corrected program with online plain compensation on the whole measured wrench, against the corrected joint
+# reference streamed with no online correction (surface error, mean and largest |e|, mm).
+TWICE_FIGURES = ("the corrected program with online compensation of the whole measured wrench, on the plant: "
+                 "+0.078 mm mean, 0.228 mm largest surface error, against -0.007 / 0.025 mm for the corrected joint "
+                 "reference streamed alone; docs/offline_compensation.md's results table")
+CORRECTED_FLAG = "--reference-is-corrected"
+
+
+def check_reference_claim(reference, is_corrected):
+    """The reference's corrected mark (cell/reference_file.corrected_mark)
+    against ``--reference-is-corrected``: a marked file streamed with online
+    compensation, or the flag on a file without the mark, is an InputError
+    (one line).  Returns the correction's reason to be held at zero (the
+    flag given, on a marked file), else None."""
+    from robstiff_drake.cell.reference_file import corrected_mark
+
+    mark = corrected_mark(reference)
+    if mark and not is_corrected:
+        raise InputError(f"--reference {reference}:{mark[0]}: a corrected reference (its mark there): its joint "
+                         "references already carry the deflection's correction, and streaming it with online "
+                         "compensation corrects the deflection twice (" + TWICE_FIGURES + "); stream "
+                         f"it with {CORRECTED_FLAG} (the online correction held at zero), or compensate online "
+                         "with the uncorrected path's reference; nothing was sent")
+    if is_corrected and not mark:
+        raise InputError(f"--reference {reference}: {CORRECTED_FLAG} but the file carries no corrected-reference "
+                         "mark (a '# corrected_reference: ...' line before its header, as robstiff "
+                         "compensate-program writes); streamed with the correction held at zero, an uncorrected "
+                         f"reference is not compensated at all: drop {CORRECTED_FLAG} to compensate online, or "
+                         "write the corrected reference with robstiff compensate-program; nothing was sent")
+    if mark:
+        return (f"--reference {Path(reference).name} is a corrected reference (its line {mark[0]}: the model's "
+                f"deflection correction included; {CORRECTED_FLAG}): streamed as it is")
+    return None

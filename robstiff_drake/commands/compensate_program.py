@@ -186,7 +186,7 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
                "chatter_check": chatter, "warnings": []}
     with RunFolder(out) as folder:
         folder.write(names["program"], corrected_text)
-        folder.write(names["reference"], oc.reference_text(robot, prediction, folder.run_id, job))
+        folder.write(names["reference"], oc.reference_text(robot, prediction, folder.run_id, job, model))
         module = oc.rapid_text(sc, robot, stem, targets, header)
         folder.write(names["rapid"], module)
         if simulate:

@@ -151,7 +151,8 @@ def _dispatch(args):
                               servo=servo, cutter_diameter_mm=args.cutter_diameter_mm,
                               allow_unstable_loop=args.allow_unstable_loop, mode=args.mode, job=args.job,
                               preview_sync_ms=args.preview_sync_ms,
-                              preview_force_bound_N=args.preview_force_bound_N)
+                              preview_force_bound_N=args.preview_force_bound_N,
+                              reference_is_corrected=args.reference_is_corrected)
     if args.command == "compensate-program":
         from robstiff_drake.commands import compensate_program
 

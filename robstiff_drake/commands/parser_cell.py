@@ -55,6 +55,12 @@ def add_cell_commands(sub):
     p.add_argument("--reference", metavar="JOINTS.csv", help="joint reference (t_s, q1_deg..q6_deg) streamed from the "
                                                              "first message; waited for up to --wait-s "
                                                              "(default: hold the first position)")
+    p.add_argument("--reference-is-corrected", action="store_true",
+                   help="--reference is a corrected reference (compensate-program's joint_reference.csv, marked on "
+                        "its first line: the model's deflection correction already in it): streamed with the "
+                        "online correction held at zero, every check still run. Without it such a file is refused "
+                        "(online compensation on top corrects the deflection twice); with it a file without the "
+                        "mark is refused")
     p.add_argument("--log", metavar="DIR", help="stream the run's logs into a run folder (diagnose-run reads it)")
     p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=4.0, help="controller cycle (default: %(default)s)")
     p.add_argument("--mode", choices=["plain", "preview"], default="plain",

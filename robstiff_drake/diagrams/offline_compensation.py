@@ -220,14 +220,22 @@ def corrected_reference(prediction):
     return t, prediction.q_ref_rad + c
 
 
-def reference_text(robot, prediction, run_id, job):
-    """joint_reference.csv: the corrected joint references (controller degrees)."""
-    from robstiff_drake.identification.runs.logs import joint_reference_text
+def reference_text(robot, prediction, run_id, job, model="model"):
+    """joint_reference.csv: the corrected joint references (controller
+    degrees), its first line the corrected reference's mark (``model``: the
+    compensator's model that corrected them, in words), which `robstiff
+    compensate --reference` reads (a corrected reference is not streamed with
+    online compensation: commands/compensate.py)."""
+    from pathlib import Path
+
+    from robstiff_drake.identification.runs.logs import corrected_mark_line, joint_reference_text
 
     t, q = corrected_reference(prediction)
-    return joint_reference_text(robot, t, q, run_id, [
+    mark = corrected_mark_line("robstiff compensate-program", f"{model} of {Path(str(job)).name}")
+    return mark + joint_reference_text(robot, t, q, run_id, [
         f"robstiff compensate-program: the joint references of {job}'s program with the offline correction of "
-        "the compensator's model (all six axes; controller degrees), for `robstiff compensate --reference`"])
+        "the compensator's model (all six axes; controller degrees), for `robstiff compensate --reference "
+        "joint_reference.csv --reference-is-corrected`"])
 
 
 def proof_runs(job_sc, robot, corrected_program, prediction, *, modes=("off", "plain"), progress=None, say=None):

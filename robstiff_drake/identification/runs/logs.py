@@ -125,6 +125,27 @@ def joint_reference_text(robot, t_s, q_rad, run_id=None, notes=()):
     return table_text(run_id, notes, REFERENCE_COLUMNS, np.column_stack([t_s, q_deg]), ".12g")
 
 
+# The mark of a corrected joint reference: a comment line before the header whose text starts with this
+# (``corrected_mark_line``), written by `robstiff compensate-program` (its joint references carry the model's
+# deflection correction) and read by `robstiff compensate --reference` (cell/reference_file.corrected_mark),
+# which refuses to stream such a file with online compensation (the deflection corrected twice).
+CORRECTED_MARK = "corrected_reference:"
+
+
+def corrected_mark_line(by, model):
+    """The corrected reference's mark (one '#' line, with its newline):
+    written ``by`` (a command), the deflection correction of ``model``."""
+    return (f"# {CORRECTED_MARK} these joint references already carry the deflection correction of the "
+            f"compensator's {model} (written by {by}); stream them with `robstiff compensate "
+            "--reference-is-corrected` (the online correction held at zero), never with online compensation on "
+            "top (that corrects the deflection twice)\n")
+
+
+def is_corrected_mark(comment):
+    """Whether a comment line ('#' and its text) is the corrected reference's mark."""
+    return comment.lstrip("#").strip().lower().startswith(CORRECTED_MARK)
+
+
 # ---------------------------------------------------------------- scan
 
 
