@@ -60,6 +60,8 @@ SWITCH_INTERVAL_S = 0.0005
 # learn 0.3-2.0 times the coefficients: systems/preview_correction.SCALE_LIMITS).
 FORCE_BOUND_FRACTION = 0.5
 PROTOCOL_PORTS = {"egm": None, "rsi": None, "stream-motion": 60015}  # the controller's port when not given
+
+
 def _link(protocol, listen_port, controller, period_s):
     if protocol == "egm":
         from robstiff_drake.cell.egm import EgmLink
