@@ -10,7 +10,6 @@ loopback interface) removes most of the deflection the station's physics
 
 import json
 import os
-import shutil
 import subprocess
 import sys
 
@@ -89,18 +88,8 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     servo = servo_settings(sc)
     comp_extra = ["--servo", ",".join(str(servo[k]) for k in SERVO_KEYS), "--cutter-diameter-mm",
                   str(sc.cutter.diameter_mm)]
-    if lockstep:  # judged on the loop's logic, not this machine's scheduling (SENSOR_TIMEOUT_MS below says why)
-        comp_extra += ["--sensor-timeout-ms", str(SENSOR_TIMEOUT_MS)]
-    for attempt in (1, 2):
-        cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=lockstep, cell_extra=[
-            "--scan-out", str(tmp_path / "my_scan.csv")], comp_extra=comp_extra)
-        if not lockstep or comp.returncode != 0 or attempt == 2 or not _controller_stalls(tmp_path / "log"):
-            break
-        print(f"attempt 1: this machine stalled the lockstep controller for 100 ms or more "
-              f"({_controller_stalls(tmp_path / 'log')}): run again")
-        shutil.rmtree(tmp_path / "log")
-        for name in ("cell_reference.csv", "cell.json", "my_scan.csv"):  # the second pair writes its own
-            (tmp_path / name).unlink(missing_ok=True)
+    run_dir, cell, comp, out = _run_pair_judged(tmp_path, model, payload, lockstep=lockstep, comp_extra=comp_extra,
+                                                scan_name="my_scan.csv")
     cerr = cell.stderr
     assert cell.returncode == 0, (cerr, comp.stderr)
     assert comp.returncode == 0, comp.stderr
@@ -115,7 +104,7 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
     # The same chain: over the steady part of the cut (t = 1.5-2.5 s, the
     # force constant) the six joint corrections the compensator sent agree
     # with the diagram compensator's within 3 % of the largest one.
-    _same_steady_corrections(tmp_path, short_compensated, "irb6400 egm")
+    _same_steady_corrections(run_dir, short_compensated, "irb6400 egm")
     assert plain["mean"] > 0.1 and abs(diagram["mean"]) < 0.2 * plain["mean"], (plain, diagram)
     if lockstep:
         # Each answer before the next step: the diagram's loop, its surface
@@ -126,18 +115,18 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
         assert res["health"]["verdict"] == "good", res["health"]
         # the two sides' verdicts on the run agree, and each names what it saw of the other (in lockstep the
         # sensor's silence is judged on the controller's clock too: a loaded PC does not ramp the correction)
-        summary = json.loads((tmp_path / "log" / "summary.json").read_text())
+        summary = json.loads((run_dir / "log" / "summary.json").read_text())
         assert summary["health"]["verdict"] == "good", summary["health"]
         assert "seen of the controller" in summary["health"]["line"] and "seen of the compensator" in \
             res["health"]["line"], (summary["health"]["line"], res["health"]["line"])
         assert summary["health"]["seen_of_the_other_side"]["sensor_faults"] == 0, summary["health"]
         # the log is a run folder diagnose-run reads, with the scan made outside it attached
-        dr = subprocess.run([sys.executable, "-m", "robstiff_drake", "diagnose-run", str(tmp_path / "log"), "--scan",
-                             str(tmp_path / "my_scan.csv"), "--json", str(tmp_path / "dr.json"), "--out",
+        dr = subprocess.run([sys.executable, "-m", "robstiff_drake", "diagnose-run", str(run_dir / "log"), "--scan",
+                             str(run_dir / "my_scan.csv"), "--json", str(tmp_path / "dr.json"), "--out",
                              str(tmp_path / "dr")], cwd=ROOT, capture_output=True, text=True, timeout=300)
         assert dr.returncode == 0, dr.stderr
         rep = json.loads((tmp_path / "dr.json").read_text())
-        assert rep["n_scan_points"] > 100 and rep["run_id"] == (tmp_path / "log" / "RUN_ID").read_text().strip()
+        assert rep["n_scan_points"] > 100 and rep["run_id"] == (run_dir / "log" / "RUN_ID").read_text().strip()
         print("diagnose-run of the cell's log:", rep["rms_before_mm"], [c["name"] for c in rep["causes"]])
     # In real time nothing is asserted of the surface: on a shared machine
     # some cycles of the simulated controller (a Python thread) come late;
@@ -214,6 +203,26 @@ def _controller_stalls(log_dir):
     return [e for e in events if "messages again" in e]
 
 
+def _run_pair_judged(tmp_path, model, payload, *, lockstep, scan_name=None, comp_extra=(), **kw):
+    """_run_pair in a folder of its own (run1), judged on the loop's logic in lockstep: compensate's sensor
+    silence at SENSOR_TIMEOUT_MS, and a run in which this machine stalled the lockstep controller for 100 ms
+    (_controller_stalls) run once more in a fresh folder (run2), saying why; the second run is asserted whatever
+    it shows.  ``scan_name``: sim-cell's --scan-out in the run's folder.  (run folder, sim-cell's and
+    compensate's completed processes, sim-cell's JSON path)."""
+    if lockstep:
+        comp_extra = list(comp_extra) + ["--sensor-timeout-ms", str(SENSOR_TIMEOUT_MS)]
+    for attempt in (1, 2):
+        run_dir = tmp_path / f"run{attempt}"
+        run_dir.mkdir()
+        cell_extra = ["--scan-out", str(run_dir / scan_name)] if scan_name else []
+        cell, comp, out = _run_pair(run_dir, model, payload, lockstep=lockstep, comp_extra=comp_extra,
+                                    cell_extra=cell_extra, **kw)
+        stalls = _controller_stalls(run_dir / "log") if lockstep and comp.returncode == 0 else []
+        if not stalls or attempt == 2:
+            return run_dir, cell, comp, out
+        print(f"attempt 1: this machine stalled the lockstep controller for 100 ms or more ({stalls}): run again")
+
+
 @pytest.mark.parametrize("name, protocol", [("kr240_r2900", "egm"), ("kr240_r2900", "rsi"),
                                             ("r2000ic_165f", "egm"), ("r2000ic_165f", "stream-motion")])
 def test_kuka_and_fanuc_conventions_over_the_protocols_match_the_diagram(tmp_path, name, protocol):
@@ -226,18 +235,11 @@ def test_kuka_and_fanuc_conventions_over_the_protocols_match_the_diagram(tmp_pat
     assert not robot.joint_map.is_identity
     diagram = _diagram_run(name)
     start = (robot.workspace.reference_tool_point_m * 1e3).tolist()
-    for attempt in (1, 2):
-        run_dir = tmp_path / f"run{attempt}"
-        run_dir.mkdir()
-        model, payload, _, _ = write_inputs(str(run_dir), robot, duration_s=0.1, start_mm=start)
-        cell, comp, out = _run_pair(run_dir, model, payload, lockstep=True, scenario=OTHER_ROBOTS[name], robot=name,
-                                    protocol=protocol, comp_extra=["--sensor-timeout-ms", str(SENSOR_TIMEOUT_MS)])
-        assert cell.returncode == 0, (cell.stderr, comp.stderr)
-        assert comp.returncode == 0, comp.stderr
-        stalls = _controller_stalls(run_dir / "log")
-        if not stalls or attempt == 2:
-            break
-        print(f"attempt 1: this machine stalled the lockstep controller for 100 ms or more ({stalls}): run again")
+    model, payload, _, _ = write_inputs(str(tmp_path), robot, duration_s=0.1, start_mm=start)
+    run_dir, cell, comp, out = _run_pair_judged(tmp_path, model, payload, lockstep=True, scenario=OTHER_ROBOTS[name],
+                                                robot=name, protocol=protocol)
+    assert cell.returncode == 0, (cell.stderr, comp.stderr)
+    assert comp.returncode == 0, comp.stderr
     res = json.loads(out.read_text())
     summary = json.loads((run_dir / "log" / "summary.json").read_text())
     # the simulated sensor sent every cycle's records: no silence of a second on both clocks
