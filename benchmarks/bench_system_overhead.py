@@ -111,12 +111,16 @@ KINDS = (
 )
 
 
+def perf_report(data, children, sort):
+    """The lines of ``perf report`` on ``data`` (``children``: --children or --no-children; ``sort``: its keys)."""
+    return subprocess.run([PERF, "report", "-i", data, children, "--sort", sort, "--stdio", "-g", "none"],
+                          capture_output=True, text=True, check=True).stdout.splitlines()
+
+
 def perf_kinds(data):
     """{kind: share of the samples in ``data`` (0-1)} by KINDS."""
-    out = subprocess.run([PERF, "report", "-i", data, "--no-children", "--sort", "dso,sym", "--stdio", "-g", "none"],
-                         capture_output=True, text=True, check=True).stdout
     shares = dict.fromkeys((k[0] for k in KINDS), 0.0)
-    for line in out.splitlines():
+    for line in perf_report(data, "--no-children", "dso,sym"):
         m = re.match(r"\s*([\d.]+)%\s+(\S+)\s+\[.\]\s+(.*)", line)
         if not m:
             continue
@@ -146,11 +150,9 @@ PIECES = (
 
 def perf_pieces(data):
     """{symbol: share of the samples in ``data`` with it on the stack (0-1)} for PIECES."""
-    out = subprocess.run([PERF, "report", "-i", data, "--children", "--sort", "sym", "--stdio", "-g", "none"],
-                         capture_output=True, text=True, check=True).stdout
     wanted = {sym for _, sym in PIECES}
     shares = dict.fromkeys(wanted, 0.0)
-    for line in out.splitlines():
+    for line in perf_report(data, "--children", "sym"):
         m = re.match(r"\s*([\d.]+)%\s+[\d.]+%\s+\[.\]\s+(.*)", line)
         if m and m.group(2).strip() in wanted:
             shares[m.group(2).strip()] = max(shares[m.group(2).strip()], float(m.group(1)) / 100)
