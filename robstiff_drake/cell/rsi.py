@@ -52,7 +52,10 @@ at this PC (the datagrams' arrival stamps, ``LOST_ALIKE_MARGIN_MS`` more)
 may be lost datagrams: until a setpoint shows the new start (it is the new
 start plus an AK sent and not the old start plus any), every answer must
 also be safe as the old session would read it, the old start plus the same
-AK (else refused: the controller stops).  A skip beyond that, or backwards,
+AK (else refused: the controller stops); a second such skip before a
+setpoint told the first apart keeps both starts (every start not ruled
+out, at most ``MAX_STARTS_UNRULED``: beyond, nothing is answered), so the
+session's own start is never forgotten.  A skip beyond that, or backwards,
 is a new IPOC epoch: a restart.  So a restart whose IPOC goes on with the
 time, at a pose away from the old start, is not answered.
 
@@ -85,6 +88,9 @@ RECENT_CORRECTIONS = 64  # the answers (4 ms each: 0.26 s) a controller's setpoi
 # this may be lost datagrams of the same session, not a new epoch.  ASSUMPTION: a controller's datagrams reach
 # this PC within a second of their IPOC's spacing (a wired link delays them by milliseconds).
 LOST_ALIKE_MARGIN_MS = 1000.0
+# The starts a controller may still count from after IPOC skips that may be lost datagrams (each kept until a
+# setpoint rules it out): beyond this many in a row nothing is answered (the check's cost stays bounded).
+MAX_STARTS_UNRULED = 8
 # The IPOC's wrap (ms): after the largest value the counter starts from 0 again.  ASSUMPTION: no public source at
 # hand states the IPOC's width (KUKA's RSI manual calls it a time stamp; ROS-Industrial's kuka_rsi_hw_interface reads
 # it into a 64-bit integer; a third-party note on KUKA's $ROB_TIMER, a 1 ms counter, gives 32 bits signed, back to 0
@@ -174,6 +180,10 @@ def decode_sen(data):
     return _ipoc(root), _axes(root, "AK")
 
 
+def _fmt_deg(q_deg):
+    return "(" + ", ".join(f"{v:.3f}" for v in q_deg) + ")"
+
+
 class RsiLink(PCLink):
     """The PC's side of RSI: the controller's <Rob> on ``port``, answered
     with <Sen> axis corrections from the start position."""
@@ -219,7 +229,12 @@ class RsiLink(PCLink):
         return got
 
     def _new_session(self, here_deg, seq, lost_alike=False):
-        self._maybe_old = (list(self.start_deg), list(self._aks)) if lost_alike else None
+        # (a second skip while the first is not yet told apart: the controller may still count from any start not
+        # ruled out, the one before the first skip too; each is kept until a setpoint rules it out)
+        # (beyond MAX_STARTS_UNRULED: the first and the newest kept, and nothing answered until a restart is plain)
+        olds = (self._maybe_old or []) + [(list(self.start_deg), list(self._aks))] if lost_alike else None
+        self._maybe_old = olds if olds is None or len(olds) <= MAX_STARTS_UNRULED + 1 else \
+            olds[:1] + olds[-MAX_STARTS_UNRULED:]
         self.previous_seq = self.last_seq
         self.start_deg = list(here_deg)  # RSI_MOVECORR's start: corrections are from here
         self.session += 1
@@ -291,14 +306,18 @@ class RsiLink(PCLink):
         return [s + a for s, a in zip(self.start_deg, ak)]  # AXISCORR, absolute: the start plus AK
 
     def send_targets(self, message, targets_deg, envelope):
-        if self._maybe_old is not None and message.extra.get("session", self.session) == self.session:
-            # (perhaps lost datagrams, not a restart: the pose the controller commands if it kept its old start)
-            pose = [o + t - s for o, t, s in zip(self._maybe_old[0], targets_deg, self.start_deg)]
-            reason = unsafe_reason(pose, envelope)
-            if reason is not None:
-                raise UnsafeTarget(f"RSI: the IPOC skipped {message.seq - self.previous_seq} cycles, no more than the "
-                                   "time that passed here: lost datagrams, perhaps, not a restart; from the old start "
-                                   f"the controller would command {reason}")
+        if self._maybe_old and message.extra.get("session", self.session) == self.session:
+            # (perhaps lost datagrams, not a restart: the pose the controller commands if it kept an old start)
+            if len(self._maybe_old) > MAX_STARTS_UNRULED:
+                raise UnsafeTarget(f"RSI: {len(self._maybe_old)} IPOC skips in a row, none told apart from lost "
+                                   "datagrams by a setpoint: the controller's start is not known; not answered")
+            for old_start, _ in self._maybe_old:
+                pose = [o + t - s for o, t, s in zip(old_start, targets_deg, self.start_deg)]
+                reason = unsafe_reason(pose, envelope)
+                if reason is not None:
+                    raise UnsafeTarget(f"RSI: the IPOC skipped {message.seq - self.previous_seq} cycles, no more than "
+                                       "the time that passed here: lost datagrams, perhaps, not a restart; from the "
+                                       f"old start {_fmt_deg(old_start)} the controller would command {reason}")
         sent = super().send_targets(message, targets_deg, envelope)
         if sent:
             self._aks.append(self._last_ak)
@@ -318,8 +337,9 @@ class RsiLink(PCLink):
 
         for ak in [[0.0] * 6, *reversed(self._aks)]:
             if near(start, ak):
-                if self._maybe_old is not None and not any(
-                        near(self._maybe_old[0], a) for a in [*self._maybe_old[1], *self._aks]):
+                # (beyond MAX_STARTS_UNRULED some starts were dropped: none of them may be ruled out by this one)
+                if self._maybe_old and len(self._maybe_old) <= MAX_STARTS_UNRULED and not any(
+                        near(old_start, a) for old_start, old_aks in self._maybe_old for a in [*old_aks, *self._aks]):
                     self._maybe_old = None  # the setpoint shows the new start plus an AK sent: a restart
                 return None
         err = max(range(6), key=lambda j: min(abs(sp[j] - start[j] - a[j]) for a in [[0.0] * 6, *self._aks]))
