@@ -9,6 +9,7 @@ the 4 ms period (a million rows, 84 MB) holds about 70 MB here, where
 reading it whole as text and Python lists held gigabytes."""
 
 import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,52 @@ from robstiff_drake.errors import InputError, excerpt
 from robstiff_drake.identification.stiffness.measurement_table import parse_number
 
 COLUMNS = ["t_s"] + [f"q{j}_deg" for j in range(1, 7)]
-BLOCK_BYTES = 1 << 22  # lines read at a time (about 50,000 rows of a reference)
+BLOCK_BYTES = 1 << 22  # bytes read at a time (about 50,000 rows of a reference), cut at the last line's end
+# The longest line read (bytes): a row is seven numbers (about 100 bytes) and perhaps a few extra columns; a
+# line longer than this is no row and is refused as soon as this much of it has been read (a file of one
+# endless line, /dev/zero or a sparse file's gigabyte of NUL bytes, is not read whole to find its end).
+MAX_LINE_BYTES = 1 << 16
+
+
+def _long_line(path, line_no):
+    return InputError(f"{path}:{line_no}: a line longer than {MAX_LINE_BYTES} bytes: not a row of a joint reference "
+                      f"(columns {', '.join(COLUMNS)})")
+
+
+def _lines(path, f, first_line):
+    """(line number, line bytes) from ``f`` one at a time, each at most
+    MAX_LINE_BYTES (a longer one: InputError naming its line)."""
+    n = first_line
+    while True:
+        raw = f.readline(MAX_LINE_BYTES + 1)
+        if not raw:
+            return
+        n += 1
+        if len(raw) > MAX_LINE_BYTES and not raw.endswith(b"\n"):
+            raise _long_line(path, n)
+        yield n, raw
+
+
+def _blocks(path, f, first_line):
+    """(bytes of whole lines, their count), about BLOCK_BYTES at a time (each
+    line ends with '\\n' but perhaps the file's last); a line longer than
+    MAX_LINE_BYTES is an InputError naming it, found before more of it is read."""
+    carry, line = b"", first_line
+    while True:
+        data = f.read(BLOCK_BYTES)
+        if not data:
+            if carry:
+                yield carry, 1
+            return
+        data = carry + data if carry else data
+        cut = data.rfind(b"\n") + 1
+        carry = data[cut:]
+        n = data.count(b"\n", 0, cut)
+        if len(carry) > MAX_LINE_BYTES:
+            raise _long_line(path, line + n + 1)
+        if cut:
+            line += n
+            yield (data[:cut] if carry else data), n
 
 
 def _decode(raw, path, line_no):
@@ -30,9 +76,7 @@ def _decode(raw, path, line_no):
 def _header(path, f):
     """(header cells, the header's line number, lines read) after the
     comments and blank lines before it."""
-    n = 0
-    for raw in f:
-        n += 1
+    for n, raw in _lines(path, f, 0):
         if n == 1 and raw.startswith(b"\xef\xbb\xbf"):
             raw = raw[3:]
         s = _decode(raw, path, n).strip()
@@ -117,15 +161,17 @@ def corrected_mark(path):
     from robstiff_drake.identification.runs.logs import is_corrected_mark
 
     try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return None  # (a FIFO would block the open: the reader refuses it)
         with open(path, "rb") as f:
-            for n, raw in enumerate(f, 1):
+            for n, raw in _lines(path, f, 0):
                 s = raw.decode("utf-8", "replace").lstrip("\ufeff").strip()
                 if s and not s.startswith("#"):
                     return None  # (the header: the mark comes before it)
                 if is_corrected_mark(s):
                     return n, s
-    except OSError:
-        return None
+    except (OSError, InputError):
+        return None  # (a line too long: the reader says so)
     return None
 
 
@@ -135,6 +181,9 @@ def read_reference_rows(path):
     check_reference)."""
     path = Path(path)
     try:
+        if not stat.S_ISREG(os.stat(path).st_mode):  # (before the open: a FIFO would block it)
+            what = "a folder" if stat.S_ISDIR(os.stat(path).st_mode) else "a device, FIFO or socket"
+            raise InputError(f"--reference {path}: {what}, not a file of joint references")
         f = open(path, "rb")
     except OSError as e:
         raise InputError(f"--reference {path}: cannot read ({e.strerror})") from None
@@ -143,26 +192,24 @@ def read_reference_rows(path):
             header, line = _header(path, f)
             idx = [header.index(c) for c in COLUMNS]
             rows = _Rows()
-            while True:
-                block = f.readlines(BLOCK_BYTES)
-                if not block:
-                    break
+            for chunk, lines in _blocks(path, f, line):
                 if not rows.expected:  # the rows the file holds at the first block's bytes per line, and 2 % more
-                    per_line = sum(map(len, block)) / len(block)
+                    per_line = len(chunk) / lines
                     rows.expected = int(1.02 * os.fstat(f.fileno()).st_size / per_line) + 16
                 try:
-                    texts = b"".join(block).decode("utf-8").splitlines()
+                    texts = chunk.decode("utf-8").splitlines()
                 except UnicodeDecodeError:
                     texts = None
-                if texts is None or len(texts) != len(block):  # line by line: the bad byte's line, or a line
+                if texts is None or len(texts) != lines:  # line by line: the bad byte's line, or a line
                     # break of another kind ('\r', form feed) inside a line
-                    texts = [_decode(b, path, line + 1 + k).rstrip("\r\n") for k, b in enumerate(block)]
+                    block = chunk.split(b"\n")[:lines]
+                    texts = [_decode(b, path, line + 1 + k).rstrip("\r") for k, b in enumerate(block)]
                 a = _fast_block(texts, header, idx)
                 if a is not None:
                     rows.add(a, np.arange(line + 1, line + 1 + len(texts)))
                 else:
                     _slow_block(path, texts, line + 1, header, idx, rows)
-                line += len(block)
+                line += lines
         except OSError as e:
             raise InputError(f"--reference {path}: cannot read ({e.strerror})") from None
     if rows.n == 0:
