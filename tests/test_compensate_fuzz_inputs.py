@@ -134,3 +134,27 @@ def test_compensate_refuses_such_a_reference_in_one_line_before_any_socket(tmp_p
     lines = cp.stderr.strip().splitlines()
     assert cp.returncode == 2 and len(lines) == 1 and "Traceback" not in cp.stderr, cp.stderr
     assert ref in lines[0] and ("FIFO" in lines[0] or "a line longer than" in lines[0]), lines[0]
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--netft", "127.0.0.1:{listen}"], "--netft 127.0.0.1:{listen} is this compensator's own --listen-port {listen}"),
+    (["--netft", "127.0.0.1:49152", "--controller", "127.0.0.1:{listen}"],
+     "--controller 127.0.0.1:{listen} is this compensator's own --listen-port {listen}"),
+    (["--netft", "127.0.0.1:5000", "--controller", "localhost:5000"],
+     "--controller and --netft name the same address and port (127.0.0.1:5000)"),
+], ids=["sensor-on-the-listen-port", "controller-on-the-listen-port", "controller-is-the-sensor"])
+def test_the_controller_and_the_sensor_on_one_port_are_refused_before_any_socket(tmp_path, args, words):
+    """Before: the sockets opened, the RDT start request went to this
+    compensator's own port (taken for a malformed controller message) and
+    the run was refused seconds later for a silent sensor."""
+    robot = load_robot()
+    model, payload, _, _ = h.write_inputs(str(tmp_path), robot, duration_s=0.1)
+    listen = h.free_udp_port()
+    cp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--egm-port", str(listen), "--model",
+                         model, "--payload", payload, "--wait-s", "0.1", "--netft-open-s", "0.1",
+                         "--netft-counts", "1000000,1000000", "--netft-units", "N,N-m"]
+                        + [a.format(listen=listen) for a in args], cwd=h.ROOT, capture_output=True, text=True,
+                        timeout=120)
+    lines = cp.stderr.strip().splitlines()
+    assert cp.returncode == 2 and len(lines) == 1 and "Traceback" not in cp.stderr, cp.stderr
+    assert words.format(listen=listen) in lines[0], lines[0]

@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.commands.compensate_inputs import CORRECTED_FLAG, check_reference_claim, json_doc, \
-    read_model, read_reference, wait_for_file
+from robstiff_drake.commands.compensate_inputs import CORRECTED_FLAG, check_reference_claim, endpoint_clash, \
+    json_doc, read_model, read_reference, wait_for_file
 from robstiff_drake.errors import InputError
 from robstiff_drake.cell.realtime_thread import pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
     realtime as _realtime, restore_gc as _restore_gc
@@ -140,6 +140,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     except RecursionError:
         raise InputError(f"--payload {payload}: nested too deeply to be a payload calibration") from None
     host, port = parse_host_port(netft)
+    same = endpoint_clash(ctrl, parse_controller(f"{host}:{port}", what="--netft"), listen_port)
+    if same:
+        raise InputError(same)
     try:
         ba = filter_coefficients(filter_kind, cutoff_hz, filter_order, sensor_rate_hz, spindle_rpm)
     except ValueError as e:

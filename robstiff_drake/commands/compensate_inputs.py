@@ -119,3 +119,21 @@ def check_reference_claim(reference, is_corrected):
         return (f"--reference {Path(reference).name} is a corrected reference (its line {mark[0]}: the model's "
                 f"deflection correction included; {CORRECTED_FLAG}): streamed as it is")
     return None
+
+
+def endpoint_clash(controller, sensor, listen_port):
+    """Why the controller (IP, port or None), the sensor (IP, port) and this
+    compensator's UDP ``listen_port`` (0: any) cannot all be what they say,
+    else None: the sensor at the controller's own address and port, or either
+    of them at this PC's loopback address on the port it listens on (its
+    datagrams would come from, or go to, this compensator itself)."""
+    import ipaddress
+
+    if controller[1] is not None and tuple(controller) == tuple(sensor):
+        return (f"--controller and --netft name the same address and port ({sensor[0]}:{sensor[1]}): the robot "
+                "controller and the force sensor are two devices")
+    for what, (ip, p) in (("--netft", sensor), ("--controller", controller)):
+        if listen_port and p == listen_port and ipaddress.ip_address(ip).is_loopback:
+            return (f"{what} {ip}:{p} is this compensator's own --listen-port {listen_port} on this PC; give "
+                    f"the {'sensor' if what == '--netft' else 'controller'}'s own port")
+    return None
