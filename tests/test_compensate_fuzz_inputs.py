@@ -158,3 +158,32 @@ def test_the_controller_and_the_sensor_on_one_port_are_refused_before_any_socket
     lines = cp.stderr.strip().splitlines()
     assert cp.returncode == 2 and len(lines) == 1 and "Traceback" not in cp.stderr, cp.stderr
     assert words.format(listen=listen) in lines[0], lines[0]
+
+
+def test_a_robot_file_without_axis_speeds_is_refused_even_without_a_reference(tmp_path):
+    """Without joint_limits.speed_deg_per_s the check of every target's step
+    (cell/safety.motion_reason) checks nothing; with --reference the
+    reference's check refused such a file, but holding the first pose it
+    ran, and an RSI start learnt from a setpoint 5 deg off the arm was
+    answered: the KRC commanded its real start plus that AK, 5 deg off (the
+    loop on the library's IRB 6400 file refuses it by the step check).  Now
+    refused in one line before any socket."""
+    robot = load_robot()
+    model, payload, _, _ = h.write_inputs(str(tmp_path), robot, duration_s=0.1)
+    text = open(os.path.join(h.ROOT, "models", "irb6400.yaml")).read()
+    line = "  speed_deg_per_s: [100.0, 90.0, 90.0, 170.0, 140.0, 190.0]\n"
+    assert line in text
+    robot_file = tmp_path / "no_speeds.yaml"
+    robot_file.write_text(text.replace(line, ""))
+    held = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    held.bind(("127.0.0.1", 0))
+    try:
+        cp = subprocess.run([sys.executable, "-m", "robstiff_drake", "compensate", "--controller-protocol", "rsi",
+                             "--listen-port", str(held.getsockname()[1]), "--netft", "127.0.0.1:1", "--model", model,
+                             "--payload", payload, "--robot", str(robot_file), "--wait-s", "0.1"], cwd=h.ROOT,
+                            capture_output=True, text=True, timeout=120)
+    finally:
+        held.close()
+    lines = cp.stderr.strip().splitlines()
+    assert cp.returncode == 2 and len(lines) == 1 and "Traceback" not in cp.stderr, cp.stderr
+    assert lines[0].startswith(f"robstiff: error: {robot_file}: key 'joint_limits.speed_deg_per_s'"), lines[0]

@@ -133,6 +133,12 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         sc_job, robot = load_job(job, robot_yaml, period_s=period_s)
     else:
         robot = load_robot(robot_yaml)
+    if robot.speed_limit_deg_per_s is None or robot.acceleration_limit_deg_per_s2 is None:
+        # (without them cell/safety.motion_reason checks nothing: with a hold pose, no --reference, an RSI start
+        # learnt from a setpoint that lies was answered, its AK from that start moving the arm by the lie)
+        raise InputError(f"{robot.source}: key 'joint_limits.speed_deg_per_s' and 'acceleration_deg_per_s2': "
+                         "missing; compensate checks every target's step against them (the controller's motion "
+                         "supervision; the maker's data-sheet axis speeds; see models/*.yaml)")
     k = read_model(model, robot)
     play = read_play(json_doc(model, "--model"), f"--model {model}") or (job_play(sc_job, job) if job else None)
     try:
