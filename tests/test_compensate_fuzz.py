@@ -151,9 +151,10 @@ def _check_pose(robot, pose, ref_deg, q_model, comp, max_mm, slack_deg, where):
     assert np.linalg.norm((J @ corr)[:3]) * 1e3 <= max_mm * 1.02, (where, np.linalg.norm((J @ corr)[:3]) * 1e3)
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_egm_loop_under_a_lying_controller_and_sensor_never_commands_beyond_its_bounds(robot, seed):
-    """EGM, holding the start pose, 400 messages with, at random: sequence
+@pytest.mark.parametrize("protocol, seed", [("egm", 0), ("egm", 1), ("egm", 2), ("stream-motion", 3),
+                                            ("stream-motion", 4)])
+def test_loop_under_a_lying_controller_and_sensor_never_commands_beyond_its_bounds(robot, protocol, seed):
+    """EGM and Stream Motion (absolute targets), holding the start pose, 400 messages with, at random: sequence
     numbers reset, jumping or wrapping; clocks that disagree; feedback 10 deg
     off, NaN, inf, 1e308, 999; a force ramping to 6000 N and reversing
     (beyond the 0.3 mm bound); NaN / 1e9 / inf / clipped records.  Every
@@ -168,13 +169,19 @@ def test_egm_loop_under_a_lying_controller_and_sensor_never_commands_beyond_its_
     ref.hold(Q0)
     sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sink.bind(("127.0.0.1", 0))
-    link = egm.EgmLink(0, ("127.0.0.1", None))
+    if protocol == "egm":
+        link = egm.EgmLink(0, ("127.0.0.1", None))
+    else:
+        link = sm.StreamMotionLink(0, ("127.0.0.1", sink.getsockname()[1]))
     link.reply_to = sink.getsockname()
     sensor, out = _Sensor(), io.StringIO()
     loop = CompensatorLoop(comp, link, sensor, ref, robot, LoopSettings(max_correction_mm=max_mm), out=out)
-    pb2 = link.pb2
 
     def message(seq, tm, joints):
+        if protocol == "stream-motion":
+            # (float32 on the wire: 1e308 becomes float32's largest, 3e38)
+            return link.decode(sm.encode_status(seq, tm, [3e38 if v == 1e308 else float(v) for v in joints]))
+        pb2 = link.pb2
         m = pb2.EgmRobot()
         m.header.seqno, m.header.tm, m.header.mtype = seq & 0xFFFFFFFF, tm & 0xFFFFFFFF, pb2.EgmHeader.MSGTYPE_DATA
         m.feedBack.joints.joints.extend(float(v) for v in joints)
