@@ -187,3 +187,23 @@ def test_a_robot_file_without_axis_speeds_is_refused_even_without_a_reference(tm
     lines = cp.stderr.strip().splitlines()
     assert cp.returncode == 2 and len(lines) == 1 and "Traceback" not in cp.stderr, cp.stderr
     assert lines[0].startswith(f"robstiff: error: {robot_file}: key 'joint_limits.speed_deg_per_s'"), lines[0]
+
+
+@pytest.mark.parametrize("where", ["after the header", "at the end"])
+def test_a_corrected_mark_after_the_header_is_refused_not_streamed_twice(tmp_path, where):
+    """compensate-program writes the mark before the header; one after it
+    (a file edited or joined by hand) was skipped as a comment, the file
+    streamed with online compensation on top: corrected twice.  Now the
+    reader refuses it, naming its line (the mark's own look, corrected_mark,
+    still takes only a mark before the header: test_compensate_corrected_reference)."""
+    from robstiff_drake.identification.runs.logs import corrected_mark_line
+
+    mark = corrected_mark_line("robstiff compensate-program", "a model").encode()
+    rows = [f"{0.004 * i:.4f},0,13.6,21.9,0,54.4,0\n".encode() for i in range(5)]
+    body = HEADER + mark + b"".join(rows) if where == "after the header" else HEADER + b"".join(rows) + mark
+    path = tmp_path / "r.csv"
+    path.write_bytes(body)
+    line = 2 if where == "after the header" else 7
+    with pytest.raises(InputError, match=rf"r.csv:{line}: a corrected-reference mark after the header"):
+        reference_file.read_reference_rows(path)
+    assert reference_file.corrected_mark(path) is None

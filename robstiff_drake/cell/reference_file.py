@@ -124,10 +124,18 @@ class _Rows:
 def _slow_block(path, texts, first_line, header, idx, rows):
     """A block walked row by row: comments and blank lines skipped, each
     cell of the seven columns parsed, the first bad one named."""
+    from robstiff_drake.identification.runs.logs import is_corrected_mark
+
     values, numbers = [], []
     for k, s in enumerate(texts):
         n = first_line + k
         s = s.strip()
+        if s.startswith("#") and is_corrected_mark(s):
+            raise InputError(f"{path}:{n}: a corrected-reference mark after the header (robstiff compensate-program "
+                             "writes it before the header, on the first line; where it is, the file is not taken "
+                             "for a corrected one and would be corrected twice): if the file is a corrected "
+                             "reference, move the line before the header and give --reference-is-corrected; else "
+                             "delete it")
         if not s or s.startswith("#"):
             continue
         cells = s.split(",")
