@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.commands.compensate_inputs import CORRECTED_FLAG, check_reference_claim, endpoint_clash, \
-    json_doc, read_model, read_reference, wait_for_file
+from robstiff_drake.commands.compensate_inputs import CORRECTED_FLAG, check_axis_limits, check_reference_claim, \
+    endpoint_clash, json_doc, read_model, read_reference, wait_for_file
 from robstiff_drake.errors import InputError
 from robstiff_drake.cell.realtime_thread import pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
     realtime as _realtime, restore_gc as _restore_gc
@@ -133,12 +133,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         sc_job, robot = load_job(job, robot_yaml, period_s=period_s)
     else:
         robot = load_robot(robot_yaml)
-    if robot.speed_limit_deg_per_s is None or robot.acceleration_limit_deg_per_s2 is None:
-        # (without them cell/safety.motion_reason checks nothing: with a hold pose, no --reference, an RSI start
-        # learnt from a setpoint that lies was answered, its AK from that start moving the arm by the lie)
-        raise InputError(f"{robot.source}: key 'joint_limits.speed_deg_per_s' and 'acceleration_deg_per_s2': "
-                         "missing; compensate checks every target's step against them (the controller's motion "
-                         "supervision; the maker's data-sheet axis speeds; see models/*.yaml)")
+    check_axis_limits(robot)
     k = read_model(model, robot)
     play = read_play(json_doc(model, "--model"), f"--model {model}") or (job_play(sc_job, job) if job else None)
     try:

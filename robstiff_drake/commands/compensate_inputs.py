@@ -137,3 +137,14 @@ def endpoint_clash(controller, sensor, listen_port):
             return (f"{what} {ip}:{p} is this compensator's own --listen-port {listen_port} on this PC; give "
                     f"the {'sensor' if what == '--netft' else 'controller'}'s own port")
     return None
+
+
+def check_axis_limits(robot):
+    """InputError (one line) when the robot file gives no axis speeds or
+    accelerations: without them cell/safety.motion_reason checks nothing (holding
+    the first pose, no --reference, an RSI start learnt from a setpoint that
+    lies was answered, its AK from that start moving the arm by the lie)."""
+    if robot.speed_limit_deg_per_s is None or robot.acceleration_limit_deg_per_s2 is None:
+        raise InputError(f"{robot.source}: key 'joint_limits.speed_deg_per_s' and 'acceleration_deg_per_s2': "
+                         "missing; compensate checks every target's step against them (the controller's motion "
+                         "supervision; the maker's data-sheet axis speeds; see models/*.yaml)")
