@@ -356,8 +356,8 @@ def test_rsi_many_unconfirmed_skips_refuse_rather_than_grow(robot):
     assert math.isfinite(worst)
 
 
-@pytest.mark.xfail(strict=True, reason="OPEN (reported, not fixed): an IPOC that jumps back, or forward beyond the time "
-                   "passed here, is taken for a restart (cell/rsi.py's docstring) and the start learnt again from the "
+@pytest.mark.xfail(strict=True, reason="OPEN (reported, not fixed): an IPOC that jumps back, or forward beyond the "
+                   "time passed here, is taken for a restart (cell/rsi.py's docstring) and the start learnt again from the "
                    "setpoint; a KRC that kept its session then commands its OLD start plus the new AK. Telling them "
                    "apart needs every new session checked under the old start too, which leaves a real restart far "
                    "from the old start unanswered (tests/test_cell_review.py and test_rsi_restart.py pin it answered)")
