@@ -81,14 +81,17 @@ def _optional_block(table, names, what):
 def check_joint_limits(table, robot):
     """Every row's q inside the robot's joint limits (error names line/column)."""
     lo, hi = np.rad2deg(robot.q_lower_rad), np.rad2deg(robot.q_upper_rad)
+    largest = max(float(np.max(np.abs(table.numeric[name]), initial=0.0)) for name in Q_COLS)
     for j, name in enumerate(Q_COLS):
         v = table.numeric[name]
         bad = np.flatnonzero((v < lo[j] - 1e-9) | (v > hi[j] + 1e-9))
         if bad.size:
             r = bad[0]
+            radians = (" Or angles in radians? Every angle of the file is within +-2 pi; write degrees, or name "
+                       "the unit in the header: q1 [rad]") if 0 < largest <= 2.0 * np.pi + 1e-9 else ""
             raise InputError(f"{table.where(r, name)}: {v[r]:g} deg is outside the joint limit "
                              f"[{lo[j]:g}, {hi[j]:g}] deg of the robot {robot.name} ({robot.source}); another "
-                             "robot's campaign? (give its robot file with --robot)")
+                             f"robot's campaign? (give its robot file with --robot).{radians}")
 
 
 # Plausible sizes of a measured value; beyond these the file is in other
