@@ -66,12 +66,22 @@ NOISE_MM = number_in(0.0, 10.0, "mm")
 
 
 def parse_tool(text):
-    """--tool 'X,Y,Z' (mm) -> the tool point in metres (numpy), None when not given."""
+    """--tool 'X,Y,Z' (mm) -> the tool point in metres (numpy), None when not
+    given.  A point within a few mm of the flange but not at it (a length
+    written in metres: --tool 0.0069,0.2453,0.3193) is a warning, printed and
+    carried into the command's JSON; the same line identify gives for it."""
     if text is None:
         return None
     import numpy as np
 
-    return np.array(parse_vector(text, 3, "--tool")) / 1000.0
+    from robstiff_drake.command import input_warning
+    from robstiff_drake.identification.stiffness.interval_support import tool_looks_like_metres
+
+    tool_m = np.array(parse_vector(text, 3, "--tool")) / 1000.0
+    if tool_looks_like_metres(tool_m):
+        input_warning(f"--tool: the tool point ({', '.join(f'{v * 1e3:g}' for v in tool_m)}) mm is "
+                      f"{np.linalg.norm(tool_m) * 1e3:g} mm from the flange: a length in metres? (write mm)")
+    return tool_m
 
 
 SCENARIO_HELP = "a scenario file, or the name of a packaged one (`robstiff examples` lists them)"

@@ -105,6 +105,9 @@ def run(*, q, tool=None, kx=False, json_out=None, robot_yaml=None):
     robot.check_q_deg(q_deg, where="stiffness")
     tool_m = robot.tool_point(parse_tool(tool), where="stiffness")
     rep = pose_report(robot, q_deg, tool_m)
+    from robstiff_drake.io import Warnings
+
+    rep["warnings"] = list(Warnings()) + rep["warnings"]  # an input's first (a --tool in metres)
     if kx:
         J = np.asarray(rep["jacobian"])
         try:
