@@ -133,6 +133,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         sc_job, robot = load_job(job, robot_yaml, period_s=period_s)
     else:
         robot = load_robot(robot_yaml)
+    from robstiff_drake.commands.options import protocol_warning
+
+    protocol_warning(robot, protocol)
     k = read_model(model, robot)
     play = read_play(json_doc(model, "--model"), f"--model {model}") or (job_play(sc_job, job) if job else None)
     try:

@@ -121,3 +121,26 @@ def vector_values_kept(argv):
 
 
 _NEGATIVE_LIST = re.compile(r"^-\s*(\d|\.\d|inf|nan)", re.IGNORECASE)
+
+
+# The real-time interface each maker's controller offers (docs/real_cell.md): the protocol a cell of that
+# maker's arm streams with.
+PROTOCOL_OF_MAKER = {"ABB": "egm", "KUKA": "rsi", "FANUC": "stream-motion"}
+PROTOCOL_NAMES = {"egm": "ABB's EGM", "rsi": "KUKA's RSI", "stream-motion": "FANUC's Stream Motion"}
+
+
+def protocol_warning(robot, protocol):
+    """A warning (printed, carried into the command's JSON) when the robot
+    file's manufacturer is one whose controller speaks another protocol than
+    ``protocol`` (--controller-protocol, default egm: a FANUC or KUKA cell
+    left at the default would wait for EGM messages that never come)."""
+    from robstiff_drake.command import input_warning
+
+    maker = str(getattr(robot, "manufacturer", "") or "").strip().upper()
+    expected = PROTOCOL_OF_MAKER.get(maker)
+    if expected is None or expected == protocol:
+        return None
+    return input_warning(f"{robot.name} is a {maker} arm ({robot.source}) and --controller-protocol is {protocol} "
+                         f"({PROTOCOL_NAMES[protocol]}; the default is egm): a {maker} controller streams with "
+                         f"{PROTOCOL_NAMES[expected]}, --controller-protocol {expected}")
+
