@@ -46,3 +46,16 @@ def test_synths_own_campaign_is_written_over(tmp_path):
     first = out.read_text()
     assert main(["synth", "stiffness", str(out), "--n", "12", "--seed", "3", "--quiet"]) == 0
     assert out.read_text() != first
+
+
+def test_plan_poses_does_not_write_over_measurements(tmp_path, capsys):
+    """plan-poses --out over the plan the user filled in (or a measured campaign) is refused the same way;
+    over its own plan it writes as before."""
+    plan = tmp_path / "plan.csv"
+    assert main(["plan-poses", "8", "--out", str(plan), "--quiet"]) == 0
+    assert main(["plan-poses", "8", "--out", str(plan), "--quiet"]) == 0
+    measured = tmp_path / "fanuc.csv"
+    measured.write_text(MEASURED)
+    capsys.readouterr()
+    assert main(["plan-poses", "8", "--out", str(measured)]) == 2
+    assert "exists and was not made by robstiff" in capsys.readouterr().err and measured.read_text() == MEASURED

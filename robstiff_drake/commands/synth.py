@@ -44,8 +44,9 @@ def _positive(name, value, integer=False):
         raise InputError(f"synth: {name} must be a positive {'integer' if integer else 'number'}, got {value}")
 
 
-# What the first comment line of a file robstiff made says (synth's campaigns, plan-poses' plans): such a
-# file may be written over; any other existing file may hold measurements.
+# What the first comment line of a file robstiff made says (synth's campaigns, plan-poses' plans; the docs'
+# rounded examples of them start '# Synthetic: ...'): such a file may be written over; any other existing file
+# may hold measurements.
 MADE_BY_ROBSTIFF = ("made by robstiff-drake", "made by robstiff synth")
 
 
@@ -66,14 +67,13 @@ def check_not_measurements(out):
     first = lines[0] if head.strip() else ""
     header = next((ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")), "")
     cells = {c.strip().lower() for c in header.replace(";", ",").replace("\t", ",").split(",")}
-    if first.startswith("#") and any(m in first for m in MADE_BY_ROBSTIFF):
+    if first.startswith("#") and (any(m in first for m in MADE_BY_ROBSTIFF) or first.startswith("# Synthetic")):
         if "measurement plan" not in first.lower() or not {"dx", "dy", "dz"} & cells:
             return
         raise InputError(f"{out}: a measurement plan with measured displacements added (its header has dx, dy, "
-                         "dz); a synthetic campaign is not written over them: give another file name")
-    raise InputError(f"{out}: exists and was not made by robstiff (its first line: {first[:60]!r}); a synthetic "
-                     "campaign is not written over what may be measurements: give another file name, or delete "
-                     "the file first")
+                         "dz); it is not written over: give another file name")
+    raise InputError(f"{out}: exists and was not made by robstiff (its first line: {first[:60]!r}); it is not "
+                     "written over, it may hold measurements: give another file name, or delete the file first")
 
 
 def _write(out, text):
