@@ -71,6 +71,8 @@ def test_joint_names_and_suffix_units():
     assert h("Fx [kN]") == "fx" and h.scale("fx") == (1000.0, "kn")
     assert h("t_s") == "t_s" and h.scale("t_s") == (1.0, "s")
     assert h("pose") == "pose" and h("operator") == "operator" and h.scale("q1") == (1.0, None)
+    assert h("Time [min]") == "t_s" and h.scale("t_s") == (60.0, "min")
+    assert h("Time") == "time" and h("t") == "t"  # a clock's column ('10:32:15') stays an extra one, ignored
 
 
 def test_a_unit_a_column_cannot_take_names_the_column(tmp_path, capsys):
@@ -120,3 +122,13 @@ def test_the_fanuc_campaign_with_its_units_in_the_header(tmp_path):
     np.testing.assert_allclose(si.q_deg, converted.q_deg, rtol=1e-9, atol=1e-7)
     np.testing.assert_allclose(si.disp_mm, converted.disp_mm, rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(si.force_N, converted.force_N, rtol=1e-9, atol=1e-7)
+
+
+def test_a_clock_column_named_time_is_still_ignored(tmp_path):
+    text = _in_units(campaign_text(), lambda h: (h, None))
+    lines = text.splitlines()
+    i = next(k for k, ln in enumerate(lines) if not ln.startswith("#"))
+    lines = lines[:i] + [lines[i] + ",Time"] + [ln + ",10:32:15" for ln in lines[i + 1:]]
+    (tmp_path / "clock.csv").write_text("\n".join(lines) + "\n")
+    c = read_stiffness_campaign(tmp_path / "clock.csv", ROBOT)
+    assert c.t_s is None and len(c) == 24

@@ -61,6 +61,8 @@ class HeaderUnits:
             m = pattern.match(name)
             if not m:
                 continue
+            if kinds is TIME and unit is None:
+                break  # a bare 't' or 'time' (a clock's '10:32:15', say) stays an extra column, ignored
             column = canon.format(m.group(1))
             # (read_table calls this for each delimiter it tries, then for the header it keeps: the last call wins)
             self.units.pop(column, None)
