@@ -229,7 +229,8 @@ def main():
         draft0.write_text(rewrite_corrected(text, program.moves, corr0)[0])
         draft = Path(tmp) / "face_and_contour_compensated.nc"
         draft.write_text(written)
-        before, after = offline_refinement.predicted_errors(sc, robot, refined, draft, after=history[-1])
+        before, after = offline_refinement.predicted_errors(sc, robot, refined, draft,
+                                                            after=history[offline_refinement.best_round(history)])
         print("  predicted on the model: done", file=sys.stderr, flush=True)
         res0 = run_cut(load_scenario(sc.source, toolpath=draft0), robot, compensation=False)
         plant0 = oc._short(oc.scanned_against_program(res0, prediction.path))

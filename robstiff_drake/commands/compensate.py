@@ -134,6 +134,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     else:
         robot = load_robot(robot_yaml)
     check_axis_limits(robot)
+    from robstiff_drake.commands.options import protocol_warning
+
+    protocol_warning(robot, protocol)
     k = read_model(model, robot)
     play = read_play(json_doc(model, "--model"), f"--model {model}") or (job_play(sc_job, job) if job else None)
     try:

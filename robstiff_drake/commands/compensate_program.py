@@ -159,8 +159,20 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
     with tempfile.TemporaryDirectory(prefix="robstiff-compensate-program-") as tmp:
         draft = Path(tmp) / program_file.name
         draft.write_text(plain_text)
+        written_round = offline_refinement.best_round(history) if history else None
         before, after = offline_refinement.predicted_errors(sc, robot, prediction, draft, progress=show_progress,
-                                                            say=_say, after=history[-1] if history else None)
+                                                            say=_say,
+                                                            after=history[written_round] if history else None)
+    if written_round is not None and written_round != len(history) - 1:
+        warnings.add(f"the floor's refinement did not converge: its last round leaves a largest predicted error of "
+                     f"{history[-1]['max_abs']:.3f} mm on the compensator's model, round {written_round} "
+                     f"{history[written_round]['max_abs']:.3f} mm; the program written is round {written_round}'s "
+                     "(0: the preview's correction as written)")
+    if after["max_abs"] > before["max_abs"]:
+        warnings.add(f"the corrected program is predicted to cut worse than the program as written (largest error "
+                     f"{after['max_abs']:.3f} mm against {before['max_abs']:.3f} mm, mean {after['mean']:+.3f} "
+                     f"against {before['mean']:+.3f} mm, on the compensator's model): do not run it as it is; "
+                     "check the job's model (its robot file, model.identified_json) and the chatter warning, if any")
     header = [f"ROBSTIFF COMPENSATE-PROGRAM {datetime.date.today().isoformat()}: {program_file.name} corrected for "
               f"the arm's deflection predicted by the {model} of {Path(job).name}",
               f"PREDICTED SURFACE ERROR MM ON THAT MODEL: BEFORE MEAN {before['mean']:+.3f} MAX "
@@ -179,6 +191,7 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
                "joint_reference": str(Path(out) / names["reference"]),
                "predicted_error_mm": {"before": _two(before), "after": _two(after)},
                "predicted_error_by_round_mm": [_two(h) for h in history],
+               "refinement_round_written": written_round,
                "refinement_rounds": int(rounds),
                "segments_added": int(added), "corrected_moves": len(corrections),
                "max_correction_mm": float(largest), "chord_mm": chord_mm,
@@ -210,7 +223,9 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
          f"{before['max_abs']:.3f}; after mean {after['mean']:+.3f} max {after['max_abs']:.3f}")
     if history:
         show("the floor refined on the model, its predicted error by round (mm): " + "; ".join(
-            f"mean {h['mean']:+.3f} max {h['max_abs']:.3f}" for h in history))
+            f"mean {h['mean']:+.3f} max {h['max_abs']:.3f}" + (" (written)" if k == written_round
+                                                               and k != len(history) - 1 else "")
+            for k, h in enumerate(history)))
     show(f"{len(corrections)} cutting moves corrected (largest correction {largest:.3f} mm), {added} blocks added "
          f"for the chord tolerance {chord_mm:g} mm")
     if summary["simulated"]:

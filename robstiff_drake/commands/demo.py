@@ -7,6 +7,8 @@ Prints the surface-error table and why the uncompensated robot cuts more
 diagram, time series CSVs, demo.json and the stiffness map."""
 
 import copy
+import tempfile
+from pathlib import Path
 
 import numpy as np
 
@@ -27,7 +29,8 @@ IDENTIFIED_NOTE = ("  compensated: on the model a user would have (stiffness fro
 
 def block_scenario(robot_yaml=None):
     """The block test's scenario for --robot: the library robot's own
-    (diagrams/block_milling_NAME.yaml), or the IRB6400's for a robot file."""
+    (diagrams/block_milling_NAME.yaml), or the IRB6400's for a robot file
+    (which run() moves to the file's reference point: moved_block)."""
     if robot_yaml is None or robot_yaml == DEFAULT_ROBOT_NAME:
         return BLOCK
     if robot_yaml in library_robots():
@@ -36,6 +39,33 @@ def block_scenario(robot_yaml=None):
             raise InputError(f"demo --robot {robot_yaml}: no block test for it ({path.name} is missing)")
         return path
     return BLOCK
+
+
+def moved_block(robot, folder):
+    """The IRB6400's block test moved to a robot file's reference machining
+    point (machining_workspace.reference_tool_point_mm, "the block test's"
+    in docs/your_robot.md): the block, the pass and the scan line shifted by
+    the point less the pass's middle, as the library's
+    diagrams/block_milling_NAME.yaml are; written into ``folder``.  BLOCK
+    itself when the point is the IRB6400's (1600, 0, 700) mm.  Returns the
+    path and the shift (mm)."""
+    import yaml
+
+    data = yaml.safe_load(BLOCK.read_text())
+    ends = np.array(data["path"]["waypoints_mm"], dtype=float)
+    shift = robot.workspace.reference_tool_point_m * 1e3 - ends.mean(axis=0)
+    if np.max(np.abs(shift)) < 1e-6:
+        return BLOCK, np.zeros(3)
+    dx, dy, dz = (float(v) for v in shift)
+    data["workpiece"]["boxes_mm"] = [[x0 + dx, x1 + dx, y0 + dy, y1 + dy, top + dz]
+                                     for x0, x1, y0, y1, top in data["workpiece"]["boxes_mm"]]
+    data["path"]["waypoints_mm"] = (ends + shift).tolist()
+    data["scan"]["lines_y_mm"] = [y + dy for y in data["scan"]["lines_y_mm"]]
+    data["description"] = (f"{data['description']} Moved to {robot.name}'s reference machining point "
+                           f"({', '.join(f'{v:g}' for v in robot.workspace.reference_tool_point_m * 1e3)}) mm.")
+    path = folder / BLOCK.name
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path, shift
 
 
 def cut_more_explanation(result, robot):
@@ -75,10 +105,20 @@ def format_explanation(e):
 
 def run(*, out="robstiff-out", robot_yaml=None):
     check_outputs(folders={"--out": out})
+    with tempfile.TemporaryDirectory(prefix="robstiff-demo-") as tmp:
+        return _run(out=out, robot_yaml=robot_yaml, folder=Path(tmp))
+
+
+def _run(*, out, robot_yaml, folder):
     block = block_scenario(robot_yaml)
     from robstiff_drake.diagrams.scenario import load_scenario, scenario_robot  # Drake: after the checks
 
     robot = scenario_robot(load_scenario(block), None if robot_yaml in library_robots() else robot_yaml)
+    if block == BLOCK and robot_yaml is not None and robot_yaml not in library_robots():
+        block, shift = moved_block(robot, folder)
+        if np.any(shift):
+            info(f"robstiff: demo: the IRB6400's block test moved by ({', '.join(f'{v:+g}' for v in shift)}) mm "
+                 f"to {robot_yaml}'s machining_workspace.reference_tool_point_mm")
     warnings = Warnings()
     sc, results = simulate.simulate(scenario=block, compensation="both", robot=robot, warnings=warnings,
                                     progress=None)  # a bar over simulated time on a terminal

@@ -6,7 +6,7 @@ import numpy as np
 
 from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.commands.stiffness import parse_q_deg
-from robstiff_drake.io import check_outputs, emit_json
+from robstiff_drake.io import Warnings, check_outputs, emit_json
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote
@@ -35,6 +35,7 @@ def run(*, q, tool=None, json_out=None, robot_yaml=None):
     robot.check_q_deg(q_deg, where="fk")
     tool_m = np.zeros(3) if tool is None else parse_tool(tool)
     rep = fk_report(robot, q_deg, tool_m)
+    rep["warnings"] = list(Warnings())  # (an input's: a --tool in metres)
     if json_out is not None:
         emit_json(rep, json_out)
     if json_out != "-":

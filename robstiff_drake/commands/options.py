@@ -66,12 +66,22 @@ NOISE_MM = number_in(0.0, 10.0, "mm")
 
 
 def parse_tool(text):
-    """--tool 'X,Y,Z' (mm) -> the tool point in metres (numpy), None when not given."""
+    """--tool 'X,Y,Z' (mm) -> the tool point in metres (numpy), None when not
+    given.  A point within a few mm of the flange but not at it (a length
+    written in metres: --tool 0.0069,0.2453,0.3193) is a warning, printed and
+    carried into the command's JSON; the same line identify gives for it."""
     if text is None:
         return None
     import numpy as np
 
-    return np.array(parse_vector(text, 3, "--tool")) / 1000.0
+    from robstiff_drake.command import input_warning
+    from robstiff_drake.identification.stiffness.interval_support import tool_looks_like_metres
+
+    tool_m = np.array(parse_vector(text, 3, "--tool")) / 1000.0
+    if tool_looks_like_metres(tool_m):
+        input_warning(f"--tool: the tool point ({', '.join(f'{v * 1e3:g}' for v in tool_m)}) mm is "
+                      f"{np.linalg.norm(tool_m) * 1e3:g} mm from the flange: a length in metres? (write mm)")
+    return tool_m
 
 
 SCENARIO_HELP = "a scenario file, or the name of a packaged one (`robstiff examples` lists them)"
@@ -111,3 +121,26 @@ def vector_values_kept(argv):
 
 
 _NEGATIVE_LIST = re.compile(r"^-\s*(\d|\.\d|inf|nan)", re.IGNORECASE)
+
+
+# The real-time interface each maker's controller offers (docs/real_cell.md): the protocol a cell of that
+# maker's arm streams with.
+PROTOCOL_OF_MAKER = {"ABB": "egm", "KUKA": "rsi", "FANUC": "stream-motion"}
+PROTOCOL_NAMES = {"egm": "ABB's EGM", "rsi": "KUKA's RSI", "stream-motion": "FANUC's Stream Motion"}
+
+
+def protocol_warning(robot, protocol):
+    """A warning (printed, carried into the command's JSON) when the robot
+    file's manufacturer is one whose controller speaks another protocol than
+    ``protocol`` (--controller-protocol, default egm: a FANUC or KUKA cell
+    left at the default would wait for EGM messages that never come)."""
+    from robstiff_drake.command import input_warning
+
+    maker = str(getattr(robot, "manufacturer", "") or "").strip().upper()
+    expected = PROTOCOL_OF_MAKER.get(maker)
+    if expected is None or expected == protocol:
+        return None
+    return input_warning(f"{robot.name} is a {maker} arm ({robot.source}) and --controller-protocol is {protocol} "
+                         f"({PROTOCOL_NAMES[protocol]}; the default is egm): a {maker} controller streams with "
+                         f"{PROTOCOL_NAMES[expected]}, --controller-protocol {expected}")
+

@@ -317,7 +317,8 @@ def build_parser():
     p = sub.add_parser("demo", help="the main job: the paper's block-milling test, without and with compensation")
     p.add_argument("--out", default="robstiff-out", help="output folder (default: %(default)s)")
     _add_robot_option(p, "run the block test of this library robot (diagrams/block_milling_NAME.yaml) or of a "
-                         "robot file on the IRB6400's block scenario; default: irb6400")
+                         "robot file (the IRB6400's block scenario moved to the file's "
+                         "machining_workspace.reference_tool_point_mm); default: irb6400")
     _finish(parser)
     return parser
 

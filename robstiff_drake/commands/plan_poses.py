@@ -122,6 +122,9 @@ def run(*, n, candidates=120, force_N=300.0, noise_mm=0.01, tool=None, seed=0, o
     if not (force_N > 0 and noise_mm > 0):
         raise InputError("plan-poses: --force-N and --noise-mm must be > 0")
     check_outputs(inputs=[robot_yaml, campaign], files={"--out": out, "--json": json_out})
+    from robstiff_drake.commands.synth import check_not_measurements
+
+    check_not_measurements(out)  # a plan with its measurements added, or a measured campaign: not written over
     robot = load_robot(robot_yaml)
     if campaign is not None and separate is None:
         raise InputError("plan-poses: --campaign is used with --separate (the plan adds to that campaign)")

@@ -61,6 +61,9 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
     host, port = parse_host_port(egm_to, what="--egm-to")
     sc = load_scenario(scenario)
     robot = scenario_robot(sc, robot_yaml)
+    from robstiff_drake.commands.options import protocol_warning
+
+    protocol_warning(robot, protocol)
     if robot.speed_limit_deg_per_s is None:
         raise InputError(f"{robot.source}: key 'joint_limits.speed_deg_per_s': missing; the simulated controller's "
                          "supervision needs the axis speeds")

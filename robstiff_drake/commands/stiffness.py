@@ -5,6 +5,8 @@ Q1..Q6 are the controller's angles (deg); the Jacobian and the joint
 stiffness refer to the model's joints (the physical joints of the serial
 chain, whose springs the robot file gives)."""
 
+import math
+
 import numpy as np
 
 from robstiff_drake.commands.options import parse_tool
@@ -26,6 +28,14 @@ def parse_q_deg(values, what="stiffness"):
             q.append(float(v))
         except ValueError:
             raise InputError(f"{what}: q{i + 1} = {v!r} is not a number (degrees)") from None
+    # six angles all within +-2 pi, three or more of them off zero and not whole degrees: radians typed where
+    # the pendant's degrees go (a newcomer's FANUC pose from a campaign in rad: -1.047 -0.291 -0.505 ...)
+    off = [v for v in q if v != 0.0]
+    if len(off) >= 3 and all(abs(v) <= 2.0 * math.pi for v in q) and any(v != round(v) for v in off):
+        from robstiff_drake.command import input_warning
+
+        input_warning(f"{what}: every joint angle ({', '.join(f'{v:g}' for v in q)}) is within +-2 pi: radians? "
+                      "The angles are the controller's degrees")
     return q
 
 
@@ -105,6 +115,9 @@ def run(*, q, tool=None, kx=False, json_out=None, robot_yaml=None):
     robot.check_q_deg(q_deg, where="stiffness")
     tool_m = robot.tool_point(parse_tool(tool), where="stiffness")
     rep = pose_report(robot, q_deg, tool_m)
+    from robstiff_drake.io import Warnings
+
+    rep["warnings"] = list(Warnings()) + rep["warnings"]  # an input's first (a --tool in metres)
     if kx:
         J = np.asarray(rep["jacobian"])
         try:

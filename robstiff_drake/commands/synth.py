@@ -44,6 +44,38 @@ def _positive(name, value, integer=False):
         raise InputError(f"synth: {name} must be a positive {'integer' if integer else 'number'}, got {value}")
 
 
+# What the first comment line of a file robstiff made says (synth's campaigns, plan-poses' plans; the docs'
+# rounded examples of them start '# Synthetic: ...'): such a file may be written over; any other existing file
+# may hold measurements.
+MADE_BY_ROBSTIFF = ("made by robstiff-drake", "made by robstiff synth")
+
+
+def check_not_measurements(out):
+    """InputError when OUT.csv exists and is not a file robstiff made (its
+    first line does not say so): a synthetic campaign written over a
+    campaign measured on the robot would lose the measurements (before, it
+    did, silently: 'robstiff synth stiffness fanuc.csv' over the FANUC
+    campaign)."""
+    from pathlib import Path
+
+    path = Path(str(out))
+    if str(out) == STDOUT or not path.is_file() or path.stat().st_size == 0:
+        return
+    with open(path, "rb") as f:
+        head = f.read(4096).decode("utf-8", errors="replace").lstrip("\ufeff")
+    lines = head.splitlines()
+    first = lines[0] if head.strip() else ""
+    header = next((ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")), "")
+    cells = {c.strip().lower() for c in header.replace(";", ",").replace("\t", ",").split(",")}
+    if first.startswith("#") and (any(m in first for m in MADE_BY_ROBSTIFF) or first.startswith("# Synthetic")):
+        if "measurement plan" not in first.lower() or not {"dx", "dy", "dz"} & cells:
+            return
+        raise InputError(f"{out}: a measurement plan with measured displacements added (its header has dx, dy, "
+                         "dz); it is not written over: give another file name")
+    raise InputError(f"{out}: exists and was not made by robstiff (its first line: {first[:60]!r}); it is not "
+                     "written over, it may hold measurements: give another file name, or delete the file first")
+
+
 def _write(out, text):
     if str(out) == STDOUT:
         sys.stdout.write(text)
@@ -55,6 +87,7 @@ def _write(out, text):
 def run_stiffness(*, out, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01, seed=0, tool=None,
                   effects=None, stiffness=None, robot_yaml=None):
     check_outputs(inputs=[robot_yaml], files={"OUT.csv": out})
+    check_not_measurements(out)
     robot = load_robot(robot_yaml)
     _positive("--n", n, True)
     _positive("--loads-per-pose", loads_per_pose, True)
@@ -86,6 +119,7 @@ def run_stiffness(*, out, n=120, loads_per_pose=4, force_N=300.0, noise_mm=0.01,
 
 def run_payload(*, out, n=15, mass_kg=None, com=None, noise_N=1.0, noise_Nm=0.1, seed=0, robot_yaml=None):
     check_outputs(inputs=[robot_yaml], files={"OUT.csv": out})
+    check_not_measurements(out)
     robot = load_robot(robot_yaml)
     _positive("--n", n, True)
     if mass_kg is not None:
@@ -106,6 +140,7 @@ def run_tracker(*, out, n=300, noise_mm=0.03, seed=0, export=False, robot_yaml=N
     link lengths and twists, stiffness, the tracker's place, drift and
     noise drawn from ``seed``)."""
     check_outputs(inputs=[robot_yaml], files={"OUT.csv": out})
+    check_not_measurements(out)
     robot = load_robot(robot_yaml)
     from robstiff_drake.diagrams.tracker_world import make_tracker_campaign  # Drake: after the checks
 

@@ -116,18 +116,29 @@ def predicted_errors(sc, robot, prediction, corrected_program, *, progress=None,
     return _short(before), after
 
 
+def best_round(history):
+    """The index in ``history`` (twin surface-error stats mm per round) of
+    the round to write: the smallest largest |error|, then the smallest
+    |mean|.  The fixed-point iteration need not converge (on a job whose
+    floor the cut's own vibration stamps, a round can undo the one before:
+    0.035 mm then 0.306 mm), so its last round is not always its best."""
+    return min(range(len(history)), key=lambda k: (history[k]["max_abs"], abs(history[k]["mean"]), -k))
+
+
 def refine(sc, robot, program, text, prediction, *, rounds, chord_mm, max_correction_mm, progress=None, say=None):
     """(the refined Prediction, [twin surface-error stats mm per round]):
     ``rounds`` rounds of the floor's fixed-point iteration (module
     docstring) on the corrected program of ``program`` (its ``text``); the
-    stats list has rounds + 1 entries, the last the refined program's (the
-    prediction of what the written program leaves).  CorrectionError when a
-    refined correction exceeds ``max_correction_mm``."""
+    stats list has rounds + 1 entries, one per program tried (the first the
+    preview's correction as written).  The Prediction returned is that of
+    the best round (``best_round``: the last when the rounds improve, as
+    they do on face_and_contour), whose stats are ``history[best_round(history)]``.
+    CorrectionError when a refined correction exceeds ``max_correction_mm``."""
     from robstiff_drake.diagrams.offline_compensation import move_corrections, scanned_against_program, _short
     from robstiff_drake.model.floor_generation import floor_raise_mm
     from robstiff_drake.model.gcode.writer import rewrite_corrected
 
-    history = []
+    history, tried = [], []
     with tempfile.TemporaryDirectory(prefix="robstiff-refine-") as tmp:
         draft = Path(tmp) / Path(str(program.path)).name
         for k in range(rounds + 1):
@@ -137,10 +148,11 @@ def refine(sc, robot, program, text, prediction, *, rounds, chord_mm, max_correc
                 say(f"the corrected program on the compensator's model, round {k + 1} of {rounds + 1}")
             res = twin_run(sc, robot, prediction, draft, progress=progress)
             history.append(_short(scanned_against_program(res, prediction.path)))
+            tried.append(prediction)
             if k == rounds:
                 break
             s_gen, err = generating_errors(res, prediction.path)
             delta = prediction.delta_mm.copy()
             delta[:, 2] += floor_raise_mm(prediction.s_m, s_gen, err)
             prediction = replace(prediction, delta_mm=delta)
-    return prediction, history
+    return tried[best_round(history)], history

@@ -12,6 +12,8 @@ Stiffness campaigns (one row per loaded measurement):
   pose        optional id shared by rows measured at the same pose
   seq         optional measurement order
   t_s         optional time of the measurement, s
+A unit named in the header ('q1 [rad]', 'dx (m)') is converted to these,
+and 'J1', 'A1', 'theta1' are read as q1 (header_units.py).
 
 A stiffness campaign records its tool point in a comment line before the
 header row, ``# tool_mm: x, y, z`` (mm, flange frame = DH frame 6; see
@@ -29,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robstiff_drake.errors import InputError, excerpt
+from robstiff_drake.identification.stiffness.header_units import HeaderUnits
 from robstiff_drake.identification.stiffness.measurement_table import decode_text, read_table
 
 Q_COLS = tuple(f"q{i}" for i in range(1, 7))
@@ -78,14 +81,17 @@ def _optional_block(table, names, what):
 def check_joint_limits(table, robot):
     """Every row's q inside the robot's joint limits (error names line/column)."""
     lo, hi = np.rad2deg(robot.q_lower_rad), np.rad2deg(robot.q_upper_rad)
+    largest = max(float(np.max(np.abs(table.numeric[name]), initial=0.0)) for name in Q_COLS)
     for j, name in enumerate(Q_COLS):
         v = table.numeric[name]
         bad = np.flatnonzero((v < lo[j] - 1e-9) | (v > hi[j] + 1e-9))
         if bad.size:
             r = bad[0]
+            radians = (" Or angles in radians? Every angle of the file is within +-2 pi; write degrees, or name "
+                       "the unit in the header: q1 [rad]") if 0 < largest <= 2.0 * np.pi + 1e-9 else ""
             raise InputError(f"{table.where(r, name)}: {v[r]:g} deg is outside the joint limit "
                              f"[{lo[j]:g}, {hi[j]:g}] deg of the robot {robot.name} ({robot.source}); another "
-                             "robot's campaign? (give its robot file with --robot)")
+                             f"robot's campaign? (give its robot file with --robot).{radians}")
 
 
 # Plausible sizes of a measured value; beyond these the file is in other
@@ -110,8 +116,9 @@ def _copies(table, names):
 
 
 def read_stiffness_campaign(path, robot, *, min_rows=6):
+    header = HeaderUnits(path)  # units named in the header converted (identification/stiffness/header_units.py)
     table = read_table(path, required=Q_COLS + F_COLS + D_COLS, optional=M_COLS + R_COLS + ("seq", "t_s"),
-                       text_columns=("pose",), ranges=RANGES)
+                       text_columns=("pose",), ranges=RANGES, rename=header, units=header.scale)
     check_joint_limits(table, robot)
     disp_all = np.column_stack([table.numeric[n] for n in D_COLS])
     if np.all(disp_all == 0):

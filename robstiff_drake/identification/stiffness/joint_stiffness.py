@@ -131,32 +131,47 @@ def unit_mix_warning(campaign, predicted_nominal_mm):
             "mixes them; write every row in one unit")
 
 
-# A file whose angles all lie within +-pi is tested as radians too: if the
-# six springs fit it this many times better so, the angles are radians.
+# A file whose angles all lie within +-2 pi (a wrist joint's range in
+# radians: FANUC's J6 of a real R-2000iC campaign reaches 4.15 rad) is
+# tested as radians too: if the six springs fit it this many times better
+# so, the angles are radians.
 RADIANS_FIT_FACTOR = 3.0
+# ... or this many times better, with every compliance positive read as
+# radians and some negative read as degrees: a real campaign's model error
+# keeps the radians fit's advantage small (that R-2000iC campaign: 0.215 mm
+# as radians, 0.374 mm as degrees, with joints 3 and 6 negative).
+RADIANS_FIT_FACTOR_NON_PHYSICAL = 1.5
 
 
-def _rms_of_linear_fit(robot, q_rad, campaign, tool_m):
+def _linear_fit(robot, q_rad, campaign, tool_m):
+    """(RMS residual mm, number of negative compliances) of the six springs fitted to ``campaign`` at ``q_rad``."""
     A_d, _ = regressor(robot.dh, q_rad, campaign.wrench, tool_m)
     A = (A_d / robot.joint_stiffness_Nm_per_rad).reshape(-1, 6)
     b = campaign.disp_mm.reshape(-1) * 1e-3
     x, *_ = np.linalg.lstsq(A, b, rcond=None)
-    return float(np.sqrt(np.mean((b - A @ x) ** 2))) * 1e3
+    return float(np.sqrt(np.mean((b - A @ x) ** 2))) * 1e3, int(np.sum(x < 0))
 
 
 def check_angle_units(robot, campaign, tool_m=None):
     """Refuse joint angles written in radians: when every angle lies within
-    +-pi, fit the six springs to the file read both ways; radians that fit
-    RADIANS_FIT_FACTOR times better are what the file holds."""
+    +-2 pi, fit the six springs to the file read both ways; radians that fit
+    RADIANS_FIT_FACTOR times better, or RADIANS_FIT_FACTOR_NON_PHYSICAL
+    times better where degrees need a negative compliance and radians do
+    not, are what the file holds."""
     q = campaign.q_deg
-    if np.max(np.abs(q)) > np.pi + 1e-9 or np.max(np.abs(q)) == 0:
+    if np.max(np.abs(q)) > 2.0 * np.pi + 1e-9 or np.max(np.abs(q)) == 0:
         return
-    as_deg = _rms_of_linear_fit(robot, np.deg2rad(q), campaign, tool_m)
-    as_rad = _rms_of_linear_fit(robot, q, campaign, tool_m)
-    if as_rad * RADIANS_FIT_FACTOR < as_deg:
+    # both readings through the robot file's controller map (signs, offsets, FANUC's J2/J3 coupling), as identify
+    as_deg, negative_deg = _linear_fit(robot, robot.joint_rad(q), campaign, tool_m)
+    as_rad, negative_rad = _linear_fit(robot, robot.joint_rad(np.rad2deg(q)), campaign, tool_m)
+    physical = negative_deg > 0 and negative_rad == 0
+    if as_rad * RADIANS_FIT_FACTOR < as_deg or (physical and as_rad * RADIANS_FIT_FACTOR_NON_PHYSICAL < as_deg):
+        why = (f", and as degrees {negative_deg} joint compliance(s) turn negative, as radians none"
+               if physical else "")
         raise InputError(f"{campaign.path}: joint angles q1..q6 look like radians, not degrees: every angle is within "
-                         f"+-pi, and read as radians the six springs fit with {as_rad:.4f} mm RMS against "
-                         f"{as_deg:.4f} mm as degrees; write the controller's degrees")
+                         f"+-2 pi, and read as radians the six springs fit with {as_rad:.4f} mm RMS against "
+                         f"{as_deg:.4f} mm as degrees{why}; write the controller's degrees (or name the unit in the "
+                         "header: q1 [rad])")
 
 
 def check_signs(fit, campaign):

@@ -129,11 +129,12 @@ _COLUMN = re.compile(r"(?:[ \t]*[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?[ \
 _DECIMAL_COMMA = re.compile(r"[ \t]*[+-]?\d*,\d+(?:[eE][+-]?\d+)?[ \t]*", re.ASCII)
 
 
-def _numeric_column(path, data, cells, col, name, limits, decimal_comma=False):
+def _numeric_column(path, data, cells, col, name, limits, decimal_comma=False, scale=(1.0, None)):
     """Column ``col`` as finite floats within ``limits`` (lo, hi, unit), or
     InputError naming the first bad cell.  Checked as one string (linear in
     the rows, in C) and converted at once; a column that fails is walked
-    cell by cell for the message."""
+    cell by cell for the message.  ``scale``: (factor, the file's unit):
+    the values times factor are in the limits' unit."""
     values = [row[col] for row in cells]
     if decimal_comma:  # a ';'- or tab-separated file from a locale with a decimal comma
         values = [v.replace(",", ".", 1) if _DECIMAL_COMMA.fullmatch(v) else v for v in values]
@@ -145,24 +146,31 @@ def _numeric_column(path, data, cells, col, name, limits, decimal_comma=False):
     if arr is None:
         arr = np.array([parse_number(v.strip(), f"{path}:{data[r][0]}, column {col + 1} ({name})")
                         for r, v in enumerate(values)])
+    factor, file_unit = scale
+    if factor != 1.0:
+        arr = arr * factor
     if limits is not None:
         lo, hi, unit = limits
         bad = np.flatnonzero(~((arr >= lo) & (arr <= hi)))
         if bad.size:
             r = int(bad[0])
             hint = "" if unit != "mm" else ": millimetres read as metres, then written in mm, are 1000x too large"
-            raise InputError(f"{path}:{data[r][0]}, column {col + 1} ({name}): {values[r].strip()} is outside the "
-                             f"plausible range [{lo:g}, {hi:g}] {unit} (other units?){hint}")
+            value = values[r].strip() if file_unit is None else f"{values[r].strip()} {file_unit} ({arr[r]:g} {unit})"
+            raise InputError(f"{path}:{data[r][0]}, column {col + 1} ({name}): {value} is outside the "
+                             f"plausible range [{lo:g}, {hi:g}] {unit} (other units?){hint if file_unit is None else ''}")
     return arr
 
 
-def read_table(path, *, required, optional=(), text_columns=(), ranges=None, rename=None, decimal_comma=False):
+def read_table(path, *, required, optional=(), text_columns=(), ranges=None, rename=None, decimal_comma=False,
+               units=None):
     """Read a measurement CSV.  ``required``/``optional`` columns are parsed
     as finite floats (within ``ranges``: {column: (lo, hi, unit)}, when
     given); ``text_columns`` are kept as strings; any other column is kept
     as text and ignored.  ``rename``: a function from a header cell (lower
     case, stripped) to the column's name (aliases, units in the header);
-    ``decimal_comma``: in a ';'- or tab-separated file, '1,5' is 1.5."""
+    ``decimal_comma``: in a ';'- or tab-separated file, '1,5' is 1.5;
+    ``units``: a function from a column's name to (factor, the file's unit)
+    that converts it to the unit of ``ranges`` before the check."""
     path = Path(path)
     raw, encoding = decode_text(path)
     comments, rows = [], []
@@ -209,7 +217,8 @@ def read_table(path, *, required, optional=(), text_columns=(), ranges=None, ren
     numeric = {}
     for name in numeric_names:
         numeric[name] = _numeric_column(path, data, cells, seen[name], name, (ranges or {}).get(name),
-                                        decimal_comma and delim != ",")
+                                        decimal_comma and delim != ",",
+                                        (1.0, None) if units is None else units(name))
     text = {h: [row[seen[h]].strip() for row in cells] for h in header if h not in numeric}
     return Table(str(path), header_line, header, numeric, text,
                  np.array([ln for ln, _ in data]), comments, encoding, DELIMITERS[delim])
