@@ -2,7 +2,8 @@
 (SIGINT) while its controller streams: one line and the signal's exit
 status, no traceback from its network thread (before: "ValueError: file
 descriptor cannot be a negative integer (-1)" when the sockets closed under
-the running thread)."""
+the running thread).  And a pair of sim-cell and compensate whose processes
+the machine stalls (SIGSTOP, SIGCONT) runs to the pass's end."""
 
 import os
 import signal
@@ -64,6 +65,48 @@ def test_sim_cell_stops_on_a_signal_without_a_traceback(tmp_path, sig, status, w
     assert "Traceback" not in err and "terminate called" not in err, err
     assert cell.returncode == status, (cell.returncode, err)
     assert f"robstiff: {word}" in err, err
+
+
+def test_a_stalled_cell_or_compensator_does_not_end_the_pair(tmp_path):
+    """The machine stalls each process of the lockstep pair for 1.5 s mid-pass (SIGSTOP, then SIGCONT: a loaded
+    machine deschedules a process that long): first sim-cell, the controller (compensate says it is silent, then
+    that its messages came again), then compensate (sim-cell waits for its answer).  The pass runs to its end,
+    every message answered, and the pair ends as the test says (before: compensate's --idle-exit-s 1 ended it in
+    the first stall and sim-cell stopped for want of an answer, exit 3; sim-cell's 1 s answer timeout stopped it
+    in the second).  (Lockstep and deliberate stalls: no real-time test, it runs with the rest.)"""
+    import json
+
+    from cell_helpers import write_inputs
+    from robstiff_drake.model.robot import load_robot
+    from test_sim_cell import _run_pair
+
+    model, payload, _, _ = write_inputs(str(tmp_path), load_robot())
+    log = tmp_path / "log"
+    stalled = []
+
+    def stall(cell, comp):
+        for who, proc, after_rows in (("sim-cell", cell, 150), ("compensate", comp, 400)):
+            t_end = time.monotonic() + HANG_GUARD_S * 5
+            while _rows(log / "joint_log.csv") < after_rows and proc.poll() is None and time.monotonic() < t_end:
+                time.sleep(0.05)  # (0.6 s and 1.6 s of the controller's clock: the log's rows, 4 ms apart)
+            if proc.poll() is not None:
+                return
+            proc.send_signal(signal.SIGSTOP)
+            time.sleep(1.5)
+            proc.send_signal(signal.SIGCONT)
+            stalled.append((who, _rows(log / "joint_log.csv")))
+
+    cell, comp, out = _run_pair(tmp_path, model, payload, lockstep=True, during=stall)
+    assert [w for w, _ in stalled] == ["sim-cell", "compensate"], (stalled, cell.stderr, comp.stderr)
+    assert cell.returncode == 0, (cell.stderr, comp.stderr)
+    assert comp.returncode == 0, comp.stderr
+    res = json.loads(out.read_text())
+    assert res["stopped"] is None and res["surface_error_mm"] is not None and res["unanswered"] == 0, res
+    err = comp.stderr
+    assert err.index("no message from the controller for") < err.index("EGM: messages again"), err  # the 1st stall
+    summary = json.loads((log / "summary.json").read_text())
+    assert summary["cycles"]["ended_by"] == "interrupt" and "terminated: the run ends" in err, summary["cycles"]
+    print("stalled (process, the log's rows then):", stalled, "; cycles", res["cycles"], "answered", res["answered"])
 
 
 def _rows(path):
