@@ -25,8 +25,8 @@ line just above its fence, an HTML comment the rendered page does not show
     session in an empty folder of its own, by the first page to reach it,
     and its status, output and files (and the files it put in the package's
     cache) are every page's whose block has the same commands, exactly
-    (``robstiff demo --out robstiff-out``: results.md's and cli.md's, the
-    help's example; three minutes at load 4 each).
+    (``robstiff demo --out robstiff-out``: results.md's and cli.md's, also
+    the help's example).
 
 Clauses combine with ``;;`` (``<!-- run: setup ... ;; shorten ... -->``).
 A usage line (``robstiff simulate SCENARIO.yaml [--out DIR]``: placeholders
