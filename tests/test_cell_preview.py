@@ -68,8 +68,13 @@ def _log(path):
 def pair(tmp_path_factory):
     """The short block over EGM/RDT in lockstep, plain and preview:
     {mode: (sim-cell's JSON, compensate's summary.json, its time series,
-    its joint log, stderr)}."""
-    from test_sim_cell import _run_pair
+    its joint log, stderr)}.  Each pair judged on the loop's logic as
+    test_sim_cell's (_run_pair_judged: the sensor's silence at a second, a
+    run in which this machine stalled the lockstep controller run once more):
+    a sensor fault or a silence of the controller that a loaded machine makes
+    pauses the preview's learning and ramps the correction (the preview over
+    the protocols failed once at a load of 6)."""
+    from test_sim_cell import _run_pair_judged
 
     robot = load_robot()
     cached_preview_table(SHORT)  # (the job run again: its table from the disk cache, previewing from the start)
@@ -78,11 +83,11 @@ def pair(tmp_path_factory):
         tmp = tmp_path_factory.mktemp(mode)
         model, payload, _, _ = write_inputs(str(tmp), robot, duration_s=0.1)
         extra = ["--mode", "preview", "--job", SHORT] if mode == "preview" else []
-        cell, comp, js = _run_pair(tmp, model, payload, lockstep=True, comp_extra=extra)
+        run, cell, comp, js = _run_pair_judged(tmp, model, payload, lockstep=True, comp_extra=extra)
         assert cell.returncode == 0, (mode, cell.stderr, comp.stderr)
         assert comp.returncode == 0, (mode, comp.stderr)
-        out[mode] = (json.loads(js.read_text()), json.loads((tmp / "log" / "summary.json").read_text()),
-                     _log(tmp / "log" / "timeseries_compensated.csv"), _log(tmp / "log" / "joint_log.csv"),
+        out[mode] = (json.loads(js.read_text()), json.loads((run / "log" / "summary.json").read_text()),
+                     _log(run / "log" / "timeseries_compensated.csv"), _log(run / "log" / "joint_log.csv"),
                      comp.stderr)
     return out
 
