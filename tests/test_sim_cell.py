@@ -68,7 +68,7 @@ def _sim_cell(tmp_path, *, egm_port, netft_port, lockstep, scenario=SHORT, extra
     out = tmp_path / "cell.json"
     cell = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "sim-cell", scenario,
                              "--egm-to", f"127.0.0.1:{egm_port}", "--netft-port", str(netft_port),
-                             "--reference-out", str(ref), "--json", str(out), "--wait-s", "40"]
+                             "--reference-out", str(ref), "--json", str(out), "--wait-s", f"{HANG_GUARD_S * 5:g}"]
                             + (["--lockstep"] if lockstep else []) + list(extra),
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     return cell, ref, out
@@ -161,7 +161,9 @@ def _run_pair(tmp_path, model, payload, *, lockstep, scenario=SHORT, robot=None,
     the controller is silent: cell_helpers.run_compensate_until_cell_done).  Neither waits out a short silence
     of the other (before: compensate's --idle-exit-s 1 and sim-cell's 1 s answer timeout, which a process
     descheduled that long on a loaded machine met mid-pass: the run ended early, the test failed on the machine);
-    their hang guards are HANG_GUARD_S.  ``during(cell, comp)``: run in a thread beside the pair (a test's stall
+    their hang guards are HANG_GUARD_S; their waits for each other at the start (--wait-s: sim-cell builds its
+    Drake station before it writes the reference compensate waits for, then waits for its first answer) five
+    times that, a bound only: a machine at a load of 15 took longer than the 40 s and 60 s they had.  ``during(cell, comp)``: run in a thread beside the pair (a test's stall
     injection; both processes started)."""
     egm_port, netft_port = free_udp_port(), free_udp_port()
     cell, ref, out = _sim_cell(tmp_path, egm_port=egm_port, netft_port=netft_port, lockstep=lockstep,
@@ -178,7 +180,8 @@ def _run_pair(tmp_path, model, payload, *, lockstep, scenario=SHORT, robot=None,
             [sys.executable, "-m", "robstiff_drake", "compensate", "--controller-protocol", protocol,
              "--listen-port", str(0 if protocol == "stream-motion" else egm_port),
              "--netft", f"127.0.0.1:{netft_port}", "--netft-http-port", str(netft_port), "--model", model,
-             "--payload", payload, "--reference", str(ref), "--wait-s", "60", "--cutoff-hz", "2", "--sensor-rate-hz",
+             "--payload", payload, "--reference", str(ref), "--wait-s", f"{HANG_GUARD_S * 5:g}", "--cutoff-hz", "2",
+             "--sensor-rate-hz",
              "1000", "--delay-steps", "0", "--log", str(tmp_path / "log")] + (["--robot", robot] if robot else [])
             + list(comp_extra) + ["--idle-exit-s", f"{HANG_GUARD_S:g}"],
             reader.is_alive, bound_s=HANG_GUARD_S * 10,

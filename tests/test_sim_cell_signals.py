@@ -38,12 +38,14 @@ def test_sim_cell_stops_on_a_signal_without_a_traceback(tmp_path, sig, status, w
     # before the signal): the cell by the test's signal, compensate by the test once the cell has ended
     cell = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "sim-cell", SHORT, "--egm-to",
                              f"127.0.0.1:{egm}", "--netft-port", str(netft), "--reference-out", str(ref),
-                             "--wait-s", "60", "--lockstep", "--answer-timeout-s", f"{HANG_GUARD_S:g}"], cwd=ROOT,
+                             "--wait-s", f"{HANG_GUARD_S * 5:g}", "--lockstep", "--answer-timeout-s",
+                             f"{HANG_GUARD_S:g}"], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     log = tmp_path / "log"
     comp = subprocess.Popen([sys.executable, "-m", "robstiff_drake", "compensate", "--listen-port", str(egm),
                              "--netft", f"127.0.0.1:{netft}", "--netft-http-port", str(netft), "--model", model,
-                             "--payload", payload, "--reference", str(ref), "--wait-s", "60", "--idle-exit-s",
+                             "--payload", payload, "--reference", str(ref), "--wait-s", f"{HANG_GUARD_S * 5:g}",
+                             "--idle-exit-s",
                              f"{HANG_GUARD_S:g}", "--delay-steps", "0", "--log", str(log)], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
