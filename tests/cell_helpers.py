@@ -185,6 +185,32 @@ def run_compensate_against_cell(tmp, *, duration_s=3.0, faults=None, extra=(), w
     return subprocess.CompletedProcess(proc.args, code, out, err), net.stats, log
 
 
+def run_compensate_until_cell_done(cmd, cell_running, *, bound_s, env=None, started=None):
+    """`robstiff compensate` (``cmd``, its --idle-exit-s HANG_GUARD_S: a hang guard) against a cell that ends
+    its own scenario (a lockstep cell with its cut, or sim-cell's pass): the process is ended by the test once
+    ``cell_running()`` is False and its loop has said the controller is silent (EndWhenIdle: SIGTERM, the log
+    written whole), not by a silence alone, which a stalled controller (a loaded machine deschedules a process
+    for a second) would cause mid-run too.  ``bound_s``: how long the cell may run at most (a bound, not a
+    measure); ``started(proc)``: called once the process is started (a test's stall injection).  A completed
+    process (text)."""
+    last = max(k for k, a in enumerate(cmd) if a == "--idle-exit-s")
+    assert cmd[last + 1] == f"{HANG_GUARD_S:g}", cmd  # (the run's end is the test's, not a short silence's)
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    watch = EndWhenIdle(proc)
+    try:
+        if started is not None:
+            started(proc)
+        t_end = time.monotonic() + bound_s
+        while cell_running() and proc.poll() is None and time.monotonic() < t_end:
+            time.sleep(0.1)  # (the cell's end; or the process ended: a refused start)
+        watch.cell_done()
+        code, out, err = watch.wait(timeout=HANG_GUARD_S * 2)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    return subprocess.CompletedProcess(cmd, code, out, err)
+
+
 class FakeSensor:
     """A Net F/T on 127.0.0.1 (RDT and its calibration page) streaming
     ``wrench(t)`` (N, N*m, sensor frame; ``by_record``: ``wrench(i)`` of the
@@ -291,10 +317,14 @@ def logging_run(tmp, answered, timeout_s=60.0):
     robot = load_robot()
     model, payload, _, ref_fn = write_inputs(str(tmp), robot, duration_s=1.0)
     egm_port, netft_port = free_udp_port(), free_udp_port()
+    # the test ends the run (SIGTERM, SIGKILL): --idle-exit-s a hang guard only, and the cell waits out a
+    # stalled compensator (at 0.5 s and 1 s, a test process or a compensate process descheduled that long on a
+    # loaded machine ended the run before its count of answers)
     th, net = start_cell(robot, lambda t: ref_fn(0.0), egm_port=egm_port, netft_port=netft_port,
-                         duration_s=timeout_s + 30.0)
+                         duration_s=timeout_s + 30.0, answer_timeout_s=HANG_GUARD_S)
     log = os.path.join(str(tmp), "log")
-    proc = subprocess.Popen(compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=log),
+    proc = subprocess.Popen(compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=log,
+                                           idle_exit_s=HANG_GUARD_S),
                             cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     t0 = time.monotonic()
     while net.stats.answered < answered and time.monotonic() - t0 < timeout_s and proc.poll() is None:

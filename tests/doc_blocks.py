@@ -20,6 +20,13 @@ line just above its fence, an HTML comment the rendered page does not show
     instead (a sweep of 60 runs as 4): options the commands document.
 ``<!-- run: exit 2 -->``
     every command of the block must fail with exit status 2 and one line.
+``<!-- run: share -->``
+    the block reads nothing from its page's folder: it runs once per test
+    session in an empty folder of its own, by the first page to reach it,
+    and its status, output and files (and the files it put in the package's
+    cache) are every page's whose block has the same commands, exactly
+    (``robstiff demo --out robstiff-out``: results.md's and cli.md's, also
+    the help's example).
 
 Clauses combine with ``;;`` (``<!-- run: setup ... ;; shorten ... -->``).
 A usage line (``robstiff simulate SCENARIO.yaml [--out DIR]``: placeholders
@@ -99,8 +106,8 @@ def parse_clauses(marker):
         if not clause:
             continue
         key, _, rest = clause.partition(" ")
-        if key not in ("skip", "setup", "shorten", "exit"):
-            raise ValueError(f"unknown run-marker clause {key!r} (skip, setup, shorten, exit)")
+        if key not in ("skip", "setup", "shorten", "exit", "share"):
+            raise ValueError(f"unknown run-marker clause {key!r} (skip, setup, shorten, exit, share)")
         out[key] = rest.strip()
     return out
 

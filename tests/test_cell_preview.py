@@ -14,7 +14,8 @@ import threading
 import numpy as np
 import pytest
 
-from cell_helpers import ROOT, cached_preview_table, compensate_cmd, free_udp_port, write_inputs
+from cell_helpers import HANG_GUARD_S, ROOT, cached_preview_table, compensate_cmd, free_udp_port, \
+    run_compensate_until_cell_done, write_inputs
 from robstiff_drake.model.robot import load_robot
 
 SHORT = os.path.join(ROOT, "tests", "data", "short_block.yaml")
@@ -67,8 +68,13 @@ def _log(path):
 def pair(tmp_path_factory):
     """The short block over EGM/RDT in lockstep, plain and preview:
     {mode: (sim-cell's JSON, compensate's summary.json, its time series,
-    its joint log, stderr)}."""
-    from test_sim_cell import _run_pair
+    its joint log, stderr)}.  Each pair judged on the loop's logic as
+    test_sim_cell's (_run_pair_judged: the sensor's silence at a second, a
+    run in which this machine stalled the lockstep controller run once more):
+    a sensor fault or a silence of the controller that a loaded machine makes
+    pauses the preview's learning and ramps the correction (the preview over
+    the protocols failed once at a load of 6)."""
+    from test_sim_cell import _run_pair_judged
 
     robot = load_robot()
     cached_preview_table(SHORT)  # (the job run again: its table from the disk cache, previewing from the start)
@@ -77,11 +83,11 @@ def pair(tmp_path_factory):
         tmp = tmp_path_factory.mktemp(mode)
         model, payload, _, _ = write_inputs(str(tmp), robot, duration_s=0.1)
         extra = ["--mode", "preview", "--job", SHORT] if mode == "preview" else []
-        cell, comp, js = _run_pair(tmp, model, payload, lockstep=True, comp_extra=extra)
+        run, cell, comp, js = _run_pair_judged(tmp, model, payload, lockstep=True, comp_extra=extra)
         assert cell.returncode == 0, (mode, cell.stderr, comp.stderr)
         assert comp.returncode == 0, (mode, comp.stderr)
-        out[mode] = (json.loads(js.read_text()), json.loads((tmp / "log" / "summary.json").read_text()),
-                     _log(tmp / "log" / "timeseries_compensated.csv"), _log(tmp / "log" / "joint_log.csv"),
+        out[mode] = (json.loads(js.read_text()), json.loads((run / "log" / "summary.json").read_text()),
+                     _log(run / "log" / "timeseries_compensated.csv"), _log(run / "log" / "joint_log.csv"),
                      comp.stderr)
     return out
 
@@ -160,16 +166,18 @@ def test_preview_falls_back_to_plain_when_the_plan_no_longer_holds(tmp_path, cas
     egm_port, netft_port = free_udp_port(), free_udp_port()
     faults = Faults(restart_at=0.6) if case == "restart" else Faults()
     # lockstep (the physics without this machine's scheduling: a shared PC holds cycles), ended by the cell after
-    # 4 s of its controller's clock and the compensator when the messages stop: no wall-clock check between the
-    # two (a compensator ended on its own clock left the cell unanswered, which it reported as a fault)
+    # 4 s of its controller's clock and the compensator by the test once the cell is done: no wall-clock check
+    # between the two (a compensator ended on its own clock left the cell unanswered, which it reported as a
+    # fault; one ended by a 5 s silence, a controller stalled that long mid-run)
     th, net = start_cell(robot, reference, egm_port=egm_port, netft_port=netft_port, duration_s=600.0,
                          faults=faults, wrench=cutting_wrench(t0=0.3 if case == "force" else 5.0, ramp_s=0.05),
                          lockstep=True, cut_s=4.0, answer_timeout_s=60.0)
     log = tmp_path / "log"
     try:
-        p = subprocess.run(compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=str(log),
-                                          extra=["--mode", "preview", "--job", SHORT, "--idle-exit-s", "5"]),
-                           cwd=ROOT, capture_output=True, text=True, timeout=900)
+        p = run_compensate_until_cell_done(
+            compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=str(log),
+                           idle_exit_s=HANG_GUARD_S, extra=["--mode", "preview", "--job", SHORT]),
+            th.is_alive, bound_s=600.0)
     finally:
         net.stop = True
         th.join(30)
@@ -231,10 +239,10 @@ def test_a_cold_cache_computes_the_table_in_the_background_while_the_stream_runs
     watcher = threading.Thread(target=stop_once_taken, daemon=True)
     watcher.start()
     try:
-        p = subprocess.run(compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=str(log),
-                                          extra=["--mode", "preview", "--job", SHORT, "--idle-exit-s", "5"]),
-                           cwd=ROOT, capture_output=True, text=True, timeout=900,
-                           env=dict(os.environ, ROBSTIFF_CACHE_DIR=str(cache)))
+        p = run_compensate_until_cell_done(
+            compensate_cmd(model, payload, None, egm_port=egm_port, netft_port=netft_port, log=str(log),
+                           idle_exit_s=HANG_GUARD_S, extra=["--mode", "preview", "--job", SHORT]),
+            th.is_alive, bound_s=900.0, env=dict(os.environ, ROBSTIFF_CACHE_DIR=str(cache)))
     finally:
         done.set()
         net.stop = True

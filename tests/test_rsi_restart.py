@@ -12,7 +12,6 @@ import math
 import os
 import select
 import socket
-import subprocess
 import sys
 
 import numpy as np
@@ -146,12 +145,16 @@ def test_simulated_krc_restarting_mid_path(tmp_path):
     path, ref = _moving_reference(str(tmp_path), q0, amplitude_deg=10.0)
     port, netft = h.free_udp_port(), h.free_udp_port()
     link = rsi.RsiControllerLink("127.0.0.1", port, T)
-    th, net = h.start_cell(robot, lambda t: np.radians(ref(t)), egm_port=port, netft_port=netft, duration_s=40.0,
-                           link=link, lockstep=True, faults=Faults(restart_at=1.0, restart_pause_s=0.1))
-    cmd = h.compensate_cmd(model, payload, path, egm_port=port, netft_port=netft,
-                           extra=["--controller-protocol", "rsi", "--duration-s", "60", "--idle-exit-s", "1.0"])
+    # the path (2 s), the restart at 1 s and its pause: 3 s of the controller's clock (cut_s), whatever this
+    # machine's pace; the compensator ended by the test once the cell is done (before: the cell ran 40 s of wall
+    # clock and compensate ended on a 1 s silence, which a controller stalled that long met mid-path too)
+    th, net = h.start_cell(robot, lambda t: np.radians(ref(t)), egm_port=port, netft_port=netft, duration_s=600.0,
+                           link=link, lockstep=True, faults=Faults(restart_at=1.0, restart_pause_s=0.1), cut_s=3.0,
+                           answer_timeout_s=60.0)
+    cmd = h.compensate_cmd(model, payload, path, egm_port=port, netft_port=netft, idle_exit_s=h.HANG_GUARD_S,
+                           extra=["--controller-protocol", "rsi"])
     try:
-        cp = subprocess.run(cmd, cwd=h.ROOT, capture_output=True, text=True, timeout=200)
+        cp = h.run_compensate_until_cell_done(cmd, th.is_alive, bound_s=600.0)
     finally:
         net.stop = True
         th.join(30)

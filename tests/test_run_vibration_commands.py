@@ -93,7 +93,10 @@ def test_sim_cell_checks_the_vibration_of_its_cut(tmp_path, scenario, warns):
     try:
         cell = subprocess.run([sys.executable, "-m", "robstiff_drake", "sim-cell", str(scenario), "--egm-to",
                                f"127.0.0.1:{comp.port}", "--netft-port", str(free_udp_port()), "--reference-out",
-                               str(ref), "--json", str(out), "--wait-s", "60", "--lockstep"],
+                               str(ref), "--json", str(out), "--wait-s", "60", "--lockstep",
+                               # (the stand-in compensator is a thread of this process: a second's stall of it on a
+                               # loaded machine is no end of the run; sim-cell's default waits 1 s for an answer)
+                               "--answer-timeout-s", "60"],
                               cwd=ROOT, capture_output=True, text=True, timeout=600,
                               env=dict(os.environ, PYTHONUNBUFFERED="1"))
     finally:

@@ -98,6 +98,40 @@ def shell(script, cwd, env, timeout=BLOCK_TIMEOUT_S):
     return proc.returncode, proc.stdout, proc.stderr, time.perf_counter() - t0
 
 
+def shared_root(tmp_path_factory):
+    """A folder of this test session that every pytest-xdist worker of it sees (its base temporary folder's
+    parent under xdist, that folder itself in a serial run)."""
+    base = tmp_path_factory.getbasetemp()
+    return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+
+
+def shared_shell(script, folder, env, root, where):
+    """shell() for a block marked ``share`` (tests/doc_blocks.py): the first page of the session to reach
+    ``script`` runs it in an empty folder of its own (root/shared-KEY/run, with a package cache of its own), the
+    others wait for it (a file lock: pytest-xdist's workers are processes); every page gets its status and
+    output, and its files copied into its folder (and the cache's into its own cache).  (status, stdout, stderr,
+    seconds: 0 where the run was another page's, which ``where`` then names)."""
+    import fcntl
+    import hashlib
+
+    base = root / f"shared-{hashlib.sha1(script.encode()).hexdigest()[:12]}"
+    with open(f"{base}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # (released when the file closes)
+        done = base / "result.json"
+        if done.exists():
+            r = json.loads(done.read_text())
+            seconds, where = 0.0, f"{where} (its commands as run for {r['where']}: shared)"
+        else:
+            (base / "run").mkdir(parents=True)
+            (base / "cache").mkdir()
+            code, out, err, seconds = shell(script, base / "run", dict(env, ROBSTIFF_CACHE_DIR=str(base / "cache")))
+            r = {"code": code, "out": out, "err": err, "where": where}
+            done.write_text(json.dumps(r))
+    shutil.copytree(base / "run", folder, dirs_exist_ok=True)
+    shutil.copytree(base / "cache", env["ROBSTIFF_CACHE_DIR"], dirs_exist_ok=True)
+    return r["code"], r["out"], r["err"], seconds, where
+
+
 # ---------------------------------------------------------------- the wheel itself
 
 
@@ -172,8 +206,9 @@ def test_every_command_block_of_the_docs_is_marked():
     assert not bad, "\n".join(bad)
 
 
-def _run_page(page, root, env):
-    """Run the marked blocks of one page in order in root/PAGE; (failures, skips, timings)."""
+def _run_page(page, root, env, share_root=None):
+    """Run the marked blocks of one page in order in root/PAGE; (failures, skips, timings).  A block marked
+    ``share`` runs once in share_root's folders for the session (shared_shell; None: here, as any block)."""
     folder = root / Path(page).stem
     folder.mkdir(parents=True)
     failures, skips, timings = [], [], []
@@ -194,8 +229,12 @@ def _run_page(page, root, env):
             script += "".join(f"\n{c} && exit 91 || [ $? -eq {expect} ]" for c in commands)
         else:
             script += "".join(f"\n{c}" for c in commands)
-        code, out, err, seconds = shell(script, folder, env)
-        timings.append((seconds, b.where))
+        where = b.where
+        if "share" in b.clauses and share_root is not None:
+            code, out, err, seconds, where = shared_shell(script, folder, env, share_root, b.where)
+        else:
+            code, out, err, seconds = shell(script, folder, env)
+        timings.append((seconds, where))
         if code != 0:
             failures.append(f"{b.where} (in {folder}) exited {code}:\n{script}\n--- stderr:\n{err[-2500:]}")
     return failures, skips, timings
@@ -266,11 +305,11 @@ def _report(results, t0, cpu0):
 @pytest.mark.slow
 @pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.heavy(_weight(p)))
                                   for p in pages() if _runnable(p)])
-def test_every_doc_block_runs_from_an_empty_folder(installed, page):
+def test_every_doc_block_runs_from_an_empty_folder(installed, page, tmp_path_factory):
     """What a reader copies from docs/PAGE works as written, from the wheel, the page in its own empty folder
     (its blocks in order)."""
     t0, cpu0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
-    _report(_run_page(page, installed.tmp / "docs", installed.env), t0, cpu0)
+    _report(_run_page(page, installed.tmp / "docs", installed.env, shared_root(tmp_path_factory)), t0, cpu0)
     if page == "results.md":
         # the demo (docs/results.md, the help's example) found its scenario, robot and cutting data in the
         # installed package: the block test's result; it wrote nothing but its folder

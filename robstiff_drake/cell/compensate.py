@@ -346,8 +346,9 @@ class CompensatorLoop(LoopStart, SensorIntake, SessionFaults):
             self.event("interrupted: the run ends")
         except Terminated:  # a service manager's stop: end the run and write its log, as on Ctrl-C
             self.event("terminated: the run ends")
-        if self.ended_by == "idle" and "silent" in self.faults:
-            # the controller stopped streaming: the program's normal end, not a fault
+        if self.ended_by in ("idle", "interrupt") and "silent" in self.faults:
+            # the controller stopped streaming: the program's normal end, not a fault (and so when a service
+            # manager or Ctrl-C stops the run after that silence: its events keep both lines)
             self.faults.pop("silent")
             self.n.fault_onsets -= 1
         self.finish_start()

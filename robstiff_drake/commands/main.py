@@ -112,7 +112,8 @@ def _dispatch(args):
                             reference_out=args.reference_out, json_out=args.json, robot_yaml=args.robot,
                             period_ms=args.period_ms, lockstep=args.lockstep, protocol=args.protocol,
                             netft_http_port=args.netft_http_port, scan_out=args.scan_out,
-                            transport_delay_cycles=args.transport_delay_cycles)
+                            transport_delay_cycles=args.transport_delay_cycles,
+                            answer_timeout_s=args.answer_timeout_s)
     if args.command == "compensate":
         from robstiff_drake.commands import compensate
 

@@ -35,6 +35,9 @@ def add_cell_commands(sub):
     p.add_argument("--transport-delay-cycles", type=_number_in(0, 10, integer=True), default=None,
                    help="cycles between a message and the tick its answer acts at, beyond the next one "
                         "(default: the scenario's controller.delay_steps; run compensate with --delay-steps 0)")
+    p.add_argument("--answer-timeout-s", type=_number_in(0.1, 3600.0, "s"), default=1.0,
+                   help="once engaged, stop when no answer has come for this long (EGM's CommTimeout; a longer one "
+                        "lets a loaded PC's stalled compensator catch up in --lockstep; default: %(default)s)")
     p.add_argument("--json", metavar="OUT", help="write the result as JSON ('-' for stdout)")
     add_robot_option(p)
 

@@ -45,7 +45,7 @@ def _controller_link(protocol, host, port, period_s):
 
 def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_out=None, robot_yaml=None,
         period_ms=4.0, lockstep=False, protocol="egm", netft_http_port=None, netft_units=("N", "N-m"),
-        transport_delay_cycles=None, scan_out=None):
+        transport_delay_cycles=None, scan_out=None, answer_timeout_s=1.0):
     from robstiff_drake.cell.health import verdict
     from robstiff_drake.cell.rdt import parse_host_port
     from robstiff_drake.cell.sim_cell import CellNetwork
@@ -84,7 +84,8 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
     link = _controller_link(protocol, host, port, T)
     net = CellNetwork(station, egm_to=(host, port), netft_port=netft_port, period_s=T, lockstep=lockstep,
                       limits=limits, netft_http_port=netft_port if netft_http_port is None else netft_http_port,
-                      netft_units=netft_units, link=link, transport_delay_cycles=transport_delay_cycles)
+                      netft_units=netft_units, link=link, transport_delay_cycles=transport_delay_cycles,
+                      answer_timeout_s=answer_timeout_s)
     # in lockstep the pass may run slower than real time: allow ten times it
     run_s = wait_s + station.t_end * (10.0 if lockstep else 1.0) + 5.0
     th = None
