@@ -384,9 +384,12 @@ def test_egm_robot_message_read_by_abb_robot_client():
 
 class _AnsweringCompensator:
     """A stand-in compensator on 127.0.0.1: answers every EgmRobot with
-    ``answer(k, feedback_deg)`` (None: no answer) from a thread."""
+    ``answer(k, feedback_deg)`` (None: no answer) from a thread.
+    ``newest_only``: after a stall of this thread answer only the newest of
+    the messages queued meanwhile (as compensate does), not each in turn: an
+    answer clocked by the answers' count then never runs ahead of the cell."""
 
-    def __init__(self, answer):
+    def __init__(self, answer, newest_only=False):
         import threading
 
         from abb_robot_client.egm import EGM
@@ -394,6 +397,7 @@ class _AnsweringCompensator:
         self.port = h.free_udp_port()
         self.egm = EGM(port=self.port)
         self.answer = answer
+        self.newest_only = newest_only
         self.stop = threading.Event()
         self.k = 0
         self.th = threading.Thread(target=self._run, daemon=True)
@@ -404,6 +408,11 @@ class _AnsweringCompensator:
             ok, state = self.egm.receive_from_robot(timeout=0.05)
             if not ok:
                 continue
+            while self.newest_only:  # drop the messages queued behind a newer one
+                newer, state_newer = self.egm.receive_from_robot(timeout=0)
+                if not newer:
+                    break
+                state = state_newer
             self.k += 1
             target = self.answer(self.k, list(state.joint_angles))
             if target is not None:
