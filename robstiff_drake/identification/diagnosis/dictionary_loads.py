@@ -204,7 +204,7 @@ def _moment_bias(ctx, c):
 
 
 def _needs_moments(ctx):
-    return None if ctx.campaign.has_moments else "the file has no moment columns (mx,my,mz)"
+    return None if ctx.campaign.has_moments else "the file reports no moment (no mx,my,mz columns): its loads are forces"
 
 
 def _load_size(ctx):
