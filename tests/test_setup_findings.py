@@ -90,8 +90,9 @@ def test_millimetres_read_as_metres_are_refused_with_the_check(capsys, robot, tm
     assert "millimetres read as metres" in err and "(dx)" in err
     # loads of 15 N: the displacements within the reader's range, still 1000x what the model predicts
     small = replace(c.campaign, force_N=c.campaign.force_N * 0.05, disp_mm=c.campaign.disp_mm * 0.05)
-    with pytest.raises(InputError, match=r"look like millimetres read as metres \(or micrometres\), not mm: .*"
-                                         r"\(the readings are \d+x that\); check the units of dx,dy,dz"):
+    with pytest.raises(InputError, match=r"look like millimetres read as metres \(or micrometres\), not mm, or fx,fy,fz "
+                                         r"are .*x too small .*\(the readings are [\d.e+]+x that\); check the units of "
+                                         r"dx,dy,dz .* and of fx,fy,fz"):
         identify(robot, small, tool_m=c.declared_tool_m)
 
 
@@ -125,3 +126,19 @@ def test_every_term_has_a_typical_range_and_a_finding():
         assert prior_size(name), name
         text = finding(name, np.full(len(t.params), 1e-3), {}, "beyond")
         assert ": " in text and not text.startswith("beyond its typical size"), (name, text)  # what, then the check
+
+
+def test_an_untared_moment_is_named(robot):
+    # a moment channel read with 20 N*m and no load (8x the typical 2.4 N*m): before, no term could carry it (the
+    # six springs kept, nothing named); the moment columns' bias is a dictionary term tried only with mx,my,mz
+    c = se.make_campaign("none", SEED)
+    m = np.zeros_like(c.campaign.force_N)
+    m[:, 0] = 20.0
+    d = diagnose(robot, replace(c.campaign, moment_Nm=m, has_moments=True), tool_m=c.declared_tool_m, noise_mm=NOISE)
+    kept = {t["name"]: t for t in d.terms}
+    assert "moment_bias" in kept and kept["moment_bias"]["beyond_typical"], d.verdict
+    assert "the moment reads 20" in kept["moment_bias"]["finding"] and "tare" in kept["moment_bias"]["finding"]
+    assert d.rms_after_mm <= 1.25 * NOISE
+    # no moment columns: the term is not tried
+    d0 = diagnose(robot, c.campaign, tool_m=c.declared_tool_m, noise_mm=NOISE)
+    assert all(r.name != "moment_bias" or r.status != "ok" for rnd in d0.rounds for r in rnd)

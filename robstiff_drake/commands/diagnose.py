@@ -78,6 +78,7 @@ def to_dict(d, campaign):
         "leads": d.leads,
         "confounded": d.confounded,
         "alternatives": d.alternatives,
+        "misreadings": d.misreadings,
         "floor_check": d.floor_check,
         "fold_spread": d.fold_spread,
         "warnings": list(d.warnings),
@@ -106,6 +107,9 @@ def format_report(d, campaign, markdown=False):
     if f.replicate_mm is not None:
         floor += f"; replicate rows scatter by {f.replicate_mm:.4f} mm ({f.replicate_sets} sets, {f.replicate_dof} dof)"
     lines += [f"noise floor: {floor}", "", f"{h}verdict" if markdown else "verdict:", d.verdict, ""]
+    if d.misreadings:
+        lines.append("the file read another way (setup findings; check these first):")
+        lines += [f"  {r['name']}: {r['text']}" for r in d.misreadings] + [""]
     lines.append("effects added from the named library: " + (", ".join(d.selected) if d.selected else "none"))
     for t in d.terms:
         if t["source"] == "library":

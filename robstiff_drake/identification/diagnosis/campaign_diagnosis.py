@@ -31,6 +31,7 @@ from scipy import stats
 from robstiff_drake.identification.diagnosis import noise_floor as nf
 from robstiff_drake.identification.diagnosis import plausibility as pl
 from robstiff_drake.identification.diagnosis import findings
+from robstiff_drake.identification.diagnosis import misreadings as mr
 from robstiff_drake.identification.diagnosis import robust_fit
 from robstiff_drake.identification.diagnosis import selection
 from robstiff_drake.identification.diagnosis.confounding import CONFOUNDED_MIN, confounded_pairs
@@ -90,6 +91,7 @@ class Diagnosis:
     floor_check: dict = None  # a stated floor far above the residual: {ratio, p_below, message}
     fold_spread: dict = None  # the held-out figures over FOLD_SEEDS (identification/diagnosis/fold_spread.py)
     alternatives: list = field(default_factory=list)  # explanations the data cannot decide between (findings.py)
+    misreadings: list = field(default_factory=list)  # the file read another way fits better (misreadings.py)
 
 
 def subset(campaign, rows):
@@ -352,6 +354,10 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
                                  floor, lof,
                                  non_physical, [r["name"] for r in discovered], setup, structure,
                                  result.n_hypotheses, leads, confounded)
+    misread = mr.screen(ctx, fold_rows, units, state.resid)
+    if misread:  # evidence against the file as written: no verdict on it explains the data
+        explains, verdict = (None if explains is None else False), f"{mr.sentence(misread)}. {verdict}"
+        w.add(misread[0]["text"])
     if non_physical:
         w.add(verdict)
     floor_check = None
@@ -378,7 +384,7 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
         discovered=discovered, dropped=result.dropped, residual_structure=structure,
         n_hypotheses=result.n_hypotheses, rows_used=rows, non_physical=non_physical, warnings=list(w),
         thresholds=thresholds(fold_seed), leads=leads, confounded=confounded, floor_check=floor_check,
-        fold_spread=spread, alternatives=alternatives)
+        fold_spread=spread, alternatives=alternatives, misreadings=misread)
 
 
 __all__ = ["diagnose", "Diagnosis", "CANDIDATES", "DICTIONARY"]

@@ -16,6 +16,8 @@ rest).  Plain numpy; no Drake.
   * force_crosstalk       the reported force is a 3x3 calibration matrix away
                           from the applied one: F = (I + E) F_reported, E
                           traceless (a common scale is the stiffness's)
+  * moment_bias           a constant bias of the reported moment (files with
+                          mx,my,mz): an untared sensor's torque channels
   * load_size_compliance  the compliance changes with the load's size
                           (preload): dq = a c tau (|F| - mean |F|) / mean |F|,
                           all joints (one a) and per joint (_jJ)
@@ -192,6 +194,19 @@ def _crosstalk_matrix(v):
     return sum(x * E for x, E in zip(v, _TRACELESS))
 
 
+def _moment_bias(ctx, c):
+    cols = []
+    for k in range(3):
+        extra = np.zeros_like(ctx.W)
+        extra[:, 3 + k] = 1.0
+        cols.append(ctx.disp_of_wrench(extra, c))
+    return stack(cols)
+
+
+def _needs_moments(ctx):
+    return None if ctx.campaign.has_moments else "the file reports no moment (no mx,my,mz columns): its loads are forces"
+
+
 def _load_size(ctx):
     mag = np.linalg.norm(ctx.W[:, :3], axis=1)
     return (mag - mag.mean()) / max(mag.mean(), 1e-12)
@@ -317,6 +332,12 @@ def terms():
                                           f"{100 * np.max(np.abs(_crosstalk_matrix(v))):.3g} %",
                  plausible=lambda v, info: pl.within([np.max(np.abs(_crosstalk_matrix(v)))], CROSSTALK_MAX,
                                                      "crosstalk", "%", 100.0)),
+            Term("moment_bias", "dictionary", BILINEAR, [(f"b_m{a}", "N*m", 1.0) for a in "xyz"],
+                 columns=_moment_bias, needs=_needs_moments,
+                 describe=lambda v, info: "constant bias of the reported moment: " + ", ".join(
+                     f"m{a} {x:.3g}" for a, x in zip("xyz", v)) + " N*m",
+                 plausible=lambda v, info: pl.within([np.linalg.norm(v)], pl.MOMENT_BIAS_MAX_NM, "moment bias",
+                                                     "N*m", 1.0)),
             _load_size_term()]
     out += [_load_size_term(j) for j in range(6)]
     out += [Term("order_trend", "dictionary", LINEAR, [(f"{w}_{a}", "mm per 1000 rows", 1e3) for w in

@@ -37,6 +37,7 @@ PRIOR = {
     "link_compliance": f"0-{pl.LINK_COMPLIANCE_MAX_M_PER_N * 1e6:g} um/N (the forearm as a steel tube: 0.044 um/N)",
     "force_frame_rotation": f"<= {pl.FORCE_FRAME_MAX_RAD * 1e3:g} mrad (a sensor mounted by eye)",
     "force_bias": f"<= {pl.FORCE_BIAS_MAX_N:g} N (a tared load cell's drift)",
+    "moment_bias": f"<= {pl.MOMENT_BIAS_MAX_NM:g} N*m (a tared wrist sensor's torque drift)",
     "tool_offset": f"<= {pl.TOOL_OFFSET_MAX_M * 1e3:g} mm (a TCP calibration error)",
     "drift": f"<= {pl.DRIFT_MAX_M_PER_MEASUREMENT * 1e6:g} um per measurement (a large arm's warm-up)",
     "drift_referenced": f"<= {pl.DRIFT_MAX_M_PER_MEASUREMENT * 1e6:g} um per step",
@@ -99,6 +100,9 @@ def finding(name, values, info, why):
     if name == "force_bias":
         return (f"the force reads {np.linalg.norm(v):.0f} N with no load (bias {_vec(-v, 1.0)} N in the base frame): "
                 "tare the sensor before the campaign, or subtract its unloaded reading")
+    if name == "moment_bias":
+        return (f"the moment reads {np.linalg.norm(v):.3g} N*m with no load (bias {_vec(-v, 1.0)} N*m in the base "
+                "frame): tare the sensor's torque channels before the campaign, or subtract its unloaded reading")
     if name == "force_frame_rotation":
         return (f"the forces are reported in a frame turned {np.rad2deg(np.linalg.norm(v)):.1f} deg against the "
                 "robot's base: check the sensor's mounting angle and the frame its readings are given in")

@@ -102,6 +102,11 @@ DRIFT_TOTAL_MAX_M = 5.0e-4
 TOOL_OFFSET_MAX_M = 0.02
 # Constant bias of the reported force (N): a tared load cell drifts by a few N.
 FORCE_BIAS_MAX_N = 20.0
+# Constant bias of the reported moment (N*m), files with mx,my,mz: the force
+# bound at a wrist sensor's torque-to-force range (ATI Omega160 SI-1000-120:
+# 120 N*m / 1000 N = 0.12 m; ASSUMPTION: its torque channels drift in that
+# proportion): 2.4 N*m.
+MOMENT_BIAS_MAX_NM = FORCE_BIAS_MAX_N * 0.12
 # Force sensor / load cell frame turned against the base (rad).
 FORCE_FRAME_MAX_RAD = 0.1
 # Factor of the CCT term K_g: 1 is the physics; 0-3 allows for the loads'

@@ -87,14 +87,22 @@ def check_displacement_units(campaign, predicted_nominal_mm):
     ratio = np.median(meas[use]) / np.median(pred[use])
     said = (f"median |d| = {np.median(meas[use]):.3g}, the nominal model predicts {np.median(pred[use]):.3g} mm for "
             "these loads")
+    # the ratio is of displacement per force: a force unit off by the same factor looks the same (kN written in the
+    # N columns is 1000x; lbf 4.45x, within what a real arm's stiffness spreads, so not caught here)
+    f_med = float(np.median(np.linalg.norm(campaign.force_N[use], axis=1)))
     if ratio < 0.02:
-        raise InputError(f"{campaign.path}: displacements dx,dy,dz look like metres, not mm: {said} (the readings are "
-                         f"1/{1 / ratio:.3g} of that); check the units of dx,dy,dz (the file holds mm)")
+        raise InputError(f"{campaign.path}: displacements dx,dy,dz look like metres, not mm, or fx,fy,fz are "
+                         f"{1 / ratio:.3g}x too large (median |F| = {f_med:.3g} N): {said} (the readings are "
+                         f"1/{1 / ratio:.3g} of that); check the units of dx,dy,dz (the file holds mm) and of "
+                         "fx,fy,fz (N)")
     if ratio > 50:
-        # about 1000x: a reading in mm taken for metres somewhere before the file, then written in mm
+        # about 1000x: a reading in mm taken for metres somewhere before the file, then written in mm; or forces in kN
+        # written in the N columns (the same ratio of displacement to force)
         what = "millimetres read as metres (or micrometres)" if 300 <= ratio <= 3000 else "micrometres"
-        raise InputError(f"{campaign.path}: displacements dx,dy,dz look like {what}, not mm: {said} (the readings "
-                         f"are {ratio:.3g}x that); check the units of dx,dy,dz (the file holds mm)")
+        kn = " (forces in kN written as N give 1000x)" if 300 <= ratio <= 3000 else ""
+        raise InputError(f"{campaign.path}: displacements dx,dy,dz look like {what}, not mm, or fx,fy,fz are "
+                         f"{ratio:.3g}x too small{kn}, median |F| = {f_med:.3g} N: {said} (the readings are "
+                         f"{ratio:.3g}x that); check the units of dx,dy,dz (the file holds mm) and of fx,fy,fz (N)")
 
 
 # Rows whose measured displacement per predicted one sits this many decades

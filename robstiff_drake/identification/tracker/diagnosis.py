@@ -42,6 +42,7 @@ import numpy as np
 
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.diagnosis import noise_floor as nf
+from robstiff_drake.identification.tracker import angle_readings
 from robstiff_drake.identification.tracker import residual_map as rmap
 from robstiff_drake.identification.tracker import periodic as tpd
 from robstiff_drake.identification.diagnosis.confounding import CONFOUNDED_MIN
@@ -159,7 +160,16 @@ def _prepare(robot, campaign, tool_m, w):
     guess = _tool_guess_m(campaign, robot, tool_m)
     q = robot.joint_rad(campaign.q_deg)
     nominal_mm = kin.tool_position(robot.dh, q, guess) * 1e3
-    unit = position_scale(campaign, nominal_mm)
+
+    def registered(q_deg):  # a joint column misread? (angle_readings.py) the points registered at those angles
+        alt = Problem(robot, q_deg, campaign.pos * (campaign.pos_unit_mm or 1.0) / 1e3)
+        return _rms3d(alt, _declared_fit(alt, robot, np.arange(alt.n), guess), np.arange(alt.n))
+    try:
+        unit = position_scale(campaign, nominal_mm)
+    except InputError as e:
+        if "no length unit" not in str(e):
+            raise
+        raise InputError(str(e) + angle_readings.hint(campaign.q_deg, registered, np.inf, MAX_REGISTRATION_MM))
     if "x" in campaign.units and unit != 1.0:  # only a conversion is worth a line (a header in mm is not)
         w.add(f"{campaign.path}: positions read in {campaign.units['x']} (from the header) and converted to mm")
     check_geometry(campaign.path, campaign.pos * unit)
@@ -173,7 +183,8 @@ def _prepare(robot, campaign, tool_m, w):
     if rms > MAX_REGISTRATION_MM:
         raise InputError(f"{campaign.path}: registered to {robot.name}'s nominal arm ({robot.source}) the points are "
                          f"{rms:.4g} mm RMS off: the robot file does not describe this arm, or q1..q6 are not its "
-                         f"controller's angles (refused above {MAX_REGISTRATION_MM:g} mm)")
+                         f"controller's angles (refused above {MAX_REGISTRATION_MM:g} mm)"
+                         + angle_readings.hint(campaign.q_deg, registered, rms, MAX_REGISTRATION_MM))
     if rms > WARN_REGISTRATION_MM:
         w.add(f"registration on the nominal arm leaves {rms:.3g} mm RMS, more than an uncalibrated arm's few mm: "
               "check that the robot file and the angle convention are this arm's")
