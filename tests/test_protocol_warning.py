@@ -31,3 +31,37 @@ def test_compensate_warns_before_it_reads_the_model(tmp_path, capsys):
     code = main(["compensate", "--robot", "r2000ic_165f", "--controller-protocol", "stream-motion", "--listen-port",
                  "0", "--netft", "127.0.0.1", "--model", str(tmp_path / "k.json"), "--payload", str(tmp_path / "p.yaml")])
     assert code == 2 and "FANUC arm" not in capsys.readouterr().err
+
+
+def test_compensate_carries_the_warning_into_summary_json(tmp_path):
+    """A KUKA arm streamed over EGM (legal: the conventions' tests do it on purpose): the run goes on and its
+    summary.json's warnings carry the protocol line the text printed (the standards: in the text and the JSON)."""
+    import json
+    import os
+    import sys
+
+    import numpy as np
+
+    sys.path.insert(0, os.path.dirname(__file__))
+    import cell_helpers as h
+
+    robot = load_robot("kr240_r2900")
+    model, payload, _, ref_fn = h.write_inputs(str(tmp_path), robot, duration_s=0.5)
+    q0 = np.degrees(ref_fn(0.0))
+    sensor = h.FakeSensor(h.hold_wrench(robot, ref_fn(0.0)))
+    port, log = h.free_udp_port(), str(tmp_path / "log")
+    proc = h.start_compensate(model, payload, sensor, port, log=log, extra=["--robot", "kr240_r2900"])
+    ctrl = h.ScriptedController(port)
+    try:
+        for k in range(1, 20):
+            assert ctrl.exchange(k, k * 4, q0) is not None, f"no answer to message {k}"
+        code, err = h.finish(proc)
+    finally:
+        ctrl.close()
+        sensor.close()
+    assert code == 0, err
+    said = [x for x in (proc.early_err + err).splitlines() if "is a KUKA arm" in x]
+    assert said and said[0].startswith("robstiff: warning: ") and "--controller-protocol rsi" in said[0], said
+    summary = json.loads(open(os.path.join(log, "summary.json")).read())
+    warned = [w for w in summary["warnings"] if "is a KUKA arm" in w]
+    assert len(warned) == 1 and warned[0] in said[0], summary["warnings"]
