@@ -136,7 +136,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     check_axis_limits(robot)
     from robstiff_drake.commands.options import protocol_warning
 
-    protocol_line = protocol_warning(robot, protocol)  # (None, or a warning for summary.json too)
+    protocol_warning(robot, protocol)
     k = read_model(model, robot)
     play = read_play(json_doc(model, "--model"), f"--model {model}") or (job_play(sc_job, job) if job else None)
     try:
@@ -351,8 +351,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                    "preview_table": table,
                    "cycles": stats, "health": h, "loop_check": guard.result, "play": play_summary,
                    "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])
-                   + ([play_line] if play_line else []) + ([bound_line] if bound_line else [])
-                   + ([protocol_line] if protocol_line else [])}
+                   + ([play_line] if play_line else []) + ([bound_line] if bound_line else [])}
         written = stream_log.close(summary)
         wrote(log, ", ".join(written), folder=True, to_stderr=True)
         if servo is None or cutter_diameter_mm is None:
