@@ -211,6 +211,17 @@ def run_compensate_until_cell_done(cmd, cell_running, *, bound_s, env=None, star
     return subprocess.CompletedProcess(cmd, code, out, err)
 
 
+def run_compensate_against_thread_cell(cmd, th, net, *, bound_s=600.0):
+    """run_compensate_until_cell_done against a cell of start_cell (its thread ``th``, its network ``net``),
+    then the cell stopped and closed whatever happened.  A completed process (text)."""
+    try:
+        return run_compensate_until_cell_done(cmd, th.is_alive, bound_s=bound_s)
+    finally:
+        net.stop = True
+        th.join(30)
+        net.close()
+
+
 class FakeSensor:
     """A Net F/T on 127.0.0.1 (RDT and its calibration page) streaming
     ``wrench(t)`` (N, N*m, sensor frame; ``by_record``: ``wrench(i)`` of the

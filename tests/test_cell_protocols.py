@@ -114,12 +114,7 @@ def test_compensate_over_rsi_and_stream_motion(tmp_path, protocol):
                            netft_port=netft, log=str(tmp_path / "log"), idle_exit_s=h.HANG_GUARD_S,
                            extra=["--controller-protocol", protocol, "--sensor-timeout-ms", "1000"]
                            + (["--controller", f"127.0.0.1:{port}"] if protocol == "stream-motion" else []))
-    try:
-        cp = h.run_compensate_until_cell_done(cmd, th.is_alive, bound_s=600.0)
-    finally:
-        net.stop = True
-        th.join(30)
-        net.close()
+    cp = h.run_compensate_against_thread_cell(cmd, th, net)
     assert cp.returncode == 0, cp.stderr
     assert net.stats.answered > 300 and net.stats.refused == 0, (net.stats.answered, net.stats.stop_reason)
     ex = [x for x in net.stats.extra if x is not None]

@@ -153,12 +153,7 @@ def test_simulated_krc_restarting_mid_path(tmp_path):
                            answer_timeout_s=60.0)
     cmd = h.compensate_cmd(model, payload, path, egm_port=port, netft_port=netft, idle_exit_s=h.HANG_GUARD_S,
                            extra=["--controller-protocol", "rsi"])
-    try:
-        cp = h.run_compensate_until_cell_done(cmd, th.is_alive, bound_s=600.0)
-    finally:
-        net.stop = True
-        th.join(30)
-        net.close()
+    cp = h.run_compensate_against_thread_cell(cmd, th, net)
     assert net.stats.refused == 0, (net.stats.stop_reason, cp.stderr[-2000:])
     assert "RSI: a new session" in cp.stderr, cp.stderr[-2000:]
     q = np.degrees(np.array(net.stats.q_cmd))
