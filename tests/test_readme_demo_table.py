@@ -25,7 +25,9 @@ def _readme_rows():
 
 def _cli_example_rows():
     text = (ROOT / "docs" / "cli.md").read_text()
-    block = text[text.index("$ robstiff demo\n"):]
+    start = re.search(r"^\$ robstiff demo( --out robstiff-out)?\n", text, re.M)  # (the default folder, written out)
+    assert start, "docs/cli.md has no `$ robstiff demo` example"
+    block = text[start.start():]
     block = block[:block.index("```")]
     out = {}
     for key in ROWS.values():
