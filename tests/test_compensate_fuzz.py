@@ -356,11 +356,6 @@ def test_rsi_many_unconfirmed_skips_refuse_rather_than_grow(robot):
     assert math.isfinite(worst)
 
 
-@pytest.mark.xfail(strict=True, reason="OPEN (reported, not fixed): an IPOC that jumps back, or forward beyond the "
-                   "time passed here, is taken for a restart (cell/rsi.py's docstring) and the start learnt again from the "
-                   "setpoint; a KRC that kept its session then commands its OLD start plus the new AK. Telling them "
-                   "apart needs every new session checked under the old start too, which leaves a real restart far "
-                   "from the old start unanswered (tests/test_cell_review.py and test_rsi_restart.py pin it answered)")
 @pytest.mark.parametrize("jump_ms", [-400, 4000])
 def test_rsi_an_ipoc_epoch_jump_without_a_restart_moves_nothing(robot, jump_ms):
     """The KRC keeps its session (no RSI_MOVECORR again) but its IPOC jumps
@@ -368,9 +363,13 @@ def test_rsi_an_ipoc_epoch_jump_without_a_restart_moves_nothing(robot, jump_ms):
     time): the pose it commands must stay within the clamp of the reference.
     Today the PC's one answer from the setpoint taken as the new start moves
     it 2.4 deg (2 deg/s path, 300 cycles from the session's start) in one
-    cycle."""
+    cycle.  Before: that (the strict xfail this was).  Now a new epoch
+    without a restart's silence (cell/rsi.RESTART_SILENCE_PERIODS) keeps the
+    old start among those not ruled out: the answer from the new start is
+    refused (the controller stops), nothing moves beyond the clamp."""
     def script(rng, k, krc):
         return (jump_ms if k == 300 else 4), None, None
 
     worst, loop, text = _rsi_loop(robot, script, n=330)
     assert worst <= float(clamp_deg(robot, 0.5).max()) + 2.0 * T + 1e-6, worst
+    assert "without a restart's silence" in text and "the old start" in text, text[-2000:]

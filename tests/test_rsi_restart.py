@@ -13,6 +13,7 @@ import os
 import select
 import socket
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -62,7 +63,11 @@ class ScriptedKrc:
         self.commanded = list(start_deg)
         self.ipoc0, self.i = ipoc0, 0
 
-    def restart(self, ipoc0):
+    def restart(self, ipoc0, silence_s=0.1):
+        """RSI_OFF, then RSI_ON/RSI_MOVECORR: ``silence_s`` without a
+        datagram (a restart is no time stamp that jumps at the period's
+        cadence: cell/rsi.RESTART_SILENCE_PERIODS), then the new epoch."""
+        time.sleep(silence_s)
         self.ipoc0, self.i = ipoc0, 0
         self.start = list(self.commanded)
 

@@ -56,8 +56,12 @@ AK (else refused: the controller stops); a second such skip before a
 setpoint told the first apart keeps both starts (every start not ruled
 out, at most ``MAX_STARTS_UNRULED``: beyond, nothing is answered), so the
 session's own start is never forgotten.  A skip beyond that, or backwards,
-is a new IPOC epoch: a restart.  So a restart whose IPOC goes on with the
-time, at a pose away from the old start, is not answered.
+is a new IPOC epoch: a restart, when the controller fell silent before it
+(more than ``RESTART_SILENCE_PERIODS``); at the period's cadence it is
+treated as the lost datagrams are (a time stamp that jumped while the
+controller kept its session).  So a restart whose IPOC goes on with the
+time, or that comes without a silence, at a pose away from the old start,
+is not answered.
 
 The IPOC's wrap.  A millisecond counter of 32 bits wraps after 49.7 days of
 the controller's uptime (``IPOC_WRAPS_MS``: the assumption).  The IPOC
@@ -88,6 +92,15 @@ RECENT_CORRECTIONS = 64  # the answers (4 ms each: 0.26 s) a controller's setpoi
 # this may be lost datagrams of the same session, not a new epoch.  ASSUMPTION: a controller's datagrams reach
 # this PC within a second of their IPOC's spacing (a wired link delays them by milliseconds).
 LOST_ALIKE_MARGIN_MS = 1000.0
+# A new IPOC epoch is taken for a restart only after the controller fell silent for more than this many periods
+# (the datagrams' arrival stamps): a restart stops RSI and starts it again (RSI_OFF, then RSI_ON/RSI_MOVECORR in the
+# KRL program), a controller that kept its session sends on at its period.  An IPOC that jumps back, or further ahead
+# than the time passed, at the period's cadence (a corrupted or reset time stamp) is then no restart taken on trust:
+# the session before stays among the starts not ruled out (as after lost datagrams) until a setpoint tells them
+# apart.  ASSUMPTION: no public source at hand gives the shortest silence of an RSI restart; if a real one is shorter,
+# that restart is answered only where safe from the old start too, else refused (the controller stops): the safe
+# side.  Before (fuzz, tests/test_compensate_fuzz.py): such a jump moved the arm 2.4 deg back along a 2 deg/s path.
+RESTART_SILENCE_PERIODS = 5
 # The starts a controller may still count from after IPOC skips that may be lost datagrams (each kept until a
 # setpoint rules it out): beyond this many in a row nothing is answered (the check's cost stays bounded).
 MAX_STARTS_UNRULED = 8
@@ -205,6 +218,7 @@ class RsiLink(PCLink):
         self._t_last = None  # when the newest datagram of this session arrived (s, time.monotonic)
         # (the session before's start, its recent corrections) while a new session may be lost datagrams instead
         self._maybe_old = None
+        self._doubt = ""  # (why the starts in _maybe_old are not ruled out: said in a refusal)
         self._ipoc_last = None  # the newest IPOC of this session (ms), counted on across wraps
         self._ipoc_offset_ms = 0  # what the wraps seen add to a raw IPOC (ms)
         self._last_wrap_ms = None  # the wrap last crossed (one of IPOC_WRAPS_MS)
@@ -288,7 +302,12 @@ class RsiLink(PCLink):
             else:
                 # (a forward skip within the time that passed here may be datagrams lost in a row: docstring)
                 waited_ms = (now - self._t_last) * 1e3
-                self._new_session(here, seq, lost_alike=0 < ds * self.period_ms <= waited_ms + LOST_ALIKE_MARGIN_MS)
+                lost_alike = 0 < ds * self.period_ms <= waited_ms + LOST_ALIKE_MARGIN_MS
+                unbroken = waited_ms <= RESTART_SILENCE_PERIODS * self.period_ms  # (no restart's silence before it)
+                self._new_session(here, seq, lost_alike=lost_alike or unbroken)
+                self._doubt = ("no more than the time that passed here: lost datagrams, perhaps" if lost_alike else
+                               f"{waited_ms:.0f} ms after the last datagram, without a restart's silence: a time "
+                               "stamp that jumped, perhaps")
                 self._t_last = now
                 self._ipoc_last = ipoc_u
                 new = True
@@ -315,9 +334,9 @@ class RsiLink(PCLink):
                 pose = [o + t - s for o, t, s in zip(old_start, targets_deg, self.start_deg)]
                 reason = unsafe_reason(pose, envelope)
                 if reason is not None:
-                    raise UnsafeTarget(f"RSI: the IPOC skipped {message.seq - self.previous_seq} cycles, no more than "
-                                       "the time that passed here: lost datagrams, perhaps, not a restart; from the "
-                                       f"old start {_fmt_deg(old_start)} the controller would command {reason}")
+                    raise UnsafeTarget(f"RSI: the IPOC skipped {message.seq - self.previous_seq} cycles, "
+                                       f"{self._doubt}, not a restart; from the old start {_fmt_deg(old_start)} the "
+                                       f"controller would command {reason}")
         sent = super().send_targets(message, targets_deg, envelope)
         if sent:
             self._aks.append(self._last_ak)
