@@ -58,6 +58,28 @@ RADIAN_MAX = 2 * np.pi
 GAIN = MIN_GAIN["library"]  # the held-out gain a named effect needs (selection.py)
 
 
+def joint_column_readings(q_deg):
+    """[(kind, joints, q_deg read that way)] of a campaign's joint columns
+    (N, 6) deg, in this order: ("radians", (j,), ...) for each column whose
+    every value could be radians (|q| <= RADIAN_MAX) and that moves, then
+    ("swap", (a, b), ...) for each pair of columns that differ.  Shared by
+    the stiffness diagnosis (below) and the tracker's registration check
+    (identification/tracker/angle_readings.py)."""
+    q = np.asarray(q_deg, dtype=float)
+    out = []
+    for j in range(6):
+        if np.all(np.abs(q[:, j]) <= RADIAN_MAX) and np.ptp(q[:, j]) > 0:
+            qq = q.copy()
+            qq[:, j] = np.rad2deg(q[:, j])
+            out.append(("radians", (j,), qq))
+    for a, b in combinations(range(6), 2):
+        if not np.allclose(q[:, a], q[:, b]):
+            qq = q.copy()
+            qq[:, [a, b]] = q[:, [b, a]]
+            out.append(("swap", (a, b), qq))
+    return out
+
+
 def _readings(campaign):
     """[(name, what was wrong, the check to make, the campaign read that way)]."""
     out = []
@@ -75,22 +97,17 @@ def _readings(campaign):
         out.append((f"disp_sign_{a}", f"d{a} with the wrong sign",
                     f"check the instrument's {a} axis against the robot's base frame (loaded minus unloaded)",
                     replace(campaign, disp_mm=d)))
-    q = campaign.q_deg
-    for j in range(6):
-        if np.all(np.abs(q[:, j]) <= RADIAN_MAX) and np.ptp(q[:, j]) > 0:
-            qq = q.copy()
-            qq[:, j] = np.rad2deg(q[:, j])
-            out.append((f"radians_q{j + 1}", f"q{j + 1} written in radians in a column of degrees",
-                        f"check q{j + 1}'s unit where the file was made (the controller gives degrees)",
+    for kind, joints, qq in joint_column_readings(campaign.q_deg):
+        if kind == "radians":
+            j = joints[0] + 1
+            out.append((f"radians_q{j}", f"q{j} written in radians in a column of degrees",
+                        f"check q{j}'s unit where the file was made (the controller gives degrees)",
                         replace(campaign, q_deg=qq)))
-    for a, b in combinations(range(6), 2):
-        if np.allclose(q[:, a], q[:, b]):
-            continue
-        qq = q.copy()
-        qq[:, [a, b]] = q[:, [b, a]]
-        out.append((f"swap_q{a + 1}q{b + 1}", f"the columns q{a + 1} and q{b + 1} interchanged",
-                    f"check the order of the joint columns where the file was made (q{a + 1} is joint {a + 1})",
-                    replace(campaign, q_deg=qq)))
+        else:
+            a, b = joints[0] + 1, joints[1] + 1
+            out.append((f"swap_q{a}q{b}", f"the columns q{a} and q{b} interchanged",
+                        f"check the order of the joint columns where the file was made (q{a} is joint {a})",
+                        replace(campaign, q_deg=qq)))
     return out
 
 

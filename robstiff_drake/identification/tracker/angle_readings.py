@@ -13,29 +13,23 @@ when it registers within the limit and 3x better than the file as written
 is changed: the user fixes the file.
 """
 
-from itertools import combinations
-
 import numpy as np
 
 from robstiff_drake.errors import InputError
+from robstiff_drake.identification.diagnosis.misreadings import joint_column_readings
 
-RADIAN_MAX = 2 * np.pi  # radians never exceed a full turn (joint ranges reach +-360 deg at most)
 BETTER = 3.0  # registered this many times better than as written (diagnosis._check_angles's factor)
 
 
 def readings(q_deg):
     """[(what, check, q_deg read that way)]."""
     out = []
-    for j in range(6):
-        if np.all(np.abs(q_deg[:, j]) <= RADIAN_MAX) and np.ptp(q_deg[:, j]) > 0:
-            q = q_deg.copy()
-            q[:, j] = np.rad2deg(q_deg[:, j])
-            out.append((f"q{j + 1} in radians", f"check q{j + 1}'s unit where the file was made", q))
-    for a, b in combinations(range(6), 2):
-        if not np.allclose(q_deg[:, a], q_deg[:, b]):
-            q = q_deg.copy()
-            q[:, [a, b]] = q_deg[:, [b, a]]
-            out.append((f"q{a + 1} and q{b + 1} interchanged", "check the order of the joint columns", q))
+    for kind, joints, q in joint_column_readings(q_deg):  # (the stiffness diagnosis's readings of the columns)
+        if kind == "radians":
+            out.append((f"q{joints[0] + 1} in radians", f"check q{joints[0] + 1}'s unit where the file was made", q))
+        else:
+            a, b = joints[0] + 1, joints[1] + 1
+            out.append((f"q{a} and q{b} interchanged", "check the order of the joint columns", q))
     return out
 
 
