@@ -131,6 +131,13 @@ class PCLink:
     # an answer that leaves later missed that cycle even when this PC saw the next message late (a late
     # datagram, not a late controller).  Each protocol states its own (EgmLink, RsiLink, StreamMotionLink).
     answer_deadline_periods = 1.0
+    # With ``--controller HOST`` and no port (EGM's controller sends from a port of its own), the port of the
+    # first message decoded is the controller's: another port on that host is a stranger while the controller
+    # speaks, and is taken up only after it fell silent this long (a new session: EGM stopped and started
+    # again).  ASSUMPTION: 0.1 s, 25 of EGM's 4 ms periods; no public source gives how soon a restarted EGM
+    # session sends; a faster one is heard at most this late.  Before, every port on the host was heard and the
+    # answer went to the newest sender's.
+    port_switch_silence_s = 0.1
 
     def __init__(self, listen_port, controller):
         self.controller_ip, self.controller_port = controller
@@ -153,6 +160,8 @@ class PCLink:
                 pass
         self._anc = socket.CMSG_SPACE(_TIMESPEC.size) + 64 if self._stamped else 0
         self.reply_to = None if self.controller_port is None else (self.controller_ip, self.controller_port)
+        self._heard_s = None  # when the controller's port (learnt, when not given) was last heard (time.monotonic)
+        self.port_switches = 0  # times the learnt port changed (after the silence above)
         self.strangers = 0
         self.stranger_example = None
         self.malformed = 0
@@ -199,8 +208,14 @@ class PCLink:
 
     # ------------------------------------------------------------ receiving
 
-    def _from_controller(self, addr):
-        return addr[0] == self.controller_ip and (self.controller_port is None or addr[1] == self.controller_port)
+    def _from_controller(self, addr, t_s):
+        """Whether a datagram from ``addr`` that came at ``t_s`` (time.monotonic) is the controller's."""
+        if addr[0] != self.controller_ip:
+            return False
+        if self.controller_port is not None:
+            return addr[1] == self.controller_port
+        learnt = None if self.reply_to is None else self.reply_to[1]
+        return learnt is None or addr[1] == learnt or t_s - self._heard_s > self.port_switch_silence_s
 
     def receive(self, timeout_s):
         """[(Message, arrival time s on time.monotonic)] of the controller's
@@ -232,20 +247,24 @@ class PCLink:
                 break
             t = time.monotonic()
             waited = queued_s(stamp_s(anc), time.time()) if self._stamped else float("nan")
-            if not self._from_controller(addr):
+            arrival = t - waited if math.isfinite(waited) else t
+            if not self._from_controller(addr, arrival):
                 self.strangers += 1
                 if self.stranger_example is None:
                     self.stranger_example = f"{addr[0]}:{addr[1]}"
                 continue
-            self.arrival_s = t - waited if math.isfinite(waited) else t
+            self.arrival_s = arrival
             try:
                 msg = self.decode(data)
             except MessageError as e:
                 self.malformed += 1
                 self.malformed_example = str(e)
                 continue
-            if self.controller_port is None:
-                self.reply_to = addr  # the controller's own port (EGM sends from any)
+            if self.controller_port is None:  # the controller's own port (EGM sends from one of its own)
+                if self.reply_to is not None and self.reply_to[1] != addr[1]:
+                    self.port_switches += 1
+                self.reply_to = addr
+                self._heard_s = arrival
             msg.queued_s = waited
             out.append((msg, t))
         return out

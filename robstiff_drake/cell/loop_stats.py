@@ -32,6 +32,7 @@ def loop_stats(loop):
             "unanswered": unanswered, "skipped": n.skipped, "lost_in_network": n.lost,
             "duplicates_dropped": n.duplicates, "old_dropped": n.old, "sequence_jumps": n.jumps,
             "clock_faults": n.clock_faults, "strangers_dropped": loop.link.strangers,
+            "controller_port_switches": getattr(loop.link, "port_switches", 0),
             "malformed": loop.link.malformed, "targets_refused": n.refused,
             "compute_ms": n.compute_ms.summary(), "correction_age_ms": n.age_ms.summary(),
             # (from the datagram's arrival at this PC, the kernel's stamp: with the wait to be read; the answers
