@@ -37,7 +37,8 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.cell.realtime_thread import pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
     realtime as _realtime, restore_gc as _restore_gc
 from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_DEG, DEFAULT_MAX_CORRECTION_MM
-from robstiff_drake.progress import info, wrote
+from robstiff_drake.commands.compensate_report import report
+from robstiff_drake.progress import info
 
 # How far the first joint feedback may be from the reference's start (deg)
 # before the run is refused: the robot must be brought to the path's start
@@ -312,64 +313,21 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         sensor.close()
         link.close()
     bound_line = bound_line or (hold_said[0] if hold_said else None)
-    stats = loop.stats()
-    cm = stats["compute_ms"]
-    print(f"robstiff: compensate: {stats['messages']} messages, {stats['answered']} answered; computation per message "
-          f"median {cm['median']:.3f} ms, p99 {cm['p99']:.3f} ms, max {cm['max']:.3f} ms{_response(stats)}; correction "
-          f"age median "
-          f"{stats['correction_age_ms']['median']:.2f} ms; {stats['late']} late, {stats['unanswered']} unanswered; "
-          f"{stats['fault_onsets']} faults; {stats['strangers_dropped']} datagrams from strangers dropped",
-          file=sys.stderr)
-    h = stats["health"]
-    table = "disk cache" if job is not None and background is None else background.note() if background else None
-    if background is not None and loop.preview is None:
-        print(f"robstiff: warning: compensate: preview: the job's table {table}", file=sys.stderr)
-    if loop.preview is not None:
-        pv = loop.preview.summary()
-        fb = pv["fallback"]
-        until = "to the end" if fb is None else f"until t = {fb['t_s']:.3f} s ({fb['why']})"
-        print(f"robstiff: compensate: preview {until}; force scales "
-              f"{', '.join(f'{v:.2f}' for v in pv['force_scales'])}; the arm's offset from the plan at most "
-              f"{pv['max_plan_offset_ms']:.1f} ms; the force's departure from the model at most "
-              f"{pv['max_force_departure_N']:.0f} N", file=sys.stderr)
-    print(f"robstiff: {'warning: ' if h['verdict'] != 'good' else ''}compensate: {h['line']}", file=sys.stderr)
-    if stream_log is not None:
-        summary = {"command": "compensate", "protocol": protocol, "listen_port": link.port, "controller": where,
-                   "netft": f"{host}:{port}", "netft_calibration": c, "robot": robot.name, "model": str(model),
-                   "payload": str(payload), "reference": str(reference) if reference else None,
-                   "joint_stiffness_Nm_per_rad": k, "settings": {
-                       "period_ms": period_ms, "sensor_rate_hz": sensor_rate_hz, "filter_kind": filter_kind,
-                       "cutoff_hz": cutoff_hz, "filter_order": filter_order, "max_jump_N": max_jump_N,
-                       "max_jump_Nm": max_jump_Nm, "saturation_deg": saturation_deg,
-                       "rate_limit_deg_per_s": rate_limit_deg_per_s, "delay_steps": delay_steps,
-                       "max_correction_mm": max_correction_mm, "max_correction_deg": max_correction_deg,
-                       "sensor_timeout_ms": sensor_timeout_ms},
-                   "mode": mode, "job": str(job) if job else None,
-                   # (None: the correction computed online; else why it was held at zero: a corrected reference)
-                   "correction_held_at_zero": correction_off,
-                   "preview": loop.preview.summary() if loop.preview is not None else None,
-                   "preview_table": table,
-                   "cycles": stats, "health": h, "loop_check": guard.result, "play": play_summary,
-                   "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])
-                   + ([play_line] if play_line else []) + ([bound_line] if bound_line else [])}
-        written = stream_log.close(summary)
-        wrote(log, ", ".join(written), folder=True, to_stderr=True)
-        if servo is None or cutter_diameter_mm is None:
-            print("robstiff: note: compensator.yaml lacks " + " and ".join(
-                x for x, v in (("the controller's servo (--servo)", servo),
-                               ("tool.cutter_diameter_mm (--cutter-diameter-mm)", cutter_diameter_mm)) if v is None)
-                  + "; diagnose-run needs them", file=sys.stderr)
+    report(loop, link, guard, background, stream_log, log=log, job=job, inputs=dict(
+        protocol=protocol, controller=where, netft=f"{host}:{port}", netft_calibration=c, robot=robot.name,
+        model=str(model), payload=str(payload), reference=str(reference) if reference else None,
+        joint_stiffness_Nm_per_rad=k, settings={
+            "period_ms": period_ms, "sensor_rate_hz": sensor_rate_hz, "filter_kind": filter_kind,
+            "cutoff_hz": cutoff_hz, "filter_order": filter_order, "max_jump_N": max_jump_N,
+            "max_jump_Nm": max_jump_Nm, "saturation_deg": saturation_deg,
+            "rate_limit_deg_per_s": rate_limit_deg_per_s, "delay_steps": delay_steps,
+            "max_correction_mm": max_correction_mm, "max_correction_deg": max_correction_deg,
+            "sensor_timeout_ms": sensor_timeout_ms},
+        mode=mode, job=str(job) if job else None,
+        # (None: the correction computed online; else why it was held at zero: a corrected reference)
+        correction_held_at_zero=correction_off), notes=(play_line, play_summary, bound_line),
+        missing=(servo, cutter_diameter_mm))
     return 0
-
-
-def _response(stats):
-    """The end line's part on the time from a datagram's arrival at this PC
-    (the kernel's stamp) to its answer ("" where the system gives none)."""
-    r = stats["response_ms"]
-    if not r["stamped"]:
-        return ""
-    return (f" (from its arrival at this PC, with the wait to be read: p99 {r['p99']:.3f} ms, max {r['max']:.3f} ms, "
-            f"{r['over_period']} over a period)")
 
 
 def _hold_check(remote, q0):
