@@ -216,6 +216,12 @@ def spread(points):
     return float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1))))
 
 
+class UnmatchedSpread(InputError):
+    """The measured points' spread matches the nominal arm's in no length
+    unit (another arm, or joint angles read another way: the diagnosis then
+    tries the angles' readings before it refuses)."""
+
+
 def position_scale(campaign, nominal_mm):
     """Decide the unit of positions the header does not name, from the
     spread of the measured points against that of the nominal arm's tool
@@ -237,5 +243,5 @@ def position_scale(campaign, nominal_mm):
             tag = {"metres": "x_m or 'x [m]'", "inches": "x_in or 'x [in]'", "cm": "x_cm or 'x [cm]'"}[unit]
             raise InputError(f"{what}: the positions look like {unit}, not mm; write mm or name the unit in the "
                              f"header ({tag})")
-    raise InputError(f"{what} ({ratio:.3g}x): no length unit makes them match; is the robot file for this arm, and "
+    raise UnmatchedSpread(f"{what} ({ratio:.3g}x): no length unit makes them match; is the robot file for this arm, and "
                      "are q1..q6 its controller's angles?")

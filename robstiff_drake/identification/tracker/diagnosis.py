@@ -49,7 +49,7 @@ from robstiff_drake.identification.diagnosis.confounding import CONFOUNDED_MIN
 from robstiff_drake.identification.diagnosis.cross_validation import FOLD_SEED, K_FOLDS, pose_groups, splits
 from robstiff_drake.identification.tracker.registration import check_geometry, register
 from robstiff_drake.identification.threads import single_blas_thread
-from robstiff_drake.identification.tracker.campaign import position_scale
+from robstiff_drake.identification.tracker.campaign import UnmatchedSpread, position_scale
 from robstiff_drake.identification.tracker.fit import Fit, LinearCV, Problem, independent_columns, rows_to_eq
 from robstiff_drake.identification.tracker.loads import load_blocks
 from robstiff_drake.identification.tracker.model import GEOM, geometry_jacobian, geometry_params, gravity_in_base
@@ -166,9 +166,7 @@ def _prepare(robot, campaign, tool_m, w):
         return _rms3d(alt, _declared_fit(alt, robot, np.arange(alt.n), guess), np.arange(alt.n))
     try:
         unit = position_scale(campaign, nominal_mm)
-    except InputError as e:
-        if "no length unit" not in str(e):
-            raise
+    except UnmatchedSpread as e:
         raise InputError(str(e) + angle_readings.hint(campaign.q_deg, registered, np.inf, MAX_REGISTRATION_MM))
     if "x" in campaign.units and unit != 1.0:  # only a conversion is worth a line (a header in mm is not)
         w.add(f"{campaign.path}: positions read in {campaign.units['x']} (from the header) and converted to mm")
