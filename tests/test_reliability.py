@@ -665,3 +665,39 @@ def test_a_signal_during_the_outputs_commit_waits_for_its_end():
         assert seen == ["inside", "TERM"]
     finally:
         signal.signal(signal.SIGTERM, old)
+
+
+_CTRL_C_IN_DRAKES_START = """
+import os, signal, sys
+from robstiff_drake import cli
+
+
+class CtrlC:  # a Ctrl-C that lands while Drake's native library starts (it imports cpp_template then)
+    def find_spec(self, name, path, target=None):
+        if name == "pydrake.common.cpp_template":
+            os.kill(os.getpid(), signal.SIGINT)
+        return None
+
+
+def run():
+    sys.meta_path.insert(0, CtrlC())
+    return cli.main(sys.argv[1:])
+
+
+sys.exit(run())
+"""
+
+
+def test_ctrl_c_while_drake_starts_is_one_line(tmp_path):
+    """A Ctrl-C inside pydrake.common's start (its native library, 60-200 ms whenever a command first imports Drake;
+    seconds in on a loaded machine) made Drake print "CRITICAL:drake:Could not initialize pydrake: KeyboardInterrupt"
+    and a stack of import frames before the one line (tests/test_ctrl_c_during_a_simulation_leaves_nothing_behind,
+    at load 7): now the Ctrl-C is held back until that import is done, and the run ends with the one line and 130.
+    The Ctrl-C is sent from inside the import (no timing)."""
+    script = tmp_path / "ctrl_c.py"
+    script.write_text(_CTRL_C_IN_DRAKES_START)
+    cp = subprocess.run([sys.executable, str(script), "simulate", "block_milling", "--out", str(tmp_path / "run")],
+                        capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert cp.returncode == 130, cp.stderr
+    assert cp.stderr == "robstiff: interrupted\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ctrl_c.py"]
