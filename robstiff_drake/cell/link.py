@@ -131,12 +131,12 @@ class PCLink:
     # an answer that leaves later missed that cycle even when this PC saw the next message late (a late
     # datagram, not a late controller).  Each protocol states its own (EgmLink, RsiLink, StreamMotionLink).
     answer_deadline_periods = 1.0
-    # With ``--controller HOST`` and no port (EGM's controller sends from a port of its own), the port of the
-    # first message decoded is the controller's: another port on that host is a stranger while the controller
-    # speaks, and is taken up only after it fell silent this long (a new session: EGM stopped and started
-    # again).  ASSUMPTION: 0.1 s, 25 of EGM's 4 ms periods; no public source gives how soon a restarted EGM
-    # session sends; a faster one is heard at most this late.  Before, every port on the host was heard and the
-    # answer went to the newest sender's.
+    # With ``--controller HOST`` and no port (EGM's and RSI's controllers send from a port of their own), the port
+    # of the first message decoded is the controller's: another port on that host is a stranger while the
+    # controller speaks, and is taken up only after it fell silent this long (a new session, stopped and started
+    # again).  ASSUMPTION: 0.1 s, 25 periods of 4 ms; no public source gives how soon a restarted session sends or
+    # whether it keeps its port; a faster one from a new port is heard at most this late.  Before, every port on
+    # the host was heard and the answer went to the newest sender's.
     port_switch_silence_s = 0.1
 
     def __init__(self, listen_port, controller):
