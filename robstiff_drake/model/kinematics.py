@@ -117,17 +117,18 @@ def tool_position(dh, q_rad, tool_m=None):
     return tool_pose(dh, q_rad, tool_m)[..., :3, 3]
 
 
-def _axes_and_origins(dh, q_rad, tool_m):
-    T = frames(dh, q_rad)
+def _axes_and_origins(dh, q_rad, tool_m, T=None):
+    T = frames(dh, q_rad) if T is None else T
     z = T[..., :6, :3, 2]  # joint axes, (..., 6, 3)
     o = T[..., :6, :3, 3]  # points on the axes, (..., 6, 3)
     p = T[..., 6, :3, 3] + T[..., 6, :3, :3] @ _as_tool(tool_m)
     return z, o, p
 
 
-def jacobian(dh, q_rad, tool_m=None):
-    """Geometric Jacobian at the tool point, base frame, shape (..., 6, 6)."""
-    z, o, p = _axes_and_origins(dh, q_rad, tool_m)
+def jacobian(dh, q_rad, tool_m=None, T=None):
+    """Geometric Jacobian at the tool point, base frame, shape (..., 6, 6).
+    ``T``: ``frames(dh, q_rad)`` when the caller has them."""
+    z, o, p = _axes_and_origins(dh, q_rad, tool_m, T)
     Jv = np.cross(z, p[..., None, :] - o)  # (..., 6, 3)
     J = np.concatenate([Jv, z], axis=-1)  # (..., 6 joints, 6 rows)
     return np.swapaxes(J, -1, -2)

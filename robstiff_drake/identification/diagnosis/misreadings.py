@@ -49,6 +49,7 @@ from robstiff_drake.identification.diagnosis.priors import fold_consistent
 from robstiff_drake.identification.diagnosis.selection import MIN_GAIN
 from robstiff_drake.identification.diagnosis.terms import Context, held_out, rms_mm
 from robstiff_drake.identification.stiffness.joint_stiffness import identify
+from robstiff_drake.model import kinematics as kin
 
 # A column of degrees whose every value lies within a full turn in radians (2 pi = 6.28 "deg") could hold
 # radians: joint ranges of industrial arms reach +-360 deg at most (the wrist's last joint), so radians never
@@ -147,7 +148,15 @@ def screen(ctx, fold_rows, units, resid_written):
     found = []
     for name, mistake, check, other in readings:
         try:
-            alt = Context(ctx.robot, other, ctx.tool, identify(ctx.robot, other, tool_m=ctx.tool).identifiable)
+            # (the kinematics once per reading of the angles: a sign read another way keeps the file's)
+            if other.q_deg is ctx.campaign.q_deg:
+                T, J = ctx.frames, ctx.J
+            else:
+                q = ctx.robot.joint_rad(other.q_deg)
+                T = kin.frames(ctx.robot.dh, q)
+                J = kin.jacobian(ctx.robot.dh, q, ctx.tool, T=T)
+            alt = Context(ctx.robot, other, ctx.tool, identify(ctx.robot, other, tool_m=ctx.tool, J=J).identifiable,
+                          J=J, frames=T)
             rms, per, ss = _fold_rms(held_out(alt, [], fold_rows)[0], fold_rows, units)
         except (InputError, ValueError, np.linalg.LinAlgError):  # a reading the model refuses (its units) or cannot fit
             continue

@@ -65,25 +65,27 @@ class Term:
 class Context:
     """A campaign as the terms see it (SI units, base frame), computed once."""
 
-    def __init__(self, robot, campaign, tool_m, identifiable):
+    def __init__(self, robot, campaign, tool_m, identifiable, J=None, frames=None):
+        """``J``, ``frames``: kinematics.jacobian and kinematics.frames at the campaign's angles (and ``tool_m``),
+        when the caller has them."""
         self.robot = robot
         self.campaign = campaign
         self.tool = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
         self.q = robot.joint_rad(campaign.q_deg)
         self.W = campaign.wrench
         self.n = len(campaign)
-        self.J = kin.jacobian(robot.dh, self.q, self.tool)
+        self.frames = kin.frames(robot.dh, self.q) if frames is None else frames
+        self.J = kin.jacobian(robot.dh, self.q, self.tool, T=self.frames) if J is None else J
         self.Jv, self.Jw = self.J[:, :3, :], self.J[:, 3:, :]
         self.tau = np.einsum("nrj,nr->nj", self.J, self.W)
         self.tau[:, ~carrying_joints(self.tau)] = 0.0  # round-off torques carry nothing (no term is built on them)
         self.c_nom = 1.0 / np.asarray(robot.joint_stiffness_Nm_per_rad, dtype=float)
-        self.frames = kin.frames(robot.dh, self.q)
         self.p_tool = self.frames[:, 6, :3, 3] + self.frames[:, 6, :3, :3] @ self.tool
         self.groups = pose_groups(campaign)
         self.seq = None if campaign.seq is None else np.asarray(campaign.seq, dtype=float)
         t_s = getattr(campaign, "t_s", None)
         self.t_s = None if t_s is None else np.asarray(t_s, dtype=float)
-        A_d, _ = regressor(robot.dh, self.q, self.W, self.tool)
+        A_d, _ = regressor(robot.dh, self.q, self.W, self.tool, J=self.J)
         A = (A_d * self.c_nom).reshape(-1, 6)
         self.identifiable = np.asarray(identifiable, dtype=bool)
         self.free = np.flatnonzero(self.identifiable)

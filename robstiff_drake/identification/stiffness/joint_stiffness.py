@@ -67,10 +67,12 @@ class StiffnessFit:
     input_warnings: list = field(default_factory=list)  # what the data look like (a unit mix), one line each
 
 
-def regressor(dh, q_rad, wrench, tool_m=None):
+def regressor(dh, q_rad, wrench, tool_m=None, J=None):
     """Per-measurement regressor blocks: (A_d, A_r), each (N, 3, 6), with
-    d = A_d @ c (m) and r = A_r @ c (rad) for compliances c (rad/(N*m))."""
-    J = kin.jacobian(dh, q_rad, tool_m)  # (N, 6, 6)
+    d = A_d @ c (m) and r = A_r @ c (rad) for compliances c (rad/(N*m)).
+    ``J``: the tool point's Jacobians (N, 6, 6) at ``q_rad``, when the caller
+    has them (they are the same whatever the loads)."""
+    J = kin.jacobian(dh, q_rad, tool_m) if J is None else J  # (N, 6, 6)
     tau = np.einsum("nrj,nr->nj", J, wrench)  # (N, 6)
     A = J * tau[:, None, :]
     return A[:, :3, :], A[:, 3:, :]
@@ -238,13 +240,16 @@ def _solve(A, b, robust):
     return x, cov_factor, r, s2, dof, w
 
 
-def identify(robot, campaign, *, tool_m=None, robust=False, use_rotations=True):
-    """Identify the six joint stiffnesses from a StiffnessCampaign."""
+def identify(robot, campaign, *, tool_m=None, robust=False, use_rotations=True, J=None):
+    """Identify the six joint stiffnesses from a StiffnessCampaign.  ``J``:
+    the tool point's Jacobians (N, 6, 6) at the campaign's angles, when the
+    caller has them (the diagnosis reads one file many ways)."""
     k_nom = robot.joint_stiffness_Nm_per_rad
     c_nom = 1.0 / k_nom
     q = robot.joint_rad(campaign.q_deg)
     W = campaign.wrench
-    A_d, A_r = regressor(robot.dh, q, W, tool_m)
+    J = kin.jacobian(robot.dh, q, tool_m) if J is None else J
+    A_d, A_r = regressor(robot.dh, q, W, tool_m, J=J)
     pred_nom_mm = (A_d @ c_nom) * 1e3
     mix = unit_mix_warning(campaign, pred_nom_mm)
     if mix is None:  # (a mix moves the median: the test of one unit would blame the displacements)
@@ -271,7 +276,7 @@ def identify(robot, campaign, *, tool_m=None, robust=False, use_rotations=True):
     # from a first fit (two blocks of different units cannot share one sigma).
     weights = (1.0, 1.0)
     colnorm = np.linalg.norm(stacked(weights)[0], axis=0)
-    carries = carrying_joints(np.einsum("nrj,nr->nj", kin.jacobian(robot.dh, q, tool_m), W))
+    carries = carrying_joints(np.einsum("nrj,nr->nj", J, W))
     for j in range(6):
         if colnorm[j] <= ZERO_COLUMN_REL * colnorm.max() or not carries[j]:
             identifiable[j] = False
