@@ -6,14 +6,15 @@ campaign of Drake's plant (tests/setup_errors.py, kind "none": 30 poses x 4
 loads of 300 N, CMM noise 0.01 mm).  Into each, one mistake at a time, as
 a user makes them: the declared tool point off by 5, 20, 100 mm along the
 flange's x or z; an untared force (a constant 20, 50, 200 N on fx) or
-moment (5, 20 N*m on mx, moment columns added); forces in kN or lbf
-written as N; fy with the wrong sign; q2 or q5 written in radians; the
+moment (5, 20 N*m on mx, moment columns added); forces in kN, lbf or kgf
+written as N; displacements in inches written as mm; fy with the wrong sign; q2 or q5 written in radians; the
 columns q2/q3 or q5/q6 interchanged; the displacements in a frame turned
 1 deg about z.  Per case: the held-out RMS before and after, the terms
 kept (* beyond the typical size, with its finding), the file read another
 way (identification/diagnosis/misreadings.py), the best lead, or the
-refusal; for the clean and the lbf rows the joints' stiffness against the
-robot file's.  Noise stated: 0.03 mm for FANUC (a tracker's), 0.01 mm for Drake.
+refusal; for the clean and the unit rows the joints' stiffness against the
+robot file's and the unit warning identify and diagnose give
+(identification/stiffness/unit_scale.py).  Noise stated: 0.03 mm for FANUC (a tracker's), 0.01 mm for Drake.
 
 Run: python3 studies/setup_mistakes.py [--only fanuc|drake] [--docs]
 (--docs replaces the setup_mistakes block of docs/diagnosis.md)
@@ -37,9 +38,10 @@ import setup_errors as se  # noqa: E402
 from robstiff_drake.errors import InputError  # noqa: E402
 from robstiff_drake.identification.diagnosis.campaign_diagnosis import diagnose  # noqa: E402
 from robstiff_drake.identification.stiffness.campaign import read_stiffness_campaign  # noqa: E402
+from robstiff_drake.identification.stiffness.joint_stiffness import identify  # noqa: E402
+from robstiff_drake.identification.stiffness.unit_scale import INCH_MM, KGF_N, LBF_N, unit_scale_note  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
 
-LBF_N = 4.4482216  # N per pound-force (NIST SP 811)
 
 
 def _forces(c, f=None, m=None):
@@ -66,6 +68,8 @@ def cases():
             _forces(c, m=_col(np.zeros_like(c.force_N), 0, lambda v: v + b)), t)))
     out += [("forces in kN written as N", lambda c, t: (_forces(c, c.force_N * 1e-3), t)),
             ("forces in lbf written as N", lambda c, t: (_forces(c, c.force_N / LBF_N), t)),
+            ("forces in kgf written as N", lambda c, t: (_forces(c, c.force_N / KGF_N), t)),
+            ("displacements in inches written as mm", lambda c, t: (replace(c, disp_mm=c.disp_mm / INCH_MM), t)),
             ("fy with the wrong sign", lambda c, t: (_forces(c, _col(c.force_N, 1, np.negative)), t))]
     for j in (2, 5):
         out.append((f"q{j} in radians", lambda c, t, j=j: (replace(c, q_deg=_col(c.q_deg, j - 1, np.deg2rad)), t)))
@@ -100,14 +104,20 @@ def said(robot, campaign, tool_m, noise_mm, scale=False):
     if scale:  # the joints' stiffness against the robot file's (a common force scale shows only there)
         r = np.asarray(d.joint_stiffness_Nm_per_rad) / np.asarray(robot.joint_stiffness_Nm_per_rad)
         s += f"; stiffness {r.min():.2f}-{r.max():.2f}x the robot file's"
+        fit = identify(robot, campaign, tool_m=tool_m)  # (what identify and diagnose warn: unit_scale.py)
+        note = unit_scale_note(fit.stiffness_Nm_per_rad, robot.joint_stiffness_Nm_per_rad, fit.identifiable, "", "")
+        s += "; warns: " + note.split("possibly ", 1)[1].split(", or the file")[0] if note else "; no unit warning"
     return s
+
+
+SCALED = ("clean", "forces in lbf written as N", "forces in kgf written as N", "displacements in inches written as mm")
 
 
 def table(title, robot, campaign, tool_m, noise_mm):
     lines = [title, "", "| planted | what `diagnose` says |", "|---|---|"]
     for label, plant in cases():
         c, t = plant(campaign, tool_m)
-        lines.append(f"| {label} | {said(robot, c, t, noise_mm, label in ('clean', 'forces in lbf written as N'))} |")
+        lines.append(f"| {label} | {said(robot, c, t, noise_mm, label in SCALED)} |")
         print(lines[-1], flush=True)
     return lines
 

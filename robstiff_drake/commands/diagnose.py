@@ -5,7 +5,7 @@ whether the result explains the data against the noise floor."""
 
 import numpy as np
 
-from robstiff_drake.commands.identify import campaign_warnings
+from robstiff_drake.commands.identify import campaign_warnings, scale_warnings
 from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.stiffness.campaign import campaign_tool_m, read_stiffness_campaign
@@ -303,7 +303,9 @@ def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=N
     tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), warnings)
     warnings.extend_from(campaign_warnings(campaign))
     check_angle_units(robot, campaign, tool_m)
-    warnings.extend_from(check_signs(identify(robot, campaign, tool_m=tool_m), campaign))
+    fit = identify(robot, campaign, tool_m=tool_m)
+    warnings.extend_from(check_signs(fit, campaign))
+    warnings.extend_from(scale_warnings(fit, robot, campaign))
     d = diagnose(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=warnings)
     with staged_outputs():  # the JSON, the report and the views, all or none
         if json_out is not None:

@@ -125,6 +125,16 @@ def plot_fit(fit, campaign, robot, no_intervals=()):
     return fig
 
 
+def scale_warnings(fit, robot, campaign):
+    """Every identified joint off the robot file's stiffness by a unit's
+    factor (identification/stiffness/unit_scale.py): [one line] or []."""
+    from robstiff_drake.identification.stiffness.unit_scale import unit_scale_note
+
+    note = unit_scale_note(fit.stiffness_Nm_per_rad, robot.joint_stiffness_Nm_per_rad, fit.identifiable,
+                           campaign.path, robot.source or robot.name)
+    return [note] if note else []
+
+
 def campaign_warnings(campaign):
     """Warnings about a campaign file that was read (copies set aside)."""
     if not campaign.copies:
@@ -204,6 +214,7 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
     fit = identify(robot, campaign, tool_m=tool_m, robust=robust)
     warnings.extend_from(fit.input_warnings)
     warnings.extend_from(check_signs(fit, campaign))
+    warnings.extend_from(scale_warnings(fit, robot, campaign))
     if fit.condition_number > 1e4:
         warnings.add(f"condition number {fit.condition_number:.3g}: the poses and loads barely separate the joints; "
                      "plan the campaign with `robstiff plan-poses`")
