@@ -290,8 +290,8 @@ STEADY_FLOOR_N = 5.0
 # ... and must stay so this long ahead (s): the model is a prediction, known ahead.  Without it the mask closed only
 # once the model's force had already moved by STEADY_FRACTION, and the residual held from there was that change, not
 # the law's difference: on face_contour_fanuc at the contour's end (model 148 N, falling from 165 N) measured less
-# model was (-20, -11, -15) N against the steady cut's (-14, 0, -12) N; 0.1 s ahead it is (-14, 6, -12) N, 0.2 and
-# 0.3 s the same (measured on the corrected program's run, studies/plain_on_top_residual.py)
+# model was (-20, -11, -15) N against the steady cut's (-13, -2, -13) N; 0.1 s ahead it is (-14, 6, -12) N, 0.2 and
+# 0.3 s alike (sensor frame, the air's taken off; on the corrected program's run, studies/plain_on_top_residual.py)
 STEADY_AHEAD_S = 0.1
 
 

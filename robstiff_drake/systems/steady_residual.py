@@ -10,21 +10,23 @@ entry the measured force rises ~0.35 s after the model's and first points
 a force the program does not already hold; heard, it drove the plain
 compensator to 0.3 mrad and the 75 mm cutter 0.3 mm into the face.  So
 while the model's force is not steady (model/program_correction.
-steady_mask) this block holds the last residual it passed (the air's or
-the steady cut's), and passes measured less model again once the model's
-force has been steady for the mask's window.
+steady_mask) this block holds a residual (below), and passes measured
+less model again once the model's force has been steady for the mask's
+window.
 
-What it holds is not the residual as it was: the law's difference the
-residual carries is a force the cut makes, so it goes with the cut's force.
-Held at the last steady residual, it kept the steady contour's 20 N of
-law difference through face_contour_fanuc's R20 arc, lead-out and exit,
-where the model's force fell to 20 N and then none, for 4 s until the air
-was steady again: the plain compensator lowered the tool 0.07-0.09 mm
-there and cut the floor under the lead-out 0.09 mm deep (the corrected
-program alone: 0.00-0.02 mm there; studies/plain_on_top_residual.py).  So
+What it holds is not the last residual as it was: the law's difference
+the residual carries is a force the cut makes, so it goes with the cut's
+force.  Held as it was, it kept the steady contour's law difference (18 N,
+with the start of the force's fall 31 N) through face_contour_fanuc's R20
+arc, lead-out and exit,
+where the model's force fell to 15-37 N and then none, for 4 s until the
+air was steady again: the plain compensator put the tool about 0.09 mm
+lower there and cut the floor under the lead-out +0.074 and +0.092 mm
+(mean) deep (the corrected program alone: -0.019 and +0.000 mm there;
+studies/plain_on_top_residual.py).  So
 the held residual is the air's (the payload's weight and the sensor's
 bias, the last residual passed where the model's force was below
-``floor_N``) plus the last steady cut's difference to it scaled by the
+``air_force_N``) plus the last steady cut's difference to it scaled by the
 model's force now over the model's force then (at most 1: a heavier cut
 than the one heard is not extrapolated).  ASSUMPTION: the law's
 difference is proportional to the force (the plant's Kienzle chip, wear
