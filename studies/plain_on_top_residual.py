@@ -95,7 +95,8 @@ def main():
         job = load_scenario(str(JOB), toolpath=draft)
         print("the corrected program, no online compensation", file=sys.stderr)
         runs["corrected program"] = run_cut(copy.deepcopy(job), robot, compensation=False)
-        variants = (("plain on top, held as before", 0.0, True), ("plain on top, mask ahead only", STEADY_AHEAD_S, True),
+        variants = (("plain on top, held as before", 0.0, True),
+                    ("plain on top, mask ahead only", STEADY_AHEAD_S, True),
                     ("plain on top, held residual scaled only", 0.0, False),
                     ("plain on top, both (the code)", STEADY_AHEAD_S, False))
         for label, ahead, before in variants:
