@@ -14,23 +14,22 @@ steady_mask) this block holds a residual (below), and passes measured
 less model again once the model's force has been steady for the mask's
 window.
 
-What it holds is not the last residual as it was: the law's difference
-the residual carries is a force the cut makes, so it goes with the cut's
-force.  Held as it was, it kept the steady contour's law difference (18 N,
+What it holds is not the last residual as it was: the law's difference the
+residual carries is a force the cut makes, so it goes with the cut's
+force. Held as it was, it kept the steady contour's law difference (18 N,
 with the start of the force's fall 31 N) through face_contour_fanuc's R20
-arc, lead-out and exit,
-where the model's force fell to 15-37 N and then none, for 4 s until the
-air was steady again: the plain compensator put the tool about 0.09 mm
-lower there and cut the floor under the lead-out +0.074 and +0.092 mm
-(mean) deep (the corrected program alone: -0.019 and +0.000 mm there;
-studies/plain_on_top_residual.py).  So
-the held residual is the air's (the payload's weight and the sensor's
-bias, the last residual passed where the model's force was below
-``air_force_N``) plus the last steady cut's difference to it scaled by the
-model's force now over the model's force then (at most 1: a heavier cut
-than the one heard is not extrapolated).  ASSUMPTION: the law's
-difference is proportional to the force (the plant's Kienzle chip, wear
-and runout, model/plant_cutting.py, are not exactly: a first order)."""
+arc, lead-out and exit, where the model's force fell to 15-37 N and then
+none, for 4 s until the air was steady again: the plain compensator put
+the tool about 0.09 mm lower there and cut the floor under the lead-out
++0.074 and +0.092 mm (mean) deep (the corrected program alone: -0.019 and
++0.000 mm there; studies/plain_on_top_residual.py). So the held residual
+is the air's (the payload's weight and the sensor's bias, the last
+residual passed where the model's force was below ``air_force_N``) plus
+the last steady cut's difference to it scaled by the model's force now
+over the model's force then (at most 1: a heavier cut than the one heard
+is not extrapolated). ASSUMPTION: the law's difference is proportional to
+the force (the plant's Kienzle chip, wear and runout,
+model/plant_cutting.py, are not exactly: a first order)."""
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
