@@ -17,9 +17,9 @@ def _step(t):
 
 def test_the_mask_is_off_while_the_force_changes_and_for_its_window_after():
     t = np.arange(0.0, 3.0, 0.002)
-    m = steady_mask(t, _step(t), window_s=0.6)
-    assert m[t < 1.0].all()  # in the air: nothing changes
-    assert not m[(t > 1.005) & (t < 1.69)].any()  # rising, then within the window of the rise
+    m = steady_mask(t, _step(t), window_s=0.6, ahead_s=0.1)
+    assert m[t < 0.9].all()  # in the air: nothing changes, nor will for 0.1 s
+    assert not m[(t > 0.905) & (t < 1.69)].any()  # the rise ahead, rising, then within the window of the rise
     assert m[t > 1.71].all()  # steady for the whole window
 
 
@@ -47,3 +47,54 @@ def test_the_residual_is_held_where_the_model_is_not_steady():
         assert np.allclose(out[tk], gravity, atol=10.0), tk
     tail = gravity + np.r_[0.1 * np.array([80.0, 200.0, -30.0]), np.zeros(3)]
     assert np.allclose(out[2.5], tail)  # steady: measured less model, the 10 % the model misses
+
+
+def _exit(t):
+    """A model force (N, 3): zero, a 0.1 s ramp to (80, 200, -30) N at 0.1 s, then a 0.1 s ramp to zero at
+    1 s (the cutter leaving)."""
+    return np.outer(np.clip(np.minimum(t - 0.1, 1.1 - t) / 0.1, 0.0, 1.0), [80.0, 200.0, -30.0])
+
+
+def test_the_mask_closes_before_the_model_force_moves():
+    t = np.arange(0.0, 3.0, 0.002)
+    m = steady_mask(t, _exit(t), window_s=0.6, ahead_s=0.1)
+    assert m[(t > 0.805) & (t < 0.91)].all()
+    # closed 0.1 s before the model's force has moved by 10 %: a residual held there is the steady cut's
+    assert not m[(t > 0.915) & (t < 1.69)].any()
+    assert m[t > 1.7].all()
+
+
+def _run(block, measured, n=3000, dt=0.001):
+    ctx = block.CreateDefaultContext()
+    state = block.AllocateDiscreteVariables()
+    out = {}
+    for k in range(n):
+        tk = k * dt
+        ctx.SetTime(tk)
+        block.get_input_port().FixValue(ctx, measured(tk))
+        block._update(ctx, state)
+        ctx.SetDiscreteState(state)
+        out[round(tk, 3)] = block.get_output_port().Eval(ctx).copy()
+    return out
+
+
+def test_the_held_residual_goes_with_the_model_force_at_an_exit():
+    """face_contour_fanuc (issue 29): the steady contour's law difference,
+    held at full size through the lead-out and exit where the cut's force
+    was gone, lowered the tool 0.09 mm into the floor.  Held, it now goes
+    with the model's force: to the air's residual when the model's is nil."""
+    t = np.arange(0.0, 3.0, 0.002)
+    w = np.hstack([_exit(t), np.zeros((len(t), 3))])
+    block = SteadyResidual(t, w, steady_mask(t, w[:, :3], window_s=0.6), period_s=0.001)
+    gravity = np.array([3.0, -2.0, 397.0, 0.1, 0.2, 0.0])
+
+    def measured(tk):  # the model's force 10 % stronger, 0.05 s late
+        return gravity + np.hstack([1.1 * _exit(np.array([tk - 0.05]))[0], np.zeros(3)])
+
+    out = _run(block, measured)
+    diff = np.r_[0.1 * np.array([80.0, 200.0, -30.0]), np.zeros(3)]
+    assert np.allclose(out[0.85], gravity + diff)  # steady: the 10 % the model misses
+    assert np.allclose(out[0.95], gravity + diff)  # held from before the model's force moves: the same
+    assert np.allclose(out[1.05], gravity + 0.5 * diff, atol=1e-6)  # half the model's force: half the difference
+    for tk in (1.1, 1.3, 1.6):  # the model's force nil, its window not yet past: the air's residual
+        assert np.allclose(out[tk], gravity), tk

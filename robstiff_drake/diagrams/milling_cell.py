@@ -225,8 +225,9 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model
     compensator.  ``model_wrench``: (times s, (N, 6) sensor-frame wrench)
     subtracted from the measured wrench before the compensator (the part a
     corrected program already compensates: diagrams/offline_compensation.py),
-    or (times, wrench, (N,) bool steady): subtracted only where steady, the
-    last residual held elsewhere (systems/steady_residual.py);
+    or (times, wrench, (N,) bool steady): subtracted only where steady, a
+    residual held elsewhere, going with the model's force
+    (systems/steady_residual.py);
     ``q_reference``: (times s, (N, 6) rad) joint references streamed instead
     of the path's own (a corrected joint reference); ``offline_plan``:
     (path, t_ref, q_ref) of the program as written, when the scenario's

@@ -198,9 +198,10 @@ def model_wrench_cell(sc, robot, prediction, *, steady=True):
     minus the model's (the part the corrected program already holds), at
     the lag the measured one has behind the path (the arm's dead time and
     two sensor samples); ``steady``: heard only where the model's force is
-    steady (model/program_correction.steady_mask; elsewhere the last
-    residual held: at an entry the plant's force follows the tool's real
-    motion, later than the model's), else everywhere."""
+    steady (model/program_correction.steady_mask; elsewhere a residual
+    held, going with the model's force: systems/steady_residual.py; at an
+    entry the plant's force follows the tool's real motion, later than
+    the model's), else everywhere."""
     from robstiff_drake.diagrams.milling_cell import build_milling_cell, planned_path
     from robstiff_drake.model.program_correction import clock_on, steady_mask
 
