@@ -42,7 +42,7 @@ def sets_of(cands):
     return {k: v for k, v in out.items() if len(v) >= 2}
 
 
-def _search(cv, base_cols, cands, info, pbar, kept_init=()):
+def _search(cv, base_cols, cands, info, pbar, kept_init=(), exclude=()):
     """Forward selection, then the backward check, over the candidate blocks
     and the sets of them (``sets_of``: several small effects that together
     explain the data are tried as one hypothesis, with the same tests).
@@ -54,7 +54,7 @@ def _search(cv, base_cols, cands, info, pbar, kept_init=()):
     implausible or non-physical at the model's final fit, and the forward
     search resumes without the implausible ones (they are leads).  Returns
     (kept, rounds, leads, dropped, declared RMS, final RMS (m, linearised),
-    {name: columns})."""
+    {name: columns}).  ``exclude``: names not tried in this pass."""
     cols_of = {}
     i = len(base_cols)
     for b, Z in cands:
@@ -62,7 +62,7 @@ def _search(cv, base_cols, cands, info, pbar, kept_init=()):
         i += Z.shape[1]
     by_name = {b.name: b for b, _ in cands}
     sets = sets_of(cands)
-    kept, rounds, leads, dropped, banned = list(kept_init), [], {}, [], set()
+    kept, rounds, leads, dropped, banned = list(kept_init), [], {}, [], set(exclude)  # exclude: not tried
     units = [[n] for n in kept]  # what was added together is judged together
 
     def cols(names):
