@@ -50,6 +50,14 @@ def format_report(rep, markdown=False):
               "measured point on the flange (tool): " + ", ".join(f"{v:.3f}" for v in rep["tool_mm"]) + " mm"
               + (" (the file's guess: " + ", ".join(f"{v:.3f}" for v in rep["tool_guess_mm"]) + ")"), "",
               "effects found: " + (", ".join(rep["selected_effects"]) or "none")]
+    if rep.get("setup_findings"):  # (identification/tracker/setup_terms.py) before the effects: check these first
+        at = lines.index("effects found: " + (", ".join(rep["selected_effects"]) or "none"))
+        block = ["setup findings (the declared payload or vertical; check these first):"]
+        for f in rep["setup_findings"]:
+            block.append(f"  {f['text']}")
+            block.append("    held out: " + "; ".join(f"{a['model']}: {a['heldout_rms_mm']:.4f} mm"
+                                                     for a in f["alternatives"]))
+        lines[at:at] = block + [""]
     for t in rep["effects"]:
         lines.append(f"  {t['name']}: {t['description']}")
         lines.append(f"    {'plausible' if t['plausible'] else 'IMPLAUSIBLE'}: {t['plausibility']}"

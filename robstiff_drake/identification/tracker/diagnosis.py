@@ -55,10 +55,13 @@ from robstiff_drake.identification.tracker.loads import load_blocks
 from robstiff_drake.identification.tracker.model import GEOM, geometry_jacobian, geometry_params, gravity_in_base
 from robstiff_drake.identification.tracker.report import (_confounded, _floor, _screen, _term_reports, _verdict,
                                                           periodic_report, stats3d, validate)
-from robstiff_drake.identification.tracker.search import (ALPHA, MIN_GAIN, MIN_KEEP_GAIN, _heldout, _linearised,
+from robstiff_drake.identification.tracker.search import (ALPHA, MIN_GAIN, MIN_KEEP_GAIN, SETUP_NAMES, _heldout,
+                                                          _linearised,
                                                           _residual_map, _search, periodic_candidates, sets_of)
 from robstiff_drake.identification.tracker.search import map_kept as map_kept_rule
 from robstiff_drake.identification.tracker.terms import blocks as all_blocks
+from robstiff_drake.identification.tracker import setup_terms
+from robstiff_drake.identification.tracker.setup_terms import setup_blocks
 from robstiff_drake.model import kinematics as kin
 from robstiff_drake.progress import progress
 
@@ -137,7 +140,7 @@ def _candidate_blocks(problem, fit, rows, free, Xgeo, extra=()):
     at, cache = problem.evaluate(fit, rows), {}  # (one evaluation and geometry Jacobian for every block)
     ev = at[0]
     out, skipped = [], []
-    for b in list(all_blocks(ev, free)) + list(extra):
+    for b in list(all_blocks(ev, free)) + setup_blocks(ev) + list(extra):
         why = b.needs(ev) if b.needs else None
         if why:
             skipped.append({"name": b.name, "reason": why})
@@ -230,7 +233,10 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         cv = LinearCV(X, r0, tests, np.repeat(groups, 3), copy=False)
         X = None
         info = {"ev": ev0, "c_nom": problem.c_nom}
-        kept, rounds, leads, dropped, rms_decl, rms_lin, _ = _search(cv, np.arange(9), cands, info, bar)
+        # the setup mistakes (setup_terms.py) are tried in the second pass only, against the arm's own model (its
+        # geometry, sag and periodic errors): the first pass and the periods found are as without them
+        kept, rounds, leads, dropped, rms_decl, rms_lin, _ = _search(cv, np.arange(9), cands, info, bar,
+                                                                     exclude=SETUP_NAMES)
         by_name = {b.name: b for b, _ in cands}
         kept_blocks = [by_name[n] for n in kept]
         fit = problem.gauss_newton(fit0, kept_blocks, all_rows)
@@ -243,7 +249,7 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         # misjudges gains of a few micrometres (second-order terms of the large corrections)
         cv = None  # (freed before the next one is built)
         cv, info = _linearised(problem, fit, cands, all_rows, tests, groups)
-        kept, rounds2, leads, dropped2, _, rms_lin, _ = _search(cv, np.arange(9), cands, info, bar, kept)
+        kept, rounds2, leads, dropped2, _, rms_lin, cols_of = _search(cv, np.arange(9), cands, info, bar, kept)
         rounds += rounds2
         dropped = list(dict.fromkeys(dropped + dropped2))
         kept_blocks = [by_name[n] for n in kept]
@@ -254,6 +260,8 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         if len(flagged):
             fit = problem.gauss_newton(fit, kept_blocks, rows)
             folds = splits(rows, groups)
+        setup = setup_terms.findings(cv, lambda names: np.concatenate([np.arange(9)] + [cols_of[n] for n in names]),
+                                     kept, cands, fit, info)  # (the estimates the effects report: the final fit's)
         bar.update(1)
         base_fit = problem.gauss_newton(fit0, [], rows)
         e_before, _ = _heldout(problem, base_fit, [], folds, bar)
@@ -285,6 +293,8 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         verdict += (f"; a non-parametric joint-space map of what is left lowers the held-out mean 3D error from "
                     f"{stats3d(e_a)['mean']:.4f} to {stats3d(e_map[rows] * 1e3)['mean']:.4f} mm in "
                     f"every one of the {len(per_fold)} folds: the named effects do not hold all of it")
+    for f in setup:
+        w.add(f["text"])
     for r in leads:
         w.add(f"{r['name']} fits the residual (held-out {r['rms_mm']:.4f} mm) but was not added: {r['plausibility']}")
     if len(flagged):
@@ -318,7 +328,7 @@ def _diagnose_tracker(robot, campaign, *, tool_m=None, noise_mm=None, warnings=N
         "lack_of_fit": None if lof is None else {"p_value": lof.p_value, "statistic": lof.statistic,
                                                  "dof": lof.dof, "test": lof.test, "p_below": lof.p_below},
         "unexplained_mm": unexplained,
-        "selected_effects": kept, "effects": reports, "dropped": dropped, "leads": leads,
+        "selected_effects": kept, "effects": reports, "setup_findings": setup, "dropped": dropped, "leads": leads,
         "periodic_errors": periodic_report(fit, kept_blocks, reports),
         "hypothesis_sets": sets_of(cands),
         "periodic_search": {"found": len(periodic_found), "min_period_deg": tpd.MIN_PERIOD_DEG,

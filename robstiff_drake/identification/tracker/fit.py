@@ -15,6 +15,7 @@ from robstiff_drake.identification.tracker.model import (GEOM, cross, geometry_j
                                                          perturbed_dh, tool_points)
 from robstiff_drake.identification.tracker.terms import Eval
 from robstiff_drake.model import kinematics as kin
+from robstiff_drake.model.robot import GRAVITY_BASE_M_PER_S2
 
 GN_ITER = 10
 # fixed-point steps of the sag from the nominal pose's (the error shrinks by the sag's own relative size,
@@ -109,7 +110,8 @@ class Problem:
         return Eval(T=T, p=p, Jv=jacobian_v(T, p), tau=tau, moment=moment,
                     q_ctrl_rad=self.q_ctrl[rows], G=self.G, c_nom=self.c_nom, t_h=sub(self.t_h),
                     dtemp=sub(self.dtemp), seq=sub(self.seq), order=self.order[rows], geo_free=self.geo_free,
-                    rows=np.asarray(rows)), dh
+                    rows=np.asarray(rows), q_rad=q, robot=self.robot, c_sag=x * self.c_nom,
+                    g_base=np.asarray(GRAVITY_BASE_M_PER_S2 if self.g_base is None else self.g_base, float)), dh
 
     def parts(self, fit, ev):
         """(R (p + dp), dm): the arm's point in the instrument's axes and the

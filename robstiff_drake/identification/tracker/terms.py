@@ -92,6 +92,10 @@ class Eval:
     order: np.ndarray  # (N,) the rows' order in the file, centred, per 1000 rows
     geo_free: list = field(default_factory=list)  # [(link, kind)] identifiable geometry
     rows: np.ndarray = None  # the campaign's rows these are
+    q_rad: np.ndarray = None  # (N, 6) the model's angles the frames T are at (sagged)
+    g_base: np.ndarray = None  # (3,) m/s^2 gravity in the base frame the sag was computed with
+    robot: object = None  # the robot file's RobotModel (masses, payload)
+    c_sag: np.ndarray = None  # (6,) rad/(N*m) the compliances the sag uses (the fit's factors times c_nom)
 
 
 @dataclass
