@@ -15,7 +15,9 @@ the steady cut's), and passes measured less model again once the model's
 force has been steady for the mask's window."""
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.framework import BasicVector
+
+from robstiff_drake.systems.leaf_system import LeafSystem
 
 
 class SteadyResidual(LeafSystem):
