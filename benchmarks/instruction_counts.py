@@ -44,7 +44,8 @@ from robstiff_drake.diagrams.scenario import load_scenario
 from robstiff_drake.model.robot import load_robot
 from robstiff_drake.paths import DIAGRAMS_DIR
 sc = load_scenario(DIAGRAMS_DIR / "block_milling.yaml")
-sim = make_simulator(build_milling_cell(sc, load_robot(), compensation=True))
+cell = build_milling_cell(sc, load_robot(), compensation=True)  # (kept while the simulator runs)
+sim = make_simulator(cell)
 """,
     "bare": """
 import numpy as np
@@ -104,6 +105,30 @@ def inclusive(tree, parent, callee):
     return 0
 
 
+# (label, parent function, callee substring): how many calls a tick, from callgrind's call counts
+CALLS = (
+    ("callbacks from C++ into Python (updates, outputs)", (_LEAF_UU, _LEAF_DU, "LeafSystem<double>::DispatchPublishHandler(",
+                                                          "CacheEntry::Calc("), _PY),
+    ("witness queries answered by Python systems", ("System<double>::GetWitnessFunctions(",), _PY),
+    ("calls from Python into pydrake's bindings", ("methodobject.c:cfunction_call",), "/pydrake/"),
+)
+
+
+def calls(tree, parents, callee):
+    """How many calls the functions ``parents`` made to functions whose
+    line contains ``callee`` (callgrind's call counts, "(N x)")."""
+    total = 0
+    for i, line in enumerate(tree):
+        if "*" in line[:40] and any(p in line for p in parents):
+            j = i + 1
+            while j < len(tree) and ">" in tree[j][:40]:
+                m = re.search(r"\(([\d,]+)x\)", tree[j])
+                if callee in tree[j] and m:
+                    total += int(m.group(1).replace(",", ""))
+                j += 1
+    return total
+
+
 def count(kind, folder):
     """callgrind_annotate's calling tree (lines) of one run of ``kind``."""
     out = os.path.join(folder, f"{kind}.callgrind")
@@ -135,6 +160,10 @@ def main():
     for label, parts in ROWS:
         cell, bare = (sum(inclusive(trees[k], p, c) for p, c in parts) / ticks / 1e3 for k in ("cell", "bare"))
         print(f"  {label:50s} {cell:10.1f} {bare:8.1f} {cell - bare:+8.1f}")
+    print("  calls a tick:")
+    for label, parents, callee in CALLS:
+        print(f"  {label:50s} {calls(trees['cell'], parents, callee) / ticks:10.1f} "
+              f"{calls(trees['bare'], parents, callee) / ticks:8.1f}")
     whole = {k: inclusive(trees[k], _ADVANCE, None) for k in trees}
     print(f"  ratio bare / block pass by instructions: {whole['bare'] / whole['cell']:.2f}")
     return 0
