@@ -11,9 +11,10 @@ again at every call, with an AttributeError raised and cleared each time.
 So this class names the C++ binding: Drake then runs LeafSystem's own
 DoGetWitnessFunctions, as it does without the attribute (the witness
 functions a system declares; the project's declare none), and the look-up
-happens once.  Measured (2026-12-07, callgrind, the block pass, plain
-compensation): the look-ups were 5.2 % of the simulation's instructions
-(4 Python systems, 2 plant steps a 4 ms tick); the answer is the same.
+happens once.  Measured (2026-12-07, benchmarks/instruction_counts.py,
+the block pass, plain compensation, 4 Python systems and 2 plant steps a
+4 ms tick): the witness functions 63.9 k of 1,155.7 k instructions a
+tick before, 15.3 k after; the answer is the same.
 A subclass that overrides DoGetWitnessFunctions in Python is still called.
 """
 
