@@ -12,8 +12,11 @@ and no event (what every Python system costs whether or not anything reads
 it: Drake's bookkeeping every plant step, the witness functions after each
 unrestricted update and the event collections, through the Python
 bindings), the same with one periodic discrete update per tick that does
-nothing (that plus one call from C++ into Python a tick), and C++
-PassThroughs (a C++ system's share of the same bookkeeping).  Prints, per
+nothing (that plus one call from C++ into Python a tick), the same
+derived from the project's LeafSystem (systems/leaf_system.py, which the
+project's systems derive from: Drake's question for witness functions
+after each plant step answered without a failed Python attribute
+look-up), and C++ PassThroughs (a C++ system's share of the same bookkeeping).  Prints, per
 kind, the CPU time per tick of the bare station and with the systems, and
 the cost of one system (us per tick).  It tells which of "fewer systems"
 and "less arithmetic" pays in the closed loop: the block pass has five
@@ -70,6 +73,7 @@ from robstiff_drake.diagrams.path_references import planned_path  # noqa: E402
 from robstiff_drake.diagrams.scenario import load_scenario  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
 from robstiff_drake.paths import DIAGRAMS_DIR  # noqa: E402
+from robstiff_drake.systems.leaf_system import LeafSystem as ProjectLeafSystem  # noqa: E402
 
 REPEATS = int(os.environ.get("REPEATS", 3))
 N = 5  # systems added at a time
@@ -84,6 +88,11 @@ class Idle(LeafSystem):
         if tick_s is not None:
             self.DeclareDiscreteState(1)
             self.DeclarePeriodicDiscreteUpdateEvent(tick_s, 0.0, lambda context, state: None)
+
+
+class ProjectIdle(Idle, ProjectLeafSystem):
+    """Idle on the project's LeafSystem (systems/leaf_system.py: Drake's
+    question for witness functions answered without a Python look-up)."""
 
 
 def us_per_tick(sc, robot, q0, tick_s, add, path=None):
@@ -288,6 +297,7 @@ def main():
     kinds = (("bare station", None, None), (moving, None, (t_ref, q_ref)),
              (f"+{N} Python systems, no port, no event", Idle, None),
              (f"+{N} Python systems, one empty update a tick", lambda: Idle(tick_s), None),
+             (f"+{N} the same on the project's LeafSystem", lambda: ProjectIdle(tick_s), None),
              (f"+{N} C++ PassThroughs", lambda: PassThrough(6), None))
     best = {label: min(us_per_tick(sc, robot, q0, tick_s, add, path) for _ in range(REPEATS))
             for label, add, path in kinds}

@@ -22,11 +22,12 @@ studies/time_step_convergence.py reports them against the plant's step.
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 
 from robstiff_drake.diagrams.compliant_arm import add_compliant_arm, gravity_holding_torque, set_drives_at_rest
 from robstiff_drake.model import transmission
+from robstiff_drake.systems.leaf_system import LeafSystem
 
 
 class JointLoadStep(LeafSystem):

@@ -8,7 +8,7 @@ the encoder's motor angle less the link angle a tracker reads; here it is
 read without noise (the scatter inside the play is the play's own)."""
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from robstiff_drake.systems.leaf_system import LeafSystem
 
 from robstiff_drake.diagrams.gear_impacts import joint_load_run
 

@@ -43,7 +43,7 @@ where it was commanded; what the cut adds deflects the arm.
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.systems.framework import DiagramBuilder, LeafSystem
+from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import Demultiplexer
 
 from robstiff_drake.diagrams.plant_step import NOT_GIVEN
@@ -72,6 +72,7 @@ from robstiff_drake.model import servo as servo_model
 from robstiff_drake.model.payload import payload_wrench
 from robstiff_drake.model.realtime import DeflectionPredictor
 from robstiff_drake.model.servo import ServoParameters
+from robstiff_drake.systems.leaf_system import LeafSystem
 from robstiff_drake.systems.milling_force import MillingForceSource
 from robstiff_drake.systems.regenerative_force import RegenerativeForceSource
 from robstiff_drake.systems.wrist_sensor import LagFreeCuttingSensor, WristForceSensor, add_random_inputs

@@ -18,10 +18,11 @@ import math
 import numpy as np
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import BasicVector, DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, VectorLogSink
 
 from robstiff_drake.diagrams.compliant_arm import add_compliant_arm, gravity_holding_torque, set_drives_at_rest
+from robstiff_drake.systems.leaf_system import LeafSystem
 
 
 class StepMeanRipple(LeafSystem):

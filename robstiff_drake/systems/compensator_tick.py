@@ -31,7 +31,7 @@ are tested against.
 import math
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from robstiff_drake.systems.leaf_system import LeafSystem
 
 from robstiff_drake.model import jit, tick_kernels
 from robstiff_drake.model.compensator import GravityRemover, rate_limited_step

@@ -9,7 +9,7 @@ the gears' positions in their gaps are this block's discrete state,
 updated once per controller period from the gear torque it predicts."""
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from robstiff_drake.systems.leaf_system import LeafSystem
 
 from robstiff_drake.model.compensator import DeflectionModel
 

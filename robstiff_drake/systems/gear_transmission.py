@@ -59,7 +59,7 @@ Without play the gear is linear and the station uses a MatrixGain
 instead (no Python in the step)."""
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from robstiff_drake.systems.leaf_system import LeafSystem
 
 HOLD_GAIN = 0.5  # g of the stick-slip law: the share of J_eff taken as the twist's inertia (module docstring)
 

@@ -8,7 +8,7 @@ The compensator diagram runs this inside its one block per tick
 is tested against, bit for bit (tests/test_compensator_tick.py)."""
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from robstiff_drake.systems.leaf_system import LeafSystem
 
 from robstiff_drake.model.compensator import GravityRemover
 

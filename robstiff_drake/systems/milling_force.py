@@ -12,7 +12,7 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
-from pydrake.systems.framework import LeafSystem
+from robstiff_drake.systems.leaf_system import LeafSystem
 
 from robstiff_drake.model import force_step_kernels, jit, tick_kernels
 from robstiff_drake.model.wrench_frames import to_sensor_frame

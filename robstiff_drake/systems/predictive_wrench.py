@@ -23,7 +23,7 @@ compiled when numba is installed (model/cutting_kernels.py's
 its order)."""
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from robstiff_drake.systems.leaf_system import LeafSystem
 from scipy import signal
 
 from robstiff_drake.model import jit

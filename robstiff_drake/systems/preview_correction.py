@@ -42,7 +42,7 @@ The arithmetic of the bracket's deflection is model/compensator.
 DeflectionModel's, shared with the plain chain."""
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from robstiff_drake.systems.leaf_system import LeafSystem
 from scipy import signal
 from scipy.interpolate import CubicSpline
 

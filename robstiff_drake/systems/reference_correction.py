@@ -10,7 +10,7 @@ is tested against, bit for bit (tests/test_compensator_tick.py)."""
 import math
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from robstiff_drake.systems.leaf_system import LeafSystem
 
 from robstiff_drake.model.compensator import rate_limited_step
 

@@ -32,7 +32,7 @@ the force (the plant's Kienzle chip, wear and runout,
 model/plant_cutting.py, are not exactly: a first order)."""
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from robstiff_drake.systems.leaf_system import LeafSystem
 
 # below this model force (N) a steady residual is the air's: the payload's weight and the sensor's bias
 AIR_FORCE_N = 5.0  # model/program_correction.STEADY_FLOOR_N's size

@@ -7,7 +7,7 @@ import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
-from pydrake.systems.framework import LeafSystem
+from robstiff_drake.systems.leaf_system import LeafSystem
 from pydrake.systems.primitives import RandomSource
 
 from robstiff_drake.model.compensator import guard_accepts
