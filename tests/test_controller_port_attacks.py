@@ -498,3 +498,70 @@ def test_rsi_stranger_port_interleaved_then_a_restart_from_a_new_port(robot, cel
     _report("rsi interleaved + restart from a new port", strangers=s["strangers_dropped"],
             switches=s["controller_port_switches"], answers_to_stranger=len(heard), answers_to_old_port=len(old),
             worst_deg=round(chk.worst_deg, 4))
+
+
+def test_egm_short_silence_then_the_stranger_leaves_and_the_controller_returns(robot, cell):
+    """Attack 3's two silences (EGM).  0.05 s (below the 0.1 s) while the
+    stranger sends from another port 30 deg away: on an idle machine the
+    port stays the controller's; a loaded one may stretch it past 0.1 s,
+    so only what holds either way is asserted: the stranger is sent
+    nothing (its pose is refused), every target is within the checks.
+    Then the controller is silent 0.6 s while the stranger streams (it
+    takes the port: refused every time), the stranger stops, and after 0.6
+    s more the controller comes back on its own port (its numbering where
+    the stranger's left off): taken up again.  The stranger's 100 messages
+    advanced the reference's time by 0.4 s (0.4 deg on q2 here) although
+    none was answered, so the controller's new targets are a step beyond
+    the axis speeds from the last one sent: refused; it is answered the
+    last target sent before the silence (held) while that stays within the
+    clamp of the reference, then nothing: the stranger cost the run its
+    compensation (a denial of service), never a target beyond the checks."""
+    held = []
+    model, payload, ref, ref_deg, sensor, log = cell
+    chk = Checker(robot, ref_deg)
+    port = h.free_udp_port()
+    proc = h.start_compensate(model, payload, sensor, port, reference=ref, log=log, extra=CTRL)
+    ctrl, stranger = h.ScriptedController(port), h.ScriptedController(port)
+    back = []
+    try:
+        for k in range(100):
+            got = ctrl.exchange(k + 1, k * T_MS, ref_deg(k * T))
+            assert got is not None
+            chk.check(got, k, "controller")
+            held = got
+        for i in range(3):  # 0.05 s: the stranger's three messages, the controller silent
+            stranger.send(101 + i, (100 + i) * T_MS, ref_deg((100 + i) * T) + FAR_DEG)
+            time.sleep(0.017)
+        for k in range(100, 150):  # the controller again (answered unless a loaded machine made that 0.1 s)
+            for got in ctrl.answers(0.0) + [ctrl.exchange(k + 1, k * T_MS, ref_deg(k * T), timeout_s=2.0)]:
+                if got is not None:
+                    chk.check(got, k, "controller")
+                    held = got
+        time.sleep(TAKE_UP_SILENCE_S)
+        for k in range(150, 250):  # the stranger alone: it takes the port
+            stranger.send(k + 1, k * T_MS, ref_deg(k * T) + FAR_DEG)
+            time.sleep(0.002)
+        time.sleep(TAKE_UP_SILENCE_S)
+        for k in range(250, 400):  # the controller back on its own port
+            got = ctrl.exchange(k + 1, k * T_MS, ref_deg(k * T), timeout_s=10.0)
+            if got is None:
+                break
+            back.append((k, got))
+    finally:
+        code, err = h.finish(proc)
+        heard = stranger.answers()
+        late = ctrl.answers()
+        ctrl.close()
+        stranger.close()
+    assert code == 0, err[-2000:]
+    assert heard == []
+    s = _summary(log)
+    for k, got in back:  # (the reference's time went on with the stranger's messages)
+        chk.check(got, k, "controller")
+        assert got == pytest.approx(held, abs=1e-9), "after its return the controller is held where it was"
+    assert late == []
+    assert len(back) < 150 and s["targets_refused"] >= 100 + len(back)
+    assert s["controller_port_switches"] in (2, 4)  # (4: the 0.05 s stretched past 0.1 s by this machine's load)
+    _report("egm 0.05 s silence, stranger's takeover, controller's return", strangers=s["strangers_dropped"],
+            switches=s["controller_port_switches"], answers_to_stranger=len(heard), refused=s["targets_refused"],
+            answers_to_controller_after_return=len(back), worst_deg=round(chk.worst_deg, 4))
