@@ -90,3 +90,51 @@ def test_a_given_port_is_the_only_one_heard():
         ctrl.close()
         lk.close()
     assert got == [] and lk.strangers == 1
+
+
+def test_garbled_datagrams_from_the_learnt_port_keep_it(link):
+    """The learnt port speaking garbage is not silent: another port's valid
+    message right after a garbled one stays a stranger's (before: only a
+    decoded message kept the port, and a silence of decoded ones, 1.5 s
+    here, handed it on)."""
+    link.port_switch_silence_s = 0.5  # (far above the pause between the two sends below, whatever the load)
+    ctrl, other = ControllerLink("127.0.0.1", link.port), ControllerLink("127.0.0.1", link.port)
+    try:
+        ctrl.send(ctrl.robot_message(Q0, Q0, tm_ms=4))
+        assert len(_all(link, 1)) == 1
+        time.sleep(1.5)  # (3x the silence, in decoded messages)
+        ctrl.send(b"\x08\x01garbled")
+        other.send(other.robot_message(FAR, FAR, tm_ms=8))
+        time.sleep(0.2)
+        got = link.receive(0.0)
+        ctrl_port = ctrl.sock.getsockname()[1]
+    finally:
+        ctrl.close()
+        other.close()
+    assert got == []
+    assert link.malformed == 1 and link.strangers == 1 and link.port_switches == 0
+    assert link.reply_to == ("127.0.0.1", ctrl_port)
+
+
+def test_the_old_sessions_messages_read_with_the_new_ports_are_not_returned(link):
+    """One read holds the old port's last message and, after a silence
+    beyond the threshold, a new port's first: only the new one is returned
+    (an answer to the old one would go to the new port), the old counted as
+    a stranger's (before: both returned, the answers going to the new port)."""
+    link.port_switch_silence_s = 0.05
+    ctrl, again = ControllerLink("127.0.0.1", link.port), ControllerLink("127.0.0.1", link.port)
+    try:
+        ctrl.send(ctrl.robot_message(Q0, Q0, tm_ms=4))
+        assert len(_all(link, 1)) == 1
+        ctrl.send(ctrl.robot_message(Q0, Q0, tm_ms=8))  # (not read before the new port's)
+        time.sleep(0.3)
+        again.send(again.robot_message(FAR, FAR, tm_ms=4))
+        time.sleep(0.2)
+        got = link.receive(0.0)
+        port = again.sock.getsockname()[1]
+    finally:
+        ctrl.close()
+        again.close()
+    assert [list(m.joints_deg) for m, _ in got] == [pytest.approx(FAR)]
+    assert link.reply_to == ("127.0.0.1", port)
+    assert link.port_switches == 1 and link.strangers == 1

@@ -134,9 +134,10 @@ class PCLink:
     # With ``--controller HOST`` and no port (EGM's and RSI's controllers send from a port of their own), the port
     # of the first message decoded is the controller's: another port on that host is a stranger while the
     # controller speaks, and is taken up only after it fell silent this long (a new session, stopped and started
-    # again).  ASSUMPTION: 0.1 s, 25 periods of 4 ms; no public source gives how soon a restarted session sends or
-    # whether it keeps its port; a faster one from a new port is heard at most this late.  Before, every port on
-    # the host was heard and the answer went to the newest sender's.
+    # again); any datagram from the learnt port, garbled or not, keeps it (``_drain``).  ASSUMPTION: 0.1 s, 25
+    # periods of 4 ms; no public source gives how soon a restarted session sends or whether it keeps its port; a
+    # faster one from a new port is heard at most this late.  Before, every port on the host was heard and the
+    # answer went to the newest sender's.
     port_switch_silence_s = 0.1
 
     def __init__(self, listen_port, controller):
@@ -254,15 +255,22 @@ class PCLink:
                     self.stranger_example = f"{addr[0]}:{addr[1]}"
                 continue
             self.arrival_s = arrival
+            learnt = self.controller_port is None and self.reply_to is not None and addr[1] == self.reply_to[1]
+            if learnt:  # (the learnt port speaks, garbled or not: its silence alone hands the port on)
+                self._heard_s = arrival
             try:
                 msg = self.decode(data)
             except MessageError as e:
                 self.malformed += 1
                 self.malformed_example = str(e)
                 continue
-            if self.controller_port is None:  # the controller's own port (EGM sends from one of its own)
-                if self.reply_to is not None and self.reply_to[1] != addr[1]:
+            if self.controller_port is None and not learnt:  # the controller's own port, learnt (EGM, RSI)
+                if self.reply_to is not None:
                     self.port_switches += 1
+                    # the old session's messages read in this batch: their answer would go to the new port,
+                    # checked against the old arm's feedback; never answered, counted as a stranger's
+                    self.strangers += len(out)
+                    out = []
                 self.reply_to = addr
                 self._heard_s = arrival
             msg.queued_s = waited
