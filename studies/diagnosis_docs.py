@@ -28,7 +28,6 @@ Run: python3 studies/diagnosis_docs.py [--studies [--confusion FILE]] [--only NA
 
 import argparse
 import os
-import re
 import shutil
 import subprocess
 import sys
@@ -39,6 +38,8 @@ ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "diagnosis.md"
 EXAMPLE = ROOT / "docs" / "diagnosis_example"
 sys.path.insert(0, str(ROOT / "tests"))
+
+from generated_blocks import replace_block  # noqa: E402
 
 
 # (a text any of a command block's commands contains, its run marker), first match wins
@@ -92,15 +93,12 @@ def sh(cmd, cwd, env=None):
     return proc.stdout
 
 
-def block(lines, name):
-    return f"<!-- generated: {name} -->\n```\n{lines.rstrip()}\n```\n<!-- end {name} -->"
+def block(lines):
+    """A generated block's contents: ``lines`` fenced as output."""
+    return f"```\n{lines.rstrip()}\n```"
 
 
-def replace(text, name, body):
-    pat = re.compile(rf"<!-- generated: {re.escape(name)} -->.*?<!-- end {re.escape(name)} -->", re.S)
-    if not pat.search(text):
-        raise SystemExit(f"docs/diagnosis.md: no block '{name}'")
-    return pat.sub(lambda m: body, text)
+replace = replace_block  # (studies/generated_blocks.py: the block's contents replaced, the markers kept)
 
 
 def worked_example(tmp):
@@ -133,25 +131,25 @@ def main():
         import json
 
         if want("worked"):
-            text = replace(text, "worked", block(worked_example(tmp), "worked"))
+            text = replace(text, "worked", block(worked_example(tmp)))
         if want("open_world"):
             sh(f"python3 {ROOT}/tests/open_world.py hysteresis 5 hyst.csv", tmp, env)
             text = replace(text, "open_world", block(sh("robstiff diagnose hyst.csv --noise-mm 0.01 2>/dev/null",
-                                                        tmp), "open_world"))
+                                                        tmp)))
         if want("floor"):
             sh("robstiff synth stiffness quiet.csv --seed 5", tmp)
             res = json.loads(sh("robstiff diagnose quiet.csv --noise-mm 0.1 --json - 2>/dev/null", tmp))
             text = replace(text, "floor", block(f"verdict: {res['verdict']}\nfloor_check: "
-                                                f"{json.dumps(res['floor_check'])}", "floor"))
+                                                f"{json.dumps(res['floor_check'])}"))
         if want("setup"):
             out = sh(f"python3 {ROOT}/studies/setup_findings.py --only synth --seeds 1 2 3 2>/dev/null", ROOT, env)
             out += sh(f"python3 {ROOT}/studies/setup_findings.py --only drake --seeds 1 2 3 2>/dev/null", ROOT, env)
             out += sh(f"python3 {ROOT}/studies/setup_findings.py --only beyond --seeds 1 2>/dev/null", ROOT, env)
-            text = replace(text, "setup", block(out, "setup"))
+            text = replace(text, "setup", block(out))
         if want("tracker"):
             sh("robstiff synth tracker tracker.csv --n 3000 --seed 7", tmp, env)
             text = replace(text, "tracker", block(sh("robstiff diagnose tracker.csv --noise-mm 0.03 --write-robot "
-                                                      "irb6400_corrected.yaml 2>/dev/null", tmp), "tracker"))
+                                                      "irb6400_corrected.yaml 2>/dev/null", tmp)))
         import realdata
 
         reason = realdata.missing(realdata.FANUC)
@@ -174,20 +172,18 @@ def main():
             plan = sh(f"robstiff plan-poses 24 --robot r2000ic_165f --separate {a},{b} --campaign fanuc.csv "
                       "--noise-mm 0.03", tmp)
             out += "\n".join(plan.splitlines()[:12]) + "\n  ..."
-            text = replace(text, "fanuc", block(out, "fanuc"))
+            text = replace(text, "fanuc", block(out))
             folds = sh(f"python3 {ROOT}/studies/fanuc_folds.py 2>/dev/null", ROOT, env)
-            text = replace(text, "fanuc_folds", "<!-- generated: fanuc_folds -->\n" + folds.strip()
-                           + "\n<!-- end fanuc_folds -->")
+            text = replace(text, "fanuc_folds", folds.strip())
     if args.studies:
         out = Path(args.confusion).read_text() if args.confusion else \
             sh(f"python3 {ROOT}/studies/diagnosis_confusion.py 2>/dev/null", ROOT)
-        text = replace(text, "confusion", "<!-- generated: confusion -->\n" + out.strip() + "\n<!-- end confusion -->")
+        text = replace(text, "confusion", out.strip())
         out = sh(f"python3 {ROOT}/studies/tracker_campaigns.py --rows 2000 --seeds 2 2>/dev/null", ROOT)
-        text = replace(text, "tracker_study", "<!-- generated: tracker_study -->\n" + out.strip()
-                       + "\n<!-- end tracker_study -->")
+        text = replace(text, "tracker_study", out.strip())
         out = "$ python3 benchmarks/bench_diagnosis.py\n" + sh(f"python3 {ROOT}/benchmarks/bench_diagnosis.py || true", ROOT)
         out += "\n$ python3 benchmarks/bench_tracker.py\n" + sh(f"python3 {ROOT}/benchmarks/bench_tracker.py || true", ROOT)
-        text = replace(text, "speed", block(out, "speed"))
+        text = replace(text, "speed", block(out))
     DOC.write_text(mark(text), encoding="utf-8")
     print(f"wrote {DOC} and {EXAMPLE}")
 

@@ -21,7 +21,6 @@ Run: python3 studies/setup_mistakes.py [--only fanuc|drake] [--docs]
 """
 
 import argparse
-import re
 import sys
 import tempfile
 from dataclasses import replace
@@ -32,12 +31,12 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+from generated_blocks import write_block  # noqa: E402
 import realdata  # noqa: E402
 import setup_errors as se  # noqa: E402
 
 from robstiff_drake.errors import InputError  # noqa: E402
 from robstiff_drake.identification.diagnosis.campaign_diagnosis import diagnose  # noqa: E402
-from robstiff_drake.identification.stiffness.campaign import read_stiffness_campaign  # noqa: E402
 from robstiff_drake.identification.stiffness.joint_stiffness import identify  # noqa: E402
 from robstiff_drake.identification.stiffness.unit_scale import INCH_MM, KGF_N, LBF_N, unit_scale_note  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
@@ -134,24 +133,15 @@ def main():
             print(f"skipped FANUC: {reason}")
         else:
             with tempfile.TemporaryDirectory() as tmp:
-                path = realdata.fanuc_campaign_csv(Path(tmp) / "fanuc.csv")
-                robot = load_robot(realdata.FANUC_ROBOT)
-                out += table("FANUC R-2000iC (real, 43 loads; noise 0.03 mm stated)", robot,
-                             read_stiffness_campaign(str(path), robot), np.array(realdata.FANUC_TOOL_MM) * 1e-3, 0.03)
+                robot, campaign, tool_m, _ = realdata.fanuc_campaign(Path(tmp) / "fanuc.csv")
+                out += table("FANUC R-2000iC (real, 43 loads; noise 0.03 mm stated)", robot, campaign, tool_m, 0.03)
             out.append("")
     if args.only in (None, "drake"):
         c = se.make_campaign("none", 11)
         out += table("Drake's plant (IRB 6400, 120 rows; noise 0.01 mm stated)", load_robot(), c.campaign,
                      np.asarray(c.declared_tool_m, dtype=float), se.NOISE_MM)
     if args.docs:
-        doc = ROOT / "docs" / "diagnosis.md"
-        text = doc.read_text()
-        new, n = re.subn(r"(<!-- generated: setup_mistakes -->\n)(?:.*?\n)?(<!-- end setup_mistakes -->)",
-                         lambda m: m.group(1) + "\n".join(out).rstrip() + "\n" + m.group(2), text, flags=re.S)
-        if n != 1:
-            sys.exit("docs/diagnosis.md has no setup_mistakes block")
-        doc.write_text(new)
-        print(f"wrote {doc}")
+        write_block(ROOT / "docs" / "diagnosis.md", "setup_mistakes", "\n".join(out).rstrip())
 
 
 if __name__ == "__main__":

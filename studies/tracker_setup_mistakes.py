@@ -29,7 +29,6 @@ Run: python3 studies/tracker_setup_mistakes.py [--only ur10|drake] [--docs]
 """
 
 import argparse
-import re
 import sys
 import tempfile
 import time
@@ -41,6 +40,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+from generated_blocks import write_block  # noqa: E402
 import realdata  # noqa: E402
 
 from robstiff_drake.errors import InputError  # noqa: E402
@@ -188,14 +188,7 @@ def main():
             out += table(f"Drake's IRB 6400 ({DRAKE_ROWS} poses, seed {DRAKE_SEED}; noise 0.03 mm; true payload "
                          f"{robot.payload.mass_kg:g} kg)", robot, read_tracker_campaign(str(path), robot), drake_cases)
     if args.docs:
-        doc = ROOT / "docs" / "diagnosis.md"
-        text = doc.read_text()
-        new, n = re.subn(r"(<!-- generated: tracker_setup_mistakes -->\n)(?:.*?\n)?(<!-- end tracker_setup_mistakes -->)",
-                         lambda m: m.group(1) + "\n".join(out).rstrip() + "\n" + m.group(2), text, flags=re.S)
-        if n != 1:
-            sys.exit("docs/diagnosis.md has no tracker_setup_mistakes block")
-        doc.write_text(new)
-        print(f"wrote {doc}")
+        write_block(ROOT / "docs" / "diagnosis.md", "tracker_setup_mistakes", "\n".join(out).rstrip())
 
 
 if __name__ == "__main__":

@@ -13,7 +13,6 @@ Run: python3 studies/tracker_ur10.py [--docs]
 
 import argparse
 import json
-import re
 import subprocess
 import sys
 import tempfile
@@ -22,6 +21,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
+from generated_blocks import replace_block  # noqa: E402
 import realdata  # noqa: E402
 
 ROBOT = ROOT / "tests" / "data" / "ur10_user.yaml"
@@ -78,17 +78,10 @@ def main():
         print(summary("series B (2021) alone", rep_b, s_b))
         if args.docs:
             doc = ROOT / "docs" / "diagnosis.md"
-            text = doc.read_text()
-            block = "```\n" + text_a.strip() + "\n```"
-            new, n = re.subn(r"(<!-- generated: ur10 -->\n)(?:.*?\n)?(<!-- end ur10 -->)",
-                             lambda m: m.group(1) + block + "\n" + m.group(2), text, flags=re.S)
-            if n != 1:
-                sys.exit("docs/diagnosis.md has no ur10 block")
             numbers = summary("series A (2020), validated on B (2021)", rep_a, s_a) + "\n" + summary(
                 "series B (2021) alone", rep_b, s_b)
-            new, n = re.subn(r"(<!-- generated: ur10_summary -->\n)(?:.*?\n)?(<!-- end ur10_summary -->)",
-                             lambda m: m.group(1) + "```\n" + numbers + "\n```\n" + m.group(2), new, flags=re.S)
-            doc.write_text(new)
+            text = replace_block(doc.read_text(), "ur10", "```\n" + text_a.strip() + "\n```")
+            doc.write_text(replace_block(text, "ur10_summary", "```\n" + numbers + "\n```"))
             print(f"wrote {doc}")
 
 

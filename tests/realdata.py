@@ -52,6 +52,18 @@ def fanuc_campaign_csv(out_path):
     return out_path
 
 
+def fanuc_campaign(out_path):
+    """(robot, StiffnessCampaign, tool point m, path): the FANUC campaign
+    written to ``out_path`` (fanuc_campaign_csv) and read on its robot file
+    with its source's tool point, as the tests and studies diagnose it."""
+    from robstiff_drake.identification.stiffness.campaign import read_stiffness_campaign
+    from robstiff_drake.model.robot import load_robot
+
+    path = fanuc_campaign_csv(out_path)
+    robot = load_robot(FANUC_ROBOT)
+    return robot, read_stiffness_campaign(str(path), robot), np.array(FANUC_TOOL_MM) * 1e-3, path
+
+
 IPA_UR10 = "ipa_ur10"
 IPA_SERIES = {"A": "Series_A/measurements_grid.csv", "B": "Series_B/measurements_joint_configurations.csv"}
 

@@ -19,7 +19,6 @@ import setup_errors as se
 from robstiff_drake.commands.main import main
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.diagnosis.campaign_diagnosis import diagnose
-from robstiff_drake.identification.stiffness.campaign import read_stiffness_campaign
 from robstiff_drake.identification.stiffness.joint_stiffness import identify
 from robstiff_drake.model.robot import load_robot
 
@@ -91,9 +90,7 @@ def fanuc(tmp_path_factory):
     if reason:
         print(f"skipped: {reason}")
         pytest.skip(reason)
-    path = realdata.fanuc_campaign_csv(tmp_path_factory.mktemp("fanuc") / "fanuc.csv")
-    r = load_robot(realdata.FANUC_ROBOT)
-    return r, read_stiffness_campaign(str(path), r), np.array(realdata.FANUC_TOOL_MM) * 1e-3
+    return realdata.fanuc_campaign(tmp_path_factory.mktemp("fanuc") / "fanuc.csv")[:3]
 
 
 def test_the_real_campaign_is_not_read_another_way(fanuc):

@@ -19,7 +19,6 @@ sys.path.insert(0, str(Path(__file__).parent))
 import realdata  # noqa: E402
 import setup_errors as se  # noqa: E402
 
-from robstiff_drake.identification.stiffness.campaign import read_stiffness_campaign  # noqa: E402
 from robstiff_drake.identification.stiffness.joint_stiffness import identify  # noqa: E402
 from robstiff_drake.identification.stiffness.unit_scale import KGF_N, LBF_N, unit_scale_note  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
@@ -77,9 +76,8 @@ def fanuc(tmp_path_factory):
     if reason:
         print(f"skipped: {reason}")
         pytest.skip(reason)
-    path = realdata.fanuc_campaign_csv(tmp_path_factory.mktemp("fanuc") / "fanuc.csv")
-    robot = load_robot(realdata.FANUC_ROBOT)
-    return path, robot, read_stiffness_campaign(str(path), robot), np.array(realdata.FANUC_TOOL_MM) * 1e-3
+    robot, campaign, tool_m, path = realdata.fanuc_campaign(tmp_path_factory.mktemp("fanuc") / "fanuc.csv")
+    return path, robot, campaign, tool_m
 
 
 def test_the_real_fanuc_campaign_as_written_is_no_unit_and_lbf_is_named(fanuc):
