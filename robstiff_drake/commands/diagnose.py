@@ -5,7 +5,7 @@ whether the result explains the data against the noise floor."""
 
 import numpy as np
 
-from robstiff_drake.commands.identify import campaign_warnings, scale_warnings
+from robstiff_drake.commands.identify import campaign_warnings, fit_warnings
 from robstiff_drake.commands.options import parse_tool
 from robstiff_drake.errors import InputError
 from robstiff_drake.identification.stiffness.campaign import campaign_tool_m, read_stiffness_campaign
@@ -13,7 +13,7 @@ from robstiff_drake.identification.diagnosis.confounding import CONFOUNDED_MIN
 from robstiff_drake.identification.diagnosis.campaign_diagnosis import CANDIDATES, DICTIONARY, diagnose
 from robstiff_drake.identification.diagnosis.findings import describe_alternatives
 from robstiff_drake.identification.diagnosis.fold_spread import describe as describe_spread
-from robstiff_drake.identification.stiffness.joint_stiffness import check_angle_units, check_signs, identify
+from robstiff_drake.identification.stiffness.joint_stiffness import check_angle_units, identify
 from robstiff_drake.identification.diagnosis.selection import ALPHA_ROUND, MIN_GAIN
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, staged_outputs, write_atomic
 from robstiff_drake.model.robot import load_robot
@@ -303,9 +303,7 @@ def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=N
     tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), warnings)
     warnings.extend_from(campaign_warnings(campaign))
     check_angle_units(robot, campaign, tool_m)
-    fit = identify(robot, campaign, tool_m=tool_m)
-    warnings.extend_from(check_signs(fit, campaign))
-    warnings.extend_from(scale_warnings(fit, robot, campaign))
+    warnings.extend_from(fit_warnings(identify(robot, campaign, tool_m=tool_m), robot, campaign))
     d = diagnose(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=warnings)
     with staged_outputs():  # the JSON, the report and the views, all or none
         if json_out is not None:

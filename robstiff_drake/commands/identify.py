@@ -125,14 +125,17 @@ def plot_fit(fit, campaign, robot, no_intervals=()):
     return fig
 
 
-def scale_warnings(fit, robot, campaign):
-    """Every identified joint off the robot file's stiffness by a unit's
-    factor (identification/stiffness/unit_scale.py): [one line] or []."""
+def fit_warnings(fit, robot, campaign):
+    """What the six-spring fit of the campaign as written says of the file
+    (identify's and diagnose's): check_signs' refusal or warnings, and every
+    identified joint off the robot file's stiffness by a unit's factor
+    (identification/stiffness/unit_scale.py); one line each."""
+    from robstiff_drake.identification.stiffness.joint_stiffness import check_signs
     from robstiff_drake.identification.stiffness.unit_scale import unit_scale_note
 
     note = unit_scale_note(fit.stiffness_Nm_per_rad, robot.joint_stiffness_Nm_per_rad, fit.identifiable,
                            campaign.path, robot.source or robot.name)
-    return [note] if note else []
+    return list(check_signs(fit, campaign)) + ([note] if note else [])
 
 
 def campaign_warnings(campaign):
@@ -196,7 +199,7 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
     tool_arg = parse_tool(tool)
     # scipy comes with these: after the checks of the arguments
     from robstiff_drake.identification.stiffness.campaign import campaign_tool_m, read_stiffness_campaign
-    from robstiff_drake.identification.stiffness.joint_stiffness import check_angle_units, check_signs, identify
+    from robstiff_drake.identification.stiffness.joint_stiffness import check_angle_units, identify
     from robstiff_drake.identification.stiffness.interval_support import interval_support
 
     warnings = Warnings()
@@ -213,8 +216,7 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
     check_angle_units(robot, campaign, tool_m)
     fit = identify(robot, campaign, tool_m=tool_m, robust=robust)
     warnings.extend_from(fit.input_warnings)
-    warnings.extend_from(check_signs(fit, campaign))
-    warnings.extend_from(scale_warnings(fit, robot, campaign))
+    warnings.extend_from(fit_warnings(fit, robot, campaign))
     if fit.condition_number > 1e4:
         warnings.add(f"condition number {fit.condition_number:.3g}: the poses and loads barely separate the joints; "
                      "plan the campaign with `robstiff plan-poses`")
