@@ -303,8 +303,9 @@ def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=N
     tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), warnings)
     warnings.extend_from(campaign_warnings(campaign))
     check_angle_units(robot, campaign, tool_m)
-    warnings.extend_from(fit_warnings(identify(robot, campaign, tool_m=tool_m), robot, campaign))
-    d = diagnose(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=warnings)
+    springs = identify(robot, campaign, tool_m=tool_m)  # six springs on every row: the warnings and the search's start
+    warnings.extend_from(fit_warnings(springs, robot, campaign))
+    d = diagnose(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=warnings, base_all=springs)
     with staged_outputs():  # the JSON, the report and the views, all or none
         if json_out is not None:
             emit_json(to_dict(d, campaign), json_out)

@@ -271,13 +271,16 @@ def diagnose(robot, campaign, **kw):
     ``candidates``: names from the named library (default all);
     ``dictionary``: search the open dictionary too; ``warnings``;
     ``fold_seed``: the fold assignment of the search (default FOLD_SEED;
-    studies rerun the whole diagnosis over several)."""
+    studies rerun the whole diagnosis over several); ``base_all``: the six
+    springs already fitted to every row with this ``tool_m``
+    (``identify(robot, campaign, tool_m=tool_m)``, as the command has it for
+    its warnings), so they are not fitted twice."""
     with single_blas_thread():
         return _diagnose(robot, campaign, **kw)
 
 
 def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None,
-              fold_seed=FOLD_SEED):
+              fold_seed=FOLD_SEED, base_all=None):
     w = warnings if warnings is not None else Warnings(quiet=True)
     tool_m = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
     names = list(candidates or CANDIDATES)
@@ -286,7 +289,8 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
         terms_by_name.update(DICTIONARY)
     groups = pose_groups(campaign)
     all_rows = np.arange(len(campaign))
-    base_all = identify(robot, campaign, tool_m=tool_m)
+    if base_all is None:
+        base_all = identify(robot, campaign, tool_m=tool_m)
     ctx0 = Context(robot, campaign, tool_m, base_all.identifiable)
     floor_m = None if noise_mm is None else noise_mm * 1e-3
     flagged, _ = robust_fit.screen_rows(robust_fit.tukey_springs(ctx0, all_rows, floor_m), all_rows, floor_m,
