@@ -253,7 +253,9 @@ def main():
     rows.append(("corrected program, the preview's correction as written", "plant", plant0))
     rows.append(("  the same, the tool's tilt left out (a level face at the tool point)", "plant",
                  tilt_share(res0, prediction.path)))
-    rows.append((f"corrected program, floor refined ({ROUNDS} rounds): the written program", "plant",
+    best = offline_refinement.best_round(history)
+    rows.append((f"corrected program, floor refined (round {best}, the best of {ROUNDS} on the model): the written "
+                 "program", "plant",
                  proof.pop("corrected program")))
     rows.append(("  the same, the tool's tilt left out", "plant", tilt_share(res1, prediction.path)))
     for label, st in proof.items():

@@ -132,7 +132,9 @@ def refine(sc, robot, program, text, prediction, *, rounds, chord_mm, max_correc
     stats list has rounds + 1 entries, one per program tried (the first the
     preview's correction as written).  The Prediction returned is that of
     the best round (``best_round``: the last when the rounds improve, as
-    they do on face_and_contour), whose stats are ``history[best_round(history)]``.
+    on face_contour_fanuc; on face_and_contour round 2 undoes a little of
+    round 1, 0.027 -> 0.030 mm on the twin, and round 1 is written), whose
+    stats are ``history[best_round(history)]``.
     CorrectionError when a refined correction exceeds ``max_correction_mm``."""
     from robstiff_drake.diagrams.offline_compensation import move_corrections, scanned_against_program, _short
     from robstiff_drake.model.floor_generation import floor_raise_mm
