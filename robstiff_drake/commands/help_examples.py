@@ -24,7 +24,8 @@ EXAMPLES = {
     "plan-poses": "robstiff plan-poses 60 --out plan.csv",
     "table2": "robstiff table2 --plot table2.png",
     "simulate": "robstiff simulate block_milling --out block --replay block.html",
-    "compensate-program": "robstiff compensate-program face_and_contour --out corrected --no-simulate",
+    "compensate-program": "robstiff compensate-program face_and_contour --out corrected --json corrected.json "
+                          "--no-simulate",
     "compensate": "robstiff compensate --egm-port 6510 --netft 192.168.1.1:49152 --model model.json "
                   "--payload payload.yaml --reference joint_reference.csv --log cut1",
     "sim-cell": "robstiff sim-cell block_milling --egm-to 127.0.0.1:6510 --netft-port 49152 "
