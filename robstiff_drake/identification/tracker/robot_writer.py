@@ -238,7 +238,7 @@ def check(path, robot_fit, fit, q_rad, payload=None):
     """Read the written file back and compare its forward kinematics (flange
     and tool point) with the fitted model's at ``q_rad`` (N, 6) model angles,
     and its payload with ``payload`` ({mass_kg, com_mm} written); InputError
-    when they differ by more than CHECK_TOL_M (1e-9 kg, 1e-6 mm)."""
+    when they differ by more than CHECK_TOL_M (its payload: by more than 1e-6 kg or mm)."""
     from robstiff_drake.model import kinematics as kin
     from robstiff_drake.model.robot import load_robot
 
