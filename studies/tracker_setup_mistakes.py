@@ -5,6 +5,9 @@ The measurements come from the real arm with its real payload, standing as
 it stood; the mistake is in the declaration, so it is planted there:
   * the payload's mass in the robot file (payload.mass_kg) set to what a
     user writes by mistake (none declared, or a heavier tool's);
+  * the payload's centre of mass in the robot file (payload.com_mm) moved
+    along the tool axis (the bare spindle's centre of mass written for
+    the mounted tool: 100-200 mm off), its mass right, and both wrong;
   * the vertical the model takes: the instrument's frame turned about its
     x axis (a tracker not levelled, or points exported in a frame aligned
     to a tilted base: the model takes the frame's -z as gravity), the
@@ -17,8 +20,8 @@ payload 1.2 kg), and a campaign of Drake's perturbed IRB 6400
 file's 40 kg).  Per case: the held-out RMS per component before -> after,
 the effects kept, the setup finding (with the alternatives' held-out RMS
 where the data do not separate them).  First, per campaign, how large each
-mistake shows: the sag difference per kg of payload and per deg of tilt
-(RMS per component over the poses), all of it and the part that the
+mistake shows: the sag difference per kg of payload, per 100 mm of its
+centre of mass and per deg of tilt (RMS per component over the poses), all of it and the part that the
 registration, the measured point, the geometry and the joints' compliance
 scale cannot absorb; and the size a mistake needs to lower the held-out
 RMS by the search's 2 % (a part of 0.2x the clean fit's held-out RMS).
@@ -67,6 +70,17 @@ def declared(robot, mass_kg):
     return replace(robot, payload=replace(robot.payload, mass_kg=float(mass_kg)))
 
 
+def com_moved(robot, dz_mm):
+    """The robot with its payload's declared centre of mass moved by ``dz_mm`` along the flange's z (the tool axis)."""
+    return replace(robot, payload=replace(robot.payload, com_m=robot.payload.com_m + np.array([0.0, 0.0, dz_mm / 1e3])))
+
+
+SETUP = ("payload_mass", "payload_com", "gravity_tilt")
+# per unit of each mistake: (its size in SI, the unit's name, the unit's number and name for the size it shows from)
+PER_UNIT = {"payload_mass": (1.0, "kg", 1.0, "kg"), "payload_com": (0.1, "100 mm", 100.0, "mm"),
+            "gravity_tilt": (np.deg2rad(1.0), "deg", 1.0, "deg")}
+
+
 def visibility(robot, campaign):
     """{name: (all, unabsorbed)} mm RMS per component per unit (kg, deg) of the setup blocks' columns."""
     problem, fit0, _ = _prepare(robot, campaign, None, Warnings(quiet=True))
@@ -76,7 +90,7 @@ def visibility(robot, campaign):
     Z = {b.name: z for b, z in cands}
     nuis = np.hstack([Xgeo] + ([Z["joint_compliance"]] if "joint_compliance" in Z else []))
     out = {}
-    for name, per in (("payload_mass", 1.0), ("gravity_tilt", np.deg2rad(1.0))):
+    for name, (per, *_) in PER_UNIT.items():
         if name not in Z:
             continue
         best = (0.0, 0.0)
@@ -105,11 +119,13 @@ def said(robot, campaign):
         alts = "; ".join(f"{a['model'].split(' (')[0]} {a['heldout_rms_mm']:.4f} mm"
                          + ("" if a.get("physical", True) else " (not physical)") for a in f["alternatives"])
         s += f"; **{f['text'].split(': weigh')[0].split(': level')[0].split('; the data')[0]}**"
+        if f["name"] == "payload_com":  # the full estimate (the text rounds to 3 digits)
+            s += " (estimate " + ", ".join(f"{k} {v:+.1f}" for k, v in f["estimate"].items()) + ")"
         s += f" (held out: {alts}{'' if f['separated'] else '; not separated'})"
     if not r.get("setup_findings"):
         s += "; no setup finding"
     for lead in r["leads"]:
-        if lead["name"] in ("payload_mass", "gravity_tilt"):
+        if lead["name"] in SETUP:
             s += f"; lead {lead['name']} ({lead['rms_mm']:.4f} mm: {lead['plausibility'][:90]})"
     print(f"  ({time.time() - t0:.0f} s)", flush=True)  # (not in the table: the time depends on the load)
     return s, r
@@ -133,10 +149,10 @@ def table(title, robot, campaign, cases):
         lines += [""] + [f"{name}: {a:.4f} mm of sag difference per {unit} (RMS per component), {u:.4f} mm of it "
                          f"not absorbed by the registration, measured point, geometry and compliance scale; the clean "
                          f"fit leaves {clean_rms:.4f} mm held out, so a mistake shows from about "
-                         f"{need / max(u, 1e-12):.2g} {unit}" for name, unit in (("payload_mass", "kg"),
-                                                                                 ("gravity_tilt", "deg"))
+                         f"{float(f'{n * need / max(u, 1e-12):.2g}'):g} {shows}"
+                         for name, (_, unit, n, shows) in PER_UNIT.items()
                          for a, u in [vis.get(name, (0.0, 0.0))]]
-        print("\n".join(lines[-2:]), flush=True)
+        print("\n".join(lines[-3:]), flush=True)
     return lines
 
 
@@ -145,6 +161,10 @@ def ur10_cases(robot, campaign):
     out = [("clean", robot, campaign)]
     for mass in (0.0, m + 2.0, m + 5.0, m + 10.0):
         out.append((f"payload declared {mass:g} kg (file {m:g} kg)", declared(robot, mass), campaign))
+    z = robot.payload.com_m[2] * 1e3
+    for dz in (150.0, 300.0):
+        out.append((f"payload centre of mass declared at z {z + dz:g} mm (file {z:g} mm)", com_moved(robot, dz),
+                    campaign))
     for deg in (1.0, 3.0):
         out.append((f"vertical {deg:g} deg off (frame turned)", robot, turned(campaign, deg)))
     return out
@@ -155,6 +175,12 @@ def drake_cases(robot, campaign):
     out = [("clean", robot, campaign)]
     for mass in (0.0, m - 20.0, m + 20.0):
         out.append((f"payload declared {mass:g} kg (true {m:g} kg)", declared(robot, mass), campaign))
+    z = robot.payload.com_m[2] * 1e3
+    for dz in (-150.0, -100.0, -50.0, 50.0, 100.0, 200.0):
+        out.append((f"payload centre of mass declared at z {z + dz:g} mm (true {z:g} mm)", com_moved(robot, dz),
+                    campaign))
+    out.append((f"payload declared {m - 20:g} kg at z {z - 100:g} mm (true {m:g} kg at {z:g} mm)",
+                com_moved(declared(robot, m - 20.0), -100.0), campaign))
     for deg in (0.5, 1.0, 2.0):
         out.append((f"vertical {deg:g} deg off (frame turned)", robot, turned(campaign, deg)))
     return out

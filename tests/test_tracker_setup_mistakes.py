@@ -1,7 +1,7 @@
 """Setup mistakes of a tracker campaign planted in the declaration, not in
 the measurements (identification/tracker/setup_terms.py): the payload's
 mass in the robot file and the vertical the model takes (the instrument's
-frame turned).  On a campaign of Drake's IRB 6400 (40 kg payload, a sag of
+frame turned), and the payload's centre of mass.  On a campaign of Drake's IRB 6400 (40 kg payload, a sag of
 1-2 mm) they are named with their size; on the real UR10 series B
 (tests/realdata.py; skipped with the reason when absent) the clean series
 is not accused and a 10 kg mistake is named, with the compliance scale
@@ -47,7 +47,7 @@ def irb6400(tmp_path_factory):
 def test_a_clean_campaign_has_no_setup_finding(irb6400):
     rep, found = _findings(*irb6400)
     assert found == {}, found
-    assert not {"payload_mass", "gravity_tilt"} & set(rep["selected_effects"])
+    assert not {"payload_mass", "payload_com", "gravity_tilt"} & set(rep["selected_effects"])
 
 
 @pytest.mark.parametrize("mass_kg", [0.0, 20.0])
@@ -61,6 +61,19 @@ def test_a_payload_declared_wrong_is_named_with_its_mass(irb6400, mass_kg):
     assert f"declares {mass_kg:.3g} kg" in f["text"]
     assert f["separated"], f["alternatives"]
     assert rep["rms_after_mm"] < 1.1 * NOISE  # the held-out RMS back at the noise
+
+
+def test_a_payload_centre_of_mass_declared_wrong_is_named(irb6400):
+    robot, campaign = irb6400  # the arm's 40 kg act at (0, 0, 180) mm; the user declares 30 mm (the bare spindle's)
+    rb = replace(robot, payload=replace(robot.payload, com_m=np.array([0.0, 0.0, 0.030])))
+    rep, found = _findings(rb, campaign)
+    assert "payload_mass" not in found, found  # the mass is right: not accused
+    f = found["payload_com"]
+    assert abs(30.0 + f["estimate"]["dz (mm)"] - 180.0) < 10.0, f
+    assert np.hypot(f["estimate"]["dx (mm)"], f["estimate"]["dy (mm)"]) < 10.0, f
+    assert f["text"].startswith("SETUP FINDING: the payload's centre of mass is about") and f["beyond_typical"]
+    assert f["separated"] and any(a["model"].startswith("payload_mass in its place") for a in f["alternatives"])
+    assert rep["rms_after_mm"] < 1.1 * NOISE
 
 
 def test_a_vertical_one_degree_off_is_named(irb6400):

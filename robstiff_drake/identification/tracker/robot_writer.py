@@ -14,6 +14,15 @@ the document is re-emitted by PyYAML (comments then kept only in the
 header), which is said in the header.  The result is read back with the
 project's reader and its forward kinematics checked against the fitted
 model's before it is written (``check``).
+
+The setup findings (setup_terms.py) the diagnosis kept are the user's
+declarations, not the arm's: a payload mass or centre of mass found is
+written as ``payload.mass_kg`` / ``payload.com_mm`` (the fit's sag is the
+file's masses through its compliances: the two together reproduce it) and
+read back; a gravity turned from the instrument's vertical has no key in a
+robot file (the tracker diagnosis takes the vertical from the instrument's
+frame, not from the robot file), so the header says what was found and
+what to do instead of writing it.
 """
 
 import re
@@ -77,6 +86,68 @@ def _replace_line(text, key, values, after=None):
     return None
 
 
+def _section_span(text, section):
+    """(start, end) of the lines below the top-level ``section:`` (to the next top-level key), or None."""
+    m = list(re.finditer(rf"^{re.escape(section)}:[ \t]*(#.*)?$", text, re.M))
+    if len(m) != 1:
+        return None
+    nxt = re.compile(r"^[^\s#]", re.M).search(text, m[0].end())
+    return m[0].end(), nxt.start() if nxt else len(text)
+
+
+def _replace_in_section(text, section, key, value_text, flow):
+    """Replace the value of ``section``'s ``key`` (a one-line flow list when ``flow``, else a plain scalar),
+    keeping its indentation and trailing comment; None when it cannot."""
+    span = _section_span(text, section)
+    if span is None:
+        return None
+    value = r"\[[^\]\n]*\]" if flow else r"[-+0-9.eE]+"
+    pat = re.compile(rf"^([ \t]+){re.escape(key)}:[ \t]*{value}[ \t]*(#.*)?$", re.M)
+    m = list(pat.finditer(text, *span))
+    if len(m) != 1:
+        return None
+    g = m[0]
+    tail = f"  {g.group(2)}" if g.group(2) else ""
+    return text[:g.start()] + f"{g.group(1)}{key}: {value_text}{tail}" + text[g.end():]
+
+
+def setup_corrections(robot, report):
+    """What the setup findings kept (setup_terms.py) write into the file: ({payload key: value}, [header
+    lines]).  The payload's mass and centre of mass as the fit found them; a gravity turned from the
+    vertical only as a header note (no robot file key holds it)."""
+    found = {f["name"]: f for f in report.get("setup_findings") or []}
+    keys, notes = {}, []
+    pl = robot.payload
+    if "payload_mass" in found:
+        f = found["payload_mass"]
+        mass = float(f"{pl.mass_kg + f['estimate']['dm (kg)']:.6g}")
+        keys["mass_kg"] = mass
+        notes.append(f"payload.mass_kg: {_number(mass)} kg, as the campaign's sag found it (the original declares "
+                     f"{_number(pl.mass_kg)} kg" + ("; a SETUP FINDING beyond the typical" if f["beyond_typical"]
+                                                     else "; within the typical") + "): weigh the tool to confirm"
+                     + ("" if f["separated"] else " (the data do not separate it from the joints' compliance "
+                                                  "scale: see the diagnosis)"))
+    if "payload_com" in found:
+        f = found["payload_com"]
+        est = f["estimate"]
+        com = [float(f"{c * 1e3 + est[f'd{a} (mm)']:.6g}") for c, a in zip(pl.com_m, "xyz")]
+        keys["com_mm"] = com
+        notes.append(f"payload.com_mm: {_flow(com)} mm, as the campaign's sag found it (the original declares "
+                     f"{_flow(pl.com_m * 1e3)} mm" + ("; a SETUP FINDING beyond the typical" if f["beyond_typical"]
+                                                      else "; within the typical") + ")"
+                     + ("" if f["separated"] else "; the data do not separate it from its alternatives (see the "
+                                                  "diagnosis): run the controller's load identification to confirm"))
+    if "gravity_tilt" in found:
+        f = found["gravity_tilt"]
+        e = f["estimate"]
+        notes.append(f"NOT WRITTEN (no robot file key holds it): the gravity the arm felt was turned by "
+                     f"{float(np.hypot(e['tilt_x (deg)'], e['tilt_y (deg)'])):.2g} deg from the instrument's "
+                     f"vertical (about the base's x {e['tilt_x (deg)']:+.2g} deg, y {e['tilt_y (deg)']:+.2g} deg). "
+                     "The diagnosis takes the vertical from the tracker's frame: level the tracker (or export the "
+                     "points in a levelled frame) and measure again; this file's sag is the arm's own, without it")
+    return keys, notes
+
+
 def periodic_entries(fit):
     """[{joint (1-based), period_deg, sin_mrad, cos_mrad}] of the fit's periodic blocks."""
     out = []
@@ -97,9 +168,11 @@ def _periodic_text(entries):
     return "\n".join(head + items) + "\n"
 
 
-def corrected_text(robot, source_text, fit, k_Nm_per_rad, provenance):
-    """The corrected robot file's text (see the module docstring)."""
+def corrected_text(robot, source_text, fit, k_Nm_per_rad, provenance, payload=None):
+    """The corrected robot file's text (see the module docstring); ``payload``: {payload key: value} the
+    setup findings correct (setup_corrections)."""
     doc = yaml.safe_load(source_text)
+    payload = payload or {}
     periodic = periodic_entries(fit)
     rows = _row_values(robot, doc["dh"], fit.geo)
     tool = [float(v) for v in fit.u * 1e3]
@@ -121,6 +194,11 @@ def corrected_text(robot, source_text, fit, k_Nm_per_rad, provenance):
     new = _replace_line(text, "joint_stiffness_Nm_per_rad", k)
     inline &= new is not None
     text = new if new is not None else text
+    for key, value in payload.items():
+        new = _replace_in_section(text, "payload", key, _flow(value) if isinstance(value, list) else _number(value),
+                                  flow=isinstance(value, list))
+        inline &= new is not None
+        text = new if new is not None else text
     if periodic and "joint_periodic_errors" in doc:  # a corrected file corrected again: the new terms add
         inline = False
     elif periodic:
@@ -132,6 +210,7 @@ def corrected_text(robot, source_text, fit, k_Nm_per_rad, provenance):
         if "beta_deg" not in rows:
             doc["dh"].pop("beta_deg", None)
         doc["payload"]["measured_point_mm"] = tool
+        doc["payload"].update(payload)
         doc["joint_stiffness_Nm_per_rad"] = k
         text = yaml.safe_dump(doc, sort_keys=False, default_flow_style=None)
         provenance = provenance + ["the original's comments are in its own file (this one was re-emitted by PyYAML)"]
@@ -155,10 +234,11 @@ def provenance_lines(data, robot, report, corrections):
     return lines
 
 
-def check(path, robot_fit, fit, q_rad):
+def check(path, robot_fit, fit, q_rad, payload=None):
     """Read the written file back and compare its forward kinematics (flange
-    and tool point) with the fitted model's at ``q_rad`` (N, 6) model angles;
-    InputError when they differ by more than CHECK_TOL_M."""
+    and tool point) with the fitted model's at ``q_rad`` (N, 6) model angles,
+    and its payload with ``payload`` ({mass_kg, com_mm} written); InputError
+    when they differ by more than CHECK_TOL_M (its payload: by more than 1e-6 kg or mm)."""
     from robstiff_drake.model import kinematics as kin
     from robstiff_drake.model.robot import load_robot
 
@@ -175,6 +255,11 @@ def check(path, robot_fit, fit, q_rad):
     if err > CHECK_TOL_M:
         raise InputError(f"{path}: the corrected robot file's kinematics differ from the fitted model's by "
                          f"{err * 1e3:.3g} mm (not written correctly; please report)")
+    got = {"mass_kg": float(new.payload.mass_kg), "com_mm": list(new.payload.com_m * 1e3)}
+    for key, value in (payload or {}).items():
+        if np.max(np.abs(np.subtract(got[key], value))) > CHECK_TOL_M * 1e3:
+            raise InputError(f"{path}: the corrected robot file's payload.{key} reads back as {got[key]}, not "
+                             f"{value} (not written correctly; please report)")
     return err
 
 
@@ -193,14 +278,16 @@ def write_corrected_robot(out, robot, fit, report, data, q_rad):
         corrections.append("joint_stiffness_Nm_per_rad (the sag's)")
     if periodic_entries(fit):
         corrections.append("joint_periodic_errors")
+    payload, notes = setup_corrections(robot, report)
+    corrections += [f"payload.{key} (a setup finding)" for key in payload]
     text = corrected_text(robot, source_text, fit, report["joint_stiffness_Nm_per_rad"],
-                          provenance_lines(data, robot, report, corrections))
+                          provenance_lines(data, robot, report, corrections) + notes, payload)
     import tempfile
     from pathlib import Path
 
     with tempfile.TemporaryDirectory() as tmp:
         trial = Path(tmp) / Path(out).name
         trial.write_text(text, encoding="utf-8")
-        err = check(trial, robot, fit, q_rad)
+        err = check(trial, robot, fit, q_rad, payload)
     write_atomic(out, text)
     return err

@@ -13,7 +13,7 @@ from robstiff_drake.identification.diagnosis.cross_validation import wald_p
 from robstiff_drake.identification.tracker.fit import LinearCV
 from robstiff_drake.identification.tracker.model import GEOM
 
-SETUP_NAMES = ("payload_mass", "gravity_tilt")  # identification/tracker/setup_terms.py's blocks
+SETUP_NAMES = ("payload_mass", "payload_com", "gravity_tilt")  # identification/tracker/setup_terms.py's blocks
 
 # An effect must lower the held-out RMS by this much (thousands of rows make a
 # 2 % gain certain; the Wald test and the held-out folds guard against overfitting)
