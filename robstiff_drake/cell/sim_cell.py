@@ -272,7 +272,11 @@ class CellNetwork:
                 for x in usable:
                     answers.pop(x)
             if engaged and not fresh and need not in dropped:
-                if targets is None and (stepped or t - t_eng - st.last_answer_t > self.answer_timeout_s):
+                # lockstep waited for the last message's answer: none to `need` and none newer is the
+                # compensator's silence; a newer one in hand is a message it skipped (one that answers only
+                # the newest after a stall, as compensate does), a cycle unanswered as a controller counts it
+                silent = stepped and not answers
+                if targets is None and (silent or t - t_eng - st.last_answer_t > self.answer_timeout_s):
                     st.stop_reason = (f"no answer from the compensator for {self.answer_timeout_s:g} s after "
                                       f"t = {st.last_answer_t:.3f} s of the cut")
                     st.t_stop = st.last_answer_t
