@@ -16,7 +16,7 @@ import pytest
 
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
-from port_attacks import T, T_MS, Checker, _summary  # noqa: E402,F401
+from port_attacks import T, T_MS, Checker  # noqa: E402
 
 from robstiff_drake.cell.compensate import MAX_STEP_PERIODS  # noqa: E402
 from robstiff_drake.cell.rdt import CalibrationPage, RDTServer, encode_record  # noqa: E402
@@ -56,6 +56,7 @@ class ScriptedSensor:
         self.sent = 0  # records sent to the client (auto and scripted)
         self.lock = threading.Lock()
         self.auto = True
+        self.auto_status = 0  # (the status word of the records streamed until manual())
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._run, daemon=True)
         self.thread.start()
@@ -64,7 +65,7 @@ class ScriptedSensor:
         while not self._stop.is_set():
             with self.lock:
                 self.server.poll()
-                if self.auto and self.server.send(list(self.wrench)):
+                if self.auto and self.server.send(list(self.wrench), status=self.auto_status):
                     self.sent += 1
             time.sleep(0.001)
 
@@ -185,17 +186,20 @@ class Run:
 @pytest.fixture()
 def inputs(tmp_path, robot):
     """(model, payload, reference path, reference function deg, held wrench N N*m, log folder): the payload's
-    weight and a process force held from the start (a correction of 0.053 deg on its largest joint once compensating)."""
+    weight and a process force held from the start (a correction of 0.053 deg on its largest joint once
+    compensating)."""
     model, payload, ref, ref_fn = h.write_inputs(str(tmp_path), robot, duration_s=3.5)
     w = np.asarray(h.hold_wrench(robot, ref_fn(0.0))(0.0), dtype=float) + [500.0, -400.0, 300.0, 0.0, 0.0, 0.0]
     return model, payload, ref, (lambda t: np.degrees(ref_fn(t))), w, str(tmp_path / "log")
 
 
-def start(inputs, sensor, extra=()):
-    """`compensate` against ``sensor`` and a scripted controller; (process, controller)."""
-    model, payload, ref, _, _, log = inputs
+def start(inputs, sensor, extra=(), log=True):
+    """`compensate` against ``sensor`` and a scripted controller; (process, controller).  ``log`` False: no
+    --log (and so no start's work: compensating from the first message)."""
+    model, payload, ref, _, _, folder = inputs
     port = h.free_udp_port()
-    proc = h.start_compensate(model, payload, sensor, port, reference=ref, log=log, extra=list(extra))
+    proc = h.start_compensate(model, payload, sensor, port, reference=ref, log=folder if log else None,
+                              extra=list(extra))
     sensor.manual()
     return proc, h.ScriptedController(port)
 
