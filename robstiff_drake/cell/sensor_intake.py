@@ -3,8 +3,9 @@
 controller message through the guard (int32-clipped records and moment
 spikes refused and counted) and the force filter, and the sensor's
 faults: silent, invalid or rejected by the guard for ``sensor_timeout_s``
-(silent: on this PC's clock and on the controller's); after one, the
-chain restarts on a new level only when two records in a row agree on it.
+(silent: on this PC's clock and on the controller's), or no valid record
+of that age at the controller's first message; after one, the chain
+restarts on a new level only when two records in a row agree on it.
 
 Units: wrenches in N and N*m, sensor frame; times in s.
 """
