@@ -194,7 +194,8 @@ def test_the_sensor_records_piled_up_before_the_first_message_are_not_worked_thr
     w_old = h.hold_wrench(robot, np.radians(Q0))(0.0).tolist()
     w_new = (np.asarray(w_old) + [50.0, 0.0, -20.0, 0.0, 1.0, 0.0]).tolist()
     spike = (np.asarray(w_new) + [2000.0, 0.0, 0.0, 0.0, 0.0, 0.0]).tolist()
-    backlog = [(w_old, 0.0, 0, False)] * 4088 + [(w_new, 0.0, 0, False)] * 7 + [(spike, 0.0, 0, False)]
+    now = time.monotonic()  # (the newest records just arrived: older than the sensor timeout, none would be taken)
+    backlog = [(w_old, now, 0, False)] * 4088 + [(w_new, now, 0, False)] * 7 + [(spike, now, 0, False)]
 
     class Sensor:
         def __init__(self):

@@ -27,7 +27,8 @@ while any lasts the correction ramps to zero at the rate limit (never a
 jump, never a stale correction held): the correction moving the tool
 beyond its bound (cell/correction_bound.py); the sensor silent, invalid,
 clipped or rejected by the guard for ``sensor_timeout_s`` (silent: on
-this PC's clock and on the controller's); feedback not
+this PC's clock and on the controller's), or with no valid record of that
+age at the first message (cell/sensor_intake.py); feedback not
 finite or outside the working ranges; the controller silent; its sequence
 or clock inconsistent (cleared after ``CLEAR_MESSAGES`` consistent
 messages once the correction is zero); a target refused.

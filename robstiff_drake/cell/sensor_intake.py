@@ -3,11 +3,14 @@
 controller message through the guard (int32-clipped records and moment
 spikes refused and counted) and the force filter, and the sensor's
 faults: silent, invalid or rejected by the guard for ``sensor_timeout_s``
-(silent: on this PC's clock and on the controller's); after one, the
-chain restarts on a new level only when two records in a row agree on it.
+(silent: on this PC's clock and on the controller's), or no valid record
+of that age at the controller's first message; after one, the chain
+restarts on a new level only when two records in a row agree on it.
 
 Units: wrenches in N and N*m, sensor frame; times in s.
 """
+
+import time
 
 from robstiff_drake.model.compensator import guard_accepts
 
@@ -32,14 +35,27 @@ class SensorIntake:
         25 ms of the chain's work, on the way to an answer due within a
         cycle) dropped but for the newest START_RECORDS, whose median
         restarts the guard and filter (the wrench at the start pose, not the
-        one the sensor read when it was opened)."""
+        one the sensor read when it was opened).  None of them valid and
+        received within ``sensor_timeout_s`` (the sensor silent or invalid
+        since it was opened, or only records older than that waiting: read
+        at another pose, or none at all and the chain seeded on zeros): a
+        sensor fault from the first message, the chain waiting for a level
+        two records in a row agree on, as after a silence."""
         records = self.sensor.drain()
         self.n.sensor_records += len(records)
-        recent = [w for w, _, _, clipped in records[-START_RECORDS:] if not clipped and all(v == v for v in w)]
+        fresh = time.monotonic() - self.s.sensor_timeout_s
+        recent = [w for w, t_arr, _, clipped in records[-START_RECORDS:]
+                  if not clipped and all(v == v for v in w) and t_arr >= fresh]
         if recent:
             self.comp.reseed([sorted(col)[len(col) // 2] if len(col) % 2 else
                               0.5 * (sorted(col)[len(col) // 2 - 1] + sorted(col)[len(col) // 2])
                               for col in zip(*recent)])
+        else:
+            self.fault_on("sensor", f"sensor: no valid record within {self.s.sensor_timeout_s * 1e3:.0f} ms of the "
+                                    f"controller's first message ({len(records)} waiting, none usable): the chain "
+                                    "waits for two records in a row that agree")
+            self.pending_reseed = True
+            self.reseed_candidate = None
 
     def _read_sensor(self, t_now):
         """Feed every record received since the last cycle to the chain."""

@@ -1,0 +1,214 @@
+"""Shared by the wrist sensor's hostile tests (tests/test_sensor_attacks.py,
+tests/test_sensor_attacks_stream.py): a Net F/T whose every record the test
+sends (``ScriptedSensor``: RDT from 127.0.0.1 and its calibration page),
+the scripted controller driven in lockstep with it (``Run``), and the checks
+of every target the controller received: finite, inside the working ranges,
+within the correction's clamp of the reference, and never a step of the
+correction larger than the loop's rate limit allows (MAX_STEP_DEG)."""
+
+import os
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(__file__))
+import cell_helpers as h  # noqa: E402
+from port_attacks import T, T_MS, Checker  # noqa: E402
+
+from robstiff_drake.cell.compensate import MAX_STEP_PERIODS  # noqa: E402
+from robstiff_drake.cell.rdt import CalibrationPage, RDTServer, encode_record  # noqa: E402
+
+# the most the correction may move between two answers: compensate's rate limit (5 deg/s) over MAX_STEP_PERIODS
+# periods (cell/compensate.py), + rounding
+MAX_STEP_DEG = 5.0 * MAX_STEP_PERIODS * T + 1e-6
+# the deviation from the reference of a target whose correction is zero (the reference file's rows, 9 decimals,
+# interpolated by compensate and by the test alike)
+ZERO_DEG = 1e-6
+# the sensor's timeout compensate is run with here (tests/scripted_compensate.start_compensate: 200 ms); a
+# silence is made longer than that on both clocks: the controller's (messages, 4 ms each) and this PC's (each
+# message at least PACE_S after the last: a lower bound, which a loaded machine only lengthens)
+TIMEOUT_MESSAGES = 50
+PACE_S = 0.005
+ENGAGED_DEG = 0.02  # the correction the held process force asks, once ramped in (0.053 deg here), is beyond this
+
+
+class ScriptedSensor:
+    """A Net F/T on 127.0.0.1 that streams ``wrench`` (N, N*m, sensor frame)
+    at about 1 kHz from a thread until ``manual()``; from then on it sends
+    only what the test gives ``send`` / ``send_raw`` (its thread still
+    answers the client's start and stop requests).  ``page_counts``: the
+    calibration its page advertises (counts per N and per N*m), when not the
+    ``counts`` its records are encoded with."""
+
+    def __init__(self, wrench, counts=(1e6, 1e6), page_counts=None):
+        self.server = RDTServer(0, http_port=0 if page_counts is None else None, counts_per_force=counts[0],
+                                counts_per_torque=counts[1])
+        self.page = None
+        if page_counts is not None:
+            self.page = CalibrationPage(0, page_counts, ("N", "N-m"))
+        self.port = self.server.port
+        self.http_port = self.server.http_port if self.page is None else self.page.port
+        self.counts = counts
+        self.wrench = np.asarray(wrench, dtype=float)
+        self.sent = 0  # records sent to the client (auto and scripted)
+        self.lock = threading.Lock()
+        self.auto = True
+        self.auto_status = 0  # (the status word of the records streamed until manual())
+        self._stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self):
+        while not self._stop.is_set():
+            with self.lock:
+                self.server.poll()
+                if self.auto and self.server.send(list(self.wrench), status=self.auto_status):
+                    self.sent += 1
+            time.sleep(0.001)
+
+    def manual(self):
+        with self.lock:
+            self.auto = False
+
+    @property
+    def client(self):
+        return self.server.client
+
+    def send(self, wrench=None, status=0):
+        """One record (the sensor's own sequence numbers) of ``wrench`` (default: the held one), when a client
+        has started the stream (pynetft stops it to recover from a serious status, then starts it again)."""
+        with self.lock:
+            ok = self.server.send(list(self.wrench if wrench is None else wrench), status=status)
+            self.sent += ok
+        return ok
+
+    def record(self, wrench, rdt_sequence, ft_sequence=None, status=0):
+        """The bytes of a record with the sequence numbers given (a replay, a forgery)."""
+        return encode_record(rdt_sequence, rdt_sequence if ft_sequence is None else ft_sequence, status, wrench,
+                             self.counts[0], self.counts[1])
+
+    def send_raw(self, data, sock=None):
+        """``data`` to the client from the sensor's socket (or ``sock``: a stranger's), if there is one."""
+        with self.lock:
+            if self.server.client is not None:
+                (sock or self.server.sock).sendto(data, self.server.client)
+
+    def close(self):
+        self._stop.set()
+        self.thread.join(5)
+        self.server.close()
+        if self.page is not None:
+            self.page.close()
+
+
+class Run:
+    """The scripted controller against `compensate` (--reference, --log),
+    one message and its answer at a time, every answer checked (Checker:
+    working ranges, the clamp of the reference) and its correction's step
+    from the last answer's bounded by MAX_STEP_DEG.  ``dev[k]``: the largest
+    deviation of answer k's target from the reference (deg), ``corr[k]``
+    its correction (deg, 6)."""
+
+    def __init__(self, robot, ref_deg, ctrl):
+        self.ref_deg, self.ctrl = ref_deg, ctrl
+        self.chk = Checker(robot, ref_deg)
+        self.k = 0
+        self.dev, self.corr = {}, {}
+        self.worst_step_deg = 0.0
+        self._last = None
+
+    def step(self, before=None, pace_s=0.0):
+        """One message (sequence k + 1, clock k periods); ``before()``: what the sensor sends first."""
+        k = self.k
+        if before is not None:
+            before(k)
+        got = self.ctrl.exchange(k + 1, k * T_MS, self.ref_deg(k * T))
+        assert got is not None, f"the controller got no answer at {k}"
+        self.chk.check(got, k, "controller")
+        c = np.asarray(got) - self.ref_deg(k * T)
+        if self._last is not None:
+            d = float(np.abs(c - self._last).max())
+            self.worst_step_deg = max(self.worst_step_deg, d)
+            assert d <= MAX_STEP_DEG, f"the correction jumped {d:.4f} deg at {k}"
+        self._last = c
+        self.corr[k], self.dev[k] = c, float(np.abs(c).max())
+        self.k += 1
+        if pace_s:
+            time.sleep(pace_s)
+        return c
+
+    def run(self, n, before=None, pace_s=0.0):
+        for _ in range(n):
+            self.step(before, pace_s)
+
+    def engage(self, sensor, most=2000):
+        """Messages, each after one record of the held wrench, until the
+        correction has ramped in (beyond ENGAGED_DEG, then 50 more: the
+        start's work passes in a thread, so when is a matter of load); the
+        steady correction's largest joint (deg)."""
+        while self.k < most and (not self.dev or self.dev[self.k - 1] <= ENGAGED_DEG):
+            self.step(lambda k: sensor.send())
+        assert self.dev[self.k - 1] > ENGAGED_DEG, "the correction never ramped in"
+        self.run(50, lambda k: sensor.send())
+        return self.dev[self.k - 1]
+
+    def recover(self, sensor, steady, most=500):
+        """Messages, each after one record of the held wrench (at least PACE_S apart: pynetft's restart of
+        the stream waits its back-off), until the correction is back to half ``steady`` (at most ``most``);
+        how many it took (None: not within them; liveness, reported, not a safety matter)."""
+        for i in range(most):
+            self.step(lambda k: sensor.send(), pace_s=PACE_S)
+            if self.dev[self.k - 1] > 0.5 * steady:
+                return i + 1
+        return None
+
+    def zero_tail(self, n):
+        """Whether the last ``n`` answers carried no correction."""
+        return all(self.dev[k] <= ZERO_DEG for k in range(self.k - n, self.k))
+
+    def moved(self, k0, k1=None):
+        """The most any correction of answers k0..k1-1 differs from answer k0 - 1's (deg)."""
+        ref = self.corr[k0 - 1]
+        return max(float(np.abs(self.corr[k] - ref).max()) for k in range(k0, self.k if k1 is None else k1))
+
+    def figures(self, s, **more):
+        """The figures an attack's report gives (``s``: summary.json's cycles)."""
+        return dict(more, worst_deg=round(self.chk.worst_deg, 4), worst_step_deg=round(self.worst_step_deg, 4),
+                    answers=s["answered"], refused=s["targets_refused"], records=s["sensor_records"],
+                    clipped=s["sensor_clipped"], spikes=s["moment_spikes"],
+                    sensor_faults=s["health"]["seen_of_the_other_side"]["sensor_faults"],
+                    fault_onsets=s["fault_onsets"])
+
+
+@pytest.fixture()
+def inputs(tmp_path, robot):
+    """(model, payload, reference path, reference function deg, held wrench N N*m, log folder): the payload's
+    weight and a process force held from the start (a correction of 0.053 deg on its largest joint once
+    compensating)."""
+    model, payload, ref, ref_fn = h.write_inputs(str(tmp_path), robot, duration_s=3.5)
+    w = np.asarray(h.hold_wrench(robot, ref_fn(0.0))(0.0), dtype=float) + [500.0, -400.0, 300.0, 0.0, 0.0, 0.0]
+    return model, payload, ref, (lambda t: np.degrees(ref_fn(t))), w, str(tmp_path / "log")
+
+
+def start(inputs, sensor, extra=(), log=True):
+    """`compensate` against ``sensor`` and a scripted controller; (process, controller).  ``log`` False: no
+    --log (and so no start's work: compensating from the first message)."""
+    model, payload, ref, _, _, folder = inputs
+    port = h.free_udp_port()
+    proc = h.start_compensate(model, payload, sensor, port, reference=ref, log=folder if log else None,
+                              extra=list(extra))
+    sensor.manual()
+    return proc, h.ScriptedController(port)
+
+
+def finish(proc, ctrl, sensor):
+    """(exit status, stderr, answers sent after the script's last one)."""
+    try:
+        code, err = h.finish(proc)
+        return code, err, ctrl.answers()
+    finally:
+        ctrl.close()
+        sensor.close()
