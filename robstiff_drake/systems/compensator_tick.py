@@ -91,6 +91,8 @@ class CompensatorTick(LeafSystem):
             self.DeclareStateOutputPort("dq", self._dq)
         self.DeclareStateOutputPort("correction", self._c)
         self._compiled = self._kernel_constants(deflection, sat, period_s, rate_limit_rad_per_s)
+        # the state groups' numbers as Python ints (int() of a pybind index is a call into the bindings)
+        self._i = tuple(-1 if g is None else int(g) for g in (self._w, self._q, self._p, self._dq, self._line, self._c))
         self.warm_up()
 
     def _kernel_constants(self, deflection, sat, period_s, rate_limit_rad_per_s):
@@ -161,23 +163,24 @@ class CompensatorTick(LeafSystem):
     def _update_compiled(self, context, discrete_state):
         """_update_reference's arithmetic in two compiled kernels."""
         chain, gravity, model, lo, hi, step = self._compiled
+        i_w, i_q, i_p, i_dq, i_line, i_c = self._i
         held = context.get_discrete_state()  # (one call into Drake for the three values read)
-        dq = held.get_value(int(self._dq)) if self._dq is not None else self._dq_in.Eval(context)
+        dq = held.get_value(i_dq) if i_dq >= 0 else self._dq_in.Eval(context)
         n6 = 6 * self._n
         out = np.empty(n6 + 6)
-        tick_kernels.correction_step(dq, held.get_value(int(self._line)) if n6 else _NONE,
-                                     held.get_value(int(self._c)), lo, hi, step, out)
+        tick_kernels.correction_step(dq, held.get_value(i_line) if n6 else _NONE, held.get_value(i_c), lo, hi, step,
+                                     out)
         if n6:
-            discrete_state.set_value(int(self._line), out[:n6])
-        discrete_state.set_value(int(self._c), out[n6:])
+            discrete_state.set_value(i_line, out[:n6])
+        discrete_state.set_value(i_c, out[n6:])
         w, q = self._w_in.Eval(context), self._q_in.Eval(context)
-        res = np.empty(18 if self._dq is None else 24)
+        res = np.empty(18 if i_dq < 0 else 24)
         tick_kernels.pose_and_deflection(q, chain, w, gravity, model, res)
-        discrete_state.set_value(int(self._w), w)
-        discrete_state.set_value(int(self._q), q)
-        discrete_state.set_value(int(self._p), res[12:18])
-        if self._dq is not None:
-            discrete_state.set_value(int(self._dq), res[18:24])
+        discrete_state.set_value(i_w, w)
+        discrete_state.set_value(i_q, q)
+        discrete_state.set_value(i_p, res[12:18])
+        if i_dq >= 0:
+            discrete_state.set_value(i_dq, res[18:24])
 
     def _update_reference(self, context, discrete_state):
         # the deflection of the previous tick's sample, saturated

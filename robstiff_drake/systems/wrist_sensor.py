@@ -59,6 +59,7 @@ class WristForceSensor(LeafSystem):
         self._times = self.DeclareVectorInputPort("instant_times", MAX_INSTANTS) if tooth_ripple else None
         init = np.zeros(6) if initial_wrench is None else np.asarray(initial_wrench, dtype=float)
         self._state = self.DeclareDiscreteState(init)
+        self._i_state = int(self._state)  # (a Python int: int() of a pybind index is a call into the bindings)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period_s, 0.0, self._sample)
         self.DeclareStateOutputPort("wrench", self._state)
 
@@ -88,7 +89,7 @@ class WristForceSensor(LeafSystem):
             elif u_spike < self._p_spike:
                 k = min(int(u_axis * 6.0), 5)  # axis (0-2) and sign from one uniform
                 w[k % 3] += self._spike * (1.0 if k < 3 else -1.0)
-        discrete_state.set_value(self._state, np.array(w))
+        discrete_state.set_value(self._i_state, np.array(w))
 
 
 def add_random_inputs(builder, sensor, name="wrist_sensor"):
