@@ -16,6 +16,12 @@ that of the separate blocks with Drake's same-instant semantics, exactly:
              d = s delayed by n periods              (ZeroOrderHold n = 1, DiscreteTimeDelay n - 1)
              c_k = c_{k-1} moved towards -d          (RateLimitedCorrection)
 
+Where the wrist sensor is read once per controller period, the block
+also carries the wrench guard (systems/wrist_sensor.WrenchGuard's update,
+``guard_step``, on its own state): the guard's sample and the tick's are
+taken at the same instants from the same context, so one call into Python
+does both, as the two blocks did in two.
+
 A predictor with state of its own (predictive or preview mode, or lost
 motion in the model with its static torque) stays a block of its own:
 then ``dq`` is an input (computed from this block's sampled outputs), and
@@ -36,6 +42,7 @@ from robstiff_drake.systems.leaf_system import LeafSystem
 from robstiff_drake.model import jit, tick_kernels
 from robstiff_drake.model.compensator import GravityRemover, rate_limited_step
 from robstiff_drake.model.payload import _GRAVITY
+from robstiff_drake.systems.wrist_sensor import GUARD_REARM_S, guard_step
 
 
 _NONE = np.empty(0)  # (an empty delay line)
@@ -60,10 +67,16 @@ class CompensatorTick(LeafSystem):
     ``deflection``: a model/compensator.DeflectionModel without lost motion
     (its dq from the process wrench and q alone), or None for a ``dq``
     input; ``saturation_rad`` (per joint, symmetric), ``delay_steps`` (whole
-    periods), ``rate_limit_rad_per_s``: the correction's."""
+    periods), ``rate_limit_rad_per_s``: the correction's.
+
+    ``guard``: None, or (rate_hz, max_jump_N[, rearm_s]) of a WrenchGuard
+    sampled every ``period_s`` (rate_hz = 1 / period_s) that this block
+    carries: then input ``raw_wrench`` (6) and outputs ``guarded_wrench``
+    (6) and ``rejected`` (1), the guard's, and ``wrench`` is the filter's
+    output of ``guarded_wrench`` as before."""
 
     def __init__(self, *, period_s, calibration, kinematics, deflection, saturation_rad, delay_steps,
-                 rate_limit_rad_per_s):
+                 rate_limit_rad_per_s, guard=None):
         super().__init__()
         self._remove = GravityRemover(calibration, kinematics)
         self._model = deflection
@@ -90,6 +103,20 @@ class CompensatorTick(LeafSystem):
         if self._dq is not None:
             self.DeclareStateOutputPort("dq", self._dq)
         self.DeclareStateOutputPort("correction", self._c)
+        self._guard = None
+        if guard is not None:  # (WrenchGuard's state, ports and constants)
+            rate_hz, max_jump_N, *rest = guard
+            rearm_s = rest[0] if rest else GUARD_REARM_S
+            if 1.0 / rate_hz != period_s:
+                raise ValueError(f"a guard carried by the tick samples at its period: rate_hz {rate_hz!r} is not "
+                                 f"1 / period_s {period_s!r}")
+            self._raw = self.DeclareVectorInputPort("raw_wrench", 6)
+            g = self.DeclareDiscreteState(np.zeros(6))
+            count, run = self.DeclareDiscreteState(1), self.DeclareDiscreteState(1)
+            self.DeclareStateOutputPort("guarded_wrench", g)
+            self.DeclareStateOutputPort("rejected", count)
+            self._guard = ((int(g), int(count), int(run)), float(max_jump_N), max(1, int(round(rearm_s * rate_hz))))
+            self.held_group = int(g)  # (Compensator.set_initial_state)
         self._compiled = self._kernel_constants(deflection, sat, period_s, rate_limit_rad_per_s)
         # the state groups' numbers as Python ints (int() of a pybind index is a call into the bindings)
         self._i = tuple(-1 if g is None else int(g) for g in (self._w, self._q, self._p, self._dq, self._line, self._c))
@@ -155,6 +182,8 @@ class CompensatorTick(LeafSystem):
             context.SetDiscreteState(int(self._dq), dq)
 
     def _update(self, context, discrete_state):
+        if self._guard is not None:  # (its own state groups: the order of the two updates does not matter)
+            guard_step(self._raw.Eval(context), discrete_state, *self._guard)
         if self._compiled is not None and jit.available():
             self._update_compiled(context, discrete_state)
         else:
