@@ -22,9 +22,13 @@ than the bare station's C++: benchmarks/bench_closed_loop.py times them).
 Needs valgrind (``VALGRIND``, default /usr/bin/valgrind) and
 callgrind_annotate; about 5-10 minutes (the two processes run at once; valgrind
 runs the build about 50 times slower too).  No target: figures only.
+With CALLGRIND_KEEP=FOLDER the two callgrind files (cell.callgrind,
+bare.callgrind) are kept there, to read function by function with
+``callgrind_annotate --inclusive=yes FOLDER/cell.callgrind``.
 Run: python3 benchmarks/instruction_counts.py  (not a bench_*.py: .ci/run gives each of those 4 minutes)
 """
 
+import contextlib
 import os
 import re
 import shutil
@@ -151,7 +155,11 @@ def main():
               f"nothing measured")
         return 0
     ticks = SIM_S / 0.004
-    with tempfile.TemporaryDirectory() as folder, ThreadPoolExecutor(2) as pool:  # (two processes at once)
+    keep = os.environ.get("CALLGRIND_KEEP")  # (a folder that keeps the two callgrind files for callgrind_annotate)
+    if keep:
+        os.makedirs(keep, exist_ok=True)
+    with (contextlib.nullcontext(keep) if keep else tempfile.TemporaryDirectory()) as folder, \
+            ThreadPoolExecutor(2) as pool:  # (two processes at once)
         runs = {kind: pool.submit(count, kind, folder) for kind in ("cell", "bare")}
         trees = {kind: run.result() for kind, run in runs.items()}
     print(f"instructions per 4 ms tick (thousands; callgrind, inside Simulator::AdvanceTo, the first {SIM_S:g} s): "

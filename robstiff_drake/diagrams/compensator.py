@@ -10,7 +10,8 @@ to hardware:
 
 Everything after the filter runs once per controller period and only hands
 values on, so it is one block, systems/compensator_tick.CompensatorTick
-(one call into Python per tick, the separate blocks' timing exactly); a
+(one call into Python per tick, the separate blocks' timing exactly), which
+also carries the guard where the sensor is read once per period; a
 predictive or preview predictor, or a model with lost motion, stays a block
 of its own between the tick's samples and its saturation.
 
@@ -71,7 +72,8 @@ class Compensator:
     def set_initial_state(self, root_context, wrench, q):
         """Settle the chain on a reading at rest: guard, filter and samples."""
         s = self.systems
-        s["guard"].GetMyMutableContextFromRoot(root_context).get_mutable_discrete_state(0).SetFromVector(wrench)
+        guard = s["guard"]  # (a WrenchGuard, or the tick that carries it)
+        guard.GetMyMutableContextFromRoot(root_context).get_mutable_discrete_state(guard.held_group).SetFromVector(wrench)
         filt = s["filter"]
         filt.GetMyMutableContextFromRoot(root_context).SetDiscreteState(steady_state(filt, wrench))
         s["tick"].set_sample(s["tick"].GetMyMutableContextFromRoot(root_context), wrench, q)
@@ -98,9 +100,11 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     builder = DiagramBuilder()
     kin = DeflectionPredictor(model_dh, model_stiffness_Nm_per_rad, tool_m)
     s = {}
-    s["guard"] = builder.AddNamedSystem("wrench_guard", WrenchGuard(rate_hz=rate_hz, max_jump_N=max_jump_N))
+    # a guard sampled at the tick's own instants is carried by the tick (one call into Python for both)
+    carried = 1.0 / rate_hz == T
+    if not carried:
+        s["guard"] = builder.AddNamedSystem("wrench_guard", WrenchGuard(rate_hz=rate_hz, max_jump_N=max_jump_N))
     s["filter"] = builder.AddNamedSystem("force_filter", filter_system(*filter_ba, rate_hz))
-    builder.Connect(s["guard"].GetOutputPort("wrench"), s["filter"].get_input_port())
     lost = lost_motion_rad if lost_motion_rad and any(lost_motion_rad) else None
     law = "smooth" if preview is not None else lost_motion_law
     model = DeflectionModel(kin, tool_m, calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0), lost,
@@ -110,7 +114,12 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     separate = predictive is not None or preview is not None or lost is not None
     tick = s["tick"] = builder.AddNamedSystem("compensator_tick", CompensatorTick(
         period_s=T, calibration=calibration, kinematics=kin, deflection=None if separate else model,
-        saturation_rad=saturation_rad, delay_steps=delay_steps, rate_limit_rad_per_s=rate_limit_rad_per_s))
+        saturation_rad=saturation_rad, delay_steps=delay_steps, rate_limit_rad_per_s=rate_limit_rad_per_s,
+        guard=(rate_hz, max_jump_N) if carried else None))
+    if carried:
+        s["guard"] = tick
+    guard_in, guard_out = ("raw_wrench", "guarded_wrench") if carried else ("wrench", "wrench")
+    builder.Connect(s["guard"].GetOutputPort(guard_out), s["filter"].get_input_port())
     builder.Connect(s["filter"].get_output_port(), tick.GetInputPort("wrench"))
     q_sampled = tick.GetOutputPort("q_sampled")
     process = tick.GetOutputPort("process_wrench")
@@ -147,10 +156,10 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
             dq_port = s["preview"].GetOutputPort("dq")
         builder.Connect(dq_port, tick.GetInputPort("dq"))
 
-    builder.ExportInput(s["guard"].GetInputPort("wrench"), "wrench")
+    builder.ExportInput(s["guard"].GetInputPort(guard_in), "wrench")
     builder.ExportInput(tick.GetInputPort("q"), "position_measured")
     builder.ExportOutput(tick.GetOutputPort("correction"), "correction")
-    builder.ExportOutput(s["guard"].GetOutputPort("wrench"), "guarded_wrench")
+    builder.ExportOutput(s["guard"].GetOutputPort(guard_out), "guarded_wrench")
     builder.ExportOutput(s["guard"].GetOutputPort("rejected"), "rejected")
     builder.ExportOutput(s["filter"].get_output_port(), "filtered_wrench")
     builder.ExportOutput(process, "process_wrench")

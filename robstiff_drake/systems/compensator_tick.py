@@ -16,6 +16,12 @@ that of the separate blocks with Drake's same-instant semantics, exactly:
              d = s delayed by n periods              (ZeroOrderHold n = 1, DiscreteTimeDelay n - 1)
              c_k = c_{k-1} moved towards -d          (RateLimitedCorrection)
 
+Where the wrist sensor is read once per controller period, the block
+also carries the wrench guard (systems/wrist_sensor.WrenchGuard's update,
+``guard_step``, on its own state): the guard's sample and the tick's are
+taken at the same instants from the same context, so one call into Python
+does both, as the two blocks did in two.
+
 A predictor with state of its own (predictive or preview mode, or lost
 motion in the model with its static torque) stays a block of its own:
 then ``dq`` is an input (computed from this block's sampled outputs), and
@@ -36,6 +42,7 @@ from robstiff_drake.systems.leaf_system import LeafSystem
 from robstiff_drake.model import jit, tick_kernels
 from robstiff_drake.model.compensator import GravityRemover, rate_limited_step
 from robstiff_drake.model.payload import _GRAVITY
+from robstiff_drake.systems.wrist_sensor import GUARD_REARM_S, guard_step
 
 
 _NONE = np.empty(0)  # (an empty delay line)
@@ -60,10 +67,16 @@ class CompensatorTick(LeafSystem):
     ``deflection``: a model/compensator.DeflectionModel without lost motion
     (its dq from the process wrench and q alone), or None for a ``dq``
     input; ``saturation_rad`` (per joint, symmetric), ``delay_steps`` (whole
-    periods), ``rate_limit_rad_per_s``: the correction's."""
+    periods), ``rate_limit_rad_per_s``: the correction's.
+
+    ``guard``: None, or (rate_hz, max_jump_N[, rearm_s]) of a WrenchGuard
+    sampled every ``period_s`` (rate_hz = 1 / period_s) that this block
+    carries: then input ``raw_wrench`` (6) and outputs ``guarded_wrench``
+    (6) and ``rejected`` (1), the guard's, and ``wrench`` is the filter's
+    output of ``guarded_wrench`` as before."""
 
     def __init__(self, *, period_s, calibration, kinematics, deflection, saturation_rad, delay_steps,
-                 rate_limit_rad_per_s):
+                 rate_limit_rad_per_s, guard=None):
         super().__init__()
         self._remove = GravityRemover(calibration, kinematics)
         self._model = deflection
@@ -90,7 +103,23 @@ class CompensatorTick(LeafSystem):
         if self._dq is not None:
             self.DeclareStateOutputPort("dq", self._dq)
         self.DeclareStateOutputPort("correction", self._c)
+        self._guard = None
+        if guard is not None:  # (WrenchGuard's state, ports and constants)
+            rate_hz, max_jump_N, *rest = guard
+            rearm_s = rest[0] if rest else GUARD_REARM_S
+            if 1.0 / rate_hz != period_s:
+                raise ValueError(f"a guard carried by the tick samples at its period: rate_hz {rate_hz!r} is not "
+                                 f"1 / period_s {period_s!r}")
+            self._raw = self.DeclareVectorInputPort("raw_wrench", 6)
+            g = self.DeclareDiscreteState(np.zeros(6))
+            count, run = self.DeclareDiscreteState(1), self.DeclareDiscreteState(1)
+            self.DeclareStateOutputPort("guarded_wrench", g)
+            self.DeclareStateOutputPort("rejected", count)
+            self._guard = ((int(g), int(count), int(run)), float(max_jump_N), max(1, int(round(rearm_s * rate_hz))))
+            self.held_group = int(g)  # (Compensator.set_initial_state)
         self._compiled = self._kernel_constants(deflection, sat, period_s, rate_limit_rad_per_s)
+        # the state groups' numbers as Python ints (int() of a pybind index is a call into the bindings)
+        self._i = tuple(-1 if g is None else int(g) for g in (self._w, self._q, self._p, self._dq, self._line, self._c))
         self.warm_up()
 
     def _kernel_constants(self, deflection, sat, period_s, rate_limit_rad_per_s):
@@ -153,6 +182,8 @@ class CompensatorTick(LeafSystem):
             context.SetDiscreteState(int(self._dq), dq)
 
     def _update(self, context, discrete_state):
+        if self._guard is not None:  # (its own state groups: the order of the two updates does not matter)
+            guard_step(self._raw.Eval(context), discrete_state, *self._guard)
         if self._compiled is not None and jit.available():
             self._update_compiled(context, discrete_state)
         else:
@@ -161,23 +192,24 @@ class CompensatorTick(LeafSystem):
     def _update_compiled(self, context, discrete_state):
         """_update_reference's arithmetic in two compiled kernels."""
         chain, gravity, model, lo, hi, step = self._compiled
+        i_w, i_q, i_p, i_dq, i_line, i_c = self._i
         held = context.get_discrete_state()  # (one call into Drake for the three values read)
-        dq = held.get_value(int(self._dq)) if self._dq is not None else self._dq_in.Eval(context)
+        dq = held.get_value(i_dq) if i_dq >= 0 else self._dq_in.Eval(context)
         n6 = 6 * self._n
         out = np.empty(n6 + 6)
-        tick_kernels.correction_step(dq, held.get_value(int(self._line)) if n6 else _NONE,
-                                     held.get_value(int(self._c)), lo, hi, step, out)
+        tick_kernels.correction_step(dq, held.get_value(i_line) if n6 else _NONE, held.get_value(i_c), lo, hi, step,
+                                     out)
         if n6:
-            discrete_state.set_value(int(self._line), out[:n6])
-        discrete_state.set_value(int(self._c), out[n6:])
+            discrete_state.set_value(i_line, out[:n6])
+        discrete_state.set_value(i_c, out[n6:])
         w, q = self._w_in.Eval(context), self._q_in.Eval(context)
-        res = np.empty(18 if self._dq is None else 24)
+        res = np.empty(18 if i_dq < 0 else 24)
         tick_kernels.pose_and_deflection(q, chain, w, gravity, model, res)
-        discrete_state.set_value(int(self._w), w)
-        discrete_state.set_value(int(self._q), q)
-        discrete_state.set_value(int(self._p), res[12:18])
-        if self._dq is not None:
-            discrete_state.set_value(int(self._dq), res[18:24])
+        discrete_state.set_value(i_w, w)
+        discrete_state.set_value(i_q, q)
+        discrete_state.set_value(i_p, res[12:18])
+        if i_dq >= 0:
+            discrete_state.set_value(i_dq, res[18:24])
 
     def _update_reference(self, context, discrete_state):
         # the deflection of the previous tick's sample, saturated

@@ -59,6 +59,7 @@ class WristForceSensor(LeafSystem):
         self._times = self.DeclareVectorInputPort("instant_times", MAX_INSTANTS) if tooth_ripple else None
         init = np.zeros(6) if initial_wrench is None else np.asarray(initial_wrench, dtype=float)
         self._state = self.DeclareDiscreteState(init)
+        self._i_state = int(self._state)  # (a Python int: int() of a pybind index is a call into the bindings)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period_s, 0.0, self._sample)
         self.DeclareStateOutputPort("wrench", self._state)
 
@@ -88,7 +89,7 @@ class WristForceSensor(LeafSystem):
             elif u_spike < self._p_spike:
                 k = min(int(u_axis * 6.0), 5)  # axis (0-2) and sign from one uniform
                 w[k % 3] += self._spike * (1.0 if k < 3 else -1.0)
-        discrete_state.set_value(self._state, np.array(w))
+        discrete_state.set_value(self._i_state, np.array(w))
 
 
 def add_random_inputs(builder, sensor, name="wrist_sensor"):
@@ -132,23 +133,30 @@ class WrenchGuard(LeafSystem):
         self.DeclareStateOutputPort("wrench", self._state)
         self.DeclareStateOutputPort("rejected", self._count)
         self._indices = (int(self._state), int(self._count), int(self._run))
+        self.held_group = self._indices[0]  # (the held sample's state group: Compensator.set_initial_state)
 
     def _update(self, context, discrete_state):
-        # discrete_state arrives holding the current state: overwrite it in
-        # place when the sample is good, count it when it is not
-        w = self._in.Eval(context)
-        i_state, i_count, i_run = self._indices
-        held = discrete_state.get_mutable_value(i_state)
-        run = discrete_state.get_mutable_value(i_run)
-        if guard_accepts(w.tolist(), held[:3].tolist(), self._max_jump):  # (model/compensator.py)
+        guard_step(self._in.Eval(context), discrete_state, self._indices, self._max_jump, self._rearm)
+
+
+def guard_step(w, discrete_state, indices, max_jump_N, rearm):
+    """The guard's update (WrenchGuard's, and CompensatorTick's where it
+    carries the guard): sample ``w`` (6, an array) into ``discrete_state``,
+    which arrives holding the current state and is overwritten in place
+    when the sample is good, counted when it is not; ``indices``: the state
+    groups' numbers (held sample, rejected count, rejected in a row)."""
+    i_state, i_count, i_run = indices
+    held = discrete_state.get_mutable_value(i_state)
+    run = discrete_state.get_mutable_value(i_run)
+    if guard_accepts(w.tolist(), held[:3].tolist(), max_jump_N):  # (model/compensator.py)
+        held[:] = w
+        run[0] = 0.0
+    else:
+        discrete_state.get_mutable_value(i_count)[0] += 1.0
+        run[0] += 1.0
+        if run[0] > rearm and np.all(np.isfinite(w)):  # re-armed on the new level
             held[:] = w
             run[0] = 0.0
-        else:
-            discrete_state.get_mutable_value(i_count)[0] += 1.0
-            run[0] += 1.0
-            if run[0] > self._rearm and np.all(np.isfinite(w)):  # re-armed on the new level
-                held[:] = w
-                run[0] = 0.0
 
 
 class LagFreeCuttingSensor(WristForceSensor):
