@@ -111,6 +111,10 @@ def _replace_in_section(text, section, key, value_text, flow):
     return text[:g.start()] + f"{g.group(1)}{key}: {value_text}{tail}" + text[g.end():]
 
 
+def _how_typical(finding):
+    return "; a SETUP FINDING beyond the typical" if finding["beyond_typical"] else "; within the typical"
+
+
 def setup_corrections(robot, report):
     """What the setup findings kept (setup_terms.py) write into the file: ({payload key: value}, [header
     lines]).  The payload's mass and centre of mass as the fit found them; a gravity turned from the
@@ -123,8 +127,7 @@ def setup_corrections(robot, report):
         mass = float(f"{pl.mass_kg + f['estimate']['dm (kg)']:.6g}")
         keys["mass_kg"] = mass
         notes.append(f"payload.mass_kg: {_number(mass)} kg, as the campaign's sag found it (the original declares "
-                     f"{_number(pl.mass_kg)} kg" + ("; a SETUP FINDING beyond the typical" if f["beyond_typical"]
-                                                     else "; within the typical") + "): weigh the tool to confirm"
+                     f"{_number(pl.mass_kg)} kg{_how_typical(f)}): weigh the tool to confirm"
                      + ("" if f["separated"] else " (the data do not separate it from the joints' compliance "
                                                   "scale: see the diagnosis)"))
     if "payload_com" in found:
@@ -133,8 +136,7 @@ def setup_corrections(robot, report):
         com = [float(f"{c * 1e3 + est[f'd{a} (mm)']:.6g}") for c, a in zip(pl.com_m, "xyz")]
         keys["com_mm"] = com
         notes.append(f"payload.com_mm: {_flow(com)} mm, as the campaign's sag found it (the original declares "
-                     f"{_flow(pl.com_m * 1e3)} mm" + ("; a SETUP FINDING beyond the typical" if f["beyond_typical"]
-                                                      else "; within the typical") + ")"
+                     f"{_flow(pl.com_m * 1e3)} mm{_how_typical(f)})"
                      + ("" if f["separated"] else "; the data do not separate it from its alternatives (see the "
                                                   "diagnosis): run the controller's load identification to confirm"))
     if "gravity_tilt" in found:
