@@ -73,3 +73,26 @@ class Checker:
 def _report(name, **figures):
     """The attack's figures on stdout (pytest -s shows them; the report quotes them)."""
     print(f"\n[{name}] " + ", ".join(f"{k} = {v}" for k, v in figures.items()))
+
+
+def exchange_while_answered(ctrl, ks, ref_deg):
+    """[(k, answer)] of the controller's messages k in ``ks`` (sequence k + 1, clock k periods, the reference's
+    angles at k periods), up to the first left unanswered (10 s: a hang guard, not a deadline)."""
+    out = []
+    for k in ks:
+        got = ctrl.exchange(k + 1, k * T_MS, ref_deg(k * T), timeout_s=10.0)
+        if got is None:
+            break
+        out.append((k, got))
+    return out
+
+
+def finish_with_stranger(proc, ctrl, stranger):
+    """(exit status, stderr, what the stranger was ever answered, what the controller was answered after the
+    script's last message): the run ended, both sockets closed."""
+    try:
+        code, err = h.finish(proc)
+        return code, err, stranger.answers(), ctrl.answers()
+    finally:
+        ctrl.close()
+        stranger.close()

@@ -32,6 +32,7 @@ pytest.importorskip("abb_robot_client", reason="the cell tests need abb-robot-cl
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
 from port_attacks import CTRL, FAR_DEG, T, T_MS, TAKE_UP_SILENCE_S, Checker, _report, _summary  # noqa: E402
+from port_attacks import exchange_while_answered, finish_with_stranger  # noqa: E402
 from port_attacks import cell, robot  # noqa: E402,F401 (the fixtures)
 
 from robstiff_drake.cell.safety import clamp_deg  # noqa: E402
@@ -63,11 +64,7 @@ def test_egm_stranger_port_interleaved_every_cycle_is_never_heard(robot, cell):
             assert got is not None, f"the controller got no answer at {k}"
             chk.check(got, k, "controller")
     finally:
-        code, err = h.finish(proc)
-        heard = stranger.answers()  # (after the run's end: all it was ever sent)
-        extra = ctrl.answers()
-        ctrl.close()
-        stranger.close()
+        code, err, heard, extra = finish_with_stranger(proc, ctrl, stranger)  # (after the run's end: all it was ever sent)
     assert code == 0, err[-2000:]
     assert heard == [] and extra == []
     s = _summary(log)
@@ -238,7 +235,6 @@ def test_egm_short_silence_then_the_stranger_leaves_and_the_controller_returns(r
     port = h.free_udp_port()
     proc = h.start_compensate(model, payload, sensor, port, reference=ref, log=log, extra=CTRL)
     ctrl, stranger = h.ScriptedController(port), h.ScriptedController(port)
-    back = []
     try:
         for k in range(100):
             got = ctrl.exchange(k + 1, k * T_MS, ref_deg(k * T))
@@ -258,17 +254,9 @@ def test_egm_short_silence_then_the_stranger_leaves_and_the_controller_returns(r
             stranger.send(k + 1, k * T_MS, ref_deg(k * T) + FAR_DEG)
             time.sleep(0.002)
         time.sleep(TAKE_UP_SILENCE_S)
-        for k in range(250, 400):  # the controller back on its own port
-            got = ctrl.exchange(k + 1, k * T_MS, ref_deg(k * T), timeout_s=10.0)
-            if got is None:
-                break
-            back.append((k, got))
+        back = exchange_while_answered(ctrl, range(250, 400), ref_deg)  # the controller back on its own port
     finally:
-        code, err = h.finish(proc)
-        heard = stranger.answers()
-        late = ctrl.answers()
-        ctrl.close()
-        stranger.close()
+        code, err, heard, late = finish_with_stranger(proc, ctrl, stranger)
     assert code == 0, err[-2000:]
     assert heard == []
     s = _summary(log)

@@ -23,6 +23,7 @@ pytest.importorskip("abb_robot_client", reason="the cell tests need abb-robot-cl
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
 from port_attacks import CTRL, FAR_DEG, T, T_MS, TAKE_UP_SILENCE_S, Checker, _report, _summary  # noqa: E402
+from port_attacks import exchange_while_answered, finish_with_stranger  # noqa: E402
 from port_attacks import cell, robot  # noqa: E402,F401 (the fixtures)
 
 from robstiff_drake.cell import rsi  # noqa: E402
@@ -102,18 +103,9 @@ def test_egm_malformed_from_the_learnt_port_does_not_hand_it_to_another(robot, c
             stranger.send(k + 1, k * T_MS, ref_deg(k * T))
             time.sleep(0.01)
         k0 = 50 + n_bad
-        back = []
-        for k in range(k0, k0 + 50):
-            got = ctrl.exchange(k + 1, k * T_MS, ref_deg(k * T), timeout_s=10.0)
-            if got is None:
-                break
-            back.append((k, got))
+        back = exchange_while_answered(ctrl, range(k0, k0 + 50), ref_deg)
     finally:
-        code, err = h.finish(proc)
-        heard = stranger.answers()
-        extra = ctrl.answers()
-        ctrl.close()
-        stranger.close()
+        code, err, heard, extra = finish_with_stranger(proc, ctrl, stranger)
     assert code == 0, err[-2000:]
     s = _summary(log)
     for k, got in back:  # (its sequence jumped by n_bad: a fault, the reference's time one period on)
