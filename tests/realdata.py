@@ -32,6 +32,16 @@ def missing(name):
     return None
 
 
+def require(name):
+    """In a test: skip it, the reason printed, when the data set ``name`` is not there (``missing``)."""
+    import pytest
+
+    reason = missing(name)
+    if reason:
+        print(f"skipped: {reason}")
+        pytest.skip(reason)
+
+
 def fanuc_campaign_csv(out_path):
     """Write the FANUC campaign as a stiffness campaign (q1..q6 in FANUC's
     degrees, forces N, displacements mm, base frame; one pose per row; no

@@ -86,10 +86,7 @@ def test_forces_in_kN_are_named_with_the_displacement_units(robot, drake_made):
 # -- the real FANUC campaign -------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def fanuc(tmp_path_factory):
-    reason = realdata.missing(realdata.FANUC)
-    if reason:
-        print(f"skipped: {reason}")
-        pytest.skip(reason)
+    realdata.require(realdata.FANUC)
     return realdata.fanuc_campaign(tmp_path_factory.mktemp("fanuc") / "fanuc.csv")[:3]
 
 

@@ -18,10 +18,7 @@ UR10 = Path(__file__).resolve().parent / "data" / "ur10_user.yaml"
 
 @pytest.fixture(scope="module")
 def series(tmp_path_factory):
-    reason = realdata.missing(realdata.IPA_UR10)
-    if reason:
-        print(f"skipped: {reason}")
-        pytest.skip(reason)
+    realdata.require(realdata.IPA_UR10)
     folder = tmp_path_factory.mktemp("ur10")
     return {s: realdata.ipa_ur10_campaign_csv(s, folder / f"ur10_{s}.csv") for s in ("A", "B")}
 

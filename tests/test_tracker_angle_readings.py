@@ -72,10 +72,7 @@ def test_another_arms_file_is_not_blamed_on_a_column(capsys, tmp_path):
 
 @pytest.fixture(scope="module")
 def ur10_b(tmp_path_factory):
-    reason = realdata.missing(realdata.IPA_UR10)
-    if reason:
-        print(f"skipped: {reason}")
-        pytest.skip(reason)
+    realdata.require(realdata.IPA_UR10)
     return realdata.ipa_ur10_campaign_csv("B", tmp_path_factory.mktemp("ur10") / "ur10_B.csv")
 
 

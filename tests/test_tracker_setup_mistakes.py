@@ -88,10 +88,7 @@ def test_a_vertical_one_degree_off_is_named(irb6400):
 
 @pytest.fixture(scope="module")
 def ur10_b(tmp_path_factory):
-    reason = realdata.missing(realdata.IPA_UR10)
-    if reason:
-        print(f"skipped: {reason}")
-        pytest.skip(reason)
+    realdata.require(realdata.IPA_UR10)
     robot = load_robot(str(realdata.Path(__file__).resolve().parent / "data" / "ur10_user.yaml"))
     path = realdata.ipa_ur10_campaign_csv("B", tmp_path_factory.mktemp("ur10") / "ur10_B.csv")
     return robot, read_tracker_campaign(str(path), robot)

@@ -72,10 +72,7 @@ def test_drakes_plant_units_written_as_others(drake_campaign):
 
 @pytest.fixture(scope="module")
 def fanuc(tmp_path_factory):
-    reason = realdata.missing(realdata.FANUC)
-    if reason:
-        print(f"skipped: {reason}")
-        pytest.skip(reason)
+    realdata.require(realdata.FANUC)
     robot, campaign, tool_m, path = realdata.fanuc_campaign(tmp_path_factory.mktemp("fanuc") / "fanuc.csv")
     return path, robot, campaign, tool_m
 
