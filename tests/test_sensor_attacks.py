@@ -185,8 +185,9 @@ def test_a_calibration_page_that_lies_about_the_scale(robot, inputs, page):
     message for the session, one line naming what disagrees and by how
     much, zero correction throughout, summary.json's sensor_checks.start
     failed.  (Before: forces too small or moments too large were not
-    detected: a correction of 0.034 deg from minus the payload's weight;
-    too large was caught by the correction's tool bound.)"""
+    detected: a correction of 0.034 deg from minus the payload's weight, up
+    to 0.048 deg with the moments 1000 times large, where the true one is
+    0.053; too large was caught by the correction's tool bound.)"""
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w, page_counts=page)
     proc, ctrl = start(inputs, sensor)
