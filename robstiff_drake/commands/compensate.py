@@ -12,7 +12,9 @@ loop's stability at the start pose by the linear loop model
 (cell/loop_guard.py; --allow-unstable-loop overrides it), the sensor's
 calibration read and its stream started and the controller's first
 message awaited and checked before the loop; anything wrong there is one
-line and exit status 2.  The start's slow work (without --reference the
+line and exit status 2.  The sensor's reading at the first message is
+checked against the payload calibration, its record rate against
+--sensor-rate-hz (cell/sensor_checks.py: a fault for the session).  The start's slow work (without --reference the
 loop check and the correction bound's check at the hold pose; the log
 folder's start) runs off the loop's
 thread while the controller is answered with its own pose
