@@ -281,13 +281,16 @@ class ScriptedLink:
 
 
 class HeldSensor:
-    """A sensor for CompensatorLoop whose every read is one record of ``w``."""
+    """A sensor for CompensatorLoop whose every read is ``per_read`` records
+    of ``w`` (4: a 1 kHz sensor, compensate's default --sensor-rate-hz, at
+    one read a 4 ms message)."""
 
-    def __init__(self, w):
-        self.w = w
+    def __init__(self, w, per_read=4):
+        self.w, self.per_read = w, per_read
 
     def drain(self):
-        return [(self.w, time.monotonic(), 0, False)]
+        t = time.monotonic()
+        return [(self.w, t, 0, False)] * self.per_read
 
 
 def hold_wrench(robot, q_rad):

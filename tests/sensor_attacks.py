@@ -20,6 +20,20 @@ from port_attacks import T, T_MS, Checker  # noqa: E402
 
 from robstiff_drake.cell.compensate import MAX_STEP_PERIODS  # noqa: E402
 from robstiff_drake.cell.rdt import CalibrationPage, RDTServer, encode_record  # noqa: E402
+from robstiff_drake.cell.sensor_intake import START_RECORDS  # noqa: E402
+
+
+def air_until_taken(r, sensor, air, n=START_RECORDS, most=1000):
+    """Messages (at least PACE_S apart: pynetft's restart of a stream waits its back-off), each after one record of
+    ``air`` (the tool in the air), until ``n`` of them have reached the client (a stream started)."""
+    sent = [0]
+
+    def one(k):
+        sent[0] += bool(sensor.send(air))
+
+    while sent[0] < n and r.k < most:
+        r.step(one, pace_s=PACE_S)
+    assert sent[0] >= n, "the sensor's stream never restarted"
 
 # the most the correction may move between two answers: compensate's rate limit (5 deg/s) over MAX_STEP_PERIODS
 # periods (cell/compensate.py), + rounding
@@ -33,6 +47,15 @@ ZERO_DEG = 1e-6
 TIMEOUT_MESSAGES = 50
 PACE_S = 0.005
 ENGAGED_DEG = 0.02  # the correction the held process force asks, once ramped in (0.053 deg here), is beyond this
+# the process force the fixture's wrench holds (N, N*m, sensor frame): the sensor reads without it at the start
+# (the tool in the air: what compensate checks against the payload calibration, cell/sensor_checks.py)
+PROCESS_W = np.array([500.0, -400.0, 300.0, 0.0, 0.0, 0.0])
+# the scripted sensor's rate on the controller's clock: one record a message (4 ms), compensate's --sensor-rate-hz
+# here (its records are counted against it: cell/sensor_checks.py)
+RATE_HZ = 1.0 / T
+# the force filter (compensate's 2 Hz low-pass at RATE_HZ) settled within 0.1 % of the process force's step at the
+# first message (the tool entering the part) this many messages after it (its step response: 204)
+SETTLED_MESSAGES = 210
 
 
 class ScriptedSensor:
@@ -57,6 +80,7 @@ class ScriptedSensor:
         self.lock = threading.Lock()
         self.auto = True
         self.auto_status = 0  # (the status word of the records streamed until manual())
+        self.auto_wrench = None  # (what they carry, when not ``wrench``: start() streams the tool in the air)
         self._stop = threading.Event()
         self.thread = threading.Thread(target=self._run, daemon=True)
         self.thread.start()
@@ -65,7 +89,8 @@ class ScriptedSensor:
         while not self._stop.is_set():
             with self.lock:
                 self.server.poll()
-                if self.auto and self.server.send(list(self.wrench), status=self.auto_status):
+                auto = self.wrench if self.auto_wrench is None else self.auto_wrench
+                if self.auto and self.server.send(list(auto), status=self.auto_status):
                     self.sent += 1
             time.sleep(0.001)
 
@@ -110,10 +135,12 @@ class Run:
     working ranges, the clamp of the reference) and its correction's step
     from the last answer's bounded by MAX_STEP_DEG.  ``dev[k]``: the largest
     deviation of answer k's target from the reference (deg), ``corr[k]``
-    its correction (deg, 6)."""
+    its correction (deg, 6).  ``sensor``: before the first message it sends
+    START_RECORDS records of its wrench without the process force (the tool
+    in the air at the start, as compensate checks it; None: nothing)."""
 
-    def __init__(self, robot, ref_deg, ctrl):
-        self.ref_deg, self.ctrl = ref_deg, ctrl
+    def __init__(self, robot, ref_deg, ctrl, sensor=None):
+        self.ref_deg, self.ctrl, self.sensor = ref_deg, ctrl, sensor
         self.chk = Checker(robot, ref_deg)
         self.k = 0
         self.dev, self.corr = {}, {}
@@ -123,6 +150,9 @@ class Run:
     def step(self, before=None, pace_s=0.0):
         """One message (sequence k + 1, clock k periods); ``before()``: what the sensor sends first."""
         k = self.k
+        if k == 0 and self.sensor is not None:
+            for _ in range(START_RECORDS):
+                self.sensor.send(self.sensor.wrench - PROCESS_W)
         if before is not None:
             before(k)
         got = self.ctrl.exchange(k + 1, k * T_MS, self.ref_deg(k * T))
@@ -146,13 +176,14 @@ class Run:
 
     def engage(self, sensor, most=2000):
         """Messages, each after one record of the held wrench, until the
-        correction has ramped in (beyond ENGAGED_DEG, then 50 more: the
-        start's work passes in a thread, so when is a matter of load); the
-        steady correction's largest joint (deg)."""
+        correction has ramped in (beyond ENGAGED_DEG, then 50 more, and at
+        least SETTLED_MESSAGES from the first: the start's work passes in a
+        thread, so when is a matter of load); the steady correction's
+        largest joint (deg)."""
         while self.k < most and (not self.dev or self.dev[self.k - 1] <= ENGAGED_DEG):
             self.step(lambda k: sensor.send())
         assert self.dev[self.k - 1] > ENGAGED_DEG, "the correction never ramped in"
-        self.run(50, lambda k: sensor.send())
+        self.run(max(50, SETTLED_MESSAGES - self.k), lambda k: sensor.send())
         return self.dev[self.k - 1]
 
     def recover(self, sensor, steady, most=500):
@@ -186,20 +217,22 @@ class Run:
 @pytest.fixture()
 def inputs(tmp_path, robot):
     """(model, payload, reference path, reference function deg, held wrench N N*m, log folder): the payload's
-    weight and a process force held from the start (a correction of 0.053 deg on its largest joint once
-    compensating)."""
+    weight and a process force (PROCESS_W: a correction of 0.053 deg on its largest joint once compensating),
+    from the first message's records on when Run is given the sensor (before them: the tool in the air)."""
     model, payload, ref, ref_fn = h.write_inputs(str(tmp_path), robot, duration_s=3.5)
-    w = np.asarray(h.hold_wrench(robot, ref_fn(0.0))(0.0), dtype=float) + [500.0, -400.0, 300.0, 0.0, 0.0, 0.0]
+    w = np.asarray(h.hold_wrench(robot, ref_fn(0.0))(0.0), dtype=float) + PROCESS_W
     return model, payload, ref, (lambda t: np.degrees(ref_fn(t))), w, str(tmp_path / "log")
 
 
 def start(inputs, sensor, extra=(), log=True):
     """`compensate` against ``sensor`` and a scripted controller; (process, controller).  ``log`` False: no
-    --log (and so no start's work: compensating from the first message)."""
+    --log (and so no start's work: compensating from the first message).  Until the first message the sensor
+    streams its wrench without PROCESS_W (the tool in the air; then what the test sends)."""
     model, payload, ref, _, _, folder = inputs
+    sensor.auto_wrench = sensor.wrench - PROCESS_W  # (until the first message: the tool in the air)
     port = h.free_udp_port()
     proc = h.start_compensate(model, payload, sensor, port, reference=ref, log=folder if log else None,
-                              extra=list(extra))
+                              extra=["--sensor-rate-hz", f"{RATE_HZ:g}", *extra])
     sensor.manual()
     return proc, h.ScriptedController(port)
 

@@ -115,10 +115,13 @@ def _drive(robot, script, *, push_N=(3000.0, -2000.0, 0.0), records=None):
     ref = Reference(period_s=T)
     ref.hold(Q0)
     # no bound on the correction's tool motion, explicitly: the 3.6 kN push's correction moves the tool 6.3 mm,
-    # beyond compensate's 5 mm (LoopSettings' default); these are the other faults' tests (the bound's:
-    # tests/test_correction_bound.py)
+    # beyond compensate's 5 mm (LoopSettings' default), and no start check against the payload calibration (the
+    # push is held from the first message); these are the other faults' tests (the bound's: tests/
+    # test_correction_bound.py; the start's: tests/test_sensor_checks.py); the sensor's rate is its script's, one
+    # record a message
     loop = CompensatorLoop(h.hold_compensator(robot, w), link.link, sensor, ref, robot,
-                           LoopSettings(max_jump_Nm=350.0, max_correction_mm=math.inf, max_correction_deg=math.inf),
+                           LoopSettings(max_jump_Nm=350.0, max_correction_mm=math.inf, max_correction_deg=math.inf,
+                                        start_tolerance_N=math.inf, sensor_rate_hz=1.0 / T),
                            out=io.StringIO())
     real_cycle = loop.cycle
 

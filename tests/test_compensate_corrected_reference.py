@@ -9,6 +9,7 @@ correction_off), and refuses a file without the mark."""
 
 import csv
 import json
+import math
 import os
 import time
 
@@ -106,7 +107,9 @@ def test_the_loop_holds_the_correction_at_zero(off):
     ref.hold(Q0)
     link = _Recorded([[Message(k, (k - 1) * 4, Q0, echo=k)] for k in range(2, 60)])
     loop = CompensatorLoop(h.hold_compensator(robot, w), link, h.HeldSensor(w), ref, robot,
-                           LoopSettings(max_jump_Nm=350.0, correction_off=off), log=None, out=open("/dev/null", "w"))
+                           # (the force held from the first message: the start's check off, explicitly)
+                           LoopSettings(max_jump_Nm=350.0, correction_off=off, start_tolerance_N=math.inf), log=None,
+                           out=open("/dev/null", "w"))
     loop.run((Message(1, 0, Q0, echo=1), time.monotonic()))
     moved_deg = np.abs(np.asarray(link.targets) - Q0).max()
     assert len(link.targets) == 59

@@ -70,10 +70,12 @@ def _run(job):
     ref = Reference(period_s=0.004)
     ref.hold(Q0)
     # (no bound on the correction's tool motion, explicitly: the 3.6 kN's correction moves the tool 6.3 mm, beyond
-    # compensate's 5 mm, LoopSettings' default; the bound's tests: tests/test_correction_bound.py)
+    # compensate's 5 mm, LoopSettings' default; the bound's tests: tests/test_correction_bound.py; and no start
+    # check against the payload calibration, explicitly: the push is held from the first message; its tests:
+    # tests/test_sensor_checks.py)
     loop = CompensatorLoop(h.hold_compensator(robot, w), link, _Sensor(w), ref, robot,
                            LoopSettings(max_jump_Nm=350.0, idle_exit_s=h.HANG_GUARD_S, max_correction_mm=math.inf,
-                                        max_correction_deg=math.inf), out=io.StringIO(),
+                                        max_correction_deg=math.inf, start_tolerance_N=math.inf), out=io.StringIO(),
                            start_jobs=[("the stand-in check", job)])
     # (--idle-exit-s a hang guard only: the test ends the run with _end; at 0.5 s a test thread that waited that
     # long for the start's work on a loaded machine ended the run mid-script)

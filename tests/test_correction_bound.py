@@ -48,7 +48,11 @@ def _drive(robot, n, wrench_at, *, max_mm=MAX_MM, max_deg=MAX_DEG, initial=None,
     ref.hold(Q0)
     comp = h.hold_compensator(robot, wrench_at(1) if initial is None else initial)
     if settings is None:
-        settings = LoopSettings(max_jump_Nm=350.0, max_correction_mm=max_mm, max_correction_deg=max_deg)
+        # (the push held from the first message: the start's check against the payload calibration off,
+        # explicitly; its tests: tests/test_sensor_checks.py, tests/test_sensor_attacks.py; the sensor's rate is
+        # the script's, one record a message)
+        settings = LoopSettings(max_jump_Nm=350.0, max_correction_mm=max_mm, max_correction_deg=max_deg,
+                                start_tolerance_N=math.inf, sensor_rate_hz=1.0 / T)
     loop = CompensatorLoop(comp, link.link, sensor, ref, robot, settings, out=io.StringIO())
     real_cycle = loop.cycle
 
@@ -146,10 +150,15 @@ def test_a_library_users_loop_settings_bound_the_correction_as_compensate_does(r
     assert (s.max_correction_mm, s.max_correction_deg) == (args.max_correction_mm, args.max_correction_deg)
     assert (s.max_correction_mm, s.max_correction_deg) == (MAX_MM, MAX_DEG)
     w = (_hold(robot) + [300.0, -200.0, 0.0, 0.0, 0.0, 0.0]) * 100.0  # (the wrong unit: N*mm read as N*m)
+    # LoopSettings() checks the sensor's start against the payload calibration too: the wrong unit from the first
+    # message is that fault, the correction zero throughout
     loop, poses = _drive(robot, 80, lambda seq: w.tolist(), settings=LoopSettings())
+    assert "sensor start" in loop.faults and np.abs(poses - np.asarray(Q0)).max() == 0.0, loop.out.getvalue()
+    # and with that check off, the bound
+    loop, poses = _drive(robot, 80, lambda seq: w.tolist(), settings=LoopSettings(start_tolerance_N=math.inf))
     d_mm, rot_deg = _tool_motion(robot, poses)
     assert "bound" in loop.faults and d_mm.max() <= MAX_MM and rot_deg.max() <= MAX_DEG, (d_mm.max(), rot_deg.max())
-    off = LoopSettings(max_correction_mm=math.inf, max_correction_deg=math.inf)
+    off = LoopSettings(max_correction_mm=math.inf, max_correction_deg=math.inf, start_tolerance_N=math.inf)
     loop_off, free = _drive(robot, 80, lambda seq: w.tolist(), settings=off)
     d_off = _tool_motion(robot, free)[0].max()
     print(f"the wrong unit's tool motion: {d_mm.max():.2f} mm with LoopSettings() (bounded), {d_off:.2f} mm with "

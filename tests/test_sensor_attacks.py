@@ -29,7 +29,8 @@ pytest.importorskip("abb_robot_client", reason="the cell tests need abb-robot-cl
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
 from port_attacks import _report, _summary, robot  # noqa: E402,F401 (robot: the fixture)
-from sensor_attacks import PACE_S, TIMEOUT_MESSAGES, Run, ScriptedSensor, finish, inputs, start  # noqa: E402,F401
+from sensor_attacks import (PACE_S, PROCESS_W, TIMEOUT_MESSAGES, Run, ScriptedSensor, air_until_taken,  # noqa: E402,F401
+                            finish, inputs, start)
 
 from robstiff_drake.cell.rdt import INT32_MAX  # noqa: E402
 
@@ -49,7 +50,7 @@ def test_silence_ramps_to_zero_and_the_sensors_return_restarts(robot, inputs):
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w)
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     try:
         steady = r.engage(sensor)
         r.run(ATTACK, pace_s=PACE_S)
@@ -61,6 +62,9 @@ def test_silence_ramps_to_zero_and_the_sensors_return_restarts(robot, inputs):
     assert "sensor: no record for 200 ms" + RAMPS in err, err[-3000:]
     assert silent_zero and "sensor: valid records again" in err
     assert r.dev[r.k - 1] > 0.5 * steady  # (compensating again)
+    checks = _summary(log)["sensor_checks"]  # (the honest start and rate pass: the silence's windows not judged)
+    assert checks["start"]["passed"] and checks["start"]["apart_N"] < 1.0, checks
+    assert checks["rate"]["fault"] is None and checks["rate"]["windows_judged"] >= 2, checks
     _report("sensor silent 150 messages", **r.figures(_summary(log), steady_deg=round(steady, 4)))
 
 
@@ -73,7 +77,7 @@ def test_a_status_word_that_flags_a_fault_is_never_used(robot, inputs, status):
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w)
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     bad = w + [800.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # (what the flagged records carry: it must not be used)
     try:
         steady = r.engage(sensor)
@@ -102,7 +106,9 @@ def test_no_usable_record_at_the_first_message(robot, inputs, before):
     same invalid records or none: zero correction, the reason logged from
     the first message (before: corrections of up to 0.0340 deg from the
     zeros and 0.0873 deg from the old reading were sent); then valid records
-    of the true reading: compensating on it."""
+    of the tool in the air (the chain's first level, checked against the
+    payload calibration: it passes), then of the true reading: compensating
+    on it."""
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w if before == "invalid" else w + [0.0, 0.0, 400.0, 0.0, 0.0, 0.0])
     if before == "invalid":
@@ -115,12 +121,15 @@ def test_no_usable_record_at_the_first_message(robot, inputs, before):
             time.sleep(1.0)
         r.run(40, lambda k: sensor.send(status=0x20000000) if before == "invalid" else None)
         first = max(r.dev.values())
+        # the tool in the air: the chain's first level, checked against the payload calibration there
+        air_until_taken(r, sensor, w - PROCESS_W)
         back = r.recover(sensor, 0.0532)
     finally:
         code, err, extra = finish(proc, ctrl, sensor)
     assert code == 0 and extra == [], err[-2000:]
     assert "sensor: no valid record within 200 ms of the controller's first message" in err, err[-3000:]
     assert first <= 1e-6, first
+    assert "where the payload calibration predicts" not in err, err[-3000:]  # (its check passed on the first level)
     _report(f"start with {before} records", first_40_worst_deg=round(first, 4), messages_to_compensate=back,
             worst_deg=round(r.chk.worst_deg, 4), worst_step_deg=round(r.worst_step_deg, 4))
 
@@ -146,7 +155,7 @@ def test_int32_extremes_are_refused(robot, inputs, counts):
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w)
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     base = [int(round(v * 1e6)) for v in w]
     raw = [c if c else b for c, b in zip(counts, base)]
     try:
@@ -172,25 +181,33 @@ def test_a_calibration_page_that_lies_about_the_scale(robot, inputs, page):
     """The sensor's page advertises counts per unit 1000 times off what its
     records are encoded with (1e6), a calibration usable on its face
     (rdt.calibration_problem): every reading 1000 times too small or too
-    large.  Too large: the model's correction is beyond its tool bound at
-    once (a logged fault, zero correction throughout).  Too small (the
-    payload's weight read as nearly nothing: the chain sees a process force
-    of minus the weight) or the moments too large: NOT detected; the
-    correction is wrong but within the clamp and the bound (documented in
-    docs/real_cell.md, not changed: the figures in the report)."""
+    large.  At the controller's first message (the tool in the air) the
+    reading is checked against what the payload calibration predicts at the
+    start pose (cell/sensor_checks.py): a sensor fault from the first
+    message for the session, one line naming what disagrees and by how
+    much, zero correction throughout, summary.json's sensor_checks.start
+    failed.  (Before: forces too small or moments too large were not
+    detected: a correction of 0.034 deg from minus the payload's weight, up
+    to 0.048 deg with the moments 1000 times large, where the true one is
+    0.053; too large was caught by the correction's tool bound.)"""
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w, page_counts=page)
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     try:
         r.run(300, lambda k: sensor.send())
     finally:
         code, err, extra = finish(proc, ctrl, sensor)
     assert code == 0 and extra == [], err[-2000:]
-    if page == (1e3, 1e3):
-        assert "correction bound: the model's correction moves the tool point" in err and RAMPS in err
-        assert r.chk.worst_deg <= 1e-6
-    _report(f"page counts {page}", **r.figures(_summary(log), end_deg=round(r.dev[r.k - 1], 4)))
+    s = _summary(log)
+    lines = [ln for ln in err.splitlines() if "where the payload calibration predicts" in ln]
+    assert len(lines) == 1 and "calibration page, tare, payload mass or mounting wrong" in lines[0], err[-3000:]
+    unit = "N*m" if page == (1e6, 1e3) else "N"  # (the moments alone 1000 times off: named in N*m)
+    assert f"the sensor reads " in lines[0] and f" {unit} where " in lines[0], lines[0]
+    assert r.chk.worst_deg <= 1e-6, r.chk.worst_deg
+    assert s["sensor_checks"]["start"]["passed"] is False and s["health"]["seen_of_the_other_side"]["sensor_faults"] >= 1
+    _report(f"page counts {page}", line=lines[0].split(": sensor: ")[-1][:120],
+            **r.figures(s, end_deg=round(r.dev[r.k - 1], 4)))
 
 
 @pytest.mark.parametrize("counts", [1e6, 1e5], ids=["clipped", "carried"])
@@ -205,7 +222,7 @@ def test_a_step_of_5000_N(robot, inputs, counts):
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w, counts=(counts, counts))
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     step = w + [5000.0, 0.0, 0.0, 0.0, 0.0, 0.0]
     try:
         steady = r.engage(sensor)

@@ -41,7 +41,7 @@ def test_records_from_a_stranger_never_reach_the_loop(robot, inputs, host):
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w)
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     stranger = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     stranger.bind((host, 0))
 
@@ -74,7 +74,7 @@ def test_replayed_duplicated_and_reordered_records_are_dropped(robot, inputs):
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w)
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     srv = sensor.server
 
     def replays(k):
@@ -111,7 +111,7 @@ def test_sequence_numbers_wrapping_at_2_32(robot, inputs):
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w)
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     srv = sensor.server
     try:
         steady = r.engage(sensor)
@@ -150,7 +150,7 @@ def test_a_sensor_restarted_mid_run_with_another_bias(robot, inputs):
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w)
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     srv = sensor.server
     biased = w + [200.0, 0.0, 0.0, 0.0, 0.0, 0.0]
     try:
@@ -183,7 +183,7 @@ def test_a_burst_moves_the_correction_at_its_rate_limit_at_most(robot, inputs, n
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w)
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     more = w + [600.0, 0.0, 0.0, 0.0, 0.0, 0.0]
     try:
         steady = r.engage(sensor)
@@ -199,19 +199,24 @@ def test_a_burst_moves_the_correction_at_its_rate_limit_at_most(robot, inputs, n
                                          end_deg=round(r.dev[r.k - 1], 4)))
 
 
-@pytest.mark.parametrize("every", [25, 75])
+@pytest.mark.parametrize("every", [8, 75])
 def test_a_slow_sensor(robot, inputs, every):
-    """The sensor sends one record every ``every`` messages (100 ms and 300
-    ms of the controller's clock; the timeout is 200 ms) for 300 messages.
-    Every 25: no fault (each record within the timeout), the correction
-    from readings up to 100 ms old, counted stale.  Every 75: a logged
-    fault between records, the correction at zero by the time the next one
-    comes, and back on two records that agree (documented: the timeout is
-    the bound on a reading's age)."""
+    """The sensor sends one record every ``every`` messages for 300
+    messages: every 8, 31 Hz where compensate is told 250 (as 125 Hz where
+    1000 Hz is configured: the force filter's corner 8 times lower), each
+    record within the timeout (32 ms of 200): the record rate counted on
+    the controller's clock (and this PC's: each message at least PACE_S
+    after the last) is a fault for the session once two windows of 0.25 s
+    in a row are more than 20 % off, one log line naming measured and
+    configured rate, the correction at zero (before: not detected, the
+    correction, 0.053 deg, held to the end from readings up to 32 ms old
+    through a filter 8 times slower).  Every 75 (300 ms): the timeout's fault between records
+    (windows with a sensor fault are not judged), the correction at zero
+    by the time the next one comes, back on two records that agree."""
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w)
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     zeros = []
     try:
         steady = r.engage(sensor)
@@ -223,10 +228,19 @@ def test_a_slow_sensor(robot, inputs, every):
         code, err, extra = finish(proc, ctrl, sensor)
     assert code == 0 and extra == [], err[-2000:]
     s = _summary(log)
+    rate = s["sensor_checks"]["rate"]
     if every == 75:
         assert "sensor: no record for 200 ms; the correction ramps to zero" in err and all(zeros), zeros
+        assert rate["fault"] is None, rate
+    else:
+        lines = [ln for ln in err.splitlines() if "sensor: its records come at" in ln]
+        assert len(lines) == 1 and "not the 250 Hz configured" in lines[0], err[-3000:]
+        assert "no record for" not in err  # (each record within the timeout: the rate's fault, not the silence's)
+        assert abs(rate["fault"] - 250.0 / every) < 0.25 * 250.0 / every, rate
+        assert r.zero_tail(TIMEOUT_MESSAGES), [round(r.dev[k], 6) for k in range(r.k - TIMEOUT_MESSAGES, r.k)]
     _report(f"slow sensor, 1 record per {every} messages", **r.figures(
-        s, steady_deg=round(steady, 4), end_deg=round(r.dev[r.k - 1], 4), stale_s=round(s["stale_correction_s"], 3)))
+        s, steady_deg=round(steady, 4), end_deg=round(r.dev[r.k - 1], 4), stale_s=round(s["stale_correction_s"], 3),
+        rate_fault_hz=rate["fault"]))
 
 
 def test_datagrams_of_the_wrong_length(robot, inputs):
@@ -239,7 +253,7 @@ def test_datagrams_of_the_wrong_length(robot, inputs):
     *_, ref_deg, w, log = inputs
     sensor = ScriptedSensor(w)
     proc, ctrl = start(inputs, sensor)
-    r = Run(robot, ref_deg, ctrl)
+    r = Run(robot, ref_deg, ctrl, sensor)
     srv = sensor.server
 
     def garbage():

@@ -122,6 +122,11 @@ def test_compensate_over_the_protocols_against_the_drake_station(tmp_path, short
         assert "seen of the controller" in summary["health"]["line"] and "seen of the compensator" in \
             res["health"]["line"], (summary["health"]["line"], res["health"]["line"])
         assert summary["health"]["seen_of_the_other_side"]["sensor_faults"] == 0, summary["health"]
+        # the simulated sensor agrees with the payload calibration at the start (the tool in the air) and streams
+        # at the configured rate (cell/sensor_checks.py)
+        checks = summary["cycles"]["sensor_checks"]
+        print("start check", checks["start"], "rate check", checks["rate"])
+        assert checks["start"]["passed"] and checks["rate"]["fault"] is None and checks["rate"]["windows_judged"] > 2
         # the log is a run folder diagnose-run reads, with the scan made outside it attached
         dr = subprocess.run([sys.executable, "-m", "robstiff_drake", "diagnose-run", str(run_dir / "log"), "--scan",
                              str(run_dir / "my_scan.csv"), "--json", str(tmp_path / "dr.json"), "--out",

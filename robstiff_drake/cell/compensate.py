@@ -28,7 +28,9 @@ jump, never a stale correction held): the correction moving the tool
 beyond its bound (cell/correction_bound.py); the sensor silent, invalid,
 clipped or rejected by the guard for ``sensor_timeout_s`` (silent: on
 this PC's clock and on the controller's), or with no valid record of that
-age at the first message (cell/sensor_intake.py); feedback not
+age at the first message (cell/sensor_intake.py); its reading at the
+start beyond the payload calibration's prediction, its record rate off
+the configured one (cell/sensor_checks.py: both for the session); feedback not
 finite or outside the working ranges; the controller silent; its sequence
 or clock inconsistent (cleared after ``CLEAR_MESSAGES`` consistent
 messages once the correction is zero); a target refused.
@@ -51,6 +53,7 @@ from robstiff_drake.cell.realtime_thread import collect_if_due
 from robstiff_drake.cell.reference import Reference  # noqa: F401 (the loop's reference; commands import it here)
 from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_limits_deg, pose_problem_within, \
     supervision_tolerances
+from robstiff_drake.cell.sensor_checks import SensorChecks
 from robstiff_drake.cell.sensor_intake import SensorIntake
 from robstiff_drake.cell.session import SessionClock
 from robstiff_drake.cell.session_faults import CLEAR_MESSAGES, SessionFaults
@@ -64,7 +67,7 @@ STALE_PERIODS = 3.0  # a correction computed from a wrench older than this many 
 START_BACKLOG_S = 1.0  # the most of the controller's messages (s of its clock) waiting at the start not counted late
 
 
-class CompensatorLoop(LoopStart, SensorIntake, SessionFaults):
+class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
     """The loop over a controller link (cell/link.PCLink) and a sensor
     reader (cell/rdt.NetFTReader, or stand-ins with the same methods)."""
 
@@ -116,6 +119,7 @@ class CompensatorLoop(LoopStart, SensorIntake, SessionFaults):
         self._supervision = supervision_tolerances(robot, settings.period_s)  # axis speeds and accelerations
         self._sat = [math.radians(settings.saturation_deg)] * 6
         self.bound = CorrectionBound.of(compensator, settings)  # (None: no bound)
+        self._init_sensor_checks()
         # an answer later than this after its datagram's arrival (s) missed the controller's next cycle
         self.deadline_s = getattr(link, "answer_deadline_periods", 1.0) * settings.period_s
 
@@ -138,7 +142,7 @@ class CompensatorLoop(LoopStart, SensorIntake, SessionFaults):
         if name not in self.faults:
             self.faults[name] = self.now()
             self.n.fault_onsets += 1
-            self.n.sensor_faults += name == "sensor"
+            self.n.sensor_faults += name.startswith("sensor")  # (sensor, sensor start, sensor rate)
             self.event(f"{text}; the correction ramps to zero")
         self.ok_since_fault = 0
 

@@ -1,6 +1,7 @@
 """The compensator loop's settings (cell/compensate.CompensatorLoop):
 periods, timeouts, the correction's rate limit and clamp, the sensor's
-moment guard and the bound on the correction's tool motion.
+moment guard, its rate and start check, and the bound on the correction's
+tool motion.
 
 Every default is ``robstiff compensate``'s, taken from the one place that
 defines it (cell/correction_bound.py's bound; ``default_max_jump_Nm``,
@@ -16,6 +17,7 @@ import numbers
 from dataclasses import dataclass, replace
 
 from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_DEG, DEFAULT_MAX_CORRECTION_MM
+from robstiff_drake.cell.sensor_checks import DEFAULT_START_TOLERANCE_N
 
 # ASSUMPTION: without --max-jump-Nm (LoopSettings.max_jump_Nm None), a moment jump is refused beyond what a
 # force jump of --max-jump-N makes at this lever (m) or at the tool point's distance from the sensor, whichever
@@ -62,6 +64,12 @@ class LoopSettings:
     # reference that already carries the deflection's correction (compensate's --reference-is-corrected) is
     # streamed as it is; every check still runs (working ranges, steps, the start gate, the bound, the sensor)
     correction_off: str = None
+    # the sensor's record rate the force filter is designed for (Hz; compensate's --sensor-rate-hz): a stream
+    # more than 20 % off it is a fault for the session (cell/sensor_checks.py)
+    sensor_rate_hz: float = 1000.0
+    # the most the start's reading may differ from the payload calibration's prediction (N; the moments' at the
+    # tool's lever): beyond it a fault for the session (cell/sensor_checks.py: compensate's default and why)
+    start_tolerance_N: float = DEFAULT_START_TOLERANCE_N
 
     def resolved(self, compensator, robot):
         """These settings with the defaults that depend on the compensator
@@ -75,7 +83,11 @@ class LoopSettings:
         if self.correction_off is not None and not (isinstance(self.correction_off, str) and self.correction_off):
             raise ValueError(f"LoopSettings.correction_off = {self.correction_off!r}: None (the correction "
                              "computed) or the reason it is held at zero")
-        for name in ("max_correction_mm", "max_correction_deg", "max_jump_Nm"):
+        for name in ("max_correction_mm", "max_correction_deg", "max_jump_Nm", "start_tolerance_N"):
             v = getattr(self, name)
             if v is not None and not (isinstance(v, numbers.Real) and v > 0):  # (False for NaN)
                 raise ValueError(f"LoopSettings.{name} = {v!r}: a bound above zero (math.inf: no check)")
+        v = self.sensor_rate_hz
+        if not (isinstance(v, numbers.Real) and 0 < v < math.inf):
+            raise ValueError(f"LoopSettings.sensor_rate_hz = {v!r}: the sensor's record rate, a finite number of Hz "
+                             "above zero")

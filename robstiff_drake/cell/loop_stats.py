@@ -47,6 +47,8 @@ def loop_stats(loop):
             "stale_correction_s": n.stale_s, "fault_onsets": n.fault_onsets, "ended_by": loop.ended_by,
             # (the correction's tool-motion bound: faults, cycles beyond, the largest sent; cell/correction_bound.py)
             "correction_bound": loop.bound.summary() if getattr(loop, "bound", None) is not None else None,
+            # (the start's reading against the payload calibration, the record rate: cell/sensor_checks.py)
+            "sensor_checks": {"start": getattr(loop, "start_check", None), "rate": getattr(loop, "rate_check", None)},
             "faults": [{"t_s": t, "t_controller_s": tc, "event": e} for t, tc, e in n.events], "events_dropped": n.events_dropped,
             "health": {"verdict": word, "reasons": reasons, "compensation_lost_fraction": lost, "line": line,
                        "seen_of_the_other_side": {"controller_messages": n.received, "lost_on_the_way": n.lost,

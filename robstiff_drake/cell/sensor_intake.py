@@ -5,7 +5,9 @@ spikes refused and counted) and the force filter, and the sensor's
 faults: silent, invalid or rejected by the guard for ``sensor_timeout_s``
 (silent: on this PC's clock and on the controller's), or no valid record
 of that age at the controller's first message; after one, the chain
-restarts on a new level only when two records in a row agree on it.
+restarts on a new level only when two records in a row agree on it.  The
+start's reading against the payload calibration and the record rate
+against the configured one: cell/sensor_checks.py.
 
 Units: wrenches in N and N*m, sensor frame; times in s.
 """
@@ -40,22 +42,26 @@ class SensorIntake:
         since it was opened, or only records older than that waiting: read
         at another pose, or none at all and the chain seeded on zeros): a
         sensor fault from the first message, the chain waiting for a level
-        two records in a row agree on, as after a silence."""
+        two records in a row agree on, as after a silence (the start's
+        check against the payload calibration, cell/sensor_checks.py, made
+        on that level at its message's pose)."""
         records = self.sensor.drain()
         self.n.sensor_records += len(records)
         fresh = time.monotonic() - self.s.sensor_timeout_s
         recent = [w for w, t_arr, _, clipped in records[-START_RECORDS:]
                   if not clipped and all(v == v for v in w) and t_arr >= fresh]
         if recent:
-            self.comp.reseed([sorted(col)[len(col) // 2] if len(col) % 2 else
-                              0.5 * (sorted(col)[len(col) // 2 - 1] + sorted(col)[len(col) // 2])
-                              for col in zip(*recent)])
+            w0 = [sorted(col)[len(col) // 2] if len(col) % 2 else
+                  0.5 * (sorted(col)[len(col) // 2 - 1] + sorted(col)[len(col) // 2]) for col in zip(*recent)]
+            self.comp.reseed(w0)
+            self._check_start(w0)  # (against the payload calibration: cell/sensor_checks.py)
         else:
             self.fault_on("sensor", f"sensor: no valid record within {self.s.sensor_timeout_s * 1e3:.0f} ms of the "
                                     f"controller's first message ({len(records)} waiting, none usable): the chain "
                                     "waits for two records in a row that agree")
             self.pending_reseed = True
             self.reseed_candidate = None
+            self.start_check_due = True
 
     def _read_sensor(self, t_now):
         """Feed every record received since the last cycle to the chain."""
@@ -88,6 +94,9 @@ class SensorIntake:
                     self.reseed_candidate = None
                     self.fault_off("sensor", "sensor: valid records again; guard and filter restarted on the new "
                                              "reading")
+                    if self.start_check_due:  # (no valid record at the start: its check on this first level)
+                        self.start_check_due = False
+                        self._check_start(list(w))
                 else:
                     self.reseed_candidate = list(w)
             if finite and not self.pending_reseed and not moments_within(w, comp.held, lim):
@@ -135,3 +144,4 @@ class SensorIntake:
             self.pending_reseed = True
         if n_rec:
             self.t_logged = max(self.t_session, t0 + 1e-6 * n_rec)
+        self._count_records(n_rec, t_now)  # (the record rate on the controller's clock: cell/sensor_checks.py)

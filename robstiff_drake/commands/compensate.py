@@ -12,7 +12,9 @@ loop's stability at the start pose by the linear loop model
 (cell/loop_guard.py; --allow-unstable-loop overrides it), the sensor's
 calibration read and its stream started and the controller's first
 message awaited and checked before the loop; anything wrong there is one
-line and exit status 2.  The start's slow work (without --reference the
+line and exit status 2.  The sensor's reading at the first message is
+checked against the payload calibration, its record rate against
+--sensor-rate-hz (cell/sensor_checks.py: a fault for the session).  The start's slow work (without --reference the
 loop check and the correction bound's check at the hold pose; the log
 folder's start) runs off the loop's
 thread while the controller is answered with its own pose
@@ -85,8 +87,11 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         wait_s=30.0, duration_s=0.0, idle_exit_s=0.0,
         sensor_timeout_ms=20.0, rt_priority=0, cpu=None, controller="127.0.0.1", protocol="egm", servo=None,
         cutter_diameter_mm=None, allow_unstable_loop=False, mode="plain", job=None, preview_sync_ms=25.0,
-        preview_force_bound_N=150.0, reference_is_corrected=False):
+        preview_force_bound_N=150.0, reference_is_corrected=False, start_tolerance_N=None):
     from robstiff_drake.io import check_outputs
+    from robstiff_drake.cell.sensor_checks import DEFAULT_START_TOLERANCE_N
+
+    start_tolerance_N = DEFAULT_START_TOLERANCE_N if start_tolerance_N is None else start_tolerance_N
 
     # before the heavy imports (scipy, Drake): a wrong --log or a missing --job is refused at once
     check_outputs(inputs=[model, payload, reference, robot_yaml, job], folders={"--log": log})
@@ -236,7 +241,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
                                 duration_s=duration_s, rate_limit_rad_per_s=math.radians(rate_limit_deg_per_s),
                                 saturation_deg=saturation_deg, max_jump_Nm=max_jump_Nm,
                                 max_correction_mm=max_correction_mm, max_correction_deg=max_correction_deg,
-                                correction_off=correction_off)
+                                correction_off=correction_off, sensor_rate_hz=sensor_rate_hz,
+                                start_tolerance_N=start_tolerance_N)
         c = sensor.calibration
         cal_text = (f"{c[0]:g} counts/{c[2]}, {c[1]:g} counts/{c[3]} ({'from the sensor' if c[4] == 'sensor' else 'override'})"
                     if c else "unknown")
@@ -322,7 +328,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             "max_jump_Nm": max_jump_Nm, "saturation_deg": saturation_deg,
             "rate_limit_deg_per_s": rate_limit_deg_per_s, "delay_steps": delay_steps,
             "max_correction_mm": max_correction_mm, "max_correction_deg": max_correction_deg,
-            "sensor_timeout_ms": sensor_timeout_ms},
+            "sensor_timeout_ms": sensor_timeout_ms, "start_tolerance_N": start_tolerance_N},
         mode=mode, job=str(job) if job else None,
         # (None: the correction computed online; else why it was held at zero: a corrected reference)
         correction_held_at_zero=correction_off), notes=(play_line, play_summary, bound_line),

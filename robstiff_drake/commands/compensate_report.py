@@ -21,6 +21,9 @@ def report(loop, link, guard, background, stream_log, *, log, job, inputs, notes
           f"{stats['correction_age_ms']['median']:.2f} ms; {stats['late']} late, {stats['unanswered']} unanswered; "
           f"{stats['fault_onsets']} faults; {stats['strangers_dropped']} datagrams from strangers dropped",
           file=sys.stderr)
+    checks = _sensor_check_lines(stats["sensor_checks"])
+    for line in checks:
+        print(f"robstiff: warning: compensate: {line}", file=sys.stderr)
     h = stats["health"]
     table = "disk cache" if job is not None and background is None else background.note() if background else None
     if background is not None and loop.preview is None:
@@ -42,7 +45,7 @@ def report(loop, link, guard, background, stream_log, *, log, job, inputs, notes
                "preview_table": table,
                "cycles": stats, "health": h, "loop_check": guard.result, "play": play_summary,
                "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])
-               + ([play_line] if play_line else []) + ([bound_line] if bound_line else [])}
+               + ([play_line] if play_line else []) + ([bound_line] if bound_line else []) + checks}
     written = stream_log.close(summary)
     wrote(log, ", ".join(written), folder=True, to_stderr=True)
     servo, cutter_diameter_mm = missing
@@ -61,3 +64,18 @@ def _response(stats):
         return ""
     return (f" (from its arrival at this PC, with the wait to be read: p99 {r['p99']:.3f} ms, max {r['max']:.3f} ms, "
             f"{r['over_period']} over a period)")
+
+
+def _sensor_check_lines(checks):
+    """The lines (warnings) of the sensor's checks that held the correction
+    at zero for the run (cell/sensor_checks.py): [] when both passed."""
+    out = []
+    st, rate = checks["start"], checks["rate"]
+    if st is not None and not st["passed"]:
+        out.append(f"the sensor's reading at the start was {st['apart_N']:.4g} N and {st['apart_Nm']:.4g} N*m from "
+                   f"the payload calibration's prediction (at most {st['tolerance_N']:g} N, "
+                   f"{st['tolerance_Nm']:.3g} N*m): the correction was held at zero for the run")
+    if rate is not None and rate["fault"] is not None:
+        out.append(f"the sensor's records came at {rate['fault']:.4g} Hz, not the {rate['configured_hz']:g} Hz "
+                   "configured (--sensor-rate-hz): the correction was held at zero from then on")
+    return out

@@ -153,7 +153,8 @@ def _dispatch(args):
                               allow_unstable_loop=args.allow_unstable_loop, mode=args.mode, job=args.job,
                               preview_sync_ms=args.preview_sync_ms,
                               preview_force_bound_N=args.preview_force_bound_N,
-                              reference_is_corrected=args.reference_is_corrected)
+                              reference_is_corrected=args.reference_is_corrected,
+                              start_tolerance_N=args.start_tolerance_N)
     if args.command == "compensate-program":
         from robstiff_drake.commands import compensate_program
 

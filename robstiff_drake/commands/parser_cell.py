@@ -5,6 +5,7 @@ and sensor).  Every option with its range (commands/parser.py builds the
 rest and calls ``add_cell_commands`` where these two stand in the help)."""
 
 from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_DEG, DEFAULT_MAX_CORRECTION_MM
+from robstiff_drake.cell.sensor_checks import DEFAULT_START_TOLERANCE_N, START_TOLERANCE_RANGE_N
 from robstiff_drake.commands.options import PROGRAM_MAX_CORRECTION_MM, SCENARIO_HELP, add_robot_option, \
     number_in as _number_in
 
@@ -80,7 +81,14 @@ def add_cell_commands(sub):
                    help="the preview falls back to plain when the measured force departs from the job's model by "
                         "more than this plus half the model's force for 0.1 s (default: %(default)s)")
     p.add_argument("--sensor-rate-hz", type=_number_in(1.0, 20000.0, "Hz"), default=1000.0,
-                   help="the Net F/T's RDT output rate, for the filter (default: %(default)s)")
+                   help="the Net F/T's RDT output rate, for the filter; records more than 20 %% off it on the "
+                        "controller's clock are a fault for the run (default: %(default)s)")
+    p.add_argument("--start-tolerance-N", type=_number_in(*START_TOLERANCE_RANGE_N, "N"),
+                   default=DEFAULT_START_TOLERANCE_N,
+                   help="the sensor's reading at the controller's first message (the tool in the air, the spindle "
+                        "off) may differ from what the payload calibration predicts there by this much (N; the "
+                        "moments by this at the tool's lever); beyond it a fault for the run, zero correction "
+                        "(default: %(default)s; cell/sensor_checks.py says why)")
     p.add_argument("--filter", dest="filter_kind", choices=["lowpass", "revolution_average", "none"], default="lowpass")
     # (commands/compensate.DEFAULT_CUTOFF_HZ: why 2 Hz)
     p.add_argument("--cutoff-hz", type=_number_in(0.01, 10000.0, "Hz"), default=2.0,

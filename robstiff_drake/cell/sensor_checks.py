@@ -1,0 +1,174 @@
+"""Two checks of the wrist sensor against what the compensator assumes of
+it (a base of cell/compensate.CompensatorLoop, through cell/sensor_intake.
+py), each a fault that holds the correction at zero for the rest of the
+session (ramped down at the rate limit if it was not zero):
+
+* **the start's reading against the payload calibration.**  At the
+  controller's first message, the wrench the chain starts on (the median
+  of the newest records) minus what the payload calibration predicts at
+  the start pose (its bias and the payload's weight and moment in the
+  sensor frame at the first message's joints: the chain's own gravity
+  removal, model/compensator.GravityRemover, not another formula) is the
+  process wrench the chain would compensate at once.  The check assumes
+  the spindle off and the tool in the air at the start (the stream started
+  before the approach): that wrench is then only the calibration's
+  residual, the sensor's noise and its drift since the calibration.  A
+  calibration page off by a factor, a sensor not tared, a wrong payload
+  mass or centre of mass, a sensor mounted turned (where the turn changes
+  the weight's direction in the sensor frame at that pose) read beyond
+  ``start_tolerance_N`` (forces) or that force at the tool's lever
+  (moments, as the moment guard's default: cell/loop_settings.py).
+* **the record rate against the configured rate** (``sensor_rate_hz``):
+  the force filter's coefficients are designed for it; a sensor at 125 Hz
+  where 1000 Hz is configured puts the filter's corner 8 times lower (its
+  lag: the loop's stability margin, cell/loop_guard.py), one at 2000 Hz
+  twice higher (more noise through, less margin where the corner was
+  chosen near the loop check's limit).  Records are counted over windows
+  of RATE_WINDOW_S of the controller's clock (its messages' span: this
+  PC's scheduling moves records between windows, never out of them), and
+  RATE_WINDOWS windows in a row off by more than RATE_TOLERANCE the same
+  way are the fault: a stall of this PC or a burst makes one window high
+  and the next low, not two off the same way.  A window is off when its
+  rate is off on the controller's clock and on this PC's (the arrivals of
+  its first and last messages), as a silence is judged: they agree at a
+  real controller; a simulated or scripted one on a loaded PC stretches
+  its own clock.  Windows with a sensor or controller fault in them (a
+  silence, a restart) are not judged.
+
+Why the session stays faulted: neither a wrong calibration, tare, mass or
+mounting nor a wrong rate setting heals during a run; the one reading that
+tells them apart from a process force is the start's with the tool in the
+air, and a rate at the edge would ramp the correction in and out.  The run
+goes on at zero correction (the controller keeps its path, every other
+check running) and its summary says why; fix the setting and start again.
+
+Units: wrenches in N and N*m, sensor frame; rates in Hz; times in s.
+"""
+
+import math
+
+# ASSUMPTION (the start check's default force tolerance, N; compensate's --start-tolerance-N): what an honest
+# start in the air reads beyond the calibration's prediction, summed: the calibration's residual (the payload
+# file carries none as a key; `calibrate-payload examples/payload.csv` leaves 0.81 N rms, 2.5 N at 3 sigma),
+# the sensor's noise on the median of START_RECORDS records (0.5 N a sample: the scenarios' sensor.noise_N),
+# the bias's drift since the calibration (ASSUMPTION: 10 N; a Net F/T warmed up, not re-tared since) and the
+# arm at rest at the start (EGM, RSI and Stream Motion start from a stop: no inertial force), about 13 N, with a
+# factor 2 of margin.  What it must catch is larger: a page 1000 times off reads the payload's weight (392 N
+# for the IRB 6400's 40 kg spindle) as nearly nothing or 1000 times over, a payload mass 10 % off is 39 N.  What
+# passes below it costs little: 25 N in its worst direction deflects the tool 0.12 mm at the tests' pose by
+# the model (1000 N: 4.9 mm, cell/correction_bound.py).
+DEFAULT_START_TOLERANCE_N = 25.0
+# the option's range: below 5 N the residual, noise and drift above fault an honest start; above 5000 N (the
+# largest bias a payload file may carry) nothing a sensor reads is refused
+START_TOLERANCE_RANGE_N = (5.0, 5000.0)
+MIN_LEVER_M = 0.1  # (the moment tolerance's shortest lever, as the moment guard's: cell/loop_settings.py)
+
+# ASSUMPTION: the record rate may differ from --sensor-rate-hz by 20 % (the filter's corner moves as much: 2 Hz
+# to 1.6-2.4 Hz at compensate's default).  By the loop model at the block test's start (IRB 6400, 4 ms; python
+# benchmarks/sensor_rate_margin.py) the spectral radius per period, cutting at the check's 2 % damping, is
+# 0.99706 and 0.99669 there against 0.99674 at the configured rate: the verdict unchanged; twice the rate (the
+# corner at 4 Hz) is 1.00017, unstable; an 8 times slower stream stays stable by the model (0.99452) but its
+# corner at 0.25 Hz makes the correction trail the cut's force by about 0.6 s.  Judged over windows long enough
+# that counting is not the error (0.25 s: 250 records at 1 kHz, one record is 0.4 %) and short enough that a
+# wrong rate is caught within half a second.
+RATE_TOLERANCE = 0.2
+RATE_WINDOW_S = 0.25
+RATE_WINDOWS = 2
+
+
+def start_tolerances(tolerance_N, tool_m):
+    """(force tolerance N, moment tolerance N*m): the moment's is the force's
+    at the tool point's lever (``tool_m``, m; None: none), at least
+    MIN_LEVER_M (the moment guard's default's rule)."""
+    lever = math.sqrt(sum(float(v) * float(v) for v in tool_m)) if tool_m is not None else 0.0
+    return float(tolerance_N), float(tolerance_N) * max(lever, MIN_LEVER_M)
+
+
+def _norm(v):
+    return math.sqrt(sum(float(x) * float(x) for x in v))
+
+
+class SensorChecks:
+    """The loop's sensor checks (a base of CompensatorLoop): ``_check_start``
+    once on the wrench the chain starts on, ``_count_records`` every cycle."""
+
+    def _init_sensor_checks(self):
+        self.start_check = None  # summary.json's sensor_checks.start (None: not made: no valid record yet)
+        self.start_check_due = False  # (no valid record at the start: the check waits for the chain's first level)
+        self._rate_n = 0  # records in the window
+        self._rate_t0 = None  # the controller's time the window began (t_session)
+        self._rate_pc0 = None  # this PC's: its message's arrival (s)
+        self._rate_off = 0  # windows in a row off the same way (signed: + too fast, - too slow)
+        self._rate_seen = []  # the judged windows' rates (Hz): their least and most in the summary
+        self.rate_check = {"configured_hz": self.s.sensor_rate_hz, "tolerance": RATE_TOLERANCE,
+                           "window_s": RATE_WINDOW_S, "windows_judged": 0, "least_hz": None, "most_hz": None,
+                           "fault": None}
+
+    def _check_start(self, w):
+        """The wrench ``w`` the chain starts on against the payload
+        calibration's prediction at the start pose (``self.q``): beyond the
+        tolerance, the "sensor start" fault for the session, one line."""
+        tol_N, tol_Nm = start_tolerances(self.s.start_tolerance_N, self.robot.payload.tool_point_m)
+        process = self.comp.remove_gravity(list(w), self.q)  # measured - bias - weight: the chain's own
+        predicted = [a - b for a, b in zip(w, process)]
+        dF, dM = _norm(process[:3]), _norm(process[3:])
+        self.start_check = {"read_N": _norm(w[:3]), "predicted_N": _norm(predicted[:3]), "apart_N": dF,
+                            "read_Nm": _norm(w[3:]), "predicted_Nm": _norm(predicted[3:]), "apart_Nm": dM,
+                            "tolerance_N": tol_N, "tolerance_Nm": tol_Nm, "passed": dF <= tol_N and dM <= tol_Nm}
+        if self.start_check["passed"]:
+            return
+        if dF > tol_N:
+            what = (f"the sensor reads {_norm(w[:3]):.4g} N where the payload calibration predicts "
+                    f"{_norm(predicted[:3]):.4g} N at the start pose ({dF:.4g} N apart, more than {tol_N:g} N)")
+        else:
+            what = (f"the sensor reads {_norm(w[3:]):.4g} N*m where the payload calibration predicts "
+                    f"{_norm(predicted[3:]):.4g} N*m at the start pose ({dM:.4g} N*m apart, more than "
+                    f"{tol_Nm:.3g} N*m)")
+        self.fault_on("sensor start", f"sensor: {what}: calibration page, tare, payload mass or mounting wrong, "
+                                      "or the tool not in the air (--start-tolerance-N); held for the session")
+
+    def _count_records(self, n_rec, t_now):
+        """This cycle's ``n_rec`` records (all, valid or not) into the rate's
+        window, judged when it spans RATE_WINDOW_S of the controller's clock
+        (``t_session``), its rate over that span and over the span of this
+        PC's clock between the same messages' arrivals (``t_now``, s); a
+        fault (for the session) after RATE_WINDOWS windows in a row off by
+        more than RATE_TOLERANCE the same way on both clocks (as a silence is
+        judged on both: a real controller runs on this PC's time; one
+        simulated or scripted on a loaded PC stretches its own)."""
+        if "sensor rate" in self.faults:
+            return
+        if self.pending_reseed or any(name not in ("bound", "sensor start") for name in self.faults):
+            self._rate_t0 = None  # (a silence, an invalid stream, a controller's fault: not judged)
+            self._rate_off = 0
+            return
+        if self._rate_t0 is None:
+            self._rate_t0, self._rate_pc0, self._rate_n = self.t_session, t_now, 0
+            return  # (the window counts the records of the messages after its start)
+        self._rate_n += n_rec
+        span = self.t_session - self._rate_t0
+        if span < RATE_WINDOW_S:
+            return
+        rate, span_pc = self._rate_n / span, t_now - self._rate_pc0
+        rate_pc = self._rate_n / span_pc if span_pc > 0 else math.inf
+        self._rate_t0, self._rate_pc0, self._rate_n = self.t_session, t_now, 0
+        rc = self.rate_check
+        rc["windows_judged"] += 1
+        rc["least_hz"] = rate if rc["least_hz"] is None else min(rc["least_hz"], rate)
+        rc["most_hz"] = rate if rc["most_hz"] is None else max(rc["most_hz"], rate)
+        conf = self.s.sensor_rate_hz
+        off = _off(rate, conf) if _off(rate, conf) == _off(rate_pc, conf) else 0
+        self._rate_off = off if off == 0 or self._rate_off * off <= 0 else self._rate_off + off
+        if abs(self._rate_off) >= RATE_WINDOWS:
+            rc["fault"] = rate
+            self.fault_on("sensor rate", f"sensor: its records come at {rate:.4g} Hz on the controller's clock "
+                                         f"({rate_pc:.4g} Hz on this PC's; {RATE_WINDOWS} windows of "
+                                         f"{RATE_WINDOW_S:g} s in a row), not the {conf:g} Hz configured (more than "
+                                         f"{RATE_TOLERANCE:.0%} off: the force filter is designed for that rate): "
+                                         "the sensor's RDT rate or --sensor-rate-hz wrong; held for the session")
+
+
+def _off(rate_hz, configured_hz):
+    """+1 above the configured rate by more than RATE_TOLERANCE, -1 below, 0 within."""
+    return 1 if rate_hz > configured_hz * (1 + RATE_TOLERANCE) else \
+        -1 if rate_hz < configured_hz * (1 - RATE_TOLERANCE) else 0
