@@ -51,7 +51,8 @@ import math
 # start in the air reads beyond the calibration's prediction, summed: the calibration's residual (the payload
 # file carries none as a key; `calibrate-payload examples/payload.csv` leaves 0.81 N rms, 2.5 N at 3 sigma),
 # the sensor's noise on the median of START_RECORDS records (0.5 N a sample: the scenarios' sensor.noise_N),
-# the bias's drift since the calibration (ASSUMPTION: 10 N; a Net F/T warmed up, not re-tared since) and the
+# the bias's drift since the calibration (ASSUMPTION: 10 N, five times the 2 N (1 sigma) drift of docs/assumptions.md's
+# identified models: a Net F/T warmed by the spindle, not re-tared since) and the
 # arm at rest at the start (EGM, RSI and Stream Motion start from a stop: no inertial force), about 13 N, with a
 # factor 2 of margin.  What it must catch is larger: a page 1000 times off reads the payload's weight (392 N
 # for the IRB 6400's 40 kg spindle) as nearly nothing or 1000 times over, a payload mass 10 % off is 39 N.  What
