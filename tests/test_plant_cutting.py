@@ -87,8 +87,8 @@ def drive(src, kin, q0, times, points, feed0=0.0):
     sim = Simulator(src)
     ctx = sim.get_mutable_context()
     ctx.SetTime(times[0] - 1e-9)  # (the updates start with the sequence)
-    process = ctx.get_mutable_discrete_state(int(src._process))
-    process.SetFromVector(np.r_[process.CopyToVector()[:2], feed0, 0.0])
+    held = ctx.get_discrete_state(int(src._process)).CopyToVector()  # (the direction, feed, travel, history)
+    src.set_progress(ctx, np.r_[held[:2], feed0, 0.0], held[4:])
     for t, dx in zip(times, points):
         src.get_input_port().FixValue(ctx, moved(kin, q0, np.asarray(dx)))
         sim.AdvanceTo(t + 1e-6)

@@ -59,11 +59,9 @@ def test_milling_force_source_outputs(robot):
         # the tool came along the path at 0.02 m/s: its history (time, arc length) before t = 0
         n = src._n_hist
         back = 0.002 * np.arange(n, 0, -1)
-        ctx.get_mutable_discrete_state(int(src._hist)).SetFromVector(np.c_[-back, 0.1 - 0.02 * back,
-                                                                           np.zeros(n)].ravel())
-        ctx.get_mutable_discrete_state(int(src._process)).SetFromVector([1.0, 0.0, 0.02, 0.0])  # its feed, held
+        src.set_progress(ctx, [1.0, 0.0, 0.02, 0.0], np.c_[-back, 0.1 - 0.02 * back, np.zeros(n)].ravel())  # its feed
         sim.AdvanceTo(1e-4)  # the update at t = 0 has run
-        held = ctx.get_discrete_state(1).CopyToVector()  # the period's wrench
+        held = ctx.get_discrete_state(int(src._w)).CopyToVector()  # the period's wrench
         expected = (model.average_wrench(p, [1, 0], wp) if mode == "averaged" else
                     model.tooth_wrench(0.002 * np.arange(len(src._sub_t)) / len(src._sub_t), p, [1, 0], wp).reshape(-1)
                     / len(src._sub_t))
@@ -260,8 +258,7 @@ def test_the_sensor_reads_the_tooth_ripple_from_the_sources_table_as_its_port_gi
     src.get_input_port().FixValue(ctx, Q)
     n = src._n_hist  # the tool came along the path at 0.02 m/s (its feed makes the chip)
     back = 0.002 * np.arange(n, 0, -1)
-    ctx.get_mutable_discrete_state(int(src._hist)).SetFromVector(np.c_[-back, 0.1 - 0.02 * back, np.zeros(n)].ravel())
-    ctx.get_mutable_discrete_state(int(src._process)).SetFromVector([1.0, 0.0, 0.02, 0.0])
+    src.set_progress(ctx, [1.0, 0.0, 0.02, 0.0], np.c_[-back, 0.1 - 0.02 * back, np.zeros(n)].ravel())
     hits = 0
     for k in range(1, 12):
         sim.AdvanceTo(k * 0.001)

@@ -59,11 +59,12 @@ def _run(robot, carried):
     tick = b.AddSystem(CompensatorTick(period_s=T, calibration=cal, kinematics=kin, deflection=DeflectionModel(kin, tool),
                                        saturation_rad=2e-4, delay_steps=1, rate_limit_rad_per_s=0.05,
                                        guard=(1.0 / T, 500.0) if carried else None))
+    parts = tick.add_outputs(b)  # (the state split by a C++ Demultiplexer)
     if carried:
-        guard, g_in, g_out = tick, tick.GetInputPort("raw_wrench"), tick.GetOutputPort("guarded_wrench")
+        g_in, g_out, rejected = tick.GetInputPort("raw_wrench"), parts["guarded_wrench"], parts["rejected"]
     else:
         guard = b.AddSystem(WrenchGuard(rate_hz=1.0 / T, max_jump_N=500.0))
-        g_in, g_out = guard.GetInputPort("wrench"), guard.GetOutputPort("wrench")
+        g_in, g_out, rejected = guard.GetInputPort("wrench"), guard.GetOutputPort("wrench"), guard.GetOutputPort("rejected")
     b.Connect(src.GetOutputPort("wrench"), g_in)
     b.Connect(g_out, filt.get_input_port())
     b.Connect(filt.get_output_port(), tick.GetInputPort("wrench"))
@@ -74,8 +75,7 @@ def _run(robot, carried):
     for k in range(1, 80):
         sim.AdvanceTo(k * T + 0.3 * T)
         row = []
-        for port in (g_out, guard.GetOutputPort("rejected"), filt.get_output_port(),
-                     tick.GetOutputPort("process_wrench"), tick.GetOutputPort("correction")):
+        for port in (g_out, rejected, filt.get_output_port(), parts["process_wrench"], parts["correction"]):
             row.extend(port.Eval(port.get_system().GetMyContextFromRoot(ctx)))
         out.append(row)
     return np.array(out)

@@ -73,7 +73,7 @@ class Compensator:
         """Settle the chain on a reading at rest: guard, filter and samples."""
         s = self.systems
         guard = s["guard"]  # (a WrenchGuard, or the tick that carries it)
-        guard.GetMyMutableContextFromRoot(root_context).get_mutable_discrete_state(guard.held_group).SetFromVector(wrench)
+        guard.hold(guard.GetMyMutableContextFromRoot(root_context), wrench)
         filt = s["filter"]
         filt.GetMyMutableContextFromRoot(root_context).SetDiscreteState(steady_state(filt, wrench))
         s["tick"].set_sample(s["tick"].GetMyMutableContextFromRoot(root_context), wrench, q)
@@ -116,16 +116,20 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
         period_s=T, calibration=calibration, kinematics=kin, deflection=None if separate else model,
         saturation_rad=saturation_rad, delay_steps=delay_steps, rate_limit_rad_per_s=rate_limit_rad_per_s,
         guard=(rate_hz, max_jump_N) if carried else None))
+    out = tick.add_outputs(builder)  # (its state's parts, split by a C++ Demultiplexer)
     if carried:
         s["guard"] = tick
-    guard_in, guard_out = ("raw_wrench", "guarded_wrench") if carried else ("wrench", "wrench")
-    builder.Connect(s["guard"].GetOutputPort(guard_out), s["filter"].get_input_port())
+        guard_in, guarded, rejected = tick.GetInputPort("raw_wrench"), out["guarded_wrench"], out["rejected"]
+    else:
+        guard_in, guarded, rejected = (s["guard"].GetInputPort("wrench"), s["guard"].GetOutputPort("wrench"),
+                                       s["guard"].GetOutputPort("rejected"))
+    builder.Connect(guarded, s["filter"].get_input_port())
     builder.Connect(s["filter"].get_output_port(), tick.GetInputPort("wrench"))
-    q_sampled = tick.GetOutputPort("q_sampled")
-    process = tick.GetOutputPort("process_wrench")
+    q_sampled = out["q_sampled"]
+    process = out["process_wrench"]
     if not separate:
         s["prediction"] = tick
-        dq_port = tick.GetOutputPort("dq")
+        dq_port = out["dq"]
     else:
         s["prediction"] = builder.AddNamedSystem("deflection_prediction", DeflectionPrediction(
             predictor=kin, tool_m=tool_m, mount_rpy_deg=calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0),
@@ -156,11 +160,11 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
             dq_port = s["preview"].GetOutputPort("dq")
         builder.Connect(dq_port, tick.GetInputPort("dq"))
 
-    builder.ExportInput(s["guard"].GetInputPort(guard_in), "wrench")
+    builder.ExportInput(guard_in, "wrench")
     builder.ExportInput(tick.GetInputPort("q"), "position_measured")
-    builder.ExportOutput(tick.GetOutputPort("correction"), "correction")
-    builder.ExportOutput(s["guard"].GetOutputPort(guard_out), "guarded_wrench")
-    builder.ExportOutput(s["guard"].GetOutputPort("rejected"), "rejected")
+    builder.ExportOutput(out["correction"], "correction")
+    builder.ExportOutput(guarded, "guarded_wrench")
+    builder.ExportOutput(rejected, "rejected")
     builder.ExportOutput(s["filter"].get_output_port(), "filtered_wrench")
     builder.ExportOutput(process, "process_wrench")
     builder.ExportOutput(q_sampled, "q_sampled")

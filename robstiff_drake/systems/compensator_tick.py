@@ -18,9 +18,15 @@ that of the separate blocks with Drake's same-instant semantics, exactly:
 
 Where the wrist sensor is read once per controller period, the block
 also carries the wrench guard (systems/wrist_sensor.WrenchGuard's update,
-``guard_step``, on its own state): the guard's sample and the tick's are
+``guard_step``, on its part of the state): the guard's sample and the tick's are
 taken at the same instants from the same context, so one call into Python
 does both, as the two blocks did in two.
+
+All of the block's state is one discrete state group, read and written
+in place by the update (one call into the bindings for it, where a group
+per value took a call for each read and each write), and its one output
+port ``state`` is split into the named signals by a C++ Demultiplexer
+(``add_outputs``), which costs no call into Python.
 
 A predictor with state of its own (predictive or preview mode, or lost
 motion in the model with its static torque) stays a block of its own:
@@ -37,11 +43,12 @@ are tested against.
 import math
 
 import numpy as np
-from robstiff_drake.systems.leaf_system import LeafSystem
+from pydrake.systems.primitives import Demultiplexer
 
 from robstiff_drake.model import jit, tick_kernels
 from robstiff_drake.model.compensator import GravityRemover, rate_limited_step
 from robstiff_drake.model.payload import _GRAVITY
+from robstiff_drake.systems.leaf_system import LeafSystem
 from robstiff_drake.systems.wrist_sensor import GUARD_REARM_S, guard_step
 
 
@@ -58,10 +65,15 @@ class CompensatorTick(LeafSystem):
     the reported joint angles, rad) and, with ``deflection`` None, ``dq``
     (6, rad: the predicted deflection from the sampled outputs).
 
-    Outputs (all held state, updated every ``period_s``): ``wrench_sampled``
-    (6), ``q_sampled`` (6), ``process_wrench`` (6, sensor frame: the sampled
+    Output ``state``: the block's whole state, held and updated every
+    ``period_s``; ``layout`` names its parts in order, (name, size), and
+    ``add_outputs`` splits it into them: ``wrench_sampled`` (6),
+    ``q_sampled`` (6), ``process_wrench`` (6, sensor frame: the sampled
     wrench less the payload's weight and bias), ``dq`` (6, rad; only with a
-    ``deflection`` model) and ``correction`` (6, rad).
+    ``deflection`` model), ``correction`` (6, rad), with a guard
+    ``guarded_wrench`` (6) and ``rejected`` (1), and the parts no one reads
+    (named with a leading underscore: the guard's rejections in a row, the
+    delay line, oldest first).
 
     ``calibration``/``kinematics``: gravity removal's (GravityRemover);
     ``deflection``: a model/compensator.DeflectionModel without lost motion
@@ -71,9 +83,9 @@ class CompensatorTick(LeafSystem):
 
     ``guard``: None, or (rate_hz, max_jump_N[, rearm_s]) of a WrenchGuard
     sampled every ``period_s`` (rate_hz = 1 / period_s) that this block
-    carries: then input ``raw_wrench`` (6) and outputs ``guarded_wrench``
-    (6) and ``rejected`` (1), the guard's, and ``wrench`` is the filter's
-    output of ``guarded_wrench`` as before."""
+    carries: then input ``raw_wrench`` (6) and the parts ``guarded_wrench``
+    and ``rejected``, the guard's, and ``wrench`` is the filter's output of
+    ``guarded_wrench`` as before."""
 
     def __init__(self, *, period_s, calibration, kinematics, deflection, saturation_rad, delay_steps,
                  rate_limit_rad_per_s, guard=None):
@@ -87,40 +99,52 @@ class CompensatorTick(LeafSystem):
         self._w_in = self.DeclareVectorInputPort("wrench", 6)
         self._q_in = self.DeclareVectorInputPort("q", 6)
         self._dq_in = self.DeclareVectorInputPort("dq", 6) if deflection is None else None
-        # the state a default context starts from: samples of zero, as the holds' zeros
-        w0, q0 = np.zeros(6), np.zeros(6)
-        p0, dq0 = self._process_and_dq(w0, q0)
-        self._w = self.DeclareDiscreteState(w0)
-        self._q = self.DeclareDiscreteState(q0)
-        self._p = self.DeclareDiscreteState(p0)
-        self._dq = self.DeclareDiscreteState(dq0) if deflection is not None else None
-        self._line = self.DeclareDiscreteState(6 * self._n) if self._n else None  # oldest first
-        self._c = self.DeclareDiscreteState(6)
-        self.DeclarePeriodicDiscreteUpdateEvent(period_s, 0.0, self._update)
-        self.DeclareStateOutputPort("wrench_sampled", self._w)
-        self.DeclareStateOutputPort("q_sampled", self._q)
-        self.DeclareStateOutputPort("process_wrench", self._p)
-        if self._dq is not None:
-            self.DeclareStateOutputPort("dq", self._dq)
-        self.DeclareStateOutputPort("correction", self._c)
         self._guard = None
-        if guard is not None:  # (WrenchGuard's state, ports and constants)
+        if guard is not None:  # (WrenchGuard's input and constants)
             rate_hz, max_jump_N, *rest = guard
             rearm_s = rest[0] if rest else GUARD_REARM_S
             if 1.0 / rate_hz != period_s:
                 raise ValueError(f"a guard carried by the tick samples at its period: rate_hz {rate_hz!r} is not "
                                  f"1 / period_s {period_s!r}")
             self._raw = self.DeclareVectorInputPort("raw_wrench", 6)
-            g = self.DeclareDiscreteState(np.zeros(6))
-            count, run = self.DeclareDiscreteState(1), self.DeclareDiscreteState(1)
-            self.DeclareStateOutputPort("guarded_wrench", g)
-            self.DeclareStateOutputPort("rejected", count)
-            self._guard = ((int(g), int(count), int(run)), float(max_jump_N), max(1, int(round(rearm_s * rate_hz))))
-            self.held_group = int(g)  # (Compensator.set_initial_state)
+            self._guard = (float(max_jump_N), max(1, int(round(rearm_s * rate_hz))))
+        self.layout = tuple((name, size) for name, size, present in (
+            ("wrench_sampled", 6, True), ("q_sampled", 6, True), ("process_wrench", 6, True),
+            ("dq", 6, deflection is not None), ("correction", 6, True), ("guarded_wrench", 6, guard is not None),
+            ("rejected", 1, guard is not None), ("_rejected_in_a_row", 1, guard is not None),
+            ("_delay_line", 6 * self._n, self._n > 0)) if present)
+        self._at, start = {}, 0
+        for name, size in self.layout:
+            self._at[name] = slice(start, start + size)
+            start += size
+        # the state a default context starts from: samples of zero, as the holds' zeros
+        x0 = np.zeros(start)
+        p0, dq0 = self._process_and_dq(np.zeros(6), np.zeros(6))
+        x0[self._at["process_wrench"]] = p0
+        if dq0 is not None:
+            x0[self._at["dq"]] = dq0
+        group = self.DeclareDiscreteState(x0)  # (its number, 0, is written as a Python int below)
+        self.DeclarePeriodicDiscreteUpdateEvent(period_s, 0.0, self._update)
+        self.DeclareStateOutputPort("state", group)
         self._compiled = self._kernel_constants(deflection, sat, period_s, rate_limit_rad_per_s)
-        # the state groups' numbers as Python ints (int() of a pybind index is a call into the bindings)
-        self._i = tuple(-1 if g is None else int(g) for g in (self._w, self._q, self._p, self._dq, self._line, self._c))
+        at = self._at
+        self._s = tuple(at.get(name) for name in ("wrench_sampled", "q_sampled", "process_wrench", "dq",
+                                                  "_delay_line", "correction"))
+        self._s_guard = tuple(at.get(name) for name in ("guarded_wrench", "rejected", "_rejected_in_a_row"))
         self.warm_up()
+
+    def add_outputs(self, builder, name=None):
+        """A Demultiplexer (C++) in ``builder`` that splits the ``state``
+        output into its parts: {part name: its output port}, the unread
+        parts (a leading underscore) left out."""
+        demux = builder.AddNamedSystem(name or f"{self.get_name()}_outputs",
+                                       Demultiplexer([size for _, size in self.layout]))
+        builder.Connect(self.GetOutputPort("state"), demux.get_input_port())
+        return {part: demux.get_output_port(i) for i, (part, _) in enumerate(self.layout) if part[0] != "_"}
+
+    def held(self, context, part):
+        """The held value of ``part`` (a name of ``layout``) in this block's ``context`` (a copy)."""
+        return context.get_discrete_state(0).value()[self._at[part]].copy()
 
     def _kernel_constants(self, deflection, sat, period_s, rate_limit_rad_per_s):
         """The compiled update's constants (model/tick_kernels.py), or None
@@ -144,12 +168,8 @@ class CompensatorTick(LeafSystem):
         if self._compiled is None or not jit.available():
             return
         chain, gravity, model, lo, hi, step = self._compiled
-        held = np.zeros(6)
-        held.flags.writeable = False  # (a state's value, as the update reads it)
-        line = np.zeros(6 * self._n)
-        line.flags.writeable = not self._n  # (the state's, or the empty line's)
-        for dq in (held, np.zeros(6)):  # (the held dq, or the dq input's)
-            tick_kernels.correction_step(dq, line, held, lo, hi, step, np.empty(6 * self._n + 6))
+        held = np.zeros(6)  # (a view of the state the update writes, or the dq input's value: writeable)
+        tick_kernels.correction_step(held, np.zeros(6 * self._n), held, lo, hi, step, np.empty(6 * self._n + 6))
         tick_kernels.pose_and_deflection(np.zeros(6), chain, np.zeros(6), gravity, model,
                                          np.empty(18 if self._model is None else 24))
 
@@ -175,61 +195,62 @@ class CompensatorTick(LeafSystem):
         what follows from it: the process wrench, dq)."""
         w, q = np.asarray(wrench, dtype=float), np.asarray(q, dtype=float)
         p, dq = self._process_and_dq(w, q)
-        context.SetDiscreteState(int(self._w), w)
-        context.SetDiscreteState(int(self._q), q)
-        context.SetDiscreteState(int(self._p), p)
+        x = context.get_discrete_state(0).value().copy()
+        x[self._at["wrench_sampled"]], x[self._at["q_sampled"]], x[self._at["process_wrench"]] = w, q, p
         if dq is not None:
-            context.SetDiscreteState(int(self._dq), dq)
+            x[self._at["dq"]] = dq
+        context.SetDiscreteState(0, x)
+
+    def hold(self, context, wrench):
+        """Hold ``wrench`` (6) as the carried guard's last good sample in this block's ``context``."""
+        x = context.get_discrete_state(0).value().copy()
+        x[self._at["guarded_wrench"]] = wrench
+        context.SetDiscreteState(0, x)
 
     def _update(self, context, discrete_state):
-        if self._guard is not None:  # (its own state groups: the order of the two updates does not matter)
-            guard_step(self._raw.Eval(context), discrete_state, *self._guard)
+        x = discrete_state.get_mutable_value(0)  # (arrives holding the current state: written in place)
+        if self._guard is not None:  # (its own parts of the state: the order of the two updates does not matter)
+            g, count, run = self._s_guard
+            guard_step(self._raw.Eval(context), x[g], x[count], x[run], *self._guard)
         if self._compiled is not None and jit.available():
-            self._update_compiled(context, discrete_state)
+            self._update_compiled(context, x)
         else:
-            self._update_reference(context, discrete_state)
+            self._update_reference(context, x)
 
-    def _update_compiled(self, context, discrete_state):
+    def _update_compiled(self, context, x):
         """_update_reference's arithmetic in two compiled kernels."""
         chain, gravity, model, lo, hi, step = self._compiled
-        i_w, i_q, i_p, i_dq, i_line, i_c = self._i
-        held = context.get_discrete_state()  # (one call into Drake for the three values read)
-        dq = held.get_value(i_dq) if i_dq >= 0 else self._dq_in.Eval(context)
+        s_w, s_q, s_p, s_dq, s_line, s_c = self._s
+        dq = x[s_dq] if s_dq is not None else self._dq_in.Eval(context)
         n6 = 6 * self._n
         out = np.empty(n6 + 6)
-        tick_kernels.correction_step(dq, held.get_value(i_line) if n6 else _NONE, held.get_value(i_c), lo, hi, step,
-                                     out)
+        tick_kernels.correction_step(dq, x[s_line] if n6 else _NONE, x[s_c], lo, hi, step, out)
         if n6:
-            discrete_state.set_value(i_line, out[:n6])
-        discrete_state.set_value(i_c, out[n6:])
+            x[s_line] = out[:n6]
+        x[s_c] = out[n6:]
         w, q = self._w_in.Eval(context), self._q_in.Eval(context)
-        res = np.empty(18 if i_dq < 0 else 24)
+        res = np.empty(18 if s_dq is None else 24)
         tick_kernels.pose_and_deflection(q, chain, w, gravity, model, res)
-        discrete_state.set_value(i_w, w)
-        discrete_state.set_value(i_q, q)
-        discrete_state.set_value(i_p, res[12:18])
-        if i_dq >= 0:
-            discrete_state.set_value(i_dq, res[18:24])
+        x[s_w], x[s_q], x[s_p] = w, q, res[12:18]
+        if s_dq is not None:
+            x[s_dq] = res[18:24]
 
-    def _update_reference(self, context, discrete_state):
+    def _update_reference(self, context, x):
+        s_w, s_q, s_p, s_dq, s_line, s_c = self._s
         # the deflection of the previous tick's sample, saturated
-        dq = (context.get_discrete_state(self._dq).value() if self._dq is not None
-              else self._dq_in.Eval(context)).tolist()
+        dq = (x[s_dq] if s_dq is not None else self._dq_in.Eval(context)).tolist()
         s = [saturate(v, lo, hi) for v, lo, hi in zip(dq, self._lo, self._hi)]
         if self._n:
-            line = context.get_discrete_state(self._line).value().tolist()
+            line = x[s_line].tolist()
             d = line[:6]  # n periods ago
-            discrete_state.set_value(int(self._line), np.array(line[6:] + s))
+            x[s_line] = line[6:] + s
         else:
             d = s
         if math.isfinite(sum(d)):  # (a non-finite one leaves the correction where it is)
-            c = context.get_discrete_state(self._c).value().tolist()
-            discrete_state.set_value(int(self._c), np.array(rate_limited_step(c, d, self._step)))
+            x[s_c] = rate_limited_step(x[s_c].tolist(), d, self._step)
         # this tick's sample
         w, q = self._w_in.Eval(context), self._q_in.Eval(context)
         p, dq_now = self._process_and_dq(w, q)
-        discrete_state.set_value(int(self._w), w)
-        discrete_state.set_value(int(self._q), q)
-        discrete_state.set_value(int(self._p), p)
+        x[s_w], x[s_q], x[s_p] = w, q, p
         if dq_now is not None:
-            discrete_state.set_value(int(self._dq), dq_now)
+            x[s_dq] = dq_now

@@ -130,19 +130,17 @@ class MillingForceSource(LeafSystem):
         self._feed_gain = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)  # (smoothed_feed)
         self._sensor_period = float(sensor_period_s or period_s)
         self._q = self.DeclareVectorInputPort("q", 6)
-        # held: flange rotation (9) and tool point (3; tooth mode only, where it is read); the period's wrench
-        # (base frame, at the tool point) and the spatial force list
-        self._pose = self.DeclareDiscreteState(12)
+        # held: the period's wrench (base frame, at the tool point) and the spatial force list
         self._w = self.DeclareDiscreteState(6)
         self._wears = hasattr(force_model, "flank_wear_m")
-        # held: the feed direction (2, unit; before the tool first moves, the path's first), the feed (m/s) and
-        # the cutting travel so far (m)
+        # held in one group (one call into the bindings reads and writes it in place): the feed direction (2,
+        # unit; before the tool first moves, the path's first), the feed (m/s), the cutting travel so far (m),
+        # and the tool's recent history over the chip's window (``motion``: (t, s, 0) per update, oldest first)
         u0 = path.feed_direction(0.0)
-        self._process = self.DeclareDiscreteState([float(u0[0]), float(u0[1]), 0.0, 0.0])
-        # the tool point's recent history over the chip's window: (t, x, y) per update, oldest first
         self._window = chip_window_s(force_model.cutter)
         self._n_hist = max(2, math.ceil(self._window / self._period + 1e-9) + 2)
-        self._hist = self.DeclareDiscreteState(np.full(3 * self._n_hist, np.nan))
+        self._process = self.DeclareDiscreteState(np.concatenate(([float(u0[0]), float(u0[1]), 0.0, 0.0],
+                                                                  np.full(3 * self._n_hist, np.nan))))
         self._lines = force_step_kernels.line_constants(path)  # (compiled motion: a path of lines only)
         self._fused = self._fused_constants(force_model, kinematics) if mode == "averaged" else None
         self._warm_up()
@@ -153,11 +151,13 @@ class MillingForceSource(LeafSystem):
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
         # the averaged update straight to the compiled kernel (unless a subclass changes the step: a study's)
         self._lean = self._fused is not None and type(self)._step is MillingForceSource._step
-        self._indices = (int(self._w), int(self._process), int(self._hist), int(self._force))
+        self._indices = (int(self._w), int(self._process), int(self._force))
         self.DeclareStateOutputPort("spatial_force", self._force)
         if mode == "averaged":
             self.DeclareStateOutputPort("wrench", self._w)
         else:
+            # held: flange rotation (9) and tool point (3), read between updates
+            self._pose = self.DeclareDiscreteState(12)
             # the instants read before the next update (offsets from the update) and their wrenches (base frame)
             self._offsets = self._read_offsets(0.0)
             # (the instantaneous wrench, base frame, and the ripple, sensor frame, at each instant)
@@ -192,12 +192,16 @@ class MillingForceSource(LeafSystem):
         not in the first update of a timed run (nothing without numba)."""
         if self._lines is None or not jit.available():
             return
-        q, hist, process = np.zeros(6), np.zeros(3 * self._n_hist), np.zeros(4)  # (q: the input's, writeable)
-        for a in (hist, process):
-            a.flags.writeable = False
+        # (q: the input's; hist and process: views of the state the update writes in place; all writeable)
+        q, hist, process = np.zeros(6), np.zeros(3 * self._n_hist), np.zeros(4)
         force_step_kernels.line_motion(0.0, 0.0, 0.0, 0.0, hist, self._window, *self._lines, np.empty(hist.shape[0]))
         if self._fused is not None:
             force_step_kernels.averaged_force_step(q, 0.0, hist, process, *self._fused, np.empty(22 + hist.shape[0]))
+
+    def set_progress(self, context, process, hist):
+        """Hold ``process`` (u_x, u_y, feed m/s, cutting travel m) and the
+        history ``hist`` (3 n, see ``motion``) in this block's ``context``."""
+        context.get_mutable_discrete_state(self._indices[1]).SetFromVector(np.concatenate((process, hist)))
 
     @staticmethod
     def ripple_from_table(t, table, times):
@@ -246,7 +250,7 @@ class MillingForceSource(LeafSystem):
     def _tooth_wrench_at(self, context, t, p):
         """The instantaneous tooth wrench (base frame) at time t (s) with
         the tool point held at p (m), an instant the update did not tabulate."""
-        u0, u1, feed, travel = context.get_discrete_state(self._process).value().tolist()
+        u0, u1, feed, travel = context.get_discrete_state(self._process).value()[:4].tolist()
         return self._model.tooth_wrenches([t], p, (u0, u1), self._workpiece, self._phase, feed,
                                           **self._wear_args(travel))[0]
 
@@ -350,29 +354,26 @@ class MillingForceSource(LeafSystem):
         return w, pose, inst, np.array([float(u[0]), float(u[1]), feed, travel]), hist
 
     def _update(self, context, state):
-        i_w, i_process, i_hist, i_force = self._indices
-        held = context.get_discrete_state()
-        hist = held.get_value(i_hist)
+        i_w, i_process, i_force = self._indices
+        discrete = state.get_mutable_discrete_state()
+        held = discrete.get_mutable_value(i_process)  # (arrives holding the current state: written in place)
+        process, hist = held[:4], held[4:]
         if self._lean and jit.available() and not math.isnan(hist[-3]):
             # (_step's compiled averaged update, with no more calls into Drake than it needs)
             out = np.empty(22 + hist.shape[0])
-            force_step_kernels.averaged_force_step(self._q.Eval(context), context.get_time(), hist,
-                                                   held.get_value(i_process), *self._fused, out)
-            discrete = state.get_mutable_discrete_state()
+            force_step_kernels.averaged_force_step(self._q.Eval(context), context.get_time(), hist, process,
+                                                   *self._fused, out)
             discrete.set_value(i_w, out[:6])
-            discrete.set_value(i_process, out[6:10])
-            discrete.set_value(i_hist, out[22:])
+            held[:4], held[4:] = out[6:10], out[22:]
             self._applied.F_Bq_W = SpatialForce(out[3:6], out[:3])
             state.get_mutable_abstract_state(i_force).set_value([self._applied])
             return
         q = self._q.Eval(context)
         t = context.get_time()
         instants = self._read_offsets(t) if self._mode == "tooth" else ()
-        w, pose, inst, process, hist = self._step(t, q, held.get_value(i_process), hist, instants)
-        discrete = state.get_mutable_discrete_state()
+        w, pose, inst, new_process, new_hist = self._step(t, q, process, hist, instants)
         discrete.set_value(i_w, w)
-        discrete.set_value(i_process, process)
-        discrete.set_value(i_hist, hist)
+        held[:4], held[4:] = new_process, new_hist
         if inst is not None:
             pose = np.array(pose)
             discrete.set_value(int(self._pose), pose)  # (read between updates in tooth mode only)

@@ -133,26 +133,30 @@ class WrenchGuard(LeafSystem):
         self.DeclareStateOutputPort("wrench", self._state)
         self.DeclareStateOutputPort("rejected", self._count)
         self._indices = (int(self._state), int(self._count), int(self._run))
-        self.held_group = self._indices[0]  # (the held sample's state group: Compensator.set_initial_state)
 
     def _update(self, context, discrete_state):
-        guard_step(self._in.Eval(context), discrete_state, self._indices, self._max_jump, self._rearm)
+        i_state, i_count, i_run = self._indices
+        guard_step(self._in.Eval(context), discrete_state.get_mutable_value(i_state),
+                   discrete_state.get_mutable_value(i_count), discrete_state.get_mutable_value(i_run),
+                   self._max_jump, self._rearm)
+
+    def hold(self, context, wrench):
+        """Hold ``wrench`` (6) as the last good sample in this block's ``context``."""
+        context.get_mutable_discrete_state(self._indices[0]).SetFromVector(wrench)
 
 
-def guard_step(w, discrete_state, indices, max_jump_N, rearm):
+def guard_step(w, held, count, run, max_jump_N, rearm):
     """The guard's update (WrenchGuard's, and CompensatorTick's where it
-    carries the guard): sample ``w`` (6, an array) into ``discrete_state``,
-    which arrives holding the current state and is overwritten in place
-    when the sample is good, counted when it is not; ``indices``: the state
-    groups' numbers (held sample, rejected count, rejected in a row)."""
-    i_state, i_count, i_run = indices
-    held = discrete_state.get_mutable_value(i_state)
-    run = discrete_state.get_mutable_value(i_run)
+    carries the guard): sample ``w`` (6, an array) into the state, whose
+    current values arrive in the writeable arrays ``held`` (6, the last
+    good sample), ``count`` (1, samples rejected so far) and ``run`` (1,
+    rejected in a row), overwritten in place: the sample taken when it is
+    good, counted when it is not."""
     if guard_accepts(w.tolist(), held[:3].tolist(), max_jump_N):  # (model/compensator.py)
         held[:] = w
         run[0] = 0.0
     else:
-        discrete_state.get_mutable_value(i_count)[0] += 1.0
+        count[0] += 1.0
         run[0] += 1.0
         if run[0] > rearm and np.all(np.isfinite(w)):  # re-armed on the new level
             held[:] = w
