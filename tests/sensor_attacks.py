@@ -182,9 +182,21 @@ class Run:
         largest joint (deg)."""
         while self.k < most and (not self.dev or self.dev[self.k - 1] <= ENGAGED_DEG):
             self.step(lambda k: sensor.send())
-        assert self.dev[self.k - 1] > ENGAGED_DEG, "the correction never ramped in"
+        assert self.dev[self.k - 1] > ENGAGED_DEG, f"the correction never ramped in; compensate said: {self.said()}"
         self.run(max(50, SETTLED_MESSAGES - self.k), lambda k: sensor.send())
         return self.dev[self.k - 1]
+
+    def said(self):
+        """What compensate has written to stderr so far and not yet read (its last 3000 characters), for a
+        failure's message: the reason a correction never came (a fault's line) is in it."""
+        from scripted_compensate import _err_line, _err_pending
+
+        proc, text = getattr(self.ctrl, "proc", None), ""
+        while proc is not None and proc.poll() is None and _err_pending(proc):
+            line = _err_line(proc)
+            proc.early_err += line
+            text += line
+        return text[-3000:]
 
     def recover(self, sensor, steady, most=500):
         """Messages, each after one record of the held wrench (at least PACE_S apart: pynetft's restart of
@@ -234,7 +246,9 @@ def start(inputs, sensor, extra=(), log=True):
     proc = h.start_compensate(model, payload, sensor, port, reference=ref, log=folder if log else None,
                               extra=["--sensor-rate-hz", f"{RATE_HZ:g}", *extra])
     sensor.manual()
-    return proc, h.ScriptedController(port)
+    ctrl = h.ScriptedController(port)
+    ctrl.proc = proc  # (Run.said: compensate's lines for a failure's message)
+    return proc, ctrl
 
 
 def finish(proc, ctrl, sensor):
