@@ -50,3 +50,15 @@ def test_compensate_prints_it_before_any_socket(tmp_path, capsys):
     assert code == 2 and "same address and port" in err
     warnings = [ln for ln in err.splitlines() if ln.startswith("robstiff: warning: compensate: --payload")]
     assert len(warnings) == 1 and "30.0 kg" in warnings[0] and "40 kg" in warnings[0]
+
+
+def test_real_cell_commands_name_the_robot_for_the_model_and_the_payload():
+    """real_cell.md's lines that make compensate's --model and --payload name
+    the robot: without --robot both take the irb6400, and a user of another
+    arm who copies them gets a payload calibrated with the wrong kinematics."""
+    import re
+
+    text = (ROOT / "docs" / "real_cell.md").read_text()
+    lines = [ln for ln in text.splitlines() if re.match(r"\s*robstiff (identify|calibrate-payload) ", ln)]
+    assert lines
+    assert all("--robot " in ln for ln in lines), lines
