@@ -112,7 +112,8 @@ KEYS = {
                                                 lo_open=True, names=JOINTS,
                                                 why="full speed in a few tens of milliseconds at most"),
     "joint_stiffness_Nm_per_rad": Key("vector", "N*m/rad", *STIFFNESS_RANGE_NM_PER_RAD, N_JOINTS, names=JOINTS,
-                                      why="a small cobot's wrist ~1e3; the stiffest large-robot axis ~1e7"),
+                                      why="a small cobot's wrist ~1e3; the stiffest large-robot axis ~1e7; values in "
+                                          "kN*m/rad are 1000 times too small"),
     # Reflected rotor inertias (n^2 J_rotor at the joint): above 1e4 a value is a unit slip (the largest
     # arms' main axes reflect a few hundred); 0 would leave the motor massless.  Absent: the station's rule
     # (diagrams/station.motor_inertia)
