@@ -259,6 +259,14 @@ class RobotValues(dict):
     def fail(self, key, what):
         self._walker.fail(tuple(_split(key)), key, what)
 
+    def at(self, key):
+        """'FILE:LINE' of the key (its section's line when it has none of
+        its own), for a warning about it."""
+        w, line, p = self._walker, None, tuple(_split(key))
+        while p and line is None:
+            line, p = w.lines.get(p), p[:-1]
+        return f"{w.path}:{line}" if line else str(w.path)
+
 
 def read_robot_values(path, doc, lines):
     """The checked values of a parsed robot file (RobotValues; see the
@@ -342,6 +350,6 @@ def check_units(values):
         if key in values:
             d = float(np.linalg.norm(values[key]))
             if 0.0 < d < MIN_TOOL_MM:
-                warnings.append(f"{key} ({', '.join(f'{x:g}' for x in values[key])}): the {what} is {d:g} mm from "
-                                "the flange; is it in metres? (write mm)")
+                warnings.append(f"{values.at(key)}: {key} ({', '.join(f'{x:g}' for x in values[key])}): the {what} is "
+                                f"{d:g} mm from the flange; is it in metres? (write mm)")
     return warnings
