@@ -144,12 +144,13 @@ def check_axis_limits(robot):
     accelerations: without them cell/safety.motion_reason checks nothing (holding
     the first pose, no --reference, an RSI start learnt from a setpoint that
     lies was answered, its AK from that start moving the arm by the lie)."""
-    missing = [key for key, value in (("joint_limits.speed_deg_per_s", robot.speed_limit_deg_per_s),
-                                      ("joint_limits.acceleration_deg_per_s2", robot.acceleration_limit_deg_per_s2))
-               if value is None]
+    missing = [(key, unit) for key, unit, value in (
+        ("joint_limits.speed_deg_per_s", "deg/s", robot.speed_limit_deg_per_s),
+        ("joint_limits.acceleration_deg_per_s2", "deg/s^2", robot.acceleration_limit_deg_per_s2)) if value is None]
     if missing:  # name only what is missing (a file with the speeds was told both were)
-        raise InputError(f"{robot.source}: key {' and '.join(repr(k) for k in missing)}: missing (six values, deg/s "
-                         "and deg/s^2, controller convention); compensate checks every target's step against them "
+        raise InputError(f"{robot.source}: key {' and '.join(repr(k) for k, _ in missing)}: missing (six values "
+                         f"each, {' and '.join(u for _, u in missing)}, controller convention); compensate checks "
+                         "every target's step against them "
                          "(the controller's motion supervision): the speeds from the maker's data sheet, the "
                          "accelerations from your controller (the library's files take full speed in 0.25 s: 4 x "
                          "the speed; docs/your_robot.md, models/*.yaml)")
