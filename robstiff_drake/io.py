@@ -259,6 +259,14 @@ def new_run_id():
     return secrets.token_hex(6)
 
 
+def _run_id_of(folder):
+    """The run id in an earlier run folder's RUN_ID file, or "" when it has none."""
+    try:
+        return (Path(folder) / RUN_ID_FILE).read_text().strip()[:64]
+    except (OSError, UnicodeDecodeError):
+        return ""
+
+
 class RunFolder:
     """A folder of outputs written as a whole::
 
@@ -278,6 +286,7 @@ class RunFolder:
         self.run_id = run_id or new_run_id()
         self.written = []
         self._tmp = None
+        self.replaced_run_id = None  # the RUN_ID of the earlier run folder this one replaced ("" unknown)
 
     def __enter__(self):
         target = _target(self.path)
@@ -332,6 +341,7 @@ class RunFolder:
                 os.chmod(p, dir_mode if p.is_dir() else file_mode)
             os.chmod(self._tmp, dir_mode)
             if target.exists():
+                self.replaced_run_id = _run_id_of(target)
                 old = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
                 os.rmdir(old)
                 os.replace(target, old)
@@ -348,4 +358,10 @@ class RunFolder:
             raise
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
+            # said, so that a second run into the same --out does not lose the first unnoticed (cli.md: an
+            # earlier run folder is replaced); on stderr, beside the progress lines (stdout may be --json -)
+            from robstiff_drake.progress import info
+
+            earlier = f"the earlier run {self.replaced_run_id}" if self.replaced_run_id else "the earlier run"
+            info(f"robstiff: note: {target}/ replaced {earlier} there (another --out keeps both)", file=sys.stderr)
         return False

@@ -203,3 +203,12 @@ def test_a_key_added_to_the_table_is_checked_with_its_range_and_unit(monkeypatch
                                          r"'joint_limits.jerk_deg_per_s3': joint 5: 5000 is outside the allowed range "
                                          r"\[1, 1000\] deg/s\^3"):
         load_robot(p)
+
+
+def test_a_tool_point_in_metres_is_warned_at_its_line(capsys, tmp_path):
+    """The metres warning names the file's line, as the errors do (it named
+    the file alone: a user's hand-written file had to be searched)."""
+    p = edited(tmp_path, TOOL_LINE, "  tool_point_mm: [0.0, 0.0, 0.35]")
+    warnings = _warnings(capsys, p)
+    want = f"{p}:{line_of(p, '  tool_point_mm')}: payload.tool_point_mm (0, 0, 0.35)"
+    assert any(w.startswith(f"robstiff: warning: {want}") or w.startswith(want) for w in warnings), warnings

@@ -42,7 +42,8 @@ def _write(tmp_path, mutate):
          "key 'joint_stiffness_Nm_per_rad': joint 3: 0 is outside the allowed range [1000, 1e+09] N*m/rad"),
         (lambda d: d["links"][2].update(mass_kg=-1),
          "key 'links[2].mass_kg': -1 is outside the allowed range [0.01, 20000] kg"),
-        (lambda d: d["joint_limits"].update(lower_deg=[0, 80, 0, 0, 0, 0]), "joint 2: lower 80.0 >= upper 70.0"),
+        (lambda d: d["joint_limits"].update(lower_deg=[0, 80, 0, 0, 0, 0]),
+         "key 'joint_limits.lower_deg': joint 2: lower 80 >= upper 70 deg"),
     ],
 )
 def test_bad_robot_file_names_the_key(tmp_path, mutate, message):

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.commands.compensate_inputs import CORRECTED_FLAG, check_axis_limits, check_reference_claim, \
-    endpoint_clash, json_doc, read_model, read_reference, wait_for_file
+    endpoint_clash, json_doc, payload_mass_note, read_model, read_reference, wait_for_file
 from robstiff_drake.errors import InputError
 from robstiff_drake.cell.realtime_thread import pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
     realtime as _realtime, restore_gc as _restore_gc
@@ -149,6 +149,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         cal = read_payload_calibration(payload)
     except RecursionError:
         raise InputError(f"--payload {payload}: nested too deeply to be a payload calibration") from None
+    payload_line = payload_mass_note(robot, cal, payload)
+    if payload_line:
+        print(f"robstiff: warning: compensate: {payload_line}", file=sys.stderr)
     host, port = parse_host_port(netft)
     same = endpoint_clash(ctrl, parse_controller(f"{host}:{port}", what="--netft"), listen_port)
     if same:
@@ -284,6 +287,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         for line in filter(None, (_pin_to_cpu(cpu), _realtime(rt_priority))):  # (not allowed: the run goes on)
             print(f"robstiff: warning: compensate: {line}", file=sys.stderr, flush=True)
             stream_log is not None and stream_log.event(0.0, 0.0, f"warning: {line}")
+        if payload_line and stream_log is not None:
+            stream_log.event(0.0, 0.0, f"warning: {payload_line}")  # (events.csv, as the other start warnings)
         first = loop.first_message(wait_s)
         q0 = first[0].joints_deg
         if ref.q is None:

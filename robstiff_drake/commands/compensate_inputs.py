@@ -144,7 +144,35 @@ def check_axis_limits(robot):
     accelerations: without them cell/safety.motion_reason checks nothing (holding
     the first pose, no --reference, an RSI start learnt from a setpoint that
     lies was answered, its AK from that start moving the arm by the lie)."""
-    if robot.speed_limit_deg_per_s is None or robot.acceleration_limit_deg_per_s2 is None:
-        raise InputError(f"{robot.source}: key 'joint_limits.speed_deg_per_s' and 'acceleration_deg_per_s2': "
-                         "missing; compensate checks every target's step against them (the controller's motion "
-                         "supervision; the maker's data-sheet axis speeds; see models/*.yaml)")
+    missing = [(key, unit) for key, unit, value in (
+        ("joint_limits.speed_deg_per_s", "deg/s", robot.speed_limit_deg_per_s),
+        ("joint_limits.acceleration_deg_per_s2", "deg/s^2", robot.acceleration_limit_deg_per_s2)) if value is None]
+    if missing:  # name only what is missing (a file with the speeds was told both were)
+        raise InputError(f"{robot.source}: key {' and '.join(repr(k) for k, _ in missing)}: missing (six values "
+                         f"each, {' and '.join(u for _, u in missing)}, controller convention); compensate checks "
+                         "every target's step against them "
+                         "(the controller's motion supervision): the speeds from the maker's data sheet, the "
+                         "accelerations from your controller (the library's files take full speed in 0.25 s: 4 x "
+                         "the speed; docs/your_robot.md, models/*.yaml)")
+
+
+# A payload calibration's mass this far from the robot file's payload mass is a warning (not an error: the robot
+# file's is a data-sheet or catalogue figure, the calibration is measured).  ASSUMPTION: a spindle's catalogue mass
+# and a wrist-sensor calibration of it agree within a few per cent (the example payload campaign: 39.98 kg against
+# 40 kg); 10 % is a calibration of another tool, or one computed with another robot's kinematics (calibrate-payload
+# without --robot takes the irb6400).  Each kg of error is 9.81 N on the force the gravity removal leaves.
+PAYLOAD_MASS_MISMATCH = 0.10
+
+
+def payload_mass_note(robot, cal, payload):
+    """A warning line when the payload calibration ``cal`` (read from
+    ``payload``) weighs more than PAYLOAD_MASS_MISMATCH off the robot file's
+    payload.mass_kg, else None."""
+    file_kg, cal_kg = float(robot.payload.mass_kg), float(cal.mass_kg)
+    if file_kg <= 0.0 or abs(cal_kg - file_kg) <= PAYLOAD_MASS_MISMATCH * file_kg:
+        return None
+    return (f"--payload {payload}: mass {cal_kg:.1f} kg, but the robot file's payload.mass_kg is {file_kg:g} kg "
+            f"({100.0 * abs(cal_kg - file_kg) / file_kg:.0f} % apart): a calibration of another tool, or made with "
+            f"another robot (calibrate-payload --robot {robot.name})? The gravity removal takes the calibration's; "
+            f"{abs(cal_kg - file_kg):.1f} kg off is {9.81 * abs(cal_kg - file_kg):.0f} N of force compensated as "
+            "if it were the cut's")

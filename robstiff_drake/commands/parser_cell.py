@@ -14,7 +14,10 @@ def add_cell_commands(sub):
     """Add ``sim-cell`` and ``compensate`` to the subparsers ``sub``."""
     p = sub.add_parser("sim-cell", help="the scenario's simulated cell behind EGM and Net F/T (for `compensate`)")
     p.add_argument("scenario", metavar="SCENARIO.yaml", help=SCENARIO_HELP)
-    p.add_argument("--egm-to", required=True, metavar="HOST:PORT", help="where the compensator listens for EGM")
+    p.add_argument("--compensator", "--egm-to", dest="egm_to", required=True, metavar="HOST:PORT",
+                   help="the compensator's side, whatever --controller-protocol (EGM, RSI, Stream Motion): where "
+                        "it listens (its --listen-port); for Stream Motion the port this controller listens on "
+                        "(the compensator's --controller). --egm-to: the same, its older name")
     p.add_argument("--netft-port", type=_number_in(1, 65535, integer=True), required=True, metavar="PORT",
                    help="UDP port of the simulated Net F/T (RDT)")
     p.add_argument("--wait-s", type=_number_in(0.1, 3600.0, "s"), default=30.0,

@@ -184,6 +184,11 @@ def simulate(*, scenario, compensation="both", robot=None, robot_yaml=None, warn
         sc.path.tolerance_mm = float(tolerance_mm)
     _, _, q_ref = cell_path(sc, robot, robot.tool_point(where="the closed loop"))
     user_models.resolve(sc, robot, q_ref[0])  # the compensator's model (for the warnings too)
+    # the plant's step, before the feed planner's runs on the compensator's twin (stable where the plant may not
+    # be: a KR 210 job at 1 ms was refused only after them)
+    from robstiff_drake.diagrams.milling_cell import check_plant_step
+
+    check_plant_step(sc, robot)
     if warnings is not None:
         warnings.extend_from(scenario_warnings(sc, robot) + job_warnings(sc))
         # would the real cut chatter? (the plant leaves the regenerative chip out; diagrams/chatter_check.py)

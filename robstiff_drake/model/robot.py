@@ -324,8 +324,10 @@ def load_robot(path=None):
     joint_map = _joint_map(values)
     lower, upper = values["joint_limits.lower_deg"], values["joint_limits.upper_deg"]
     for i in range(N_JOINTS):
-        if not lower[i] < upper[i]:
-            values.fail("joint_limits", f"joint {i + 1}: lower {lower[i]} >= upper {upper[i]}")
+        if not lower[i] < upper[i]:  # (at lower_deg's line; a pair the other way round is likely swapped)
+            swapped = " (swapped? lower_deg takes each range's lower end)" if upper[i] < lower[i] else ""
+            values.fail("joint_limits.lower_deg", f"joint {i + 1}: lower {lower[i]:g} >= upper {upper[i]:g} deg: "
+                        f"the lower limit must be below the upper{swapped}")
     links = _links(values)
     payload = Payload(mass_kg=values["payload.mass_kg"], com_m=values["payload.com_mm"] / 1000.0,
                       tool_point_m=(values["payload.tool_point_mm"] / 1000.0 if "payload.tool_point_mm" in values

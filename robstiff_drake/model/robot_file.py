@@ -112,7 +112,8 @@ KEYS = {
                                                 lo_open=True, names=JOINTS,
                                                 why="full speed in a few tens of milliseconds at most"),
     "joint_stiffness_Nm_per_rad": Key("vector", "N*m/rad", *STIFFNESS_RANGE_NM_PER_RAD, N_JOINTS, names=JOINTS,
-                                      why="a small cobot's wrist ~1e3; the stiffest large-robot axis ~1e7"),
+                                      why="a small cobot's wrist ~1e3; the stiffest large-robot axis ~1e7; values in "
+                                          "kN*m/rad are 1000 times too small"),
     # Reflected rotor inertias (n^2 J_rotor at the joint): above 1e4 a value is a unit slip (the largest
     # arms' main axes reflect a few hundred); 0 would leave the motor massless.  Absent: the station's rule
     # (diagrams/station.motor_inertia)
@@ -258,6 +259,14 @@ class RobotValues(dict):
     def fail(self, key, what):
         self._walker.fail(tuple(_split(key)), key, what)
 
+    def at(self, key):
+        """'FILE:LINE' of the key (its section's line when it has none of
+        its own), for a warning about it."""
+        w, line, p = self._walker, None, tuple(_split(key))
+        while p and line is None:
+            line, p = w.lines.get(p), p[:-1]
+        return f"{w.path}:{line}" if line else str(w.path)
+
 
 def read_robot_values(path, doc, lines):
     """The checked values of a parsed robot file (RobotValues; see the
@@ -341,6 +350,6 @@ def check_units(values):
         if key in values:
             d = float(np.linalg.norm(values[key]))
             if 0.0 < d < MIN_TOOL_MM:
-                warnings.append(f"{key} ({', '.join(f'{x:g}' for x in values[key])}): the {what} is {d:g} mm from "
-                                "the flange; is it in metres? (write mm)")
+                warnings.append(f"{values.at(key)}: {key} ({', '.join(f'{x:g}' for x in values[key])}): the {what} is "
+                                f"{d:g} mm from the flange; is it in metres? (write mm)")
     return warnings
