@@ -253,7 +253,8 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     Kg = joint_dynamics.stiffness_matrix(k, coupling_c23_rad_per_Nm)
     jm = arm_joints(ctrl, robot, q_modes_rad, Kg, damping_ratios, servo, damping_on)
     servo = jm.servo  # (its integral corner chosen)
-    why = unstable_step_message(jm, h) if check_stability else None
+    why = (unstable_step_message(jm, h, assumed_motor_inertia=robot.motor_inertia_kgm2 is None)
+           if check_stability else None)
     if why:
         raise ValueError(why)
 
