@@ -100,9 +100,14 @@ def test_a_file_with_motor_inertias_is_not_told_to_give_them(tmp_path, robot):
 
 
 def test_the_figures_joint_dynamics_states(tmp_path):
-    """model/joint_dynamics.py's ASSUMPTION and module docstring quote these."""
+    """model/joint_dynamics.py's ASSUMPTION and module docstring, docs/results.md and
+    docs/assumptions.md quote these."""
     r = _without_motor_inertia(tmp_path)
     jm = _joints(_scenario(tmp_path, 0.002), r)
     why = unstable_step_message(jm, 0.002, assumed_motor_inertia=True)
     assert "191 Hz mode" in why and "49 % of its motion in joint 6's motor" in why and "9.4 % damped" in why, why
     assert "omega h <= 0.74 (up to 0.62 ms)" in why and "0.336 kg*m^2" in why, why
+    # (and docs/results.md's IRB 6400 at 4 ms)
+    why = unstable_step_message(_joints(_scenario(tmp_path, 0.004), load_robot()), 0.004)
+    assert "126 Hz mode (joint 6's gear between its motor and the link, 5.0 % damped, 3 % of its motion" in why, why
+    assert "omega h <= 1.93 (up to 2.44 ms)" in why and "(plant_config.time_step: 0.0024)" in why, why

@@ -220,8 +220,11 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     ``joints.servo``).  Without play the torque is one MatrixGain (no Python
     in the step), with play systems/gear_transmission.GearPlay.  The gear's
     torque is explicit over a step (symplectic Euler in the plant, the
-    drives exact with it held): stable while omega h < 2 in every mode
-    (model/joint_dynamics.py), whatever the damping.
+    drives exact with it held): the links' side alone would be stable
+    while omega h < 2, but the motors' side, stepped with the torque held,
+    feeds a mode that moves a motor, so such a mode holds only to a
+    smaller omega h set by its damping (model/joint_dynamics.py; checked
+    on the step map: diagrams/plant_step.unstable_step_message).
 
     Returns a dict: plant, controller_plant (the controller's model: keep it
     alive with the diagram), ``position_command`` and ``velocity_command``

@@ -48,7 +48,7 @@ drive's velocity loop) must take out: a mode with much motion in a light
 motor holds only to a smaller omega h, set by its damping and its
 motor's share (kr240_r2900.yaml without its motor inertias: the 191 Hz
 wrist mode, 49 % in joint 6's motor, 9.4 % damped, to omega h = 0.74;
-with them, 2 % in the motor, to 1.93).  ``step_map`` is that scheme's
+the IRB 6400 file, 3 % in the motor, to 1.93).  ``step_map`` is that scheme's
 exact linear map, ``is_stable_step`` its spectral radius against 1, and
 ``largest_stable_step_s`` the step that keeps every mode stable.
 """
