@@ -127,7 +127,7 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
     # the copied scenario's 2 ms does not hold) is refused here, not after the preview in the first refinement
     # round (23 s later on a KR 210 file): the step of what will run, the compensator's model of the cell (its
     # twin: every round and the predicted errors) and, with the proof runs, the plant (their stabilities differ:
-    # the KR 210's plant needs 0.7 ms where its twin runs at 1 ms)
+    # the KR 210's plant needs 0.5 ms, stable to 0.79 ms, where its twin runs at 1 ms)
     from robstiff_drake.diagrams import user_model as user_models
     from robstiff_drake.diagrams.milling_cell import check_plant_step, planned_path
 

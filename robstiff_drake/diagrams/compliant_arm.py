@@ -220,8 +220,11 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     ``joints.servo``).  Without play the torque is one MatrixGain (no Python
     in the step), with play systems/gear_transmission.GearPlay.  The gear's
     torque is explicit over a step (symplectic Euler in the plant, the
-    drives exact with it held): stable while omega h < 2 in every mode
-    (model/joint_dynamics.py), whatever the damping.
+    drives exact with it held): the links' side alone would be stable
+    while omega h < 2, but the motors' side, stepped with the torque held,
+    feeds a mode that moves a motor, so such a mode holds only to a
+    smaller omega h set by its damping (model/joint_dynamics.py; checked
+    on the step map: diagrams/plant_step.unstable_step_message).
 
     Returns a dict: plant, controller_plant (the controller's model: keep it
     alive with the diagram), ``position_command`` and ``velocity_command``
@@ -253,7 +256,8 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     Kg = joint_dynamics.stiffness_matrix(k, coupling_c23_rad_per_Nm)
     jm = arm_joints(ctrl, robot, q_modes_rad, Kg, damping_ratios, servo, damping_on)
     servo = jm.servo  # (its integral corner chosen)
-    why = unstable_step_message(jm, h) if check_stability else None
+    why = (unstable_step_message(jm, h, assumed_motor_inertia=robot.motor_inertia_kgm2 is None)
+           if check_stability else None)
     if why:
         raise ValueError(why)
 

@@ -7,8 +7,6 @@ the largest one up to DEFAULT_MAX_STEP_S that does all of it."""
 
 import numpy as np
 
-from robstiff_drake.model import joint_dynamics
-
 # A scenario that gives no plant_config.time_step (or gives 0: the schema's default, the marker of "not given";
 # Drake's 0, a continuous plant, is no step the station runs): the station takes the largest step up to this
 # that keeps every mode stable and resolves what the scenario contains (``chosen_step``).  2 ms was every
@@ -18,9 +16,65 @@ DEFAULT_MAX_STEP_S = 0.002
 NOT_GIVEN = 0.0
 
 
-def unstable_step_message(jm, time_step_s):
+def stable_step_on_grid_s(jm, upper_s):
+    """The largest step up to ``upper_s`` (s) on the sensor's grid
+    (``step_on_grid_s``: 0.1 ms above 1 ms, 1 ms / n below) whose scheme
+    keeps every mode of the joints ``jm`` stable, each candidate checked
+    (the step map's spectral radius, joint_dynamics.JointModel.is_stable_step),
+    so the step returned passes the check whatever step it was asked from;
+    None when not even 1 ms / 1000 does."""
+    h = step_on_grid_s(upper_s)
+    while h >= 1e-6:
+        if jm.is_stable_step(h):
+            return h
+        h = step_on_grid_s(h - 1e-4 * (1 - 1e-6)) if h > 1e-3 + 1e-12 else 1e-3 / (round(1e-3 / h) + 1)
+    return None
+
+
+def _stable_limit_s(jm, stable_s, unstable_s, resolution_s=1e-6):
+    """The step (s) between a stable ``stable_s`` and an unstable
+    ``unstable_s`` where the scheme stops being stable, by bisection,
+    rounded down to ``resolution_s``."""
+    lo, hi = float(stable_s), float(unstable_s)
+    while hi - lo > resolution_s:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if jm.is_stable_step(mid) else (lo, mid)
+    return np.floor(lo / resolution_s + 1e-9) * resolution_s
+
+
+def growing_mode(jm, time_step_s):
+    """The mode the step ``time_step_s`` (s) grows most (ask just past the
+    stable limit: far past it a mode's frequency may be aliased), as a dict:
+    growth_per_step (the step map's largest eigenvalue's modulus), and of
+    the continuous closed loop's mode it is (the nearest in frequency):
+    frequency_hz, damping_ratio, joint (0-based: the gear with the most of
+    its elastic energy) and motor_share (the share of its kinetic energy in
+    that joint's motor)."""
+    h = float(time_step_s)
+    z = np.linalg.eigvals(jm.step_map(h)).astype(complex)
+    zi = z[np.argmax(np.abs(z))]
+    f_step = abs(np.log(zi)) / (2 * np.pi * h)
+    lam, V = np.linalg.eig(jm.continuous()[0])
+    osc = np.nonzero(lam.imag > 1e-9)[0]
+    k = osc[np.argmin(np.abs(np.abs(lam[osc]) / (2 * np.pi) - f_step))]
+    v = V[:, k]
+    twist = v[12:18] - v[0:6]
+    j = int(np.argmax(np.real(twist.conj() * (jm.K @ twist))))
+    link_ke = np.real(v[6:12].conj() @ jm.M @ v[6:12])
+    motor_ke = np.abs(v[18:24]) ** 2 * jm.motor_inertia_kgm2
+    return {"frequency_hz": float(abs(lam[k]) / (2 * np.pi)), "damping_ratio": float(-lam[k].real / abs(lam[k])),
+            "growth_per_step": float(abs(zi)), "joint": j,
+            "motor_share": float(motor_ke[j] / (link_ke + motor_ke.sum()))}
+
+
+def unstable_step_message(jm, time_step_s, assumed_motor_inertia=False):
     """None when the plant step keeps every mode of the joints ``jm``
-    stable, else why not and the step that would do (one line)."""
+    stable, else why not and the step that would do (one line: the mode,
+    which joint's gear and motor carry it, the criterion with its numbers,
+    the step on the sensor's grid that passes this check, and, when
+    ``assumed_motor_inertia`` (the robot file gives no motor_inertia_kgm2:
+    joint_dynamics.motor_inertia's assumption), the datasheet value as the
+    other way out)."""
     if jm.is_stable_step(time_step_s):
         return None
     lam = np.linalg.eigvals(jm.continuous()[0])
@@ -29,13 +83,32 @@ def unstable_step_message(jm, time_step_s):
         return (f"the joints' loop is unstable whatever the step: its {abs(worst) / (2 * np.pi):.1f} Hz mode grows "
                 f"(the drives' loops against too lightly damped gears): raise plant.modal_damping_ratio or "
                 f"plant.damping_ratios, or lower servo.velocity_integral_hz")
-    f_top = max(jm.closed_loop_modes()[0].max(), joint_dynamics.free_modes_hz(
-        jm.M, jm.K, jm.G, jm.motor_inertia_kgm2).max())
-    ok = jm.largest_stable_step_s(time_step_s)
-    ok_ms = np.floor(ok * 1e4) / 10.0  # rounded down to 0.1 ms
-    return (f"a {time_step_s * 1e3:g} ms plant step is unstable for the arm's {f_top:.0f} Hz mode (the gears' "
-            f"explicit step needs omega h < 2 in every mode): use at most {ok_ms:g} ms "
-            f"(plant_config.time_step: {ok_ms / 1e3:g})")
+    h = float(time_step_s)
+    ok = stable_step_on_grid_s(jm, h)
+    edge = _stable_limit_s(jm, ok or 0.0, h)
+    # the mode that sets the limit: the one growing just past it (at ``h`` a mode's frequency may be aliased)
+    m = growing_mode(jm, min(edge + 2e-6, h))
+    w = 2 * np.pi * m["frequency_hz"]
+    j = m["joint"]
+    limit = np.floor(edge * 1e5) / 1e5  # (printed to 0.01 ms: rounded down)
+    jj = f"joint {j + 1}"
+    if assumed_motor_inertia:
+        motor = (f"; its motor's rotor inertia is assumed, {jm.motor_inertia_kgm2[j]:.3g} kg*m^2 = the link's "
+                 f"inertia on {jj} (the robot file gives no motor_inertia_kgm2: the assumption of "
+                 f"model/joint_dynamics.motor_inertia, a load-to-rotor ratio of 1 from the servo-sizing rule)")
+        other = (f" or give the motors' datasheet rotor inertias (robot file motor_inertia_kgm2: n^2 J_rotor per "
+                 f"joint, kg*m^2; a heavier rotor on {jj} lowers the mode)")
+    else:
+        motor, other = f"; its motor's rotor inertia {jm.motor_inertia_kgm2[j]:.3g} kg*m^2 (motor_inertia_kgm2)", ""
+    use = (f"use {ok * 1e3:g} ms, the largest step on the sensor's grid (1 ms / n, 0.1 ms steps) that passes "
+           f"(plant_config.time_step: {ok:g})") if ok else "no step does"
+    return (f"a {h * 1e3:g} ms plant step is unstable for the arm's {m['frequency_hz']:.0f} Hz mode ({jj}'s gear "
+            f"between its motor and the link, {m['damping_ratio'] * 100:.1f} % damped, {m['motor_share'] * 100:.0f} % "
+            f"of its motion in {jj}'s motor{motor}): the plant steps each motor through its drive with the gear's "
+            f"torque held over the step, which feeds the mode energy its damping must take out, so it holds only "
+            f"while omega h <= {w * limit:.2f} (up to {limit * 1e3:.2f} ms), not the omega h < 2 of an undamped "
+            f"mode; at {h * 1e3:g} ms omega h = {w * h:.2f} and it grows x{jm.spectral_radius(h):.3g} a step: "
+            f"{use}{other}")
 
 
 def twist_inertia_kgm2(jm):
@@ -138,11 +211,11 @@ def chosen_step(jm, play_rad=None, tooth_pass_hz=None, max_step_s=DEFAULT_MAX_ST
     resolves the flank impacts of every gear with play (``play_rad``, half
     widths) and a tooth-resolved force of ``tooth_pass_hz`` (None: averaged)."""
     needs = []  # (step s, what needs it)
-    stable = jm.largest_stable_step_s(max_step_s)
-    if stable < max_step_s:
-        f_top = max(jm.closed_loop_modes()[0].max(),
-                    joint_dynamics.free_modes_hz(jm.M, jm.K, jm.G, jm.motor_inertia_kgm2).max())
-        needs.append((step_on_grid_s(stable), f"the arm's {f_top:.0f} Hz mode stable"))
+    if not jm.is_stable_step(max_step_s):
+        ok = stable_step_on_grid_s(jm, max_step_s)
+        m = growing_mode(jm, min(_stable_limit_s(jm, ok or 0.0, max_step_s) + 2e-6, max_step_s))
+        needs.append((ok or max_step_s,  # (none: the loop's own refusal)
+                      f"the arm's {m['frequency_hz']:.0f} Hz mode (joint {m['joint'] + 1}'s gear) stable"))
     b = np.zeros(6) if play_rad is None or not len(play_rad) else np.asarray(play_rad, dtype=float)
     if np.any(b > 0):
         f = contact_frequencies_hz(jm)

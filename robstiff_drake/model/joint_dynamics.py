@@ -38,11 +38,18 @@ the mode comes out more damped than stated (``arm_modes`` says by how much).
 The step.  The station steps the links in Drake's discrete
 MultibodyPlant (symplectic Euler: v+ = v + h M^-1 (forces at the step's
 start), q+ = q + h v+) and the drives exactly over the step with the gear
-torque held; the gear's spring and damping are explicit.  That scheme
-adds no numerical damping to any mode (its map is stable for
-omega h < 2 in each mode and conserves an undamped mode's energy; a mode's
-frequency comes out 2 / h asin(omega h / 2)): its stability is the step's,
-not the damping's.  ``step_map`` is that scheme's exact linear map, and
+torque held; the gear's spring and damping are explicit.  On the links'
+side that adds no numerical damping (symplectic Euler alone is stable for
+omega h < 2 in an undamped mode and conserves its energy; a mode's
+frequency comes out 2 / h asin(omega h / 2)), but the motors' side is
+stepped with the gear's torque held over the step, which feeds energy
+into a mode that moves a motor, energy its damping (the gears' and the
+drive's velocity loop) must take out: a mode with much motion in a light
+motor holds only to a smaller omega h, set by its damping and its
+motor's share (kr240_r2900.yaml without its motor inertias: the 191 Hz
+wrist mode, 49 % in joint 6's motor, 9.4 % damped, to omega h = 0.74;
+the IRB 6400 file, 3 % in the motor, to 1.93).  ``step_map`` is that scheme's
+exact linear map, ``is_stable_step`` its spectral radius against 1, and
 ``largest_stable_step_s`` the step that keeps every mode stable.
 """
 
@@ -108,15 +115,26 @@ def free_modes_hz(M, K, G, motor_inertia_kgm2):
     return np.sort(np.sqrt(np.abs(w2)) / (2 * np.pi))[-6:]
 
 
+# ASSUMPTION: a robot file without motor_inertia_kgm2 gets each motor's rotor inertia reflected to its joint
+# (n^2 J_rotor) equal to its link's inertia on the joint in M at the pose (a load-to-rotor inertia ratio of
+# ASSUMED_LOAD_TO_ROTOR_RATIO).  Source: the usual servo-sizing rule that the load's inertia reflected to the motor
+# be at most about five times the rotor's (docs/assumptions.md, "the motors"); 1 is that rule's stiffest end.  It
+# is light on the wrist: the library's files (their own assumption, irb6400.yaml's reasoning) put 8-12 kg*m^2 on
+# joint 6, 25-30 times its link's inertia, and a light rotor raises the wrist's gear mode: kr240_r2900.yaml
+# without them has joint 6 at 0.34 kg*m^2 and a 191 Hz wrist mode the plant's step holds only up to 0.62 ms (with
+# its 12 kg*m^2: 139 Hz, 2.2 ms; tests/test_plant_step_advice.py; diagrams/plant_step.unstable_step_message
+# names the mode and this key when it refuses a step).
+ASSUMED_LOAD_TO_ROTOR_RATIO = 1.0
+
+
 def motor_inertia(robot, M):
     """The motors' rotor inertias reflected to the joints (6,, kg*m^2): the
     robot file's ``motor_inertia_kgm2``; a file without them: ASSUMPTION,
-    each equal to its link's inertia on the joint in M (kg*m^2; a
-    load-to-motor inertia ratio of 1, inside the 1-5 that servo axes are
-    sized for)."""
+    each its link's inertia on the joint in M (kg*m^2) over
+    ASSUMED_LOAD_TO_ROTOR_RATIO (see there)."""
     if robot.motor_inertia_kgm2 is not None:
         return np.asarray(robot.motor_inertia_kgm2, dtype=float)
-    return np.diag(M).copy()
+    return np.diag(M).copy() / ASSUMED_LOAD_TO_ROTOR_RATIO
 
 
 def linear_joints(M, G, stiffness_matrix, damping_ratios, servo, motor_inertia_kgm2, stated_on="drives_closed"):
