@@ -356,3 +356,24 @@ def test_the_rate_windows_on_cells_and_setups(case, period_s, conf_hz, true_hz, 
     assert k == fault_k
     if fault_k is None and "fast" not in case:
         assert judged >= n * period_s / 0.26 and 0.94 * conf_hz < least <= most < 1.06 * conf_hz
+
+
+@pytest.mark.parametrize("every", [8, 16])
+def test_a_stream_slower_than_the_sensor_timeout_is_the_rate_fault(robot, every):
+    """One record every ``every`` messages (31 or 16 Hz where 1000 Hz is
+    configured) at the loop's default sensor timeout (20 ms: shorter than
+    the gaps): the sensor's fault at each gap, cleared by the next two
+    records, and the rate's windows judged over the time between (the
+    sensor's faults cut out of them, not a new count): the rate's fault
+    (40 Hz between the gaps), zero correction to the end.  (Before: every
+    silence restarted the count, no window was judged after the first two,
+    and the correction ramped in and out to the end: 55 sensor faults in 4
+    s, 187 of the last 500 answers carrying up to 0.017 deg.)"""
+    w = _air(robot) + PUSH
+    loop, corr = _drive(robot, 1000, lambda seq: [w] * 4 if seq < 125 else [w] if seq % every == 0 else [],
+                        start_tolerance_N=math.inf)
+    rc, dev = loop.rate_check, np.abs(corr).max(axis=1)
+    print(f"\n[one record every {every} messages] {loop.n.sensor_faults} sensor faults, the rate's at "
+          f"{rc['fault']:.3g} Hz; answers with a correction after message 800: {int((dev[800:] > 0).sum())}")
+    assert "sensor rate" in loop.faults and rc["fault"] < 200.0
+    assert dev[800:].max() == 0.0

@@ -32,8 +32,12 @@ session (ramped down at the rate limit if it was not zero):
   rate is off on the controller's clock and on this PC's (the arrivals of
   its first and last messages), as a silence is judged: they agree at a
   real controller; a simulated or scripted one on a loaded PC stretches
-  its own clock.  Windows with a sensor or controller fault in them (a
-  silence, a restart) are not judged.
+  its own clock.  A controller's fault (its silence, a restart, its
+  clock) starts the count again; the sensor's own (a silence, invalid
+  records) is cut out of the window: a stream slower than the sensor's
+  timeout flaps between that fault and two agreeing records, and its time
+  between them is judged (its own rate), where a single dropout only
+  pauses the count.
 
 Why the session stays faulted: neither a wrong calibration, tare, mass or
 mounting nor a wrong rate setting heals during a run; the one reading that
@@ -97,8 +101,9 @@ class SensorChecks:
         self.start_check = None  # summary.json's sensor_checks.start (None: not made: no valid record yet)
         self.start_check_due = False  # (no valid record at the start: the check waits for the chain's first level)
         self._rate_n = 0  # records in the window
-        self._rate_t0 = None  # the controller's time the window began (t_session)
-        self._rate_pc0 = None  # this PC's: its message's arrival (s)
+        self._rate_span = 0.0  # the window's time so far on the controller's clock (t_session, s)
+        self._rate_span_pc = 0.0  # and on this PC's (its messages' arrivals, s)
+        self._rate_last = None  # (t_session, arrival) of the last message seen (None: none, or a window restarted)
         self._rate_off = 0  # windows in a row off the same way (signed: + too fast, - too slow)
         self._rate_seen = []  # the judged windows' rates (Hz): their least and most in the summary
         self.rate_check = {"configured_hz": self.s.sensor_rate_hz, "tolerance": RATE_TOLERANCE,
@@ -122,7 +127,7 @@ class SensorChecks:
             # sensor's axis reads nearly no moment: the torque's scale unchecked; docs/real_cell.md)
             unseen = [what for what, pred, tol in (("force", self.start_check["predicted_N"], tol_N),
                                                    ("torque", self.start_check["predicted_Nm"], tol_Nm))
-                      if pred <= tol]
+                      if pred <= tol < math.inf]  # (math.inf: a program turned the check off)
             if unseen:
                 self.start_check["warning"] = (
                     f"the start pose cannot check the sensor's {' and '.join(unseen)} scale: the payload "
@@ -153,20 +158,27 @@ class SensorChecks:
         simulated or scripted on a loaded PC stretches its own)."""
         if "sensor rate" in self.faults:
             return
-        if self.pending_reseed or any(name not in ("bound", "sensor start") for name in self.faults):
-            self._rate_t0 = None  # (a silence, an invalid stream, a controller's fault: not judged)
-            self._rate_off = 0
+        last, self._rate_last = self._rate_last, (self.t_session, t_now)
+        if any(name not in ("bound", "sensor start", "sensor") for name in self.faults):
+            # (the controller's fault: a silence, a restart, a clock; its time not the stream's: counted anew)
+            self._rate_n, self._rate_span, self._rate_span_pc, self._rate_off = 0, 0.0, 0.0, 0
+            self._rate_last = None
             return
-        if self._rate_t0 is None:
-            self._rate_t0, self._rate_pc0, self._rate_n = self.t_session, t_now, 0
-            return  # (the window counts the records of the messages after its start)
+        if self.pending_reseed or "sensor" in self.faults or last is None:
+            # the sensor's own fault (a silence, invalid records) cut out of the window, not a new count: a
+            # stream whose gaps exceed the timeout (slower than 1/sensor_timeout_s) flaps between the fault and
+            # two agreeing records, and is judged over its time between them (before: each fault restarted the
+            # count, no window was ever judged and the correction ramped in and out for the run)
+            return  # (and the first message: the window counts the records of the messages after it)
         self._rate_n += n_rec
-        span = self.t_session - self._rate_t0
-        if span < RATE_WINDOW_S:
+        self._rate_span += self.t_session - last[0]
+        self._rate_span_pc += t_now - last[1]
+        if self._rate_span < RATE_WINDOW_S:
             return
-        rate, span_pc = self._rate_n / span, t_now - self._rate_pc0
+        span, span_pc = self._rate_span, self._rate_span_pc
+        rate = self._rate_n / span
         rate_pc = self._rate_n / span_pc if span_pc > 0 else math.inf
-        self._rate_t0, self._rate_pc0, self._rate_n = self.t_session, t_now, 0
+        self._rate_n, self._rate_span, self._rate_span_pc = 0, 0.0, 0.0
         rc = self.rate_check
         rc["windows_judged"] += 1
         rc["least_hz"] = rate if rc["least_hz"] is None else min(rc["least_hz"], rate)
