@@ -339,7 +339,7 @@ def _bunched(period_s):
     ("7000 Hz RDT, EGM bunched", 0.004, 7000, lambda t: 7000.0, 5000, _bunched(0.004), None, None),
     ("a quarter hour at 4 ms (t_session's float sum)", 0.004, 1000, lambda t: 1000.0, 225000, None, None, None),
     # wrong setups: caught
-    ("right for 0.5 s, then 1/8", 0.004, 1000, lambda t: 1000.0 if t < 0.5 else 125.0, 1000, None, None, 252),
+    ("right for 0.5 s, then 1/8", 0.004, 1000, lambda t: 1000.0 if t < 0.5 else 125.0, 1000, None, None, 254),
     ("21 % fast", 0.004, 1000, lambda t: 1210.0, 1000, None, None, 126),
     # limits (docs/real_cell.md): not caught
     ("windows 19 % and 21 % fast in turn", 0.004, 1000, lambda t: 1190.0 + 20.0 * (int(t / 0.252) % 2), 1000,
@@ -355,7 +355,7 @@ def test_the_rate_windows_on_cells_and_setups(case, period_s, conf_hz, true_hz, 
     print(f"\n[{case}] fault at message {k}; {judged} windows, {least:.5g}-{most:.5g} Hz")
     assert k == fault_k
     if fault_k is None and "fast" not in case:
-        assert judged >= n * period_s / 0.26 and 0.94 * conf_hz < least <= most < 1.06 * conf_hz
+        assert judged >= n * period_s / 0.3 and 0.94 * conf_hz < least <= most < 1.06 * conf_hz
 
 
 @pytest.mark.parametrize("every", [8, 16])
@@ -365,7 +365,8 @@ def test_a_stream_slower_than_the_sensor_timeout_is_the_rate_fault(robot, every)
     the gaps): the sensor's fault at each gap, cleared by the next two
     records, and the rate's windows judged over the time between (the
     sensor's faults cut out of them, not a new count): the rate's fault
-    (40 Hz between the gaps), zero correction to the end.  (Before: every
+    (42 Hz: a record each gap, of which the wait for the fault counted),
+    zero correction to the end.  (Before: every
     silence restarted the count, no window was judged after the first two,
     and the correction ramped in and out to the end: 55 sensor faults in 4
     s, 187 of the last 500 answers carrying up to 0.017 deg.)"""
@@ -374,6 +375,26 @@ def test_a_stream_slower_than_the_sensor_timeout_is_the_rate_fault(robot, every)
                         start_tolerance_N=math.inf)
     rc, dev = loop.rate_check, np.abs(corr).max(axis=1)
     print(f"\n[one record every {every} messages] {loop.n.sensor_faults} sensor faults, the rate's at "
-          f"{rc['fault']:.3g} Hz; answers with a correction after message 800: {int((dev[800:] > 0).sum())}")
+          f"{rc['fault']:.3g} Hz; the last answer with a correction {int(np.flatnonzero(dev)[-1])}")
     assert "sensor rate" in loop.faults and rc["fault"] < 200.0
-    assert dev[800:].max() == 0.0
+    assert dev[-100:].max() == 0.0
+
+
+def test_one_dropout_is_not_the_rate_fault_at_a_long_sensor_timeout(robot):
+    """A 1000 Hz stream silent for 400 ms (messages 100-199) with a sensor
+    timeout of 200 ms: the wait before the silence's fault (200 ms without
+    a record) falls across two windows (message 126); the silence is the
+    sensor's fault, cleared when records return, and no rate fault: of the
+    wait only SILENCE_KEPT_S stays in the windows, a window ending in it
+    waits for a record.  (Without that, the two windows read 59 % and 62 %
+    of the rate: the rate's fault for the session.)"""
+    w = _air(robot) + PUSH
+    loop, corr = _drive(robot, 500, lambda seq: [] if 100 <= seq < 200 else [w] * 4, sensor_timeout_s=0.2,
+                        start_tolerance_N=math.inf)
+    rc = loop.rate_check
+    said = loop.out.getvalue()
+    print(f"\n[a 400 ms dropout, 200 ms timeout] windows {rc['windows_judged']}, {rc['least_hz']:.4g}-"
+          f"{rc['most_hz']:.4g} Hz; faults at the end {list(loop.faults)}")
+    assert "no record for 200 ms" in said and "its records come at" not in said, said
+    assert rc["fault"] is None and rc["least_hz"] > 800.0 and not loop.faults
+    assert np.abs(corr[-1]).max() > 0.01

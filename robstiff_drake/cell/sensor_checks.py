@@ -37,7 +37,8 @@ session (ramped down at the rate limit if it was not zero):
   records) is cut out of the window: a stream slower than the sensor's
   timeout flaps between that fault and two agreeing records, and its time
   between them is judged (its own rate), where a single dropout only
-  pauses the count.
+  pauses the count (of the wait before its fault, the sensor's timeout,
+  SILENCE_KEPT_S stays counted).
 
 Why the session stays faulted: neither a wrong calibration, tare, mass or
 mounting nor a wrong rate setting heals during a run; the one reading that
@@ -79,6 +80,10 @@ MIN_LEVER_M = 0.1  # (the moment tolerance's shortest lever, as the moment guard
 RATE_TOLERANCE = 0.2
 RATE_WINDOW_S = 0.25
 RATE_WINDOWS = 2
+# Of the wait before the sensor's silence fault (its timeout without a record) the windows keep at most this (s):
+# half the tolerance of a window, so a single dropout moves no window past it whatever --sensor-timeout-ms is,
+# while a stream whose gaps exceed the timeout is judged on them (up to this each: 20 ms at the default timeout)
+SILENCE_KEPT_S = 0.5 * RATE_TOLERANCE * RATE_WINDOW_S
 
 
 def start_tolerances(tolerance_N, tool_m):
@@ -104,6 +109,7 @@ class SensorChecks:
         self._rate_span = 0.0  # the window's time so far on the controller's clock (t_session, s)
         self._rate_span_pc = 0.0  # and on this PC's (its messages' arrivals, s)
         self._rate_last = None  # (t_session, arrival) of the last message seen (None: none, or a window restarted)
+        self._rate_tail = (0.0, 0.0)  # the window's time since its last record (controller's, PC's; s)
         self._rate_off = 0  # windows in a row off the same way (signed: + too fast, - too slow)
         self._rate_seen = []  # the judged windows' rates (Hz): their least and most in the summary
         self.rate_check = {"configured_hz": self.s.sensor_rate_hz, "tolerance": RATE_TOLERANCE,
@@ -162,19 +168,25 @@ class SensorChecks:
         if any(name not in ("bound", "sensor start", "sensor") for name in self.faults):
             # (the controller's fault: a silence, a restart, a clock; its time not the stream's: counted anew)
             self._rate_n, self._rate_span, self._rate_span_pc, self._rate_off = 0, 0.0, 0.0, 0
-            self._rate_last = None
+            self._rate_last, self._rate_tail = None, (0.0, 0.0)
             return
         if self.pending_reseed or "sensor" in self.faults or last is None:
-            # the sensor's own fault (a silence, invalid records) cut out of the window, not a new count: a
-            # stream whose gaps exceed the timeout (slower than 1/sensor_timeout_s) flaps between the fault and
-            # two agreeing records, and is judged over its time between them (before: each fault restarted the
-            # count, no window was ever judged and the correction ramped in and out for the run)
+            # the sensor's own fault (a silence, invalid records) cut out of the window, not a new count, and of
+            # the wait before it at most SILENCE_KEPT_S: a stream whose gaps exceed the timeout (slower than
+            # 1/sensor_timeout_s) flaps between the fault and two agreeing records, and is judged on its time
+            # between them (before: each fault restarted the count, no window was judged and the correction
+            # ramped in and out for the run); a single dropout moves a window by half the tolerance at most
+            self._rate_span -= max(0.0, self._rate_tail[0] - SILENCE_KEPT_S)
+            self._rate_span_pc -= max(0.0, self._rate_tail[1] - SILENCE_KEPT_S)
+            self._rate_tail = (0.0, 0.0)
             return  # (and the first message: the window counts the records of the messages after it)
+        d, d_pc = self.t_session - last[0], t_now - last[1]
         self._rate_n += n_rec
-        self._rate_span += self.t_session - last[0]
-        self._rate_span_pc += t_now - last[1]
-        if self._rate_span < RATE_WINDOW_S:
-            return
+        self._rate_span += d
+        self._rate_span_pc += d_pc
+        self._rate_tail = (0.0, 0.0) if n_rec else (self._rate_tail[0] + d, self._rate_tail[1] + d_pc)
+        if self._rate_span < RATE_WINDOW_S or not n_rec:
+            return  # (judged at a message with records: a wait without one may yet turn out a silence's)
         span, span_pc = self._rate_span, self._rate_span_pc
         rate = self._rate_n / span
         rate_pc = self._rate_n / span_pc if span_pc > 0 else math.inf
