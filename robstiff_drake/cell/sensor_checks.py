@@ -32,8 +32,13 @@ session (ramped down at the rate limit if it was not zero):
   rate is off on the controller's clock and on this PC's (the arrivals of
   its first and last messages), as a silence is judged: they agree at a
   real controller; a simulated or scripted one on a loaded PC stretches
-  its own clock.  Windows with a sensor or controller fault in them (a
-  silence, a restart) are not judged.
+  its own clock.  A controller's fault (its silence, a restart, its
+  clock) starts the count again; the sensor's own (a silence, invalid
+  records) is cut out of the window: a stream slower than the sensor's
+  timeout flaps between that fault and two agreeing records, and its time
+  between them is judged (its own rate), where a single dropout only
+  pauses the count (of the wait before its fault, the sensor's timeout,
+  SILENCE_KEPT_S stays counted).
 
 Why the session stays faulted: neither a wrong calibration, tare, mass or
 mounting nor a wrong rate setting heals during a run; the one reading that
@@ -75,6 +80,10 @@ MIN_LEVER_M = 0.1  # (the moment tolerance's shortest lever, as the moment guard
 RATE_TOLERANCE = 0.2
 RATE_WINDOW_S = 0.25
 RATE_WINDOWS = 2
+# Of the wait before the sensor's silence fault (its timeout without a record) the windows keep at most this (s):
+# half the tolerance of a window, so a single dropout moves no window past it whatever --sensor-timeout-ms is,
+# while a stream whose gaps exceed the timeout is judged on them (up to this each: 20 ms at the default timeout)
+SILENCE_KEPT_S = 0.5 * RATE_TOLERANCE * RATE_WINDOW_S
 
 
 def start_tolerances(tolerance_N, tool_m):
@@ -97,8 +106,10 @@ class SensorChecks:
         self.start_check = None  # summary.json's sensor_checks.start (None: not made: no valid record yet)
         self.start_check_due = False  # (no valid record at the start: the check waits for the chain's first level)
         self._rate_n = 0  # records in the window
-        self._rate_t0 = None  # the controller's time the window began (t_session)
-        self._rate_pc0 = None  # this PC's: its message's arrival (s)
+        self._rate_span = 0.0  # the window's time so far on the controller's clock (t_session, s)
+        self._rate_span_pc = 0.0  # and on this PC's (its messages' arrivals, s)
+        self._rate_last = None  # (t_session, arrival) of the last message seen (None: none, or a window restarted)
+        self._rate_tail = (0.0, 0.0)  # the window's time since its last record (controller's, PC's; s)
         self._rate_off = 0  # windows in a row off the same way (signed: + too fast, - too slow)
         self._rate_seen = []  # the judged windows' rates (Hz): their least and most in the summary
         self.rate_check = {"configured_hz": self.s.sensor_rate_hz, "tolerance": RATE_TOLERANCE,
@@ -117,6 +128,20 @@ class SensorChecks:
                             "read_Nm": _norm(w[3:]), "predicted_Nm": _norm(predicted[3:]), "apart_Nm": dM,
                             "tolerance_N": tol_N, "tolerance_Nm": tol_Nm, "passed": dF <= tol_N and dM <= tol_Nm}
         if self.start_check["passed"]:
+            # a scale error (a page's units: N-mm read as N-m) shrinks a reading towards zero: it is seen only
+            # where the prediction is beyond the tolerance (a tool pointing down with its centre of mass on the
+            # sensor's axis reads nearly no moment: the torque's scale unchecked; docs/real_cell.md)
+            unseen = [what for what, pred, tol in (("force", self.start_check["predicted_N"], tol_N),
+                                                   ("torque", self.start_check["predicted_Nm"], tol_Nm))
+                      if pred <= tol < math.inf]  # (math.inf: a program turned the check off)
+            if unseen:
+                self.start_check["warning"] = (
+                    f"the start pose cannot check the sensor's {' and '.join(unseen)} scale: the payload "
+                    f"calibration predicts {self.start_check['predicted_N']:.4g} N and "
+                    f"{self.start_check['predicted_Nm']:.4g} N*m there, within the tolerance ({tol_N:g} N, "
+                    f"{tol_Nm:.3g} N*m): a calibration page's unit wrong (N-mm for N-m) would pass; start at a pose "
+                    "where the payload's weight has a lever about the sensor (the tool tilted) to check it")
+                self.note(f"warning: sensor: {self.start_check['warning']}")
             return
         if dF > tol_N:
             what = (f"the sensor reads {_norm(w[:3]):.4g} N where the payload calibration predicts "
@@ -139,20 +164,33 @@ class SensorChecks:
         simulated or scripted on a loaded PC stretches its own)."""
         if "sensor rate" in self.faults:
             return
-        if self.pending_reseed or any(name not in ("bound", "sensor start") for name in self.faults):
-            self._rate_t0 = None  # (a silence, an invalid stream, a controller's fault: not judged)
-            self._rate_off = 0
+        last, self._rate_last = self._rate_last, (self.t_session, t_now)
+        if any(name not in ("bound", "sensor start", "sensor") for name in self.faults):
+            # (the controller's fault: a silence, a restart, a clock; its time not the stream's: counted anew)
+            self._rate_n, self._rate_span, self._rate_span_pc, self._rate_off = 0, 0.0, 0.0, 0
+            self._rate_last, self._rate_tail = None, (0.0, 0.0)
             return
-        if self._rate_t0 is None:
-            self._rate_t0, self._rate_pc0, self._rate_n = self.t_session, t_now, 0
-            return  # (the window counts the records of the messages after its start)
+        if self.pending_reseed or "sensor" in self.faults or last is None:
+            # the sensor's own fault (a silence, invalid records) cut out of the window, not a new count, and of
+            # the wait before it at most SILENCE_KEPT_S: a stream whose gaps exceed the timeout (slower than
+            # 1/sensor_timeout_s) flaps between the fault and two agreeing records, and is judged on its time
+            # between them (before: each fault restarted the count, no window was judged and the correction
+            # ramped in and out for the run); a single dropout moves a window by half the tolerance at most
+            self._rate_span -= max(0.0, self._rate_tail[0] - SILENCE_KEPT_S)
+            self._rate_span_pc -= max(0.0, self._rate_tail[1] - SILENCE_KEPT_S)
+            self._rate_tail = (0.0, 0.0)
+            return  # (and the first message: the window counts the records of the messages after it)
+        d, d_pc = self.t_session - last[0], t_now - last[1]
         self._rate_n += n_rec
-        span = self.t_session - self._rate_t0
-        if span < RATE_WINDOW_S:
-            return
-        rate, span_pc = self._rate_n / span, t_now - self._rate_pc0
+        self._rate_span += d
+        self._rate_span_pc += d_pc
+        self._rate_tail = (0.0, 0.0) if n_rec else (self._rate_tail[0] + d, self._rate_tail[1] + d_pc)
+        if self._rate_span < RATE_WINDOW_S or not n_rec:
+            return  # (judged at a message with records: a wait without one may yet turn out a silence's)
+        span, span_pc = self._rate_span, self._rate_span_pc
+        rate = self._rate_n / span
         rate_pc = self._rate_n / span_pc if span_pc > 0 else math.inf
-        self._rate_t0, self._rate_pc0, self._rate_n = self.t_session, t_now, 0
+        self._rate_n, self._rate_span, self._rate_span_pc = 0, 0.0, 0.0
         rc = self.rate_check
         rc["windows_judged"] += 1
         rc["least_hz"] = rate if rc["least_hz"] is None else min(rc["least_hz"], rate)

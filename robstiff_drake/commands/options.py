@@ -49,7 +49,8 @@ def number_in(lo, hi, unit="", integer=False):
         try:
             v = int(text) if integer else float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a {'whole number' if integer else 'number'}") from None
+            raise argparse.ArgumentTypeError(f"{text!r} is not a {'whole number' if integer else 'number'}"
+                                             f" (allowed: [{lo:g}, {hi:g}]{f' {unit}' if unit else ''})") from None
         if v != v or not lo <= v <= hi:
             raise argparse.ArgumentTypeError(f"{text} is outside the allowed range [{lo:g}, {hi:g}]"
                                              + (f" {unit}" if unit else ""))
