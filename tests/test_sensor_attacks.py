@@ -67,9 +67,11 @@ def test_silence_ramps_to_zero_and_the_sensors_return_restarts(robot, inputs):
         summary = json.load(f)
     checks = summary["cycles"]["sensor_checks"]  # (the honest start and rate pass: the silence cut out of the rate's windows)
     assert checks["start"]["passed"] and checks["start"]["apart_N"] < 1.0, checks
-    # (the tool points down, the payload's centre of mass on the sensor's axis: its torque scale not checked, said)
-    warned = [ln for ln in summary["warnings"] if "cannot check the sensor's torque scale" in ln]
-    assert len(warned) == 1 and warned[0] in err, summary["warnings"]
+    # (the tool points down, the payload's centre of mass on the sensor's axis: its torque scale not checked, said
+    # as a note of the run's course, not a warning: a common pose, nothing implausible read)
+    assert "cannot check the sensor's torque scale" in checks["start"]["unchecked"], checks
+    assert "sensor: the start pose cannot check the sensor's torque scale" in err, err[-3000:]
+    assert not [ln for ln in summary["warnings"] if "torque scale" in ln], summary["warnings"]
     assert checks["rate"]["fault"] is None and checks["rate"]["windows_judged"] >= 2, checks
     _report("sensor silent 150 messages", **r.figures(_summary(log), steady_deg=round(steady, 4)))
 

@@ -68,16 +68,15 @@ def _response(stats):
 
 def _sensor_check_lines(checks):
     """The lines (warnings) of the sensor's checks that held the correction
-    at zero for the run (cell/sensor_checks.py), or of a scale the start's
-    could not check: [] when both passed and saw all."""
+    at zero for the run (cell/sensor_checks.py): [] when both passed (a
+    scale the start's pose could not check is a note of the run's course,
+    kept in summary.json's sensor_checks.start.unchecked)."""
     out = []
     st, rate = checks["start"], checks["rate"]
     if st is not None and not st["passed"]:
         out.append(f"the sensor's reading at the start was {st['apart_N']:.4g} N and {st['apart_Nm']:.4g} N*m from "
                    f"the payload calibration's prediction (at most {st['tolerance_N']:g} N, "
                    f"{st['tolerance_Nm']:.3g} N*m): the correction was held at zero for the run")
-    if st is not None and st["passed"] and st.get("warning"):  # (a scale the start pose cannot check)
-        out.append(f"sensor: {st['warning']}")
     if rate is not None and rate["fault"] is not None:
         out.append(f"the sensor's records came at {rate['fault']:.4g} Hz, not the {rate['configured_hz']:g} Hz "
                    "configured (--sensor-rate-hz): the correction was held at zero from then on")

@@ -98,7 +98,7 @@ from robstiff_drake.model.filters import noise_std_factor
 from robstiff_drake.model.surface import surface_error_stats
 
 EPSILON = 0.04  # the mass scale of "the arm's dynamic response removed"
-FAST_STEP_S = 0.0004  # the plant step with the faster modes (stable at EPSILON: omega h < 2 at about 620 Hz)
+FAST_STEP_S = 0.0004  # the plant step with the faster modes (about 620 Hz at EPSILON: the step's bound is diagrams/plant_step.py's)
 FINE_PERIOD_S = 0.001  # the controller period (and plant step) of "sampling period removed"
 
 SOURCES = ("stiffness model error", "payload and bias error", "cutting-coefficient error", "force filter lag",

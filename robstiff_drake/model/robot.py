@@ -64,7 +64,7 @@ class RobotModel:
     # (model/robot_file.check_units, model/robot_checks.plausibility)
     warnings: tuple = ()
     # the motors' rotor inertias reflected to the joints (n^2 J_rotor, kg*m^2); None: not in the file
-    # (the station then takes the rule of diagrams/station.motor_inertia)
+    # (the station then takes the rule of model/joint_dynamics.motor_inertia)
     motor_inertia_kgm2: np.ndarray | None = None
     # the controller's axis speed and acceleration limits (deg/s, deg/s^2,
     # controller convention; joint_limits.speed_deg_per_s and
