@@ -22,11 +22,9 @@ LONG_TESTS = {
     "test_run_vibration_commands.py::test_demo_warns_of_each_run_that_vibrated": 3.0,
     "test_campaign_scale.py::test_100k_rows_under_a_memory_cap": 2.5,
     "test_user_job.py::test_the_users_job_is_not_made_worse_by_compensation": 1.5,
-    "test_doc_outputs.py::test_the_fast_examples_print_what_the_reference_shows": 1.5,
     "test_paper_reproduction.py::test_the_block_is_the_papers_within_25_percent": 1.5,
     "test_rsi_restart.py::test_simulated_krc_restarting_mid_path": 1.5,
     "test_preview.py::test_no_gouge_at_a_fast_corner_needs_preview_and_feed_plan": 1.5,
-    "test_toolpath.py::test_the_documented_example_runs_as_written": 1.0,
 }
 
 
