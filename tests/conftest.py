@@ -58,11 +58,20 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture(scope="session", autouse=True)
 def _urdf_cache(tmp_path_factory):
-    """Generated URDFs go to a temporary folder, not the user's cache."""
+    """Generated URDFs (and the user models, joint references and preview tables the runs keep in the same
+    folder, plant.cache_dir()) go to a temporary folder, not the user's cache: one for the test session, which
+    both pytest-xdist workers (and the commands the tests start) share, as a user's processes share their
+    ~/.cache/robstiff-drake.  Its files are named by a digest of their inputs and of the code that makes them,
+    and written whole (a temporary file renamed), so a worker reads the other's or computes the same.  (One per
+    worker before: each computed the identified models of the same scenarios again, about 12 s of CPU each for
+    a block test's.)  A test that needs a cold cache sets its own (tests/test_ik_path.py, test_robot_files.py)."""
     from robstiff_drake.plant import CACHE_ENV
 
     old = os.environ.get(CACHE_ENV)
-    os.environ[CACHE_ENV] = str(tmp_path_factory.mktemp("urdf_cache"))
+    base = tmp_path_factory.getbasetemp()
+    folder = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "robstiff_cache"
+    folder.mkdir(exist_ok=True)
+    os.environ[CACHE_ENV] = str(folder)
     yield
     if old is None:
         os.environ.pop(CACHE_ENV, None)
