@@ -20,8 +20,9 @@ naming its site-packages (a venv made from a venv with
 --system-site-packages would see the base interpreter's packages instead),
 which does not run the editable install's import hook, so
 ``robstiff_drake`` can only come from the wheel.  One environment serves
-every test here (one per xdist worker: the build and install take
-seconds); each doc page runs in its own folder, its blocks in order.
+every test here (one for the session, built by the first xdist worker to
+need it: the build takes seconds, and the package's numba kernels compile
+into it once); each doc page runs in its own folder, its blocks in order.
 """
 
 import json
@@ -73,8 +74,25 @@ def run(cmd, cwd, env, timeout=300):
 
 @pytest.fixture(scope="session")
 def installed(tmp_path_factory):
-    """The wheel, and a fresh environment with it installed: SimpleNamespace(wheel, venv, python, env, tmp)."""
-    tmp = tmp_path_factory.mktemp("wheel")
+    """The wheel, and a fresh environment with it installed: SimpleNamespace(wheel, venv, python, env, tmp).
+    One for the test session: the first pytest-xdist worker to need it builds it, the other waits for it (a file
+    lock) and uses the same (before: one per worker, each building the wheel and compiling the package's numba
+    kernels into its environment's cache again, about 17 s of CPU)."""
+    import fcntl
+
+    root = shared_root(tmp_path_factory)
+    with open(root / "wheel.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # (released when the file closes)
+        done = root / "wheel" / "installed.json"
+        if not done.exists():
+            made = _build_and_install(root / "wheel")
+            done.write_text(json.dumps({k: str(v) if isinstance(v, Path) else v for k, v in vars(made).items()}))
+    r = json.loads(done.read_text())
+    return SimpleNamespace(**{k: Path(v) if k in ("wheel", "venv", "python", "tmp") else v for k, v in r.items()})
+
+
+def _build_and_install(tmp):
+    tmp.mkdir()
     src = tmp / "src"
     src.mkdir()
     for name in SOURCES:
@@ -140,8 +158,21 @@ def shared_shell(script, folder, env, root, where):
             r = {"code": code, "out": out, "err": err, "where": where}
             done.write_text(json.dumps(r))
     shutil.copytree(base / "run", folder, dirs_exist_ok=True)
-    shutil.copytree(base / "cache", env["ROBSTIFF_CACHE_DIR"], dirs_exist_ok=True)
+    _copy_cache(base / "cache", Path(env["ROBSTIFF_CACHE_DIR"]))
     return r["code"], r["out"], r["err"], seconds, where
+
+
+def _copy_cache(src, dst):
+    """The cache files of ``src`` that ``dst`` lacks, each written whole (a temporary name renamed), as the
+    package writes them: commands of the other pytest-xdist worker may be reading ``dst`` (one environment for
+    the session, ``installed``).  (The files are named by a digest of their content's inputs: one already there
+    is the same.)"""
+    dst.mkdir(parents=True, exist_ok=True)
+    for f in src.iterdir():
+        if f.is_file() and not (dst / f.name).exists():
+            tmp = dst / f".{f.name}.{os.getpid()}.tmp"
+            shutil.copy2(f, tmp)
+            os.replace(tmp, dst / f.name)
 
 
 # ---------------------------------------------------------------- the wheel itself
