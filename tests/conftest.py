@@ -22,11 +22,9 @@ LONG_TESTS = {
     "test_run_vibration_commands.py::test_demo_warns_of_each_run_that_vibrated": 3.0,
     "test_campaign_scale.py::test_100k_rows_under_a_memory_cap": 2.5,
     "test_user_job.py::test_the_users_job_is_not_made_worse_by_compensation": 1.5,
-    "test_doc_outputs.py::test_the_fast_examples_print_what_the_reference_shows": 1.5,
     "test_paper_reproduction.py::test_the_block_is_the_papers_within_25_percent": 1.5,
     "test_rsi_restart.py::test_simulated_krc_restarting_mid_path": 1.5,
     "test_preview.py::test_no_gouge_at_a_fast_corner_needs_preview_and_feed_plan": 1.5,
-    "test_toolpath.py::test_the_documented_example_runs_as_written": 1.0,
 }
 
 
@@ -60,11 +58,20 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture(scope="session", autouse=True)
 def _urdf_cache(tmp_path_factory):
-    """Generated URDFs go to a temporary folder, not the user's cache."""
+    """Generated URDFs (and the user models, joint references and preview tables the runs keep in the same
+    folder, plant.cache_dir()) go to a temporary folder, not the user's cache: one for the test session, which
+    both pytest-xdist workers (and the commands the tests start) share, as a user's processes share their
+    ~/.cache/robstiff-drake.  Its files are named by a digest of their inputs and of the code that makes them,
+    and written whole (a temporary file renamed), so a worker reads the other's or computes the same.  (One per
+    worker before: each computed the identified models of the same scenarios again, about 12 s of CPU each for
+    a block test's.)  A test that needs a cold cache sets its own (tests/test_ik_path.py, test_robot_files.py)."""
     from robstiff_drake.plant import CACHE_ENV
 
     old = os.environ.get(CACHE_ENV)
-    os.environ[CACHE_ENV] = str(tmp_path_factory.mktemp("urdf_cache"))
+    base = tmp_path_factory.getbasetemp()
+    folder = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "robstiff_cache"
+    folder.mkdir(exist_ok=True)
+    os.environ[CACHE_ENV] = str(folder)
     yield
     if old is None:
         os.environ.pop(CACHE_ENV, None)

@@ -20,8 +20,9 @@ naming its site-packages (a venv made from a venv with
 --system-site-packages would see the base interpreter's packages instead),
 which does not run the editable install's import hook, so
 ``robstiff_drake`` can only come from the wheel.  One environment serves
-every test here (one per xdist worker: the build and install take
-seconds); each doc page runs in its own folder, its blocks in order.
+every test here (one for the session, built by the first xdist worker to
+need it: the build takes seconds, and the package's numba kernels compile
+into it once); each doc page runs in its own folder, its blocks in order.
 """
 
 import json
@@ -43,6 +44,9 @@ from doc_blocks import blocks, pages, shortened, shorten_options
 from robstiff_drake.commands.main import EXAMPLES
 
 REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "studies"))
+import cli_docs  # noqa: E402
+
 SOURCES = ("pyproject.toml", "README.md", "LICENSE", "robstiff_drake", "models", "diagrams", "data", "examples", "docs")
 # --help examples that need more than this machine: a controller and a sensor on the network
 HELP_NEEDS_A_CELL = {
@@ -51,6 +55,15 @@ HELP_NEEDS_A_CELL = {
     "sim-cell": "waits for a compensator on the network (tests/test_sim_cell.py runs the pair on 127.0.0.1)",
 }
 BLOCK_TIMEOUT_S = 1800  # a hang guard only: a block of 110 s at load 4 takes several times that on a loaded CI
+# docs/cli.md's fast blocks (a block with a command containing one of these): what each of their commands prints is
+# compared with what the page shows after it (studies/cli_docs.py's comparison: the same text, every number within
+# one unit of its last printed digit; `python3 studies/cli_docs.py` regenerates the page).  The long ones (demo,
+# simulate, sweep, diagnose-run) are compared only by `ROBSTIFF_DOC_BLOCKS=all pytest tests/test_doc_outputs.py`.
+# (tests/test_doc_outputs.py ran these commands a second time for this before.)
+PRINTS_AS_SHOWN = {"cli.md": (
+    "robstiff robots", "robstiff fk ", "robstiff stiffness 0", "robstiff synth payload", "robstiff synth tracker",
+    "robstiff table2", "robstiff plan-poses", "robstiff kg-study", "robstiff make-urdf", "robstiff calibrate-payload",
+    "robstiff synth stiffness campaign.csv --n 60 --effect lost_motion=0.05")}
 
 
 def run(cmd, cwd, env, timeout=300):
@@ -61,8 +74,25 @@ def run(cmd, cwd, env, timeout=300):
 
 @pytest.fixture(scope="session")
 def installed(tmp_path_factory):
-    """The wheel, and a fresh environment with it installed: SimpleNamespace(wheel, venv, python, env, tmp)."""
-    tmp = tmp_path_factory.mktemp("wheel")
+    """The wheel, and a fresh environment with it installed: SimpleNamespace(wheel, venv, python, env, tmp).
+    One for the test session: the first pytest-xdist worker to need it builds it, the other waits for it (a file
+    lock) and uses the same (before: one per worker, each building the wheel and compiling the package's numba
+    kernels into its environment's cache again, about 17 s of CPU)."""
+    import fcntl
+
+    root = shared_root(tmp_path_factory)
+    with open(root / "wheel.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # (released when the file closes)
+        done = root / "wheel" / "installed.json"
+        if not done.exists():
+            made = _build_and_install(root / "wheel")
+            done.write_text(json.dumps({k: str(v) if isinstance(v, Path) else v for k, v in vars(made).items()}))
+    r = json.loads(done.read_text())
+    return SimpleNamespace(**{k: Path(v) if k in ("wheel", "venv", "python", "tmp") else v for k, v in r.items()})
+
+
+def _build_and_install(tmp):
+    tmp.mkdir()
     src = tmp / "src"
     src.mkdir()
     for name in SOURCES:
@@ -128,8 +158,21 @@ def shared_shell(script, folder, env, root, where):
             r = {"code": code, "out": out, "err": err, "where": where}
             done.write_text(json.dumps(r))
     shutil.copytree(base / "run", folder, dirs_exist_ok=True)
-    shutil.copytree(base / "cache", env["ROBSTIFF_CACHE_DIR"], dirs_exist_ok=True)
+    _copy_cache(base / "cache", Path(env["ROBSTIFF_CACHE_DIR"]))
     return r["code"], r["out"], r["err"], seconds, where
+
+
+def _copy_cache(src, dst):
+    """The cache files of ``src`` that ``dst`` lacks, each written whole (a temporary name renamed), as the
+    package writes them: commands of the other pytest-xdist worker may be reading ``dst`` (one environment for
+    the session, ``installed``).  (The files are named by a digest of their content's inputs: one already there
+    is the same.)"""
+    dst.mkdir(parents=True, exist_ok=True)
+    for f in src.iterdir():
+        if f.is_file() and not (dst / f.name).exists():
+            tmp = dst / f".{f.name}.{os.getpid()}.tmp"
+            shutil.copy2(f, tmp)
+            os.replace(tmp, dst / f.name)
 
 
 # ---------------------------------------------------------------- the wheel itself
@@ -207,11 +250,12 @@ def test_every_command_block_of_the_docs_is_marked():
 
 
 def _run_page(page, root, env, share_root=None):
-    """Run the marked blocks of one page in order in root/PAGE; (failures, skips, timings).  A block marked
-    ``share`` runs once in share_root's folders for the session (shared_shell; None: here, as any block)."""
+    """Run the marked blocks of one page in order in root/PAGE; (failures, skips, timings, outputs: {block's
+    where: its standard output}).  A block marked ``share`` runs once in share_root's folders for the session
+    (shared_shell; None: here, as any block)."""
     folder = root / Path(page).stem
     folder.mkdir(parents=True)
-    failures, skips, timings = [], [], []
+    failures, skips, timings, outputs = [], [], [], {}
     page_blocks = blocks(page)
     for b in page_blocks:
         if b.example_file:
@@ -225,8 +269,14 @@ def _run_page(page, root, env, share_root=None):
         commands = [shortened(c, b.clauses.get("shorten")) for c in b.commands()]
         expect = int(b.clauses.get("exit", 0))
         script = b.clauses.get("setup", "")
+        printed = _prints_as_shown(page, b, commands, root / ".printed" / Path(page).stem)
         if expect:
             script += "".join(f"\n{c} && exit 91 || [ $? -eq {expect} ]" for c in commands)
+        elif printed:
+            # each command as written, what it prints (standard output and error, as a terminal shows them) to a
+            # file of its own outside the page's folder; argparse's width as studies/cli_docs.py runs them
+            script += "\nexport COLUMNS=120" + "".join(
+                f"\n{{ {c}\n}} >{f} 2>&1 || {{ s=$?; cat {f} >&2; exit $s; }}" for c, f in zip(commands, printed))
         else:
             script += "".join(f"\n{c}" for c in commands)
         where = b.where
@@ -235,9 +285,36 @@ def _run_page(page, root, env, share_root=None):
         else:
             code, out, err, seconds = shell(script, folder, env)
         timings.append((seconds, where))
+        outputs[b.where] = out
         if code != 0:
             failures.append(f"{b.where} (in {folder}) exited {code}:\n{script}\n--- stderr:\n{err[-2500:]}")
-    return failures, skips, timings
+        elif printed:
+            failures += _differences(page, b, printed)
+    return failures, skips, timings, outputs
+
+
+def _prints_as_shown(page, b, commands, folder):
+    """The files that will hold what each of the block's commands prints, when its output is compared with the
+    page's (PRINTS_AS_SHOWN; a prompted block, run as written); else []."""
+    wanted = PRINTS_AS_SHOWN.get(page, ())
+    if not any(w in " ".join(b.commands()) for w in wanted) or b.clauses.keys() & {"shorten", "exit", "share"}:
+        return []
+    assert len(cli_docs.segments(b)) == len(commands), b.where  # a prompted block: what it shows follows each `$ `
+    folder.mkdir(parents=True, exist_ok=True)
+    return [folder / f"{b.line}-{i}.txt" for i in range(len(commands))]
+
+
+def _differences(page, b, printed):
+    """Where what the block's commands printed differs from what the page shows (studies/cli_docs.py)."""
+    out = []
+    for (start, _, command, shown), f in zip(cli_docs.segments(b), printed):
+        lines = f.read_text().splitlines(keepends=True)
+        text = "".join(line for line in lines if not cli_docs.PROGRESS_LINE.match(line))  # (as cli_docs.run)
+        diff = cli_docs.same_output(shown, text) if shown.strip() else None
+        if diff is not None:
+            out.append(f"docs/{page}:{b.line + 1 + start}: `{command}` printed other than the page shows "
+                       f"(python3 studies/cli_docs.py regenerates it): {diff}")
+    return out
 
 
 def _doc_commands():
@@ -292,7 +369,7 @@ def test_help_examples_not_run_here_say_why():
 def _report(results, t0, cpu0):
     cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu_s = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
-    failures, skips, timings = results
+    failures, skips, timings = results[:3]
     for seconds, where in timings:
         print(f"{seconds:6.1f} s  {where}")
     for skip in skips:
@@ -309,15 +386,57 @@ def test_every_doc_block_runs_from_an_empty_folder(installed, page, tmp_path_fac
     """What a reader copies from docs/PAGE works as written, from the wheel, the page in its own empty folder
     (its blocks in order)."""
     t0, cpu0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_CHILDREN)
-    _report(_run_page(page, installed.tmp / "docs", installed.env, shared_root(tmp_path_factory)), t0, cpu0)
+    results = _run_page(page, installed.tmp / "docs", installed.env, shared_root(tmp_path_factory))
+    _report(results, t0, cpu0)
+    folder = installed.tmp / "docs" / Path(page).stem
     if page == "results.md":
         # the demo (docs/results.md, the help's example) found its scenario, robot and cutting data in the
         # installed package: the block test's result; it wrote nothing but its folder
-        demo = installed.tmp / "docs" / "results"
-        rep = json.loads((demo / "robstiff-out" / "demo.json").read_text())
-        unc, comp = rep["surface_error_mm"]["uncompensated"], rep["surface_error_mm"]["compensated"]
-        assert 0.15 <= unc["mean"] <= 0.5 and abs(comp["mean"]) <= 0.02
+        (demo_out,) = [out for where, out in results[3].items() if where.startswith("docs/results.md:")
+                       and any(b.where == where and b.commands() == ["robstiff demo --out robstiff-out"]
+                               for b in blocks(page))]
+        _check_demo(folder / "robstiff-out", demo_out)
         assert list((installed.tmp / "cache").glob("irb6400-*.urdf"))  # the URDF went to the cache
+    if page == "toolpaths.md":
+        _check_my_program_on_the_block(folder)
+
+
+def _check_demo(out, printed):
+    """`robstiff demo --out OUT`'s outputs (the block test; its standard output ``printed``): the paper's
+    findings.  (tests/test_cli.py ran the demo for these before; one run, shared by the pages that show it, serves
+    both: tests/doc_blocks.py's ``share``.)"""
+    assert "block-milling test" in printed and "why the uncompensated robot cuts more" in printed, printed
+    for name in ("surface_error.png", "stiffness_map.png", "diagram.dot", "sim_timeseries_compensated.csv", "scan.csv",
+                 "sim_timeseries_uncompensated.csv"):
+        assert (out / name).exists(), name
+    rep = json.loads((out / "demo.json").read_text())
+    unc = rep["surface_error_mm"]["uncompensated"]
+    comp = rep["surface_error_mm"]["compensated"]
+    # the paper's findings: the robot cuts more without compensation (0.4 mm at its forces; about
+    # half at forces its spindle can drive), and < 0.1 mm with it; the exact model at 4 ms: <= 0.02 mm
+    assert 0.15 <= unc["mean"] <= 0.5
+    assert abs(comp["mean"]) <= 0.02
+    assert rep["spindle_power_W"] <= rep["spindle_rating_W"]  # a physical cut for the paper's spindle
+    expl = rep["cut_more_explanation"]
+    assert expl["dz_from_component_mm"][0] < 0 < expl["dz_from_component_mm"][2]  # feed pulls down, axial pushes up
+    assert expl["dz_total_mm"] < -0.15
+    # each run's own vibration (simulate's check, the bound's too): the default plant's, far below the feed per
+    # tooth, no warning (tests/test_run_vibration_commands.py: a chattering cut's)
+    assert set(rep["vibration"]) == {"uncompensated", "compensated", "exact model"}
+    assert all(0.0 <= v["amplitude_um"] < 0.5 * v["feed_per_tooth_um"] for v in rep["vibration"].values()), rep
+    assert not any("the simulated cut vibrated" in w for w in rep["warnings"]), rep["warnings"]
+
+
+def _check_my_program_on_the_block(folder):
+    """docs/toolpaths.md's own program placed on the block with the page's --work-offset (its first block's last
+    command, run_mine): it cut the block and the arm deflected; the program is untouched.  (tests/test_toolpath.py
+    ran this simulation again for these checks before; it keeps the page's other command, the one-line refusal
+    without the offset.)"""
+    summary = json.loads((folder / "run_mine" / "summary.json").read_text())
+    assert summary["spindle_power_W"] > 1000.0  # it cut the block (about 3 kW: 3 mm deep, 50 mm wide)
+    assert summary["surface_error_mm"]["uncompensated"]["max_abs"] > 0.005  # and the arm deflected
+    (program,) = [b for b in blocks("toolpaths.md") if b.example_file == "my_program.nc"]
+    assert (folder / "my_program.nc").read_text() == "\n".join(program.body) + "\n"  # the input is untouched
 
 
 @pytest.mark.slow
