@@ -315,6 +315,11 @@ class CellNetwork:
                 restarted = True
                 self.egm.restart()
                 pause_until = t_tick + f.restart_pause_s
+                if stepped:
+                    # a restart is silent on every clock: in lockstep the pause passes on this PC's clock too
+                    # (before, the controller's clock jumped with one period of silence here, which a compensator
+                    # rightly takes for a time stamp that jumped, not a restart: it refused the new session)
+                    t_stepped = time.monotonic() + f.restart_pause_s - T
                 k = int(math.ceil((pause_until - t0) / T))
                 k_clock = k
                 answers.clear()
