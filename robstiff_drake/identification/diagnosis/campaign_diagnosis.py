@@ -279,6 +279,20 @@ def diagnose(robot, campaign, **kw):
         return _diagnose(robot, campaign, **kw)
 
 
+def _too_few_poses(undecided, rows, units):
+    """'too few poses to decide: ...; what decides it.' for the candidates that
+    would qualify but the campaign's poses cannot test (candidate_evaluation)."""
+    r = undecided[0]
+    g = len(np.unique(np.asarray(units)[rows]))
+    per_pose = max(1, round(len(rows) / max(g, 1)))
+    more = max(r.poses_needed - g, 1)
+    return (f"too few poses to decide: {r.name} would lower the held-out RMS to {r.rms_mm:.4f} mm (nested F-test "
+            f"p = {r.p_value:.2g}, rows taken as independent), but {g} poses cannot test the "
+            f"{r.poses_needed - 1} parameters of the model with it pose by pose (it needs at least {r.poses_needed}), "
+            f"so no effect is named; what decides it: {more} or more further poses, e.g. robstiff plan-poses "
+            f"{more * per_pose} (about {per_pose} loads per pose), added to this campaign and diagnosed again.")
+
+
 def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None,
               fold_seed=FOLD_SEED, base_all=None):
     w = warnings if warnings is not None else Warnings(quiet=True)
@@ -362,6 +376,9 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
     if misread:  # evidence against the file as written: no verdict on it explains the data
         explains, verdict = (None if explains is None else False), f"{mr.sentence(misread)}. {verdict}"
         w.add(misread[0]["text"])
+    if result.undecided:  # fits, but too few poses to test it pose by pose: said, not named (selection.undecided)
+        explains, verdict = (None if explains is None else False), f"{_too_few_poses(result.undecided, rows, units)} {verdict}"
+        w.add(verdict.split(". ")[0])
     if non_physical:
         w.add(verdict)
     floor_check = None
