@@ -55,3 +55,16 @@ def test_a_term_needs_both_tests_at_the_bonferroni_level():
     assert not selection._fits(_cand(p_grouped=float("nan"), poses_needed=8), 0.010, 100)
     assert selection.undecided(_cand(p_grouped=float("nan"), poses_needed=8), 0.010, 100)
     assert not selection.undecided(_cand(p_grouped=float("nan"), poses_needed=8, p_value=0.011), 0.010, 100)
+
+
+def test_five_poses_with_a_real_effect_say_too_few_poses_and_what_decides():
+    from physical_effects import visible_campaign
+
+    robot = load_robot("irb6400")
+    c = visible_campaign(robot, "force_bias", np.random.default_rng([5, 1]), 0.06, seed=11, force_N=700.0,
+                         noise_mm=0.01, n=20)
+    d = diagnose(robot, c.to_campaign(), noise_mm=0.01)
+    assert [t["name"] for t in d.terms] == []
+    assert d.explains_data is False
+    assert d.verdict.startswith("too few poses to decide: force_bias") and "robstiff plan-poses" in d.verdict
+    assert any(w.startswith("too few poses to decide") for w in d.warnings)

@@ -45,6 +45,7 @@ from robstiff_drake.identification.diagnosis.residual_structure import residual_
 from robstiff_drake.identification.diagnosis.verdict import ALPHA_FLOOR_ABOVE
 from robstiff_drake.identification.diagnosis.verdict import carried as _carried
 from robstiff_drake.identification.diagnosis.verdict import verdict as _verdict
+from robstiff_drake.identification.diagnosis.verdict import too_few_poses
 from robstiff_drake.identification.threads import single_blas_thread
 from robstiff_drake.identification.diagnosis.terms import (GAUSS_NEWTON, GRID, Context, fit_model, gauss_newton_columns,
                                                  held_out, rms_mm, term_columns)
@@ -279,20 +280,6 @@ def diagnose(robot, campaign, **kw):
         return _diagnose(robot, campaign, **kw)
 
 
-def _too_few_poses(undecided, rows, units):
-    """'too few poses to decide: ...; what decides it.' for the candidates that
-    would qualify but the campaign's poses cannot test (candidate_evaluation)."""
-    r = undecided[0]
-    g = len(np.unique(np.asarray(units)[rows]))
-    per_pose = max(1, round(len(rows) / max(g, 1)))
-    more = max(r.poses_needed - g, 1)
-    return (f"too few poses to decide: {r.name} would lower the held-out RMS to {r.rms_mm:.4f} mm (nested F-test "
-            f"p = {r.p_value:.2g}, rows taken as independent), but {g} poses cannot test the "
-            f"{r.poses_needed - 1} parameters of the model with it pose by pose (it needs at least {r.poses_needed}), "
-            f"so no effect is named; what decides it: {more} or more further poses, e.g. robstiff plan-poses "
-            f"{more * per_pose} (about {per_pose} loads per pose), added to this campaign and diagnosed again.")
-
-
 def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None,
               fold_seed=FOLD_SEED, base_all=None):
     w = warnings if warnings is not None else Warnings(quiet=True)
@@ -377,7 +364,8 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
         explains, verdict = (None if explains is None else False), f"{mr.sentence(misread)}. {verdict}"
         w.add(misread[0]["text"])
     if result.undecided:  # fits, but too few poses to test it pose by pose: said, not named (selection.undecided)
-        explains, verdict = (None if explains is None else False), f"{_too_few_poses(result.undecided, rows, units)} {verdict}"
+        few = too_few_poses(result.undecided, len(rows), len(np.unique(np.asarray(units)[rows])))
+        explains, verdict = (None if explains is None else False), f"{few} {verdict}"
         w.add(verdict.split(". ")[0])
     if non_physical:
         w.add(verdict)
