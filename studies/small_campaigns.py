@@ -11,9 +11,10 @@ flange axis, as the newcomer's campaign that prompted this study) and on the
 shipped IRB 6400; a finding is any term in the final model.
 Planted: each named effect in its physical pattern at an RMS beyond the
 springs of 0.04 mm (4x the noise, capped at its physical top;
-tests/physical_effects.py visible_campaign), 700 N loads, on 10 poses x 4
-loads and 30 poses x 4 loads (the confusion study's size), IRB 6400; found
-when the effect is a term of the final model.
+tests/physical_effects.py visible_campaign), 700 N loads, on 5, 10 and 30
+poses x 4 loads (30: the confusion study's size), IRB 6400; found when the
+effect is a term of the final model; on too few poses the verdict should say
+so (and name nothing).
 
 Run: python3 studies/small_campaigns.py [--cases 50] [--planted-cases 3]
 """
@@ -52,8 +53,8 @@ def null_row(robot, tool_m, n_poses, cases, base_seed):
 
 
 def planted_row(robot, n_poses, cases, base_seed):
-    """{effect: (found, campaigns)}."""
-    out = {}
+    """{effect: (found, campaigns)} and the campaigns whose verdict says the poses are too few to decide."""
+    out, undecided = {}, 0
     for e_i, name in enumerate(CANDIDATES):
         rng = np.random.default_rng([base_seed, e_i])
         found = 0
@@ -62,8 +63,9 @@ def planted_row(robot, n_poses, cases, base_seed):
                                  noise_mm=NOISE_MM, n=4 * n_poses)
             d = diagnose(robot, c.to_campaign(), noise_mm=NOISE_MM)
             found += name in [t["name"] for t in d.terms]
+            undecided += d.verdict.startswith("too few poses to decide")
         out[name] = (found, cases)
-    return out
+    return out, undecided
 
 
 def main():
@@ -80,11 +82,12 @@ def main():
             top = ", ".join(f"{n} {v}" for n, v in names.most_common(3))
             print(f"  {label}, {n_poses} poses x 3 loads: {hits}/{a.cases}" + (f" ({top})" if top else ""))
     print("one named effect planted (0.04 mm beyond the springs, 700 N), IRB 6400: campaigns where it is found")
-    for n_poses in (10, 30):
-        res = planted_row(irb, n_poses, a.planted_cases, 9000 + 1000 * n_poses)
+    for n_poses in (5, 10, 30):
+        res, undecided = planted_row(irb, n_poses, a.planted_cases, 9000 + 1000 * n_poses)
         tot = sum(f for f, _ in res.values()), sum(n for _, n in res.values())
         per = ", ".join(f"{k} {f}/{n}" for k, (f, n) in res.items())
-        print(f"  {n_poses} poses x 4 loads: {tot[0]}/{tot[1]} ({per})")
+        print(f"  {n_poses} poses x 4 loads: {tot[0]}/{tot[1]} ({per}); verdict 'too few poses to decide': "
+              f"{undecided}/{tot[1]}")
 
 
 if __name__ == "__main__":

@@ -48,12 +48,12 @@ def _cand(**kw):
     return CandidateResult(**{**base, **kw})
 
 
-def test_a_term_needs_both_tests_at_the_bonferroni_level():
-    # 0.01 / 100 candidates = 1e-4: the clustered test alone (the newcomer's F-test p = 0.011) does not name it
+def test_a_candidate_the_poses_cannot_test_is_undecided_not_named():
+    # 0.01 / 100 candidates = 1e-4
     assert selection._fits(_cand(), 0.010, 100)
-    assert not selection._fits(_cand(p_value=0.011), 0.010, 100)
     assert not selection._fits(_cand(p_grouped=float("nan"), poses_needed=8), 0.010, 100)
     assert selection.undecided(_cand(p_grouped=float("nan"), poses_needed=8), 0.010, 100)
+    # the newcomer's best candidate: F-test p = 0.011, not even undecided
     assert not selection.undecided(_cand(p_grouped=float("nan"), poses_needed=8, p_value=0.011), 0.010, 100)
 
 

@@ -177,8 +177,8 @@ def format_report(d, campaign, markdown=False):
     th = d.thresholds
     lines += ["", f"tests: {d.n_hypotheses} hypotheses tried in {len(d.rounds)} round(s) ({len(CANDIDATES)} named, "
               f"{len(DICTIONARY)} in the dictionary); a term is added when its pose-clustered Wald test (on more poses "
-              f"than the model has parameters) and its nested F-test both pass at {th['alpha_per_round']:g} / "
-              "(candidates tried in the round) and it lowers the held-out RMS by "
+              f"than the model has parameters) passes at {th['alpha_per_round']:g} / (candidates tried in the round) "
+              "and it lowers the held-out RMS by "
               f"{100 * th['min_gain_library']:.0f} % (named) or {100 * th['min_gain_dictionary']:.0f} % (dictionary); "
               f"lack of fit at {th['alpha_lack_of_fit']:g}; outliers at {th['alpha_outlier']:g} over all rows; "
               f"folds seeded {th['fold_seed']}"]

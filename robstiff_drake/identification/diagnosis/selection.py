@@ -14,14 +14,14 @@ on the same pose-grouped folds:
   * for reference, a nested F-test on all rows and the change in BIC (these
     treat rows as independent; the decision does not use them).
 
-A candidate qualifies when its grouped test and its nested F-test both pass
-at ALPHA_ROUND divided by the number of candidates tried in the round
-(Bonferroni; the F-test is exact when the rows are independent, the
-clustered test holds when a pose's rows are correlated and the poses are
-many: requiring both keeps the level in either case, see
-studies/small_campaigns.py) and it lowers
+A candidate qualifies when its grouped test passes at ALPHA_ROUND divided
+by the number of candidates tried in the round (Bonferroni) and it lowers
 the held-out RMS by MIN_GAIN of the current value (10 % for a named effect,
-5 % for a dictionary term).  The best qualifying named effect is preferred
+5 % for a dictionary term).  The grouped test needs more poses than the
+model has parameters (candidate_evaluation); a candidate that would qualify
+on its held-out gain and its nested F-test but that the poses are too few
+to test is ``undecided``: the verdict says so and what would decide it, and
+nothing is named (studies/small_campaigns.py).  The best qualifying named effect is preferred
 unless a dictionary term beats its held-out RMS by more than
 NAMED_PREFERENCE.  A candidate whose columns the campaign cannot separate
 from the model's (rank) is "not identifiable" and never selected; one that
@@ -56,9 +56,10 @@ MAX_TERMS = 5
 
 
 def _fits(r, current_rms, m):
-    """The candidate's fit earns a place (held-out gain, clustered test and nested F-test)."""
+    """The candidate's fit earns a place (held-out gain and clustered test; no clustered p when the poses are too
+    few for the model's parameters, candidate_evaluation)."""
     return (r.status == "ok" and r.rms_mm <= (1 - MIN_GAIN[r.source]) * current_rms
-            and r.p_grouped < ALPHA_ROUND / max(m, 1) and r.p_value < ALPHA_ROUND / max(m, 1))
+            and r.p_grouped < ALPHA_ROUND / max(m, 1))
 
 
 def undecided(r, current_rms, m):
