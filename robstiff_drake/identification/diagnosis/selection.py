@@ -143,11 +143,11 @@ def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added
             if leads(r, state.rms_mm, m, floor_mm):
                 r.refusal = refusal(r, state.rms_mm, floor_mm)
                 found.append((len(rounds) - 1, r))
-            if small is not None and undecided(r, state.rms_mm, m):
-                small.append(r)
         qualified = [r for r in results if _qualifies(r, state.rms_mm, m, floor_mm)]
         best = _choose(qualified)
         if best is None:
+            if small is not None:  # against the model the search ends with, not an earlier round's
+                small += [r for r in results if undecided(r, state.rms_mm, m)]
             break
         # a trend along the file's order that fits about as well as the cause chosen: the data cannot tell them
         # apart (the file has no measurement order); said with the verdict
