@@ -20,6 +20,8 @@ from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote
 
 MAX_NOISE_MM = 10.0
+CLUSTERED_P_NOTE = ("(clustered p: '-' when the held-out gain is too small for the candidate to qualify, or the poses "
+                    "are too few for the model's parameters)")
 
 
 def _finite(obj):
@@ -155,11 +157,11 @@ def format_report(d, campaign, markdown=False):
     lib = [r for r in first if r.source == "library"]
     dic = sorted([r for r in first if r.source == "dictionary" and r.status == "ok"], key=lambda r: r.rms_mm)[:5]
     if markdown:
-        lines += ["(clustered p: '-' when the held-out gain is too small for the candidate to qualify)", "",
+        lines += [CLUSTERED_P_NOTE, "",
                   "| candidate (first round) | held-out RMS (mm) | clustered p | F | p (rows indep.) | dBIC | status |",
                   "|---|---|---|---|---|---|---|"]
     else:
-        lines.append("(clustered p: '-' when the held-out gain is too small for the candidate to qualify)")
+        lines.append(CLUSTERED_P_NOTE)
         lines.append("candidate (first round)             held-out RMS  clustered p      F     p (rows)    dBIC   "
                      "status")
     for r in lib + dic:
@@ -174,8 +176,9 @@ def format_report(d, campaign, markdown=False):
                          f"{status}")
     th = d.thresholds
     lines += ["", f"tests: {d.n_hypotheses} hypotheses tried in {len(d.rounds)} round(s) ({len(CANDIDATES)} named, "
-              f"{len(DICTIONARY)} in the dictionary); a term is added when its pose-clustered Wald test passes at "
-              f"{th['alpha_per_round']:g} / (candidates tried in the round) and it lowers the held-out RMS by "
+              f"{len(DICTIONARY)} in the dictionary); a term is added when its pose-clustered Wald test (on more poses "
+              f"than the model has parameters) passes at {th['alpha_per_round']:g} / (candidates tried in the round) "
+              "and it lowers the held-out RMS by "
               f"{100 * th['min_gain_library']:.0f} % (named) or {100 * th['min_gain_dictionary']:.0f} % (dictionary); "
               f"lack of fit at {th['alpha_lack_of_fit']:g}; outliers at {th['alpha_outlier']:g} over all rows; "
               f"folds seeded {th['fold_seed']}"]

@@ -45,6 +45,7 @@ from robstiff_drake.identification.diagnosis.residual_structure import residual_
 from robstiff_drake.identification.diagnosis.verdict import ALPHA_FLOOR_ABOVE
 from robstiff_drake.identification.diagnosis.verdict import carried as _carried
 from robstiff_drake.identification.diagnosis.verdict import verdict as _verdict
+from robstiff_drake.identification.diagnosis.verdict import too_few_poses
 from robstiff_drake.identification.threads import single_blas_thread
 from robstiff_drake.identification.diagnosis.terms import (GAUSS_NEWTON, GRID, Context, fit_model, gauss_newton_columns,
                                                  held_out, rms_mm, term_columns)
@@ -362,6 +363,10 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
     if misread:  # evidence against the file as written: no verdict on it explains the data
         explains, verdict = (None if explains is None else False), f"{mr.sentence(misread)}. {verdict}"
         w.add(misread[0]["text"])
+    if result.undecided:  # fits, but too few poses to test it pose by pose: said, not named (selection.undecided)
+        few = too_few_poses(result.undecided, len(rows), len(np.unique(np.asarray(units)[rows])))
+        explains, verdict = (None if explains is None else False), f"{few} {verdict}"
+        w.add(verdict.split(". ")[0])
     if non_physical:
         w.add(verdict)
     floor_check = None

@@ -17,7 +17,11 @@ on the same pose-grouped folds:
 A candidate qualifies when its grouped test passes at ALPHA_ROUND divided
 by the number of candidates tried in the round (Bonferroni) and it lowers
 the held-out RMS by MIN_GAIN of the current value (10 % for a named effect,
-5 % for a dictionary term).  The best qualifying named effect is preferred
+5 % for a dictionary term).  The grouped test needs more poses than the
+model has parameters (candidate_evaluation); a candidate that would qualify
+on its held-out gain and its nested F-test but that the poses are too few
+to test is ``undecided``: the verdict says so and what would decide it, and
+nothing is named (studies/small_campaigns.py).  The best qualifying named effect is preferred
 unless a dictionary term beats its held-out RMS by more than
 NAMED_PREFERENCE.  A candidate whose columns the campaign cannot separate
 from the model's (rank) is "not identifiable" and never selected; one that
@@ -52,9 +56,17 @@ MAX_TERMS = 5
 
 
 def _fits(r, current_rms, m):
-    """The candidate's fit earns a place (held-out gain and clustered test)."""
+    """The candidate's fit earns a place (held-out gain and clustered test; no clustered p when the poses are too
+    few for the model's parameters, candidate_evaluation)."""
     return (r.status == "ok" and r.rms_mm <= (1 - MIN_GAIN[r.source]) * current_rms
             and r.p_grouped < ALPHA_ROUND / max(m, 1))
+
+
+def undecided(r, current_rms, m):
+    """A candidate the campaign has too few poses to test (poses_needed) whose
+    held-out gain and nested F-test would let it qualify."""
+    return (r.status == "ok" and r.poses_needed > 0 and r.rms_mm <= (1 - MIN_GAIN[r.source]) * current_rms
+            and r.p_value < ALPHA_ROUND / max(m, 1))
 
 
 def _qualifies(r, current_rms, m, floor_mm=None):
@@ -102,9 +114,11 @@ class SearchResult:
     rms_without_mm: dict  # kept term -> held-out RMS of the final model without it
     leads: list = field(default_factory=list)  # [(round index, CandidateResult)]: fits, but not physical/plausible
     rival_trends: list = field(default_factory=list)  # [(term chosen, trend CandidateResult fitting as well)]
+    undecided: list = field(default_factory=list)  # CandidateResult that would qualify but the poses are too few
 
 
-def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found, rivals, floor_mm=None):
+def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found, rivals, floor_mm=None,
+             small=None):
     """Forward steps from ``state`` until no candidate qualifies; returns the
     state and the number of hypotheses tested."""
     n_tried = 0
@@ -132,6 +146,8 @@ def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added
         qualified = [r for r in results if _qualifies(r, state.rms_mm, m, floor_mm)]
         best = _choose(qualified)
         if best is None:
+            if small is not None:  # against the model the search ends with, not an earlier round's
+                small += [r for r in results if undecided(r, state.rms_mm, m)]
             break
         # a trend along the file's order that fits about as well as the cause chosen: the data cannot tell them
         # apart (the file has no measurement order); said with the verdict
@@ -193,10 +209,10 @@ def search(ctx, rows, folds, terms_by_name, groups, floor_mm=None):
     gidx = np.unique(np.asarray(groups)[rows], return_inverse=True)[1]
     state = model_state(ctx, [], rows, folds, gidx)
     rms_before = state.rms_mm
-    rounds, added, dropped, found, banned, n_tried, rivals = [], [], [], [], set(), 0, []
+    rounds, added, dropped, found, banned, n_tried, rivals, small = [], [], [], [], set(), 0, [], []
     for _ in range(MAX_RESTARTS + 1):
         state, n = _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added, found, rivals,
-                            floor_mm)
+                            floor_mm, small)
         n_tried += n
         state, without, gone = _backward(ctx, rows, folds, gidx, state, rounds, dropped, found, floor_mm)
         if not gone:
@@ -208,4 +224,5 @@ def search(ctx, rows, folds, terms_by_name, groups, floor_mm=None):
     dropped = [n for n in dict.fromkeys(dropped) if n not in kept]
     return SearchResult(state, rms_before, rounds, n_tried, added, dropped, without,
                         [(i, r) for i, r in found if r.name not in kept],
-                        [(c, r) for c, r in rivals if c in kept and r.name not in kept])
+                        [(c, r) for c, r in rivals if c in kept and r.name not in kept],
+                        sorted([r for r in small if r.name not in kept], key=lambda r: r.p_value))

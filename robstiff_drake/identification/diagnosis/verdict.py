@@ -121,3 +121,18 @@ def decides(names, confounded):
     return ("; what decides it: a second campaign at other poses (robstiff plan-poses N), diagnosed with the same "
             "noise, on which " + ("these hypotheses are" if len(names) > 1 else "this hypothesis is")
             + " tested again rather than chosen")
+
+
+def too_few_poses(undecided, n_rows, n_poses):
+    """'too few poses to decide: ...; what decides it.' for the candidates that
+    would qualify but that the campaign's ``n_poses`` poses cannot test
+    (candidate_evaluation: the pose-clustered test needs more poses than the
+    model has parameters; selection.undecided)."""
+    r = undecided[0]
+    per_pose = max(1, round(n_rows / max(n_poses, 1)))
+    more = max(r.poses_needed - n_poses, 1)
+    return (f"too few poses to decide: {r.name} would lower the held-out RMS to {r.rms_mm:.4f} mm (nested F-test "
+            f"p = {r.p_value:.2g}, rows taken as independent), but {n_poses} poses cannot test the "
+            f"{r.poses_needed - 1} parameters of the model with it pose by pose (it needs at least {r.poses_needed}), "
+            f"so no effect is named; what decides it: {more} or more further poses, e.g. robstiff plan-poses "
+            f"{more * per_pose} (about {per_pose} loads per pose), added to this campaign and diagnosed again.")
