@@ -123,6 +123,14 @@ def _drive(robot, script, *, push_N=(3000.0, -2000.0, 0.0), records=None):
                            LoopSettings(max_jump_Nm=350.0, max_correction_mm=math.inf, max_correction_deg=math.inf,
                                         start_tolerance_N=math.inf, sensor_rate_hz=1.0 / T),
                            out=io.StringIO())
+    _run_scripted(loop, link, sensor, script, clock)
+    return loop, link
+
+
+def _run_scripted(loop, link, sensor, script, clock):
+    """Run ``loop`` over the scripted ``link`` from ``script``'s first message at the test clock's origin, the
+    scripted ``sensor`` told each message's sequence number as its cycle starts (its records follow the script);
+    the link closed after."""
     real_cycle = loop.cycle
 
     def cycle(msg, t_arr, dt, **kw):
@@ -130,13 +138,11 @@ def _drive(robot, script, *, push_N=(3000.0, -2000.0, 0.0), records=None):
         return real_cycle(msg, t_arr, dt, **kw)
 
     loop.cycle = cycle
-    first = script[0]
     clock[0] = clock[1]
     try:
-        loop.run((first, clock[0]))
+        loop.run((script[0], clock[0]))
     finally:
         link.close()
-    return loop, link
 
 
 def _check_every_pose(robot, link, ref=Q0):

@@ -20,7 +20,8 @@ import pytest
 
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
-from test_cell_review_loop import Q0, RATE_DEG_PER_S, T, _messages, _ScriptedEgm, _ScriptedSensor  # noqa: E402
+from test_cell_review_loop import (Q0, RATE_DEG_PER_S, T, _messages, _run_scripted, _ScriptedEgm,  # noqa: E402
+                                   _ScriptedSensor)
 
 from robstiff_drake.cell.correction_bound import CorrectionBound, shrink, start_note  # noqa: E402
 from robstiff_drake.model import kinematics as kin  # noqa: E402
@@ -54,18 +55,7 @@ def _drive(robot, n, wrench_at, *, max_mm=MAX_MM, max_deg=MAX_DEG, initial=None,
         settings = LoopSettings(max_jump_Nm=350.0, max_correction_mm=max_mm, max_correction_deg=max_deg,
                                 start_tolerance_N=math.inf, sensor_rate_hz=1.0 / T)
     loop = CompensatorLoop(comp, link.link, sensor, ref, robot, settings, out=io.StringIO())
-    real_cycle = loop.cycle
-
-    def cycle(msg, t_arr, dt, **kw):
-        sensor.seq = msg.seq
-        return real_cycle(msg, t_arr, dt, **kw)
-
-    loop.cycle = cycle
-    clock[0] = clock[1]
-    try:
-        loop.run((script[0], clock[0]))
-    finally:
-        link.close()
+    _run_scripted(loop, link, sensor, script, clock)
     return loop, np.array(link.commanded)
 
 

@@ -19,7 +19,7 @@ import pytest
 
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
-from test_cell_review_loop import Q0, T, _messages, _ScriptedEgm, _ScriptedSensor  # noqa: E402
+from test_cell_review_loop import Q0, T, _messages, _run_scripted, _ScriptedEgm, _ScriptedSensor  # noqa: E402
 
 from robstiff_drake.cell.sensor_checks import DEFAULT_START_TOLERANCE_N, RATE_WINDOW_S, RATE_WINDOWS  # noqa: E402
 from robstiff_drake.model.kinematics import rpy_to_rotation  # noqa: E402
@@ -61,18 +61,7 @@ def _drive(robot, n, records, *, pc_step_s=T, script=None, **settings):
     ref.hold(Q0)
     loop = CompensatorLoop(h.hold_compensator(robot, _air(robot).tolist()), link.link, sensor, ref, robot,
                            LoopSettings(**{"max_jump_Nm": 350.0, **settings}), out=io.StringIO())
-    real_cycle = loop.cycle
-
-    def cycle(msg, t_arr, dt, **kw):
-        sensor.seq = msg.seq
-        return real_cycle(msg, t_arr, dt, **kw)
-
-    loop.cycle = cycle
-    clock[0] = clock[1]
-    try:
-        loop.run((script[0], clock[0]))
-    finally:
-        link.close()
+    _run_scripted(loop, link, sensor, script, clock)
     return loop, np.array(link.commanded) - np.asarray(Q0)
 
 
