@@ -296,3 +296,23 @@ def test_a_broken_model_file_named_by_the_scenario_is_refused_before_any_run(cap
     assert code == 2, err
     assert len(err.strip().splitlines()) == 1 and message in err, err
     assert not out.exists()
+
+
+def test_a_stopped_pool_has_no_manager_thread_left_for_the_interpreters_exit():
+    """sweep's _stop leaves the pool's manager thread ended and its wake-up
+    pipe closed, so Python 3.11's exit hook (which wakes it without the pool's
+    lock) cannot meet the pipe mid-close: seen once in CI as "Exception
+    ignored ... OSError: [Errno 9] Bad file descriptor" after "robstiff:
+    terminated".  (A race: before the fix this held or not by timing.)"""
+    import time
+    from concurrent.futures import ProcessPoolExecutor
+
+    from robstiff_drake.diagrams.sweep import _stop, _worker_init
+
+    pool = ProcessPoolExecutor(max_workers=2, initializer=_worker_init)
+    futures = [pool.submit(time.sleep, 60) for _ in range(4)]
+    while not any(f.running() for f in futures):
+        time.sleep(0.01)
+    manager, wakeup = pool._executor_manager_thread, pool._executor_manager_thread_wakeup
+    _stop(pool)
+    assert not manager.is_alive() and wakeup._closed

@@ -163,9 +163,16 @@ def _stop(pool):
     """Shut a process pool down at once: queued runs cancelled, running
     workers terminated (an interrupted sweep leaves no process behind)."""
     procs = list(getattr(pool, "_processes", {}).values())
+    manager = getattr(pool, "_executor_manager_thread", None)  # (shutdown forgets it)
     pool.shutdown(wait=False, cancel_futures=True)
     for p in procs:
         if p.is_alive():
             p.terminate()
     for p in procs:
         p.join(timeout=5)
+    # and its manager thread ended, which closes the pipe it is woken by: on Python 3.11 the interpreter's exit
+    # (concurrent.futures.process._python_exit) wakes it without the pool's lock, and a thread closing that pipe
+    # meanwhile made it print "Exception ignored ... OSError: [Errno 9] Bad file descriptor" after "robstiff:
+    # terminated" (seen once in CI, tests/test_reliability.py::test_sigterm_stops_a_sweep_and_its_workers)
+    if manager is not None:
+        manager.join(timeout=5)
