@@ -111,8 +111,13 @@ def _replace_in_section(text, section, key, value_text, flow):
     return text[:g.start()] + f"{g.group(1)}{key}: {value_text}{tail}" + text[g.end():]
 
 
-def _how_typical(finding):
-    return "; a SETUP FINDING beyond the typical" if finding["beyond_typical"] else "; within the typical"
+def _as_found(key, value, declared, finding, confirm, unseparated):
+    """A payload key's header line: ``value`` as the campaign's sag found it against the ``declared`` one,
+    beyond or within the typical, then ``confirm``, and ``unseparated`` where the data do not separate the
+    finding from its alternatives."""
+    typical = "; a SETUP FINDING beyond the typical" if finding["beyond_typical"] else "; within the typical"
+    return (f"payload.{key}: {value}, as the campaign's sag found it (the original declares {declared}{typical})"
+            + confirm + ("" if finding["separated"] else unseparated))
 
 
 def setup_corrections(robot, report):
@@ -126,19 +131,17 @@ def setup_corrections(robot, report):
         f = found["payload_mass"]
         mass = float(f"{pl.mass_kg + f['estimate']['dm (kg)']:.6g}")
         keys["mass_kg"] = mass
-        notes.append(f"payload.mass_kg: {_number(mass)} kg, as the campaign's sag found it (the original declares "
-                     f"{_number(pl.mass_kg)} kg{_how_typical(f)}): weigh the tool to confirm"
-                     + ("" if f["separated"] else " (the data do not separate it from the joints' compliance "
-                                                  "scale: see the diagnosis)"))
+        notes.append(_as_found("mass_kg", f"{_number(mass)} kg", f"{_number(pl.mass_kg)} kg", f,
+                               ": weigh the tool to confirm",
+                               " (the data do not separate it from the joints' compliance scale: see the diagnosis)"))
     if "payload_com" in found:
         f = found["payload_com"]
         est = f["estimate"]
         com = [float(f"{c * 1e3 + est[f'd{a} (mm)']:.6g}") for c, a in zip(pl.com_m, "xyz")]
         keys["com_mm"] = com
-        notes.append(f"payload.com_mm: {_flow(com)} mm, as the campaign's sag found it (the original declares "
-                     f"{_flow(pl.com_m * 1e3)} mm{_how_typical(f)})"
-                     + ("" if f["separated"] else "; the data do not separate it from its alternatives (see the "
-                                                  "diagnosis): run the controller's load identification to confirm"))
+        notes.append(_as_found("com_mm", f"{_flow(com)} mm", f"{_flow(pl.com_m * 1e3)} mm", f, "",
+                               "; the data do not separate it from its alternatives (see the diagnosis): run the "
+                               "controller's load identification to confirm"))
     if "gravity_tilt" in found:
         f = found["gravity_tilt"]
         e = f["estimate"]
