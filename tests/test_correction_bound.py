@@ -13,7 +13,6 @@ import math
 import os
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -21,7 +20,7 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
 from test_cell_review_loop import (Q0, RATE_DEG_PER_S, T, _messages, _run_scripted, _ScriptedEgm,  # noqa: E402
-                                   _ScriptedSensor)
+                                   _ScriptedSensor, scripted_clock)
 
 from robstiff_drake.cell.correction_bound import CorrectionBound, shrink, start_note  # noqa: E402
 from robstiff_drake.model import kinematics as kin  # noqa: E402
@@ -41,7 +40,7 @@ def _drive(robot, n, wrench_at, *, max_mm=MAX_MM, max_deg=MAX_DEG, initial=None,
     (default: the moment guard at 350 N*m and the bound ``max_mm``, ``max_deg``)."""
     from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
 
-    clock = [0.0, time.monotonic() + 100.0]
+    clock = scripted_clock()
     script = _messages(n, Q0)
     link = _ScriptedEgm(script[1:], clock)
     sensor = _ScriptedSensor(wrench_at(1), clock, lambda seq: [wrench_at(max(seq, 1))])

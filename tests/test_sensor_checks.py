@@ -12,14 +12,13 @@ import math
 import os
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
 
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
-from test_cell_review_loop import Q0, T, _messages, _run_scripted, _ScriptedEgm, _ScriptedSensor  # noqa: E402
+from test_cell_review_loop import scripted_clock, Q0, T, _messages, _run_scripted, _ScriptedEgm, _ScriptedSensor  # noqa: E402
 
 from robstiff_drake.cell.sensor_checks import DEFAULT_START_TOLERANCE_N, RATE_WINDOW_S, RATE_WINDOWS  # noqa: E402
 from robstiff_drake.model.kinematics import rpy_to_rotation  # noqa: E402
@@ -39,13 +38,14 @@ def _air(robot):
     return np.asarray(h.hold_wrench(robot, np.radians(Q0))(0.0))
 
 
-def _drive(robot, n, records, *, pc_step_s=T, script=None, **settings):
+def _drive(robot, n, records, *, pc_step_s=T, script=None, origin_s=None, **settings):
     """The loop over ``n`` messages holding Q0 (the controller's clock 4 ms a message), the sensor's records for
     message ``seq`` ``records(seq)`` (seq 0: those waiting at the first message); this PC's clock ``pc_step_s`` a
-    message.  Returns (loop, the corrections answered, deg)."""
+    message; the test's clock from ``origin_s`` (default: the harness's).  Returns (loop, the corrections
+    answered, deg)."""
     from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
 
-    clock = [0.0, time.monotonic() + 100.0]
+    clock = scripted_clock() if origin_s is None else scripted_clock(origin_s)
     script = _messages(n, Q0) if script is None else script  # (``script``: the messages given, None a silent read)
     link = _ScriptedEgm(script[1:], clock)
     scripted = link.link.receive
@@ -226,6 +226,24 @@ def test_the_options_bad_values_name_the_option_and_the_range(capsys, option, va
     assert lines[-1].startswith(f"robstiff compensate: error: argument {option}: ") and allowed in lines[-1], lines
 
 
+@pytest.mark.parametrize("timeout_ms, rate_hz", [("4", "250"), ("0.999e3", "1"), ("1", "1000")])
+def test_a_sensor_timeout_not_longer_than_a_records_gap_is_refused(capsys, tmp_path, timeout_ms, rate_hz):
+    """--sensor-timeout-ms at or below the time between two records at
+    --sensor-rate-hz: every gap would be a silence (the sensor's fault after
+    each record, and three in a row the rate's for the session): refused
+    before anything is opened, one line naming both options, exit 2."""
+    from robstiff_drake.commands.main import main
+
+    for name in ("m.json", "p.yaml"):  # (files that exist: named files are checked first)
+        (tmp_path / name).write_text("{}\n")
+    code = main(["compensate", "--egm-port", "1", "--netft", "127.0.0.1:1", "--model", str(tmp_path / "m.json"),
+                 "--payload", str(tmp_path / "p.yaml"), "--sensor-timeout-ms", timeout_ms, "--sensor-rate-hz", rate_hz, "--cutoff-hz", "0.2"])
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert code == 2 and len(lines) == 1, lines
+    assert f"--sensor-timeout-ms {float(timeout_ms):g}: must be longer than" in lines[0] and "--sensor-rate-hz" in \
+        lines[0], lines
+
+
 def test_a_torque_unit_wrong_where_the_start_cannot_see_it_is_a_warning(robot):
     """The calibration page's torque unit wrong (N-mm where the sensor
     reports N-m: every moment 1000 times small) at Q0, where the tool points
@@ -349,26 +367,37 @@ def test_the_rate_windows_on_cells_and_setups(case, period_s, conf_hz, true_hz, 
         assert judged >= n * period_s / 0.3 and 0.94 * conf_hz < least <= most < 1.06 * conf_hz
 
 
+@pytest.mark.parametrize("origin_s", [1000.0, 2.0e6 + 0.123])
 @pytest.mark.parametrize("every", [8, 16])
-def test_a_stream_slower_than_the_sensor_timeout_is_the_rate_fault(robot, every):
-    """One record every ``every`` messages (31 or 16 Hz where 1000 Hz is
-    configured) at the loop's default sensor timeout (20 ms: shorter than
-    the gaps): the sensor's fault at each gap, cleared by the next two
-    records, and the rate's windows judged over the time between (the
-    sensor's faults cut out of them, not a new count): the rate's fault
-    (42 Hz: a record each gap, of which the wait for the fault counted),
-    zero correction to the end.  (Before: every
-    silence restarted the count, no window was judged after the first two,
-    and the correction ramped in and out to the end: 55 sensor faults in 4
-    s, 187 of the last 500 answers carrying up to 0.017 deg.)"""
+def test_a_stream_slower_than_the_sensor_timeout_is_the_rate_fault(robot, every, origin_s):
+    """1000 Hz for 0.5 s, then one record every ``every`` messages (31 or
+    16 Hz where 1000 Hz is configured) at the loop's default sensor timeout
+    (20 ms: shorter than the gaps): the sensor's silence fault begins again
+    one timeout after each return of its records; the third such silence
+    in a row is the rate's fault, within 0.5 s of the stream's slowing, its
+    rate the records over the silences' span, and zero correction from
+    then on; the same verdict at whatever the clock's origin (``origin_s``:
+    its rounding moves a timeout met exactly at 5 periods by a message).
+    (Before: the rate's windows, with the sensor's faults cut out of them,
+    were judged only after about 3 s at 16 messages, up to 0.017 deg sent
+    meanwhile, and where depended on the clock's origin; before that, each
+    silence restarted the count: 55 sensor faults in 4 s, 187 of the last
+    500 answers corrected.)"""
     w = _air(robot) + PUSH
     loop, corr = _drive(robot, 1000, lambda seq: [w] * 4 if seq < 125 else [w] if seq % every == 0 else [],
-                        start_tolerance_N=math.inf)
+                        start_tolerance_N=math.inf, origin_s=origin_s)
     rc, dev = loop.rate_check, np.abs(corr).max(axis=1)
-    print(f"\n[one record every {every} messages] {loop.n.sensor_faults} sensor faults, the rate's at "
-          f"{rc['fault']:.3g} Hz; the last answer with a correction {int(np.flatnonzero(dev)[-1])}")
-    assert "sensor rate" in loop.faults and rc["fault"] < 200.0
-    assert dev[-100:].max() == 0.0
+    line = [ln for ln in loop.out.getvalue().splitlines() if "times in a row" in ln]
+    at = loop.faults.get("sensor rate")
+    at_msg = int(round(at / T)) if at is not None else None
+    print(f"\n[one record every {every} messages, origin {origin_s:g} s] {loop.n.sensor_faults} sensor faults, the "
+          f"rate's at message {at_msg}, {rc['fault']:.3g} Hz; the last answer with a correction "
+          f"{int(np.flatnonzero(dev)[-1])}" + (f"; {line[0].split('sensor: ')[-1][:120]}" if line else ""))
+    assert "sensor rate" in loop.faults and len(line) == 1 and rc["silences_in_a_row"] == RATE_WINDOWS + 1
+    assert 0.8 * 1e3 / (T * 1e3 * every) < rc["fault"] < 1.25 * 1e3 / (T * 1e3 * every)  # (the stream's own rate)
+    assert at_msg < 125 + 0.5 / T
+    # (the correction ramps down at the rate limit from the fault on: 0.017 deg at 5 deg/s is 4 ms: a message)
+    assert dev[at_msg + 2:].max() == 0.0
 
 
 def test_one_dropout_is_not_the_rate_fault_at_a_long_sensor_timeout(robot):

@@ -87,6 +87,10 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         self.out = out
         self.n = Counters()
         self.clock = SessionClock(settings.period_s)
+        # this PC's clock (s): every read the loop makes of it (the arrival stamps come with the messages and
+        # records, on the same clock); time.monotonic, or a test's scripted clock, so that its verdicts do not
+        # depend on where this PC's clock happens to stand
+        self.pc_time = time.monotonic
         self.faults = {}  # name -> start time
         self.ok_since_fault = 0
         self.t_session = 0.0
@@ -126,7 +130,7 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
     # ------------------------------------------------------------ events
 
     def now(self):
-        return time.monotonic() - self.t_start if self.t_start is not None else 0.0
+        return self.pc_time() - self.t_start if self.t_start is not None else 0.0
 
     def event(self, text):
         t = self.now()
@@ -211,7 +215,7 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
                 self.bound.sent()
         else:  # the controller holds the last target sent: the ramp goes on from its correction (MAX_STEP_PERIODS)
             self.comp.correction = list(self._corr_sent)
-        t_done = time.monotonic()
+        t_done = self.pc_time()
         self._count_saturation()  # (after the answer: counting only)
         age = t_done - self.latest_sample_time if self.latest_sample_time is not None else float("nan")
         self.n.compute_ms.add((t_done - t_arr) * 1e3)
@@ -290,7 +294,7 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         try:
             while True:
                 got = self.link.receive(self.s.egm_timeout_s)
-                now = time.monotonic()
+                now = self.pc_time()
                 if self.s.duration_s and now - self.t_start >= self.s.duration_s:
                     self.ended_by = "duration"
                     break
@@ -345,7 +349,7 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
                 # own arrival: late too, as the controller counts it: its cycle runs on its own clock)
                 self.cycle(msg, t_arr, dt, late=late, judge=started)
                 if self.log is not None:
-                    self.log.tick(time.monotonic())
+                    self.log.tick(self.pc_time())
                 self._safe_point()
         except KeyboardInterrupt:
             self.event("interrupted: the run ends")

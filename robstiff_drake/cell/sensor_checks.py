@@ -34,11 +34,18 @@ session (ramped down at the rate limit if it was not zero):
   real controller; a simulated or scripted one on a loaded PC stretches
   its own clock.  A controller's fault (its silence, a restart, its
   clock) starts the count again; the sensor's own (a silence, invalid
-  records) is cut out of the window: a stream slower than the sensor's
-  timeout flaps between that fault and two agreeing records, and its time
-  between them is judged (its own rate), where a single dropout only
-  pauses the count (of the wait before its fault, the sensor's timeout,
+  records) is cut out of the window, where a single dropout only pauses
+  the count (of the wait before its fault, the sensor's timeout,
   SILENCE_KEPT_S stays counted).
+* **a stream slower than the sensor's timeout** is a rate fault by
+  itself, without waiting for windows: its records never come within the
+  timeout, so the sensor's silence fault begins again as soon as the two
+  agreeing records that ended the last one have come (its windows are
+  then mostly cut out, and were judged only seconds later, the correction
+  ramping in and out meanwhile).  RATE_WINDOWS silences in a row that each
+  began within RECUR_TIMEOUTS timeouts (and two controller periods) of the
+  records' return are the fault; a dropout, however long, is one silence
+  followed by records that stay.
 
 Why the session stays faulted: neither a wrong calibration, tare, mass or
 mounting nor a wrong rate setting heals during a run; the one reading that
@@ -84,6 +91,13 @@ RATE_WINDOWS = 2
 # half the tolerance of a window, so a single dropout moves no window past it whatever --sensor-timeout-ms is,
 # while a stream whose gaps exceed the timeout is judged on them (up to this each: 20 ms at the default timeout)
 SILENCE_KEPT_S = 0.5 * RATE_TOLERANCE * RATE_WINDOW_S
+# A silence that begins within this many sensor timeouts (and two controller periods: the silence is judged at
+# the messages) of the records' return is the stream's own pace: the records of a stream slower than the timeout
+# stop again exactly one timeout after the two agreeing records that ended the last silence; records that stay
+# for twice as long came faster than the timeout for a while.  (Not a rate's tolerance: a stream that fails this
+# is too slow for the timeout the user set, whatever its rate; a flaky link that drops out for longer than the
+# timeout every few tens of ms is no usable stream either, and holding the correction at zero is the safe answer.)
+RECUR_TIMEOUTS = 2.0
 
 
 def start_tolerances(tolerance_N, tool_m):
@@ -111,10 +125,12 @@ class SensorChecks:
         self._rate_last = None  # (t_session, arrival) of the last message seen (None: none, or a window restarted)
         self._rate_tail = (0.0, 0.0)  # the window's time since its last record (controller's, PC's; s)
         self._rate_off = 0  # windows in a row off the same way (signed: + too fast, - too slow)
-        self._rate_seen = []  # the judged windows' rates (Hz): their least and most in the summary
+        self._silence_back = None  # when the records last returned after a sensor fault (t_session, s)
+        self._silence_row = 0  # silences in a row each soon after the records' return (beyond the first)
+        self._silence_from = (0.0, 0)  # the row's first silence (t_session, s) and the records counted since
         self.rate_check = {"configured_hz": self.s.sensor_rate_hz, "tolerance": RATE_TOLERANCE,
                            "window_s": RATE_WINDOW_S, "windows_judged": 0, "least_hz": None, "most_hz": None,
-                           "fault": None}
+                           "silences_in_a_row": 0, "fault": None}
 
     def _check_start(self, w):
         """The wrench ``w`` the chain starts on against the payload
@@ -166,6 +182,7 @@ class SensorChecks:
         simulated or scripted on a loaded PC stretches its own)."""
         if "sensor rate" in self.faults:
             return
+        self._silence_from = (self._silence_from[0], self._silence_from[1] + n_rec)
         last, self._rate_last = self._rate_last, (self.t_session, t_now)
         if any(name not in ("bound", "sensor start", "sensor") for name in self.faults):
             # (the controller's fault: a silence, a restart, a clock; its time not the stream's: counted anew)
@@ -207,6 +224,39 @@ class SensorChecks:
                                          f"{RATE_WINDOW_S:g} s in a row), not the {conf:g} Hz configured (more than "
                                          f"{RATE_TOLERANCE:.0%} off: the force filter is designed for that rate): "
                                          "the sensor's RDT rate or --sensor-rate-hz wrong; held for the session")
+
+
+    def _records_returned(self):
+        """Two agreeing records ended the sensor's fault (cell/sensor_intake.py)."""
+        self._silence_back = self.t_session
+
+    def _silence_began(self):
+        """The sensor's silence fault has just begun (no record within the
+        timeout): soon after the records' return, RATE_WINDOWS times in a
+        row, the "sensor rate" fault for the session (a stream slower than
+        the timeout), its rate the records counted since the row's first
+        silence over the controller's time since."""
+        if "sensor rate" in self.faults:
+            return
+        to, t = self.s.sensor_timeout_s, self.t_session
+        soon = RECUR_TIMEOUTS * to + 2.0 * self.s.period_s
+        if self._silence_back is not None and t - self._silence_back <= soon:
+            self._silence_row += 1
+        else:
+            self._silence_row, self._silence_from = 0, (t, 0)
+        rc = self.rate_check
+        rc["silences_in_a_row"] = max(rc["silences_in_a_row"], self._silence_row + 1)
+        if self._silence_row < RATE_WINDOWS:
+            return
+        span, n = t - self._silence_from[0], self._silence_from[1]
+        rate = n / span if span > 0 else 0.0
+        rc["fault"] = rate
+        self.fault_on("sensor rate", f"sensor: its records stopped for longer than the sensor timeout "
+                                     f"({to * 1e3:.0f} ms) {self._silence_row + 1} times in a row, each within "
+                                     f"{soon * 1e3:.0f} ms of their return ({n} records in {span:.3g} s of the "
+                                     f"controller's clock: {rate:.3g} Hz), not the {self.s.sensor_rate_hz:g} Hz "
+                                     "configured: the sensor's RDT rate, its network, or --sensor-rate-hz or "
+                                     "--sensor-timeout-ms wrong; held for the session")
 
 
 def _off(rate_hz, configured_hz):

@@ -12,7 +12,6 @@ against the configured one: cell/sensor_checks.py.
 Units: wrenches in N and N*m, sensor frame; times in s.
 """
 
-import time
 
 from robstiff_drake.model.compensator import guard_accepts
 
@@ -47,7 +46,7 @@ class SensorIntake:
         on that level at its message's pose)."""
         records = self.sensor.drain()
         self.n.sensor_records += len(records)
-        fresh = time.monotonic() - self.s.sensor_timeout_s
+        fresh = self.pc_time() - self.s.sensor_timeout_s
         recent = [w for w, t_arr, _, clipped in records[-START_RECORDS:]
                   if not clipped and all(v == v for v in w) and t_arr >= fresh]
         if recent:
@@ -94,6 +93,7 @@ class SensorIntake:
                     self.reseed_candidate = None
                     self.fault_off("sensor", "sensor: valid records again; guard and filter restarted on the new "
                                              "reading")
+                    self._records_returned()  # (a silence soon after: cell/sensor_checks.py)
                     if self.start_check_due:  # (no valid record at the start: its check on this first level)
                         self.start_check_due = False
                         self._check_start(list(w))
@@ -138,7 +138,10 @@ class SensorIntake:
                 and self.t_session - self.ts_sensor_good > to:
             invalid = self.t_sensor_invalid is not None and self.t_sensor_invalid >= self.t_sensor_good
             what = "invalid records (status flags, NaN or clipped), then none" if invalid else "no record"
+            began = "sensor" not in self.faults
             self.fault_on("sensor", f"sensor: {what} for {to * 1e3:.0f} ms")
+            if began and not invalid:
+                self._silence_began()  # (again soon after the records' return: a stream slower than the timeout)
             if not self.pending_reseed:
                 self.reseed_candidate = None  # (kept while it waits: the next record may agree with it)
             self.pending_reseed = True

@@ -142,7 +142,7 @@ class LoopStart:
         zero correction, then the start's slow work begun off this thread
         (cell/start_gate.py; the loop compensates once it has passed)."""
         self.t_start = self.t_last_msg = self.t_q_good = t_arr
-        self.t_sensor_good = time.monotonic()  # (the sensor's records are drained from now on)
+        self.t_sensor_good = self.pc_time()  # (the sensor's records are drained from now on)
         self.q_deg = list(msg.joints_deg)
         r = [math.radians(v) for v in msg.joints_deg]
         self.q = r if self._identity else self.robot.joint_map.to_model(r).tolist()

@@ -134,6 +134,12 @@ def _dispatch(args):
         if args.filter_kind == "lowpass" and not args.cutoff_hz < 0.5 * args.sensor_rate_hz:
             raise InputError(f"--cutoff-hz: cutoff {args.cutoff_hz:g} Hz must be between 0 and the Nyquist rate "
                              f"{0.5 * args.sensor_rate_hz:g} Hz (half --sensor-rate-hz)")
+        if not args.sensor_timeout_ms > 1e3 / args.sensor_rate_hz:
+            # (every gap between two records would be a silence: the sensor's fault would begin again after
+            # each record and, three times in a row, hold the correction at zero as a stream too slow)
+            raise InputError(f"--sensor-timeout-ms {args.sensor_timeout_ms:g}: must be longer than the time between "
+                             f"two records at --sensor-rate-hz {args.sensor_rate_hz:g} "
+                             f"({1e3 / args.sensor_rate_hz:.4g} ms)")
         if args.listen_port is None and args.protocol != "stream-motion":
             raise InputError(f"--listen-port (--egm-port) is required for --controller-protocol {args.protocol}")
         return compensate.run(listen_port=args.listen_port or 0, netft=args.netft, robot_yaml=args.robot,
