@@ -185,7 +185,7 @@ def test_the_loop_ramps_in_and_holds_the_bounds_when_all_is_well(robot):
 
 
 @pytest.mark.parametrize("fault", ["sensor NaN", "sensor silent", "clock frozen", "clock leaping",
-                                   "sequence leaping", "feedback outside the ranges"])
+                                   "clock 1.5 times fast", "sequence leaping", "feedback outside the ranges"])
 def test_every_lasting_fault_ramps_the_correction_to_zero_and_is_logged(robot, fault):
     """60 good messages (the correction ramped in), then the fault for 60
     messages: the correction never grows and reaches zero, one log line,
@@ -201,6 +201,8 @@ def test_every_lasting_fault_ramps_the_correction_to_zero_and_is_logged(robot, f
         tail = _messages(n_bad, Q0, seq0=n_good + 1, tm=lambda seq: (n_good - 1) * 4)
     elif fault == "clock leaping":  # 400 ms a message
         tail = _messages(n_bad, Q0, seq0=n_good + 1, tm=lambda seq: (n_good - 1) * 4 + 400 * (seq - n_good))
+    elif fault == "clock 1.5 times fast":  # 6 ms a 4 ms message: each step within the 3 ms allowed, their sum not
+        tail = _messages(n_bad, Q0, seq0=n_good + 1, tm=lambda seq: (n_good - 1) * 4 + 6 * (seq - n_good))
     elif fault == "sequence leaping":  # 10 numbers a message, the clock with it
         tail = _messages(n_bad, Q0, seq0=n_good + 1)
         for k, m in enumerate(tail):

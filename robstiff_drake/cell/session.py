@@ -15,9 +15,18 @@ stamp likewise) and the controller's clock (ms) must advance together.
   sequence's step times the period by more than ``CLOCK_TOL``): a fault;
   the reference advances by the sequence's step times the period (the
   clock's value is not used);
+* a clock whose steps each pass but add up away from the sequence's
+  (their sum since the session's start or restart more than the
+  tolerance off the sequence's steps times the period: a clock running
+  6 ms a 4 ms message, or a --period-ms the controller does not run): a
+  fault on every message while it lasts, the reference advancing by the
+  sequence's step (before, each step within the tolerance passed and the
+  reference ran at the clock's pace: 1.5 times the program's feed at 6 ms
+  a 4 ms message, the arm following it);
 * otherwise the reference advances by the clock's step, which is then
   within ``MAX_JUMP`` periods (+ the tolerance): a bounded step per
-  message, whatever the datagram says.
+  message, whatever the datagram says, and the reference's time within
+  the tolerance of the sequence's.
 
 * a run of older ones numbered on from 0 or 1 (``RESTART_RUN`` in a row,
   each one after the last, their clock with them, none newer between):
@@ -63,6 +72,13 @@ class SessionClock:
         # the run of messages behind the last one seen, each one after the one before: [first seq, seq, tm, count]
         self._behind = None
         self.restarted_from = None  # the first sequence number of the run taken as a restart (last "jump")
+        # the clock's steps taken (ms) minus the sequence's steps times the period, summed since the session's
+        # start or restart: the reference's time ahead of the sequence's, kept within the tolerance
+        self.drift_ms = 0.0
+        # why the last "clock" verdict: ("step", the clock's step ms, the sequence's ms) or ("drift", the sum
+        # it would reach ms, messages summed)
+        self.clock_reason = None
+        self._summed = 0
 
     @property
     def behind_run(self):
@@ -93,6 +109,7 @@ class SessionClock:
             if self._run_behind(int(seq), int(tm_ms)):
                 self.restarted_from, self._behind = self._behind[0], None
                 self.seq, self.tm = int(seq), int(tm_ms)
+                self.drift_ms, self._summed = 0.0, 0  # (a restart's clock starts again)
                 self.counts["jump"] += 1
                 return "jump", self.T
             self.counts["old"] += 1
@@ -105,6 +122,7 @@ class SessionClock:
         self.seq, self.tm = int(seq), int(tm_ms)
         if ds < 0 or ds > MAX_JUMP:
             self.counts["jump"] += 1
+            self.drift_ms, self._summed = 0.0, 0
             return "jump", self.T
         nominal_ms = ds * self.T_ms
         if not self.clock_runs:
@@ -112,7 +130,17 @@ class SessionClock:
             return "ok", nominal_ms * 1e-3
         if abs(dtm - nominal_ms) > self.tol_ms:
             self.counts["clock"] += 1
+            self.clock_reason = ("step", dtm, nominal_ms)
             return "clock", nominal_ms * 1e-3
+        drift = self.drift_ms + (dtm - nominal_ms)
+        if abs(drift) > self.tol_ms:
+            # (each step within the tolerance, their sum not: the clock runs at another pace than the sequence;
+            # the step not taken, the reference stays within the tolerance of the sequence's time)
+            self.counts["clock"] += 1
+            self.clock_reason = ("drift", drift, self._summed + ds)
+            return "clock", nominal_ms * 1e-3
+        self.drift_ms = drift
+        self._summed += ds
         self.counts["ok"] += 1
         return "ok", dtm * 1e-3
 

@@ -57,9 +57,17 @@ class SessionFaults:
             self.fault_on("sequence", f"{self.link.name}: {what} (sequence number {msg.seq} after {prev})")
         elif v == "clock":
             self.n.clock_faults += 1
-            self.fault_on("clock", f"{self.link.name}: the controller's clock disagrees with its sequence "
-                                   f"(time stamp {msg.tm_ms} ms at sequence number {msg.seq}); the reference "
-                                   "advances by the sequence")
+            why = self.clock.clock_reason
+            if why is not None and why[0] == "drift":
+                # (every step within the tolerance, their sum not: a clock at another pace, or --period-ms wrong)
+                what = (f"the controller's clock runs away from its sequence (its steps add up to {why[1]:+.0f} ms "
+                        f"beyond {why[2]} periods of {self.s.period_s * 1e3:g} ms, more than the "
+                        f"{self.clock.tol_ms:g} ms allowed; time stamp {msg.tm_ms} ms at sequence number {msg.seq}): "
+                        "its clock, or --period-ms not the controller's cycle")
+            else:
+                what = (f"the controller's clock disagrees with its sequence (time stamp {msg.tm_ms} ms at sequence "
+                        f"number {msg.seq})")
+            self.fault_on("clock", f"{self.link.name}: {what}; the reference advances by the sequence")
         else:
             self.ok_since_fault += 1
             if self.ok_since_fault >= CLEAR_MESSAGES and all(abs(c) < 1e-12 for c in self.comp.correction):
