@@ -242,11 +242,25 @@ def _controller_stalls(log_dir, deadline=False):
                                                             if late else [])
 
 
+def _real_time_stop_by_load(cell, out):
+    """In real time: the simulated controller's supervision stopped the pass on a target while this machine
+    made that controller or compensate late (sim-cell's JSON: late ticks, late or unanswered answers).  A real
+    controller is never late, and a late compensator's target taken after the one before was skipped is a
+    double step: the acceleration the supervision refuses is this machine's (docs/real_cell.md), not the
+    chain's.  ([] otherwise.)"""
+    if cell.returncode == 0 or "the controller refused a target" not in cell.stderr or not out.exists():
+        return []
+    res = json.loads(out.read_text())
+    late = {k: res.get(k) for k in ("late_ticks", "skipped_ticks", "late", "unanswered") if res.get(k)}
+    return [f"the controller refused a target with {late}"] if late else []
+
+
 def _run_pair_judged(tmp_path, model, payload, *, lockstep, scan_name=None, comp_extra=(), deadline=False, **kw):
     """_run_pair in a folder of its own (run1), judged on the loop's logic in lockstep: compensate's sensor
     silence at SENSOR_TIMEOUT_MS, and a run in which this machine stalled the lockstep controller for 100 ms
-    or compensate (_controller_stalls) run once more in a fresh folder (run2), saying why; the second run is
-    asserted whatever it shows.  ``scan_name``: sim-cell's --scan-out in the run's folder.  (run folder, sim-cell's and
+    or compensate (_controller_stalls), or a real-time pass stopped by the controller's supervision while this
+    machine made the pair late (_real_time_stop_by_load), run once more in a fresh folder (run2), saying why;
+    the second run is asserted whatever it shows.  ``scan_name``: sim-cell's --scan-out in the run's folder.  (run folder, sim-cell's and
     compensate's completed processes, sim-cell's JSON path)."""
     if lockstep:
         comp_extra = list(comp_extra) + ["--sensor-timeout-ms", str(SENSOR_TIMEOUT_MS)]
@@ -257,10 +271,13 @@ def _run_pair_judged(tmp_path, model, payload, *, lockstep, scan_name=None, comp
         cell, comp, out = _run_pair(run_dir, model, payload, lockstep=lockstep, comp_extra=comp_extra,
                                     cell_extra=cell_extra, **kw)
         stalls = _controller_stalls(run_dir / "log", deadline) if lockstep and comp.returncode == 0 else []
+        if not lockstep:
+            stalls = _real_time_stop_by_load(cell, out)
         if not stalls or attempt == 2:
             return run_dir, cell, comp, out
         print(f"attempt 1: this machine stalled the lockstep controller for 100 ms or more, or compensate past its "
-              f"deadline ({stalls}): run again")
+              f"deadline, or made the real-time pair late where the controller refused a target ({stalls}): run "
+              "again")
 
 
 @pytest.mark.parametrize("name, protocol", [("kr240_r2900", "egm"), ("kr240_r2900", "rsi"),
