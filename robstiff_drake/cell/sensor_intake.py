@@ -140,8 +140,9 @@ class SensorIntake:
             what = "invalid records (status flags, NaN or clipped), then none" if invalid else "no record"
             began = "sensor" not in self.faults
             self.fault_on("sensor", f"sensor: {what} for {to * 1e3:.0f} ms")
-            if began and not invalid:
-                self._silence_began()  # (again soon after the records' return: a stream slower than the timeout)
+            if began:
+                # (again soon after the records' return: a stream, or its valid records, slower than the timeout)
+                self._silence_began(invalid)
             if not self.pending_reseed:
                 self.reseed_candidate = None  # (kept while it waits: the next record may agree with it)
             self.pending_reseed = True
