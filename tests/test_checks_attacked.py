@@ -76,17 +76,20 @@ def _stalled(n, a, b):
 KHZ = np.arange(-0.05, 1000 * T + 0.1, 1e-3)  # a 1000 Hz stream's arrivals (s)
 
 
-@pytest.mark.parametrize("case", ["two 30 ms dropouts 0.1 s apart", "this PC stalled 40 ms, then a burst",
-                                  "the controller restarted mid-run"])
+@pytest.mark.parametrize("case", ["two 30 ms dropouts 0.1 s apart", "four 30 ms dropouts 0.2 s apart",
+                                  "this PC stalled 40 ms, then a burst", "the controller restarted mid-run"])
 def test_honest_cells_hiccups_are_no_rate_fault(robot, case):
-    """A network hiccup (two 30 ms dropouts 0.1 s apart), a stall of this
-    PC (40 ms without reading anything, the messages and records then read
-    in a burst, stamped at the stall's end), a controller restart (silent
-    20 ms, its sequence and clock from 1 again): no rate fault, the
-    correction on at the end.  (The same before: a guard, these cases
-    pass on main.)"""
+    """A network hiccup (two 30 ms dropouts 0.1 s apart; four 0.2 s apart,
+    one fewer than a flaky link's FLAKY_SILENCES in a second), a stall of
+    this PC (40 ms without reading anything, the messages and records then
+    read in a burst, stamped at the stall's end), a controller restart
+    (silent 20 ms, its sequence and clock from 1 again): no rate fault, the
+    correction on at the end.  (The same before: a guard, these cases pass
+    on main.)"""
     if case.startswith("two"):
         msgs, rec = plain(1000), _dropped(KHZ, [(0.5, 0.53), (0.6, 0.63)])
+    elif case.startswith("four"):
+        msgs, rec = plain(1000), _dropped(KHZ, [(0.5 + 0.2 * i, 0.53 + 0.2 * i) for i in range(4)])
     elif case.startswith("this PC"):
         msgs, rec = _stalled(1000, 0.5, 0.54), np.where((KHZ >= 0.5) & (KHZ < 0.54), 0.54, KHZ)
     else:
@@ -120,6 +123,26 @@ def test_streams_slower_than_the_timeout_are_the_rate_fault(robot, case, rate_hz
     assert at is not None and at < 0.7 / T + 125 and len(said) == 1, loop.out.getvalue()[-2000:]
     if invalid is not None:
         assert "its valid records stopped" in said[0] and "after invalid ones" in said[0], said
+    assert np.abs(corr[at + 2:]).max() == 0.0
+
+
+@pytest.mark.parametrize("case, invalid", [
+    ("30 ms dropouts every 130 ms", None),
+    ("one valid record in 16, the rest status-flagged", (np.arange(KHZ.size) % 16 != 0) & (KHZ > 0.5)),
+])
+def test_a_flaky_link_or_a_mostly_invalid_stream_is_the_rate_fault(robot, case, invalid):
+    """A 1000 Hz stream from 0.3 s (0.5 s) on: dropping out for 30 ms every
+    130 ms (each dropout a silence: the correction ramped to zero and in
+    again, a 7.7 Hz square wave on the joints), or with 15 of its 16
+    records invalid (the valid ones 16 ms apart, within the timeout: the
+    filter fed at 62.5 Hz): the rate's fault within 1.1 s, zero correction
+    from then on.  (Before: no fault in 6 s; the first flapped, 44 sensor
+    faults, its windows with the silences cut out 788-1000 Hz; the second
+    read 1000 Hz, records counted valid or not.)"""
+    rec = _dropped(KHZ, [(0.3 + 0.13 * i, 0.33 + 0.13 * i) for i in range(40)]) if invalid is None else KHZ
+    loop, corr = drive(robot, plain(1000), rec, invalid=invalid)
+    at = _rate_fault_message(loop)
+    assert at is not None and at < 1.1 / T + 125, loop.out.getvalue()[-2000:]
     assert np.abs(corr[at + 2:]).max() == 0.0
 
 

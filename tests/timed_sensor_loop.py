@@ -98,8 +98,8 @@ def summary(loop, corr, label):
     rc = loop.rate_check
     at = loop.faults.get("sensor rate")
     on = np.flatnonzero(dev > 1e-9)
-    least, most = (f"{rc['least_hz']:.0f}-{rc['most_hz']:.0f} Hz" if rc["least_hz"] is not None else "-")
+    spread = f"{rc['least_hz']:.0f}-{rc['most_hz']:.0f} Hz" if rc["least_hz"] is not None else "-"
     return (f"[{label}] rate fault at message {None if at is None else round(at / loop.s.period_s)}; "
             f"sensor faults {loop.n.sensor_faults}; most silences in a row {rc['silences_in_a_row']}; windows "
-            f"{rc['windows_judged']} ({least}); {int((dev > 1e-9).sum())} of {len(dev)} answers corrected, the last "
+            f"{rc['windows_judged']} ({spread}); {int((dev > 1e-9).sum())} of {len(dev)} answers corrected, the last "
             f"{int(on[-1]) if on.size else None}; faults at the end {sorted(loop.faults) or 'none'}")

@@ -63,6 +63,7 @@ Units: wrenches in N and N*m, sensor frame; rates in Hz; times in s.
 """
 
 import math
+from collections import deque
 
 # ASSUMPTION (the start check's default force tolerance, N; compensate's --start-tolerance-N): what an honest
 # start in the air reads beyond the calibration's prediction, summed: the calibration's residual (the payload
@@ -112,6 +113,13 @@ RECUR_TIMEOUTS = 2.0
 # slower than the configured rate by more than RATE_TOLERANCE (a stream slower than the timeout comes slower
 # than 1 / timeout, which the option's check keeps below the configured rate: caught so, where its rate is off)
 JITTER_PERIODS = 3.0
+# Silences that begin this often (within FLAKY_SPAN_S of the controller's clock), however long the records stay
+# between them, are a flaky link or sensor (a fault for the session, the jitter's allowance above as for a row): each
+# silence ramps the correction to zero and the records' return ramps it in again, a square wave at the link's pace on
+# the joints (30 ms dropouts every 130 ms: 7.7 Hz, near an arm's first modes).  A network hiccup, a few dropouts
+# 0.1 s apart, is fewer.  (Before: no fault; the windows, with the silences cut out, read 788-1000 Hz.)
+FLAKY_SILENCES = 5
+FLAKY_SPAN_S = 1.0
 
 
 def start_tolerances(tolerance_N, tool_m):
@@ -143,6 +151,8 @@ class SensorChecks:
         self._silence_row = 0  # silences in a row each soon after the records' return (beyond the first)
         self._silence_from = (0.0, 0)  # the row's first silence (t_session, s) and the records counted since
         self._silence_invalid = 0  # the row's silences that followed invalid records (status flags, NaN, clipped)
+        self._valid_total = 0  # valid records counted since the start
+        self._silences = deque()  # (t_session s, _valid_total) at the silences begun within FLAKY_SPAN_S
         self.rate_check = {"configured_hz": self.s.sensor_rate_hz, "tolerance": RATE_TOLERANCE,
                            "window_s": RATE_WINDOW_S, "windows_judged": 0, "least_hz": None, "most_hz": None,
                            "silences_in_a_row": 0, "fault": None}
@@ -187,7 +197,7 @@ class SensorChecks:
                                       "or the tool not in the air (--start-tolerance-N); held for the session")
 
     def _count_records(self, n_rec, t_now):
-        """This cycle's ``n_rec`` records (all, valid or not) into the rate's
+        """This cycle's ``n_rec`` valid records into the rate's
         window, judged when it spans RATE_WINDOW_S of the controller's clock
         (``t_session``), its rate over that span and over the span of this
         PC's clock between the same messages' arrivals (``t_now``, s); a
@@ -198,6 +208,7 @@ class SensorChecks:
         if "sensor rate" in self.faults:
             return
         self._silence_from = (self._silence_from[0], self._silence_from[1] + n_rec)
+        self._valid_total += n_rec
         last, self._rate_last = self._rate_last, (self.t_session, t_now)
         if any(name not in ("bound", "sensor start", "sensor") for name in self.faults):
             # (the controller's fault: a silence, a restart, a clock; its time not the stream's: counted anew)
@@ -256,10 +267,29 @@ class SensorChecks:
         valid record in 32, the rest status-flagged, flapped between the
         sensor's fault and two agreeing records for the run, 86 faults in
         6 s, the correction ramping in and out, and its windows read 1000
-        Hz: counted, valid or not.)"""
+        Hz: counted, valid or not.)  And FLAKY_SILENCES silences within
+        FLAKY_SPAN_S, however soon after the returns, are the fault too (a
+        flaky link)."""
         if "sensor rate" in self.faults:
             return
         to, t = self.s.sensor_timeout_s, self.t_session
+        conf = self.s.sensor_rate_hz
+        jitter_silences = to * conf <= JITTER_PERIODS  # (an honest stream's jitter makes silences at this timeout)
+        recent = self._silences
+        recent.append((t, self._valid_total))
+        while t - recent[0][0] > FLAKY_SPAN_S:
+            recent.popleft()
+        if len(recent) >= FLAKY_SILENCES:
+            span = t - recent[0][0]
+            rate = (self._valid_total - recent[0][1]) / span if span > 0 else 0.0
+            if not (jitter_silences and rate >= (1 - RATE_TOLERANCE) * conf):
+                self.rate_check["fault"] = rate
+                self.fault_on("sensor rate", f"sensor: no valid record for longer than the sensor timeout "
+                                             f"({to * 1e3:.0f} ms) {len(recent)} times in {span:.3g} s of the "
+                                             f"controller's clock (valid records at {rate:.4g} Hz over that span; "
+                                             f"{conf:g} Hz configured): a flaky link or sensor, or "
+                                             "--sensor-timeout-ms too short; held for the session")
+                return
         soon = RECUR_TIMEOUTS * to + 2.0 * self.s.period_s
         if self._silence_back is not None and t - self._silence_back <= soon:
             self._silence_row += 1
@@ -272,8 +302,7 @@ class SensorChecks:
             return
         span, n = t - self._silence_from[0], self._silence_from[1]
         rate = n / span if span > 0 else 0.0
-        conf = self.s.sensor_rate_hz
-        if to * conf <= JITTER_PERIODS and not self._silence_invalid and rate >= (1 - RATE_TOLERANCE) * conf:
+        if jitter_silences and not self._silence_invalid and rate >= (1 - RATE_TOLERANCE) * conf:
             return  # (silences an honest stream's jitter makes at this timeout, at its configured rate: row goes on)
         rc["fault"] = rate
         what = "its records stopped" if not self._silence_invalid else \
@@ -281,7 +310,7 @@ class SensorChecks:
              "or clipped)")
         self.fault_on("sensor rate", f"sensor: {what} for longer than the sensor timeout "
                                      f"({to * 1e3:.0f} ms) {self._silence_row + 1} times in a row, each within "
-                                     f"{soon * 1e3:.0f} ms of their return ({n} records, valid or not, in "
+                                     f"{soon * 1e3:.0f} ms of their return ({n} valid records in "
                                      f"{span:.3g} s of the controller's clock: {rate:.3g} Hz; {conf:g} Hz "
                                      "configured): the sensor's RDT rate or status, its network, or --sensor-rate-hz "
                                      "or --sensor-timeout-ms wrong; held for the session")
