@@ -23,7 +23,8 @@ session (ramped down at the rate limit if it was not zero):
   where 1000 Hz is configured puts the filter's corner 8 times lower (its
   lag: the loop's stability margin, cell/loop_guard.py), one at 2000 Hz
   twice higher (more noise through, less margin where the corner was
-  chosen near the loop check's limit).  Records are counted over windows
+  chosen near the loop check's limit).  Valid records (neither NaN,
+  status-flagged nor clipped: the filter runs on those) are counted over windows
   of RATE_WINDOW_S of the controller's clock (its messages' span: this
   PC's scheduling moves records between windows, never out of them), and
   RATE_WINDOWS windows in a row off by more than RATE_TOLERANCE the same
@@ -50,7 +51,10 @@ session (ramped down at the rate limit if it was not zero):
   the filter runs on).  Where the timeout is within JITTER_PERIODS record
   periods (a low --sensor-rate-hz), an honest stream's jitter makes such
   rows too: there the row is the fault only when its records also came
-  more than RATE_TOLERANCE slower than the configured rate.
+  more than RATE_TOLERANCE slower than the configured rate.  And
+  FLAKY_SILENCES silences within FLAKY_SPAN_S, however long the records
+  stay between them, are the fault too (a flaky link: each silence ramps
+  the correction out and in again), with the same allowance.
 
 Why the session stays faulted: neither a wrong calibration, tare, mass or
 mounting nor a wrong rate setting heals during a run; the one reading that
