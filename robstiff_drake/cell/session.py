@@ -21,8 +21,8 @@ stamp likewise) and the controller's clock (ms) must advance together.
   time summed, off the sequence's steps times the period; a step beyond
   the tolerance, the step's fault, counted in it up to the tolerance: a
   clock running 6 ms a 4 ms message, or a --period-ms the controller does
-  not run): a fault on every message
-  while it lasts, the reference advancing by the sequence's step (before,
+  not run): a fault on every message while it lasts, the reference
+  advancing by the sequence's step (before,
   each step within the tolerance passed and the reference ran at the
   clock's pace: 1.5 times the program's feed at 6 ms a 4 ms message, the
   arm following it).  The sum is the clock's own, never clamped: a clock
@@ -101,8 +101,9 @@ class SessionClock:
         # the reference's time ahead of the sequence's (ms): the clock's steps taken minus the sequence's steps
         # times the period, since the session's start or restart, kept within the tolerance
         self.drift_ms = 0.0
-        # the clock's own drift (ms): every step within the tolerance, minus the sequence's, summed since the
-        # session's start or restart (not clamped: a clock at another pace runs away in it, and stays the fault)
+        # the clock's own drift (ms): every step minus the sequence's (one beyond the tolerance up to it), summed
+        # since the session's start or restart, forgetting over PACE_HORIZON_S (not clamped: a clock at another
+        # pace runs away in it, and stays the fault)
         self.clock_drift_ms = 0.0
         # why the last "clock" verdict: ("step", the clock's step ms, the sequence's ms) or ("drift", the
         # clock's drift ms, periods summed, the drift allowed ms)
