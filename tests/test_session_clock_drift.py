@@ -45,7 +45,8 @@ def test_a_clock_at_another_pace_is_a_fault_and_the_reference_keeps_the_sequence
     3 ms allowed): the clock's fault from the message where the sum first
     passes 3 ms, and never CLEAR_MESSAGES consistent messages in a row
     after it (the loop's fault never clears: a clock at 4.5 ms stamps 4 and
-    5 ms in turn, and its 4 ms steps pass), and the reference's time within
+    5 ms in turn, and its sum, never clamped, keeps even its 4 ms steps the
+    fault: tests/test_checks_attacked.py), and the reference's time within
     3 ms of the sequence's (at 6 ms: before, 1.5 times it, 2 s ahead after
     1000 messages)."""
     from robstiff_drake.cell.compensate import CLEAR_MESSAGES

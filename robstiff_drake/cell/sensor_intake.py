@@ -71,6 +71,7 @@ class SensorIntake:
         # controller's clock (the logs' clock; strictly increasing whatever this PC's scheduling did)
         t0, span = self.t_logged, self.t_session - self.t_logged
         n_rec = len(records)
+        n_valid = 0  # (finite: neither NaN, status-flagged nor clipped; a spike the guard refuses is a record)
         for i, (w, t_arr, status, clipped) in enumerate(records):
             self.n.sensor_records += 1
             if clipped:
@@ -80,6 +81,7 @@ class SensorIntake:
                                f"carry; {self.n.sensor_clipped} so far): refused")
                 w = (float("nan"),) * 6
             finite = all(v == v for v in w)
+            n_valid += finite
             if self.log is not None:  # (formatted after the answer has left: cycle's end)
                 self._wrench_rows.append((t0 + span * (i + 1) / n_rec if span > 0 else t0 + 1e-6 * (i + 1), w))
             self.last_raw = list(w)
@@ -140,11 +142,14 @@ class SensorIntake:
             what = "invalid records (status flags, NaN or clipped), then none" if invalid else "no record"
             began = "sensor" not in self.faults
             self.fault_on("sensor", f"sensor: {what} for {to * 1e3:.0f} ms")
-            if began and not invalid:
-                self._silence_began()  # (again soon after the records' return: a stream slower than the timeout)
+            if began:
+                # (again soon after the records' return: a stream, or its valid records, slower than the timeout)
+                self._silence_began(invalid)
             if not self.pending_reseed:
                 self.reseed_candidate = None  # (kept while it waits: the next record may agree with it)
             self.pending_reseed = True
         if n_rec:
             self.t_logged = max(self.t_session, t0 + 1e-6 * n_rec)
-        self._count_records(n_rec, t_now)  # (the record rate on the controller's clock: cell/sensor_checks.py)
+        # (the valid records' rate on the controller's clock: cell/sensor_checks.py; before, invalid ones counted
+        # too: a 1000 Hz stream with 15 of 16 records status-flagged read 1000 Hz, its filter fed at 62.5 Hz)
+        self._count_records(n_valid, t_now)

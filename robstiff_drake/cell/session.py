@@ -16,17 +16,30 @@ stamp likewise) and the controller's clock (ms) must advance together.
   the reference advances by the sequence's step times the period (the
   clock's value is not used);
 * a clock whose steps each pass but add up away from the sequence's
-  (their sum since the session's start or restart more than the
-  tolerance off the sequence's steps times the period: a clock running
-  6 ms a 4 ms message, or a --period-ms the controller does not run): a
-  fault on every message while it lasts, the reference advancing by the
-  sequence's step (before, each step within the tolerance passed and the
-  reference ran at the clock's pace: 1.5 times the program's feed at 6 ms
-  a 4 ms message, the arm following it);
+  (their sum since the session's start or restart, forgetting over
+  ``PACE_HORIZON_S``, more than the tolerance, and ``PACE_TOL`` of the
+  time summed, off the sequence's steps times the period; a step beyond
+  the tolerance, the step's fault, counted in it up to the tolerance: a
+  clock running 6 ms a 4 ms message, or a --period-ms the controller does
+  not run): a fault on every message while it lasts, the reference
+  advancing by the sequence's step (before,
+  each step within the tolerance passed and the reference ran at the
+  clock's pace: 1.5 times the program's feed at 6 ms a 4 ms message, the
+  arm following it).  The sum is the clock's own, never clamped: a clock
+  0.75 % fast (4.03 ms a 4 ms message, rounded to whole ms: 4 ms steps
+  for 32 messages, then a 5) stays the fault once it is one (before, the
+  sum stopped at the tolerance, the 4 ms steps passed and the fault
+  cleared 446 times in a minute); a clock within ``PACE_TOL`` of the
+  sequence's pace is no fault (before, one 100 ppm fast faulted once
+  every 20 s, 500 ppm once every 4 s, each ramping the correction to zero
+  and back);
 * otherwise the reference advances by the clock's step, which is then
-  within ``MAX_JUMP`` periods (+ the tolerance): a bounded step per
-  message, whatever the datagram says, and the reference's time within
-  the tolerance of the sequence's.
+  within ``MAX_JUMP`` periods (+ the tolerance), or by the sequence's
+  where the clock's would take the reference's time more than the
+  tolerance from the sequence's (a clock within PACE_TOL: the reference
+  keeps the sequence's pace): a bounded step per message, whatever the
+  datagram says, and the reference's time within the tolerance of the
+  sequence's.
 
 * a run of older ones numbered on from 0 or 1 (``RESTART_RUN`` in a row,
   each one after the last, their clock with them, none newer between):
@@ -40,6 +53,8 @@ A controller whose clock does not run (every message stamped the same,
 e.g. tm = 0) is timed by its sequence numbers alone.
 """
 
+import math
+
 MAX_JUMP = 5  # cycles a sequence number may skip (lost datagrams) without a fault
 REORDER_WINDOW = 64  # how far back an old datagram is dropped quietly (not a fault)
 # Messages in a row, numbered on from 0 or 1 behind the last seen, that are a restart, not reordered datagrams (a
@@ -47,6 +62,17 @@ REORDER_WINDOW = 64  # how far back an old datagram is dropped quietly (not a fa
 # of them dropped unanswered, then the restart's fault (ramp to zero) as for a restart later in a session.
 RESTART_RUN = 3
 WRAP = 2**32  # sequence numbers and clocks are uint32 on every protocol here
+# How far a controller's clock may run from its cycle's pace (a fraction) before their sum's drift is a fault.
+# ASSUMPTION (no controller's manual at hand states how its time stamp is made): a stamp from another oscillator
+# than the cycle's (two quartz crystals of +-50 ppm: 100 ppm apart) or from an OS clock slewed by NTP (Linux's
+# adjtimex slews at most 500 ppm) is honest; twice the larger.  A clock at 4.004 ms a 4 ms message is the edge;
+# the reference keeps the sequence's time whatever the clock's pace (below).
+PACE_TOL = 1e-3
+# The clock's drift and the time it is allowed against are sums that forget over this horizon (s): an honest clock's
+# allowance (PACE_TOL of the time summed) stops growing at 10 ms, so a clock that runs away after an hour is the
+# fault as soon as after a minute (before it, a sum since the start allowed 3.6 s after an hour: a clock at 4.5 ms
+# a 4 ms message would have taken two minutes to be seen).
+PACE_HORIZON_S = 10.0
 
 
 def _signed(d):
@@ -72,13 +98,19 @@ class SessionClock:
         # the run of messages behind the last one seen, each one after the one before: [first seq, seq, tm, count]
         self._behind = None
         self.restarted_from = None  # the first sequence number of the run taken as a restart (last "jump")
-        # the clock's steps taken (ms) minus the sequence's steps times the period, summed since the session's
-        # start or restart: the reference's time ahead of the sequence's, kept within the tolerance
+        # the reference's time ahead of the sequence's (ms): the clock's steps taken minus the sequence's steps
+        # times the period, since the session's start or restart, kept within the tolerance
         self.drift_ms = 0.0
-        # why the last "clock" verdict: ("step", the clock's step ms, the sequence's ms) or ("drift", the sum
-        # it would reach ms, messages summed)
+        # the clock's own drift (ms): every step minus the sequence's (one beyond the tolerance up to it), summed
+        # since the session's start or restart, forgetting over PACE_HORIZON_S (not clamped: a clock at another
+        # pace runs away in it, and stays the fault)
+        self.clock_drift_ms = 0.0
+        # why the last "clock" verdict: ("step", the clock's step ms, the sequence's ms) or ("drift", the
+        # clock's drift ms, periods summed, the drift allowed ms)
         self.clock_reason = None
         self._summed = 0
+        self._paced_ms = 0.0  # the sequence's time the drift is summed over (ms), forgetting as it does
+        self._running_away = False  # (the clock's drift a fault: it ends 1 ms, the clock's resolution, further in)
 
     @property
     def behind_run(self):
@@ -109,7 +141,8 @@ class SessionClock:
             if self._run_behind(int(seq), int(tm_ms)):
                 self.restarted_from, self._behind = self._behind[0], None
                 self.seq, self.tm = int(seq), int(tm_ms)
-                self.drift_ms, self._summed = 0.0, 0  # (a restart's clock starts again)
+                # (a restart's clock starts again)
+                self._restart_drift()
                 self.counts["jump"] += 1
                 return "jump", self.T
             self.counts["old"] += 1
@@ -122,7 +155,7 @@ class SessionClock:
         self.seq, self.tm = int(seq), int(tm_ms)
         if ds < 0 or ds > MAX_JUMP:
             self.counts["jump"] += 1
-            self.drift_ms, self._summed = 0.0, 0
+            self._restart_drift()
             return "jump", self.T
         nominal_ms = ds * self.T_ms
         if not self.clock_runs:
@@ -131,18 +164,36 @@ class SessionClock:
         if abs(dtm - nominal_ms) > self.tol_ms:
             self.counts["clock"] += 1
             self.clock_reason = ("step", dtm, nominal_ms)
+            # (into the clock's drift as far as a step may go: one stamp late beyond the tolerance, the next
+            # back, adds nothing; a clock set forward once, a tolerance at most)
+            self._sum_drift(ds, max(-self.tol_ms, min(self.tol_ms, dtm - nominal_ms)))
             return "clock", nominal_ms * 1e-3
-        drift = self.drift_ms + (dtm - nominal_ms)
-        if abs(drift) > self.tol_ms:
+        self._sum_drift(ds, dtm - nominal_ms)
+        allowed = self.tol_ms + PACE_TOL * self._paced_ms - (1.0 if self._running_away else 0.0)
+        self._running_away = abs(self.clock_drift_ms) > allowed
+        if self._running_away:
             # (each step within the tolerance, their sum not: the clock runs at another pace than the sequence;
             # the step not taken, the reference stays within the tolerance of the sequence's time)
             self.counts["clock"] += 1
-            self.clock_reason = ("drift", drift, self._summed + ds)
+            self.clock_reason = ("drift", self.clock_drift_ms, self._summed, allowed)
             return "clock", nominal_ms * 1e-3
-        self.drift_ms = drift
-        self._summed += ds
+        drift = self.drift_ms + (dtm - nominal_ms)
         self.counts["ok"] += 1
+        if abs(drift) > self.tol_ms:
+            return "ok", nominal_ms * 1e-3  # (a clock within PACE_TOL: the reference keeps the sequence's pace)
+        self.drift_ms = drift
         return "ok", dtm * 1e-3
+
+    def _restart_drift(self):
+        self.drift_ms, self.clock_drift_ms, self._summed, self._paced_ms, self._running_away = 0.0, 0.0, 0, 0.0, False
+
+    def _sum_drift(self, ds, err_ms):
+        """The clock's step ``err_ms`` off the sequence's ``ds`` periods into its drift (forgetting over
+        PACE_HORIZON_S, as the time it is allowed against)."""
+        keep = math.exp(-ds * self.T / PACE_HORIZON_S)
+        self._summed += ds
+        self._paced_ms = self._paced_ms * keep + ds * self.T_ms
+        self.clock_drift_ms = self.clock_drift_ms * keep + err_ms
 
     def jump_text(self, seq, previous):
         return f"sequence number {seq} after {previous}"

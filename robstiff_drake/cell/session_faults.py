@@ -60,9 +60,9 @@ class SessionFaults:
             why = self.clock.clock_reason
             if why is not None and why[0] == "drift":
                 # (every step within the tolerance, their sum not: a clock at another pace, or --period-ms wrong)
-                what = (f"the controller's clock runs away from its sequence (its steps add up to {why[1]:+.0f} ms "
+                what = (f"the controller's clock runs away from its sequence (its steps add up to {why[1]:+.1f} ms "
                         f"beyond {why[2]} periods of {self.s.period_s * 1e3:g} ms, more than the "
-                        f"{self.clock.tol_ms:g} ms allowed; time stamp {msg.tm_ms} ms at sequence number {msg.seq}): "
+                        f"{why[3]:.3g} ms allowed; time stamp {msg.tm_ms} ms at sequence number {msg.seq}): "
                         "its clock, or --period-ms not the controller's cycle")
             else:
                 what = (f"the controller's clock disagrees with its sequence (time stamp {msg.tm_ms} ms at sequence "
