@@ -3,11 +3,12 @@ names the mode and its cause, states a criterion its own numbers satisfy,
 and advises a step that itself passes the check, the same step from
 whichever refused step it is asked (a newcomer followed 2 ms -> 1.1 ms ->
 0.5 ms).  Its line says what is wrong and the fix, in at most 250
-characters (before: one line of ~900); the detail (the mode's damping and
-motor share, the motor inertia, assumed or given, the bound with its
-numbers) is its ``why``, printed after the error's line, indented.  A robot file without motor_inertia_kgm2 (the shipped KR 240 file
-with that key removed: the wrist's rotor then assumed as light as its
-link, model/joint_dynamics.motor_inertia) and the shipped IRB 6400."""
+characters (before: one line of 624 to 957); the detail (the mode's
+damping and motor share, the motor inertia, assumed or given, the bound
+with its numbers) is its ``why``, printed after the error's line,
+indented.  A robot file without motor_inertia_kgm2 (the shipped KR 240
+file with that key removed: the wrist's rotor then assumed as light as
+its link, model/joint_dynamics.motor_inertia) and the shipped IRB 6400."""
 
 import re
 

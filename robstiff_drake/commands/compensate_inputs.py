@@ -188,8 +188,8 @@ def payload_robot_note(robot, cal, payload, robot_spec=None):
     None for either that does not apply.  ``robot_spec``: --robot as given
     (a file's path), for the advice."""
     if cal.robot is None or not str(cal.robot).strip():
-        return None, (f"--payload {payload} names no robot (payload_calibration.robot; written before calibrate-payload "
-                      f"recorded it): not checked against {robot.name}")
+        return None, (f"--payload {payload} names no robot (payload_calibration.robot; written before "
+                      f"calibrate-payload recorded it): not checked against {robot.name}")
     if cal.robot != robot.name:
         return (f"--payload {payload}: calibrated with the robot {str(cal.robot)[:80]!r}, not {robot.name!r} "
                 f"({robot.source}): its gravity directions came from another arm's kinematics; calibrate again "

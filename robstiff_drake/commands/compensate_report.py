@@ -11,7 +11,8 @@ def report(loop, link, guard, background, stream_log, *, log, job, inputs, notes
     """Say how the run went.  ``inputs``: summary.json's description of the
     run (protocol first, then the endpoints, files and settings); ``notes``:
     (the play's warning or None, the play's summary, the correction bound's
-    warning or None, the payload calibration's warnings: a list); ``missing``: (--servo, --cutter-diameter-mm) as given."""
+    warning or None, the payload calibration's warnings: a list);
+    ``missing``: (--servo, --cutter-diameter-mm) as given."""
     play_line, play_summary, bound_line, payload_lines = notes
     stats = loop.stats()
     cm = stats["compute_ms"]

@@ -150,7 +150,7 @@ def _comma_file(cells, columns, delim):
     return delim != "," and any("," in row[c] for c in columns for row in cells)
 
 
-def _comma_column(path, data, cells, col, name, values):
+def _comma_column(path, data, col, name, values):
     """A decimal-comma column's cells with the comma made a point, or
     InputError at the first cell holding a '.' (a thousands separator, or a
     number written with a point in a file of decimal commas)."""
@@ -174,7 +174,7 @@ def _numeric_column(path, data, cells, col, name, limits, decimal_comma=False, s
     have decimal commas (``_comma_file``).  ``scale``: (factor, the file's
     unit): the values times factor are in the limits' unit."""
     written = [row[col] for row in cells]
-    values = _comma_column(path, data, cells, col, name, written) if decimal_comma else written
+    values = _comma_column(path, data, col, name, written) if decimal_comma else written
     arr = None
     if _COLUMN.fullmatch("\n".join(values)):
         arr = np.array(values, dtype=float)
@@ -212,7 +212,7 @@ def _parse_cell(value, written, where):
     return parse_number(written, where)
 
 
-def _split_decimals(path, lineno, values, header, numeric):
+def _split_decimals(values, header, numeric):
     """The hint for a ','-separated row with more cells than its header:
     the first place where two cells could be one number with a decimal
     comma ('' when none could)."""
@@ -278,7 +278,7 @@ def read_table(path, *, required, optional=(), text_columns=(), ranges=None, ren
     numeric_names = [c for c in list(required) + list(optional) if c in seen]
     for (lineno, _), values in zip(data, cells):
         if len(values) != len(header):
-            more = _split_decimals(path, lineno, values, header, numeric_names) \
+            more = _split_decimals(values, header, numeric_names) \
                 if delim == "," and len(values) > len(header) else ""
             raise InputError(f"{path}:{lineno}: expected {len(header)} cells (as in the header), got {len(values)}"
                              f"{more}")
