@@ -225,17 +225,15 @@ def _split_decimals(values, header, numeric):
     return ""
 
 
-def read_table(path, *, required, optional=(), text_columns=(), ranges=None, rename=None, decimal_comma=False,
-               units=None):
+def read_table(path, *, required, optional=(), text_columns=(), ranges=None, rename=None, units=None):
     """Read a measurement CSV.  ``required``/``optional`` columns are parsed
     as finite floats (within ``ranges``: {column: (lo, hi, unit)}, when
     given); ``text_columns`` are kept as strings; any other column is kept
     as text and ignored.  ``rename``: a function from a header cell (lower
     case, stripped) to the column's name (aliases, units in the header);
-    ``decimal_comma``: kept for callers; a ';'- or tab-separated file's
-    decimal commas are read whatever it says (see the module docstring);
     ``units``: a function from a column's name to (factor, the file's unit)
-    that converts it to the unit of ``ranges`` before the check."""
+    that converts it to the unit of ``ranges`` before the check.  A ';'- or
+    tab-separated file's decimal commas are read (the module docstring)."""
     path = Path(path)
     raw, encoding = decode_text(path)
     comments, rows = [], []
