@@ -10,7 +10,9 @@ Every reader of a user file calls ``note_input(path, named_by)``; io's
 conflict (OutputError, one line naming the option, the output and the file
 that named the input); io's writes check once more before they rename.
 ``input_warning(message)``: a warning about an input file, found by its
-reader, printed at once and carried into the command's Warnings and JSON.
+reader, printed at once and carried into the command's Warnings and JSON;
+``input_note(message)``: what a reader did that the user should know
+(e.g. decimal commas read), printed once on stderr unless --quiet.
 Outside a scope (library use) nothing is recorded and nothing printed.
 """
 
@@ -30,6 +32,7 @@ class Command:
         self.inputs = {}  # path as given -> what named it ("" for the command line)
         self.outputs = []  # (option, path, is_folder), declared by io.check_outputs
         self.input_warnings = []
+        self.input_notes = []
         self.staged = None  # [(temporary file, target, path)] inside io.staged_outputs()
 
 
@@ -118,4 +121,17 @@ def input_warning(message):
     if _CURRENT is not None and message not in _CURRENT.input_warnings:
         _CURRENT.input_warnings.append(message)
         print(f"robstiff: warning: {message}", file=sys.stderr)
+    return message
+
+
+def input_note(message):
+    """A note on how an input file was read (not a warning: the result is
+    as the user meant it): printed once, at once, on stderr unless quiet.
+    Returns the one-line message (outside a command: only that)."""
+    message = one_line(" ".join(str(message).split()))
+    if _CURRENT is not None and message not in _CURRENT.input_notes:
+        _CURRENT.input_notes.append(message)
+        from robstiff_drake.progress import info
+
+        info(f"robstiff: note: {message}", file=sys.stderr)
     return message

@@ -56,7 +56,7 @@ def write_inputs(folder, robot, *, feed_mm_per_s=20.0, duration_s=3.0, robot_nam
     payload = os.path.join(folder, "payload.yaml")
     with open(payload, "w") as f:
         f.write("# test payload calibration: the robot file's payload and a made-up bias\npayload_calibration:\n"
-                f"  mass_kg: {float(cal.mass_kg)}\n  com_mm: {[float(v) for v in cal.com_mm]}\n"
+                f"  robot: {robot.name}\n  mass_kg: {float(cal.mass_kg)}\n  com_mm: {[float(v) for v in cal.com_mm]}\n"
                 f"  force_bias_N: {[float(v) for v in cal.force_bias_N]}\n"
                 f"  torque_bias_Nm: {[float(v) for v in cal.torque_bias_Nm]}\n  sensor_mount_rpy_deg: [0.0, 0.0, 0.0]\n")
     # a straight pass along x at the feed for 3 s (60 mm), then at rest; by IK every 4 ms

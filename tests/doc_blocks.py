@@ -19,7 +19,8 @@ line just above its fence, an HTML comment the rendered page does not show
     run the block's commands that have these options with these values
     instead (a sweep of 60 runs as 4): options the commands document.
 ``<!-- run: exit 2 -->``
-    every command of the block must fail with exit status 2 and one line.
+    every command of the block must fail with exit status 2 and one line
+    (and, for a refusal with a detail, its indented ``why:`` lines).
 ``<!-- run: share -->``
     the block reads nothing from its page's folder: it runs once per test
     session in an empty folder of its own, by the first page to reach it,

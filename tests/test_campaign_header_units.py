@@ -99,6 +99,22 @@ def test_the_plausible_range_is_checked_in_the_campaigns_units(tmp_path):
         read_stiffness_campaign(tmp_path / "big.csv", ROBOT)
 
 
+def test_a_value_in_the_ranges_own_unit_is_printed_once(tmp_path):
+    """dx [mm] of -224 is outside the range in the unit it is written in: '-224 mm', not the
+    redundant '-224 mm (-224 mm)' (before)."""
+    text = _in_units(campaign_text(), lambda h: ("dx [mm]", 1.0) if h == "dx" else (h, None))
+    lines = text.splitlines()
+    i = next(k for k, ln in enumerate(lines) if not ln.startswith("#")) + 1
+    cells, head = lines[i].split(","), lines[i - 1].split(",")
+    cells[head.index("dx [mm]")] = "-224"
+    lines[i] = ",".join(cells)
+    (tmp_path / "big.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(InputError) as e:
+        read_stiffness_campaign(tmp_path / "big.csv", ROBOT)
+    assert "(dx): -224 mm is outside the plausible range [-100, 100] mm" in str(e.value), str(e.value)
+    assert "(-224 mm)" not in str(e.value)
+
+
 def test_the_fanuc_campaign_with_its_units_in_the_header(tmp_path):
     """The FANUC R-2000iC campaign (../shared/realdata) as its source gives
     it, rad and m, with the units written into the header: the same

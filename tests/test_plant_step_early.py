@@ -33,7 +33,10 @@ def _refused_before(tmp_path, capsys, monkeypatch, module, name, argv):
     assert main([argv[0], str(job), "--out", str(out), *argv[1:]]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     errors = [ln for ln in err if ln.startswith("robstiff: error:")]
-    assert len(errors) == 1 and err[-1] == errors[0], err
+    # the error's line, then only its indented why (diagrams/plant_step.StepRefusal)
+    at = err.index(errors[0])
+    assert len(errors) == 1 and err[at + 1].startswith("  why: ") and all(ln.startswith("       ")
+                                                                          for ln in err[at + 2:]), err
     assert "plant_config.time_step" in errors[0] and "unstable" in errors[0] and "job.yaml" in errors[0]
     assert not out.exists()
 

@@ -101,7 +101,9 @@ def test_sweep_bad_input(capsys, tmp_path, argv, message):
     out = tmp_path / "x.json"
     code, _, err = cli(capsys, "sweep", SHORT, *argv, "--json", out, "--workers", "1", "--no-predict")
     assert code == 2
-    assert len(err.strip().splitlines()) == 1 and message in err, err
+    lines = err.strip().splitlines()  # one line; a refused plant step's why after it, indented (main.py)
+    assert lines[0].startswith("robstiff: error: ") and message in lines[0], err
+    assert all(ln.startswith("  why: " if i == 1 else "       ") for i, ln in enumerate(lines) if i), err
     assert not out.exists()  # no partial JSON presented as complete
 
 

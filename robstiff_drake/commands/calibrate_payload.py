@@ -20,11 +20,12 @@ def run(*, data, json_out=None, yaml_out=None, mount_rpy=None, robot_yaml=None):
     campaign = read_payload_campaign(data, robot)
     fit = calibrate(robot, campaign, mount_rpy_deg=mount)
     warnings.extend_from(check_payload_fit(fit, robot, campaign.path))
-    block = yaml_block(fit, data)
+    block = yaml_block(fit, data, robot.name)
     with staged_outputs():  # both files or neither
         if json_out is not None:
             emit_json({
                 "data": campaign.path,
+                "robot": robot.name,
                 "mass_kg": fit.mass_kg,
                 "mass_std_kg": fit.mass_std_kg,
                 "com_mm": fit.com_m * 1e3,

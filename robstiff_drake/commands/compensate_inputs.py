@@ -176,3 +176,22 @@ def payload_mass_note(robot, cal, payload):
             f"another robot (calibrate-payload --robot {robot.name})? The gravity removal takes the calibration's; "
             f"{abs(cal_kg - file_kg):.1f} kg off is {9.81 * abs(cal_kg - file_kg):.0f} N of force compensated as "
             "if it were the cut's")
+
+
+def payload_robot_note(robot, cal, payload, robot_spec=None):
+    """(warning, note) on the robot the payload calibration ``cal`` (read
+    from ``payload``) was computed with: a warning when its
+    payload_calibration.robot is not ``robot``'s name (another arm's
+    kinematics turn the same joint angles into other gravity directions: a
+    KR 210 campaign computed with the IRB 6400's cut 0.1 mm shallow), a note
+    when the file names none (written before calibrate-payload named it);
+    None for either that does not apply.  ``robot_spec``: --robot as given
+    (a file's path), for the advice."""
+    if cal.robot is None or not str(cal.robot).strip():
+        return None, (f"--payload {payload} names no robot (payload_calibration.robot; written before "
+                      f"calibrate-payload recorded it): not checked against {robot.name}")
+    if cal.robot != robot.name:
+        return (f"--payload {payload}: calibrated with the robot {str(cal.robot)[:80]!r}, not {robot.name!r} "
+                f"({robot.source}): its gravity directions came from another arm's kinematics; calibrate again "
+                f"with `calibrate-payload DATA.csv --robot {robot_spec or robot.name}`"), None
+    return None, None

@@ -11,8 +11,9 @@ def report(loop, link, guard, background, stream_log, *, log, job, inputs, notes
     """Say how the run went.  ``inputs``: summary.json's description of the
     run (protocol first, then the endpoints, files and settings); ``notes``:
     (the play's warning or None, the play's summary, the correction bound's
-    warning or None); ``missing``: (--servo, --cutter-diameter-mm) as given."""
-    play_line, play_summary, bound_line = notes
+    warning or None, the payload calibration's warnings: a list);
+    ``missing``: (--servo, --cutter-diameter-mm) as given."""
+    play_line, play_summary, bound_line, payload_lines = notes
     stats = loop.stats()
     cm = stats["compute_ms"]
     print(f"robstiff: compensate: {stats['messages']} messages, {stats['answered']} answered; computation per message "
@@ -45,7 +46,8 @@ def report(loop, link, guard, background, stream_log, *, log, job, inputs, notes
                "preview_table": table,
                "cycles": stats, "health": h, "loop_check": guard.result, "play": play_summary,
                "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])
-               + ([play_line] if play_line else []) + ([bound_line] if bound_line else []) + checks}
+               + list(payload_lines) + ([play_line] if play_line else []) + ([bound_line] if bound_line else [])
+               + checks}
     written = stream_log.close(summary)
     wrote(log, ", ".join(written), folder=True, to_stderr=True)
     servo, cutter_diameter_mm = missing

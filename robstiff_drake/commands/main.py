@@ -189,6 +189,22 @@ def _error_text(e):
     return text if len(text) <= MAX_ERROR_CHARS else text[:MAX_ERROR_CHARS - 3] + "..."
 
 
+# An error's detail (an InputError's ``why``: the numbers behind a refusal whose line says what is wrong and the
+# fix, e.g. the plant step's, diagrams/plant_step.py) follows its line, indented, wrapped to this width.
+WHY_WIDTH = 100
+
+
+def _why_text(e):
+    """The error's indented 'why' section ('' when it has none)."""
+    why = getattr(e, "why", None)
+    if not why:
+        return ""
+    import textwrap
+
+    return textwrap.fill(one_line(why)[:4 * MAX_ERROR_CHARS], width=WHY_WIDTH, initial_indent="  why: ",
+                         subsequent_indent="       ", break_on_hyphens=False)
+
+
 def _on_sigterm(signum, frame):
     raise Terminated()
 
@@ -214,6 +230,9 @@ def main(argv=None):
     except InputError as e:
         prog = getattr(e, "prog", "robstiff")
         print(f"{prog}: error: {_error_text(e)}", file=sys.stderr)
+        why = _why_text(e)
+        if why:
+            print(why, file=sys.stderr)
         return 2
     except BrokenPipeError:  # e.g. `robstiff demo | head`
         import os

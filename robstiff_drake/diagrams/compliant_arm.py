@@ -25,6 +25,7 @@ from robstiff_drake.model import servo as servo_model
 from robstiff_drake.diagrams.plant_step import (  # noqa: F401  (the step's checks, imported from here too)
     RESOLVED_OMEGA_H,
     TOOTH_STEPS_PER_PASS,
+    StepError,
     contact_frequencies_hz,
     resolving_step_s,
     step_on_grid_s,
@@ -33,6 +34,7 @@ from robstiff_drake.diagrams.plant_step import (  # noqa: F401  (the step's chec
     under_resolved_play_message,
     unresolved_tooth_message,
     unstable_step_message,
+    unstable_step_refusal,
 )
 from robstiff_drake.plant import add_robot, check_plant_matches
 from robstiff_drake.systems.gear_transmission import GearPlay
@@ -224,7 +226,7 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     while omega h < 2, but the motors' side, stepped with the torque held,
     feeds a mode that moves a motor, so such a mode holds only to a
     smaller omega h set by its damping (model/joint_dynamics.py; checked
-    on the step map: diagrams/plant_step.unstable_step_message).
+    on the step map: diagrams/plant_step.unstable_step_refusal).
 
     Returns a dict: plant, controller_plant (the controller's model: keep it
     alive with the diagram), ``position_command`` and ``velocity_command``
@@ -256,10 +258,10 @@ def add_compliant_arm(builder, *, robot, plant_config, joint_stiffness_Nm_per_ra
     Kg = joint_dynamics.stiffness_matrix(k, coupling_c23_rad_per_Nm)
     jm = arm_joints(ctrl, robot, q_modes_rad, Kg, damping_ratios, servo, damping_on)
     servo = jm.servo  # (its integral corner chosen)
-    why = (unstable_step_message(jm, h, assumed_motor_inertia=robot.motor_inertia_kgm2 is None)
-           if check_stability else None)
-    if why:
-        raise ValueError(why)
+    refusal = (unstable_step_refusal(jm, h, assumed_motor_inertia=robot.motor_inertia_kgm2 is None)
+               if check_stability else None)
+    if refusal:
+        raise StepError(refusal)  # (its line the error, its detail the why: diagrams/plant_step.py)
 
     # the robot controller: absolute-accuracy gravity model, interpolator, drives
     cmd_in = builder.AddNamedSystem("position_command_in", Multiplexer([6]))

@@ -104,7 +104,9 @@ def build_station(sc, robot, *, q_modes_rad, path=None):
         return make_milling_station(sc, robot, path=path, force_model=fmodel, workpiece=workpiece,
                                     q_modes_rad=q_modes_rad)
     except ValueError as e:
-        raise InputError(f"{sc.source}: plant_config.time_step: {e}") from None
+        error = InputError(f"{sc.source}: plant_config.time_step: {e}")
+        error.why = getattr(e, "why", None)  # (the refusal's detail, printed after its line: commands/main.py)
+        raise error from None
 
 
 def check_plant_step(sc, robot):

@@ -4,6 +4,7 @@ tooth-resolved cutting force), the step that would, and, for a scenario
 that gives no step, the step the station takes (``scenario_step_s``):
 the largest one up to DEFAULT_MAX_STEP_S that does all of it."""
 
+from typing import NamedTuple
 
 import numpy as np
 
@@ -67,22 +68,44 @@ def growing_mode(jm, time_step_s):
             "motor_share": float(motor_ke[j] / (link_ke + motor_ke.sum()))}
 
 
-def unstable_step_message(jm, time_step_s, assumed_motor_inertia=False):
+class StepRefusal(NamedTuple):
+    """Why a plant step is refused: ``line``, what is wrong and the fix (one
+    line, about 200 characters: the step, the mode and its joint, the step
+    that passes); ``why``, the detail (the mode's damping and motor share,
+    its motor's rotor inertia, given or assumed, the criterion with its
+    numbers), or None."""
+
+    line: str
+    why: str | None
+
+
+class StepError(ValueError):
+    """A refused plant step (a ValueError, as the station's other
+    refusals), its detail in ``why`` (printed after the error's line:
+    commands/main.py)."""
+
+    def __init__(self, refusal):
+        super().__init__(refusal.line)
+        self.why = refusal.why
+
+
+def unstable_step_refusal(jm, time_step_s, assumed_motor_inertia=False):
     """None when the plant step keeps every mode of the joints ``jm``
-    stable, else why not and the step that would do (one line: the mode,
-    which joint's gear and motor carry it, the criterion with its numbers,
-    the step on the sensor's grid that passes this check, and, when
-    ``assumed_motor_inertia`` (the robot file gives no motor_inertia_kgm2:
-    joint_dynamics.motor_inertia's assumption), the datasheet value as the
-    other way out)."""
+    stable, else a StepRefusal: the line names the mode and which joint's
+    gear and motor carry it, and the step on the sensor's grid that passes
+    this check (and, when ``assumed_motor_inertia``, the robot file gives no
+    motor_inertia_kgm2: joint_dynamics.motor_inertia's assumption, the
+    datasheet value as the other way out); the why, the criterion with its
+    numbers and the assumed inertia."""
     if jm.is_stable_step(time_step_s):
         return None
     lam = np.linalg.eigvals(jm.continuous()[0])
     worst = lam[np.argmax(lam.real)]
     if worst.real >= 0.0:  # no step helps: the loop itself grows
-        return (f"the joints' loop is unstable whatever the step: its {abs(worst) / (2 * np.pi):.1f} Hz mode grows "
-                f"(the drives' loops against too lightly damped gears): raise plant.modal_damping_ratio or "
-                f"plant.damping_ratios, or lower servo.velocity_integral_hz")
+        return StepRefusal(f"the joints' loop is unstable whatever the step: its {abs(worst) / (2 * np.pi):.1f} Hz "
+                           f"mode grows (the drives' loops against too lightly damped gears): raise "
+                           f"plant.modal_damping_ratio or plant.damping_ratios, or lower servo.velocity_integral_hz",
+                           None)
     h = float(time_step_s)
     ok = stable_step_on_grid_s(jm, h)
     edge = _stable_limit_s(jm, ok or 0.0, h)
@@ -96,19 +119,31 @@ def unstable_step_message(jm, time_step_s, assumed_motor_inertia=False):
         motor = (f"; its motor's rotor inertia is assumed, {jm.motor_inertia_kgm2[j]:.3g} kg*m^2 = the link's "
                  f"inertia on {jj} (the robot file gives no motor_inertia_kgm2: the assumption of "
                  f"model/joint_dynamics.motor_inertia, a load-to-rotor ratio of 1 from the servo-sizing rule)")
-        other = (f" or give the motors' datasheet rotor inertias (robot file motor_inertia_kgm2: n^2 J_rotor per "
-                 f"joint, kg*m^2; a heavier rotor on {jj} lowers the mode)")
+        other = (f", or give the motors' rotor inertias (robot file motor_inertia_kgm2; {jj}'s is assumed)")
+        datasheet = (f" The motors' datasheet rotor inertias (robot file motor_inertia_kgm2: n^2 J_rotor per joint, "
+                     f"kg*m^2) replace the assumption; a heavier rotor on {jj} lowers the mode.")
     else:
-        motor, other = f"; its motor's rotor inertia {jm.motor_inertia_kgm2[j]:.3g} kg*m^2 (motor_inertia_kgm2)", ""
-    use = (f"use {ok * 1e3:g} ms, the largest step on the sensor's grid (1 ms / n, 0.1 ms steps) that passes "
-           f"(plant_config.time_step: {ok:g})") if ok else "no step does"
-    return (f"a {h * 1e3:g} ms plant step is unstable for the arm's {m['frequency_hz']:.0f} Hz mode ({jj}'s gear "
-            f"between its motor and the link, {m['damping_ratio'] * 100:.1f} % damped, {m['motor_share'] * 100:.0f} % "
-            f"of its motion in {jj}'s motor{motor}): the plant steps each motor through its drive with the gear's "
-            f"torque held over the step, which feeds the mode energy its damping must take out, so it holds only "
-            f"while omega h <= {w * limit:.2f} (up to {limit * 1e3:.2f} ms), not the omega h < 2 of an undamped "
-            f"mode; at {h * 1e3:g} ms omega h = {w * h:.2f} and it grows x{jm.spectral_radius(h):.3g} a step: "
-            f"{use}{other}")
+        motor = f"; its motor's rotor inertia {jm.motor_inertia_kgm2[j]:.3g} kg*m^2 (motor_inertia_kgm2)"
+        other = datasheet = ""
+    use = f"use {ok * 1e3:g} ms (plant_config.time_step: {ok:g})" if ok else "no step on the sensor's grid passes"
+    line = (f"a {h * 1e3:g} ms plant step is unstable for the arm's {m['frequency_hz']:.0f} Hz mode ({jj}'s gear "
+            f"and motor): {use}{other}")
+    why = (f"the {m['frequency_hz']:.0f} Hz mode ({jj}'s gear between its motor and the link, "
+           f"{m['damping_ratio'] * 100:.1f} % damped, {m['motor_share'] * 100:.0f} % of its motion in {jj}'s "
+           f"motor{motor}): the plant steps each motor through its drive with the gear's torque held over the step, "
+           f"which feeds the mode energy its damping must take out, so it holds only while omega h <= {w * limit:.2f} "
+           f"(up to {limit * 1e3:.2f} ms), not the omega h < 2 of an undamped mode; at {h * 1e3:g} ms omega h = "
+           f"{w * h:.2f} and it grows x{jm.spectral_radius(h):.3g} a step."
+           + (" The step advised is the largest on the sensor's grid (1 ms / n, 0.1 ms steps) that passes." if ok
+              else "") + datasheet)
+    return StepRefusal(line, why)
+
+
+def unstable_step_message(jm, time_step_s, assumed_motor_inertia=False):
+    """None when the plant step keeps every mode of the joints ``jm``
+    stable, else the refusal's one line (``unstable_step_refusal``)."""
+    refusal = unstable_step_refusal(jm, time_step_s, assumed_motor_inertia)
+    return None if refusal is None else refusal.line
 
 
 def twist_inertia_kgm2(jm):

@@ -11,7 +11,7 @@ import numpy as np
 
 from robstiff_drake.diagrams import toolpath as program_setup
 from robstiff_drake.diagrams.scenario import _fail, resolve
-from robstiff_drake.diagrams.schema import num, validate, vec
+from robstiff_drake.diagrams.schema import num, text, validate, vec
 from robstiff_drake.errors import InputError, excerpt
 from robstiff_drake.model.milling import Cutter, CuttingCoefficients, MillingForceModel, Workpiece
 from robstiff_drake.model.payload import PayloadCalibration
@@ -154,6 +154,8 @@ class PayloadCalibrationSchema:
     force_bias_N: list[float] = vec([0.0, 0.0, 0.0], (3,), -5000.0, 5000.0, "N")
     torque_bias_Nm: list[float] = vec([0.0, 0.0, 0.0], (3,), -500.0, 500.0, "N*m")
     sensor_mount_rpy_deg: list[float] = vec([0.0, 0.0, 0.0], (3,), -360.0, 360.0, "deg")
+    # the robot file it was computed with (written since calibrate-payload named it; older files lack it)
+    robot: str = text("", max_length=200, one_line=True)
 
 
 @dataclass
@@ -172,8 +174,8 @@ def read_payload_calibration(path, named_by=None):
         raise InputError(f"{path}: payload_calibration.mass_kg: missing (write the file with "
                          "`robstiff calibrate-payload DATA.csv --yaml OUT.yaml`)")
     block = doc["payload_calibration"]
-    return PayloadCalibration(**{k: (float(v) if k == "mass_kg" else [float(x) for x in v])
-                                 for k, v in block.items()})
+    return PayloadCalibration(**{k: (float(v) if k == "mass_kg" else str(v) if k == "robot" else
+                                     [float(x) for x in v]) for k, v in block.items()})
 
 
 def payload_calibration(sc, robot):
@@ -218,6 +220,10 @@ def scenario_warnings(sc, robot):
                    f"file's nominal {k_robot[j]:.3g}")
     if sc.model.payload_yaml:
         cal = payload_calibration(sc, robot)
+        if cal.robot and cal.robot != robot.name:
+            out.append(f"model.payload_yaml: calibrated with the robot {str(cal.robot)[:80]!r}, not the scenario's "
+                       f"{robot.name!r}: its gravity directions came from another arm's kinematics (calibrate-payload "
+                       f"--robot)")
         m, m0 = cal.mass_kg, robot.payload.mass_kg
         if abs(m - m0) > PAYLOAD_MASS_REL * m0:
             out.append(f"model.payload_yaml: calibrated payload {m:.3g} kg is far from the robot file's {m0:.3g} kg "

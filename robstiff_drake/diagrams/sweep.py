@@ -49,8 +49,10 @@ def check_combinations(sc, combos, plant_step_ms=None):
         try:
             configure(sc, c, plant_step_ms)  # every key of the run within its range, and its size
         except InputError as e:
-            raise InputError(f"sweep: period {c['period_ms']:g} ms, delay {c['delay_steps']}, cutoff "
-                             f"{c['cutoff_hz']:g} Hz: {e}") from None
+            error = InputError(f"sweep: period {c['period_ms']:g} ms, delay {c['delay_steps']}, cutoff "
+                               f"{c['cutoff_hz']:g} Hz: {e}")
+            error.why = getattr(e, "why", None)
+            raise error from None
 
 
 _MASS_MATRICES = {}  # per process: the loop model's mass matrix at a pose

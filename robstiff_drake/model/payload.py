@@ -22,6 +22,9 @@ class PayloadCalibration:
     force_bias_N: list = None
     torque_bias_Nm: list = None
     sensor_mount_rpy_deg: list = None
+    # the robot file calibrate-payload computed it with (its kinematics gave the gravity directions; the
+    # file's payload_calibration.robot); None: a file written before the key, or a calibration made here
+    robot: str = None
 
     def arrays(self):
         """(mass kg, centre of mass m (3,), force bias N, torque bias N*m,

@@ -3,7 +3,19 @@
 whatever encoding a spreadsheet saved it in; numbers as measurement
 programs write them.  Every error is an InputError naming the file, line
 and column.  Plain numpy; no Drake.  The campaigns built on them are
-identification/stiffness/campaign.py's and tracker_campaign.py's."""
+identification/stiffness/campaign.py's and tracker_campaign.py's.
+
+Decimal commas.  A spreadsheet or a CMM's software in a locale with a
+decimal comma (German, French, ...) saves ';'-separated cells with '12,345'
+for 12.345.  Such a file (';' or tab between the cells, and every number
+with a fraction written with a comma, none with a point: ``_comma_column``)
+is read as pandas reads it with ``decimal=","``, and said in a note
+(``DECIMAL_COMMA_NOTE``).  Python's csv module splits the cells but converts
+no number, and locale.atof follows the process's locale, not the file's; so
+the conversion is here: the one comma becomes the point.  Refused in one
+line: a '.' in a number of such a file (a thousands separator, '1.234,5', or
+numbers written both ways), and a ','-separated file with decimal commas
+(the comma both separates and marks the decimals: it cannot be told apart)."""
 
 import csv
 import difflib
@@ -14,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robstiff_drake.command import note_input
+from robstiff_drake.command import input_note, note_input
 from robstiff_drake.errors import InputError, excerpt
 
 
@@ -31,6 +43,7 @@ class Table:
     comments: list = field(default_factory=list)
     encoding: str = "UTF-8"
     delimiter: str = "comma"
+    decimal_comma: bool = False  # the numbers were read with decimal commas (a ';'- or tab-separated file)
 
     def __len__(self):
         return len(self.lines)
@@ -116,7 +129,8 @@ def parse_number(v, where):
     if NON_FINITE.fullmatch(v):
         raise InputError(f"{where}: {excerpt(v)} is not a finite number")
     if re.fullmatch(r"[+-]?\d+,\d+", v):
-        raise InputError(f"{where}: {excerpt(v)} has a decimal comma; write the decimal point as '.'")
+        raise InputError(f"{where}: {excerpt(v)} has a decimal comma in a ','-separated file (the comma cannot be "
+                         f"both); save the file ';'-separated (decimal commas are read then) or write '.' decimals")
     if any(ch.isdigit() for ch in v) and not v.isascii():
         raise InputError(f"{where}: {excerpt(v)} is not a number in ASCII digits")
     raise InputError(f"{where}: {excerpt(v)} is not a number")
@@ -126,26 +140,49 @@ def parse_number(v, where):
 # same numbers as NUMBER, spaces around them allowed).
 _COLUMN = re.compile(r"(?:[ \t]*[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?[ \t]*\n)*"
                      r"[ \t]*[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?[ \t]*", re.ASCII)
-_DECIMAL_COMMA = re.compile(r"[ \t]*[+-]?\d*,\d+(?:[eE][+-]?\d+)?[ \t]*", re.ASCII)
+DECIMAL_COMMA_NOTE = ("{path}: read with decimal commas ({delimiter}-separated cells, '0,5' read as 0.5), as a "
+                      "spreadsheet in a decimal-comma locale saves them")
+
+
+def _comma_file(cells, columns, delim):
+    """Whether a ';'- or tab-separated table writes its numbers with decimal
+    commas: a comma in any cell of the numeric ``columns``."""
+    return delim != "," and any("," in row[c] for c in columns for row in cells)
+
+
+def _comma_column(path, data, col, name, values):
+    """A decimal-comma column's cells with the comma made a point, or
+    InputError at the first cell holding a '.' (a thousands separator, or a
+    number written with a point in a file of decimal commas)."""
+    joined = "\n".join(values)
+    if "." in joined:
+        r = next(i for i, v in enumerate(values) if "." in v)
+        first = next((f"line {data[i][0]}: {excerpt(v.strip())}" for i, v in enumerate(values) if "," in v), None)
+        other = f" (as on {first})" if first else " (other columns' numbers have decimal commas)"
+        raise InputError(f"{path}:{data[r][0]}, column {col + 1} ({name}): {excerpt(values[r].strip())} has a '.' in "
+                         f"a file of decimal commas{other}: a thousands separator, or numbers written both ways; "
+                         f"save the numbers without thousands separators, every decimal with ',' (or every one with "
+                         f"'.')")
+    return joined.replace(",", ".").split("\n") if "," in joined else values
 
 
 def _numeric_column(path, data, cells, col, name, limits, decimal_comma=False, scale=(1.0, None)):
     """Column ``col`` as finite floats within ``limits`` (lo, hi, unit), or
     InputError naming the first bad cell.  Checked as one string (linear in
     the rows, in C) and converted at once; a column that fails is walked
-    cell by cell for the message.  ``scale``: (factor, the file's unit):
-    the values times factor are in the limits' unit."""
-    values = [row[col] for row in cells]
-    if decimal_comma:  # a ';'- or tab-separated file from a locale with a decimal comma
-        values = [v.replace(",", ".", 1) if _DECIMAL_COMMA.fullmatch(v) else v for v in values]
+    cell by cell for the message.  ``decimal_comma``: the file's numbers
+    have decimal commas (``_comma_file``).  ``scale``: (factor, the file's
+    unit): the values times factor are in the limits' unit."""
+    written = [row[col] for row in cells]
+    values = _comma_column(path, data, col, name, written) if decimal_comma else written
     arr = None
     if _COLUMN.fullmatch("\n".join(values)):
         arr = np.array(values, dtype=float)
         if not np.all(np.isfinite(arr)):
             arr = None
     if arr is None:
-        arr = np.array([parse_number(v.strip(), f"{path}:{data[r][0]}, column {col + 1} ({name})")
-                        for r, v in enumerate(values)])
+        arr = np.array([_parse_cell(v.strip(), w.strip(), f"{path}:{data[r][0]}, column {col + 1} ({name})")
+                        for r, (v, w) in enumerate(zip(values, written))])
     factor, file_unit = scale
     if factor != 1.0:
         arr = arr * factor
@@ -155,22 +192,48 @@ def _numeric_column(path, data, cells, col, name, limits, decimal_comma=False, s
         if bad.size:
             r = int(bad[0])
             hint = "" if unit != "mm" else ": millimetres read as metres, then written in mm, are 1000x too large"
-            value = values[r].strip() if file_unit is None else f"{values[r].strip()} {file_unit} ({arr[r]:g} {unit})"
+            shown = written[r].strip()
+            # (the header's unit named once when it is the range's: '-224 mm', not '-224 mm (-224 mm)')
+            value = shown if file_unit is None else f"{shown} {file_unit}" if factor == 1.0 and file_unit == unit \
+                else f"{shown} {file_unit} ({arr[r]:g} {unit})"
             raise InputError(f"{path}:{data[r][0]}, column {col + 1} ({name}): {value} is outside the "
                              f"plausible range [{lo:g}, {hi:g}] {unit} (other units?){hint if file_unit is None else ''}")
     return arr
 
 
-def read_table(path, *, required, optional=(), text_columns=(), ranges=None, rename=None, decimal_comma=False,
-               units=None):
+def _parse_cell(value, written, where):
+    """``value`` (the cell, its decimal comma made a point) as parse_number
+    reads it; an error quotes the cell as ``written``."""
+    if value != written and NUMBER.fullmatch(value):
+        x = float(value)
+        if math.isfinite(x):
+            return x
+        raise InputError(f"{where}: {excerpt(written)} is too large to be a number")
+    return parse_number(written, where)
+
+
+def _split_decimals(values, header, numeric):
+    """The hint for a ','-separated row with more cells than its header:
+    the first place where two cells could be one number with a decimal
+    comma ('' when none could)."""
+    for j in range(min(len(values), len(header)) - 1):
+        if header[j] in numeric and re.fullmatch(r"[ \t]*[+-]?\d+", values[j]) \
+                and re.fullmatch(r"\d+(?:[eE][+-]?\d+)?[ \t]*", values[j + 1]):
+            return (f"; from column {j + 1} ({header[j]}) on, {excerpt(values[j] + ',' + values[j + 1])} may be one "
+                    f"number with a decimal comma, which a ','-separated file cannot tell from two cells: save it "
+                    f"';'-separated (decimal commas are read then) or write '.' decimals")
+    return ""
+
+
+def read_table(path, *, required, optional=(), text_columns=(), ranges=None, rename=None, units=None):
     """Read a measurement CSV.  ``required``/``optional`` columns are parsed
     as finite floats (within ``ranges``: {column: (lo, hi, unit)}, when
     given); ``text_columns`` are kept as strings; any other column is kept
     as text and ignored.  ``rename``: a function from a header cell (lower
     case, stripped) to the column's name (aliases, units in the header);
-    ``decimal_comma``: in a ';'- or tab-separated file, '1,5' is 1.5;
     ``units``: a function from a column's name to (factor, the file's unit)
-    that converts it to the unit of ``ranges`` before the check."""
+    that converts it to the unit of ``ranges`` before the check.  A ';'- or
+    tab-separated file's decimal commas are read (the module docstring)."""
     path = Path(path)
     raw, encoding = decode_text(path)
     comments, rows = [], []
@@ -210,15 +273,20 @@ def read_table(path, *, required, optional=(), text_columns=(), ranges=None, ren
     if not data:
         raise InputError(f"{path}: no data rows after the header (line {header_line})")
     cells = list(csv.reader([line for _, line in data], delimiter=delim))
+    numeric_names = [c for c in list(required) + list(optional) if c in seen]
     for (lineno, _), values in zip(data, cells):
         if len(values) != len(header):
-            raise InputError(f"{path}:{lineno}: expected {len(header)} cells (as in the header), got {len(values)}")
-    numeric_names = [c for c in list(required) + list(optional) if c in seen]
+            more = _split_decimals(values, header, numeric_names) \
+                if delim == "," and len(values) > len(header) else ""
+            raise InputError(f"{path}:{lineno}: expected {len(header)} cells (as in the header), got {len(values)}"
+                             f"{more}")
+    comma = _comma_file(cells, [seen[n] for n in numeric_names], delim)
     numeric = {}
     for name in numeric_names:
-        numeric[name] = _numeric_column(path, data, cells, seen[name], name, (ranges or {}).get(name),
-                                        decimal_comma and delim != ",",
+        numeric[name] = _numeric_column(path, data, cells, seen[name], name, (ranges or {}).get(name), comma,
                                         (1.0, None) if units is None else units(name))
+    if comma:
+        input_note(DECIMAL_COMMA_NOTE.format(path=path, delimiter=DELIMITERS[delim]))
     text = {h: [row[seen[h]].strip() for row in cells] for h in header if h not in numeric}
     return Table(str(path), header_line, header, numeric, text,
-                 np.array([ln for ln, _ in data]), comments, encoding, DELIMITERS[delim])
+                 np.array([ln for ln, _ in data]), comments, encoding, DELIMITERS[delim], comma)

@@ -12,6 +12,8 @@ sensor frame (two leave p's component along their difference unobserved);
 turning the wrist about the vertical alone gives no new direction.
 """
 
+import json
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -152,8 +154,26 @@ def check_payload_fit(fit, robot, path):
     return out
 
 
-def yaml_block(fit, source):
-    """The parameters of the closed loop's gravity-removal system, as YAML."""
+# A robot's name written as a plain YAML scalar; any other (a space, a
+# quote, 'yes', 'null', a number) is written as a quoted string, read back
+# as the same text.
+_PLAIN_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]*")
+_YAML_WORDS = {"y", "n", "yes", "no", "on", "off", "true", "false", "null"}
+
+
+def yaml_name(name):
+    """``name`` as a YAML scalar that reads back as the same string."""
+    name = str(name)
+    plain = _PLAIN_NAME.fullmatch(name) and name.lower() not in _YAML_WORDS
+    return name if plain else json.dumps(name)
+
+
+def yaml_block(fit, source, robot_name):
+    """The parameters of the closed loop's gravity-removal system, as YAML;
+    ``robot_name``: the robot file the fit used (its kinematics turned the
+    joint angles into gravity directions), read back by whoever loads the
+    block (diagrams/scenario_models.read_payload_calibration), which warns
+    when the robot in use is another."""
     def v(a, nd):
         return "[" + ", ".join(f"{x:.{nd}f}" for x in a) + "]"
 
@@ -162,6 +182,7 @@ def yaml_block(fit, source):
         f"# ({fit.n_configurations} configurations, {fit.n_directions} gravity directions; "
         f"rms residual {fit.rms_force_N:.3f} N, {fit.rms_torque_Nm:.4f} N*m).\n"
         "payload_calibration:\n"
+        f"  robot: {yaml_name(robot_name)}  # the robot file it was computed with (its kinematics)\n"
         f"  mass_kg: {fit.mass_kg:.4f}\n"
         f"  com_mm: {v(fit.com_m * 1e3, 3)}\n"
         f"  force_bias_N: {v(fit.force_bias_N, 4)}\n"

@@ -152,7 +152,7 @@ def read_tracker_campaign(path, robot):
     ren = _Renamer()
     table = read_table(path, required=Q_COLS + XYZ, optional=F_COLS + ("t_s", "temp_c", "seq"),
                        text_columns=("pose",), ranges={**{c: (-1e6, 1e6, "") for c in XYZ}},
-                       rename=ren, decimal_comma=True)
+                       rename=ren)
     for q in Q_COLS:
         table.numeric[q] = table.numeric[q] * _scale(table, q, ren.units, ANGLE_UNITS)
     check_joint_limits(table, robot)
