@@ -34,7 +34,8 @@ from pathlib import Path
 import numpy as np
 
 from robstiff_drake.commands.compensate_inputs import CORRECTED_FLAG, check_axis_limits, check_reference_claim, \
-    endpoint_clash, json_doc, payload_mass_note, payload_robot_note, read_model, read_reference, wait_for_file
+    endpoint_clash, json_doc, payload_mass_note, payload_robot_note, read_model, read_reference, sensor_timeout_note, \
+    wait_for_file
 from robstiff_drake.errors import InputError
 from robstiff_drake.cell.realtime_thread import pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
     realtime as _realtime, restore_gc as _restore_gc
@@ -150,8 +151,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     except RecursionError:
         raise InputError(f"--payload {payload}: nested too deeply to be a payload calibration") from None
     robot_line, robot_note = payload_robot_note(robot, cal, payload, robot_yaml)
-    payload_lines = [line for line in (robot_line, payload_mass_note(robot, cal, payload)) if line]
-    for line in payload_lines:
+    start_warnings = [line for line in (robot_line, payload_mass_note(robot, cal, payload),
+                                       sensor_timeout_note(sensor_timeout_ms, sensor_rate_hz)) if line]
+    for line in start_warnings:
         print(f"robstiff: warning: compensate: {line}", file=sys.stderr)
     if robot_note:
         info(f"robstiff: note: compensate: {robot_note}", file=sys.stderr)
@@ -290,7 +292,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         for line in filter(None, (_pin_to_cpu(cpu), _realtime(rt_priority))):  # (not allowed: the run goes on)
             print(f"robstiff: warning: compensate: {line}", file=sys.stderr, flush=True)
             stream_log is not None and stream_log.event(0.0, 0.0, f"warning: {line}")
-        for line in payload_lines if stream_log is not None else ():
+        for line in start_warnings if stream_log is not None else ():
             stream_log.event(0.0, 0.0, f"warning: {line}")  # (events.csv, as the other start warnings)
         first = loop.first_message(wait_s)
         q0 = first[0].joints_deg
@@ -339,7 +341,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             "sensor_timeout_ms": sensor_timeout_ms, "start_tolerance_N": start_tolerance_N},
         mode=mode, job=str(job) if job else None,
         # (None: the correction computed online; else why it was held at zero: a corrected reference)
-        correction_held_at_zero=correction_off), notes=(play_line, play_summary, bound_line, payload_lines),
+        correction_held_at_zero=correction_off), notes=(play_line, play_summary, bound_line, start_warnings),
         missing=(servo, cutter_diameter_mm))
     return 0
 

@@ -195,3 +195,22 @@ def payload_robot_note(robot, cal, payload, robot_spec=None):
                 f"({robot.source}): its gravity directions came from another arm's kinematics; calibrate again "
                 f"with `calibrate-payload DATA.csv --robot {robot_spec or robot.name}`"), None
     return None, None
+
+
+def sensor_timeout_note(sensor_timeout_ms, sensor_rate_hz):
+    """A warning line when ``sensor_timeout_ms`` is within JITTER_PERIODS
+    record periods at ``sensor_rate_hz`` (an honest stream's jitter of a
+    record period then makes silences: each ramps the correction to zero
+    and in again), else None.  (Not longer than one period: refused at the
+    command line.)"""
+    from robstiff_drake.cell.sensor_checks import JITTER_PERIODS
+
+    period_ms = 1e3 / sensor_rate_hz
+    if sensor_timeout_ms >= JITTER_PERIODS * period_ms:
+        return None
+    # (measured: an honest 100 Hz stream, +-1 record period, at 20 ms: 104-131 silences a minute, each ramping
+    # the correction out and in: benchmarks/checks_attacked.py)
+    return (f"--sensor-timeout-ms {sensor_timeout_ms:g} is within {JITTER_PERIODS:g} record periods at "
+            f"--sensor-rate-hz {sensor_rate_hz:g} ({JITTER_PERIODS * period_ms:.4g} ms): a record a period late "
+            "is a silence, the correction ramped out and in again; set it to at least "
+            f"{JITTER_PERIODS * period_ms:.4g} ms")

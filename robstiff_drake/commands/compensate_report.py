@@ -13,7 +13,7 @@ def report(loop, link, guard, background, stream_log, *, log, job, inputs, notes
     (the play's warning or None, the play's summary, the correction bound's
     warning or None, the payload calibration's warnings: a list);
     ``missing``: (--servo, --cutter-diameter-mm) as given."""
-    play_line, play_summary, bound_line, payload_lines = notes
+    play_line, play_summary, bound_line, start_warnings = notes
     stats = loop.stats()
     cm = stats["compute_ms"]
     print(f"robstiff: compensate: {stats['messages']} messages, {stats['answered']} answered; computation per message "
@@ -46,7 +46,7 @@ def report(loop, link, guard, background, stream_log, *, log, job, inputs, notes
                "preview_table": table,
                "cycles": stats, "health": h, "loop_check": guard.result, "play": play_summary,
                "warnings": ([h["line"]] if h["verdict"] != "good" else []) + ([guard.warning] if guard.warning else [])
-               + list(payload_lines) + ([play_line] if play_line else []) + ([bound_line] if bound_line else [])
+               + list(start_warnings) + ([play_line] if play_line else []) + ([bound_line] if bound_line else [])
                + checks}
     written = stream_log.close(summary)
     wrote(log, ", ".join(written), folder=True, to_stderr=True)
