@@ -7,7 +7,6 @@ import argparse
 
 from robstiff_drake.commands.help_examples import EXAMPLES
 from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_MM
-from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_MM
 from robstiff_drake.commands.parser_cell import add_cell_commands
 from robstiff_drake.commands.options import (
     FORCE_N,
