@@ -189,7 +189,8 @@ def test_rapids_and_moves_left_alone_are_untouched():
 
 def test_a_correction_beyond_the_clamp_names_the_line():
     prog = read_program(SHORT, "short.nc")
-    with pytest.raises(pc.CorrectionError, match=r"short\.nc:8: .*1\.500 mm.*--max-correction-mm 1"):
+    with pytest.raises(pc.CorrectionError, match=r"short\.nc:8: the predicted correction is 1\.500 mm at [\d.]+ mm along the "
+                       r"move's [\d.]+ mm, more than --max-correction-mm 1"):
         _corrections(prog, lambda p: np.column_stack([0 * p[:, 0], 0 * p[:, 0], 1.5 * (p[:, 0] >= 39.0)]))
 
 
