@@ -233,7 +233,7 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         stale = bool(self.faults) or self.gate is not None or not sent or not (age <= bound or 0.0 <= age_ctrl <= bound)
         if stale:
             self.n.stale_s += dt
-        self.n.lost_estimate.add(sum(abs(c) for c in self.comp.dq), stale)
+        self.n.lost_estimate.add(sum(abs(c) for c in self.comp.dq), stale, held=bool(self.faults))
         self.t_last_answer = t_done
         if self.log is not None:
             for t_w, w in self._wrench_rows:
