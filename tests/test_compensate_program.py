@@ -421,3 +421,15 @@ def test_the_rapid_module_runs_back_through_the_plan(tmp_path):
     lines[k] = moved[0] + "[[" + f"{float(x[0]) + 0.5:g}," + x[1]
     with pytest.raises(ValueError, match="not the program's block end"):
         rapid_reference(sc, robot, "\n".join(lines), program, tool)
+
+
+def test_a_fanuc_job_is_told_the_rapid_module_is_abbs():
+    """A FANUC user got pocket_compensated.mod (RAPID robtargets with an ABB
+    configuration) beside the corrected G-code without a word."""
+    from robstiff_drake.commands.compensate_program import rapid_note
+    from robstiff_drake.model.robot import load_robot
+
+    note = rapid_note(load_robot("r2000ic_165f"), "pocket_compensated.mod")
+    assert note and note.startswith("pocket_compensated.mod is an ABB RAPID module") and "FANUC" in note
+    assert "--reference-is-corrected" in note
+    assert rapid_note(load_robot("irb6400"), "x.mod") is None
