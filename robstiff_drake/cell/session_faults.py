@@ -105,4 +105,4 @@ class SessionFaults:
                        f"{self.s.period_s * 1e3:g} says {run[1]:g}; the correction stays at zero and the reference "
                        f"plays at {self.s.period_s * 1e3 / cycle_ms:.2f} times the program's speed: stop the "
                        f"run and start compensate again with --period-ms {cycle_ms:g} (FANUC Stream Motion: 8 ms, "
-                       "the J519 interpolation cycle; ABB EGM and KUKA RSI: 4 ms)")
+                       "or 4 ms on controllers that stream at 250 Hz; ABB EGM: 4 ms; KUKA RSI: 4 or 12 ms)")
