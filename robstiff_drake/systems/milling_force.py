@@ -147,6 +147,8 @@ class MillingForceSource(LeafSystem):
         self._applied = ExternallyAppliedSpatialForce()  # reused: only its force changes
         self._applied.body_index = self._body
         self._applied.p_BoBq_B = np.array(self._tool)  # the spindle's frame is the flange's
+        self._applied_list = [self._applied]  # (the abstract state's value, as set)
+        self._spatial = np.zeros(6)  # (the compiled update's wrench as a SpatialForce orders it: moment, force)
         self._force = self.DeclareAbstractState(AbstractValue.Make([self._spatial_force([0.0] * 6)]))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
         # the averaged update straight to the compiled kernel (unless a subclass changes the step: a study's)
@@ -197,6 +199,8 @@ class MillingForceSource(LeafSystem):
         force_step_kernels.line_motion(0.0, 0.0, 0.0, 0.0, hist, self._window, *self._lines, np.empty(hist.shape[0]))
         if self._fused is not None:
             force_step_kernels.averaged_force_step(q, 0.0, hist, process, *self._fused, np.empty(22 + hist.shape[0]))
+            force_step_kernels.averaged_force_update(q, 0.0, np.concatenate((process, hist)), np.zeros(6),
+                                                     np.zeros(6), *self._fused)
 
     def set_progress(self, context, process, hist):
         """Hold ``process`` (u_x, u_y, feed m/s, cutting travel m) and the
@@ -359,14 +363,13 @@ class MillingForceSource(LeafSystem):
         held = discrete.get_mutable_value(i_process)  # (arrives holding the current state: written in place)
         process, hist = held[:4], held[4:]
         if self._lean and jit.available() and not math.isnan(hist[-3]):
-            # (_step's compiled averaged update, with no more calls into Drake than it needs)
-            out = np.empty(22 + hist.shape[0])
-            force_step_kernels.averaged_force_step(self._q.Eval(context), context.get_time(), hist, process,
-                                                   *self._fused, out)
-            discrete.set_value(i_w, out[:6])
-            held[:4], held[4:] = out[6:10], out[22:]
-            self._applied.F_Bq_W = SpatialForce(out[3:6], out[:3])
-            state.get_mutable_abstract_state(i_force).set_value([self._applied])
+            # (_step's compiled averaged update, the state written in place, with no more calls into Drake than
+            # it needs)
+            sf = self._spatial
+            force_step_kernels.averaged_force_update(self._q.Eval(context), context.get_time(), held,
+                                                     discrete.get_mutable_value(i_w), sf, *self._fused)
+            self._applied.F_Bq_W = SpatialForce(sf)
+            state.get_mutable_abstract_state(i_force).set_value(self._applied_list)
             return
         q = self._q.Eval(context)
         t = context.get_time()
