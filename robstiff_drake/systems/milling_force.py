@@ -79,7 +79,9 @@ class MillingForceSource(LeafSystem):
     PlantCuttingLaw, which also takes the cutting travel so far, its flank
     wear's clock) or a linear MillingForceModel.
 
-    Input  ``q`` (6): link angles, rad (controller convention).
+    Input  ``q`` (6): link angles, rad (controller convention); with
+      ``link_state=True`` instead ``link_state`` (12: the plant's state, the
+      link angles first), read with no Demultiplexer in front.
     Output ``spatial_force`` (abstract, a list of one
       ExternallyAppliedSpatialForce): the load held over the period, on the
       spindle body at the tool point (for the plant's applied spatial force
@@ -108,7 +110,7 @@ class MillingForceSource(LeafSystem):
     """
 
     def __init__(self, *, force_model, workpiece, path, kinematics, tool_point_m, period_s, spindle_body_index,
-                 mode="averaged", samples_per_tooth=20, phase_rad=0.0, sensor_period_s=None):
+                 mode="averaged", samples_per_tooth=20, phase_rad=0.0, sensor_period_s=None, link_state=False):
         super().__init__()
         if mode not in ("averaged", "tooth"):
             raise ValueError(f"mode must be 'averaged' or 'tooth', got {mode!r}")
@@ -129,7 +131,8 @@ class MillingForceSource(LeafSystem):
         self._period = float(period_s)
         self._feed_gain = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)  # (smoothed_feed)
         self._sensor_period = float(sensor_period_s or period_s)
-        self._q = self.DeclareVectorInputPort("q", 6)
+        # (the link angles, or the plant's state whose first 6 they are: the kernels read q[0:6] alone)
+        self._q = self.DeclareVectorInputPort("link_state", 12) if link_state else self.DeclareVectorInputPort("q", 6)
         # held: the period's wrench (base frame, at the tool point) and the spatial force list
         self._w = self.DeclareDiscreteState(6)
         self._wears = hasattr(force_model, "flank_wear_m")
@@ -371,7 +374,7 @@ class MillingForceSource(LeafSystem):
             self._applied.F_Bq_W = SpatialForce(sf)
             state.get_mutable_abstract_state(i_force).set_value(self._applied_list)
             return
-        q = self._q.Eval(context)
+        q = self._q.Eval(context)[:6]
         t = context.get_time()
         instants = self._read_offsets(t) if self._mode == "tooth" else ()
         w, pose, inst, new_process, new_hist = self._step(t, q, process, hist, instants)
