@@ -98,7 +98,9 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     model/compensator.DeflectionModel's ``law``/``friction_Nm`` (preview
     mode's table of future deflections is memoryless: it keeps the smooth
     law).  Inputs ``wrench``,
-    ``position_measured``; output ``correction`` and the LOG_PORTS."""
+    ``position_measured``; output ``correction`` and the LOG_PORTS, and
+    ``tick_state``: the tick's whole state, of which ``Compensator.tick_parts``
+    names the parts that are the signals of those names (for a logger)."""
     T = period_s
     builder = DiagramBuilder()
     kin = DeflectionPredictor(model_dh, model_stiffness_Nm_per_rad, tool_m)

@@ -278,9 +278,7 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model
     h = station.plant_step_s
     T = sc.controller.period_ms / 1e3
     log_dt = log_period_s or h
-    def compensator_signal(name, period_s):
-        """(port, period, columns) of the compensator's output ``name``: a
-        part of its tick's state is read from that state's one port."""
+    def compensator_signal(name, period_s):  # (a part of the tick's state read from that state's one port)
         if name in comp.tick_parts:
             return cp.GetOutputPort("tick_state"), period_s, comp.tick_parts[name]
         return cp.GetOutputPort(name), period_s
@@ -320,9 +318,9 @@ def tool_wrench_log(cell, logs):
 
 @dataclass
 class SignalLog:
-    """One logged signal: its columns in a (shared) VectorLogSink, every
-    ``stride``-th sample from ``first`` (a signal of a slower period
-    logged with a faster one: its own sample instants)."""
+    """One logged signal: its columns in a (shared) VectorLogSink; a signal
+    of period ``period_s`` logged every ``period_s / stride``: every
+    ``stride``-th sample from the first on its own instants."""
 
     logger: object
     columns: slice
@@ -342,9 +340,8 @@ class SignalLog:
 
 
 def _faster_period(period, fastest):
-    """The stride (a power of two) at which a logger every ``fastest`` s
-    samples every ``period`` s at the same instants (k period = (n k)
-    fastest in floating point: n a power of two), or None."""
+    """n (a power of two: k period = (n k) fastest in floating point) where
+    period = n fastest, or None."""
     n = round(period / fastest)
     if n >= 1 and n & (n - 1) == 0 and n * fastest == period:
         return n

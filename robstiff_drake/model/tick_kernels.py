@@ -1,9 +1,10 @@
-"""The closed loop's per-tick kinematics and compensator arithmetic as one
-compiled kernel (model/jit.py): the tool's pose from the link angles (the
+"""The closed loop's per-tick kinematics and compensator arithmetic as
+compiled kernels (model/jit.py): the tool's pose from the link angles (the
 milling force's update, model/realtime.DeflectionPredictor.pose_only) and
-the compensator tick's whole update (systems/compensator_tick.py: gravity
-removal, the deflection prediction dq = C J(q)^T W, the saturation, the
-delay line and the rate-limited correction).
+the compensator tick's whole update (systems/compensator_tick.py: the
+carried wrench guard, gravity removal, the deflection prediction
+dq = C J(q)^T W, the saturation, the delay line and the rate-limited
+correction; ``tick_update`` runs it all in one call on the tick's state).
 
 The same scalar operations in the same order as the plain-Python
 references they replace (model/realtime.DeflectionPredictor._forward and

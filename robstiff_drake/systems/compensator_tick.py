@@ -33,11 +33,13 @@ motion in the model with its static torque) stays a block of its own:
 then ``dq`` is an input (computed from this block's sampled outputs), and
 this block samples, removes gravity, saturates, delays and corrects.
 
-With numba installed the update runs as two compiled kernels
-(model/tick_kernels.py: the same arithmetic to round-off), loaded while
-the block is built; without it (or with ROBSTIFF_NO_JIT set, or within
-model/jit.disabled) the plain-Python reference below, which the kernels
-are tested against.
+With numba installed the update runs as one compiled call
+(model/tick_kernels.tick_update: the carried guard, the correction and the
+sample, written into the state group in place; the same arithmetic to
+round-off), loaded while the block is built; without it (or with
+ROBSTIFF_NO_JIT set, or within model/jit.disabled) the plain-Python
+reference below (with wrist_sensor.guard_step), which the kernels are
+tested against.
 """
 
 import math
