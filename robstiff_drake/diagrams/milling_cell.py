@@ -340,20 +340,19 @@ class SignalLog:
 
 
 def _faster_period(period, fastest):
-    """n (a power of two: k period = (n k) fastest in floating point) where
-    period = n fastest, or None."""
+    """n, 1 or 2, where period = n fastest exactly (so k period = (n k)
+    fastest in floating point), or None: a logger copies a slower signal at
+    each of its samples, so at most twice as often as it changes."""
     n = round(period / fastest)
-    if n >= 1 and n & (n - 1) == 0 and n * fastest == period:
-        return n
-    return None
+    return n if n in (1, 2) and n * fastest == period else None
 
 
 def log_signals(builder, signals, base_s=None):
     """Log named vector ports, ``{name: (port, period_s[, columns])}`` ->
     ``{name: SignalLog}`` (``columns``: a slice of the port's vector, the
     whole by default).  Signals of one period share one Multiplexer and one
-    VectorLogSink, and so do those whose periods are ``base_s`` times a
-    power of two, at ``base_s`` (each read at its own instants:
+    VectorLogSink, and so do those of ``base_s`` and twice it, at
+    ``base_s`` (each read at its own instants:
     SignalLog.stride): one logging event per period, not one per signal,
     and a port read once however many signals it holds."""
     fastest = round(base_s, 12) if base_s else None
