@@ -92,6 +92,9 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         # depend on where this PC's clock happens to stand
         self.pc_time = time.monotonic
         self.faults = {}  # name -> start time
+        # (cell/session_faults.py: the clock faults in a row stepping alike, [step ms, sequence's ms, count] or
+        # None, and whether the wrong --period-ms they show has been said: once a run)
+        self._steady, self._wrong_period_said = None, False
         self.ok_since_fault = 0
         self.t_session = 0.0
         self.q = None  # the model's joint angles (rad)

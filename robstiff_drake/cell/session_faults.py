@@ -89,11 +89,11 @@ class SessionFaults:
         with the period to set; meanwhile the correction stays at zero and
         the reference plays at the sequence's pace, --period-ms per message
         (half the program's feed at 8 ms)."""
-        if why is None or why[0] != "step" or getattr(self, "_wrong_period_said", False):
+        if why is None or why[0] != "step" or self._wrong_period_said:
             self._steady = None
             return
         step_ms, nominal_ms = float(why[1]), float(why[2])
-        run = getattr(self, "_steady", None)
+        run = self._steady
         if run is None or nominal_ms != run[1] or abs(step_ms - run[0]) > 1.0:
             run = self._steady = [step_ms, nominal_ms, 0]
         run[2] += 1
