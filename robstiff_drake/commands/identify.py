@@ -8,9 +8,10 @@ from robstiff_drake.model.robot import load_robot
 from robstiff_drake.progress import wrote
 
 
-def fit_to_dict(fit, campaign, robot, tool_m, no_intervals=()):
+def fit_to_dict(fit, campaign, robot, tool_m, no_intervals=(), lack=None):
     """The result as JSON; ``no_intervals``: why the campaign's design cannot
-    support its intervals (interval_support), which are then null."""
+    support its intervals (interval_support), which are then null; ``lack``:
+    the test of the fit against the noise floor (stiffness/lack_of_fit.py)."""
     withheld = bool(no_intervals)
     return {
         "data": campaign.path,
@@ -31,6 +32,7 @@ def fit_to_dict(fit, campaign, robot, tool_m, no_intervals=()):
         "non_physical_joints": fit.non_physical,
         "rms_residual_mm": fit.rms_residual_mm,
         "sigma_mm": fit.sigma_mm,
+        "lack_of_fit": lack,
         "n_measurements": fit.n_measurements,
         "dof": fit.dof,
         "condition_number": fit.condition_number,
@@ -41,7 +43,7 @@ def fit_to_dict(fit, campaign, robot, tool_m, no_intervals=()):
     }
 
 
-def format_fit(fit, campaign, robot, no_intervals=()):
+def format_fit(fit, campaign, robot, no_intervals=(), lack=None):
     lines = [
         f"identified from {campaign.path}: {fit.n_measurements} measurements, "
         f"{'robust (Huber)' if fit.robust else 'least squares'}, "
@@ -67,6 +69,14 @@ def format_fit(fit, campaign, robot, no_intervals=()):
         f"residual RMS {fit.rms_residual_mm:.4f} mm (all components), noise estimate sigma {fit.sigma_mm:.4f} mm, "
         f"{fit.dof} degrees of freedom, condition number {fit.condition_number:.3g} (nominal-scaled columns)",
     ]
+    if lack is not None and lack["residual_to_noise_ratio"] is not None:
+        lines.append(f"noise floor {lack['noise_floor_mm']:.4f} mm, {lack['noise_floor_source']}: the fit's sigma is "
+                     f"{lack['residual_to_noise_ratio']:.2f}x it"
+                     + ("" if lack["explained_by_springs"] else
+                        " (NOT explained by joint springs alone: the intervals assume the model is right)"))
+    elif lack is not None:
+        lines.append("no noise floor known (--noise-mm, a '# noise_mm:' line in the file, or replicate rows): the "
+                     "residual is not tested against the instrument's noise")
     if no_intervals:
         lines.append("std errors and 95 % intervals not available: " + "; ".join(no_intervals))
     if fit.outlier_rows:
@@ -191,7 +201,7 @@ def _run_tracker(data, robot, tool_m, json_out, warnings):
     return 0
 
 
-def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=None):
+def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=None, noise_mm=None):
     from robstiff_drake.identification.tracker.campaign import is_tracker_file
 
     check_outputs(inputs=[data, robot_yaml], files={"--json": json_out, "--plot": plot})
@@ -201,16 +211,19 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
     from robstiff_drake.identification.stiffness.campaign import campaign_tool_m, read_stiffness_campaign
     from robstiff_drake.identification.stiffness.joint_stiffness import check_angle_units, identify
     from robstiff_drake.identification.stiffness.interval_support import interval_support
+    from robstiff_drake.identification.stiffness.lack_of_fit import lack_of_fit, lack_of_fit_warning, noise_floor
 
     warnings = Warnings()
     if is_tracker_file(data):
-        if plot is not None or robust:
+        if plot is not None or robust or noise_mm is not None:
             from robstiff_drake.errors import InputError
 
-            raise InputError("--plot and --robust are for stiffness campaigns; an absolute-position campaign's views "
-                             "are `robstiff diagnose DATA.csv --plots DIR`")
+            raise InputError("--plot, --robust and --noise-mm are for stiffness campaigns; an absolute-position "
+                             "campaign's views and noise floor are `robstiff diagnose DATA.csv --plots DIR --noise-mm "
+                             "SIGMA`")
         return _run_tracker(data, robot, tool_arg, json_out, warnings)
     campaign = read_stiffness_campaign(data, robot)
+    floor_mm, floor_source = noise_floor(campaign, noise_mm)  # (a malformed '# noise_mm:' line: before the fit)
     tool_m = campaign_tool_m(campaign, robot, tool_arg, warnings)
     warnings.extend_from(campaign_warnings(campaign))
     check_angle_units(robot, campaign, tool_m)
@@ -220,17 +233,20 @@ def run(*, data, tool=None, json_out=None, plot=None, robust=False, robot_yaml=N
     if fit.condition_number > 1e4:
         warnings.add(f"condition number {fit.condition_number:.3g}: the poses and loads barely separate the joints; "
                      "plan the campaign with `robstiff plan-poses`")
+    lack = lack_of_fit(fit, floor_mm, floor_source)
+    warnings.extend_from([lack_of_fit_warning(lack, campaign.path)] if lack["explained_by_springs"] is False else [])
     no_intervals = interval_support(campaign, tool_m, int(np.sum(fit.identifiable)))
     if no_intervals:
         warnings.add(f"{campaign.path}: 95 % intervals not available, the campaign's design cannot support them: "
                      + "; ".join(no_intervals))
     with staged_outputs():  # both files or neither (a full disk at the plot leaves no JSON behind)
         if json_out is not None:
-            emit_json(dict(fit_to_dict(fit, campaign, robot, tool_m, no_intervals), warnings=list(warnings)), json_out)
+            emit_json(dict(fit_to_dict(fit, campaign, robot, tool_m, no_intervals, lack), warnings=list(warnings)),
+                      json_out)
         if plot is not None:
             save_figure_atomic(plot_fit(fit, campaign, robot, no_intervals), plot, dpi=100)
     if json_out != "-":
-        print(format_fit(fit, campaign, robot, no_intervals))
+        print(format_fit(fit, campaign, robot, no_intervals, lack))
         print(PLAY_NOT_IDENTIFIED)
     wrote(json_out, "the identified model (compensate --model, a scenario's model.identified_json)",
           to_stderr=json_out == "-")

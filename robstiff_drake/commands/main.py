@@ -50,7 +50,7 @@ def _dispatch(args):
         from robstiff_drake.commands import identify
 
         return identify.run(data=args.data, tool=args.tool, json_out=args.json, plot=args.plot,
-                            robust=args.robust, robot_yaml=args.robot)
+                            robust=args.robust, robot_yaml=args.robot, noise_mm=args.noise_mm)
     if args.command == "calibrate-payload":
         from robstiff_drake.commands import calibrate_payload
 

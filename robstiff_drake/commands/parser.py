@@ -115,6 +115,9 @@ def build_parser():
                               "result")
     p.add_argument("--plot", metavar="OUT.png", help="measured vs predicted, residuals, stiffness with intervals")
     p.add_argument("--robust", action="store_true", help="Huber loss, for campaigns with outliers")
+    p.add_argument("--noise-mm", type=_number_in(1e-6, 10.0, "mm"), default=None, metavar="SIGMA",
+                   help="1-sigma noise of one displacement component (instrument), mm, for the test of the fit "
+                        "against it; default: the file's '# noise_mm:' line, else replicate rows (same pose and load)")
 
     p = sub.add_parser("calibrate-payload", help="wrist-sensor payload: mass, centre of mass, biases")
     p.add_argument("data", metavar="DATA.csv")

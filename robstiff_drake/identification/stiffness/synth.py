@@ -179,10 +179,12 @@ def stiffness_csv(c, *, robot, noise_mm, seed, force_N, tool_m, how=None):
         "# Poses: the tool point (the tool_mm line, flange frame) uniform in the machining workspace box, spindle "
         "axis tilted up to 25 deg from straight down, yaw within +-90 deg; IK.",
         tool_header_line(tool_m),
-        f"# Loads: {force_N:g} N in uniformly random directions, {len(set(c.pose))} poses, rows grouped by 'pose'.",
-        f"# Displacements: conventional model dx = Jv diag(1/k) J^T F (mm), plus Gaussian CMM noise "
+        f"# Loads: {force_N:g} N in uniformly random directions, {len(set(c.pose))} poses, rows grouped by 'pose'. "
+        f"Displacements: conventional model dx = Jv diag(1/k) J^T F (mm), plus Gaussian CMM noise "
         f"sigma = {noise_mm:g} mm per component; random seed {seed}.",
     ]
+    if noise_mm > 0:  # the instrument's noise as identify's test of the fit reads it (stiffness/lack_of_fit.py);
+        lines.append(f"# noise_mm: {noise_mm:g}")  # (one line as before: the rows' file lines are unchanged)
     if c.effects:
         for name, params in c.effects.items():
             ptxt = "; ".join(f"{k} = {np.round(np.asarray(v), 12).tolist()}" for k, v in params.items())
