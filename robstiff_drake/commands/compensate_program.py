@@ -166,8 +166,9 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
                                               max_correction_mm=max_correction_mm)
     except CorrectionError as e:
         raise InputError(str(e)) from None
-    model = (f"identified model (seed {sc.model.identification.seed})" if sc.model.source == "identified"
-             else "nominal model")
+    from robstiff_drake.diagrams.scenario_models import model_origin
+
+    model = model_origin(sc)  # where the model came from: the user's files by their path, the seed of the rest
     try:
         plain_text, added = rewrite_corrected(text, program.moves, corrections)
     except ProgramWriteError as e:
@@ -211,7 +212,7 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
     names = {"program": f"{stem}_compensated.nc", "rapid": f"{stem}_compensated.mod",
              "reference": "joint_reference.csv"}
     largest = max((c.max_correction_mm for c in corrections.values()), default=0.0)
-    summary = {"program": str(Path(out) / names["program"]),
+    summary = {"program": str(Path(out) / names["program"]), "model": model,
                "rapid_module": str(Path(out) / names["rapid"]),
                "joint_reference": str(Path(out) / names["reference"]),
                "predicted_error_mm": {"before": _two(before), "after": _two(after)},

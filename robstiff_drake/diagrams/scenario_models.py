@@ -61,6 +61,25 @@ def identified_parts(sc):
     return f"{stiffness}, {payload}, a simulated servo step test"
 
 
+def model_origin(sc):
+    """The compensator's model in words, as a corrected program's header and
+    its joint reference's mark say it: "nominal model", or the identified
+    model with where its stiffness and payload come from (the user's files by
+    their path as read, resolved against the scenario's folder) and the seed
+    of what is simulated (the servo step test, the cutting coefficients and
+    what no file gives).  "(seed 20)" alone said a simulated campaign where
+    the user's k.json was used."""
+    if sc.model.source != "identified":
+        return "nominal model"
+    stiffness = ("stiffness of model.joint_stiffness_Nm_per_rad" if sc.model.joint_stiffness_Nm_per_rad else
+                 f"stiffness from {resolve(sc, sc.model.identified_json)}" if sc.model.identified_json
+                 else "stiffness from a simulated campaign")
+    payload = (f"payload from {resolve(sc, sc.model.payload_yaml)}" if sc.model.payload_yaml
+               else "payload from a simulated calibration")
+    return (f"identified model ({stiffness}, {payload}, the rest simulated with model.identification.seed "
+            f"{sc.model.identification.seed})")
+
+
 def checked_joint_stiffness(value, *, where):
     """``value`` as six finite joint stiffnesses (N*m/rad) within
     STIFFNESS_RANGE_NM_PER_RAD, or an InputError that names ``where``."""
