@@ -226,13 +226,19 @@ def _to_jsonable(obj, where, bad):
 def json_text(obj):
     """``obj`` as JSON text; NaN and infinities become null, and when ``obj``
     is a dict a warning in its ``warnings`` list names them.  A dict also
-    gets the command's input warnings (``input_warning``) in that list."""
+    gets the command's input warnings (``input_warning``) in that list, and
+    its input notes (``input_note``: decimal commas read, a scenario's
+    assumed spindle rating), printed on stderr, in its ``notes`` list."""
     bad = []
     data = _to_jsonable(obj, "", bad)
     if isinstance(data, dict) and current() is not None and current().input_warnings:
         listed = data.setdefault("warnings", [])
         if isinstance(listed, list):
             listed[:0] = [w for w in current().input_warnings if w not in listed]
+    if isinstance(data, dict) and current() is not None and current().input_notes:
+        listed = data.setdefault("notes", [])
+        if isinstance(listed, list):
+            listed[:0] = [n for n in current().input_notes if n not in listed]
     if bad and isinstance(data, dict):
         shown = ", ".join(bad[:5]) + (f" and {len(bad) - 5} more" if len(bad) > 5 else "")
         data.setdefault("warnings", [])

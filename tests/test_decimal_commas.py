@@ -70,6 +70,9 @@ def test_identify_and_calibrate_payload_read_it_and_say_so(capsys, tmp_path):
     notes = [ln for ln in err.splitlines() if "decimal commas" in ln]
     assert len(notes) == 1 and notes[0].startswith("robstiff: note: ") and "euro.csv" in notes[0], err
     assert "semicolon-separated" in notes[0] and "warning" not in notes[0]
+    # in the JSON too (its 'notes', not 'warnings'; before: printed only)
+    said = notes[0].removeprefix("robstiff: note: ")
+    assert b["notes"] == [said] and said not in b["warnings"] and "notes" not in a
     # and not said of a file with decimal points
     assert "decimal commas" not in cli(capsys, "identify", CAMPAIGN)[2]
     code, out, err = cli(capsys, "calibrate-payload", european(PAYLOAD, tmp_path / "payload.csv"))

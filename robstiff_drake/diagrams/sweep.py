@@ -93,6 +93,8 @@ def run_one(scenario_path, combo, plant_step_ms=None, predict=True, robot_spec=N
                           else f"surface error above {DIVERGED_SURFACE_MM} mm")
     except Exception as e:  # a failed run is a row, not the end of the sweep
         row.update(stable=False, error=" ".join(f"{type(e).__name__}: {e}".split())[:500])
+        if getattr(e, "why", None):  # a refusal's detail (a plant step's numbers: diagrams/plant_step.py), as printed
+            row["error_why"] = " ".join(str(e.why).split())[:2000]
     row["run_seconds"] = time.perf_counter() - t0
     return row
 
