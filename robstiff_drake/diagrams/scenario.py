@@ -74,6 +74,10 @@ def load_scenario(path, toolpath=None, work_offset=None, stock=None):
         raise InputError(f"{path}: {msg}") from None
     sc.source = str(path)
     sc._key_lines = lines
+    if ("cutter", "spindle_rating_W") not in lines:  # the spindle-power check's rating, not invented silently
+        from robstiff_drake.command import input_note
+
+        input_note(SPINDLE_RATING_NOT_STATED.format(path=path, rating_kW=sc.cutter.spindle_rating_W / 1e3))
     if toolpath is not None:
         note_input(toolpath, "--toolpath")
         sc.toolpath.program = str(Path(toolpath).resolve())
@@ -94,6 +98,13 @@ def load_scenario(path, toolpath=None, work_offset=None, stock=None):
     apply_program(sc)
     check_scenario(sc)
     return sc
+
+
+# A scenario without cutter.spindle_rating_W gets the schema's default (scenario_schema.CutterConfig): the paper's
+# spindle, which every run's spindle-power check then uses; said in a note (text and the JSON's 'notes').
+SPINDLE_RATING_NOT_STATED = ("{path}: cutter.spindle_rating_W not stated: the spindle-power check assumes "
+                             "{rating_kW:.2f} kW, the paper's spindle (SETCO 5 HP, its Table 3); state your "
+                             "spindle's rated power (W) there")
 
 
 def named_files(sc):
