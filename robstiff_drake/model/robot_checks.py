@@ -14,6 +14,7 @@ import numpy as np
 
 from robstiff_drake.errors import InputError
 from robstiff_drake.model.arm_dynamics import ArmInertia
+from robstiff_drake.model.stiffness_rule import extrapolated_rule_warning
 
 # Densities a link's mass over its shape's volume can have (kg/m^3): a
 # robot link is a hollow casting or weldment with motors and gears inside;
@@ -125,6 +126,17 @@ def link_warnings(robot):
     return out
 
 
+def largest_compliance_um_per_N(robot, q_rad):
+    """The tool point's largest translational compliance (um/N) at ``q_rad``:
+    the largest eigenvalue of Jv diag(1/k) Jv^T (the conventional model)."""
+    from robstiff_drake.model import kinematics as kin
+
+    tool = robot.payload.tool_point_m if robot.payload.tool_point_m is not None else np.zeros(3)
+    Jv = kin.jacobian(robot.dh, q_rad, tool)[:, :3]  # (6 joints, 3 rows)
+    C = Jv.T @ np.diag(1.0 / robot.joint_stiffness_Nm_per_rad) @ Jv
+    return float(np.linalg.eigvalsh(C)[-1]) * 1e6
+
+
 def plausibility(robot):
     """Warnings (one line each) about a robot file's physics; InputError
     when its joints could not hold the arm up (see MAX_GRAVITY_SAG_RAD)."""
@@ -141,6 +153,9 @@ def plausibility(robot):
         f1 = float(first_modes_hz(robot, q)[0])
     except np.linalg.LinAlgError:  # a mass matrix that cannot be inverted: no inertia on some joint
         f1 = 0.0
+    rule = extrapolated_rule_warning(robot, largest_compliance_um_per_N(robot, q))
+    if rule:
+        out.append(rule)
     lo, hi = FIRST_MODE_RANGE_HZ
     if not lo <= f1 <= hi:
         out.append(f"{robot.source}: the first natural frequency {where} is {f1:.3g} Hz (joint springs, motors "
