@@ -82,7 +82,7 @@ def format_fit(fit, campaign, robot, no_intervals=(), lack=None):
     if fit.outlier_rows:
         lines.append("outliers (|residual| > 4 robust sigma) at lines: "
                      + ", ".join(str(campaign.lines[i]) for i in fit.outlier_rows))
-    return "\n".join(lines)
+    return "\n".join(line.rstrip() for line in lines)
 
 
 # identify fits the six-spring law only: the gears' play is not in its model, so its --json has no lost_motion_* keys
