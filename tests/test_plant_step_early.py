@@ -65,3 +65,24 @@ def test_compensate_program_says_the_refused_step_is_its_model_twins(tmp_path, c
     _refused_before(tmp_path, capsys, monkeypatch, oc, "predict", ["compensate-program", "--no-simulate"])
     err = capsys.readouterr().err
     assert "plant_config.time_step: for the compensator's model of the cell (its twin" in err, err
+
+
+def test_a_sweep_rows_refusal_keeps_its_why(monkeypatch):
+    """A sweep run refused by the plant step (a row, the sweep goes on) kept
+    the refusal's line in its JSON row's 'error' but not its 'why:' detail,
+    which the command's refusal prints; now the row's 'error_why'."""
+    from pathlib import Path
+
+    from robstiff_drake.diagrams import experiment, sweep
+    from robstiff_drake.diagrams.plant_step import StepError, StepRefusal
+
+    def refused(*a, **k):
+        raise StepError(StepRefusal("plant_config.time_step: 2 ms is unstable for the wrist mode",
+                                    "mode 3 damping 0.02, motor share 0.4; stable below 0.79 ms"))
+
+    monkeypatch.setattr(experiment, "run_cut", refused)
+    job = Path(__file__).resolve().parents[1] / "diagrams" / "short_block.yaml"
+    row = sweep.run_one(str(job), {"period_ms": 4.0, "delay_steps": 0, "cutoff_hz": 50.0, "mode": "plain"},
+                        predict=False)
+    assert row["stable"] is False and "2 ms is unstable" in row["error"]
+    assert row["error_why"] == "mode 3 damping 0.02, motor share 0.4; stable below 0.79 ms"
