@@ -169,12 +169,23 @@ def command_line():
     return "robstiff " + " ".join(shlex.quote(a) for a in sys.argv[1:])
 
 
+def _robot_file_text(robot):
+    """The robot file as the header names it: a library robot by its library name (this machine's install path
+    means nothing to the file's reader), a user's file by its path."""
+    from pathlib import Path
+
+    from robstiff_drake.paths import MODELS_DIR
+
+    src = Path(robot.source)
+    return f"the library's {src.name}" if src.parent.resolve() == MODELS_DIR.resolve() else str(src)
+
+
 def stiffness_csv(c, *, robot, noise_mm, seed, force_N, tool_m, how=None):
     """CSV text of a SynthStiffness, with comment lines saying how it was made."""
     lines = [
         "# Synthetic stiffness campaign made by robstiff-drake (robstiff_drake/identification/stiffness/synth.py).",
         f"# Made with: {how or command_line()}",
-        f"# Robot model: {robot.source} ({robot.name}; q1..q6 in its controller's convention, deg); true joint "
+        f"# Robot model: {_robot_file_text(robot)} ({robot.name}; q1..q6 in its controller's convention, deg); true joint "
         "stiffness N*m/rad: " + ", ".join(f"{k:.6g}" for k in c.true_stiffness_Nm_per_rad),
         "# Poses: the tool point (the tool_mm line, flange frame) uniform in the machining workspace box, spindle "
         "axis tilted up to 25 deg from straight down, yaw within +-90 deg; IK.",
