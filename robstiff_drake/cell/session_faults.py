@@ -16,6 +16,12 @@ WRONG_PERIOD_MESSAGES = CLEAR_MESSAGES
 # messages in a row behind the last one (each the next after the one before) that the loop logs once: more than
 # a sequence jump's MAX_JUMP, fewer than the reorder window's 64 (cell/session.py)
 BEHIND_LOGGED = 8
+WRAP = 2**32  # (the clocks' width: cell/session.py)
+
+
+def _signed(d):
+    d %= WRAP
+    return d - WRAP if d >= WRAP // 2 else d
 
 
 def _fmt(q_deg):
@@ -28,7 +34,8 @@ class SessionFaults:
 
     def _session(self, msg):
         """The clock's verdict; False: drop the message unanswered."""
-        prev = self.clock.seq
+        prev, prev_tm = self.clock.seq, self.clock.tm
+        self._watch_cycle(msg)
         if msg.extra.get("new_session"):
             # the controller restarted its session (RSI: a new RSI_MOVECORR): its corrections count from the
             # pose it stands at now; the link learnt that start, the correction ramps to zero, then up again
@@ -36,7 +43,10 @@ class SessionFaults:
                                       f"its start {_fmt(msg.extra.get('start_deg'))} deg learnt again")
         v, dt = self.clock.accept(msg.seq, msg.tm_ms)
         if v == "duplicate":
-            self.n.duplicates += 1
+            if getattr(self.link, "seq_from_clock", False) and msg.tm_ms != prev_tm:
+                self._between_cycles(msg, prev_tm)
+            else:
+                self.n.duplicates += 1  # (the same number and clock again: a true duplicate, or a replay)
             return False, 0.0
         if v == "old":
             self.n.old += 1
@@ -49,7 +59,12 @@ class SessionFaults:
                            f"passes {prev}")
             return False, 0.0
         if prev is not None and v in ("ok", "clock"):
-            self.n.lost += max(0, (msg.seq - prev) % 2**32 - 1)
+            ds = (msg.seq - prev) % 2**32
+            # (a controller named at another cycle, ``_watch_cycle``: its numbers skipped per message are not lost)
+            lost = max(0, int(round(ds / self._cycle_periods)) - 1 if self._cycle_periods > 1 else ds - 1)
+            self.n.lost += lost
+            if self._cycle_run is not None:
+                self._cycle_run[2] += lost
         if v == "jump":
             self.n.jumps += 1
             restart = (msg.seq - (prev or 0)) % 2**32 >= 2**31 and msg.seq < 100  # numbering from the start again
@@ -106,3 +121,66 @@ class SessionFaults:
                        f"plays at {self.s.period_s * 1e3 / cycle_ms:.2f} times the program's speed: stop the "
                        f"run and start compensate again with --period-ms {cycle_ms:g} (FANUC Stream Motion: 8 ms, "
                        "or 4 ms on controllers that stream at 250 Hz; ABB EGM: 4 ms; KUKA RSI: 4 or 12 ms)")
+
+    def _between_cycles(self, msg, prev_tm):
+        """A message whose clock is not the last one's but whose sequence
+        number, the clock over --period-ms (RSI's IPOC), is: within the last
+        one's cycle.  Dropped unanswered as a duplicate is (its answer would
+        share the last one's cycle) but counted apart and said, a clock
+        fault: a KRC's IPOC steps by whole cycles, so either --period-ms is
+        not its cycle (``_watch_cycle`` names it) or the clock is not one."""
+        self.n.between_cycles += 1
+        step = _signed(msg.tm_ms - prev_tm)
+        what = getattr(self.link, "clock_name", "clock")
+        self.fault_on("clock", f"{self.link.name}: {what} {msg.tm_ms} ms is {step:+d} ms from the last one answered "
+                               f"({prev_tm}), within the last one's cycle at --period-ms {self.s.period_s * 1e3:g}: "
+                               f"dropped unanswered (not a duplicate: another {what}); a KRC's IPOC steps by whole "
+                               "cycles (4 ms with IPO_FAST, 12 in IPO mode): --period-ms not its cycle, or a "
+                               "clock that is not one")
+
+    def _watch_cycle(self, msg):
+        """A link whose sequence is its clock over --period-ms (RSI: the
+        IPOC): the clock's steps, every message's, ahead of the verdict.
+        ``WRONG_PERIOD_MESSAGES`` in a row of one step that is one of the
+        protocol's cycles (``link.cycles_ms``) and not --period-ms is a
+        controller at that cycle: the wrong period never runs silently (a
+        longer cycle skipped numbers, counted as lost datagrams, with no
+        fault; a shorter one put two messages on a number, dropped as
+        duplicates).  Named once a run in one line with the --period-ms to
+        set, a fault held for the run (the correction ramps to zero and
+        stays: the loop was checked and tuned at --period-ms, not at the
+        controller's cycle); the numbers skipped meanwhile are taken back
+        from the lost count, and from then on a step of the cycle loses
+        none."""
+        if not getattr(self.link, "seq_from_clock", False) or self._cycle_periods != 1.0:
+            return
+        last, self._cycle_tm = self._cycle_tm, msg.tm_ms
+        step = None if last is None else _signed(msg.tm_ms - last)
+        if step is None or step <= 0:
+            self._cycle_tm = last if step == 0 else msg.tm_ms  # (the same clock again: the run goes on)
+            if step is not None and step < 0:
+                self._cycle_run = None
+            return
+        run = self._cycle_run
+        if run is None or step != run[0]:
+            run = self._cycle_run = [step, 0, 0]  # [the step ms, messages, lost counted in the run]
+        run[1] += 1
+        T_ms = self.s.period_s * 1e3
+        if run[1] < WRONG_PERIOD_MESSAGES or abs(step - T_ms) < 0.5 or \
+                not any(abs(step - c) < 0.5 for c in getattr(self.link, "cycles_ms", ())):
+            return
+        self._cycle_periods = step / T_ms
+        self.n.lost = max(0, self.n.lost - run[2])
+        if step > T_ms:
+            meant = (f"each message skipped {step / T_ms - 1:g} of its numbers: not lost datagrams (not counted "
+                     "lost)")
+        else:
+            meant = (f"{1 - step / T_ms:.0%} of the messages fall within the last one's cycle and are dropped "
+                     "unanswered (the controller's late-packet limit stops it)")
+        what = getattr(self.link, "clock_name", "clock")
+        self.fault_on("period", f"{self.link.name}: --period-ms is not the controller's cycle: its {what} stepped "
+                                f"{step:g} ms a message, {run[1]} messages in a row, where --period-ms is {T_ms:g}; "
+                                f"{meant}; a fault held for the run (the loop was checked and tuned for {T_ms:g} ms): "
+                                f"stop the run and start compensate again with --period-ms {step:g}")
+        self._cycle_run = None
+
