@@ -144,9 +144,9 @@ def test_rsi_12_ms_set_on_a_4_ms_krc_is_named_and_its_messages_are_not_called_du
 
 
 def test_an_honest_krc_half_a_cycle_off_the_grid_loses_nothing(robot):
-    """IPOC 1_000_002 + 4 k at --period-ms 4 (and 1_000_002 + 12 k at 12, 6 ms off): before, round(IPOC / period) tied to
-    even on every message and every other one was a 'duplicate', dropped unanswered (the KRC's late-packet
-    limit then stops the robot)."""
+    """IPOC 1_000_002 + 4 k at --period-ms 4 (and 1_000_002 + 12 k at 12, 6 ms off): before, round(IPOC /
+    period) tied to even on every message and every other one was a 'duplicate', dropped unanswered (the KRC's
+    late-packet limit then stops the robot)."""
     for period_ms, first in ((4, 1_000_002), (12, 1_000_002)):
         loop, text, aks = _run(robot, period_ms * 1e-3, [first + period_ms * k for k in range(100)],
                                period_ms * 1e-3)

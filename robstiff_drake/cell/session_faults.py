@@ -86,7 +86,12 @@ class SessionFaults:
                 what = (f"the controller's clock disagrees with its sequence (time stamp {msg.tm_ms} ms at sequence "
                         f"number {msg.seq})")
             self.fault_on("clock", f"{self.link.name}: {what}; the reference advances by the sequence")
-            self._steady_clock(why)
+            self._steady_clock(why, None if prev_tm is None else _signed(msg.tm_ms - prev_tm),
+                               ((msg.seq - prev) % 2**32) * self.s.period_s * 1e3 if prev is not None else None)
+            if self._shorter_cycle_ms is not None and prev_tm is not None:
+                # (a controller named at a shorter cycle than --period-ms: the sequence's period per message would
+                # play the reference faster than programmed, twice at 8 on a 4 ms controller; the clock's step)
+                dt = min(dt, max(_signed(msg.tm_ms - prev_tm), 0) * 1e-3) or dt
         else:
             self._steady = None
             self.ok_since_fault += 1
@@ -96,29 +101,46 @@ class SessionFaults:
                                          "compensating again")
         return True, dt
 
-    def _steady_clock(self, why):
+    def _steady_clock(self, why, raw_step_ms=None, raw_nominal_ms=None):
         """A clock fault on every message, each stamp stepping the same
         (within its 1 ms resolution) where the sequence steps one period:
         a steady clock at another cycle than --period-ms (Stream Motion's
         8 ms interpolation cycle, compensate's default 4 ms), named once a run
         with the period to set; meanwhile the correction stays at zero and
         the reference plays at the sequence's pace, --period-ms per message
-        (half the program's feed at 8 ms)."""
-        if why is None or why[0] != "step" or self._wrong_period_said:
+        (half the program's feed at 8 ms).  A clock whose every step is within
+        the tolerance but whose sum runs away (the "drift" fault: --period-ms 8
+        on a 4 ms controller) is named alike when its steady step is one of the
+        protocol's cycles (``link.cycles_ms``; before, only "its clock, or
+        --period-ms not the controller's cycle"), and from then on the
+        reference advances by the clock's step, not the sequence's
+        (``_shorter_cycle_ms``: before, 8 ms a 4 ms message, twice the
+        program's feed, the arm following it)."""
+        if why is None or self._wrong_period_said:
             self._steady = None
             return
-        step_ms, nominal_ms = float(why[1]), float(why[2])
+        if why[0] == "step":
+            step_ms, nominal_ms = float(why[1]), float(why[2])
+        elif raw_step_ms is not None and raw_nominal_ms:
+            step_ms, nominal_ms = float(raw_step_ms), float(raw_nominal_ms)
+        else:
+            self._steady = None
+            return
         run = self._steady
         if run is None or nominal_ms != run[1] or abs(step_ms - run[0]) > 1.0:
             run = self._steady = [step_ms, nominal_ms, 0]
         run[2] += 1
         if run[2] >= WRONG_PERIOD_MESSAGES and run[0] > 0:
-            self._wrong_period_said = True
             cycle_ms = run[0] / (run[1] / (self.s.period_s * 1e3))
+            if why[0] != "step" and not any(abs(cycle_ms - c) < 0.5 for c in getattr(self.link, "cycles_ms", ())):
+                return  # (a steady drift at no cycle of the protocol: a clock at another pace, its fault said)
+            self._wrong_period_said = True
+            if cycle_ms < self.s.period_s * 1e3:
+                self._shorter_cycle_ms = cycle_ms
             self.event(f"{self.link.name}: --period-ms is not the controller's cycle: its time stamps stepped "
                        f"{run[0]:g} ms a message, {run[2]} messages in a row, where --period-ms "
                        f"{self.s.period_s * 1e3:g} says {run[1]:g}; the correction stays at zero and the reference "
-                       f"plays at {self.s.period_s * 1e3 / cycle_ms:.2f} times the program's speed: stop the "
+                       f"plays at {min(1.0, self.s.period_s * 1e3 / cycle_ms):.2f} times the program's speed: stop the "
                        f"run and start compensate again with --period-ms {cycle_ms:g} (FANUC Stream Motion: 8 ms, "
                        "or 4 ms on controllers that stream at 250 Hz; ABB EGM: 4 ms; KUKA RSI: 4 or 12 ms)")
 
