@@ -150,6 +150,13 @@ def rsi_cases():
     yield "RSI 12 ms IPO read with --period-ms 4", 4, 1_000_000 + k * 12, k * 12e-3
     yield "RSI 4 ms, an IPOC that jitters 0-2 ms", 4, \
         1_000_000 + k * 4 + np.random.default_rng(0).integers(0, 3, n), k * 4e-3
+    jitter = np.random.default_rng(0).integers(0, 3, n)
+    jitter[0] = 0  # (the session's grid from a message at the jitter's low end)
+    yield "RSI 4 ms, an IPOC that jitters 0-2 ms, its first at 0", 4, 1_000_000 + k * 4 + jitter, k * 4e-3
+    for p in (4, 12):  # (an honest KRC whose IPOC is half a cycle off the grid 0, T, 2T..)
+        yield f"RSI {p} ms, the IPOC half a cycle off the grid", p, 1_000_000 + p // 2 - 1_000_000 % p + k * p, \
+            k * p * 1e-3
+    yield "RSI 4 ms read with --period-ms 12", 12, 1_000_000 + k * 4, k * 4e-3
 
 
 def _rsi_run(period_ms, ipocs, arrivals):

@@ -36,6 +36,18 @@ def air_until_taken(r, sensor, air, n=START_RECORDS, most=1000):
         r.step(one, pace_s=PACE_S)
     assert sent[0] >= n, "the sensor's stream never restarted"
 
+def streaming(sensor, wrench=None):
+    """One record of ``wrench`` (default: the held one) sent once a client has the stream: after a silence longer
+    than pynetft's receive timeout (1 s: a loaded machine stretches the test's silence past it) pynetft stops the
+    stream and starts it again after its back-off, and a record sent meanwhile reaches no one (before, the 150
+    records after test_silence_ramps_to_zero_and_the_sensors_return_restarts' silence could all fall there:
+    no "valid records again"; a silence of 150 messages 25 ms apart did it every time)."""
+    t_end = time.monotonic() + HANG_GUARD_S
+    while not sensor.send(wrench):
+        assert time.monotonic() < t_end, "the sensor's stream never restarted"
+        time.sleep(0.001)
+
+
 # the most the correction may move between two answers: compensate's rate limit (5 deg/s) over MAX_STEP_PERIODS
 # periods (cell/compensate.py), + rounding
 MAX_STEP_DEG = 5.0 * MAX_STEP_PERIODS * T + 1e-6
@@ -207,11 +219,12 @@ class Run:
         return text[-3000:]
 
     def recover(self, sensor, steady, most=500):
-        """Messages, each after one record of the held wrench (at least PACE_S apart: pynetft's restart of
-        the stream waits its back-off), until the correction is back to half ``steady`` (at most ``most``);
-        how many it took (None: not within them; liveness, reported, not a safety matter)."""
+        """Messages, each after one record of the held wrench that reached a client (``streaming``: pynetft's
+        restart of the stream waits its back-off, and each message is at least PACE_S apart), until the
+        correction is back to half ``steady`` (at most ``most``); how many it took (None: not within them;
+        liveness, reported, not a safety matter)."""
         for i in range(most):
-            self.step(lambda k: sensor.send(), pace_s=PACE_S)
+            self.step(lambda k: streaming(sensor), pace_s=PACE_S)
             if self.dev[self.k - 1] > 0.5 * steady:
                 return i + 1
         return None

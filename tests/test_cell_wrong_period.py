@@ -66,3 +66,46 @@ def test_a_run_that_computed_no_correction_under_a_fault_is_counted_lost():
     weighted.add(1.0, False)
     weighted.add(3.0, True)
     assert weighted.fraction() == 0.75
+
+
+def test_a_period_longer_than_the_controllers_cycle_is_named_and_never_plays_the_path_faster(robot):
+    """--period-ms 8 on a 4 ms EGM controller (its clock steps 4 ms a message, each step within the 5 ms
+    tolerance, their sum running away: the "drift" fault on every message).  Before: that fault's line only ("its
+    clock, or --period-ms not the controller's cycle"), and the reference advanced by the sequence's 8 ms a 4 ms
+    message for the whole run: twice the program's feed, the arm following it (t_session 1.59 s after 200
+    messages, 0.8 s of the controller's time).  Now the cycle is named once with the --period-ms to set and,
+    from then on, the reference advances by the clock's 4 ms (a scripted clock: no timing)."""
+    import io
+    import math
+
+    from test_cell_review_loop import Q0, _ScriptedEgm, _ScriptedSensor, _messages, scripted_clock
+
+    from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
+
+    n = 200
+    w = np.asarray(h.hold_wrench(robot, np.radians(Q0))(0.0)).tolist()
+    clock = scripted_clock()
+    # (sequence k, clock 4 ms a message; the arm where the program puts it at the controller's time)
+    script = _messages(n, Q0, joints=lambda seq: list(np.array(Q0) + [2.0 * (seq - 1) * 0.004, 0, 0, 0, 0, 0]))
+    link = _ScriptedEgm(script[1:], clock)
+    sensor = _ScriptedSensor(w, clock)
+    t = np.arange(0.0, 3.0, 0.008)
+    ref = Reference(t, np.array(Q0) + np.outer(t, [2.0, 0, 0, 0, 0, 0]), period_s=0.008)  # q1 at 2 deg/s
+    out = io.StringIO()
+    loop = CompensatorLoop(h.hold_compensator(robot, w), link.link, sensor, ref, robot,
+                           LoopSettings(period_s=0.008, max_jump_Nm=350.0, max_correction_mm=math.inf,
+                                        max_correction_deg=math.inf, start_tolerance_N=math.inf,
+                                        sensor_rate_hz=250.0), out=out)
+    loop.pc_time = lambda: clock[0]
+    clock[0] = clock[1]
+    try:
+        loop.run((script[0], clock[0]))
+    finally:
+        link.close()
+    said = [ln for ln in out.getvalue().splitlines() if "--period-ms is not the controller's cycle" in ln]
+    assert len(said) == 1, out.getvalue()
+    assert "stepped 4 ms a message" in said[0] and "with --period-ms 4 " in said[0], said[0]
+    assert "plays at 1.00 times" in said[0], said[0]
+    # the reference's time: the controller's 0.796 s, plus the 25 messages before the naming at 8 ms (0.1 s)
+    assert loop.t_session < (n - 1) * 0.004 + 0.11, loop.t_session  # (before: 1.592)
+    assert loop.n.refused == 0, out.getvalue()  # (before: the path ahead of the arm, targets refused)

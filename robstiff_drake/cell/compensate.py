@@ -95,6 +95,10 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         # (cell/session_faults.py: the clock faults in a row stepping alike, [step ms, sequence's ms, count] or
         # None, and whether the wrong --period-ms they show has been said: once a run)
         self._steady, self._wrong_period_said = None, False
+        # (cell/session_faults.py ``_watch_cycle``, a link whose sequence is its clock over the period (RSI): the
+        # last clock seen, the run of its steps alike, and the controller's cycle in periods once named, else 1)
+        self._cycle_tm, self._cycle_run, self._cycle_periods = None, None, 1.0
+        self._shorter_cycle_ms = None  # (a controller named at a shorter cycle than --period-ms: _steady_clock)
         self.ok_since_fault = 0
         self.t_session = 0.0
         self.q = None  # the model's joint angles (rad)

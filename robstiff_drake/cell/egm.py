@@ -64,6 +64,10 @@ class EgmLink(PCLink):
 
     name = "EGM"
     option = "--egm-port"
+    # the cycles an IRC5 streams EGM at (ms): \SampleRate, a multiple of 4 ms.  ASSUMPTION (ABB's manual not at
+    # hand): the multiples up to 24; a steady clock at one of them that is not --period-ms is named with the
+    # --period-ms to set (cell/session_faults.py)
+    cycles_ms = (4.0, 8.0, 12.0, 16.0, 20.0, 24.0)
     # the IRC5 takes the newest EgmSensor it has at each cycle: an answer after the next cycle is a held cycle
     # (the last target held, then two steps at once: docs/real_cell.md, \LpFilter)
     answer_deadline_periods = 1.0

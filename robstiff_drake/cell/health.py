@@ -155,6 +155,9 @@ class Counters:
     unanswered_refused: int = 0  # messages left unanswered because no safe target was at hand
     lost: int = 0  # messages the sequence numbers say never arrived
     duplicates: int = 0
+    # messages whose sequence number was the last one's with another clock (RSI: an IPOC within the last one's
+    # cycle at --period-ms): dropped as a duplicate is, counted apart (cell/session_faults.py)
+    between_cycles: int = 0
     old: int = 0
     jumps: int = 0
     clock_faults: int = 0

@@ -72,6 +72,7 @@ checked as any other (a restart that happens to land there is the case
 above: the setpoint check tells it).
 """
 
+import math
 import time
 from collections import deque
 
@@ -108,6 +109,11 @@ MAX_STARTS_UNRULED = 8
 # MAX_JUMP periods, or the lost datagrams' rule), is the same counter gone round: the session goes on (or, past
 # MAX_JUMP, the lost-datagram case).  An IPOC of 2**32 ms or more says the counter is wider: no wrap is looked for.
 IPOC_WRAPS_MS = (2**32, 2**31)
+# The cycles a KRC runs RSI at (ms): 4 with IPO_FAST, 12 in IPO mode (KUKA.RobotSensorInterface manual; docs/
+# real_cell.md).  Its IPOC is the interpolation cycle's millisecond time stamp and steps by the cycle (ROS-
+# Industrial's kuka_rsi_simulator steps it by its cycle_time), so a run of IPOC steps of one of these that is not
+# --period-ms is a controller at another cycle (cell/session_faults.py names it with the --period-ms to set).
+CYCLES_MS = (4.0, 12.0)
 
 
 
@@ -117,6 +123,11 @@ class RsiLink(PCLink):
 
     name = "RSI"
     option = "--listen-port"
+    # the session's sequence is the clock (the IPOC) over --period-ms: a wrong --period-ms is no clock fault here
+    # but sequence numbers skipped or shared (cell/session_faults.py reads the IPOC's steps instead)
+    seq_from_clock = True
+    cycles_ms = CYCLES_MS
+    clock_name = "IPOC"
     # RSI expects the <Sen> with its IPOC back within the interpolation cycle; a later one is a late packet,
     # counted towards the ETHERNET object's limit that stops the robot (module docstring; docs/real_cell.md)
     answer_deadline_periods = 1.0
@@ -134,6 +145,11 @@ class RsiLink(PCLink):
         self._maybe_old = None
         self._doubt = ""  # (why the starts in _maybe_old are not ruled out: said in a refusal)
         self._ipoc_last = None  # the newest IPOC of this session (ms), counted on across wraps
+        # the session's IPOC grid's phase (ms): its first IPOC modulo the period.  The sequence number is the IPOC's
+        # cycles from it (``_seq``): a KRC's IPOC steps by whole cycles from wherever its session began, so an IPOC
+        # half a cycle off the grid 0, T, 2T.. is honest (before, round(IPOC / period) tied to even there and every
+        # other message of such a session was a "duplicate", dropped unanswered: tests/test_cell_rsi_period.py)
+        self._phase_ms = 0.0
         self._ipoc_offset_ms = 0  # what the wraps seen add to a raw IPOC (ms)
         self._last_wrap_ms = None  # the wrap last crossed (one of IPOC_WRAPS_MS)
         self.wraps = 0  # IPOC wraps crossed
@@ -193,12 +209,18 @@ class RsiLink(PCLink):
             return u - self._last_wrap_ms  # a late datagram of before the wrap
         return u
 
+    def _seq(self, ipoc_u):
+        """The sequence number of an IPOC (counted on across wraps, ms): its cycles from the session's grid."""
+        return int(math.floor((ipoc_u - self._phase_ms) / self.period_ms + 0.5))
+
     def decode(self, data):
         ipoc, actual, setpoint = self._decode_rob(data)
         here = setpoint if setpoint is not None else actual
         now = self.arrival_s if self.arrival_s is not None else time.monotonic()
         ipoc_u = self._unwrap(ipoc, now)
-        seq = int(round(ipoc_u / self.period_ms))
+        if self.start_deg is None:
+            self._phase_ms = ipoc_u % self.period_ms
+        seq = self._seq(ipoc_u)
         new = False
         if self.start_deg is None:
             self._new_session(here, seq)
@@ -218,6 +240,8 @@ class RsiLink(PCLink):
                 waited_ms = (now - self._t_last) * 1e3
                 lost_alike = 0 < ds * self.period_ms <= waited_ms + LOST_ALIKE_MARGIN_MS
                 unbroken = waited_ms <= RESTART_SILENCE_PERIODS * self.period_ms  # (no restart's silence before it)
+                self._phase_ms = ipoc_u % self.period_ms  # (a new epoch: its own grid)
+                seq = self._seq(ipoc_u)
                 self._new_session(here, seq, lost_alike=lost_alike or unbroken)
                 self._doubt = ("no more than the time that passed here: lost datagrams, perhaps" if lost_alike else
                                f"{waited_ms:.0f} ms after the last datagram, without a restart's silence: a time "

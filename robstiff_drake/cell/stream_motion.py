@@ -79,6 +79,9 @@ class StreamMotionLink(PCLink):
 
     name = "Stream Motion"
     option = "--listen-port"
+    # the interpolation cycles a FANUC controller streams at (ms): 8, or 4 on those that stream at 250 Hz
+    # (docs/real_cell.md); a steady clock at one that is not --period-ms is named (cell/session_faults.py)
+    cycles_ms = (4.0, 8.0)
     # a status packet every interpolation cycle, each answered by a command echoing its sequence number: the
     # command is for that cycle.  ASSUMPTION: one arriving after the next cycle is missing for it (the J519
     # packet definitions the module cites do not say what the robot does with it)

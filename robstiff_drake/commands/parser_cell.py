@@ -70,7 +70,11 @@ def add_cell_commands(sub):
                         "(online compensation on top corrects the deflection twice); with it a file without the "
                         "mark is refused")
     p.add_argument("--log", metavar="DIR", help="stream the run's logs into a run folder (diagnose-run reads it)")
-    p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=4.0, help="controller cycle (default: %(default)s)")
+    p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=4.0,
+                   help="the controller's cycle: EGM 4 (\\SampleRate), RSI 4 (#IPO_FAST) or 12 (#IPO), Stream Motion "
+                        "8 or 4 by controller (default: %(default)s, the shortest of every protocol: a wrong one plays "
+                        "the path slower, never faster; a controller at another cycle is named after 25 messages with "
+                        "the --period-ms to set, the correction held at zero)")
     p.add_argument("--mode", choices=["plain", "preview"], default="plain",
                    help="plain: the measured force's deflection (the paper's chain); preview: also the job's planned "
                         "path through the arm's dynamics, computed before the stream starts (needs --job; "

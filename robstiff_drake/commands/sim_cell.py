@@ -47,6 +47,7 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
         period_ms=None, lockstep=False, protocol="egm", netft_http_port=None, netft_units=("N", "N-m"),
         transport_delay_cycles=None, scan_out=None, answer_timeout_s=1.0):
     from robstiff_drake.cell.health import verdict
+    from robstiff_drake.cell.pass_check import FOLLOW_TOL_DEG, left_path
     from robstiff_drake.cell.rdt import parse_host_port
     from robstiff_drake.cell.sim_cell import CellNetwork
     from robstiff_drake.diagrams.cell_station import CellStation
@@ -143,11 +144,27 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
         write_atomic(scan_out, station.scan_csv(scans))
     if not cut:
         warnings.add("no face was cut (the run stopped before the cutter reached the part)")
+    # did the arm travel the pass? (every answer fresh says nothing of where its targets took the arm: a compensator
+    # holding the start, or playing the reference at half speed, was "health GOOD"; cell/pass_check.py)
+    n_eng = len(station.times)
+    q_eng = np.degrees(np.asarray(stats.q_cmd[-n_eng:], dtype=float)) if n_eng else np.zeros((0, 6))
+    q_ref = np.degrees([robot.joint_map.to_controller(q) for q in station.q_ref])
+    off = left_path(np.asarray(station.times) - T, q_eng, station.t_ref, q_ref)
+    partial = ""
+    if off is not None:
+        partial = (f"the arm did not travel the pass: its target q{off[2] + 1} was {off[1]:.2f} deg from the path's "
+                   f"reference at t = {off[0]:.3f} s, more than a correction ({FOLLOW_TOL_DEG:g} deg), and its last "
+                   f"target is the reference's of t = {off[3]:.2f} s of the {station.t_ref[-1]:.2f} s path (a "
+                   f"compensator at another --period-ms than this controller's {period_ms:g} ms, or streaming "
+                   "another reference?)")
+        warnings.add(f"sim-cell: {partial}")
+        status = EXIT_FAULT  # (as a pass the compensator stopped answering in)
     lost = stats.lost_fraction()
     word, reasons, line = verdict(cycles=stats.cycles, answered=stats.answered, late=stats.late_answers,
                                   unanswered=stats.unanswered, faults=int(bool(stats.stop_reason)),
                                   lost_fraction=lost, refused=stats.refused,
-                                  stopped=stats.stop_reason or ("" if station.done else "the pass was not finished"),
+                                  stopped=stats.stop_reason or ("" if station.done else "the pass was not finished")
+                                  or partial,
                                   # a held target jerks the arm through the servo's velocity feed-forward: one
                                   # or two held cycles moved the short block's face by 1-18 um (docs/real_cell.md)
                                   unanswered_good=0.0,
@@ -160,7 +177,9 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
            "surface_error_mm": surface if cut else None, "cycles": stats.cycles, "answered": stats.answered,
            "late": stats.late_answers, "unanswered": stats.unanswered, "late_ticks": stats.late_ticks,
            "skipped_ticks": stats.skipped_ticks, "targets_refused": stats.refused,
-           "stopped": stats.stop_reason or None, "t_stop_s": stats.t_stop if stats.stop_reason else None,
+           "stopped": stats.stop_reason or None,
+           "pass_left_path": None if off is None else {"t_s": off[0], "deviation_deg": off[1], "joint": off[2] + 1,
+                                                       "last_target_at_reference_t_s": off[3]}, "t_stop_s": stats.t_stop if stats.stop_reason else None,
            "last_answer_s": stats.last_answer_t, "sim_seconds": station.times[-1], "lockstep": bool(lockstep),
            "transport_delay_cycles": net.delay_cycles,
            "station_step_ms": {"median": float(np.median(stats.step_ms)) if stats.step_ms else None,
