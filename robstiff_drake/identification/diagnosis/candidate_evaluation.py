@@ -26,7 +26,7 @@ from scipy import stats
 
 from robstiff_drake.identification.diagnosis import plausibility as pl
 from robstiff_drake.identification.diagnosis.confounding import correlation, design_covariance
-from robstiff_drake.identification.diagnosis.cross_validation import clustered_cov, rows_to_eq, wald_p
+from robstiff_drake.identification.diagnosis.cross_validation import clustered_cov, rows_to_eq
 from robstiff_drake.identification.diagnosis.terms import GAUSS_NEWTON, GRID, fit_model, held_out, rms_mm, term_columns
 
 RANK_TOL = 1e-6
@@ -187,8 +187,9 @@ def evaluate(ctx, rows, folds, gidx, state, t, gain_needed):
         else:
             X = np.hstack([state.full.X, Zf])[eq]
             y, sl = ctx.b[eq] - state.full.offset[eq], slice(p0, p0 + pe)
-        coef, cov, G, _ = clustered_cov(X, y, geq)
-        p_grouped = wald_p(coef, cov, sl, G)
+        cf = clustered_cov(X, y, geq)
+        coef, cov, G = cf.coef, cf.cov, cf.G
+        p_grouped = cf.p(sl)
         if G - 1 < X.shape[1]:  # too few poses for the model's parameters: the test cannot decide (module docstring)
             p_grouped, checks["poses_needed"] = float("nan"), X.shape[1] + 1
         checks.update(physical_and_plausible(ctx, t, state, coef, cov, G, sl, g_best))
@@ -238,7 +239,8 @@ def implausible_terms(ctx, state, rows, geq):
     beyond the typical range or forbidden (plausibility.check)."""
     eq = rows_to_eq(rows)
     f = state.full
-    coef, cov, G, _ = clustered_cov(f.X[eq], ctx.b[eq] - f.offset[eq], geq)
+    cf = clustered_cov(f.X[eq], ctx.b[eq] - f.offset[eq], geq)
+    coef, cov, G = cf.coef, cf.cov, cf.G
     half = np.zeros(len(coef)) if cov is None else \
         stats.t.ppf(0.975, max(G - 1, 1)) * np.sqrt(np.maximum(np.diag(cov), 0.0))
     out = {}
