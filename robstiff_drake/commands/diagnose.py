@@ -65,7 +65,8 @@ def to_dict(d, campaign):
         "residual_structure": d.residual_structure,
         "n_hypotheses": d.n_hypotheses,
         "thresholds": d.thresholds,
-        "selection_rule": (f"pose-clustered Wald test (CR2 sandwich, HTZ small-sample reference) p < {ALPHA_ROUND:g} / (candidates tried in the round) and "
+        "selection_rule": ("pose-clustered Wald test (CR2 sandwich, HTZ small-sample reference) "
+                           f"p < {ALPHA_ROUND:g} / (candidates tried in the round) and "
                            f"held-out RMS down by >= {100 * MIN_GAIN['library']:.0f} % (named) or "
                            f"{100 * MIN_GAIN['dictionary']:.0f} % (dictionary)"),
         "candidates": [{"name": r.name, "status": r.status, "reason": r.reason, "rms_mm": r.rms_mm,
