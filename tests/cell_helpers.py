@@ -14,7 +14,8 @@ import time
 
 import numpy as np
 
-from scripted_compensate import HANG_GUARD_S, EndWhenIdle, ScriptedController, finish, start_compensate  # noqa: F401
+from scripted_compensate import (HANG_GUARD_S, EndWhenIdle, ScriptedController, finish, held_run,  # noqa: F401
+                                 start_compensate)
 
 from robstiff_drake.cell.sim_cell import CellNetwork, Faults, ServoArmStandIn
 from robstiff_drake.model import ik

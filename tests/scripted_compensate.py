@@ -94,6 +94,24 @@ def start_compensate(model, payload, sensor, egm_port, *, reference=None, log=No
             return proc
 
 
+def held_run(model, payload, sensor, port, q0_deg, messages, *, t_ms=4.0, log=None, extra=()):
+    """`compensate` (start_compensate on UDP ``port``) answering messages 1
+    to ``messages`` - 1 of a scripted controller holding ``q0_deg``
+    (message k stamped k * ``t_ms``), each answered, then ended (finish);
+    the controller and ``sensor`` closed.  (the process, its exit status,
+    its stderr after the start's lines: ``proc.early_err`` holds those)."""
+    proc = start_compensate(model, payload, sensor, port, log=log, extra=extra)
+    ctrl = ScriptedController(port)
+    try:
+        for k in range(1, messages):
+            assert ctrl.exchange(k, k * t_ms, q0_deg) is not None, f"no answer to message {k}"
+        code, err = finish(proc)
+    finally:
+        ctrl.close()
+        sensor.close()
+    return proc, code, err
+
+
 def _err_line(proc):
     """The next line of the stderr of a process of start_compensate ("" at
     its end), read from the pipe itself (so that ``_err_pending`` sees all

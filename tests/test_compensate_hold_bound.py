@@ -68,17 +68,9 @@ def test_a_run_without_reference_warns_at_the_hold_pose(tmp_path, robot):
     model, payload, _, ref_fn = h.write_inputs(str(tmp_path), robot, duration_s=0.5)
     q0 = np.degrees(ref_fn(0.0))
     sensor = h.FakeSensor(h.hold_wrench(robot, ref_fn(0.0)))
-    port = h.free_udp_port()
     log = str(tmp_path / "log")
-    proc = h.start_compensate(model, payload, sensor, port, log=log, extra=["--max-correction-mm", f"{TIGHT_MM:g}"])
-    ctrl = h.ScriptedController(port)
-    try:
-        for k in range(1, 60):
-            assert ctrl.exchange(k, k * T_MS, q0) is not None, f"no answer to message {k}"
-        code, err = h.finish(proc)
-    finally:
-        ctrl.close()
-        sensor.close()
+    _, code, err = h.held_run(model, payload, sensor, h.free_udp_port(), q0, 60, t_ms=T_MS, log=log,
+                              extra=["--max-correction-mm", f"{TIGHT_MM:g}"])
     assert code == 0, err
     said = [x for x in err.splitlines() if "deflects the tool" in x]
     assert len(said) == 1 and "warning:" in said[0] and "at the hold pose" in said[0], err

@@ -189,7 +189,8 @@ def test_rapids_and_moves_left_alone_are_untouched():
 
 def test_a_correction_beyond_the_clamp_names_the_line():
     prog = read_program(SHORT, "short.nc")
-    with pytest.raises(pc.CorrectionError, match=r"short\.nc:8: .*1\.500 mm.*--max-correction-mm 1"):
+    with pytest.raises(pc.CorrectionError, match=r"short\.nc:8: the predicted correction is 1\.500 mm at [\d.]+ mm along the "
+                       r"move's [\d.]+ mm, more than --max-correction-mm 1"):
         _corrections(prog, lambda p: np.column_stack([0 * p[:, 0], 0 * p[:, 0], 1.5 * (p[:, 0] >= 39.0)]))
 
 
@@ -420,3 +421,15 @@ def test_the_rapid_module_runs_back_through_the_plan(tmp_path):
     lines[k] = moved[0] + "[[" + f"{float(x[0]) + 0.5:g}," + x[1]
     with pytest.raises(ValueError, match="not the program's block end"):
         rapid_reference(sc, robot, "\n".join(lines), program, tool)
+
+
+def test_a_fanuc_job_is_told_the_rapid_module_is_abbs():
+    """A FANUC user got pocket_compensated.mod (RAPID robtargets with an ABB
+    configuration) beside the corrected G-code without a word."""
+    from robstiff_drake.commands.compensate_program import rapid_note
+    from robstiff_drake.model.robot import load_robot
+
+    note = rapid_note(load_robot("r2000ic_165f"), "pocket_compensated.mod")
+    assert note and note.startswith("pocket_compensated.mod is an ABB RAPID module") and "FANUC" in note
+    assert "--reference-is-corrected" in note
+    assert rapid_note(load_robot("irb6400"), "x.mod") is None

@@ -131,17 +131,8 @@ def test_summary_json_holds_the_warning(tmp_path):
     Path(payload).write_text(text.replace("  robot: irb6400\n", "  robot: kr240_r2900\n"))
     q0 = [float(v) for v in __import__("numpy").degrees(ref_fn(0.0))]
     sensor = h.FakeSensor(h.hold_wrench(robot, ref_fn(0.0)))
-    port = h.free_udp_port()
     log = str(tmp_path / "log")
-    proc = h.start_compensate(model, payload, sensor, port, log=log)
-    ctrl = h.ScriptedController(port)
-    try:
-        for k in range(1, 20):
-            assert ctrl.exchange(k, k * 4.0, q0) is not None, f"no answer to message {k}"
-        code, err = h.finish(proc)
-    finally:
-        ctrl.close()
-        sensor.close()
+    _, code, err = h.held_run(model, payload, sensor, h.free_udp_port(), q0, 20, log=log)
     assert code == 0, err
     said = [x for x in err.splitlines() if "calibrated with the robot" in x]
     assert len(said) == 1 and said[0].startswith("robstiff: warning: compensate: "), err

@@ -49,16 +49,9 @@ def test_compensate_carries_the_warning_into_summary_json(tmp_path):
     model, payload, _, ref_fn = h.write_inputs(str(tmp_path), robot, duration_s=0.5)
     q0 = np.degrees(ref_fn(0.0))
     sensor = h.FakeSensor(h.hold_wrench(robot, ref_fn(0.0)))
-    port, log = h.free_udp_port(), str(tmp_path / "log")
-    proc = h.start_compensate(model, payload, sensor, port, log=log, extra=["--robot", "kr240_r2900"])
-    ctrl = h.ScriptedController(port)
-    try:
-        for k in range(1, 20):
-            assert ctrl.exchange(k, k * 4, q0) is not None, f"no answer to message {k}"
-        code, err = h.finish(proc)
-    finally:
-        ctrl.close()
-        sensor.close()
+    log = str(tmp_path / "log")
+    proc, code, err = h.held_run(model, payload, sensor, h.free_udp_port(), q0, 20, log=log,
+                                 extra=["--robot", "kr240_r2900"])
     assert code == 0, err
     said = [x for x in (proc.early_err + err).splitlines() if "is a KUKA arm" in x]
     assert said and said[0].startswith("robstiff: warning: ") and "--controller-protocol rsi" in said[0], said

@@ -34,3 +34,27 @@ def test_an_edited_robot_file_is_another_key(tmp_path):
     assert "mass_kg: 40" in text
     path.write_text(text.replace("mass_kg: 40", "mass_kg: 45", 1))
     assert signature(sc, load_robot(path), q0) != before
+
+
+def test_asked_before_the_station_or_by_the_run_one_model():
+    """`simulate` asks for the user model before any station is built (its checks: servo.velocity_integral_hz
+    still the stated 7.5 Hz), the run after (the corner its station chose at the path's first pose written into
+    the scenario): one key, one model, whose servo has the drives' corner (before: two keys, the bench campaigns
+    measured twice per scenario, and the first model's servo kept 7.5 Hz)."""
+    import copy
+
+    from robstiff_drake.diagrams import user_model as um
+    from robstiff_drake.diagrams.station import resolve_integral_corner
+
+    robot = load_robot()
+    sc = load_scenario(DIAGRAMS_DIR / "block_milling.yaml")
+    ident = sc.model.identification
+    ident.stiffness = ident.payload = ident.servo = "exact"  # (no bench: the key is under test, not a campaign)
+    q0 = np.deg2rad([0.0, 30.0, 20.0, 0.0, 40.0, 0.0])
+    first = um.user_model(sc, robot, q0)
+    assert sc.servo.velocity_integral_hz == 7.5  # the caller's scenario as it was
+    run = copy.deepcopy(sc)
+    corner = resolve_integral_corner(run, robot, q0)
+    assert corner < 7.5, corner
+    assert um.user_model(run, robot, q0) is first
+    assert first.servo.velocity_integral_hz == corner

@@ -92,6 +92,9 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         # depend on where this PC's clock happens to stand
         self.pc_time = time.monotonic
         self.faults = {}  # name -> start time
+        # (cell/session_faults.py: the clock faults in a row stepping alike, [step ms, sequence's ms, count] or
+        # None, and whether the wrong --period-ms they show has been said: once a run)
+        self._steady, self._wrong_period_said = None, False
         self.ok_since_fault = 0
         self.t_session = 0.0
         self.q = None  # the model's joint angles (rad)
@@ -233,7 +236,7 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         stale = bool(self.faults) or self.gate is not None or not sent or not (age <= bound or 0.0 <= age_ctrl <= bound)
         if stale:
             self.n.stale_s += dt
-        self.n.lost_estimate.add(sum(abs(c) for c in self.comp.dq), stale)
+        self.n.lost_estimate.add(sum(abs(c) for c in self.comp.dq), stale, held=bool(self.faults))
         self.t_last_answer = t_done
         if self.log is not None:
             for t_w, w in self._wrench_rows:

@@ -108,14 +108,26 @@ class LostEstimate:
     def __init__(self):
         self.total = 0.0
         self.lost = 0.0
+        self.cycles = 0
+        self.held_cycles = 0
 
-    def add(self, corr_size, lost):
+    def add(self, corr_size, lost, held=False):
+        """``held``: a fault held the correction at zero this cycle."""
         self.total += corr_size
+        self.cycles += 1
+        self.held_cycles += bool(held)
         if lost:
             self.lost += corr_size
 
     def fraction(self):
-        return self.lost / self.total if self.total > 0 else 0.0
+        """The correction-weighted share lost; with no correction computed
+        in the whole run (a fault from the first message holds it at zero:
+        a controller at another cycle than --period-ms), the share of the
+        cycles a fault held (before: 0 %, for a run that compensated
+        nothing)."""
+        if self.total > 0:
+            return self.lost / self.total
+        return self.held_cycles / self.cycles if self.cycles else 0.0
 
 
 def fraction_of(mask, weights):

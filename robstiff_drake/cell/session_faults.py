@@ -10,6 +10,9 @@ correction is at zero.
 """
 
 CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
+# clock faults in a row whose stamps all step by the same multiple of --period-ms that the loop names as a
+# --period-ms that is not the controller's cycle (once a run): as many as clear a fault (0.1 s at 4 ms)
+WRONG_PERIOD_MESSAGES = CLEAR_MESSAGES
 # messages in a row behind the last one (each the next after the one before) that the loop logs once: more than
 # a sequence jump's MAX_JUMP, fewer than the reorder window's 64 (cell/session.py)
 BEHIND_LOGGED = 8
@@ -68,10 +71,38 @@ class SessionFaults:
                 what = (f"the controller's clock disagrees with its sequence (time stamp {msg.tm_ms} ms at sequence "
                         f"number {msg.seq})")
             self.fault_on("clock", f"{self.link.name}: {what}; the reference advances by the sequence")
+            self._steady_clock(why)
         else:
+            self._steady = None
             self.ok_since_fault += 1
             if self.ok_since_fault >= CLEAR_MESSAGES and all(abs(c) < 1e-12 for c in self.comp.correction):
                 for name in ("sequence", "clock", "target"):
                     self.fault_off(name, f"{name}: {CLEAR_MESSAGES} consistent messages and the correction at zero; "
                                          "compensating again")
         return True, dt
+
+    def _steady_clock(self, why):
+        """A clock fault on every message, each stamp stepping the same
+        (within its 1 ms resolution) where the sequence steps one period:
+        a steady clock at another cycle than --period-ms (Stream Motion's
+        8 ms interpolation cycle, compensate's default 4 ms), named once a run
+        with the period to set; meanwhile the correction stays at zero and
+        the reference plays at the sequence's pace, --period-ms per message
+        (half the program's feed at 8 ms)."""
+        if why is None or why[0] != "step" or self._wrong_period_said:
+            self._steady = None
+            return
+        step_ms, nominal_ms = float(why[1]), float(why[2])
+        run = self._steady
+        if run is None or nominal_ms != run[1] or abs(step_ms - run[0]) > 1.0:
+            run = self._steady = [step_ms, nominal_ms, 0]
+        run[2] += 1
+        if run[2] >= WRONG_PERIOD_MESSAGES and run[0] > 0:
+            self._wrong_period_said = True
+            cycle_ms = run[0] / (run[1] / (self.s.period_s * 1e3))
+            self.event(f"{self.link.name}: --period-ms is not the controller's cycle: its time stamps stepped "
+                       f"{run[0]:g} ms a message, {run[2]} messages in a row, where --period-ms "
+                       f"{self.s.period_s * 1e3:g} says {run[1]:g}; the correction stays at zero and the reference "
+                       f"plays at {self.s.period_s * 1e3 / cycle_ms:.2f} times the program's speed: stop the "
+                       f"run and start compensate again with --period-ms {cycle_ms:g} (FANUC Stream Motion: 8 ms, "
+                       "or 4 ms on controllers that stream at 250 Hz; ABB EGM: 4 ms; KUKA RSI: 4 or 12 ms)")

@@ -133,9 +133,21 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
 
     _, _, q_plan = planned_path(sc, robot, robot.tool_point(where="the closed loop"))
     user_models.resolve(sc, robot, q_plan[0])  # (the identified model: predict takes the same)
-    check_plant_step(offline_refinement.model_twin(sc, robot), robot)
-    if simulate:
+    if simulate:  # the plant's own step first: its refusal is simulate's, word for word
         check_plant_step(sc, robot)
+    try:
+        check_plant_step(offline_refinement.model_twin(sc, robot), robot)
+    except InputError as e:  # say whose modes: `simulate` runs only the plant, and may have advised this step
+        said = str(e)
+        at = said.find("plant_config.time_step: ")
+        if at < 0:
+            raise
+        at += len("plant_config.time_step: ")
+        error = InputError(said[:at] + "for the compensator's model of the cell (its twin: the identified "
+                           "stiffness, its damping and the drives, which compensate-program runs and `simulate` "
+                           "does not; the plant may be stable at this step): " + said[at:])
+        error.why = getattr(e, "why", None)
+        raise error from None
 
     def bar(total):
         return progress(total, show_progress, "preview along the program", unit="cycle")
@@ -227,6 +239,9 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
                 summary["simulated"]["RAPID module (read back)"] = rapid_run(sc, robot, module, source, prediction,
                                                                              progress=show_progress)
     summary["run_id"] = folder.run_id
+    note = rapid_note(robot, names["rapid"])
+    if note:
+        warnings.add(note)
     summary["warnings"] = list(warnings)
     if json_out is not None:
         emit_json(summary, json_out)
@@ -281,3 +296,16 @@ def check_round_trip(text, program, corrections, max_correction_mm, chord_mm, sc
 
 
 __all__ = ["run", "check_round_trip"]
+
+
+def rapid_note(robot, rapid_name):
+    """For a robot not made by ABB: one line saying that the RAPID module
+    is ABB's and what runs on this robot instead (no FANUC TP / KRL
+    program is written); None for an ABB."""
+    maker = str(robot.manufacturer).strip()
+    if maker.upper() == "ABB":
+        return None
+    who = maker if maker and maker != "-" else "this"
+    return (f"{rapid_name} is an ABB RAPID module, for an IRC5; on this {who} robot ({robot.name}) run the corrected "
+            "G-code through the cell's own CAM-to-robot path, or stream joint_reference.csv with `compensate "
+            "--reference-is-corrected` (no FANUC TP or KUKA KRL program is written)")

@@ -28,6 +28,20 @@ def fk_report(robot, q_deg, tool_m):
     }
 
 
+def angles_line(robot, rpy_deg):
+    """The rotation's fixed-axis x-y-z angles (deg), R = Rz(yaw) Ry(pitch)
+    Rx(roll) (``rpy_deg``, URDF's), as one line; for a FANUC, named as its
+    pendant's W, P, R (the same convention: W = roll, P = pitch, R = yaw),
+    which it shows for this frame when frame 6 is its faceplate frame
+    (the library's file: ROS-Industrial's tool0) and the tool frame is
+    UTOOL 0.  (KUKA's A, B, C are the same angles of its $FLANGE frame, x
+    out of the flange, not tool0's: not named here.)"""
+    roll, pitch, yaw = (round(float(v), 3) + 0.0 for v in rpy_deg)
+    if str(robot.manufacturer).upper() == "FANUC":
+        return f"angles (FANUC's W, P, R; deg): W {roll:+.3f}  P {pitch:+.3f}  R {yaw:+.3f}"
+    return f"angles (roll, pitch, yaw: R = Rz(yaw) Ry(pitch) Rx(roll); deg): {roll:+.3f}  {pitch:+.3f}  {yaw:+.3f}"
+
+
 def run(*, q, tool=None, json_out=None, robot_yaml=None):
     check_outputs(files={"--json": json_out})
     robot = load_robot(robot_yaml)
@@ -46,5 +60,6 @@ def run(*, q, tool=None, json_out=None, robot_yaml=None):
         print("rotation (columns: the frame's x, y, z axes):")
         for row in R:
             print("  " + "  ".join(f"{v:+.6f}" for v in row))
+        print(angles_line(robot, rep["rpy_deg"]))
     wrote(json_out, to_stderr=json_out == "-")
     return 0

@@ -30,8 +30,9 @@ def add_cell_commands(sub):
     p.add_argument("--lockstep", action="store_true",
                    help="step the station only when the compensator has answered the last message (the loop's "
                         "physics without this PC's scheduling; default: real time, as a controller runs)")
-    p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=4.0,
-                   help="the controller's cycle (default: %(default)s)")
+    p.add_argument("--period-ms", type=_number_in(0.5, 100.0, "ms"), default=None,
+                   help="the controller's cycle (default: the scenario's controller.period_ms; another is a "
+                        "warning)")
     p.add_argument("--controller-protocol", dest="protocol", choices=["egm", "rsi", "stream-motion"], default="egm",
                    help="the controller's side of ABB EGM, KUKA RSI or FANUC Stream Motion (default: %(default)s)")
     p.add_argument("--netft-http-port", type=_number_in(1, 65535, integer=True), default=None,

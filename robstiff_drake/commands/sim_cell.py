@@ -44,7 +44,7 @@ def _controller_link(protocol, host, port, period_s):
 
 
 def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_out=None, robot_yaml=None,
-        period_ms=4.0, lockstep=False, protocol="egm", netft_http_port=None, netft_units=("N", "N-m"),
+        period_ms=None, lockstep=False, protocol="egm", netft_http_port=None, netft_units=("N", "N-m"),
         transport_delay_cycles=None, scan_out=None, answer_timeout_s=1.0):
     from robstiff_drake.cell.health import verdict
     from robstiff_drake.cell.rdt import parse_host_port
@@ -72,6 +72,17 @@ def run(*, scenario, egm_to, netft_port, wait_s=30.0, reference_out=None, json_o
 
     warnings = Warnings()
     chatter = check_job(sc, robot, warnings)
+    # the controller's cycle: the scenario's (its controller.period_ms, the period its joint reference, its
+    # transport delay and its `simulate` run are for), unless --period-ms says otherwise (then a warning: a
+    # FANUC R-30iB Plus streams J519 every 8 ms where the packaged scenarios' 4 ms is an IRC5's EGM)
+    scenario_ms = float(sc.controller.period_ms)
+    if period_ms is None:
+        period_ms = scenario_ms
+    elif abs(float(period_ms) - scenario_ms) > 1e-9:
+        warnings.add(f"sim-cell: --period-ms {float(period_ms):g} differs from {scenario} controller.period_ms "
+                     f"{scenario_ms:g}: the cell runs at {float(period_ms):g} ms, the scenario's transport delay "
+                     f"(controller.delay_steps {int(sc.controller.delay_steps)}) counts these cycles, and "
+                     f"`compensate` must run with --period-ms {float(period_ms):g}")
     T = period_ms / 1e3
     station = CellStation(sc, robot, period_s=T)
     limits = (np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad), robot.speed_limit_deg_per_s,

@@ -68,6 +68,9 @@ class Compensator:
     systems: dict
     filter_ba: tuple
     chain_delay_s: float
+    # {LOG_PORTS or "correction" name: its columns in the output "tick_state"} for the signals that are parts of
+    # the tick's state (a logger reads them there, one port for all: diagrams/milling_cell.log_signals)
+    tick_parts: dict = None
 
     def set_initial_state(self, root_context, wrench, q):
         """Settle the chain on a reading at rest: guard, filter and samples."""
@@ -95,7 +98,9 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     model/compensator.DeflectionModel's ``law``/``friction_Nm`` (preview
     mode's table of future deflections is memoryless: it keeps the smooth
     law).  Inputs ``wrench``,
-    ``position_measured``; output ``correction`` and the LOG_PORTS."""
+    ``position_measured``; output ``correction`` and the LOG_PORTS, and
+    ``tick_state``: the tick's whole state, of which ``Compensator.tick_parts``
+    names the parts that are the signals of those names (for a logger)."""
     T = period_s
     builder = DiagramBuilder()
     kin = DeflectionPredictor(model_dh, model_stiffness_Nm_per_rad, tool_m)
@@ -169,7 +174,11 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     builder.ExportOutput(process, "process_wrench")
     builder.ExportOutput(q_sampled, "q_sampled")
     builder.ExportOutput(dq_port, "dq")
+    builder.ExportOutput(tick.GetOutputPort("state"), "tick_state")
+    parts = ["correction", "q_sampled"] + ["guarded_wrench", "rejected"] * carried \
+        + ["process_wrench"] * (predictive is None) + ["dq"] * (not separate)
     diagram = builder.Build()
     diagram.set_name(name)
     s["kinematics"] = kin
-    return Compensator(diagram, s, filter_ba, chain_delay_s(rate_hz, filter_ba, period_s, delay_steps))
+    return Compensator(diagram, s, filter_ba, chain_delay_s(rate_hz, filter_ba, period_s, delay_steps),
+                       {part: tick.part_columns(part) for part in parts})

@@ -280,20 +280,25 @@ def build_milling_cell(sc, robot, *, compensation=True, log_period_s=None, model
     h = station.plant_step_s
     T = sc.controller.period_ms / 1e3
     log_dt = log_period_s or h
+    def compensator_signal(name, period_s):  # (a part of the tick's state read from that state's one port)
+        if name in comp.tick_parts:
+            return cp.GetOutputPort("tick_state"), period_s, comp.tick_parts[name]
+        return cp.GetOutputPort(name), period_s
+
     loggers = log_signals(builder, {
         "state": (st.GetOutputPort("plant_state"), log_dt),
         "cutting_wrench": (st.GetOutputPort("cutting_wrench"), log_dt),
         "motor": (st.GetOutputPort("motor_position"), log_dt),
-        "raw_wrench": (cp.GetOutputPort("guarded_wrench"), 1.0 / sc.sensor.rate_hz),
-        "filtered_wrench": (cp.GetOutputPort("filtered_wrench"), T),
+        "raw_wrench": compensator_signal("guarded_wrench", 1.0 / sc.sensor.rate_hz),
+        "filtered_wrench": compensator_signal("filtered_wrench", T),
         # what the prediction reads (its tool_wrench is derived from these
         # after the run: tool_wrench_log, no Python call per tick)
-        "process_wrench": (cp.GetOutputPort("process_wrench"), T),
-        "q_sampled": (cp.GetOutputPort("q_sampled"), T),
-        "dq": (cp.GetOutputPort("dq"), T),
-        "correction": (cp.GetOutputPort("correction"), T),
-        "rejected": (cp.GetOutputPort("rejected"), T),
-    })
+        "process_wrench": compensator_signal("process_wrench", T),
+        "q_sampled": compensator_signal("q_sampled", T),
+        "dq": compensator_signal("dq", T),
+        "correction": compensator_signal("correction", T),
+        "rejected": compensator_signal("rejected", T),
+    }, base_s=log_dt)
     diagram = builder.Build()
     diagram.set_name(f"milling_cell_{'compensated' if compensation else 'uncompensated'}")
     delay = comp.chain_delay_s + station.command_lag_s
@@ -315,36 +320,68 @@ def tool_wrench_log(cell, logs):
 
 @dataclass
 class SignalLog:
-    """One logged signal: its columns in a (shared) VectorLogSink."""
+    """One logged signal: its columns in a (shared) VectorLogSink; a signal
+    of period ``period_s`` logged every ``period_s / stride``: every
+    ``stride``-th sample from the first on its own instants."""
 
     logger: object
     columns: slice
+    stride: int = 1
+    period_s: float = 0.0
 
     def read(self, root_context):
         """(sample times s, samples (N, size)) from a simulation's root context."""
         log = self.logger.FindLog(root_context)
-        return log.sample_times().copy(), log.data()[self.columns].T.copy()
+        t, x = log.sample_times(), log.data()
+        first = 0
+        if self.stride > 1:  # (the first sample on this signal's own period's instants)
+            k = np.round(t / self.period_s)
+            on = np.flatnonzero(np.abs(t - k * self.period_s) <= 1e-9 * np.maximum(1.0, np.abs(t)))
+            first = int(on[0]) if on.size else t.size
+        return t[first::self.stride].copy(), x[self.columns, first::self.stride].T.copy()
 
 
-def log_signals(builder, signals):
-    """Log named vector ports, ``{name: (port, period_s)}`` -> ``{name:
-    SignalLog}``.  Signals of the same period share one Multiplexer and one
-    VectorLogSink: one logging event per period, not one per signal."""
+def _faster_period(period, fastest):
+    """n, 1 or 2, where period = n fastest exactly (so k period = (n k)
+    fastest in floating point), or None: a logger copies a slower signal at
+    each of its samples, so at most twice as often as it changes."""
+    n = round(period / fastest)
+    return n if n in (1, 2) and n * fastest == period else None
+
+
+def log_signals(builder, signals, base_s=None):
+    """Log named vector ports, ``{name: (port, period_s[, columns])}`` ->
+    ``{name: SignalLog}`` (``columns``: a slice of the port's vector, the
+    whole by default).  Signals of one period share one Multiplexer and one
+    VectorLogSink, and so do those of ``base_s`` and twice it, at
+    ``base_s`` (each read at its own instants:
+    SignalLog.stride): one logging event per period, not one per signal,
+    and a port read once however many signals it holds."""
+    fastest = round(base_s, 12) if base_s else None
     groups = {}
-    for name, (port, period) in signals.items():
-        groups.setdefault(round(period, 12), []).append((name, port))
+    for name, (port, period, *columns) in signals.items():
+        period = round(period, 12)
+        stride = _faster_period(period, fastest) if fastest else None
+        group = groups.setdefault(fastest if stride else period, {})
+        group[name] = (port, columns[0] if columns else slice(0, port.size()), stride or 1, period)
     out = {}
     for period, items in groups.items():
-        sizes = [port.size() for _, port in items]
-        mux = builder.AddNamedSystem(f"log_every_{period * 1e3:g}_ms_mux", Multiplexer(sizes))
-        for i, (_, port) in enumerate(items):
+        ports = {}  # (one mux input per port: its offset in the logged vector)
+        for port, *_ in items.values():
+            ports.setdefault((port.get_system().get_name(), int(port.get_index())), port)
+        mux = builder.AddNamedSystem(f"log_every_{period * 1e3:g}_ms_mux",
+                                     Multiplexer([port.size() for port in ports.values()]))
+        start = {}
+        offset = 0
+        for i, (key, port) in enumerate(ports.items()):
             builder.Connect(port, mux.get_input_port(i))
+            start[key] = offset
+            offset += port.size()
         logger = LogVectorOutput(mux.get_output_port(), builder, period)
         logger.set_name(f"log_every_{period * 1e3:g}_ms")
-        start = 0
-        for (name, _), n in zip(items, sizes):
-            out[name] = SignalLog(logger, slice(start, start + n))
-            start += n
+        for name, (port, cols, stride, own) in items.items():
+            at = start[(port.get_system().get_name(), int(port.get_index()))]
+            out[name] = SignalLog(logger, slice(at + cols.start, at + cols.stop), stride, own)
     return out
 
 

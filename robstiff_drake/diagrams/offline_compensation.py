@@ -60,7 +60,7 @@ def predict(sc, robot, *, bar=None, say=None):
     from robstiff_drake.diagrams import user_model as user_models
     from robstiff_drake.diagrams.milling_cell import PREVIEW_MARGIN_S, planned_path
     from robstiff_drake.diagrams.scenario_models import (
-        COEFFICIENT_GROUPS, model_cutting_setup, model_damping_ratios, model_stiffness
+        COEFFICIENT_GROUPS, identified_parts, model_cutting_setup, model_damping_ratios, model_stiffness
     )
     from robstiff_drake.model.arm_dynamics import ArmInertia
     from robstiff_drake.model.preview import PreviewStream
@@ -73,8 +73,7 @@ def predict(sc, robot, *, bar=None, say=None):
         say(f"planning the program's path (IK every {sc.path.reference_period_ms:g} ms)")
     path, t_ref, q_ref = planned_path(sc, robot, tool)
     if say and sc.model.source == "identified":
-        say("the compensator's identified model (a simulated stiffness campaign, payload calibration, servo step "
-            "test)")
+        say(f"the compensator's identified model ({identified_parts(sc)})")
     user_models.resolve(sc, robot, q_ref[0])
     T = sc.controller.period_ms / 1e3
     servo = user_models.servo_model(sc)

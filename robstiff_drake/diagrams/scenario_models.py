@@ -46,6 +46,21 @@ def model_stiffness(sc, robot):
     return robot.joint_stiffness_Nm_per_rad
 
 
+def identified_parts(sc):
+    """Where the compensator's identified model (``model.source:
+    identified``) takes each part from, as a phrase: the stiffness from
+    the scenario's model.joint_stiffness_Nm_per_rad or model.identified_json
+    when it gives one (model_stiffness), else a simulated stiffness campaign;
+    the payload from model.payload_yaml, else a simulated calibration; the
+    servo from a simulated step test."""
+    stiffness = ("the stiffness of model.joint_stiffness_Nm_per_rad" if sc.model.joint_stiffness_Nm_per_rad else
+                 f"the stiffness of {sc.model.identified_json} (model.identified_json)" if sc.model.identified_json
+                 else "a simulated stiffness campaign")
+    payload = (f"the payload of {sc.model.payload_yaml} (model.payload_yaml)" if sc.model.payload_yaml
+               else "a simulated payload calibration")
+    return f"{stiffness}, {payload}, a simulated servo step test"
+
+
 def checked_joint_stiffness(value, *, where):
     """``value`` as six finite joint stiffnesses (N*m/rad) within
     STIFFNESS_RANGE_NM_PER_RAD, or an InputError that names ``where``."""

@@ -241,9 +241,12 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
                                          "touch_off", "joints", "gear_torque_at_rest")}
 
     # the process: the cutting load at the actual tool point and from its actual motion, on the spindle
-    state_demux = builder.AddNamedSystem("state_demux", Demultiplexer([6, 6]))
-    builder.Connect(plant.get_state_output_port(), state_demux.get_input_port())
-    q_link = state_demux.get_output_port(0)
+    lag_free = bool(getattr(sc, "_lag_free_cutting_sensor", False))  # (the error budget's; LagFreeCuttingSensor)
+    q_link = None
+    if tool_pose or lag_free:  # (the link angles split off for the tool's pose; the milling force reads the state)
+        state_demux = builder.AddNamedSystem("state_demux", Demultiplexer([6, 6]))
+        builder.Connect(plant.get_state_output_port(), state_demux.get_input_port())
+        q_link = state_demux.get_output_port(0)
     fk = DeflectionPredictor(robot.dh, k, tool)
     tick_kernels.warm_up(fk.chain_constants())  # (the milling force's compiled kernels loaded now, not in a timed run)
     source = RegenerativeForceSource if regenerative and hasattr(force_model, "chip_forces") else MillingForceSource
@@ -252,13 +255,12 @@ def make_milling_station(sc, robot, *, path, force_model, workpiece, q_modes_rad
         period_s=cutting_force_period_s(sc.cutting.mode, h),
         spindle_body_index=plant.GetBodyByName("spindle").index(), mode=sc.cutting.mode,
         samples_per_tooth=sc.cutting.samples_per_tooth, phase_rad=np.deg2rad(sc.cutting.phase_deg),
-        sensor_period_s=1.0 / sc.sensor.rate_hz))
-    builder.Connect(q_link, milling.get_input_port())
+        sensor_period_s=1.0 / sc.sensor.rate_hz, link_state=True))
+    builder.Connect(plant.get_state_output_port(), milling.get_input_port())
     builder.Connect(milling.GetOutputPort("spatial_force"), plant.get_applied_spatial_force_input_port())
 
     # the wrist sensor across the flange-spindle weld
     ss = sc.sensor
-    lag_free = bool(getattr(sc, "_lag_free_cutting_sensor", False))  # (the error budget's; LagFreeCuttingSensor)
     common = dict(weld_joint_index=plant.GetJointByName("sensor_weld").index(), rate_hz=ss.rate_hz,
                   force_bias_N=ss.force_bias_N, torque_bias_Nm=ss.torque_bias_Nm, noise_N=ss.noise_N,
                   noise_Nm=ss.noise_Nm, dropout_probability=ss.dropout_probability,

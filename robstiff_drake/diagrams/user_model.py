@@ -36,7 +36,7 @@ from pydrake.systems.analysis import Simulator
 from robstiff_drake.diagrams.scenario import planned_path
 from robstiff_drake.diagrams.scenario_step import plant_step_s
 from robstiff_drake.diagrams.scenario_models import plant_stiffness
-from robstiff_drake.diagrams.station import make_milling_station
+from robstiff_drake.diagrams.station import make_milling_station, resolve_integral_corner
 from robstiff_drake.diagrams.user_model_record import UserModel, disk_path, from_json, signature, to_json
 from robstiff_drake.identification.stiffness.campaign import PayloadCampaign, StiffnessCampaign
 from robstiff_drake.identification.stiffness.joint_stiffness import identify
@@ -264,7 +264,17 @@ def user_model(sc, robot, q0):
     process, and in the robot-description cache folder on disk, plant.py,
     keyed by the inputs and the code it depends on: the seeds fix every
     draw, so a cached model is the one a new computation would give).
-    ``q0``: the path's first joint angles (the modes the damping is set at)."""
+    ``q0``: the path's first joint angles (the modes the damping is set at).
+    The drives' integral corner is the one the run's station chooses at q0
+    (station.resolve_integral_corner, on a copy of the servo's settings):
+    the benches below choose it there anyway, so a scenario asked before its
+    first station is built (simulate's checks: the stated corner) and the
+    run's own (the chosen corner written in) are one model, measured once
+    (before: two keys, and the bench campaigns ran twice)."""
+    if sc.servo.velocity_integral == "antiresonance":
+        sc = copy.copy(sc)
+        sc.servo = copy.deepcopy(sc.servo)
+        resolve_integral_corner(sc, robot, q0)
     key = signature(sc, robot, q0)
     if key in _CACHE:
         return _CACHE[key]

@@ -160,3 +160,26 @@ def averaged_force_step(q, t, hist, process, chain, window_s, lines, knots, feed
     for i in range(6):
         out[i] = w[i]
     out[6], out[7], out[8], out[9] = u0, u1, feed, travel
+
+
+@kernel
+def averaged_force_update(q, t, held, wrench, spatial, chain, window_s, lines, knots, feed_gain, period_s, law, Kc,
+                          Ke, boxes, k_back, dR, gauss_x, gauss_w):
+    """``averaged_force_step`` on the milling force's held state, written
+    in place (systems/milling_force.MillingForceSource's update): ``held``
+    (the process state, 4, then the history, 3 n) overwritten with the new
+    ones, the wrench (6, base frame, at the tool point) written to
+    ``wrench`` and, as Drake's SpatialForce orders it (the moment, then the
+    force), to ``spatial`` (6)."""
+    n = held.shape[0]
+    out = np.empty(n + 18)  # (22 + the history's 3 n)
+    averaged_force_step(q, t, held[4:], held[:4], chain, window_s, lines, knots, feed_gain, period_s, law, Kc, Ke,
+                        boxes, k_back, dR, gauss_x, gauss_w, out)
+    for i in range(4):
+        held[i] = out[6 + i]
+    for i in range(n - 4):
+        held[4 + i] = out[22 + i]
+    for i in range(6):
+        wrench[i] = out[i]
+    for i in range(3):
+        spatial[i], spatial[3 + i] = out[3 + i], out[i]

@@ -131,7 +131,8 @@ def _link(dh, i, theta):
 def _arm(dh, pc):
     """theta1..3 of the machining branch (front of axis 1, elbow up)."""
     base = np.eye(4) if dh.base is None else dh.base
-    p0 = np.linalg.solve(base, np.r_[pc, 1.0])[:3]  # wrist centre in frame 0
+    pc1 = np.append(pc, 1.0)  # (homogeneous; np.append, not np.r_: the same array, a tenth of the IK's time less)
+    p0 = np.linalg.solve(base, pc1)[:3]  # wrist centre in frame 0
     x, y, z = p0
     d, a, al = dh.d_m, dh.a_m, dh.alpha_rad
     e = d[1] + d[2] + np.cos(al[2]) * d[3]  # wrist centre's height along axis 2, frame 1
@@ -147,7 +148,7 @@ def _arm(dh, pc):
     best = None
     for th1 in (phi + shift, phi + np.pi - shift):
         T1 = base @ _link(dh, 0, th1)
-        v = np.linalg.solve(T1, np.r_[pc, 1.0])[:3]
+        v = np.linalg.solve(T1, pc1)[:3]
         c = (v[0] ** 2 + v[1] ** 2 - a[1] ** 2 - L ** 2) / (2 * a[1] * L)
         if abs(c) > 1.0:
             continue
@@ -177,7 +178,7 @@ def _closed_form(dh, T, tool, q_ref):
         raise _out_of_reach(T)
     home = dh.home_rad
     q123 = theta123 - home[:3]
-    R3 = kin.frames(dh, np.r_[q123, 0.0, 0.0, 0.0])[3][:3, :3]
+    R3 = kin.frames(dh, np.concatenate([q123, np.zeros(3)]))[3][:3, :3]
     al4, al5, al6 = dh.alpha_rad[3], dh.alpha_rad[4], dh.alpha_rad[5]
     s4, s5 = np.sign(np.sin(al4)), np.sign(np.sin(al5))
     z6 = R6 @ np.array([0.0, np.sin(al6), np.cos(al6)])  # axis 6
@@ -197,7 +198,7 @@ def _closed_form(dh, T, tool, q_ref):
         R5 = R4 @ _link(dh, 4, th5)[:3, :3]
         M = R5.T @ R6 @ _link(dh, 5, 0.0)[:3, :3].T  # Rz(theta6)
         th6 = np.arctan2(M[1, 0], M[0, 0])
-        q = np.r_[q123, np.array([th4, th5, th6]) - home[3:]]
+        q = np.concatenate([q123, np.array([th4, th5, th6]) - home[3:]])
         out.append(np.array([_wrap_near(q[i], q_ref[i]) for i in range(6)]))
     return out
 

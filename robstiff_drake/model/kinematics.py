@@ -98,7 +98,11 @@ def frames(dh, q_rad, rows=4):
             cb, sb = np.cos(beta[i]), np.sin(beta[i])
             x, z = [x[r] * cb - z[r] * sb for r in range(3)], [x[r] * sb + z[r] * cb for r in range(3)]
         # one write of the frame's 12 values per pose (12 strided writes of the batch cost 3x as much)
-        rows = np.broadcast_arrays(*[v[r] for r in range(3) for v in (x, y, z, o)])
+        values = [v[r] for r in range(3) for v in (x, y, z, o)]
+        if not batch:  # one pose (the IK's calls): the same 12 values, without broadcasting scalars
+            T[i + 1, :3, :] = np.array(values, dtype=float).reshape(3, 4)
+            continue
+        rows = np.broadcast_arrays(*values)
         T[..., i + 1, :3, :] = np.moveaxis(np.array(rows), 0, -1).reshape(batch + (3, 4))
     return T
 

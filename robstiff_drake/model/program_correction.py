@@ -244,7 +244,7 @@ def correct_moves(moves, samples_of_move, *, chord_mm, max_correction_mm, round_
         k = int(np.argmax(size))
         if size[k] > max_correction_mm:
             raise CorrectionError(f"{label}:{m.line}: the predicted correction is {size[k]:.3f} mm "
-                                  f"{k / n * L:.1f} mm along the move, more than --max-correction-mm "
+                                  f"at {k / n * L:.1f} mm along the move's {L:.1f} mm, more than --max-correction-mm "
                                   f"{max_correction_mm:g} (a deflection this large is no job for a corrected "
                                   "program: check the cut's depth and feed, a sharp corner taken at speed (the "
                                   "path's own acceleration: a longer move or a lead-out there) and the model)",

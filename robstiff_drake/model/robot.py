@@ -71,6 +71,8 @@ class RobotModel:
     # .acceleration_deg_per_s2); None: the robot file does not give them
     speed_limit_deg_per_s: np.ndarray | None = None
     acceleration_limit_deg_per_s2: np.ndarray | None = None
+    # the maker's rated wrist payload (kg, the data sheet's), or None when the file gives none
+    rated_payload_kg: float | None = None
 
     @property
     def joint_compliance_rad_per_Nm(self):
@@ -364,7 +366,13 @@ def load_robot(path=None):
         motor_inertia_kgm2=values.get("motor_inertia_kgm2"),
         speed_limit_deg_per_s=values.get("joint_limits.speed_deg_per_s"),
         acceleration_limit_deg_per_s2=values.get("joint_limits.acceleration_deg_per_s2"),
+        rated_payload_kg=values.get("rated_payload_kg"),
     )
+    if "rated_payload_kg" in values and values["payload.mass_kg"] > values["rated_payload_kg"]:
+        unit_warnings.append(f"{values.at('payload.mass_kg')}: payload.mass_kg {values['payload.mass_kg']:g} kg is "
+                             f"over the arm's rated payload (rated_payload_kg {values['rated_payload_kg']:g} kg): "
+                             "the maker's load and wrist-moment limits, on which its accuracy and its gearboxes' "
+                             "life rest, are exceeded; the model computes it all the same")
     warnings = tuple(input_warning(w if w.startswith(str(path)) else f"{path}: {w}")
                      for w in unit_warnings + plausibility(robot))
     return replace(robot, warnings=warnings)

@@ -132,6 +132,9 @@ KEYS = {
     "links[].cylinder_mm.axis": Key("choice", options=XYZ),
     "links[].inertia_kgm2": Key("vector", "kg*m^2", -1e4, 1e4, 6, required=False,
                                 names=("ixx", "iyy", "izz", "ixy", "ixz", "iyz")),
+    # the maker's rated wrist payload (data sheet): a payload above it is a warning (robot.py), not an error
+    "rated_payload_kg": Key("number", "kg", 0.0, 2500.0, required=False, lo_open=True,
+                            why="data sheets give 0.5 kg (small cobots) to 2,300 kg (the largest arms)"),
     "payload": Key("section"),
     # the heaviest robot payloads are about 1.3 t (as the payload calibration's range)
     "payload.mass_kg": Key("number", "kg", 0.0, 2000.0, lo_open=True),

@@ -1,9 +1,10 @@
-"""The closed loop's per-tick kinematics and compensator arithmetic as one
-compiled kernel (model/jit.py): the tool's pose from the link angles (the
+"""The closed loop's per-tick kinematics and compensator arithmetic as
+compiled kernels (model/jit.py): the tool's pose from the link angles (the
 milling force's update, model/realtime.DeflectionPredictor.pose_only) and
-the compensator tick's whole update (systems/compensator_tick.py: gravity
-removal, the deflection prediction dq = C J(q)^T W, the saturation, the
-delay line and the rate-limited correction).
+the compensator tick's whole update (systems/compensator_tick.py: the
+carried wrench guard, gravity removal, the deflection prediction
+dq = C J(q)^T W, the saturation, the delay line and the rate-limited
+correction; ``tick_update`` runs it all in one call on the tick's state).
 
 The same scalar operations in the same order as the plain-Python
 references they replace (model/realtime.DeflectionPredictor._forward and
@@ -168,6 +169,67 @@ def correction_step(dq, line, c, lo, hi, step, out):
             out[n6 + i] = x + (b if b < step[i] else step[i])
         else:
             out[n6 + i] = x
+
+
+# The compensator tick's state layout for ``tick_update`` (int64 offsets into its one state group; -1: absent):
+# the sampled wrench, the sampled q, the process wrench, dq, the delay line, its length (6 n), the correction,
+# the carried guard's last good sample, its rejections so far and in a row.
+TICK_AT_SIZE = 10
+
+
+@kernel
+def tick_update(x, raw, w, q, dq_in, at, guard, chain, gravity, model, lo, hi, step):
+    """The compensator tick's whole update on its state ``x`` (one group,
+    written in place; offsets ``at``, TICK_AT_SIZE: see above), in the order
+    systems/compensator_tick.CompensatorTick's update takes it: with a
+    carried guard (``at[7]`` >= 0; ``guard``: max jump N, the rejections in
+    a row that re-arm it) the raw sample ``raw`` (6) through
+    systems/wrist_sensor.guard_step's arithmetic; then ``correction_step``
+    on the held dq (or ``dq_in`` where ``at[3]`` < 0), the delay line and
+    the correction; then this tick's sample: the filtered wrench ``w`` and
+    the joint angles ``q`` (6 each), their process wrench and dq
+    (``pose_and_deflection``).  Nothing is computed that the separate
+    kernels do not: the same values bit for bit."""
+    g = at[7]
+    if g >= 0:  # (guard_step: model/compensator.guard_accepts, then the re-arm)
+        mj = guard[0]
+        if (abs(raw[0] - x[g]) <= mj and abs(raw[1] - x[g + 1]) <= mj and abs(raw[2] - x[g + 2]) <= mj
+                and math.isfinite(raw[3] + raw[4] + raw[5])):
+            for i in range(6):
+                x[g + i] = raw[i]
+            x[at[9]] = 0.0
+        else:
+            x[at[8]] += 1.0
+            x[at[9]] += 1.0
+            if x[at[9]] > guard[1]:
+                finite = True
+                for i in range(6):
+                    if not math.isfinite(raw[i]):
+                        finite = False
+                if finite:
+                    for i in range(6):
+                        x[g + i] = raw[i]
+                    x[at[9]] = 0.0
+    o_dq, o_line, n6, o_c = at[3], at[4], at[5], at[6]
+    buf = np.empty(n6 + 6)
+    if o_dq >= 0:
+        correction_step(x[o_dq:o_dq + 6], x[o_line:o_line + n6], x[o_c:o_c + 6], lo, hi, step, buf)
+    else:
+        correction_step(dq_in, x[o_line:o_line + n6], x[o_c:o_c + 6], lo, hi, step, buf)
+    for i in range(n6):
+        x[o_line + i] = buf[i]
+    for i in range(6):
+        x[o_c + i] = buf[n6 + i]
+    res = np.empty(24 if o_dq >= 0 else 18)
+    pose_and_deflection(q, chain, w, gravity, model, res)
+    o_w, o_q, o_p = at[0], at[1], at[2]
+    for i in range(6):
+        x[o_w + i] = w[i]
+        x[o_q + i] = q[i]
+        x[o_p + i] = res[12 + i]
+    if o_dq >= 0:
+        for i in range(6):
+            x[o_dq + i] = res[18 + i]
 
 
 @kernel

@@ -33,11 +33,13 @@ motion in the model with its static torque) stays a block of its own:
 then ``dq`` is an input (computed from this block's sampled outputs), and
 this block samples, removes gravity, saturates, delays and corrects.
 
-With numba installed the update runs as two compiled kernels
-(model/tick_kernels.py: the same arithmetic to round-off), loaded while
-the block is built; without it (or with ROBSTIFF_NO_JIT set, or within
-model/jit.disabled) the plain-Python reference below, which the kernels
-are tested against.
+With numba installed the update runs as one compiled call
+(model/tick_kernels.tick_update: the carried guard, the correction and the
+sample, written into the state group in place; the same arithmetic to
+round-off), loaded while the block is built; without it (or with
+ROBSTIFF_NO_JIT set, or within model/jit.disabled) the plain-Python
+reference below (with wrist_sensor.guard_step), which the kernels are
+tested against.
 """
 
 import math
@@ -131,6 +133,8 @@ class CompensatorTick(LeafSystem):
         self._s = tuple(at.get(name) for name in ("wrench_sampled", "q_sampled", "process_wrench", "dq",
                                                   "_delay_line", "correction"))
         self._s_guard = tuple(at.get(name) for name in ("guarded_wrench", "rejected", "_rejected_in_a_row"))
+        # (the compiled update's arguments after its inputs: model/tick_kernels.tick_update)
+        self._fused = None if self._compiled is None else self._fused_arguments(*self._compiled)
         self.warm_up()
 
     def add_outputs(self, builder, name=None):
@@ -141,6 +145,10 @@ class CompensatorTick(LeafSystem):
                                        Demultiplexer([size for _, size in self.layout]))
         builder.Connect(self.GetOutputPort("state"), demux.get_input_port())
         return {part: demux.get_output_port(i) for i, (part, _) in enumerate(self.layout) if part[0] != "_"}
+
+    def part_columns(self, part):
+        """The columns (a slice) of ``part`` (a name of ``layout``) in the output ``state``."""
+        return self._at[part]
 
     def held(self, context, part):
         """The held value of ``part`` (a name of ``layout``) in this block's ``context`` (a copy)."""
@@ -167,11 +175,22 @@ class CompensatorTick(LeafSystem):
         of a timed simulation (nothing without numba)."""
         if self._compiled is None or not jit.available():
             return
-        chain, gravity, model, lo, hi, step = self._compiled
-        held = np.zeros(6)  # (a view of the state the update writes, or the dq input's value: writeable)
-        tick_kernels.correction_step(held, np.zeros(6 * self._n), held, lo, hi, step, np.empty(6 * self._n + 6))
-        tick_kernels.pose_and_deflection(np.zeros(6), chain, np.zeros(6), gravity, model,
-                                         np.empty(18 if self._model is None else 24))
+        # (the inputs' values and the state group as the simulation passes them: writeable float arrays)
+        x = np.zeros(sum(size for _, size in self.layout))
+        tick_kernels.tick_update(x, np.zeros(6) if self._guard is not None else _NONE, np.zeros(6), np.zeros(6),
+                                 np.zeros(6) if self._dq_in is not None else _NONE, *self._fused)
+
+    def _fused_arguments(self, chain, gravity, model, lo, hi, step):
+        """tick_update's arguments after its inputs: the layout's offsets
+        (model/tick_kernels.TICK_AT_SIZE), the guard's constants and the
+        kernels' constants."""
+        def at(name):
+            return self._at[name].start if name in self._at else -1
+        offsets = np.array([at("wrench_sampled"), at("q_sampled"), at("process_wrench"), at("dq"),
+                            max(at("_delay_line"), 0), 6 * self._n, at("correction"), at("guarded_wrench"),
+                            at("rejected"), at("_rejected_in_a_row")], dtype=np.int64)
+        guard = np.array(self._guard if self._guard is not None else (0.0, 0.0), dtype=float)
+        return offsets, guard, chain, gravity, model, lo, hi, step
 
     @property
     def model(self):
@@ -209,31 +228,15 @@ class CompensatorTick(LeafSystem):
 
     def _update(self, context, discrete_state):
         x = discrete_state.get_mutable_value(0)  # (arrives holding the current state: written in place)
+        if self._fused is not None and jit.available():  # (all of the below in one compiled call)
+            tick_kernels.tick_update(x, self._raw.Eval(context) if self._guard is not None else _NONE,
+                                     self._w_in.Eval(context), self._q_in.Eval(context),
+                                     self._dq_in.Eval(context) if self._dq_in is not None else _NONE, *self._fused)
+            return
         if self._guard is not None:  # (its own parts of the state: the order of the two updates does not matter)
             g, count, run = self._s_guard
             guard_step(self._raw.Eval(context), x[g], x[count], x[run], *self._guard)
-        if self._compiled is not None and jit.available():
-            self._update_compiled(context, x)
-        else:
-            self._update_reference(context, x)
-
-    def _update_compiled(self, context, x):
-        """_update_reference's arithmetic in two compiled kernels."""
-        chain, gravity, model, lo, hi, step = self._compiled
-        s_w, s_q, s_p, s_dq, s_line, s_c = self._s
-        dq = x[s_dq] if s_dq is not None else self._dq_in.Eval(context)
-        n6 = 6 * self._n
-        out = np.empty(n6 + 6)
-        tick_kernels.correction_step(dq, x[s_line] if n6 else _NONE, x[s_c], lo, hi, step, out)
-        if n6:
-            x[s_line] = out[:n6]
-        x[s_c] = out[n6:]
-        w, q = self._w_in.Eval(context), self._q_in.Eval(context)
-        res = np.empty(18 if s_dq is None else 24)
-        tick_kernels.pose_and_deflection(q, chain, w, gravity, model, res)
-        x[s_w], x[s_q], x[s_p] = w, q, res[12:18]
-        if s_dq is not None:
-            x[s_dq] = res[18:24]
+        self._update_reference(context, x)
 
     def _update_reference(self, context, x):
         s_w, s_q, s_p, s_dq, s_line, s_c = self._s

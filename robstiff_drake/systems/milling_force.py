@@ -79,7 +79,9 @@ class MillingForceSource(LeafSystem):
     PlantCuttingLaw, which also takes the cutting travel so far, its flank
     wear's clock) or a linear MillingForceModel.
 
-    Input  ``q`` (6): link angles, rad (controller convention).
+    Input  ``q`` (6): link angles, rad (controller convention); with
+      ``link_state=True`` instead ``link_state`` (12: the plant's state, the
+      link angles first), read with no Demultiplexer in front.
     Output ``spatial_force`` (abstract, a list of one
       ExternallyAppliedSpatialForce): the load held over the period, on the
       spindle body at the tool point (for the plant's applied spatial force
@@ -108,7 +110,7 @@ class MillingForceSource(LeafSystem):
     """
 
     def __init__(self, *, force_model, workpiece, path, kinematics, tool_point_m, period_s, spindle_body_index,
-                 mode="averaged", samples_per_tooth=20, phase_rad=0.0, sensor_period_s=None):
+                 mode="averaged", samples_per_tooth=20, phase_rad=0.0, sensor_period_s=None, link_state=False):
         super().__init__()
         if mode not in ("averaged", "tooth"):
             raise ValueError(f"mode must be 'averaged' or 'tooth', got {mode!r}")
@@ -129,7 +131,8 @@ class MillingForceSource(LeafSystem):
         self._period = float(period_s)
         self._feed_gain = 1.0 - math.exp(-2.0 * math.pi * FEED_CUTOFF_HZ * self._period)  # (smoothed_feed)
         self._sensor_period = float(sensor_period_s or period_s)
-        self._q = self.DeclareVectorInputPort("q", 6)
+        # (the link angles, or the plant's state whose first 6 they are: the kernels read q[0:6] alone)
+        self._q = self.DeclareVectorInputPort("link_state", 12) if link_state else self.DeclareVectorInputPort("q", 6)
         # held: the period's wrench (base frame, at the tool point) and the spatial force list
         self._w = self.DeclareDiscreteState(6)
         self._wears = hasattr(force_model, "flank_wear_m")
@@ -147,6 +150,8 @@ class MillingForceSource(LeafSystem):
         self._applied = ExternallyAppliedSpatialForce()  # reused: only its force changes
         self._applied.body_index = self._body
         self._applied.p_BoBq_B = np.array(self._tool)  # the spindle's frame is the flange's
+        self._applied_list = [self._applied]  # (the abstract state's value, as set)
+        self._spatial = np.zeros(6)  # (the compiled update's wrench as a SpatialForce orders it: moment, force)
         self._force = self.DeclareAbstractState(AbstractValue.Make([self._spatial_force([0.0] * 6)]))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
         # the averaged update straight to the compiled kernel (unless a subclass changes the step: a study's)
@@ -197,6 +202,8 @@ class MillingForceSource(LeafSystem):
         force_step_kernels.line_motion(0.0, 0.0, 0.0, 0.0, hist, self._window, *self._lines, np.empty(hist.shape[0]))
         if self._fused is not None:
             force_step_kernels.averaged_force_step(q, 0.0, hist, process, *self._fused, np.empty(22 + hist.shape[0]))
+            force_step_kernels.averaged_force_update(q, 0.0, np.concatenate((process, hist)), np.zeros(6),
+                                                     np.zeros(6), *self._fused)
 
     def set_progress(self, context, process, hist):
         """Hold ``process`` (u_x, u_y, feed m/s, cutting travel m) and the
@@ -359,16 +366,15 @@ class MillingForceSource(LeafSystem):
         held = discrete.get_mutable_value(i_process)  # (arrives holding the current state: written in place)
         process, hist = held[:4], held[4:]
         if self._lean and jit.available() and not math.isnan(hist[-3]):
-            # (_step's compiled averaged update, with no more calls into Drake than it needs)
-            out = np.empty(22 + hist.shape[0])
-            force_step_kernels.averaged_force_step(self._q.Eval(context), context.get_time(), hist, process,
-                                                   *self._fused, out)
-            discrete.set_value(i_w, out[:6])
-            held[:4], held[4:] = out[6:10], out[22:]
-            self._applied.F_Bq_W = SpatialForce(out[3:6], out[:3])
-            state.get_mutable_abstract_state(i_force).set_value([self._applied])
+            # (_step's compiled averaged update, the state written in place, with no more calls into Drake than
+            # it needs)
+            sf = self._spatial
+            force_step_kernels.averaged_force_update(self._q.Eval(context), context.get_time(), held,
+                                                     discrete.get_mutable_value(i_w), sf, *self._fused)
+            self._applied.F_Bq_W = SpatialForce(sf)
+            state.get_mutable_abstract_state(i_force).set_value(self._applied_list)
             return
-        q = self._q.Eval(context)
+        q = self._q.Eval(context)[:6]
         t = context.get_time()
         instants = self._read_offsets(t) if self._mode == "tooth" else ()
         w, pose, inst, new_process, new_hist = self._step(t, q, process, hist, instants)

@@ -81,7 +81,7 @@ class Context:
         self.tau[:, ~carrying_joints(self.tau)] = 0.0  # round-off torques carry nothing (no term is built on them)
         self.c_nom = 1.0 / np.asarray(robot.joint_stiffness_Nm_per_rad, dtype=float)
         self.p_tool = self.frames[:, 6, :3, 3] + self.frames[:, 6, :3, :3] @ self.tool
-        self.groups = pose_groups(campaign)
+        self._groups = None  # (the groups property)
         self.seq = None if campaign.seq is None else np.asarray(campaign.seq, dtype=float)
         t_s = getattr(campaign, "t_s", None)
         self.t_s = None if t_s is None else np.asarray(t_s, dtype=float)
@@ -93,6 +93,14 @@ class Context:
         self.A = A[:, self.free]
         self.b = campaign.disp_mm.reshape(-1) * 1e-3 - A[:, fixed].sum(axis=1)  # fixed joints at nominal
         self._cache = {}
+
+    @property
+    def groups(self):
+        """(N,) pose group of each row (cross_validation.pose_groups), made when first asked for: the
+        misreadings screen's Context of each reading of the file never asks (a sort of the campaign's rows)."""
+        if self._groups is None:
+            self._groups = pose_groups(self.campaign)
+        return self._groups
 
     # -- helpers for the terms
     def cached(self, key, make):
@@ -208,6 +216,8 @@ def _fit_fixed_grid(ctx, terms, rows, grid, max_iter=MAX_ITER):
     eq = rows_to_eq(rows)
     x = lstsq(ctx.A[eq], ctx.b[eq])
     c = ctx.c_from(x)
+    if not terms:  # the six springs alone: the pass below would solve the same system again (X = A, no offset)
+        return ModelFit([], np.asarray(rows), ctx.A, np.zeros(3 * ctx.n), x, c, {}, {}, dict(grid))
     theta = {t.name: np.zeros(len(t.params)) for t in terms if t.kind == GAUSS_NEWTON}
     iterative = any(t.kind in (BILINEAR, GAUSS_NEWTON) for t in terms)
     nf = len(ctx.free)

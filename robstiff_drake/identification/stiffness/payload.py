@@ -147,6 +147,10 @@ def check_payload_fit(fit, robot, path):
     out = []
     if abs(m - m0) > PAYLOAD_WARN_REL * m0:
         out.append(f"calibrated mass {m:.3g} kg is far from the robot file's payload ({m0:g} kg): another tool?")
+    rated = getattr(robot, "rated_payload_kg", None)
+    if rated is not None and m > rated:
+        out.append(f"calibrated mass {m:.3g} kg is over the arm's rated payload ({rated:g} kg, the robot file's "
+                   "rated_payload_kg): the maker's load and wrist-moment limits are exceeded")
     c = np.linalg.norm(fit.com_m)
     if c > MAX_COM_M:
         out.append(f"the centre of mass is {c * 1e3:.0f} mm from the sensor, more than a spindle's "
