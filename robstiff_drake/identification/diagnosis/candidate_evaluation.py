@@ -2,8 +2,9 @@
 diagnosis (identification/diagnosis/selection.py runs the search that calls
 it): its held-out RMS on the pose-grouped folds with every nonlinear
 parameter refitted inside each fold, its parameters on all rows, the nested
-F-test and BIC for reference, the pose-clustered Wald test (CR2 sandwich and
-HTZ reference, identification/diagnosis/clustered_test.py), whether it keeps
+F-test and BIC for reference, the pose-clustered test (CR2 sandwich, a
+Bell-McCaffrey t per contrast, Bonferroni over them;
+identification/diagnosis/clustered_test.py), whether it keeps
 every compliance physical and its size within the typical range, and its
 correlations with the model's estimates.
 

@@ -1,22 +1,15 @@
-"""The pose-clustered Wald test of the residual diagnosis with its
-small-sample corrections for few clusters.  Plain numpy + scipy.
+"""The pose-clustered test of the residual diagnosis with its small-sample
+corrections for few clusters.  Plain numpy + scipy.
 
 A campaign's rows measured at one pose share one unloaded reference reading,
 so the diagnosis tests a candidate's parameters with a covariance clustered
 by pose (a sandwich).  With few poses the plain sandwich (CR1: the scores'
 outer products times G / (G - 1)) is biased low and the Wald statistic is far
 from chi-square or F(q, G - 1); the test then rejects too often, worst where
-a few poses carry the candidate's columns (high leverage).  Measured on a
-synthetic regression of 10 poses x 9 equations, six columns plus the tested
-ones, the column sizes varying by pose and the rows of a pose sharing a
-reference reading (tests/test_clustered_test.py): CR1 + F(q, 9) rejected a
-true null in 31 of 200 draws at a nominal 5 % for one parameter and in 83 of
-200 for three; on campaigns of pure springs the diagnosis named a term in 2
-of 50 at 10 poses (studies/small_campaigns.py, KR 210 and IRB 6400).  The two
-standard corrections (Cameron & Miller 2015, "A Practitioner's Guide to
+a few poses carry the candidate's columns (high leverage).  The test used
+(``REFERENCE``; Cameron & Miller 2015, "A Practitioner's Guide to
 Cluster-Robust Inference", sections VI-VII; Imbens & Kolesar 2016;
-Pustejovsky & Tipton 2018) are used together, because CR2 alone with
-F(q, G - 1) still named a term in 2 and 1 of those 50:
+Pustejovsky & Tipton 2018):
 
   * **CR2**, the bias-reduced sandwich of Bell & McCaffrey (2002): each
     pose's residuals are scaled by (I - H_gg)^(-1/2), H_gg the pose's block
@@ -24,19 +17,32 @@ F(q, G - 1) still named a term in 2 and 1 of those 50:
     are independent with one variance (the working model).  The pseudo-
     inverse square root is taken where a pose's leverage is 1.  Computed from
     a thin SVD of each pose's columns, so the cost is linear in the rows.
-  * **HTZ**, the approximate Hotelling T^2 test of Pustejovsky & Tipton
-    (2018): the CR2 covariance of the q tested coefficients is taken as a
-    scaled Wishart with eta degrees of freedom, eta matched to its variance
-    under the working model (for q = 1 this is the Bell-McCaffrey
-    Satterthwaite degrees of freedom, Imbens & Kolesar's recommendation);
-    the statistic (eta - q + 1) / (eta q) W is referred to F(q, eta - q + 1).
-    eta is at most about G - 1 and smaller when a few poses carry the
-    tested columns, which is where the uncorrected test fails.  With both:
-    6 and 0 of the 200 draws above, 0 of 50 pure-spring campaigns.  HTZ is
-    conservative here for several parameters on few poses (0 of 200 where
-    10 are nominal), which costs power: a planted effect at 4x the
-    noise is found on 10 poses in 15 of 30 campaigns instead of 23, on 30
-    poses as often as before (24 of 30).
+  * **Bell-McCaffrey t per contrast, Bonferroni over q**: one tested
+    coefficient's t statistic with the CR2 variance is referred to t with
+    the Satterthwaite degrees of freedom matched to that variance under the
+    working model (``eta`` below with one contrast; Imbens & Kolesar's
+    recommendation).  For q > 1 parameters the same is done for the q
+    contrasts the working model makes uncorrelated (the eigenvectors of its
+    covariance of the tested coefficients; fixed by the design, not by the
+    measured deflections), and the smallest p-value is multiplied by q
+    (Bonferroni).  With the contrasts uncorrelated the union bound is nearly
+    exact in the far tail where the diagnosis decides (0.01 / the candidates
+    of a round, about 1e-4, and 1e-6 for a size beyond the typical), loose
+    only near 5 %; and evidence in a combination of correlated parameters
+    (a tool offset against the springs) stays in one contrast instead of
+    being spread over q weak per-parameter tests.
+
+Measured (studies/clustered_test_choice.py; its table is in
+docs/diagnosis.md): a true null at a nominal 5 % on a synthetic regression
+of 10 poses x 9 equations (tests/clustered_null.py) is rejected in 31 (q = 1)
+and 83 (q = 3) of 200 draws by CR1 + F(q, G - 1), 6 and 0 by CR2 + HTZ (the
+approximate Hotelling T^2 test of Pustejovsky & Tipton 2018, kept here as
+``htz``: its scaled F(q, eta - q + 1) has no tail where eta, often 2-3 on
+10 poses of uneven leverage, is near q, so it is very conservative for
+q > 1), and 6 and 1 by this test; CR2 with W / q referred to F(q, eta)
+(``f_eta``, invariant but without HTZ's correction for the covariance's
+randomness) rejects 6 and 18 (liberal for q > 1: 14 of 200 on 30 poses too).
+On the diagnosis: the study's table.
 
 The sums over pairs of poses that eta needs are formed as (pq x pq) moment
 tensors, so no (G x G) or (3N x 3N) matrix is built.
@@ -48,14 +54,20 @@ import numpy as np
 from scipy import special
 
 LEVERAGE_TOL = 1e-10  # an eigenvalue of I - H_gg below this: leverage 1, pseudo-inverse
+# the test of ClusteredFit.p: "bm" (CR2, Bell-McCaffrey t per contrast, Bonferroni over q; the one used);
+# "htz" (CR2, HTZ), "f_eta" (CR2, W / q against F(q, eta)) and "cr1" (CR1 sandwich, F(q, G - 1)) are kept for
+# studies/clustered_test_choice.py
+REFERENCE = "bm"
+REFERENCES = ("bm", "htz", "f_eta", "cr1")
 
 
 @dataclass
 class ClusteredFit:
-    """A least-squares fit with its pose-clustered CR2 covariance (module docstring)."""
+    """A least-squares fit with its pose-clustered CR2 covariance (CR1 with
+    REFERENCE "cr1") (module docstring)."""
 
     coef: np.ndarray  # (p,) SI
-    cov: np.ndarray  # (p, p) CR2 covariance, SI; None with fewer than 3 clusters
+    cov: np.ndarray  # (p, p) CR2 covariance (CR1 with REFERENCE "cr1"), SI; None with fewer than 3 clusters
     G: int  # clusters
     r: np.ndarray  # (n,) residual
     scale: np.ndarray  # (p,) column norms (the fit is done on X / scale)
@@ -63,9 +75,15 @@ class ClusteredFit:
     SVt: list  # per cluster size: (m, k, p) S V' of each cluster's thin SVD of Xs
     Minv: list  # per cluster size: (m, k, k) (I - M)^-1/2, M = S V' bread V S
 
+    reference: str = "bm"  # REFERENCE when the fit was made
+
     def p(self, cols):
-        """p-value of the HTZ test that coef[cols] = 0; 1 without a covariance."""
-        return htz(self, cols)[0]
+        """p-value of the test that coef[cols] = 0 (REFERENCE); 1 without a covariance."""
+        if self.reference == "cr1":
+            return cr1_p(self, cols)
+        if self.reference in ("htz", "f_eta"):
+            return htz(self, cols, hotelling=self.reference == "htz")[0]
+        return bm_bonferroni(self, cols)[0]
 
 
 def clustered_fit(X, y, groups_eq):
@@ -82,15 +100,19 @@ def clustered_fit(X, y, groups_eq):
     g = np.asarray(g).ravel()
     G = int(g.max()) + 1 if g.size else 0
     if G < 3:
-        return ClusteredFit(coef_s / scale, None, G, r, scale, bread, [], [])
+        return ClusteredFit(coef_s / scale, None, G, r, scale, bread, [], [], REFERENCE)
     cov_s, SVts, Minvs = cr2_cov(Xs, r, g, bread)
-    return ClusteredFit(coef_s / scale, cov_s / np.outer(scale, scale), G, r, scale, bread, SVts, Minvs)
+    if REFERENCE == "cr1":
+        U = np.zeros((G, Xs.shape[1]))
+        np.add.at(U, g, Xs * r[:, None])
+        cov_s = bread @ (U.T @ U) @ bread * (G / (G - 1))
+    return ClusteredFit(coef_s / scale, cov_s / np.outer(scale, scale), G, r, scale, bread, SVts, Minvs, REFERENCE)
 
 
 def cr2_cov(Xs, r, g, bread):
     """The CR2 covariance of the coefficients of Xs (n, p) given the residual r
     (n,), the cluster index g (n,) (0..G-1) and bread = pinv(Xs' Xs); with the
-    per-cluster pieces the HTZ degrees of freedom need.  Returns (covariance,
+    per-cluster pieces the degrees of freedom need.  Returns (covariance,
     S V' per cluster size, (I - M)^-1/2 per cluster size)."""
     order = np.argsort(g, kind="stable")
     starts = np.r_[0, np.flatnonzero(np.diff(g[order])) + 1]
@@ -113,28 +135,71 @@ def cr2_cov(Xs, r, g, bread):
     return bread @ (scores.T @ scores) @ bread, SVts, Minvs
 
 
-def htz(fit, cols):
+def _tested(fit, cols):
+    """(index, scaled coefficients, their scaled covariance) of coef[cols]."""
+    idx = np.arange(len(fit.coef))[cols]
+    return idx, (fit.coef * fit.scale)[idx], (fit.cov * np.outer(fit.scale, fit.scale))[np.ix_(idx, idx)]
+
+
+def _wald(b, Vb):
+    """b' Vb^-1 b, Vb scaled to a unit diagonal first (columns of very different size)."""
+    s = np.sqrt(np.maximum(np.diag(Vb), 1e-300))
+    return float((b / s) @ np.linalg.pinv(Vb / np.outer(s, s)) @ (b / s))
+
+
+def bm_bonferroni(fit, cols):
+    """(p-value, the q degrees of freedom) of the test that fit.coef[cols] = 0:
+    the q contrasts of the tested coefficients that the working model makes
+    uncorrelated (the eigenvectors of its covariance, pinv(X' X) of the
+    scaled problem, fixed by the design), each one's CR2 t statistic against
+    t(eta_k), eta_k its Bell-McCaffrey (Satterthwaite) degrees of freedom, the
+    smallest p times q (module docstring); (1, []) without a covariance."""
+    if fit.cov is None:
+        return 1.0, []
+    idx, b, Vb = _tested(fit, cols)
+    _, Q = np.linalg.eigh(fit.bread[np.ix_(idx, idx)])
+    etas, ps = [], []
+    for c in Q.T:
+        C = np.zeros((1, len(fit.coef)))
+        C[0, idx] = c
+        eta = _eta(fit, C)
+        etas.append(eta)
+        t2 = float(c @ b) ** 2 / max(float(c @ Vb @ c), 1e-300)
+        ps.append(float(special.fdtrc(1, eta, t2)) if np.isfinite(eta) and eta > 0 else 1.0)
+    return min(1.0, len(idx) * min(ps)), etas
+
+
+def cr1_p(fit, cols):
+    """p-value of the uncorrected test (fit made with REFERENCE "cr1": CR1
+    covariance): W / q referred to F(q, G - 1); 1 without a covariance."""
+    if fit.cov is None:
+        return 1.0
+    idx, b, Vb = _tested(fit, cols)
+    return float(special.fdtrc(len(idx), fit.G - 1, _wald(b, Vb) / len(idx)))
+
+
+def htz(fit, cols, hotelling=True):
     """(p-value, eta) of the approximate Hotelling T^2 test (HTZ) that
-    fit.coef[cols] = 0 (module docstring); (1, nan) without a covariance."""
+    fit.coef[cols] = 0 (module docstring); (1, nan) without a covariance.
+    ``hotelling`` False: W / q referred to F(q, eta) instead."""
     if fit.cov is None:
         return 1.0, float("nan")
-    p = len(fit.coef)
-    idx = np.arange(p)[cols]
-    q = len(idx)
+    idx, b, Vb = _tested(fit, cols)  # the scaled problem's coefficients
+    p, q = len(fit.coef), len(idx)
     C = np.zeros((q, p))
     C[np.arange(q), idx] = 1.0
-    b = (fit.coef * fit.scale)[idx]  # the scaled problem's coefficients
-    Vb = (fit.cov * np.outer(fit.scale, fit.scale))[np.ix_(idx, idx)]
-    s = np.sqrt(np.maximum(np.diag(Vb), 1e-300))
-    W = float((b / s) @ np.linalg.pinv(Vb / np.outer(s, s)) @ (b / s))
+    W = _wald(b, Vb)
     eta = _eta(fit, C)
+    if not hotelling:
+        return (float(special.fdtrc(q, eta, W / q)) if np.isfinite(eta) else 1.0), eta
     if not np.isfinite(eta) or eta - q + 1 <= 0:
         return 1.0, eta
     return float(special.fdtrc(q, eta - q + 1, W * (eta - q + 1) / (eta * q))), eta
 
 
 def _eta(fit, C):
-    """HTZ degrees of freedom: q (q + 1) / sum over pairs of poses (g, h) of
+    """Degrees of freedom eta of the CR2 covariance of C coef (HTZ's; with one
+    row, Bell-McCaffrey's): q (q + 1) / sum over pairs of poses (g, h) of
     (tr G_gh)^2 + tr(G_gh G_gh), G_gh the working-model covariance of the
     whitened per-pose contributions (Pustejovsky & Tipton 2018)."""
     B = fit.bread

@@ -14,10 +14,10 @@ every test here treats a pose as one unit.
     sorted otherwise; ``FOLD_SEEDS`` are the assignments whose spread the
     diagnosis reports;
   * ``clustered_wald``: are some coefficients of a least-squares fit zero?
-    A Wald test with the pose-clustered bias-reduced (CR2) sandwich and the
-    approximate Hotelling T^2 (HTZ) reference, the small-sample corrections
-    for few clusters (clustered_test.py): valid whatever the correlation of
-    a pose's rows;
+    The pose-clustered bias-reduced (CR2) sandwich, a Bell-McCaffrey t per
+    parameter and Bonferroni over them, the small-sample corrections for few
+    clusters (clustered_test.py): valid whatever the correlation of a pose's
+    rows;
 """
 
 import numpy as np
@@ -103,7 +103,7 @@ def clustered_cov(X, y, groups_eq):
     """Least squares of y (n,) on X (n, p) with the covariance of the
     coefficients clustered by ``groups_eq`` (n,): the bias-reduced CR2
     sandwich (identification/diagnosis/clustered_test.py).  Returns a
-    ClusteredFit (coef, cov, G, r; ``.p(cols)`` its HTZ test); the
+    ClusteredFit (coef, cov, G, r; ``.p(cols)`` its test); the
     covariance is None with fewer than 3 clusters."""
     return clustered_fit(X, y, groups_eq)
 
@@ -127,8 +127,8 @@ def wald_p(coef, cov, cols, G):
 def clustered_wald(X, y, groups_eq, cols):
     """Least squares of y (n,) on X (n, p), and the p-value of the test that
     the coefficients ``cols`` (a slice) are zero, with the CR2 covariance
-    clustered by ``groups_eq`` (n,) and the HTZ small-sample reference
-    (identification/diagnosis/clustered_test.py): valid whatever the
+    clustered by ``groups_eq`` (n,) and a Bell-McCaffrey t per contrast,
+    Bonferroni over them (identification/diagnosis/clustered_test.py): valid whatever the
     correlation of a pose's rows, and calibrated on few poses.  Returns
     (p, coefficients, residual)."""
     fit = clustered_fit(X, y, groups_eq)

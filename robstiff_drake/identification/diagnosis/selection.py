@@ -8,10 +8,11 @@ on the same pose-grouped folds:
 
   * its held-out RMS (all displacement components; every nonlinear parameter
     refitted inside each fold, see identification/diagnosis/terms.py);
-  * a grouped test of its parameters: a Wald test on all rows with the
-    covariance clustered by pose (cross_validation.clustered_wald), valid
-    whatever the correlation of a pose's rows, with the small-sample
-    corrections for few poses (CR2 sandwich, HTZ reference; clustered_test.py);
+  * a grouped test of its parameters on all rows with the covariance
+    clustered by pose (cross_validation.clustered_wald), valid whatever the
+    correlation of a pose's rows, with the small-sample corrections for few
+    poses (CR2 sandwich, a Bell-McCaffrey t per contrast, Bonferroni over
+    them; clustered_test.py);
   * for reference, a nested F-test on all rows and the change in BIC (these
     treat rows as independent; the decision does not use them).
 
