@@ -73,8 +73,8 @@ def test_five_poses_with_a_real_effect_say_too_few_poses_and_what_decides():
 def test_twelve_poses_with_the_effect_found_do_not_say_too_few_poses():
     # the undecided candidate is judged against the final model, not the first round's six springs (before this
     # check, drift_periodic of round 1 was reported although the planted drift, once added, explains the data).
-    # 12 poses: on 10 the calibrated clustered test (CR2 + HTZ) no longer decides this drift, and the verdict says
-    # "too few poses to decide" (drift_periodic)
+    # 12 poses: on 10 the calibrated clustered test (CR2, Bell-McCaffrey t) does not decide this drift, and the
+    # verdict says "too few poses to decide" (drift_periodic)
     from physical_effects import visible_campaign
 
     robot = load_robot("irb6400")

@@ -45,9 +45,10 @@ def test_diagnosis_is_honest(capsys, fanuc):
     # does not explain at a tracker's noise, and never sends the user to look for a sign error
     assert res["explains_data"] is False and "does NOT explain" in res["verdict"]
     assert not any("signs" in m for m in [res["verdict"]] + res["warnings"]), res["warnings"]
-    # no term survives the calibrated pose-clustered test (CR2 + HTZ, clustered_test.py): the two joint-1
-    # compliance variations the uncorrected test (CR1 + F(q, G - 1)) kept before (angle_compliance_j1_q2 and _q4,
-    # 18 % held out) reach p = 1.7e-4 at best against 0.01 / 91; the six springs are the final model, and the row
+    # no term survives the calibrated pose-clustered test (CR2, Bell-McCaffrey t; clustered_test.py): the two
+    # joint-1 compliance variations the uncorrected test (CR1 + F(q, G - 1)) kept before (angle_compliance_j1_q2 and
+    # _q4, 18 % held out; one parameter each, HTZ gives the same) reach p = 1.7e-4 at best against 0.01 / 91; the
+    # six springs are the final model, and the row
     # they leave 1.2 mm off (file line 20, pose P17) is a gross outlier
     assert kept == [] and "no term of physical size was kept" in res["verdict"]
     assert res["rms_after_mm"] == res["rms_before_mm"]
