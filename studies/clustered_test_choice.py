@@ -104,7 +104,8 @@ def main():
     finally:
         ct.REFERENCE = used
     if a.docs:
-        write_block(ROOT / "docs" / "diagnosis.md", "clustered_test_choice", "\n".join(lines))
+        # indented: the table sits in a list item of the page
+        write_block(ROOT / "docs" / "diagnosis.md", "clustered_test_choice", "\n".join("     " + x for x in lines))
     else:
         print("\n".join(lines))
 
