@@ -9,9 +9,11 @@ the diagnosis tests is captured from its run.  Everything the bootstrap
 needs is linear in w, so a draw costs two (G,)-vector products: the
 estimate a'w and the CR2 variance |K w|^2.  Draws: 2e5, seed fixed
 (WCR_SEED); the p resolves to about 1e-5, the diagnosis's level is 1.1e-4.
-Not used by the diagnosis: with a bounded number of draws a bootstrap p
-cannot reach the levels it decides at on few poses (on 10 poses the
-Rademacher weights give 512 distinct statistics, no p below 1/512).
+Also its size on the synthetic 10-pose regression of tests/clustered_null.py
+(one parameter, 200 draws, 999 bootstrap draws each).  Not used by the
+diagnosis: with a bounded number of draws a bootstrap p cannot reach the
+levels it decides at on few poses (on 10 poses the Rademacher weights give
+512 distinct statistics, no p below 1/512).
 
 Run: python3 studies/wild_bootstrap_check.py [--draws 200000]
 """
@@ -25,6 +27,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
+from clustered_null import DRAWS, LEVEL, SEEDS, null_design  # noqa: E402
 import realdata  # noqa: E402
 
 from robstiff_drake.identification.diagnosis import candidate_evaluation as ce  # noqa: E402
@@ -95,6 +98,11 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=200000)
     a = ap.parse_args()
+    rng, hits = np.random.default_rng(SEEDS[1]), 0
+    for _ in range(DRAWS):
+        X, y, g, cols = null_design(rng, 10, 1)
+        hits += wcr_p(X, y, g, cols.start, 999, WCR_SEED)[0] < LEVEL
+    print(f"synthetic 10-pose regression, one parameter: WCR rejects the true null in {hits}/{DRAWS} at {LEVEL:g}")
     reason = realdata.missing(realdata.FANUC)
     if reason:
         print(f"skipped FANUC: {reason}")

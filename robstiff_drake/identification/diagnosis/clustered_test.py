@@ -42,6 +42,9 @@ approximate Hotelling T^2 test of Pustejovsky & Tipton 2018, kept here as
 q > 1), and 6 and 1 by this test; CR2 with W / q referred to F(q, eta)
 (``f_eta``, invariant but without HTZ's correction for the covariance's
 randomness) rejects 6 and 18 (liberal for q > 1: 14 of 200 on 30 poses too).
+A wild cluster bootstrap (restricted, Rademacher) rejects 12 for one
+parameter, but its p cannot reach 1e-4 with bounded draws on few poses
+(studies/wild_bootstrap_check.py).
 On the diagnosis: the study's table.
 
 The sums over pairs of poses that eta needs are formed as (pq x pq) moment
