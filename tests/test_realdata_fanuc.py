@@ -45,20 +45,16 @@ def test_diagnosis_is_honest(capsys, fanuc):
     # does not explain at a tracker's noise, and never sends the user to look for a sign error
     assert res["explains_data"] is False and "does NOT explain" in res["verdict"]
     assert not any("signs" in m for m in [res["verdict"]] + res["warnings"]), res["warnings"]
-    # what the terms of physical size remove, held out, and over several fold assignments.  The goal is
-    # 20 %; the terms of physical size give 18 % (16-20 % with them refitted on 10 fold assignments; the whole
-    # search rerun per assignment, studies/fanuc_folds.py: median 19 %, 0-22.5 %, one assignment keeps nothing),
-    # so this guards what they do, not the goal
+    # no term survives the calibrated pose-clustered test (CR2, Bell-McCaffrey t; clustered_test.py): the two
+    # joint-1 compliance variations the uncorrected test (CR1 + F(q, G - 1)) kept before (angle_compliance_j1_q2 and
+    # _q4, 18 % held out; one parameter each, HTZ gives the same) reach p = 1.7e-4 at best against 0.01 / 91; the
+    # six springs are the final model, and the row
+    # they leave 1.2 mm off (file line 20, pose P17) is a gross outlier
+    assert kept == [] and "no term of physical size was kept" in res["verdict"]
+    assert res["rms_after_mm"] == res["rms_before_mm"]
     spread = res["fold_spread"]
-    assert len(spread["seeds"]) >= 5
-    assert spread["reduction_min"] <= spread["reduction_median"] <= spread["reduction_max"]
-    assert res["rms_after_mm"] <= 0.9 * res["rms_before_mm"], (res["rms_before_mm"], res["rms_after_mm"])
-    assert spread["reduction_min"] > 0.1, spread
-    # the verdict says which terms carry the reduction and what kind they are
-    assert "the kept terms" in res["verdict"] and "fold assignments" in res["verdict"]
-    assert all(name in res["verdict"] for name in kept)
-    if any(t["source"] == "dictionary" for t in res["terms"]):
-        assert "hypotheses" in res["verdict"]
+    assert len(spread["seeds"]) >= 5 and spread["reduction_max"] == 0
+    assert [o["line"] for o in res["outliers"]] == [20]
     # the tool offset beyond its typical size that fits is a lead, with its confounding said
     lead = {r["name"]: r for r in res["leads"]}
     assert "tool_offset" in lead and lead["tool_offset"]["plausible"] is False
@@ -67,7 +63,9 @@ def test_diagnosis_is_honest(capsys, fanuc):
     assert any("tool_offset" in c["terms"] for c in res["confounded"]), res["confounded"]
     assert "not added" in res["verdict"] and "confounded" in res["verdict"]
     # and names the measurements that would separate the pair
-    assert "plan-poses N --separate tool_offset," in res["verdict"], res["verdict"]
+    # (the verdict's lead is the best-fitting one: the measured point offset, confounded with the tool offset)
+    assert re.search(r"plan-poses N --separate \w+,\w+", res["verdict"]) and "tool_offset" in res["verdict"], \
+        res["verdict"]
 
 
 def test_the_confounded_explanations_are_shown_side_by_side(capsys, fanuc):
@@ -84,7 +82,8 @@ def test_the_confounded_explanations_are_shown_side_by_side(capsys, fanuc):
     assert all(a["kept"] is False and a["held_out_mm"] < res["rms_after_mm"] for a in alts[1:])
     tool = by["tool_offset"]
     assert tool["beyond_typical"] and "declared tool point" in tool["finding"]
-    assert tool["confounded_with"].startswith("stiffness_j") and abs(tool["correlation"]) >= 0.8
+    assert (tool["confounded_with"].startswith("stiffness_j") or tool["confounded_with"] == "measured_point_offset") \
+        and abs(tool["correlation"]) >= 0.8
     assert f"--separate tool_offset,{tool['confounded_with']}" in tool["plan"]
     assert "measured_point_offset" in by
     kept = {t["name"] for t in res["terms"]}

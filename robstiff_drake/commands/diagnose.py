@@ -65,7 +65,9 @@ def to_dict(d, campaign):
         "residual_structure": d.residual_structure,
         "n_hypotheses": d.n_hypotheses,
         "thresholds": d.thresholds,
-        "selection_rule": (f"pose-clustered Wald test p < {ALPHA_ROUND:g} / (candidates tried in the round) and "
+        "selection_rule": ("pose-clustered test (CR2 sandwich, Bell-McCaffrey t per contrast, Bonferroni over "
+                           "its parameters) "
+                           f"p < {ALPHA_ROUND:g} / (candidates tried in the round) and "
                            f"held-out RMS down by >= {100 * MIN_GAIN['library']:.0f} % (named) or "
                            f"{100 * MIN_GAIN['dictionary']:.0f} % (dictionary)"),
         "candidates": [{"name": r.name, "status": r.status, "reason": r.reason, "rms_mm": r.rms_mm,
@@ -176,9 +178,10 @@ def format_report(d, campaign, markdown=False):
                          f"{status}")
     th = d.thresholds
     lines += ["", f"tests: {d.n_hypotheses} hypotheses tried in {len(d.rounds)} round(s) ({len(CANDIDATES)} named, "
-              f"{len(DICTIONARY)} in the dictionary); a term is added when its pose-clustered Wald test (on more poses "
-              f"than the model has parameters) passes at {th['alpha_per_round']:g} / (candidates tried in the round) "
-              "and it lowers the held-out RMS by "
+              f"{len(DICTIONARY)} in the dictionary); a term is added when its pose-clustered test (CR2 sandwich, "
+              "Bell-McCaffrey t per contrast, Bonferroni over its parameters; on more poses than the model has "
+              "parameters) passes at "
+              f"{th['alpha_per_round']:g} / (candidates tried in the round) and it lowers the held-out RMS by "
               f"{100 * th['min_gain_library']:.0f} % (named) or {100 * th['min_gain_dictionary']:.0f} % (dictionary); "
               f"lack of fit at {th['alpha_lack_of_fit']:g}; outliers at {th['alpha_outlier']:g} over all rows; "
               f"folds seeded {th['fold_seed']}"]

@@ -36,6 +36,7 @@ from robstiff_drake.identification.diagnosis import robust_fit
 from robstiff_drake.identification.diagnosis import selection
 from robstiff_drake.identification.diagnosis.confounding import CONFOUNDED_MIN, confounded_pairs
 from robstiff_drake.identification.diagnosis.candidates import CANDIDATES
+from robstiff_drake.identification.diagnosis.clustered_test import cr2_cov
 from robstiff_drake.identification.diagnosis.cross_validation import (FOLD_SEED, FOLD_SEEDS, K_FOLDS, MIN_POSES, pose_groups,
                                                             rows_to_eq, splits, test_groups)
 from robstiff_drake.identification.diagnosis.dictionary import DICTIONARY
@@ -118,7 +119,8 @@ def thresholds(fold_seed=FOLD_SEED):
 
 
 def _cluster_ci(ctx, fit, rows, units):
-    """95 % intervals of all coefficients, pose-clustered sandwich covariance."""
+    """95 % intervals of all coefficients, pose-clustered CR2 sandwich covariance
+    (identification/diagnosis/clustered_test.py), t with G - 1 degrees of freedom."""
     eq = rows_to_eq(rows)
     X = fit.X[eq]
     r = ctx.b[eq] - fit.predict(rows)
@@ -127,11 +129,9 @@ def _cluster_ci(ctx, fit, rows, units):
     Xs = X / scale
     bread = np.linalg.pinv(Xs.T @ Xs)
     _, g = np.unique(np.repeat(np.asarray(units)[rows], 3), return_inverse=True)
-    U = np.zeros((g.max() + 1, X.shape[1]))
-    np.add.at(U, g, Xs * r[:, None])  # each pose's score (linear in the rows)
-    meat = U.T @ U
-    G = len(U)
-    cov = bread @ meat @ bread * (G / max(G - 1, 1))
+    g = np.asarray(g).ravel()
+    G = int(g.max()) + 1
+    cov = cr2_cov(Xs, r, g, bread)[0]  # linear in the rows (batched per pose size)
     std = np.sqrt(np.maximum(np.diag(cov), 0)) / scale
     return stats.t.ppf(0.975, max(G - 1, 1)) * std
 

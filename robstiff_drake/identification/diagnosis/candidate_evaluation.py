@@ -2,7 +2,9 @@
 diagnosis (identification/diagnosis/selection.py runs the search that calls
 it): its held-out RMS on the pose-grouped folds with every nonlinear
 parameter refitted inside each fold, its parameters on all rows, the nested
-F-test and BIC for reference, the pose-clustered Wald test, whether it keeps
+F-test and BIC for reference, the pose-clustered test (CR2 sandwich, a
+Bell-McCaffrey t per contrast, Bonferroni over them;
+identification/diagnosis/clustered_test.py), whether it keeps
 every compliance physical and its size within the typical range, and its
 correlations with the model's estimates.
 
@@ -11,7 +13,9 @@ covariance is built from the G poses' score sums, which add to zero, so it
 has rank G - 1 at most, and with G - 1 below the parameters (six springs and
 the candidate) it is biased low.  Measured (studies/small_campaigns.py): on
 campaigns of five poses of pure springs plus noise it named a term in 7-9 of
-50, where the rule's level allows about 1 in 100.  Such a candidate gets no
+50, where the rule's level allows about 1 in 100 (that was with the CR1
+sandwich and F(q, G - 1); the test is now corrected for few poses, but the
+covariance's rank stays G - 1).  Such a candidate gets no
 clustered p (nan: it cannot qualify) and ``poses_needed``, which the verdict
 turns into the measurement that would decide.  The current model is kept as
 least-squares projections, so a linear candidate costs one projection.
@@ -26,7 +30,7 @@ from scipy import stats
 
 from robstiff_drake.identification.diagnosis import plausibility as pl
 from robstiff_drake.identification.diagnosis.confounding import correlation, design_covariance
-from robstiff_drake.identification.diagnosis.cross_validation import clustered_cov, rows_to_eq, wald_p
+from robstiff_drake.identification.diagnosis.cross_validation import clustered_cov, rows_to_eq
 from robstiff_drake.identification.diagnosis.terms import GAUSS_NEWTON, GRID, fit_model, held_out, rms_mm, term_columns
 
 RANK_TOL = 1e-6
@@ -187,8 +191,9 @@ def evaluate(ctx, rows, folds, gidx, state, t, gain_needed):
         else:
             X = np.hstack([state.full.X, Zf])[eq]
             y, sl = ctx.b[eq] - state.full.offset[eq], slice(p0, p0 + pe)
-        coef, cov, G, _ = clustered_cov(X, y, geq)
-        p_grouped = wald_p(coef, cov, sl, G)
+        cf = clustered_cov(X, y, geq)
+        coef, cov, G = cf.coef, cf.cov, cf.G
+        p_grouped = cf.p(sl)
         if G - 1 < X.shape[1]:  # too few poses for the model's parameters: the test cannot decide (module docstring)
             p_grouped, checks["poses_needed"] = float("nan"), X.shape[1] + 1
         checks.update(physical_and_plausible(ctx, t, state, coef, cov, G, sl, g_best))
@@ -238,7 +243,8 @@ def implausible_terms(ctx, state, rows, geq):
     beyond the typical range or forbidden (plausibility.check)."""
     eq = rows_to_eq(rows)
     f = state.full
-    coef, cov, G, _ = clustered_cov(f.X[eq], ctx.b[eq] - f.offset[eq], geq)
+    cf = clustered_cov(f.X[eq], ctx.b[eq] - f.offset[eq], geq)
+    coef, cov, G = cf.coef, cf.cov, cf.G
     half = np.zeros(len(coef)) if cov is None else \
         stats.t.ppf(0.975, max(G - 1, 1)) * np.sqrt(np.maximum(np.diag(cov), 0.0))
     out = {}

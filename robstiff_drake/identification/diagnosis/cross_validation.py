@@ -14,12 +14,16 @@ every test here treats a pose as one unit.
     sorted otherwise; ``FOLD_SEEDS`` are the assignments whose spread the
     diagnosis reports;
   * ``clustered_wald``: are some coefficients of a least-squares fit zero?
-    A Wald test with the pose-clustered (sandwich) covariance, referred to
-    F(q, G - 1): valid whatever the correlation of a pose's rows;
+    The pose-clustered bias-reduced (CR2) sandwich, a Bell-McCaffrey t per
+    parameter and Bonferroni over them, the small-sample corrections for few
+    clusters (clustered_test.py): valid whatever the correlation of a pose's
+    rows;
 """
 
 import numpy as np
 from scipy import special
+
+from robstiff_drake.identification.diagnosis.clustered_test import clustered_fit
 
 K_FOLDS = 5
 FOLD_SEED = 0  # fixed: the same file always gets the same folds
@@ -97,28 +101,18 @@ def rows_to_eq(rows):
 
 def clustered_cov(X, y, groups_eq):
     """Least squares of y (n,) on X (n, p) with the covariance of the
-    coefficients clustered by ``groups_eq`` (n,) (CR1 factor G / (G - 1)).
-    Returns (coefficients, covariance, G, residual); the covariance is None
-    with fewer than 3 clusters."""
-    scale = np.linalg.norm(X, axis=0)
-    scale[scale == 0] = 1.0
-    Xs = X / scale
-    coef_s, *_ = np.linalg.lstsq(Xs, y, rcond=None)
-    r = y - Xs @ coef_s
-    U = np.zeros((int(groups_eq.max()) + 1, X.shape[1]))
-    np.add.at(U, groups_eq, Xs * r[:, None])
-    U = U[np.bincount(groups_eq) > 0]
-    G = len(U)
-    if G < 3:
-        return coef_s / scale, None, G, r
-    bread = np.linalg.pinv(Xs.T @ Xs)
-    V = bread @ (U.T @ U) @ bread * (G / (G - 1))
-    return coef_s / scale, V / np.outer(scale, scale), G, r
+    coefficients clustered by ``groups_eq`` (n,): the bias-reduced CR2
+    sandwich (identification/diagnosis/clustered_test.py).  Returns a
+    ClusteredFit (coef, cov, G, r; ``.p(cols)`` its test); the
+    covariance is None with fewer than 3 clusters."""
+    return clustered_fit(X, y, groups_eq)
 
 
 def wald_p(coef, cov, cols, G):
     """p-value of the Wald test that coef[cols] = 0 with covariance ``cov``
-    from G clusters, referred to F(q, G - 1); 1 without a covariance."""
+    from G clusters, referred to F(q, G - 1); 1 without a covariance.  (The
+    tracker's search uses it with its own CR1 covariance; the residual
+    diagnosis uses the corrected test, ``clustered_wald``.)"""
     if cov is None:
         return 1.0
     idx = np.arange(len(coef))[cols]
@@ -131,10 +125,11 @@ def wald_p(coef, cov, cols, G):
 
 
 def clustered_wald(X, y, groups_eq, cols):
-    """Least squares of y (n,) on X (n, p), and the p-value of the Wald test
-    that the coefficients ``cols`` (a slice) are zero, with the covariance
-    clustered by ``groups_eq`` (n,) (CR1 factor G / (G - 1)) and referred to
-    F(q, G - 1): valid whatever the correlation of a pose's rows.  Returns
+    """Least squares of y (n,) on X (n, p), and the p-value of the test that
+    the coefficients ``cols`` (a slice) are zero, with the CR2 covariance
+    clustered by ``groups_eq`` (n,) and a Bell-McCaffrey t per contrast,
+    Bonferroni over them (identification/diagnosis/clustered_test.py): valid whatever the
+    correlation of a pose's rows, and calibrated on few poses.  Returns
     (p, coefficients, residual)."""
-    coef, cov, G, r = clustered_cov(X, y, groups_eq)
-    return wald_p(coef, cov, cols, G), coef, r
+    fit = clustered_fit(X, y, groups_eq)
+    return fit.p(cols), fit.coef, fit.r

@@ -8,9 +8,11 @@ on the same pose-grouped folds:
 
   * its held-out RMS (all displacement components; every nonlinear parameter
     refitted inside each fold, see identification/diagnosis/terms.py);
-  * a grouped test of its parameters: a Wald test on all rows with the
-    covariance clustered by pose (cross_validation.clustered_wald), valid
-    whatever the correlation of a pose's rows;
+  * a grouped test of its parameters on all rows with the covariance
+    clustered by pose (cross_validation.clustered_wald), valid whatever the
+    correlation of a pose's rows, with the small-sample corrections for few
+    poses (CR2 sandwich, a Bell-McCaffrey t per contrast, Bonferroni over
+    them; clustered_test.py);
   * for reference, a nested F-test on all rows and the change in BIC (these
     treat rows as independent; the decision does not use them).
 
@@ -149,9 +151,13 @@ def _forward(ctx, rows, folds, gidx, state, terms_by_name, banned, rounds, added
             if small is not None:  # against the model the search ends with, not an earlier round's
                 small += [r for r in results if undecided(r, state.rms_mm, m)]
             break
-        # a trend along the file's order that fits about as well as the cause chosen: the data cannot tell them
-        # apart (the file has no measurement order); said with the verdict
-        rivals += [(best.name, r) for r in qualified if terms_by_name[r.name].trend and r.name != best.name
+        # a trend along the file's order that fits about as well as the cause chosen, held out: the data cannot
+        # tell them apart (the file has no measurement order); said with the verdict.  A rival need not pass the
+        # clustered test itself (it names nothing; the trend's columns put their leverage on the first and last
+        # poses, where the corrected test is strictest): its held-out gain is enough
+        rivals += [(best.name, r) for r in results if r.status == "ok" and terms_by_name[r.name].trend
+                   and r.name != best.name and r.physical is not False
+                   and r.rms_mm <= (1 - MIN_GAIN[r.source]) * state.rms_mm
                    and r.rms_mm <= (1 + NAMED_PREFERENCE) * best.rms_mm]
         new = model_state(ctx, state.terms + [terms_by_name[best.name]], rows, folds, gidx)
         added.append((best.name, state.rms_mm, new.rms_mm))
