@@ -68,7 +68,8 @@ def count(folder, case):
 
 def main():
     if not (os.path.exists(VALGRIND) and shutil.which("callgrind_annotate")):
-        print(f"no valgrind at {VALGRIND} or no callgrind_annotate (install valgrind, or set VALGRIND): nothing measured")
+        print(f"no valgrind at {VALGRIND} or no callgrind_annotate (install valgrind, or set VALGRIND): "
+              f"nothing measured")
         return 0
     with tempfile.TemporaryDirectory() as folder, ThreadPoolExecutor(2) as pool:
         with open(os.path.join(folder, "crossing.py"), "w") as f:

@@ -32,8 +32,9 @@ def _run(robot, filter_ba, carried_filter):
     b = DiagramBuilder()
     src = b.AddSystem(RawSamples())
     design = filter_system(*filter_ba, 1.0 / T)
-    tick = b.AddSystem(CompensatorTick(period_s=T, calibration=cal, kinematics=kin, deflection=DeflectionModel(kin, tool),
-                                       saturation_rad=2e-4, delay_steps=1, rate_limit_rad_per_s=0.05,
+    tick = b.AddSystem(CompensatorTick(period_s=T, calibration=cal, kinematics=kin,
+                                       deflection=DeflectionModel(kin, tool), saturation_rad=2e-4, delay_steps=1,
+                                       rate_limit_rad_per_s=0.05,
                                        guard=(1.0 / T, 500.0), force_filter=design if carried_filter else None))
     parts = tick.add_outputs(b)
     if carried_filter:
