@@ -11,7 +11,8 @@ to hardware:
 Everything after the filter runs once per controller period and only hands
 values on, so it is one block, systems/compensator_tick.CompensatorTick
 (one call into Python per tick, the separate blocks' timing exactly), which
-also carries the guard where the sensor is read once per period; a
+also carries the guard and the filter where the sensor is read once per
+period; a
 predictive or preview predictor, or a model with lost motion, stays a block
 of its own between the tick's samples and its saturation.
 
@@ -77,8 +78,12 @@ class Compensator:
         s = self.systems
         guard = s["guard"]  # (a WrenchGuard, or the tick that carries it)
         guard.hold(guard.GetMyMutableContextFromRoot(root_context), wrench)
-        filt = s["filter"]
-        filt.GetMyMutableContextFromRoot(root_context).SetDiscreteState(steady_state(filt, wrench))
+        filt = s["filter"]  # (a LinearSystem, or the tick that carries it)
+        if filt is s["tick"]:
+            filt.set_filter_state(filt.GetMyMutableContextFromRoot(root_context),
+                                  steady_state(filt.filter_system, wrench))
+        else:
+            filt.GetMyMutableContextFromRoot(root_context).SetDiscreteState(steady_state(filt, wrench))
         s["tick"].set_sample(s["tick"].GetMyMutableContextFromRoot(root_context), wrench, q)
 
 
@@ -105,11 +110,12 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     builder = DiagramBuilder()
     kin = DeflectionPredictor(model_dh, model_stiffness_Nm_per_rad, tool_m)
     s = {}
-    # a guard sampled at the tick's own instants is carried by the tick (one call into Python for both)
+    # a guard and filter sampled at the tick's own instants are carried by the tick (one call into Python for
+    # the three, and the filter's output is a part of the tick's state)
     carried = 1.0 / rate_hz == T
     if not carried:
         s["guard"] = builder.AddNamedSystem("wrench_guard", WrenchGuard(rate_hz=rate_hz, max_jump_N=max_jump_N))
-    s["filter"] = builder.AddNamedSystem("force_filter", filter_system(*filter_ba, rate_hz))
+        s["filter"] = builder.AddNamedSystem("force_filter", filter_system(*filter_ba, rate_hz))
     lost = lost_motion_rad if lost_motion_rad and any(lost_motion_rad) else None
     law = "smooth" if preview is not None else lost_motion_law
     model = DeflectionModel(kin, tool_m, calibration.sensor_mount_rpy_deg or (0.0, 0.0, 0.0), lost,
@@ -120,16 +126,19 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     tick = s["tick"] = builder.AddNamedSystem("compensator_tick", CompensatorTick(
         period_s=T, calibration=calibration, kinematics=kin, deflection=None if separate else model,
         saturation_rad=saturation_rad, delay_steps=delay_steps, rate_limit_rad_per_s=rate_limit_rad_per_s,
-        guard=(rate_hz, max_jump_N) if carried else None))
+        guard=(rate_hz, max_jump_N) if carried else None,
+        force_filter=filter_system(*filter_ba, rate_hz) if carried else None))
     out = tick.add_outputs(builder)  # (its state's parts, split by a C++ Demultiplexer)
     if carried:
-        s["guard"] = tick
+        s["guard"] = s["filter"] = tick
         guard_in, guarded, rejected = tick.GetInputPort("raw_wrench"), out["guarded_wrench"], out["rejected"]
+        filtered = out["filtered_wrench"]
     else:
         guard_in, guarded, rejected = (s["guard"].GetInputPort("wrench"), s["guard"].GetOutputPort("wrench"),
                                        s["guard"].GetOutputPort("rejected"))
-    builder.Connect(guarded, s["filter"].get_input_port())
-    builder.Connect(s["filter"].get_output_port(), tick.GetInputPort("wrench"))
+        builder.Connect(guarded, s["filter"].get_input_port())
+        filtered = s["filter"].get_output_port()
+        builder.Connect(filtered, tick.GetInputPort("wrench"))
     q_sampled = out["q_sampled"]
     process = out["process_wrench"]
     if not separate:
@@ -170,12 +179,12 @@ def make_compensator(*, rate_hz, filter_ba, max_jump_N, period_s, delay_steps, s
     builder.ExportOutput(out["correction"], "correction")
     builder.ExportOutput(guarded, "guarded_wrench")
     builder.ExportOutput(rejected, "rejected")
-    builder.ExportOutput(s["filter"].get_output_port(), "filtered_wrench")
+    builder.ExportOutput(filtered, "filtered_wrench")
     builder.ExportOutput(process, "process_wrench")
     builder.ExportOutput(q_sampled, "q_sampled")
     builder.ExportOutput(dq_port, "dq")
     builder.ExportOutput(tick.GetOutputPort("state"), "tick_state")
-    parts = ["correction", "q_sampled"] + ["guarded_wrench", "rejected"] * carried \
+    parts = ["correction", "q_sampled"] + ["guarded_wrench", "rejected", "filtered_wrench"] * carried \
         + ["process_wrench"] * (predictive is None) + ["dq"] * (not separate)
     diagram = builder.Build()
     diagram.set_name(name)

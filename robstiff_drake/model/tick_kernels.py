@@ -173,12 +173,48 @@ def correction_step(dq, line, c, lo, hi, step, out):
 
 # The compensator tick's state layout for ``tick_update`` (int64 offsets into its one state group; -1: absent):
 # the sampled wrench, the sampled q, the process wrench, dq, the delay line, its length (6 n), the correction,
-# the carried guard's last good sample, its rejections so far and in a row.
-TICK_AT_SIZE = 10
+# the carried guard's last good sample, its rejections so far and in a row, the carried force filter's output
+# and its state.
+TICK_AT_SIZE = 12
 
 
 @kernel
-def tick_update(x, raw, w, q, dq_in, at, guard, chain, gravity, model, lo, hi, step):
+def filter_state_step(A, B, xf, u):
+    """The force filter's discrete update (Drake's LinearSystem,
+    systems/force_filter.filter_system): ``xf`` (n) <- A xf + B u for the
+    filter's input ``u`` (6) before this update, in place.  Each product is
+    summed in the column order from 0.0 and the two added last, as Drake's
+    Eigen products do: the same bits (tests/test_tick_filter.py)."""
+    n = xf.shape[0]
+    nxt = np.empty(n)
+    for i in range(n):
+        s1 = 0.0
+        for j in range(n):
+            s1 += A[i, j] * xf[j]
+        s2 = 0.0
+        for j in range(u.shape[0]):
+            s2 += B[i, j] * u[j]
+        nxt[i] = s1 + s2
+    for i in range(n):
+        xf[i] = nxt[i]
+
+
+@kernel
+def filter_output(C, D, xf, u, y):
+    """The force filter's output y = C xf + D u (6) written to ``y``, in
+    ``filter_state_step``'s order (Drake's LinearSystem output)."""
+    for i in range(y.shape[0]):
+        s1 = 0.0
+        for j in range(xf.shape[0]):
+            s1 += C[i, j] * xf[j]
+        s2 = 0.0
+        for j in range(u.shape[0]):
+            s2 += D[i, j] * u[j]
+        y[i] = s1 + s2
+
+
+@kernel
+def tick_update(x, raw, w, q, dq_in, at, guard, chain, gravity, model, lo, hi, step, fA, fB, fC, fD):
     """The compensator tick's whole update on its state ``x`` (one group,
     written in place; offsets ``at``, TICK_AT_SIZE: see above), in the order
     systems/compensator_tick.CompensatorTick's update takes it: with a
@@ -188,8 +224,20 @@ def tick_update(x, raw, w, q, dq_in, at, guard, chain, gravity, model, lo, hi, s
     on the held dq (or ``dq_in`` where ``at[3]`` < 0), the delay line and
     the correction; then this tick's sample: the filtered wrench ``w`` and
     the joint angles ``q`` (6 each), their process wrench and dq
-    (``pose_and_deflection``).  Nothing is computed that the separate
-    kernels do not: the same values bit for bit."""
+    (``pose_and_deflection``).  With a carried force filter (``at[10]``
+    >= 0: its output held at ``at[10]``, its state at ``at[11]``, matrices
+    ``fA``-``fD``) the tick samples the filter's held output instead of
+    ``w``, the filter steps on the guard's sample before the guard's update
+    (``filter_state_step``) and its output is held anew from the guard's new
+    one (``filter_output``): the separate LinearSystem's values at every
+    instant.  Nothing is computed that the separate kernels do not: the
+    same values bit for bit."""
+    f = at[10]
+    ws = np.empty(6)
+    for i in range(6):
+        ws[i] = x[f + i] if f >= 0 else w[i]
+    if f >= 0:  # (the filter's update reads the guard's sample before the guard's own update)
+        filter_state_step(fA, fB, x[at[11]:at[11] + fA.shape[0]], x[at[7]:at[7] + 6])
     g = at[7]
     if g >= 0:  # (guard_step: model/compensator.guard_accepts, then the re-arm)
         mj = guard[0]
@@ -210,6 +258,8 @@ def tick_update(x, raw, w, q, dq_in, at, guard, chain, gravity, model, lo, hi, s
                     for i in range(6):
                         x[g + i] = raw[i]
                     x[at[9]] = 0.0
+    if f >= 0:
+        filter_output(fC, fD, x[at[11]:at[11] + fA.shape[0]], x[g:g + 6], x[f:f + 6])
     o_dq, o_line, n6, o_c = at[3], at[4], at[5], at[6]
     buf = np.empty(n6 + 6)
     if o_dq >= 0:
@@ -221,10 +271,10 @@ def tick_update(x, raw, w, q, dq_in, at, guard, chain, gravity, model, lo, hi, s
     for i in range(6):
         x[o_c + i] = buf[n6 + i]
     res = np.empty(24 if o_dq >= 0 else 18)
-    pose_and_deflection(q, chain, w, gravity, model, res)
+    pose_and_deflection(q, chain, ws, gravity, model, res)
     o_w, o_q, o_p = at[0], at[1], at[2]
     for i in range(6):
-        x[o_w + i] = w[i]
+        x[o_w + i] = ws[i]
         x[o_q + i] = q[i]
         x[o_p + i] = res[12 + i]
     if o_dq >= 0:

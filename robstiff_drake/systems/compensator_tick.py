@@ -17,7 +17,9 @@ that of the separate blocks with Drake's same-instant semantics, exactly:
              c_k = c_{k-1} moved towards -d          (RateLimitedCorrection)
 
 Where the wrist sensor is read once per controller period, the block
-also carries the wrench guard (systems/wrist_sensor.WrenchGuard's update,
+also carries the wrench guard and the force filter (its LinearSystem's
+update and output, the same sums in the same order: one C++ block fewer
+and one input read fewer per tick) (systems/wrist_sensor.WrenchGuard's update,
 ``guard_step``, on its part of the state): the guard's sample and the tick's are
 taken at the same instants from the same context, so one call into Python
 does both, as the two blocks did in two.
@@ -57,6 +59,14 @@ from robstiff_drake.systems.wrist_sensor import GUARD_REARM_S, guard_step
 _NONE = np.empty(0)  # (an empty delay line)
 
 
+def _dot(row, v):
+    """sum of value * v[column] over ``row``'s (column, value) pairs, in order, from 0.0."""
+    s = 0.0
+    for j, a in row:
+        s += a * v[j]
+    return s
+
+
 def saturate(v, lo, hi):
     """Drake's Saturation for one value (a NaN passes through)."""
     return lo if v < lo else (hi if v > hi else v)
@@ -87,10 +97,18 @@ class CompensatorTick(LeafSystem):
     sampled every ``period_s`` (rate_hz = 1 / period_s) that this block
     carries: then input ``raw_wrench`` (6) and the parts ``guarded_wrench``
     and ``rejected``, the guard's, and ``wrench`` is the filter's output of
-    ``guarded_wrench`` as before."""
+    ``guarded_wrench`` as before.
+
+    ``force_filter``: None, or the force filter's LinearSystem
+    (systems/force_filter.filter_system, of period ``period_s``; with a
+    ``guard``) that this block carries on the guard's samples: then no
+    input ``wrench``, and the parts ``filtered_wrench`` (the filter's
+    output, held as the LinearSystem's output would be at every instant)
+    and ``_filter_state``; ``filter_system`` keeps the LinearSystem (not
+    in any diagram) for its design."""
 
     def __init__(self, *, period_s, calibration, kinematics, deflection, saturation_rad, delay_steps,
-                 rate_limit_rad_per_s, guard=None):
+                 rate_limit_rad_per_s, guard=None, force_filter=None):
         super().__init__()
         self._remove = GravityRemover(calibration, kinematics)
         self._model = deflection
@@ -98,7 +116,19 @@ class CompensatorTick(LeafSystem):
         self._lo, self._hi = (-sat).tolist(), sat.tolist()
         self._n = int(delay_steps)
         self._step = (np.asarray(rate_limit_rad_per_s, dtype=float) * period_s * np.ones(6)).tolist()
-        self._w_in = self.DeclareVectorInputPort("wrench", 6)
+        self._filter = self.filter_system = None
+        if force_filter is not None:  # (the force filter's matrices, C-ordered for the kernels)
+            if guard is None or force_filter.time_period() != period_s:
+                raise ValueError(f"a force filter carried by the tick filters the carried guard's samples at the "
+                                 f"tick's period: give guard, and a filter of period {period_s!r} s")
+            self.filter_system = force_filter
+            self._filter = tuple(np.ascontiguousarray(m, dtype=float) for m in (
+                force_filter.A(), force_filter.B(), force_filter.C(), force_filter.D()))
+            # (the plain-Python reference's rows: each row's nonzero (column, value), summed in column order)
+            self._filter_rows = tuple(tuple(tuple((j, float(v)) for j, v in enumerate(row) if v != 0.0)
+                                            for row in m) for m in self._filter)
+        n_filter = 0 if force_filter is None else self._filter[0].shape[0]
+        self._w_in = self.DeclareVectorInputPort("wrench", 6) if force_filter is None else None
         self._q_in = self.DeclareVectorInputPort("q", 6)
         self._dq_in = self.DeclareVectorInputPort("dq", 6) if deflection is None else None
         self._guard = None
@@ -114,6 +144,7 @@ class CompensatorTick(LeafSystem):
             ("wrench_sampled", 6, True), ("q_sampled", 6, True), ("process_wrench", 6, True),
             ("dq", 6, deflection is not None), ("correction", 6, True), ("guarded_wrench", 6, guard is not None),
             ("rejected", 1, guard is not None), ("_rejected_in_a_row", 1, guard is not None),
+            ("filtered_wrench", 6, force_filter is not None), ("_filter_state", n_filter, n_filter > 0),
             ("_delay_line", 6 * self._n, self._n > 0)) if present)
         self._at, start = {}, 0
         for name, size in self.layout:
@@ -133,6 +164,7 @@ class CompensatorTick(LeafSystem):
         self._s = tuple(at.get(name) for name in ("wrench_sampled", "q_sampled", "process_wrench", "dq",
                                                   "_delay_line", "correction"))
         self._s_guard = tuple(at.get(name) for name in ("guarded_wrench", "rejected", "_rejected_in_a_row"))
+        self._s_filter = (at.get("filtered_wrench"), at.get("_filter_state", slice(0, 0)))
         # (the compiled update's arguments after its inputs: model/tick_kernels.tick_update)
         self._fused = None if self._compiled is None else self._fused_arguments(*self._compiled)
         self.warm_up()
@@ -177,7 +209,8 @@ class CompensatorTick(LeafSystem):
             return
         # (the inputs' values and the state group as the simulation passes them: writeable float arrays)
         x = np.zeros(sum(size for _, size in self.layout))
-        tick_kernels.tick_update(x, np.zeros(6) if self._guard is not None else _NONE, np.zeros(6), np.zeros(6),
+        tick_kernels.tick_update(x, np.zeros(6) if self._guard is not None else _NONE,
+                                 np.zeros(6) if self._w_in is not None else _NONE, np.zeros(6),
                                  np.zeros(6) if self._dq_in is not None else _NONE, *self._fused)
 
     def _fused_arguments(self, chain, gravity, model, lo, hi, step):
@@ -188,9 +221,11 @@ class CompensatorTick(LeafSystem):
             return self._at[name].start if name in self._at else -1
         offsets = np.array([at("wrench_sampled"), at("q_sampled"), at("process_wrench"), at("dq"),
                             max(at("_delay_line"), 0), 6 * self._n, at("correction"), at("guarded_wrench"),
-                            at("rejected"), at("_rejected_in_a_row")], dtype=np.int64)
+                            at("rejected"), at("_rejected_in_a_row"), at("filtered_wrench"),
+                            max(at("_filter_state"), 0)], dtype=np.int64)
         guard = np.array(self._guard if self._guard is not None else (0.0, 0.0), dtype=float)
-        return offsets, guard, chain, gravity, model, lo, hi, step
+        matrices = self._filter if self._filter is not None else (np.empty((0, 0)),) * 4
+        return (offsets, guard, chain, gravity, model, lo, hi, step) + matrices
 
     @property
     def model(self):
@@ -221,24 +256,59 @@ class CompensatorTick(LeafSystem):
         context.SetDiscreteState(0, x)
 
     def hold(self, context, wrench):
-        """Hold ``wrench`` (6) as the carried guard's last good sample in this block's ``context``."""
+        """Hold ``wrench`` (6) as the carried guard's last good sample in this block's ``context``
+        (and a carried filter's output of it)."""
         x = context.get_discrete_state(0).value().copy()
         x[self._at["guarded_wrench"]] = wrench
+        self._filter_output_reference(x)
         context.SetDiscreteState(0, x)
+
+    def set_filter_state(self, context, state):
+        """Set the carried force filter's state (n, the LinearSystem's) in
+        this block's ``context``, and its output with it."""
+        x = context.get_discrete_state(0).value().copy()
+        x[self._s_filter[1]] = state
+        self._filter_output_reference(x)
+        context.SetDiscreteState(0, x)
+
+    def _filter_output_reference(self, x):
+        """The carried filter's output of its state and the guard's sample,
+        written into the state ``x`` (nothing without a carried filter):
+        C xf + D u, each product summed in column order as Drake's."""
+        if self._filter is None:
+            return
+        _, _, rows_c, rows_d = self._filter_rows
+        s_y, s_f = self._s_filter
+        xf, u = x[s_f].tolist(), x[self._s_guard[0]].tolist()
+        x[s_y] = [_dot(rc, xf) + _dot(rd, u) for rc, rd in zip(rows_c, rows_d)]
+
+    def _filter_state_reference(self, x):
+        """The carried filter's update on the state ``x``, in place: xf <- A xf + B u
+        with the guard's sample u before the guard's update."""
+        rows_a, rows_b, _, _ = self._filter_rows
+        s_f = self._s_filter[1]
+        xf, u = x[s_f].tolist(), x[self._s_guard[0]].tolist()
+        x[s_f] = [_dot(ra, xf) + _dot(rb, u) for ra, rb in zip(rows_a, rows_b)]
 
     def _update(self, context, discrete_state):
         x = discrete_state.get_mutable_value(0)  # (arrives holding the current state: written in place)
         if self._fused is not None and jit.available():  # (all of the below in one compiled call)
             tick_kernels.tick_update(x, self._raw.Eval(context) if self._guard is not None else _NONE,
-                                     self._w_in.Eval(context), self._q_in.Eval(context),
+                                     self._w_in.Eval(context) if self._w_in is not None else _NONE,
+                                     self._q_in.Eval(context),
                                      self._dq_in.Eval(context) if self._dq_in is not None else _NONE, *self._fused)
             return
+        w = None
+        if self._filter is not None:  # (the filter's output before this tick, and its update on the guard's sample)
+            w = x[self._s_filter[0]].copy()
+            self._filter_state_reference(x)
         if self._guard is not None:  # (its own parts of the state: the order of the two updates does not matter)
             g, count, run = self._s_guard
             guard_step(self._raw.Eval(context), x[g], x[count], x[run], *self._guard)
-        self._update_reference(context, x)
+        self._filter_output_reference(x)
+        self._update_reference(context, x, w)
 
-    def _update_reference(self, context, x):
+    def _update_reference(self, context, x, w=None):
         s_w, s_q, s_p, s_dq, s_line, s_c = self._s
         # the deflection of the previous tick's sample, saturated
         dq = (x[s_dq] if s_dq is not None else self._dq_in.Eval(context)).tolist()
@@ -252,7 +322,7 @@ class CompensatorTick(LeafSystem):
         if math.isfinite(sum(d)):  # (a non-finite one leaves the correction where it is)
             x[s_c] = rate_limited_step(x[s_c].tolist(), d, self._step)
         # this tick's sample
-        w, q = self._w_in.Eval(context), self._q_in.Eval(context)
+        w, q = self._w_in.Eval(context) if w is None else w, self._q_in.Eval(context)
         p, dq_now = self._process_and_dq(w, q)
         x[s_w], x[s_q], x[s_p] = w, q, p
         if dq_now is not None:
