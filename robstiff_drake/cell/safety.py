@@ -200,8 +200,15 @@ def check_reference(where, robot, t_s, q_deg, period_s, rows=None):
     bad = _first(n, lambda a, b: t[a + 1:b + 1] - t[a:b] < period_s - TIME_EPS_S, overlap=1)
     if bad:
         i = bad[0] + 1
-        raise InputError(f"{line(i)}: t_s {t[i]:.9g} is {t[i] - t[i - 1]:.3g} s after the previous row; rows must be "
-                         f"at least the controller period ({period_s:g} s) apart")
+        step_ms, period_ms = 1e3 * (t[i] - t[i - 1]), 1e3 * period_s
+        if not step_ms > 0:
+            raise InputError(f"{line(i)}: t_s {t[i]:.9g} is not after the previous row's {t[i - 1]:.9g}; times must "
+                             f"increase, by at least the controller period (--period-ms {period_ms:g}) a row")
+        raise InputError(f"{line(i)}: t_s {t[i]:.9g} is {step_ms:.3g} ms after the previous row, finer than "
+                         f"--period-ms {period_ms:g} (the controller period); rows must be at least {period_ms:g} ms "
+                         f"apart: write the reference at the controller's cycle (sim-cell and simulate write it at "
+                         f"the scenario's controller.period_ms: set it to {period_ms:g}), or, if the controller's "
+                         f"cycle is {step_ms:.3g} ms, run with --period-ms {step_ms:.3g}")
     lo, hi = np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad)
     bad = _first(n, lambda a, b: ~((q[a:b] >= lo) & (q[a:b] <= hi)).all(axis=1))  # (NaN too)
     if bad:

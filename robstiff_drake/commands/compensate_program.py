@@ -225,7 +225,8 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
                "chatter_check": chatter, "warnings": []}
     with RunFolder(out) as folder:
         folder.write(names["program"], corrected_text)
-        folder.write(names["reference"], oc.reference_text(robot, prediction, folder.run_id, job, model))
+        folder.write(names["reference"], oc.reference_text(robot, prediction, folder.run_id, job, model,
+                                                             period_s=sc.controller.period_ms / 1e3))
         module = oc.rapid_text(sc, robot, stem, targets, header)
         folder.write(names["rapid"], module)
         if simulate:

@@ -256,7 +256,8 @@ def write_outputs(sc, results, robot, run, warnings=()):
     run.write("joint_reference.csv", joint_reference_text(
         cell.robot, cell.q_ref_times, cell.q_ref, run.run_id,
         [f"robstiff simulate: the joint references of {cell.scenario.source}'s path (IK every "
-         f"{cell.scenario.path.reference_period_ms:g} ms; controller degrees), for `robstiff compensate --reference`"]))
+         f"{cell.scenario.path.reference_period_ms:g} ms; controller degrees), for `robstiff compensate --reference`"],
+        period_s=cell.scenario.controller.period_ms / 1e3))
     written.append("joint_reference.csv")
     run.write("summary.json", json_text(dict(summary(results, sc, warnings), run_id=run.run_id)))
     written.append("summary.json")

@@ -118,4 +118,4 @@ class CellStation:
         the controller's angles), as `robstiff compensate --reference` reads it."""
         return joint_reference_text(self.robot, self.t_ref, self.q_ref, notes=[
             f"joint reference of the scenario's path, written by robstiff sim-cell (IK every "
-            f"{self.sc.path.reference_period_ms:g} ms; the controller's angles)"])
+            f"{self.sc.path.reference_period_ms:g} ms; the controller's angles)"], period_s=self.T)

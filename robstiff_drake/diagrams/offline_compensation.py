@@ -220,9 +220,9 @@ def corrected_reference(prediction):
     return t, prediction.q_ref_rad + c
 
 
-def reference_text(robot, prediction, run_id, job, model="model"):
+def reference_text(robot, prediction, run_id, job, model="model", *, period_s):
     """joint_reference.csv: the corrected joint references (controller
-    degrees), its first line the corrected reference's mark (``model``: the
+    degrees; rows on the controller's cycle ``period_s`` s or coarser), its first line the corrected reference's mark (``model``: the
     compensator's model that corrected them, in words), which `robstiff
     compensate --reference` reads (a corrected reference is not streamed with
     online compensation: commands/compensate.py)."""
@@ -235,7 +235,7 @@ def reference_text(robot, prediction, run_id, job, model="model"):
     return mark + joint_reference_text(robot, t, q, run_id, [
         f"robstiff compensate-program: the joint references of {job}'s program with the offline correction of "
         "the compensator's model (all six axes; controller degrees), for `robstiff compensate --reference "
-        "joint_reference.csv --reference-is-corrected`"])
+        "joint_reference.csv --reference-is-corrected`"], period_s=period_s)
 
 
 def proof_runs(job_sc, robot, corrected_program, prediction, *, modes=("off", "plain"), progress=None, say=None):

@@ -116,12 +116,37 @@ def joint_log_text(log, run_id, notes=()):
 # ---------------------------------------------------------------- joint reference
 
 
-def joint_reference_text(robot, t_s, q_rad, run_id=None, notes=()):
+def on_controller_period(t_s, q, period_s):
+    """(t_s, q): a joint reference whose rows are finer than the
+    controller's cycle ``period_s`` (s) resampled on that cycle (linear
+    between rows, as `robstiff compensate` plays a reference:
+    cell/reference.py), its last row the reference's last pose held to the
+    next cycle; a reference at the cycle or coarser as it is.  `compensate
+    --period-ms` refuses rows closer than its period (cell/safety.py
+    check_reference): a path planned every 4 ms (path.reference_period_ms)
+    for an 8 ms FANUC Stream Motion controller was refused before."""
+    t = np.asarray(t_s, dtype=float)
+    q = np.asarray(q, dtype=float)
+    if len(t) < 2 or np.min(np.diff(t)) >= period_s - 1e-9:
+        return t, q
+    n = int(np.ceil((t[-1] - t[0]) / period_s - 1e-9))
+    grid = t[0] + period_s * np.arange(n + 1)
+    return grid, np.column_stack([np.interp(grid, t, q[:, j]) for j in range(q.shape[1])])
+
+
+def joint_reference_text(robot, t_s, q_rad, run_id=None, notes=(), *, period_s):
     """joint_reference.csv, what `robstiff compensate --reference` streams:
     time (s) and the path's joint references in the controller's degrees
     (``q_rad``: the model's joint angles, (N, 6) rad, mapped through the
-    robot file's joint map).  ``run_id`` None: a file outside a run folder."""
+    robot file's joint map), on the controller's cycle ``period_s`` (s) or
+    coarser (``on_controller_period``).  ``run_id`` None: a file outside a
+    run folder."""
+    n = len(t_s)
+    t_s, q_rad = on_controller_period(t_s, q_rad, float(period_s))
     q_deg = robot.controller_deg(np.asarray(q_rad, dtype=float))
+    if len(t_s) != n:
+        notes = [*notes, f"resampled on the controller's cycle, {1e3 * float(period_s):g} ms (`robstiff compensate "
+                         f"--period-ms {1e3 * float(period_s):g}`), linear between the path's {n} rows"]
     return table_text(run_id, notes, REFERENCE_COLUMNS, np.column_stack([t_s, q_deg]), ".12g")
 
 
