@@ -14,6 +14,7 @@ from robstiff_drake.identification.diagnosis.campaign_diagnosis import CANDIDATE
 from robstiff_drake.identification.diagnosis.findings import describe_alternatives
 from robstiff_drake.identification.diagnosis.fold_spread import describe as describe_spread
 from robstiff_drake.identification.stiffness.joint_stiffness import check_angle_units, identify
+from robstiff_drake.identification.stiffness.lack_of_fit import stated_noise
 from robstiff_drake.identification.diagnosis.selection import ALPHA_ROUND, MIN_GAIN
 from robstiff_drake.io import RunFolder, Warnings, check_outputs, emit_json, staged_outputs, write_atomic
 from robstiff_drake.model.robot import load_robot
@@ -46,6 +47,7 @@ def to_dict(d, campaign):
         "rms_after_mm": d.rms_after_mm,
         "noise_floor_mm": f.sigma_mm,
         "noise_source": f.source,
+        "noise_floor_source": f.source_text,
         "noise_floor_stated_mm": f.stated_mm,
         "noise_floor_replicates_mm": f.replicate_mm,
         "replicate_dof": f.replicate_dof,
@@ -107,8 +109,8 @@ def format_report(d, campaign, markdown=False):
              f"  six-spring model: {d.rms_before_mm:.4f} mm; final model: {d.rms_after_mm:.4f} mm"]
     if d.fold_spread is not None:
         lines.append(f"  {describe_spread(d.fold_spread)}")
-    floor = ("none stated or measured" if f.sigma_mm is None else f"{f.sigma_mm:.4f} mm ({f.source})")
-    if f.replicate_mm is not None:
+    floor = ("none stated or measured" if f.sigma_mm is None else f"{f.sigma_mm:.4f} mm, {f.source_text}")
+    if f.replicate_mm is not None and f.source != "replicates":
         floor += f"; replicate rows scatter by {f.replicate_mm:.4f} mm ({f.replicate_sets} sets, {f.replicate_dof} dof)"
     lines += [f"noise floor: {floor}", "", f"{h}verdict" if markdown else "verdict:", d.verdict, ""]
     if d.misreadings:
@@ -306,12 +308,15 @@ def run(*, data, tool=None, json_out=None, report=None, plots=None, robot_yaml=N
                                     json_out=json_out, report=report, plots_dir=plots, validate=validate,
                                     write_robot=write_robot, warnings=warnings, robot_given=robot_yaml is not None)
     campaign = read_stiffness_campaign(data, robot)
+    # the stated floor as identify reads it: --noise-mm, else the file's '# noise_mm:' line (else replicate rows)
+    noise_mm, noise_by = stated_noise(campaign, noise_mm)
     tool_m = campaign_tool_m(campaign, robot, parse_tool(tool), warnings)
     warnings.extend_from(campaign_warnings(campaign))
     check_angle_units(robot, campaign, tool_m)
     springs = identify(robot, campaign, tool_m=tool_m)  # six springs on every row: the warnings and the search's start
     warnings.extend_from(fit_warnings(springs, robot, campaign))
-    d = diagnose(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, warnings=warnings, base_all=springs)
+    d = diagnose(robot, campaign, tool_m=tool_m, noise_mm=noise_mm, noise_by=noise_by, warnings=warnings,
+                 base_all=springs)
     with staged_outputs():  # the JSON, the report and the views, all or none
         if json_out is not None:
             emit_json(to_dict(d, campaign), json_out)

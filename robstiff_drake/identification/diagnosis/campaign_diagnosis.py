@@ -161,10 +161,10 @@ def _term_reports(ctx, result, rows, units):
     return out
 
 
-def _run(robot, campaign, tool_m, rows, groups, noise_mm, terms_by_name, fold_seed=FOLD_SEED):
+def _run(robot, campaign, tool_m, rows, groups, noise_mm, terms_by_name, fold_seed=FOLD_SEED, noise_by=None):
     base = identify(robot, subset(campaign, rows), tool_m=tool_m)
     ctx = Context(robot, campaign, tool_m, base.identifiable)
-    floor = nf.estimate_floor(campaign, groups, rows, noise_mm)
+    floor = nf.estimate_floor(campaign, groups, rows, noise_mm, noise_by)
     units, by_pose = test_groups(groups, rows)
     fold_rows = splits(rows, units, seed=fold_seed)
     result = selection.search(ctx, rows, fold_rows, terms_by_name, units, floor.sigma_mm)
@@ -269,6 +269,8 @@ def _named_columns(ctx, names, c):
 def diagnose(robot, campaign, **kw):
     """Diagnose a campaign (see the module docstring).  ``tool_m``;
     ``noise_mm``: the stated 1-sigma noise of one displacement component;
+    ``noise_by``: where it came from, in words (the report's; the command's
+    stiffness/lack_of_fit.stated_noise);
     ``candidates``: names from the named library (default all);
     ``dictionary``: search the open dictionary too; ``warnings``;
     ``fold_seed``: the fold assignment of the search (default FOLD_SEED;
@@ -281,7 +283,7 @@ def diagnose(robot, campaign, **kw):
 
 
 def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, dictionary=True, warnings=None,
-              fold_seed=FOLD_SEED, base_all=None):
+              fold_seed=FOLD_SEED, base_all=None, noise_by=None):
     w = warnings if warnings is not None else Warnings(quiet=True)
     tool_m = np.zeros(3) if tool_m is None else np.asarray(tool_m, dtype=float)
     names = list(candidates or CANDIDATES)
@@ -299,7 +301,7 @@ def _diagnose(robot, campaign, *, tool_m=None, candidates=None, noise_mm=None, d
     for attempt in range(2):
         rows = np.setdiff1d(all_rows, flagged)
         base, ctx, floor, fold_rows, result, units, by_pose = _run(robot, campaign, tool_m, rows, groups, noise_mm,
-                                                                   terms_by_name, fold_seed)
+                                                                   terms_by_name, fold_seed, noise_by)
         resid_all = (ctx.b - result.state.full.predict()).reshape(-1, 3)
         f_m = None if floor.sigma_mm is None else floor.sigma_mm * 1e-3
         flagged2, _ = robust_fit.screen_rows(resid_all, rows, f_m, robust_fit.POST_SCREEN_SIGMAS)

@@ -48,6 +48,17 @@ class Floor:
     replicate_mm: float | None
     replicate_dof: int  # per component
     replicate_sets: int
+    stated_by: str | None = None  # where a stated floor came from, in words ("stated (--noise-mm)", the file's line)
+
+    @property
+    def source_text(self):
+        """Where the floor came from, in words (the JSON's noise_floor_source
+        and the report's), or None without a floor."""
+        if self.source == "stated":
+            return self.stated_by or "stated"
+        if self.source == "replicates":
+            return f"estimated from {self.replicate_sets} sets of replicate rows ({self.replicate_dof} dof)"
+        return None
 
 
 def replicate_sets(campaign, groups, rows):
@@ -68,8 +79,9 @@ def replicate_sets(campaign, groups, rows):
     return [sorted(int(r) for r in s) for s in sets]
 
 
-def estimate_floor(campaign, groups, rows, stated_mm=None):
-    """The floor from the statement and/or the replicate rows among ``rows``."""
+def estimate_floor(campaign, groups, rows, stated_mm=None, stated_by=None):
+    """The floor from the statement and/or the replicate rows among ``rows``
+    (``stated_by``: where ``stated_mm`` came from, in words)."""
     sets = replicate_sets(campaign, groups, rows)
     dof = sum(len(s) - 1 for s in sets)
     rep = None
@@ -77,7 +89,7 @@ def estimate_floor(campaign, groups, rows, stated_mm=None):
         ss = sum(float(np.sum((campaign.disp_mm[s] - campaign.disp_mm[s].mean(axis=0)) ** 2)) for s in sets)
         rep = float(np.sqrt(ss / (3 * dof)))
     if stated_mm is not None:
-        return Floor(float(stated_mm), "stated", float(stated_mm), rep, dof, len(sets))
+        return Floor(float(stated_mm), "stated", float(stated_mm), rep, dof, len(sets), stated_by)
     if rep is not None:
         return Floor(rep, "replicates", None, rep, dof, len(sets))
     return Floor(None, None, None, None, dof, len(sets))

@@ -76,22 +76,31 @@ def read_noise_header(path):
     return None if found is None else found[1]
 
 
-def noise_floor(campaign, stated_mm=None):
-    """(sigma_mm or None, source phrase or None): ``stated_mm`` (--noise-mm),
-    else the file's ``# noise_mm:`` line, else the replicate rows' estimate
-    (diagnosis/noise_floor.py), else (None, None)."""
+def stated_noise(campaign, stated_mm=None):
+    """(sigma_mm or None, where it came from in words, or None): the stated
+    floor of a stiffness campaign, ``stated_mm`` (--noise-mm) first, else
+    the file's ``# noise_mm:`` line (InputError for a malformed one).  The
+    one reading of both `robstiff identify` and `robstiff diagnose`."""
     if stated_mm is not None:
         return float(stated_mm), "stated (--noise-mm)"
     in_file = read_noise_header(campaign.path)
     if in_file is not None:
         return in_file, f"stated in {campaign.path}'s '# {NOISE_KEY}:' line"
+    return None, None
+
+
+def noise_floor(campaign, stated_mm=None):
+    """(sigma_mm or None, source phrase or None): ``stated_noise`` (--noise-mm,
+    else the file's ``# noise_mm:`` line), else the replicate rows' estimate
+    (diagnosis/noise_floor.py), else (None, None)."""
     from robstiff_drake.identification.diagnosis.cross_validation import pose_groups
     from robstiff_drake.identification.diagnosis.noise_floor import estimate_floor
 
+    stated, by = stated_noise(campaign, stated_mm)
+    if stated is not None:  # (identify's floor: no replicate estimate beside a stated one)
+        return stated, by
     floor = estimate_floor(campaign, pose_groups(campaign), np.arange(len(campaign)))
-    if floor.sigma_mm is None:
-        return None, None
-    return floor.sigma_mm, f"estimated from {floor.replicate_sets} sets of replicate rows ({floor.replicate_dof} dof)"
+    return floor.sigma_mm, floor.source_text
 
 
 def lack_of_fit(fit, floor_mm, source):
