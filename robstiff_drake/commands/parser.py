@@ -171,8 +171,9 @@ def build_parser():
     p.add_argument("--report", metavar="OUT.md", help="write a Markdown report")
     p.add_argument("--plots", metavar="DIR", help="write the residual views (one PNG per view)")
     p.add_argument("--noise-mm", type=float, default=None, metavar="SIGMA",
-                   help="1-sigma noise of one displacement component (instrument), mm; without it the floor comes "
-                        "from replicate rows (same pose and load), or no verdict is given")
+                   help="1-sigma noise of one displacement component (instrument), mm; without it the file's "
+                        "'# noise_mm:' line (as identify reads it), else replicate rows (same pose and load), else "
+                        "no verdict is given")
     p.add_argument("--validate", metavar="FILE.csv",
                    help="absolute-position campaigns: a second campaign of the same arm to test the fitted model on")
     p.add_argument("--write-robot", metavar="OUT.yaml",
