@@ -137,6 +137,35 @@ def cr2_cov(Xs, r, g, bread):
     return bread @ (scores.T @ scores) @ bread, SVts, Minvs
 
 
+def interval_half_widths(X, r, groups_eq, level=0.95):
+    """Half-widths (X's column units) of the ``level`` intervals of every
+    coefficient of a least-squares fit of columns X (n, p) with residual r
+    (n,), clustered by ``groups_eq`` (n,): the CR2 standard error times
+    t(eta_j), eta_j the coefficient's Bell-McCaffrey (Satterthwaite) degrees
+    of freedom, as the test (``bm_bonferroni``) refers one contrast; t(G - 1)
+    where eta_j is undefined (a coefficient the working model cannot
+    estimate)."""
+    from scipy import stats
+
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    bread = np.linalg.pinv(Xs.T @ Xs)
+    _, g = np.unique(np.asarray(groups_eq), return_inverse=True)
+    g = np.asarray(g).ravel()
+    G = int(g.max()) + 1
+    cov_s, SVts, Minvs = cr2_cov(Xs, r, g, bread)  # linear in the rows (batched per pose size)
+    fit = ClusteredFit(np.zeros(X.shape[1]), cov_s, G, r, np.ones(X.shape[1]), bread, SVts, Minvs)
+    dof = np.full(X.shape[1], float(max(G - 1, 1)))
+    for j in range(X.shape[1]):
+        C = np.zeros((1, X.shape[1]))
+        C[0, j] = 1.0
+        eta = _eta(fit, C)
+        if np.isfinite(eta) and eta > 0:
+            dof[j] = eta
+    return stats.t.ppf(0.5 + level / 2, dof) * np.sqrt(np.maximum(np.diag(cov_s), 0.0)) / scale
+
+
 def _tested(fit, cols):
     """(index, scaled coefficients, their scaled covariance) of coef[cols]."""
     idx = np.arange(len(fit.coef))[cols]
