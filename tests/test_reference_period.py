@@ -74,3 +74,20 @@ def test_a_reference_at_the_cycle_or_coarser_is_written_as_it_is():
     assert np.array_equal(same_t, t) and np.array_equal(same_q, q)
     t4, q4 = on_controller_period(t, q, 0.004)  # finer controller: untouched
     assert np.array_equal(t4, t)
+
+
+def test_a_jobs_path_planned_finer_than_period_ms_names_the_jobs_key_to_set(tmp_path):
+    """compensate --job: the job's planned path (path.reference_period_ms 4)
+    at --period-ms 8 is refused naming the job's key (the message of a
+    --reference file, "sim-cell and simulate write it...", does not apply)."""
+    from robstiff_drake.cell.preview_job import job_reference
+
+    sc = load_scenario(FANUC)
+    robot = scenario_robot(sc)
+    with pytest.raises(InputError) as refused:
+        job_reference(sc, robot, None, job=FANUC, reference=None, read_reference=None, period_s=0.008,
+                      filter_ba=None, rate_hz=None, delay_steps=None, servo=None)
+    said = str(refused.value)
+    assert said.startswith(f"--job {FANUC} (its planned path)"), said
+    assert "finer than --period-ms 8" in said and "set the job's path.reference_period_ms to 8" in said, said
+    assert "sim-cell" not in said and "run with --period-ms 4" in said, said

@@ -166,7 +166,8 @@ def job_reference(sc, robot, k_Nm_per_rad, *, job, reference, read_reference, pe
     _, t_plan, q_plan = planned_path(sc, robot, robot.payload.tool_point_m)
     t_plan = np.asarray(t_plan, dtype=float)
     q_deg = robot.controller_deg(np.asarray(q_plan, dtype=float))
-    check_reference(f"--job {job} (its planned path)", robot, t_plan, q_deg, period_s)
+    check_reference(f"--job {job} (its planned path)", robot, t_plan, q_deg, period_s,
+                    finer_fix="set the job's path.reference_period_ms to {period_ms} (its IK's step)")
     file = table_file(sc, robot, k_Nm_per_rad, t_plan, q_plan, period_s=period_s, filter_ba=filter_ba,
                       rate_hz=rate_hz, delay_steps=delay_steps, servo=servo)
     plan = preview_cache.load(file)

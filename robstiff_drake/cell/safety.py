@@ -186,12 +186,14 @@ def _first(n, test, overlap=0):
     return None
 
 
-def check_reference(where, robot, t_s, q_deg, period_s, rows=None):
+def check_reference(where, robot, t_s, q_deg, period_s, rows=None, finer_fix=None):
     """Refuse (InputError naming the file and line) a joint reference whose
     times are not strictly increasing at ``period_s`` or coarser, whose
     angles leave the working ranges, or that asks more speed or
     acceleration of a joint than the robot file's limits.  ``rows``: the
-    file's line number of each row.  Each test over all rows in turn, in
+    file's line number of each row; ``finer_fix``: what to set when the rows
+    are finer than ``period_s`` ({period_ms}: it, in ms; default: a
+    --reference file's).  Each test over all rows in turn, in
     blocks (a million-row reference)."""
     t = np.asarray(t_s, dtype=float)
     q = np.asarray(q_deg, dtype=float)
@@ -204,11 +206,12 @@ def check_reference(where, robot, t_s, q_deg, period_s, rows=None):
         if not step_ms > 0:
             raise InputError(f"{line(i)}: t_s {t[i]:.9g} is not after the previous row's {t[i - 1]:.9g}; times must "
                              f"increase, by at least the controller period (--period-ms {period_ms:g}) a row")
+        fix = finer_fix or ("write the reference at the controller's cycle (sim-cell and simulate write it at the "
+                            "scenario's controller.period_ms: set it to {period_ms})")
         raise InputError(f"{line(i)}: t_s {t[i]:.9g} is {step_ms:.3g} ms after the previous row, finer than "
                          f"--period-ms {period_ms:g} (the controller period); rows must be at least {period_ms:g} ms "
-                         f"apart: write the reference at the controller's cycle (sim-cell and simulate write it at "
-                         f"the scenario's controller.period_ms: set it to {period_ms:g}), or, if the controller's "
-                         f"cycle is {step_ms:.3g} ms, run with --period-ms {step_ms:.3g}")
+                         f"apart: {fix.format(period_ms=f'{period_ms:g}')}, or, if the controller's cycle is "
+                         f"{step_ms:.3g} ms, run with --period-ms {step_ms:.3g}")
     lo, hi = np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad)
     bad = _first(n, lambda a, b: ~((q[a:b] >= lo) & (q[a:b] <= hi)).all(axis=1))  # (NaN too)
     if bad:
