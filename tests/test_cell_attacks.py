@@ -218,6 +218,7 @@ def test_absurd_feedback_is_refused_and_never_echoed(tmp_path, robot, cell):
     assert len(lines) == 1 and "q6 = 1e+06 deg is outside" in lines[0] and "Traceback" not in err, err
 
 
+@pytest.mark.untimed
 @pytest.mark.parametrize("edit, words", [
     (lambda rows: rows.__setitem__(5, [rows[5][0]] + [rows[5][1] + 90.0] + rows[5][2:]), ("moves at", "axis speed")),
     (lambda rows: rows.__setitem__(5, [rows[4][0] + 5e-324] + rows[5][1:]), ("controller period",)),
@@ -242,6 +243,7 @@ def test_a_reference_that_asks_the_impossible_is_refused(tmp_path, robot, edit, 
     assert ref in err[0] and all(w in err[0] for w in words), err[0]
 
 
+@pytest.mark.untimed
 @pytest.mark.parametrize("args, words", [
     (["--netft-counts", "1e-300,1e-300", "--netft-units", "N,N-m"], ("--netft-counts", "not a Net F/T")),
     (["--netft-counts", "1e6,1e6"], ("--netft-units",)),
@@ -258,6 +260,7 @@ def test_a_calibration_override_that_cannot_be_is_one_line(tmp_path, robot, args
     assert all(w in err[0] for w in words), err[0]
 
 
+@pytest.mark.untimed
 def test_deeply_nested_model_json_is_one_line(tmp_path, robot):
     _, payload, _, _ = h.write_inputs(str(tmp_path), robot, duration_s=0.1)
     model = tmp_path / "deep.json"

@@ -287,6 +287,7 @@ def test_sensor_with_a_wrong_header_is_refused(tmp_path):
     _one_line_error(subprocess.CompletedProcess(proc.args, proc.returncode, out, err), "--netft", "not with RDT")
 
 
+@pytest.mark.untimed
 def test_port_in_use_is_refused(tmp_path):
     model, payload, _, _ = _inputs(tmp_path)
     busy = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -297,6 +298,7 @@ def test_port_in_use_is_refused(tmp_path):
     _one_line_error(cp, "--egm-port", "cannot listen")
 
 
+@pytest.mark.untimed
 def test_model_for_another_robot_is_refused(tmp_path):
     robot = load_robot()
     model, payload, _, _ = h.write_inputs(str(tmp_path), robot, duration_s=0.2,
@@ -321,6 +323,7 @@ def test_wrong_first_egm_message_is_refused(tmp_path, fault, words):
 # ------------------------------------------------------------ encodings against the packages that read them
 
 
+@pytest.mark.untimed
 def test_rdt_records_read_by_pynetft():
     server = RDTServer(0, http_port=0)
     reader = NetFTReader("127.0.0.1", server.port, http_port=server.http_port)
@@ -353,6 +356,7 @@ def test_rdt_records_read_by_pynetft():
         np.testing.assert_allclose(w, wrench, atol=1e-6)
 
 
+@pytest.mark.untimed
 def test_egm_robot_message_read_by_abb_robot_client():
     from abb_robot_client.egm import EGM
 

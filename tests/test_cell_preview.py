@@ -35,6 +35,7 @@ def _refused(tmp_path, extra, reference=None):
     return lines[-1]
 
 
+@pytest.mark.untimed
 @pytest.mark.parametrize("extra, words", [
     (["--mode", "preview"], "--mode preview needs --job"),
     (["--job", SHORT], "is read only with --mode preview"),
@@ -49,6 +50,7 @@ def test_bad_preview_inputs_are_one_line_exit_2(tmp_path, extra, words):
     assert words in line, line
 
 
+@pytest.mark.untimed
 def test_a_reference_that_is_not_the_jobs_path_is_refused(tmp_path):
     """--reference with --job must be the job's planned path (here the
     helpers' straight pass at another place and time): refused once the

@@ -27,6 +27,7 @@ from robstiff_drake.model.robot import load_robot  # noqa: E402
 Q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
 
 
+@pytest.mark.untimed
 def test_rsi_messages_both_ways():
     data = rsi.encode_rob(1234568, Q0, Q0)
     ipoc, actual, setpoint = rsi.decode_rob(data)
@@ -39,6 +40,7 @@ def test_rsi_messages_both_ways():
             rsi.decode_rob(bad)
 
 
+@pytest.mark.untimed
 def test_stream_motion_packets_both_ways():
     seq, tm, status, joints = stream_motion.decode_status(stream_motion.encode_status(42, 168, Q0))
     assert (seq, tm) == (42, 168) and status & stream_motion.READY and np.allclose(joints, Q0, atol=1e-4)
@@ -54,6 +56,7 @@ def _links(port):
     return [EgmLink(0, ctrl), rsi.RsiLink(0, ctrl, 0.004), stream_motion.StreamMotionLink(0, ("127.0.0.1", port))]
 
 
+@pytest.mark.untimed
 @pytest.mark.parametrize("target, words", [
     ([1e300] + Q0[1:], "working range"),
     ([math.nan] + Q0[1:], "not finite"),
