@@ -32,7 +32,7 @@ import numpy as np
 
 from robstiff_drake.errors import InputError, excerpt
 from robstiff_drake.identification.stiffness.header_units import HeaderUnits
-from robstiff_drake.identification.stiffness.measurement_table import decode_text, read_table
+from robstiff_drake.identification.stiffness.measurement_table import header_line, read_table
 
 Q_COLS = tuple(f"q{i}" for i in range(1, 7))
 F_COLS = ("fx", "fy", "fz")
@@ -201,29 +201,18 @@ def read_tool_header(path):
     """The tool point (mm, flange frame) of a measurement file's
     ``# tool_mm: x, y, z`` line before its header row, or None without one.
     InputError (file and line) for a malformed or repeated line."""
-    raw, _ = decode_text(path)
-    found = None
-    for lineno, line in enumerate(raw.splitlines(), start=1):
-        stripped = line.strip()
-        if not stripped:
-            continue
-        if not stripped.startswith("#"):
-            break  # the header row: comments after it are not the file's header
-        key, sep, value = stripped[1:].partition(":")
-        if key.strip().lower() != TOOL_KEY or not sep:
-            continue
-        if found is not None:
-            raise InputError(f"{path}:{lineno}: a second '# {TOOL_KEY}:' line (the first is line {found[0]})")
-        parts = [v.strip() for v in value.split(",")]
-        try:
-            tool = np.array([float(v) for v in parts])
-        except ValueError:
-            tool = np.array([])
-        if tool.shape != (3,) or not np.all(np.isfinite(tool)) or np.any(np.abs(tool) > 5000.0):
-            raise InputError(f"{path}:{lineno}: '# {TOOL_KEY}:' expects three numbers x, y, z within +-5000 mm (flange frame), "
-                             f"got {excerpt(value.strip())}")
-        found = (lineno, tool)
-    return None if found is None else found[1]
+    found = header_line(path, TOOL_KEY)
+    if found is None:
+        return None
+    lineno, value = found
+    try:
+        tool = np.array([float(v.strip()) for v in value.split(",")])
+    except ValueError:
+        tool = np.array([])
+    if tool.shape != (3,) or not np.all(np.isfinite(tool)) or np.any(np.abs(tool) > 5000.0):
+        raise InputError(f"{path}:{lineno}: '# {TOOL_KEY}:' expects three numbers x, y, z within +-5000 mm (flange frame), "
+                         f"got {excerpt(value)}")
+    return tool
 
 
 def campaign_tool_m(campaign, robot, tool_m=None, warnings=None):

@@ -28,7 +28,7 @@ import numpy as np
 from scipy import stats
 
 from robstiff_drake.errors import InputError, excerpt
-from robstiff_drake.identification.stiffness.measurement_table import decode_text
+from robstiff_drake.identification.stiffness.measurement_table import header_line
 
 NOISE_KEY = "noise_mm"
 # the same range as diagnose's --noise-mm (commands/diagnose.py MAX_NOISE_MM): a CMM's or a tracker's noise
@@ -52,28 +52,18 @@ def read_noise_header(path):
     """The noise (mm) of a campaign file's ``# noise_mm: SIGMA`` line before
     its header row, or None without one; InputError (file and line) for a
     malformed, out-of-range or repeated line."""
-    raw, _ = decode_text(path)
-    found = None
-    for lineno, line in enumerate(raw.splitlines(), start=1):
-        stripped = line.strip()
-        if not stripped:
-            continue
-        if not stripped.startswith("#"):
-            break  # the header row
-        key, sep, value = stripped[1:].partition(":")
-        if key.strip().lower() != NOISE_KEY or not sep:
-            continue
-        if found is not None:
-            raise InputError(f"{path}:{lineno}: a second '# {NOISE_KEY}:' line (the first is line {found[0]})")
-        try:
-            sigma = float(value.strip())
-        except ValueError:
-            sigma = float("nan")
-        if not 0.0 < sigma <= MAX_NOISE_MM:
-            raise InputError(f"{path}:{lineno}: '# {NOISE_KEY}:' expects the 1-sigma noise of one displacement "
-                             f"component in (0, {MAX_NOISE_MM:g}] mm, got {excerpt(value.strip())}")
-        found = (lineno, sigma)
-    return None if found is None else found[1]
+    found = header_line(path, NOISE_KEY)
+    if found is None:
+        return None
+    lineno, value = found
+    try:
+        sigma = float(value)
+    except ValueError:
+        sigma = float("nan")
+    if not 0.0 < sigma <= MAX_NOISE_MM:
+        raise InputError(f"{path}:{lineno}: '# {NOISE_KEY}:' expects the 1-sigma noise of one displacement "
+                         f"component in (0, {MAX_NOISE_MM:g}] mm, got {excerpt(value)}")
+    return sigma
 
 
 def stated_noise(campaign, stated_mm=None):

@@ -290,3 +290,25 @@ def read_table(path, *, required, optional=(), text_columns=(), ranges=None, ren
     text = {h: [row[seen[h]].strip() for row in cells] for h in header if h not in numeric}
     return Table(str(path), header_line, header, numeric, text,
                  np.array([ln for ln, _ in data]), comments, encoding, DELIMITERS[delim], comma)
+
+
+def header_line(path, key):
+    """(line number, value text) of a measurement file's ``# KEY: VALUE``
+    comment line before its header row (the key matched without case), or
+    None without one; InputError (file and line) for a second such line.
+    The one reading of the files' header keys (``tool_mm``, ``noise_mm``)."""
+    raw, _ = decode_text(path)
+    found = None
+    for lineno, line in enumerate(raw.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if not stripped.startswith("#"):
+            break  # the header row: comments after it are not the file's header
+        name, sep, value = stripped[1:].partition(":")
+        if name.strip().lower() != key or not sep:
+            continue
+        if found is not None:
+            raise InputError(f"{path}:{lineno}: a second '# {key}:' line (the first is line {found[0]})")
+        found = (lineno, value.strip())
+    return found
