@@ -222,8 +222,9 @@ def corrected_reference(prediction):
 
 def reference_text(robot, prediction, run_id, job, model="model", *, period_s):
     """joint_reference.csv: the corrected joint references (controller
-    degrees; rows on the controller's cycle ``period_s`` s or coarser), its first line the corrected reference's mark (``model``: the
-    compensator's model that corrected them, in words), which `robstiff
+    degrees; rows on the controller's cycle ``period_s`` s or coarser), its
+    first line the corrected reference's mark (``model``: the compensator's
+    model that corrected them, in words), which `robstiff
     compensate --reference` reads (a corrected reference is not streamed with
     online compensation: commands/compensate.py)."""
     from pathlib import Path

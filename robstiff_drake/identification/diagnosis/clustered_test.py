@@ -38,8 +38,8 @@ of 10 poses x 9 equations (tests/clustered_null.py) is rejected in 31 (q = 1)
 and 83 (q = 3) of 200 draws by CR1 + F(q, G - 1), 6 and 0 by CR2 + HTZ (the
 approximate Hotelling T^2 test of Pustejovsky & Tipton 2018, kept here as
 ``htz``: its scaled F(q, eta - q + 1) has no tail where eta, small on 10
-poses of uneven leverage, is near q, so it is very conservative for q > 1), and 6 and 1 by this test; CR2 with W / q referred to F(q, eta)
-(``f_eta``, invariant but without HTZ's correction for the covariance's
+poses of uneven leverage, is near q, so it is very conservative for q > 1),
+and 6 and 1 by this test; CR2 with W / q referred to F(q, eta) (``f_eta``, invariant but without HTZ's correction for the covariance's
 randomness) rejects 6 and 18 (liberal for q > 1).
 A wild cluster bootstrap (restricted, Rademacher) rejects 12 for one
 parameter, but its p cannot reach 1e-4 with bounded draws on few poses

@@ -210,8 +210,8 @@ def read_tool_header(path):
     except ValueError:
         tool = np.array([])
     if tool.shape != (3,) or not np.all(np.isfinite(tool)) or np.any(np.abs(tool) > 5000.0):
-        raise InputError(f"{path}:{lineno}: '# {TOOL_KEY}:' expects three numbers x, y, z within +-5000 mm (flange frame), "
-                         f"got {excerpt(value)}")
+        raise InputError(f"{path}:{lineno}: '# {TOOL_KEY}:' expects three numbers x, y, z within +-5000 mm (flange "
+                         f"frame), got {excerpt(value)}")
     return tool
 
 

@@ -185,8 +185,8 @@ def stiffness_csv(c, *, robot, noise_mm, seed, force_N, tool_m, how=None):
     lines = [
         "# Synthetic stiffness campaign made by robstiff-drake (robstiff_drake/identification/stiffness/synth.py).",
         f"# Made with: {how or command_line()}",
-        f"# Robot model: {_robot_file_text(robot)} ({robot.name}; q1..q6 in its controller's convention, deg); true joint "
-        "stiffness N*m/rad: " + ", ".join(f"{k:.6g}" for k in c.true_stiffness_Nm_per_rad),
+        f"# Robot model: {_robot_file_text(robot)} ({robot.name}; q1..q6 in its controller's convention, deg); "
+        "true joint stiffness N*m/rad: " + ", ".join(f"{k:.6g}" for k in c.true_stiffness_Nm_per_rad),
         "# Poses: the tool point (the tool_mm line, flange frame) uniform in the machining workspace box, spindle "
         "axis tilted up to 25 deg from straight down, yaw within +-90 deg; IK.",
         tool_header_line(tool_m),
