@@ -20,11 +20,32 @@ The time a tick takes is not proportional to its instructions (the cell's
 Python, bindings and the larger working set run slower per instruction
 than the bare station's C++: benchmarks/bench_closed_loop.py times them).
 Needs valgrind (``VALGRIND``, default /usr/bin/valgrind) and
-callgrind_annotate; about 5-10 minutes (the two processes run at once; valgrind
+callgrind_annotate; about 10-20 minutes (the two processes run at once; valgrind
 runs the build about 50 times slower too).  No target: figures only.
-With CALLGRIND_KEEP=FOLDER the two callgrind files (cell.callgrind,
-bare.callgrind) are kept there, to read function by function with
-``callgrind_annotate --inclusive=yes FOLDER/cell.callgrind``.
+With CALLGRIND_KEEP=FOLDER the callgrind files (cell.callgrind.N,
+bare.callgrind.N, N = 1, 2, 3 the windows) are kept there, to read function
+by function with ``callgrind_annotate --inclusive=yes
+FOLDER/cell.callgrind.3``.
+
+The first ``SIM_S`` s are mostly out of the cut: the block pass's milling
+force is zero up to 0.716 s and not from 0.718 s (its logged cutting wrench;
+the path dwells 0.2 s and ramps its feed up over 0.5 s before the cutter's
+edge reaches the block), so 72 % of those ticks do no cutting, while the
+whole pass (12.55 s simulated, 3,138 ticks: the path's 12.45 s and
+experiment.RUN_OUT_S) cuts from 0.718 s to 10.092 s, 75 % of its ticks.  So
+each process also counts two windows of its own, in the same run (callgrind
+writes a profile at the end of each ``AdvanceTo`` call, ``--dump-after``,
+and the windows are the calls ``AdvanceTo(OUT_S)``, ``AdvanceTo(SIM_S)``,
+``AdvanceTo(SIM_S + IN_CUT_S)``): out of the cut, the ticks up to ``OUT_S``
+= 0.7 s (before the engagement at 0.718 s), and in the cut, the ``IN_CUT_S``
+= 1 s after ``SIM_S`` (1-2 s: the cutter engaged throughout, entering the
+block), printed as a second table with the same rows, then the whole tick of
+each window and the bare / block pass ratio of each.  The window is exact:
+each window's profile holds only that call's instructions, the startup and
+the build are in none of them, and the first table's figures are the sum of
+the first two windows (one ``AdvanceTo`` call more than a single call to
+``SIM_S``: a few instructions).  The in-cut figure is the one a user's pass
+is made of.  The bare station cuts in no window.
 Run: python3 benchmarks/instruction_counts.py  (not a bench_*.py: .ci/run gives each of those 4 minutes)
 """
 
@@ -38,6 +59,9 @@ import tempfile
 from concurrent.futures import ThreadPoolExecutor
 
 SIM_S = float(os.environ.get("SIM_S", 1.0))
+OUT_S = 0.7  # s: the out-of-cut window's end, before the block pass's first cutting force (0.718 s, its log)
+IN_CUT_S = float(os.environ.get("IN_CUT_S", 1.0))  # s: the in-cut window's length, after SIM_S
+WINDOWS = (OUT_S, SIM_S, SIM_S + IN_CUT_S)  # s: each AdvanceTo call's end, one callgrind profile each
 VALGRIND = os.environ.get("VALGRIND", "/usr/bin/valgrind")
 HERE = os.path.dirname(os.path.abspath(__file__))
 
@@ -65,6 +89,7 @@ sim, arm = bare_station_simulator(sc, robot, np.asarray(q_ref[0], dtype=float))
 }
 
 _ADVANCE = "Simulator<double>::AdvanceTo(double const&) ["
+_DUMP_AFTER = "drake::systems::Simulator<double>::AdvanceTo(double const&)"  # (callgrind's full name; no wildcard)
 _LEAF_UU = "LeafSystem<double>::DispatchUnrestrictedUpdateHandler("
 _LEAF_DU = "LeafSystem<double>::DispatchDiscreteVariableUpdateHandler("
 _PY = "pydrake/systems/framework"  # (a Python callback's wrapper lives in the framework bindings)
@@ -134,19 +159,41 @@ def calls(tree, parents, callee):
 
 
 def count(kind, folder):
-    """callgrind_annotate's calling tree (lines) of one run of ``kind``."""
+    """callgrind_annotate's calling trees (lists of lines) of one run of
+    ``kind``, one per window of WINDOWS (one profile per AdvanceTo call)."""
     out = os.path.join(folder, f"{kind}.callgrind")
     script = os.path.join(folder, f"{kind}.py")
     with open(script, "w") as f:
         f.write("import os, sys\nfor v in ('OPENBLAS_NUM_THREADS', 'OMP_NUM_THREADS', 'MKL_NUM_THREADS'):\n"
                 "    os.environ.setdefault(v, '1')\n"
-                f"sys.path.insert(0, {HERE!r})\n" + _RUN[kind] + f"sim.AdvanceTo({SIM_S!r})\n")
+                f"sys.path.insert(0, {HERE!r})\n" + _RUN[kind]
+                + "".join(f"sim.AdvanceTo({t!r})\n" for t in WINDOWS))
     subprocess.run([VALGRIND, "--tool=callgrind", f"--callgrind-out-file={out}",
-                    "--toggle-collect=*Simulator*AdvanceTo*", sys.executable, script],
+                    "--toggle-collect=*Simulator*AdvanceTo*", f"--dump-after={_DUMP_AFTER}",
+                    sys.executable, script],
                    check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    tree = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--tree=calling", "--threshold=100", out],
-                          check=True, capture_output=True, text=True).stdout
-    return tree.splitlines()
+    trees = []
+    for part in range(1, len(WINDOWS) + 1):  # (out.N: the N-th AdvanceTo call; out itself: nothing after the last)
+        tree = subprocess.run(["callgrind_annotate", "--inclusive=yes", "--tree=calling", "--threshold=100",
+                               f"{out}.{part}"], check=True, capture_output=True, text=True).stdout
+        trees.append(tree.splitlines())
+    return trees
+
+
+def table(trees, ticks):
+    """Prints ROWS and CALLS per tick for the block pass's and the bare
+    station's trees ({kind: [tree, ...]}, summed over the list)."""
+    def inc(kind, parent, callee):
+        return sum(inclusive(t, parent, callee) for t in trees[kind])
+    print(f"  {'':50s} {'block pass':>10s} {'bare':>8s} {'extra':>8s}")
+    for label, parts in ROWS:
+        cell, bare = (sum(inc(k, p, c) for p, c in parts) / ticks / 1e3 for k in ("cell", "bare"))
+        print(f"  {label:50s} {cell:10.1f} {bare:8.1f} {cell - bare:+8.1f}")
+    print("  calls a tick:")
+    for label, parents, callee in CALLS:
+        cell, bare = (sum(calls(t, parents, callee) for t in trees[k]) / ticks for k in ("cell", "bare"))
+        print(f"  {label:50s} {cell:10.1f} {bare:8.1f}")
+    return {k: inc(k, _ADVANCE, None) for k in trees}
 
 
 def main():
@@ -154,8 +201,12 @@ def main():
         print(f"no valgrind at {VALGRIND} or no callgrind_annotate (install valgrind, or set VALGRIND): "
               f"nothing measured")
         return 0
-    ticks = SIM_S / 0.004
-    keep = os.environ.get("CALLGRIND_KEEP")  # (a folder that keeps the two callgrind files for callgrind_annotate)
+    if not OUT_S < SIM_S or IN_CUT_S <= 0:
+        print(f"SIM_S must be above {OUT_S:g} s (the out-of-cut window's end) and IN_CUT_S above 0 s; "
+              f"got SIM_S={SIM_S:g}, IN_CUT_S={IN_CUT_S:g}", file=sys.stderr)
+        return 2
+    ticks = [round((b - a) / 0.004) for a, b in zip((0.0,) + WINDOWS, WINDOWS)]  # (per window)
+    keep = os.environ.get("CALLGRIND_KEEP")  # (a folder that keeps the callgrind files for callgrind_annotate)
     if keep:
         os.makedirs(keep, exist_ok=True)
     with (contextlib.nullcontext(keep) if keep else tempfile.TemporaryDirectory()) as folder, \
@@ -164,16 +215,20 @@ def main():
         trees = {kind: run.result() for kind, run in runs.items()}
     print(f"instructions per 4 ms tick (thousands; callgrind, inside Simulator::AdvanceTo, the first {SIM_S:g} s): "
           f"the block pass (plain compensation) and the bare station")
-    print(f"  {'':50s} {'block pass':>10s} {'bare':>8s} {'extra':>8s}")
-    for label, parts in ROWS:
-        cell, bare = (sum(inclusive(trees[k], p, c) for p, c in parts) / ticks / 1e3 for k in ("cell", "bare"))
-        print(f"  {label:50s} {cell:10.1f} {bare:8.1f} {cell - bare:+8.1f}")
-    print("  calls a tick:")
-    for label, parents, callee in CALLS:
-        print(f"  {label:50s} {calls(trees['cell'], parents, callee) / ticks:10.1f} "
-              f"{calls(trees['bare'], parents, callee) / ticks:8.1f}")
-    whole = {k: inclusive(trees[k], _ADVANCE, None) for k in trees}
+    whole = table({k: t[:2] for k, t in trees.items()}, ticks[0] + ticks[1])
     print(f"  ratio bare / block pass by instructions: {whole['bare'] / whole['cell']:.2f}")
+    print(f"instructions per 4 ms tick in the cut (thousands; {SIM_S:g}-{SIM_S + IN_CUT_S:g} s, "
+          f"the cutter engaged throughout): the block pass and the bare station")
+    table({k: t[2:] for k, t in trees.items()}, ticks[2])
+    print("the whole tick by window (thousands of instructions per tick; ratio: bare / block pass):")
+    print(f"  {'':50s} {'block pass':>10s} {'bare':>8s} {'ratio':>8s}")
+    for label, i in ((f"out of the cut (0-{OUT_S:g} s, {ticks[0]} ticks)", 0),
+                     (f"the first {SIM_S:g} s ({ticks[0] + ticks[1]} ticks)", None),
+                     (f"in the cut ({SIM_S:g}-{SIM_S + IN_CUT_S:g} s, {ticks[2]} ticks)", 2)):
+        parts = (0, 1) if i is None else (i,)
+        cell, bare = (sum(inclusive(trees[k][j], _ADVANCE, None) for j in parts) / sum(ticks[j] for j in parts)
+                      for k in ("cell", "bare"))
+        print(f"  {label:50s} {cell / 1e3:10.1f} {bare / 1e3:8.1f} {bare / cell:8.2f}")
     return 0
 
 
