@@ -228,7 +228,7 @@ def main():
         parts = (0, 1) if i is None else (i,)
         cell, bare = (sum(inclusive(trees[k][j], _ADVANCE, None) for j in parts) / sum(ticks[j] for j in parts)
                       for k in ("cell", "bare"))
-        print(f"  {label:50s} {cell / 1e3:10.1f} {bare / 1e3:8.1f} {bare / cell:8.2f}")
+        print(f"  {label:50s} {cell / 1e3:10.1f} {bare / 1e3:8.1f} {bare / cell:8.3f}")
     return 0
 
 
