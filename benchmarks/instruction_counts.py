@@ -61,6 +61,7 @@ from concurrent.futures import ThreadPoolExecutor
 SIM_S = float(os.environ.get("SIM_S", 1.0))
 OUT_S = 0.7  # s: the out-of-cut window's end, before the block pass's first cutting force (0.718 s, its log)
 IN_CUT_S = float(os.environ.get("IN_CUT_S", 1.0))  # s: the in-cut window's length, after SIM_S
+CUT_END_S = 10.092  # s: the block pass's last cutting force (its log); the in-cut window ends before it
 WINDOWS = (OUT_S, SIM_S, SIM_S + IN_CUT_S)  # s: each AdvanceTo call's end, one callgrind profile each
 VALGRIND = os.environ.get("VALGRIND", "/usr/bin/valgrind")
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -201,9 +202,10 @@ def main():
         print(f"no valgrind at {VALGRIND} or no callgrind_annotate (install valgrind, or set VALGRIND): "
               f"nothing measured")
         return 0
-    if not OUT_S < SIM_S or IN_CUT_S <= 0:
-        print(f"SIM_S must be above {OUT_S:g} s (the out-of-cut window's end) and IN_CUT_S above 0 s; "
-              f"got SIM_S={SIM_S:g}, IN_CUT_S={IN_CUT_S:g}", file=sys.stderr)
+    if not OUT_S < SIM_S or IN_CUT_S <= 0 or SIM_S + IN_CUT_S > CUT_END_S:
+        print(f"SIM_S must be above {OUT_S:g} s (the out-of-cut window's end), IN_CUT_S above 0 s and "
+              f"SIM_S + IN_CUT_S at most {CUT_END_S:g} s (the cut's end); got SIM_S={SIM_S:g}, IN_CUT_S={IN_CUT_S:g}",
+              file=sys.stderr)
         return 2
     ticks = [round((b - a) / 0.004) for a, b in zip((0.0,) + WINDOWS, WINDOWS)]  # (per window)
     keep = os.environ.get("CALLGRIND_KEEP")  # (a folder that keeps the callgrind files for callgrind_annotate)
