@@ -41,6 +41,15 @@ def scripted_clock(origin_s=ORIGIN_S):
     return [0.0, float(origin_s)]
 
 
+def answer_sink():
+    """A UDP socket on 127.0.0.1 where a scripted link's answers go, read back as the controller reads them (a
+    buffer for a whole run's datagrams)."""
+    sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sink.bind(("127.0.0.1", 0))
+    sink.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
+    return sink
+
+
 class _ScriptedEgm:
     """An EgmLink whose receive hands over one scripted message at a time, stamped on the test's clock; the
     datagrams it sent are read back from the sink as the controller reads them (``commanded``: poses, deg)."""
@@ -48,9 +57,7 @@ class _ScriptedEgm:
     def __init__(self, script, clock):
         from robstiff_drake.cell.egm import EgmLink
 
-        self.sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sink.bind(("127.0.0.1", 0))
-        self.sink.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
+        self.sink = answer_sink()
         link = EgmLink(0, ("127.0.0.1", None))
         link.reply_to = self.sink.getsockname()
         self.link, self.script, self.clock, self.commanded = link, list(script), clock, []

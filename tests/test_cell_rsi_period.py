@@ -30,14 +30,13 @@ reads is IPOC / --period-ms.
 import io
 import math
 import os
-import socket
 import sys
 
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
-from test_cell_review_loop import Q0, _ScriptedSensor, scripted_clock  # noqa: E402
+from test_cell_review_loop import Q0, _ScriptedSensor, answer_sink, scripted_clock  # noqa: E402
 
 from robstiff_drake.cell import rsi  # noqa: E402
 
@@ -50,9 +49,7 @@ class _ScriptedKrc:
     ``step_s`` after the last on the test's clock; the answers' AK read back from the sink."""
 
     def __init__(self, period_s, ipocs, clock, step_s):
-        self.sink = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sink.bind(("127.0.0.1", 0))
-        self.sink.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 22)
+        self.sink = answer_sink()
         link = rsi.RsiLink(0, ("127.0.0.1", None), period_s)
         link.reply_to = self.sink.getsockname()
         self.link, self.ipocs, self.clock, self.aks = link, list(ipocs), clock, []
