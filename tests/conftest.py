@@ -10,7 +10,8 @@ from robstiff_drake.model.robot import load_robot
 # timing is the machine's, so the README's test command runs them first, alone (`-m realtime`), and the rest
 # on both cores (`-n 2 -m "not realtime"`, pytest-xdist).  A test of these files that streams nothing live (a
 # refusal before any stream, a codec against its reference package) carries the ``untimed`` marker and runs with
-# the rest: 16 such tests took 44 s of the alone part at load 6 (issue 32: the README's command under 15 minutes).
+# the rest (24 tests; and test_cell_sensor_reseed.py's unit tests left the set): the alone part 63 -> 36 tests, 269 s ->
+# 202-211 s in quiet clean clones (issue 32: the README's command under 15 minutes; the part used 67 % of one core).
 REALTIME_FILES = {"test_cell_attacks.py", "test_cell_io.py", "test_cell_protocols.py", "test_cell_preview.py",
                   "test_sim_cell.py"}
 
