@@ -50,28 +50,24 @@ def answer_sink():
     return sink
 
 
-class _ScriptedEgm:
-    """An EgmLink whose receive hands over one scripted message at a time, stamped on the test's clock; the
-    datagrams it sent are read back from the sink as the controller reads them (``commanded``: poses, deg)."""
+class ScriptedLink:
+    """A protocol's link whose receive hands over one scripted item at a time (None: the controller silent for
+    that read), each ``step_s`` after the last on the test's clock, the script's end a KeyboardInterrupt; the
+    answers it sent are read back from a sink as the controller reads them.  A protocol gives ``_message`` (an
+    item -> the link's decoded message) and ``_answer`` (an answer datagram -> what the test keeps)."""
 
-    def __init__(self, script, clock):
-        from robstiff_drake.cell.egm import EgmLink
-
+    def __init__(self, link, script, clock, step_s):
         self.sink = answer_sink()
-        link = EgmLink(0, ("127.0.0.1", None))
         link.reply_to = self.sink.getsockname()
-        self.link, self.script, self.clock, self.commanded = link, list(script), clock, []
-        outer = self
+        self.link, self.script, self.clock, self.answers = link, list(script), clock, []
 
         def receive(timeout_s):
-            outer._collect()
-            if not outer.script:
+            self._collect()
+            if not self.script:
                 raise KeyboardInterrupt  # the script's end
-            msg = outer.script.pop(0)
-            clock[0] += T  # (each read one period after the last on the test's clock)
-            if msg is None:  # the controller silent for this read
-                return []
-            return [(msg, clock[0])]
+            item = self.script.pop(0)
+            clock[0] += step_s
+            return [] if item is None else [(self._message(item), clock[0])]
 
         link.receive = receive
 
@@ -82,14 +78,31 @@ class _ScriptedEgm:
                 data = self.sink.recv(65536)
             except BlockingIOError:
                 return
-            m = self.link.pb2.EgmSensor()
-            m.ParseFromString(data)
-            self.commanded.append(list(m.planned.joints.joints))
+            self.answers.append(self._answer(data))
 
     def close(self):
         self._collect()
         self.link.close()
         self.sink.close()
+
+
+class _ScriptedEgm(ScriptedLink):
+    """An EgmLink whose receive hands over one scripted message at a time, one period apart on the test's clock
+    (ScriptedLink); ``commanded``: the poses it sent, deg."""
+
+    def __init__(self, script, clock):
+        from robstiff_drake.cell.egm import EgmLink
+
+        super().__init__(EgmLink(0, ("127.0.0.1", None)), script, clock, T)
+        self.commanded = self.answers
+
+    def _message(self, msg):
+        return msg
+
+    def _answer(self, data):
+        m = self.link.pb2.EgmSensor()
+        m.ParseFromString(data)
+        return list(m.planned.joints.joints)
 
 
 class _ScriptedSensor:

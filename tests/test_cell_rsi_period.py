@@ -36,7 +36,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
-from test_cell_review_loop import Q0, _ScriptedSensor, answer_sink, scripted_clock  # noqa: E402
+from test_cell_review_loop import Q0, ScriptedLink, _ScriptedSensor, scripted_clock  # noqa: E402
 
 from robstiff_drake.cell import rsi  # noqa: E402
 
@@ -44,47 +44,24 @@ WRONG = "--period-ms is not the controller's cycle"
 BETWEEN = "within the last one's cycle"
 
 
-class _ScriptedKrc:
+class _ScriptedKrc(ScriptedLink):
     """An RsiLink whose receive hands over one scripted datagram (IPOC, or None: silent) at a time, each
-    ``step_s`` after the last on the test's clock; the answers' AK read back from the sink."""
+    ``step_s`` after the last on the test's clock (ScriptedLink); ``aks``: the answers' AK read back."""
 
     def __init__(self, period_s, ipocs, clock, step_s):
-        self.sink = answer_sink()
-        link = rsi.RsiLink(0, ("127.0.0.1", None), period_s)
-        link.reply_to = self.sink.getsockname()
-        self.link, self.ipocs, self.clock, self.aks = link, list(ipocs), clock, []
-        outer = self
+        super().__init__(rsi.RsiLink(0, ("127.0.0.1", None), period_s), ipocs, clock, step_s)
+        self.aks = self.answers
 
-        def receive(timeout_s):
-            outer._collect()
-            if not outer.ipocs:
-                raise KeyboardInterrupt  # the script's end
-            ipoc = outer.ipocs.pop(0)
-            clock[0] += step_s
-            if ipoc is None:
-                return []
-            link.arrival_s = clock[0]
-            return [(link.decode(rsi.encode_rob(ipoc, Q0, Q0)), clock[0])]
-
-        link.receive = receive
+    def _message(self, ipoc):
+        self.link.arrival_s = self.clock[0]
+        return self.link.decode(rsi.encode_rob(ipoc, Q0, Q0))
 
     def first(self):
         self.link.arrival_s = self.clock[1]
-        return self.link.decode(rsi.encode_rob(self.ipocs.pop(0), Q0, Q0))
+        return self.link.decode(rsi.encode_rob(self.script.pop(0), Q0, Q0))
 
-    def _collect(self):
-        self.sink.setblocking(False)
-        while True:
-            try:
-                data = self.sink.recv(65536)
-            except BlockingIOError:
-                return
-            self.aks.append(rsi.decode_sen(data)[1])
-
-    def close(self):
-        self._collect()
-        self.link.close()
-        self.sink.close()
+    def _answer(self, data):
+        return rsi.decode_sen(data)[1]
 
 
 def _run(robot, period_s, ipocs, step_s):
