@@ -135,19 +135,11 @@ def _run(*, job, out, json_out, chord_mm, max_correction_mm, robot_yaml, simulat
     user_models.resolve(sc, robot, q_plan[0])  # (the identified model: predict takes the same)
     if simulate:  # the plant's own step first: its refusal is simulate's, word for word
         check_plant_step(sc, robot)
-    try:
-        check_plant_step(offline_refinement.model_twin(sc, robot), robot)
-    except InputError as e:  # say whose modes: `simulate` runs only the plant, and may have advised this step
-        said = str(e)
-        at = said.find("plant_config.time_step: ")
-        if at < 0:
-            raise
-        at += len("plant_config.time_step: ")
-        error = InputError(said[:at] + "for the compensator's model of the cell (its twin: the identified "
-                           "stiffness, its damping and the drives, which compensate-program runs and `simulate` "
-                           "does not; the plant may be stable at this step): " + said[at:])
-        error.why = getattr(e, "why", None)
-        raise error from None
+    # whose modes: `simulate` runs only the plant, and may have advised this step
+    check_plant_step(offline_refinement.model_twin(sc, robot), robot,
+                     whose="for the compensator's model of the cell (its twin: the identified stiffness, its damping "
+                           "and the drives, which compensate-program runs and `simulate` does not; the plant may be "
+                           "stable at this step)")
 
     def bar(total):
         return progress(total, show_progress, "preview along the program", unit="cycle")

@@ -95,25 +95,27 @@ _PREVIEWS = {}  # preview tables (model/preview.py) for a path and a compensator
 
 
 
-def build_station(sc, robot, *, q_modes_rad, path=None):
+def build_station(sc, robot, *, q_modes_rad, path=None, whose=None):
     """The scenario's station, its cutting force the plant's own law
-    (InputError, one line, if its plant step is unstable for its joints)."""
+    (InputError, one line, if its plant step is unstable for its joints;
+    ``whose``: which model's modes the line names, when not the plant's)."""
     _, fmodel, workpiece = plant_cutting_setup(sc)
     path = path if path is not None else scenario_path(sc)
     try:
         return make_milling_station(sc, robot, path=path, force_model=fmodel, workpiece=workpiece,
                                     q_modes_rad=q_modes_rad)
     except ValueError as e:
-        error = InputError(f"{sc.source}: plant_config.time_step: {e}")
+        error = InputError(f"{sc.source}: plant_config.time_step: " + (f"{whose}: " if whose else "") + str(e))
         error.why = getattr(e, "why", None)  # (the refusal's detail, printed after its line: commands/main.py)
         raise error from None
 
 
-def check_plant_step(sc, robot):
+def check_plant_step(sc, robot, whose=None):
     """Refuse, before anything runs, a scenario whose plant step is unstable
-    for its joint modes at the path's first pose (InputError, one line)."""
+    for its joint modes at the path's first pose (InputError, one line;
+    ``whose``: build_station's)."""
     _, _, q_ref = planned_path(sc, robot, robot.tool_point(where="the closed loop"))
-    build_station(sc, robot, q_modes_rad=path_poses(q_ref))
+    build_station(sc, robot, q_modes_rad=path_poses(q_ref), whose=whose)
 
 
 def preview_factory(sc, robot, *, path, workpiece, t_ref, q_ref, tool_m, filter_ba, modal_damping=None,
