@@ -128,12 +128,13 @@ def link_warnings(robot):
 
 def largest_compliance_um_per_N(robot, q_rad):
     """The tool point's largest translational compliance (um/N) at ``q_rad``:
-    the largest eigenvalue of Jv diag(1/k) Jv^T (the conventional model)."""
+    the largest eigenvalue of model/stiffness.translational_compliance (the
+    conventional model, Jv diag(1/k) Jv^T)."""
     from robstiff_drake.model import kinematics as kin
+    from robstiff_drake.model.stiffness import translational_compliance
 
     tool = robot.payload.tool_point_m if robot.payload.tool_point_m is not None else np.zeros(3)
-    Jv = kin.jacobian(robot.dh, q_rad, tool)[:, :3]  # (6 joints, 3 rows)
-    C = Jv.T @ np.diag(1.0 / robot.joint_stiffness_Nm_per_rad) @ Jv
+    C = translational_compliance(kin.jacobian(robot.dh, q_rad, tool), robot.joint_stiffness_Nm_per_rad)
     return float(np.linalg.eigvalsh(C)[-1]) * 1e6
 
 

@@ -10,8 +10,9 @@ rule was drawn from, and applied to, arms of 165-240 kg and 2.4-2.9 m (IRB
 6400, IRB 6640-235/2.55, KR 240 R2900-2, R-2000iC/165F; the ratios among the
 joints as published for 150-250 kg arms, Dumas et al., Robotica 2011).  A
 user who applies it to a 25 kg arm of 1.8 m scales the IRB 6400 by about
-0.1: 11-18 um/N at the tool where nothing says whether such an arm is that
-soft (a small arm's gearboxes and links are not a large arm's scaled down).
+0.1: 54 um/N at the tool (largest direction, at the R-2000iC/165F file's
+reference pose: tests/test_stiffness_rule.py's small arm) where nothing
+says whether such an arm is that soft (a small arm's gearboxes and links are not a large arm's scaled down).
 A robot file whose stiffnesses are the IRB 6400's times one factor on
 joints 1-3 and one on 4-6 follows the rule; when a factor lies outside the
 library's, the file gets a warning naming the arms the rule is drawn from.
@@ -28,7 +29,7 @@ ARM_FACTOR_RANGE = (0.91, 1.45)
 WRIST_FACTOR_RANGE = (0.825, 1.2)
 # the library's arms' largest tool-point compliance at their reference machining poses (um/N;
 # robot_checks.largest_compliance_um_per_N; tests/test_stiffness_rule.py recomputes it)
-LIBRARY_COMPLIANCE_UM_PER_N = (8.8, 13.3)
+LIBRARY_COMPLIANCE_UM_PER_N = (3.6, 5.8)
 # ASSUMPTION: within this fraction of the range still the library's arms (the files round to 3 figures: 1 %)
 RANGE_SLACK = 0.1
 # a file follows the rule when each group's ratios to the anchor agree to this fraction: the library's files to
