@@ -39,8 +39,9 @@ and 83 (q = 3) of 200 draws by CR1 + F(q, G - 1), 6 and 0 by CR2 + HTZ (the
 approximate Hotelling T^2 test of Pustejovsky & Tipton 2018, kept here as
 ``htz``: its scaled F(q, eta - q + 1) has no tail where eta, small on 10
 poses of uneven leverage, is near q, so it is very conservative for q > 1),
-and 6 and 1 by this test; CR2 with W / q referred to F(q, eta) (``f_eta``, invariant but without HTZ's correction for the covariance's
-randomness) rejects 6 and 18 (liberal for q > 1).
+and 6 and 1 by this test; CR2 with W / q referred to F(q, eta) (``f_eta``,
+invariant but without HTZ's correction for the covariance's randomness)
+rejects 6 and 18 (liberal for q > 1).
 A wild cluster bootstrap (restricted, Rademacher) rejects 12 for one
 parameter, but its p cannot reach 1e-4 with bounded draws on few poses
 (studies/wild_bootstrap_check.py).
@@ -91,16 +92,9 @@ class ClusteredFit:
 def clustered_fit(X, y, groups_eq):
     """Least squares of y (n,) on X (n, p) with the CR2 covariance clustered by
     ``groups_eq`` (n,) (module docstring).  Returns a ClusteredFit."""
-    groups_eq = np.asarray(groups_eq)
-    scale = np.linalg.norm(X, axis=0)
-    scale[scale == 0] = 1.0
-    Xs = X / scale
+    scale, Xs, bread, g, G = _scaled(X, groups_eq)
     coef_s, *_ = np.linalg.lstsq(Xs, y, rcond=None)
     r = y - Xs @ coef_s
-    bread = np.linalg.pinv(Xs.T @ Xs)
-    _, g = np.unique(groups_eq, return_inverse=True)
-    g = np.asarray(g).ravel()
-    G = int(g.max()) + 1 if g.size else 0
     if G < 3:
         return ClusteredFit(coef_s / scale, None, G, r, scale, bread, [], [], REFERENCE)
     cov_s, SVts, Minvs = cr2_cov(Xs, r, g, bread)
@@ -109,6 +103,17 @@ def clustered_fit(X, y, groups_eq):
         np.add.at(U, g, Xs * r[:, None])
         cov_s = bread @ (U.T @ U) @ bread * (G / (G - 1))
     return ClusteredFit(coef_s / scale, cov_s / np.outer(scale, scale), G, r, scale, bread, SVts, Minvs, REFERENCE)
+
+
+def _scaled(X, groups_eq):
+    """(scale, Xs, bread, g, G): X's column norms (1 for a zero column), X
+    scaled by them, pinv(Xs' Xs), each row's cluster index 0..G-1 and G."""
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    _, g = np.unique(np.asarray(groups_eq), return_inverse=True)
+    g = np.asarray(g).ravel()
+    return scale, Xs, np.linalg.pinv(Xs.T @ Xs), g, int(g.max()) + 1 if g.size else 0
 
 
 def cr2_cov(Xs, r, g, bread):
@@ -147,13 +152,7 @@ def interval_half_widths(X, r, groups_eq, level=0.95):
     estimate)."""
     from scipy import stats
 
-    scale = np.linalg.norm(X, axis=0)
-    scale[scale == 0] = 1.0
-    Xs = X / scale
-    bread = np.linalg.pinv(Xs.T @ Xs)
-    _, g = np.unique(np.asarray(groups_eq), return_inverse=True)
-    g = np.asarray(g).ravel()
-    G = int(g.max()) + 1
+    scale, Xs, bread, g, G = _scaled(X, groups_eq)
     cov_s, SVts, Minvs = cr2_cov(Xs, r, g, bread)  # linear in the rows (batched per pose size)
     fit = ClusteredFit(np.zeros(X.shape[1]), cov_s, G, r, np.ones(X.shape[1]), bread, SVts, Minvs)
     dof = np.full(X.shape[1], float(max(G - 1, 1)))
