@@ -10,6 +10,7 @@ from pydrake.multibody.math import SpatialForce
 from robstiff_drake.systems.leaf_system import LeafSystem
 from pydrake.systems.primitives import RandomSource
 
+from robstiff_drake.model import jit, sensor_sample
 from robstiff_drake.model.compensator import guard_accepts
 from robstiff_drake.model.realtime import rotate_transposed
 from robstiff_drake.model.wrench_frames import to_sensor_frame
@@ -62,6 +63,13 @@ class WristForceSensor(LeafSystem):
         self._i_state = int(self._state)  # (a Python int: int() of a pybind index is a call into the bindings)
         self.DeclarePeriodicDiscreteUpdateEvent(self.period_s, 0.0, self._sample)
         self.DeclareStateOutputPort("wrench", self._state)
+        # the plain sample (no ripple, dropouts or spikes; the reaction as it is) compiled where numba is
+        # (model/sensor_sample.py: the same values bit for bit), written into the state in place
+        self._lean = (self._ripple is None and self._uniform is None
+                      and type(self).true_wrench is WristForceSensor.true_wrench)
+        self._bias_a, self._noise_a = np.array(self._bias), np.array(self._noise)
+        if self._lean:
+            sensor_sample.warm_up()
 
     def true_wrench(self, context):
         """The noise-free, bias-free wrench (sensor frame) at this instant, a list."""
@@ -77,6 +85,11 @@ class WristForceSensor(LeafSystem):
         return w
 
     def _sample(self, context, discrete_state):
+        if self._lean and jit.available():
+            sensor_sample.wrist_sample(self._reaction.Eval(context)[self._joint].get_coeffs(),
+                                       self._gauss.Eval(context) if self._gauss is not None else sensor_sample.NO_NOISE,
+                                       self._bias_a, self._noise_a, discrete_state.get_mutable_value(self._i_state))
+            return
         if self._gauss is not None:
             g = self._gauss.Eval(context).tolist()
             w = [a + b + n * s for a, b, n, s in zip(self.true_wrench(context), self._bias, self._noise, g)]
