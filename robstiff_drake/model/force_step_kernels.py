@@ -23,7 +23,11 @@ horizontal slope (hypot of the direction's x and y: ``tangent_at``'s);
 (m); ``law`` (LAW_SIZE, ``law_constants``): the tooth pass frequency (Hz),
 h_ref^(1 - e), the chip exponent e, the edge ramp's chip (m), the cutter's
 radius (m), the wear land's friction and normal stress (N/m^2), the flank
-wear at the start (m) and its growth per metre of travel.
+wear at the start (m) and its growth per metre of travel.  The milling
+force's per-tick update (``averaged_force_update``) takes all of these
+packed in one float64 array and their offsets in one int64 array
+(``pack_force_constants``): numba's dispatcher costs about 0.05 us per
+argument and call.
 """
 
 import math
@@ -162,15 +166,46 @@ def averaged_force_step(q, t, hist, process, chain, window_s, lines, knots, feed
     out[6], out[7], out[8], out[9] = u0, u1, feed, travel
 
 
+# ``averaged_force_update``'s offsets (int64, ``pack_force_constants``): where each of the FORCE_PIECES packed
+# constants (averaged_force_step's, from ``chain`` to ``gauss_w``) starts and where the last ends, then the path's
+# lines, the workpiece's boxes and the cutter's teeth (rows of ``lines``, ``boxes`` and ``dR``)
+FORCE_PIECES = 14
+FORCE_OFFSETS_SIZE = FORCE_PIECES + 4
+
+
+def pack_force_constants(chain, window_s, lines, knots, feed_gain, period_s, law, Kc, Ke, boxes, k_back, dR,
+                         gauss_x, gauss_w):
+    """(consts, offsets) for ``averaged_force_update``: averaged_force_step's
+    constants (arrays row-major, floats as one value each) in one float64
+    array, in its order, and their int64 offsets (FORCE_OFFSETS_SIZE, see
+    above).  Built once: two arguments in place of fourteen, each of which
+    costs numba's dispatcher its type's look-up at every call."""
+    lines, boxes, dR = (np.asarray(v, dtype=float) for v in (lines, boxes, dR))
+    if lines.shape[1:] != (10,) or boxes.shape[1:] != (5,) or dR.shape != (dR.shape[0],) * 2:
+        raise ValueError(f"lines (n, 10), boxes (B, 5) and dR (n, n): got {lines.shape}, {boxes.shape}, {dR.shape}")
+    pieces = [np.ravel(np.asarray(v, dtype=float)) for v in (chain, window_s, lines, knots, feed_gain, period_s, law,
+                                                              Kc, Ke, boxes, k_back, dR, gauss_x, gauss_w)]
+    starts = np.cumsum([0] + [len(v) for v in pieces])
+    offsets = np.concatenate((starts, [lines.shape[0], boxes.shape[0], dR.shape[0]])).astype(np.int64)
+    return np.concatenate(pieces), offsets
+
+
 @kernel
-def averaged_force_update(q, t, held, wrench, spatial, chain, window_s, lines, knots, feed_gain, period_s, law, Kc,
-                          Ke, boxes, k_back, dR, gauss_x, gauss_w):
+def averaged_force_update(q, t, held, wrench, spatial, consts, at):
     """``averaged_force_step`` on the milling force's held state, written
-    in place (systems/milling_force.MillingForceSource's update): ``held``
-    (the process state, 4, then the history, 3 n) overwritten with the new
-    ones, the wrench (6, base frame, at the tool point) written to
+    in place (systems/milling_force.MillingForceSource's update), its
+    constants packed in ``consts`` and ``at`` (``pack_force_constants``):
+    ``held`` (the process state, 4, then the history, 3 n) overwritten with
+    the new ones, the wrench (6, base frame, at the tool point) written to
     ``wrench`` and, as Drake's SpatialForce orders it (the moment, then the
     force), to ``spatial`` (6)."""
+    chain, window_s = consts[at[0]:at[1]], consts[at[1]]
+    lines, knots = consts[at[2]:at[3]].reshape((at[FORCE_PIECES + 1], 10)), consts[at[3]:at[4]]
+    feed_gain, period_s, law = consts[at[4]], consts[at[5]], consts[at[6]:at[7]]
+    Kc, Ke, boxes = consts[at[7]:at[8]], consts[at[8]:at[9]], consts[at[9]:at[10]].reshape((at[FORCE_PIECES + 2], 5))
+    n_teeth = at[FORCE_PIECES + 3]
+    k_back, dR = consts[at[10]:at[11]], consts[at[11]:at[12]].reshape((n_teeth, n_teeth))
+    gauss_x, gauss_w = consts[at[12]:at[13]], consts[at[13]:at[14]]
     n = held.shape[0]
     out = np.empty(n + 18)  # (22 + the history's 3 n)
     averaged_force_step(q, t, held[4:], held[:4], chain, window_s, lines, knots, feed_gain, period_s, law, Kc, Ke,

@@ -26,7 +26,10 @@ payload's mass (kg) and centre of mass (3, m, sensor frame), the sensor
 mount's rotation as the calibration has it (9), the base-frame gravity (3,
 m/s^2); ``model`` (MODEL_SIZE, ``model_constants``): the deflection model's
 mount rotation (9), 1.0 when it is the identity (else 0.0), the tool point in
-the sensor frame (3, m) and the joint compliances (6, rad/(N*m)).
+the sensor frame (3, m) and the joint compliances (6, rad/(N*m)).  ``tick_update``
+takes all of its constants packed in one float64 array and their offsets in one
+int64 array (``pack_tick_constants``): numba's dispatcher costs about 0.05 us
+per argument and call.
 """
 
 import math
@@ -176,6 +179,10 @@ def correction_step(dq, line, c, lo, hi, step, out):
 # the carried guard's last good sample, its rejections so far and in a row, the carried force filter's output
 # and its state.
 TICK_AT_SIZE = 12
+# then (pack_tick_constants) where each of the TICK_PIECES packed constants starts and where the last ends, and
+# the force filter's order
+TICK_PIECES = 11
+TICK_OFFSETS_SIZE = TICK_AT_SIZE + TICK_PIECES + 2
 
 
 @kernel
@@ -213,11 +220,32 @@ def filter_output(C, D, xf, u, y):
         y[i] = s1 + s2
 
 
+def pack_tick_constants(at, guard, chain, gravity, model, lo, hi, step, fA, fB, fC, fD):
+    """(consts, offsets) for ``tick_update``: the float64 constants (the
+    guard's 2, ``chain``, ``gravity``, ``model``, ``lo``, ``hi``, ``step``
+    and the force filter's matrices ``fA``-``fD`` row-major, in that
+    order) in one array, and int64 ``offsets``: the state layout ``at``
+    (TICK_AT_SIZE), then where each of those TICK_PIECES constants starts
+    in ``consts`` and where the last ends, then the filter's order n (0
+    without one).  Built once: two arguments in place of twelve, each of
+    which costs numba's dispatcher its type's look-up at every call."""
+    n = np.shape(fA)[0]
+    if n and (np.shape(fA) != (n, n) or np.shape(fB) != (n, 6) or np.shape(fC) != (6, n) or np.shape(fD) != (6, 6)):
+        raise ValueError(f"a carried force filter takes and gives a wrench (6): A {np.shape(fA)}, B {np.shape(fB)}, "
+                         f"C {np.shape(fC)}, D {np.shape(fD)}")
+    pieces = [np.ravel(np.asarray(v, dtype=float)) for v in (guard, chain, gravity, model, lo, hi, step,
+                                                              fA, fB, fC, fD)]
+    starts = np.cumsum([0] + [len(v) for v in pieces])
+    offsets = np.concatenate((np.asarray(at, dtype=np.int64), starts, [n])).astype(np.int64)
+    return np.concatenate(pieces), offsets
+
+
 @kernel
-def tick_update(x, raw, w, q, dq_in, at, guard, chain, gravity, model, lo, hi, step, fA, fB, fC, fD):
+def tick_update(x, raw, w, q, dq_in, consts, at):
     """The compensator tick's whole update on its state ``x`` (one group,
-    written in place; offsets ``at``, TICK_AT_SIZE: see above), in the order
-    systems/compensator_tick.CompensatorTick's update takes it: with a
+    written in place; offsets ``at[:TICK_AT_SIZE]``: see above; the
+    constants packed in ``consts`` by ``pack_tick_constants``), in the
+    order systems/compensator_tick.CompensatorTick's update takes it: with a
     carried guard (``at[7]`` >= 0; ``guard``: max jump N, the rejections in
     a row that re-arm it) the raw sample ``raw`` (6) through
     systems/wrist_sensor.guard_step's arithmetic; then ``correction_step``
@@ -232,12 +260,18 @@ def tick_update(x, raw, w, q, dq_in, at, guard, chain, gravity, model, lo, hi, s
     one (``filter_output``): the separate LinearSystem's values at every
     instant.  Nothing is computed that the separate kernels do not: the
     same values bit for bit."""
+    c = TICK_AT_SIZE  # (the constants' starts: guard, chain, gravity, model, lo, hi, step, fA, fB, fC, fD, end)
+    guard, chain = consts[at[c]:at[c + 1]], consts[at[c + 1]:at[c + 2]]
+    gravity, model = consts[at[c + 2]:at[c + 3]], consts[at[c + 3]:at[c + 4]]
+    lo, hi, step = consts[at[c + 4]:at[c + 5]], consts[at[c + 5]:at[c + 6]], consts[at[c + 6]:at[c + 7]]
+    nf = at[c + TICK_PIECES + 1]
     f = at[10]
     ws = np.empty(6)
     for i in range(6):
         ws[i] = x[f + i] if f >= 0 else w[i]
     if f >= 0:  # (the filter's update reads the guard's sample before the guard's own update)
-        filter_state_step(fA, fB, x[at[11]:at[11] + fA.shape[0]], x[at[7]:at[7] + 6])
+        fA, fB = consts[at[c + 7]:at[c + 8]].reshape((nf, nf)), consts[at[c + 8]:at[c + 9]].reshape((nf, 6))
+        filter_state_step(fA, fB, x[at[11]:at[11] + nf], x[at[7]:at[7] + 6])
     g = at[7]
     if g >= 0:  # (guard_step: model/compensator.guard_accepts, then the re-arm)
         mj = guard[0]
@@ -259,7 +293,8 @@ def tick_update(x, raw, w, q, dq_in, at, guard, chain, gravity, model, lo, hi, s
                         x[g + i] = raw[i]
                     x[at[9]] = 0.0
     if f >= 0:
-        filter_output(fC, fD, x[at[11]:at[11] + fA.shape[0]], x[g:g + 6], x[f:f + 6])
+        fC, fD = consts[at[c + 9]:at[c + 10]].reshape((6, nf)), consts[at[c + 10]:at[c + 11]].reshape((6, 6))
+        filter_output(fC, fD, x[at[11]:at[11] + nf], x[g:g + 6], x[f:f + 6])
     o_dq, o_line, n6, o_c = at[3], at[4], at[5], at[6]
     buf = np.empty(n6 + 6)
     if o_dq >= 0:

@@ -38,7 +38,8 @@ this block samples, removes gravity, saturates, delays and corrects.
 With numba installed the update runs as one compiled call
 (model/tick_kernels.tick_update: the carried guard, the correction and the
 sample, written into the state group in place; the same arithmetic to
-round-off), loaded while the block is built; without it (or with
+round-off; its constants packed in two arrays, as numba's dispatcher costs
+about 0.05 us per argument), loaded while the block is built; without it (or with
 ROBSTIFF_NO_JIT set, or within model/jit.disabled) the plain-Python
 reference below (with wrist_sensor.guard_step), which the kernels are
 tested against.
@@ -165,8 +166,12 @@ class CompensatorTick(LeafSystem):
                                                   "_delay_line", "correction"))
         self._s_guard = tuple(at.get(name) for name in ("guarded_wrench", "rejected", "_rejected_in_a_row"))
         self._s_filter = (at.get("filtered_wrench"), at.get("_filter_state", slice(0, 0)))
-        # (the compiled update's arguments after its inputs: model/tick_kernels.tick_update)
+        # (the compiled update's constants, packed: model/tick_kernels.tick_update)
         self._fused = None if self._compiled is None else self._fused_arguments(*self._compiled)
+        # (the compiled update's kernel, its inputs' Eval (None: absent) and its constants, for _update)
+        self._fast = None if self._fused is None else (tick_kernels.tick_update, *(
+            None if port is None else port.Eval for port in (self._raw if guard is not None else None,
+                                                               self._w_in, self._q_in, self._dq_in)), *self._fused)
         self.warm_up()
 
     def add_outputs(self, builder, name=None):
@@ -209,23 +214,24 @@ class CompensatorTick(LeafSystem):
             return
         # (the inputs' values and the state group as the simulation passes them: writeable float arrays)
         x = np.zeros(sum(size for _, size in self.layout))
-        tick_kernels.tick_update(x, np.zeros(6) if self._guard is not None else _NONE,
-                                 np.zeros(6) if self._w_in is not None else _NONE, np.zeros(6),
-                                 np.zeros(6) if self._dq_in is not None else _NONE, *self._fused)
+        update, raw, w, _, dq, consts, at = self._fast
+        update(x, _NONE if raw is None else np.zeros(6), _NONE if w is None else np.zeros(6), np.zeros(6),
+               _NONE if dq is None else np.zeros(6), consts, at)
+        # (from here on the compiled kernel itself, without its wrapper's cost: model/jit.Kernel.compiled)
+        self._fast = (tick_kernels.tick_update.compiled(),) + self._fast[1:]
 
     def _fused_arguments(self, chain, gravity, model, lo, hi, step):
-        """tick_update's arguments after its inputs: the layout's offsets
-        (model/tick_kernels.TICK_AT_SIZE), the guard's constants and the
-        kernels' constants."""
+        """tick_update's arguments after its inputs (model/tick_kernels.pack_tick_constants):
+        the layout's offsets (TICK_AT_SIZE), the guard's constants and the kernels' constants,
+        packed in one float array and one int array."""
         def at(name):
             return self._at[name].start if name in self._at else -1
-        offsets = np.array([at("wrench_sampled"), at("q_sampled"), at("process_wrench"), at("dq"),
-                            max(at("_delay_line"), 0), 6 * self._n, at("correction"), at("guarded_wrench"),
-                            at("rejected"), at("_rejected_in_a_row"), at("filtered_wrench"),
-                            max(at("_filter_state"), 0)], dtype=np.int64)
-        guard = np.array(self._guard if self._guard is not None else (0.0, 0.0), dtype=float)
+        offsets = [at("wrench_sampled"), at("q_sampled"), at("process_wrench"), at("dq"),
+                   max(at("_delay_line"), 0), 6 * self._n, at("correction"), at("guarded_wrench"),
+                   at("rejected"), at("_rejected_in_a_row"), at("filtered_wrench"), max(at("_filter_state"), 0)]
+        guard = self._guard if self._guard is not None else (0.0, 0.0)
         matrices = self._filter if self._filter is not None else (np.empty((0, 0)),) * 4
-        return (offsets, guard, chain, gravity, model, lo, hi, step) + matrices
+        return tick_kernels.pack_tick_constants(offsets, guard, chain, gravity, model, lo, hi, step, *matrices)
 
     @property
     def model(self):
@@ -292,11 +298,11 @@ class CompensatorTick(LeafSystem):
 
     def _update(self, context, discrete_state):
         x = discrete_state.get_mutable_value(0)  # (arrives holding the current state: written in place)
-        if self._fused is not None and jit.available():  # (all of the below in one compiled call)
-            tick_kernels.tick_update(x, self._raw.Eval(context) if self._guard is not None else _NONE,
-                                     self._w_in.Eval(context) if self._w_in is not None else _NONE,
-                                     self._q_in.Eval(context),
-                                     self._dq_in.Eval(context) if self._dq_in is not None else _NONE, *self._fused)
+        fast = self._fast
+        if fast is not None and jit.available():  # (all of the below in one compiled call)
+            update, raw, w, q, dq, consts, at = fast
+            update(x, _NONE if raw is None else raw(context), _NONE if w is None else w(context), q(context),
+                   _NONE if dq is None else dq(context), consts, at)
             return
         w = None
         if self._filter is not None:  # (the filter's output before this tick, and its update on the guard's sample)

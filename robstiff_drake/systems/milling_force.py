@@ -146,6 +146,7 @@ class MillingForceSource(LeafSystem):
                                                                   np.full(3 * self._n_hist, np.nan))))
         self._lines = force_step_kernels.line_constants(path)  # (compiled motion: a path of lines only)
         self._fused = self._fused_constants(force_model, kinematics) if mode == "averaged" else None
+        self._packed = None if self._fused is None else force_step_kernels.pack_force_constants(*self._fused)
         self._warm_up()
         self._applied = ExternallyAppliedSpatialForce()  # reused: only its force changes
         self._applied.body_index = self._body
@@ -154,8 +155,10 @@ class MillingForceSource(LeafSystem):
         self._spatial = np.zeros(6)  # (the compiled update's wrench as a SpatialForce orders it: moment, force)
         self._force = self.DeclareAbstractState(AbstractValue.Make([self._spatial_force([0.0] * 6)]))
         self.DeclarePeriodicUnrestrictedUpdateEvent(period_s, 0.0, self._update)
-        # the averaged update straight to the compiled kernel (unless a subclass changes the step: a study's)
-        self._lean = self._fused is not None and type(self)._step is MillingForceSource._step
+        # the averaged update straight to the compiled kernel, its input, outputs and constants packed in two arrays
+        lean = self._fused is not None and type(self)._step is MillingForceSource._step
+        self._fast = (force_step_kernels.averaged_force_update.compiled(), self._q.Eval, *self._packed,
+                      self._spatial, self._applied, self._applied_list) if lean else None
         self._indices = (int(self._w), int(self._process), int(self._force))
         self.DeclareStateOutputPort("spatial_force", self._force)
         if mode == "averaged":
@@ -203,7 +206,7 @@ class MillingForceSource(LeafSystem):
         if self._fused is not None:
             force_step_kernels.averaged_force_step(q, 0.0, hist, process, *self._fused, np.empty(22 + hist.shape[0]))
             force_step_kernels.averaged_force_update(q, 0.0, np.concatenate((process, hist)), np.zeros(6),
-                                                     np.zeros(6), *self._fused)
+                                                     np.zeros(6), *self._packed)
 
     def set_progress(self, context, process, hist):
         """Hold ``process`` (u_x, u_y, feed m/s, cutting travel m) and the
@@ -364,16 +367,16 @@ class MillingForceSource(LeafSystem):
         i_w, i_process, i_force = self._indices
         discrete = state.get_mutable_discrete_state()
         held = discrete.get_mutable_value(i_process)  # (arrives holding the current state: written in place)
-        process, hist = held[:4], held[4:]
-        if self._lean and jit.available() and not math.isnan(hist[-3]):
-            # (_step's compiled averaged update, the state written in place, with no more calls into Drake than
-            # it needs)
-            sf = self._spatial
-            force_step_kernels.averaged_force_update(self._q.Eval(context), context.get_time(), held,
-                                                     discrete.get_mutable_value(i_w), sf, *self._fused)
-            self._applied.F_Bq_W = SpatialForce(sf)
-            state.get_mutable_abstract_state(i_force).set_value(self._applied_list)
+        fast = self._fast
+        if fast is not None and jit.available() and not math.isnan(held[-3]):
+            # (_step's compiled averaged update, the state written in place, with no more calls into Drake than it
+            # needs; unless a subclass changes the step: a study's)
+            update, q, consts, at, sf, applied, applied_list = fast
+            update(q(context), context.get_time(), held, discrete.get_mutable_value(i_w), sf, consts, at)
+            applied.F_Bq_W = SpatialForce(sf)
+            state.get_mutable_abstract_state(i_force).set_value(applied_list)
             return
+        process, hist = held[:4], held[4:]
         q = self._q.Eval(context)[:6]
         t = context.get_time()
         instants = self._read_offsets(t) if self._mode == "tooth" else ()
