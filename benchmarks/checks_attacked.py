@@ -89,15 +89,19 @@ def sensor_cases():
 
 def _clock_run(period_ms, stamps):
     c = SessionClock(period_ms * 1e-3)
-    vs, t, ref_off = [], 0.0, 0.0
+    vs, t, ref_off, ahead, behind = [], 0.0, 0.0, 0.0, 0.0
     for i, tm in enumerate(stamps):
         v, dt = c.accept(i + 1, int(tm) & 0xFFFFFFFF)
         vs.append(v)
         t += dt
         ref_off = max(ref_off, abs(t - i * period_ms * 1e-3))
+        slower = min(i * period_ms, float(stamps[i]) - float(stamps[0])) * 1e-3  # (cell/session.py ``_pace``)
+        ahead, behind = max(ahead, t - slower), max(behind, slower - t)
     faults = [i for i, v in enumerate(vs) if v != "ok"]
+    # (the reference's time against the slower of the sequence's and the clock's elapsed: never ahead of it)
+    pace = f" (of the slower of it and the clock's: {ahead * 1e3:.2f} ms ahead, {behind * 1e3:.2f} ms behind at most)"
     if not faults:
-        return f"no fault; the reference within {ref_off * 1e3:.2f} ms of the sequence's time"
+        return f"no fault; the reference within {ref_off * 1e3:.2f} ms of the sequence's time" + pace
     clears, run = 0, 0
     for v in vs[faults[0]:] + ["clock"]:
         if v == "ok":
@@ -105,7 +109,7 @@ def _clock_run(period_ms, stamps):
             continue
         clears, run = clears + (run >= CLEAR_MESSAGES), 0
     return (f"{len(faults)} fault messages, the first at {faults[0]}; the fault cleared {clears} times; the reference "
-            f"within {ref_off * 1e3:.2f} ms of the sequence's time")
+            f"within {ref_off * 1e3:.2f} ms of the sequence's time" + pace)
 
 
 def clock_cases():

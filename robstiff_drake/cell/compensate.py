@@ -8,7 +8,8 @@ For every message the controller sends (every 4 ms on an IRC5; RSI 4 or
    cell/session_faults.py): a duplicate or
    an older datagram is dropped unanswered; a jump or a clock that
    disagrees with the sequence is a fault; the reference advances by a
-   bounded step;
+   bounded step, its time never ahead of the sequence's nor of the
+   controller's clock since the run's start;
 2. reads the measured joint angles (the controller's degrees, mapped to
    the model's joints through the robot file's ``controller:`` block);
 3. takes every Net F/T record received since the last message through
@@ -98,7 +99,6 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         # (cell/session_faults.py ``_watch_cycle``, a link whose sequence is its clock over the period (RSI): the
         # last clock seen, the run of its steps alike, and the controller's cycle in periods once named, else 1)
         self._cycle_tm, self._cycle_run, self._cycle_periods = None, None, 1.0
-        self._shorter_cycle_ms = None  # (a controller named at a shorter cycle than --period-ms: _steady_clock)
         self.ok_since_fault = 0
         self.t_session = 0.0
         self.q = None  # the model's joint angles (rad)
@@ -202,7 +202,9 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         # (the bound's fault alone: the model runs on, its wish judged each cycle; cell/correction_bound.py)
         # (``correction_off``: the correction held at zero for the run, the model not run; cell/loop_settings.py)
         active = self.gate is None and all(name == "bound" for name in self.faults) and self.s.correction_off is None
-        step_s = min(dt, MAX_STEP_PERIODS * self.s.period_s)
+        # (the correction's step: the reference's; a message that holds the reference under a fault, a clock
+        # that stalled or went back, still ramps the correction one period's worth towards zero)
+        step_s = min(dt if dt > 0.0 or not self.faults else self.s.period_s, MAX_STEP_PERIODS * self.s.period_s)
         corr = bounded(self, self.comp.tick(self.q, step_s, active), step_s, active, CLEAR_MESSAGES)
         if self._identity:
             corr_deg = [math.degrees(c) for c in corr]

@@ -9,38 +9,29 @@ stamp likewise) and the controller's clock (ms) must advance together.
   dropped;
 * a jump of more than ``MAX_JUMP`` cycles forward, or further back than
   the window: a fault (a controller restart looks like this); the session
-  takes the new numbering as its own and the reference advances by one
-  period;
+  takes the new numbering as its own and the run's time starts again
+  there (below); the reference advances by one period at most, by none
+  where the clock went back;
 * a clock that disagrees with the sequence (its step differs from the
-  sequence's step times the period by more than ``CLOCK_TOL``): a fault;
-  the reference advances by the sequence's step times the period (the
-  clock's value is not used);
+  sequence's step times the period by more than the tolerance,
+  ``tol_ms``): a fault; the clock's step counts for the reference as far
+  as it went forward (below: a clock set back or stalled holds the
+  reference; one that jumped ahead lets it follow the sequence, not the
+  jump);
 * a clock whose steps each pass but add up away from the sequence's
   (their sum since the session's start or restart, forgetting over
   ``PACE_HORIZON_S``, more than the tolerance, and ``PACE_TOL`` of the
   time summed, off the sequence's steps times the period; a step beyond
   the tolerance, the step's fault, counted in it up to the tolerance: a
   clock running 6 ms a 4 ms message, or a --period-ms the controller does
-  not run): a fault on every message while it lasts, the reference
-  advancing by the sequence's step (before,
-  each step within the tolerance passed and the reference ran at the
-  clock's pace: 1.5 times the program's feed at 6 ms a 4 ms message, the
-  arm following it).  The sum is the clock's own, never clamped: a clock
-  0.75 % fast (4.03 ms a 4 ms message, rounded to whole ms: 4 ms steps
-  for 32 messages, then a 5) stays the fault once it is one (before, the
-  sum stopped at the tolerance, the 4 ms steps passed and the fault
-  cleared 446 times in a minute); a clock within ``PACE_TOL`` of the
-  sequence's pace is no fault (before, one 100 ppm fast faulted once
-  every 20 s, 500 ppm once every 4 s, each ramping the correction to zero
-  and back);
-* otherwise the reference advances by the clock's step, which is then
-  within ``MAX_JUMP`` periods (+ the tolerance), or by the sequence's
-  where the clock's would take the reference's time more than the
-  tolerance from the sequence's (a clock within PACE_TOL: the reference
-  keeps the sequence's pace): a bounded step per message, whatever the
-  datagram says, and the reference's time within the tolerance of the
-  sequence's.
-
+  not run): a fault on every message while it lasts.  The sum is the
+  clock's own, never clamped: a clock 0.75 % fast (4.03 ms a 4 ms
+  message, rounded to whole ms: 4 ms steps for 32 messages, then a 5)
+  stays the fault once it is one (before, the sum stopped at the
+  tolerance, the 4 ms steps passed and the fault cleared 446 times in a
+  minute); a clock within ``PACE_TOL`` of the sequence's pace is no fault
+  (before, one 100 ppm fast faulted once every 20 s, 500 ppm once every
+  4 s, each ramping the correction to zero and back);
 * a run of older ones numbered on from 0 or 1 (``RESTART_RUN`` in a row,
   each one after the last, their clock with them, none newer between):
   a controller that restarted within the first ``REORDER_WINDOW``
@@ -49,8 +40,31 @@ stamp likewise) and the controller's clock (ms) must advance together.
   the ones before it dropped; a run numbered from elsewhere stays "old"
   (``behind_run`` counts it: the loop logs it).
 
+The reference's time (the sum of the ``dt_s`` returned) is the slower of
+the two: since the run's start (the session's first message, or its
+last jump or restart) it is at most the sequence's steps times the
+period and at most the clock's time elapsed, from the first message on,
+whatever the verdicts (``_pace``).  Each of the two is summed apart and
+the reference advances by what both allow, so an honest clock's 1 ms
+resolution and jitter (steps of 3, 5, 4, 4 ms) cost at most one stamp's
+lag, never a lag that grows; the time one allows beyond the other is
+kept up to the tolerance (a clock ahead by a few ms, or a sequence ahead
+of a slow clock, never plays a burst later).  A ``--period-ms 8``
+against a controller at 4 ms (EGM; Stream Motion at 250 Hz) plays its
+reference at the clock's 4 ms a message from the first one (before, at
+8 ms a message, twice the program's feed, until the clock's drift was
+the fault and 25 messages more named the period:
+tests/test_reference_pace.py); a clock slower than the sequence (a slow
+or lying clock, or a controller whose cycle is shorter than
+--period-ms) plays it at the clock's pace (before, at the sequence's
+within the tolerance, or at it whenever a fault was on); a clock ahead
+of the sequence within the tolerance no longer plays it ahead (before,
+by up to the tolerance).  RSI's sequence is its IPOC over the period:
+clock and sequence are one there, nothing changes.
+
 A controller whose clock does not run (every message stamped the same,
-e.g. tm = 0) is timed by its sequence numbers alone.
+e.g. tm = 0, from its first two messages) is timed by its sequence
+numbers alone.
 """
 
 import math
@@ -98,9 +112,11 @@ class SessionClock:
         # the run of messages behind the last one seen, each one after the one before: [first seq, seq, tm, count]
         self._behind = None
         self.restarted_from = None  # the first sequence number of the run taken as a restart (last "jump")
-        # the reference's time ahead of the sequence's (ms): the clock's steps taken minus the sequence's steps
-        # times the period, since the session's start or restart, kept within the tolerance
-        self.drift_ms = 0.0
+        # the time (ms) the sequence and the clock each allow the reference beyond where it stands: their steps
+        # summed since the run's start (or its last jump or restart) minus the reference's; what one allows beyond
+        # the other kept up to the tolerance (``_pace``)
+        self.seq_ahead_ms = 0.0
+        self.clock_ahead_ms = 0.0
         # the clock's own drift (ms): every step minus the sequence's (one beyond the tolerance up to it), summed
         # since the session's start or restart, forgetting over PACE_HORIZON_S (not clamped: a clock at another
         # pace runs away in it, and stays the fault)
@@ -139,12 +155,13 @@ class SessionClock:
             return "duplicate", 0.0
         if -REORDER_WINDOW <= ds < 0:
             if self._run_behind(int(seq), int(tm_ms)):
+                prev_tm = self.tm
                 self.restarted_from, self._behind = self._behind[0], None
                 self.seq, self.tm = int(seq), int(tm_ms)
                 # (a restart's clock starts again)
                 self._restart_drift()
                 self.counts["jump"] += 1
-                return "jump", self.T
+                return "jump", self._jump_step(_signed(int(tm_ms) - prev_tm))
             self.counts["old"] += 1
             return "old", 0.0
         self._behind = None
@@ -156,7 +173,7 @@ class SessionClock:
         if ds < 0 or ds > MAX_JUMP:
             self.counts["jump"] += 1
             self._restart_drift()
-            return "jump", self.T
+            return "jump", self._jump_step(dtm)
         nominal_ms = ds * self.T_ms
         if not self.clock_runs:
             self.counts["ok"] += 1
@@ -167,25 +184,49 @@ class SessionClock:
             # (into the clock's drift as far as a step may go: one stamp late beyond the tolerance, the next
             # back, adds nothing; a clock set forward once, a tolerance at most)
             self._sum_drift(ds, max(-self.tol_ms, min(self.tol_ms, dtm - nominal_ms)))
-            return "clock", nominal_ms * 1e-3
+            # (for the reference, none where the clock went back or stalled (it holds); a step ahead counts, what
+            # it allows beyond the sequence kept up to the tolerance (``_pace``): a clock that jumped ahead gives
+            # the reference no more than the sequence, and a stamp late beyond the tolerance, the next one back,
+            # costs no lag)
+            return "clock", self._pace(nominal_ms, max(0.0, float(dtm)))
         self._sum_drift(ds, dtm - nominal_ms)
         allowed = self.tol_ms + PACE_TOL * self._paced_ms - (1.0 if self._running_away else 0.0)
         self._running_away = abs(self.clock_drift_ms) > allowed
         if self._running_away:
-            # (each step within the tolerance, their sum not: the clock runs at another pace than the sequence;
-            # the step not taken, the reference stays within the tolerance of the sequence's time)
+            # (each step within the tolerance, their sum not: the clock runs at another pace than the sequence, or
+            # --period-ms is not the controller's cycle; the reference at the slower of the two)
             self.counts["clock"] += 1
             self.clock_reason = ("drift", self.clock_drift_ms, self._summed, allowed)
-            return "clock", nominal_ms * 1e-3
-        drift = self.drift_ms + (dtm - nominal_ms)
+            return "clock", self._pace(nominal_ms, float(dtm))
         self.counts["ok"] += 1
-        if abs(drift) > self.tol_ms:
-            return "ok", nominal_ms * 1e-3  # (a clock within PACE_TOL: the reference keeps the sequence's pace)
-        self.drift_ms = drift
-        return "ok", dtm * 1e-3
+        return "ok", self._pace(nominal_ms, float(dtm))
+
+    def _pace(self, seq_step_ms, clock_step_ms):
+        """How far the reference advances (s): what both the sequence's and
+        the clock's time since the run's start allow beyond where it stands
+        (never back).  Each is summed apart, so the 1 ms resolution of an
+        honest clock's stamps (3, 5, 4, 4 ms) costs no lag that grows; what
+        one allows beyond the other is kept up to the tolerance (a clock set
+        a few ms ahead, or a sequence ahead of a slow clock, plays no burst
+        later)."""
+        a = self.seq_ahead_ms + seq_step_ms
+        b = self.clock_ahead_ms + clock_step_ms
+        step = max(0.0, min(a, b))
+        self.seq_ahead_ms = min(a - step, self.tol_ms)
+        self.clock_ahead_ms = min(b - step, self.tol_ms)
+        return step * 1e-3
+
+    def _jump_step(self, dtm):
+        """A jump's or a restart's step (s): one period, or what the clock
+        stepped if less (none where it went back); the run's time starts
+        again from it."""
+        if not self.clock_runs:
+            return self.T
+        return max(0.0, min(float(dtm), self.T_ms)) * 1e-3
 
     def _restart_drift(self):
-        self.drift_ms, self.clock_drift_ms, self._summed, self._paced_ms, self._running_away = 0.0, 0.0, 0, 0.0, False
+        self.clock_drift_ms, self._summed, self._paced_ms, self._running_away = 0.0, 0, 0.0, False
+        self.seq_ahead_ms = self.clock_ahead_ms = 0.0  # (the run's time starts again)
 
     def _sum_drift(self, ds, err_ms):
         """The clock's step ``err_ms`` off the sequence's ``ds`` periods into its drift (forgetting over

@@ -85,13 +85,12 @@ class SessionFaults:
             else:
                 what = (f"the controller's clock disagrees with its sequence (time stamp {msg.tm_ms} ms at sequence "
                         f"number {msg.seq})")
-            self.fault_on("clock", f"{self.link.name}: {what}; the reference advances by the sequence")
+            # (cell/session.py: the reference at the slower of the clock and the sequence since the run's start,
+            # whatever the verdict; a clock that stalls or goes back holds it, said here)
+            self.fault_on("clock", f"{self.link.name}: {what}; the reference advances by the slower of the clock "
+                                   "and the sequence")
             self._steady_clock(why, None if prev_tm is None else _signed(msg.tm_ms - prev_tm),
                                ((msg.seq - prev) % 2**32) * self.s.period_s * 1e3 if prev is not None else None)
-            if self._shorter_cycle_ms is not None and prev_tm is not None:
-                # (a controller named at a shorter cycle than --period-ms: the sequence's period per message would
-                # play the reference faster than programmed, twice at 8 on a 4 ms controller; the clock's step)
-                dt = min(dt, max(_signed(msg.tm_ms - prev_tm), 0) * 1e-3) or dt
         else:
             self._steady = None
             self.ok_since_fault += 1
@@ -112,10 +111,10 @@ class SessionFaults:
         the tolerance but whose sum runs away (the "drift" fault: --period-ms 8
         on a 4 ms controller) is named alike when its steady step is one of the
         protocol's cycles (``link.cycles_ms``; before, only "its clock, or
-        --period-ms not the controller's cycle"), and from then on the
-        reference advances by the clock's step, not the sequence's
-        (``_shorter_cycle_ms``: before, 8 ms a 4 ms message, twice the
-        program's feed, the arm following it)."""
+        --period-ms not the controller's cycle").  The reference follows the
+        clock's steps there from the first message, not only once named
+        (cell/session.py: the slower of the clock and the sequence; before,
+        8 ms a 4 ms message, twice the program's feed, until named)."""
         if why is None or self._wrong_period_said:
             self._steady = None
             return
@@ -135,8 +134,6 @@ class SessionFaults:
             if why[0] != "step" and not any(abs(cycle_ms - c) < 0.5 for c in getattr(self.link, "cycles_ms", ())):
                 return  # (a steady drift at no cycle of the protocol: a clock at another pace, its fault said)
             self._wrong_period_said = True
-            if cycle_ms < self.s.period_s * 1e3:
-                self._shorter_cycle_ms = cycle_ms
             self.event(f"{self.link.name}: --period-ms is not the controller's cycle: its time stamps stepped "
                        f"{run[0]:g} ms a message, {run[2]} messages in a row, where --period-ms "
                        f"{self.s.period_s * 1e3:g} says {run[1]:g}; the correction stays at zero and the reference "
