@@ -9,6 +9,8 @@ faults cleared after CLEAR_MESSAGES consistent messages once the
 correction is at zero.
 """
 
+from robstiff_drake.cell.session import WRAP, _signed  # (the clocks' width and their signed step)
+
 CLEAR_MESSAGES = 25  # consistent messages (0.1 s at 4 ms) before a sequence or clock fault clears
 # clock faults in a row whose stamps all step by the same multiple of --period-ms that the loop names as a
 # --period-ms that is not the controller's cycle (once a run): as many as clear a fault (0.1 s at 4 ms)
@@ -16,12 +18,6 @@ WRONG_PERIOD_MESSAGES = CLEAR_MESSAGES
 # messages in a row behind the last one (each the next after the one before) that the loop logs once: more than
 # a sequence jump's MAX_JUMP, fewer than the reorder window's 64 (cell/session.py)
 BEHIND_LOGGED = 8
-WRAP = 2**32  # (the clocks' width: cell/session.py)
-
-
-def _signed(d):
-    d %= WRAP
-    return d - WRAP if d >= WRAP // 2 else d
 
 
 def _fmt(q_deg):
@@ -59,7 +55,7 @@ class SessionFaults:
                            f"passes {prev}")
             return False, 0.0
         if prev is not None and v in ("ok", "clock"):
-            ds = (msg.seq - prev) % 2**32
+            ds = (msg.seq - prev) % WRAP
             # (a controller named at another cycle, ``_watch_cycle``: its numbers skipped per message are not lost)
             lost = max(0, int(round(ds / self._cycle_periods)) - 1 if self._cycle_periods > 1 else ds - 1)
             self.n.lost += lost
@@ -67,7 +63,7 @@ class SessionFaults:
                 self._cycle_run[2] += lost
         if v == "jump":
             self.n.jumps += 1
-            restart = (msg.seq - (prev or 0)) % 2**32 >= 2**31 and msg.seq < 100  # numbering from the start again
+            restart = (msg.seq - (prev or 0)) % WRAP >= WRAP // 2 and msg.seq < 100  # numbering from the start again
             what = "the controller restarted" if restart else "the sequence jumped"
             if self.clock.restarted_from is not None:  # (cell/session.py: a run numbered from the start again)
                 what = (f"the controller restarted ({msg.seq - self.clock.restarted_from + 1} messages in a row "
@@ -90,7 +86,7 @@ class SessionFaults:
             self.fault_on("clock", f"{self.link.name}: {what}; the reference advances by the slower of the clock "
                                    "and the sequence")
             self._steady_clock(why, None if prev_tm is None else _signed(msg.tm_ms - prev_tm),
-                               ((msg.seq - prev) % 2**32) * self.s.period_s * 1e3 if prev is not None else None)
+                               ((msg.seq - prev) % WRAP) * self.s.period_s * 1e3 if prev is not None else None)
         else:
             self._steady = None
             self.ok_since_fault += 1
