@@ -37,6 +37,13 @@ rows and statistics written after the answer has left).
     python benchmarks/bench_compensate.py --protocol rsi --seconds 600
     python benchmarks/bench_compensate.py --load 1 --seconds 60   # a busy process beside it
     python benchmarks/bench_compensate.py --load 1 --rt-priority 50 --cpu 0 --seconds 600  # issue 32's at-load case
+    python benchmarks/bench_compensate.py --rt-priority 50 --cpu 0 --cpu-latency-us 0   # as a real-time PC is set up
+
+--cpu-latency-us N asks the kernel (Linux PM QoS, /dev/cpu_dma_latency)
+to keep the CPUs' wake-up latency within N us, for compensate's run (its
+own option) and for this benchmark's breakdown and stall probe; with
+--cpu the simulated controller's thread runs on the other CPUs (a real
+controller is another machine).
 
 The machine is shared (2 cores): the load average is printed with the
 figures, since other processes' load shows in the tails.  Before each
@@ -66,6 +73,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tests"))
 import cell_helpers as h  # noqa: E402
 
+from robstiff_drake.cell.realtime_thread import CpuLatency  # noqa: E402
 from robstiff_drake.model.robot import load_robot  # noqa: E402
 from compensate_in_process import (GC_INSIDE, STAGES, in_process_cycle_us, in_process_us,  # noqa: E402
                                    stage_breakdown_us)
@@ -116,7 +124,7 @@ def rss_mb(pid):
     return None
 
 
-def run_protocol(tmp, protocol, seconds, rt_priority=0, cpu=None):
+def run_protocol(tmp, protocol, seconds, rt_priority=0, cpu=None, cpu_latency_us=None):
     """compensate (a process, --log streaming) against the simulated
     controller of ``protocol`` with the stand-in arm, for ``seconds``;
     (summary.json, controller stats, [(t s, RSS MB)] sampled every second).
@@ -143,18 +151,21 @@ def run_protocol(tmp, protocol, seconds, rt_priority=0, cpu=None):
     gc.freeze()
     gc.disable()
     try:
-        return _run_protocol(tmp, protocol, seconds, rt_priority, cpu, robot, model, payload, q0, port, netft, link)
+        return _run_protocol(tmp, protocol, seconds, rt_priority, cpu, robot, model, payload, q0, port, netft, link,
+                             cpu_latency_us)
     finally:
         gc.enable()
         gc.unfreeze()
         gc.collect()
 
 
-def _run_protocol(tmp, protocol, seconds, rt_priority, cpu, robot, model, payload, q0, port, netft, link):
+def _run_protocol(tmp, protocol, seconds, rt_priority, cpu, robot, model, payload, q0, port, netft, link,
+                  cpu_latency_us):
     import subprocess
 
     th, net = h.start_cell(robot, lambda t: q0, egm_port=port, netft_port=netft, duration_s=seconds + 60.0,
-                           link=link, rt_priority=rt_priority + 10 if rt_priority else 0, transport_delay_cycles=1)
+                           link=link, rt_priority=rt_priority + 10 if rt_priority else 0, transport_delay_cycles=1,
+                           cpus=None if cpu is None else (os.sched_getaffinity(0) - {int(cpu)}) or None)
     log = os.path.join(tmp, "log")
     extra = ["--controller-protocol", protocol, "--duration-s", str(seconds)]
     if protocol == "stream-motion":
@@ -163,6 +174,8 @@ def _run_protocol(tmp, protocol, seconds, rt_priority, cpu, robot, model, payloa
         extra += ["--rt-priority", str(rt_priority)]
     if cpu is not None:
         extra += ["--cpu", str(cpu)]
+    if cpu_latency_us is not None:
+        extra += ["--cpu-latency-us", str(cpu_latency_us)]
     proc = subprocess.Popen(h.compensate_cmd(model, payload, None, egm_port=0 if protocol == "stream-motion" else port,
                                              netft_port=netft, log=log, extra=extra),
                             cwd=h.ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
@@ -231,17 +244,24 @@ def main():
     ap.add_argument("--load", type=int, default=0,
                     help="busy processes beside the compensator, on the machine's last core (default: none)")
     ap.add_argument("--cpu", type=int, default=None, help="compensate --cpu (default: unpinned)")
+    ap.add_argument("--cpu-latency-us", type=int, default=None,
+                    help="compensate --cpu-latency-us, held by this benchmark too for its in-process breakdown and "
+                         "the stall probe (Linux PM QoS; default: not asked)")
     ap.add_argument("--stages-only", action="store_true", help="only the in-process breakdown (no process runs)")
     ap.add_argument("--probe-s", type=float, default=10.0,
                     help="the machine's own stalls measured this long on the loop's CPU before each protocol "
                          "(benchmarks/stall_probe.py; 0: not measured; default: %(default)s)")
     args = ap.parse_args()
     robot = load_robot()
+    qos = CpuLatency(args.cpu_latency_us)  # (system-wide while held: the probe and the breakdown under it too)
+    if qos.warning:
+        print(f"bench_compensate: {qos.warning}", flush=True)
     load = start_load(args.load)
     try:
         return _main(args, robot)
     finally:
         stop_load(load)
+        qos.release()
 
 
 def _main(args, robot):
@@ -271,12 +291,16 @@ def _main(args, robot):
                   f"{probe['steal_s']} s", flush=True)
         load0 = os.getloadavg()[0]
         with tempfile.TemporaryDirectory() as tmp:
-            summary, stats, rss = run_protocol(tmp, protocol, args.seconds, args.rt_priority, args.cpu)
+            summary, stats, rss = run_protocol(tmp, protocol, args.seconds, args.rt_priority, args.cpu,
+                                               args.cpu_latency_us)
         load1 = os.getloadavg()[0]
         c = summary["cycles"]
         comp, age = c["compute_ms"], c["correction_age_ms"]
         rt = (f", SCHED_FIFO priority {args.rt_priority}" if args.rt_priority else ", normal scheduling") + (
-            f", the loop on CPU {args.cpu}" if args.cpu is not None else "")
+            f", the loop on CPU {args.cpu}" if args.cpu is not None else "") + (
+            f", CPU latency request {args.cpu_latency_us} us "
+            f"({'held' if summary['scheduling']['cpu_latency_held'] else 'not held'})"
+            if args.cpu_latency_us is not None else "")
         print(f"{protocol}: robstiff compensate over loopback, cycle 4 ms{rt}, {args.seconds:g} s, {c['messages']} "
               f"messages (load average {load0:.2f} before, {load1:.2f} after, 2 cores)")
         print(f"  computation per message (arrival -> answer, with the session and target checks): median "

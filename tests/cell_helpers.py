@@ -97,7 +97,7 @@ def cutting_wrench(t0=0.8, ramp_s=0.3, force_N=(-300.0, 260.0, 50.0)):
 
 def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=None, wrench=None, rt_priority=0,
                lockstep=False, link=None, supervise=True, transport_delay_cycles=None, cut_s=None,
-               answer_timeout_s=1.0):
+               answer_timeout_s=1.0, cpus=None):
     """A simulated cell (stand-in arm) in a thread; returns (thread, network).
     ``rt_priority``: run the thread under SCHED_FIFO (a controller is hard
     real-time; the benchmark's option); ``cut_s``: end after this much of
@@ -111,6 +111,8 @@ def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=Non
                       netft_http_port=netft_port, lockstep=lockstep, limits=limits, link=link,
                       transport_delay_cycles=transport_delay_cycles, answer_timeout_s=answer_timeout_s)
     def run():
+        if cpus:
+            os.sched_setaffinity(0, set(cpus))
         if rt_priority:
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(rt_priority))
         net.run(duration_s, reference(0.0), cut_s=cut_s)

@@ -126,11 +126,19 @@ def test_a_paused_test_process_does_not_end_the_lockstep_run(tmp_path):
 def test_saturation_is_counted_and_logged(tmp_path):
     """A clamp smaller than the correction the load asks for: the
     saturation's onsets are logged and its cycles counted (before: never)."""
-    cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=2.5, extra=["--saturation-deg", "0.005"])
+    # (and the CPU latency request, --cpu-latency-us: held where this machine allows it, else one warning line;
+    # summary.json says which)
+    cp, stats, log = h.run_compensate_against_cell(tmp_path, duration_s=2.5, extra=["--saturation-deg", "0.005",
+                                                                                    "--cpu-latency-us", "0"])
     assert cp.returncode == 0, cp.stderr
     assert "correction saturated on q" in cp.stderr
-    c = json.load(open(os.path.join(log, "summary.json")))["cycles"]
+    summary = json.load(open(os.path.join(log, "summary.json")))
+    c = summary["cycles"]
     assert c["saturated_cycles"] > 50
+    allowed = os.access("/dev/cpu_dma_latency", os.W_OK)
+    assert summary["scheduling"]["cpu_latency_us"] == 0
+    assert summary["scheduling"]["cpu_latency_held"] is allowed
+    assert ("warning: compensate: --cpu-latency-us 0: cannot open" in cp.stderr) is not allowed
     _, corr, _ = correction_steps(log)
     assert np.abs(corr).max() <= math.radians(0.005) * (1 + 1e-6)
 

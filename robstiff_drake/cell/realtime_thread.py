@@ -4,11 +4,18 @@ CPU of its own (``--cpu``), and the garbage collector kept out of the
 answer's way: the objects made before the loop frozen, the automatic
 collector off while the loop runs, and the collections it would have made
 run by the loop itself after an answer has left (``collect_if_due``),
-never between a message's arrival and its answer.  The start's own work
-runs below the loop (cell/start_gate.below_the_loop)."""
+never between a message's arrival and its answer; and the CPUs kept out
+of their deep idle states while it runs (``--cpu-latency-us``,
+``CpuLatency``).  The start's own work runs below the loop
+(cell/start_gate.below_the_loop)."""
 
 import gc
 import os
+import struct
+
+# Linux's CPU wake-up latency request (PM QoS): a 32-bit int of microseconds written to this file holds while it is
+# open, for every CPU (the kernel's Documentation/power/pm_qos_interface.rst; cyclictest holds it at 0 by default)
+CPU_LATENCY_FILE = "/dev/cpu_dma_latency"
 
 # the CPUs the process could run on before the loop's thread was pinned (threads the loop starts later,
 # which inherit its pin, are given them back: cell/start_gate.below_the_loop); None: not pinned
@@ -69,6 +76,55 @@ def pin_to_cpu(cpu):
         return f"--cpu {cpu}: cannot pin the loop's thread ({e}); running unpinned"
     _ALL_CPUS = allowed
     return None
+
+
+class CpuLatency:
+    """Ask the kernel to keep every CPU's wake-up latency within
+    ``latency_us`` while the loop runs (``--cpu-latency-us``; Linux's PM QoS
+    request: the value written to ``/dev/cpu_dma_latency`` holds until the
+    file is closed, ``release``).  0: the idle CPUs poll instead of halting,
+    as a real-time PC's are usually set up (cyclictest asks the same by
+    default); it costs the power of CPUs that never sleep, on every CPU.
+    The wake-up and the first instructions after it are what it shortens:
+    on this project's 2-core virtual machine a halted virtual CPU is given
+    back to its host, and a message's computation after 4 ms of idle took
+    1.5 times (median) and 2 times (p99) its back-to-back figure
+    (docs/results.md, section 5).  Not permitted (no privilege, no such
+    file: not Linux): ``warning`` says so and the run goes on without it
+    (a scheduling wish never ends a run)."""
+
+    def __init__(self, latency_us, path=CPU_LATENCY_FILE):
+        self.latency_us, self.path, self._fd, self.warning = latency_us, path, None, None
+        if latency_us is None:
+            return
+        try:
+            fd = os.open(path, os.O_WRONLY)
+        except OSError as e:
+            self.warning = (f"--cpu-latency-us {latency_us}: cannot open {path} ({e.strerror or e}); "
+                            "running without it")
+            return
+        try:
+            os.write(fd, struct.pack("=i", int(latency_us)))
+        except OSError as e:
+            os.close(fd)
+            self.warning = (f"--cpu-latency-us {latency_us}: {path} refused the request ({e.strerror or e}); "
+                            "running without it")
+            return
+        self._fd = fd
+
+    @property
+    def held(self):
+        """Whether the request holds (its file open)."""
+        return self._fd is not None
+
+    def release(self):
+        """The request withdrawn (the file closed): the CPUs idle as before."""
+        if self._fd is not None:
+            fd, self._fd = self._fd, None
+            try:
+                os.close(fd)
+            except OSError:
+                pass
 
 
 def unpin_this_thread():

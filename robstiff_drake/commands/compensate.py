@@ -37,7 +37,7 @@ from robstiff_drake.commands.compensate_inputs import CORRECTED_FLAG, check_axis
     endpoint_clash, json_doc, payload_mass_note, payload_robot_note, read_model, read_reference, sensor_timeout_note, \
     wait_for_file
 from robstiff_drake.errors import InputError
-from robstiff_drake.cell.realtime_thread import pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
+from robstiff_drake.cell.realtime_thread import CpuLatency, pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
     realtime as _realtime, restore_gc as _restore_gc
 from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_DEG, DEFAULT_MAX_CORRECTION_MM
 from robstiff_drake.commands.compensate_report import report
@@ -86,8 +86,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         max_correction_mm=DEFAULT_MAX_CORRECTION_MM, max_correction_deg=DEFAULT_MAX_CORRECTION_DEG,
         netft_counts=None, netft_units=None, netft_http_port=80, netft_open_s=2.0,
         wait_s=30.0, duration_s=0.0, idle_exit_s=0.0,
-        sensor_timeout_ms=20.0, rt_priority=0, cpu=None, controller="127.0.0.1", protocol="egm", servo=None,
-        cutter_diameter_mm=None, allow_unstable_loop=False, mode="plain", job=None, preview_sync_ms=25.0,
+        sensor_timeout_ms=20.0, rt_priority=0, cpu=None, cpu_latency_us=None, controller="127.0.0.1", protocol="egm",
+        servo=None, cutter_diameter_mm=None, allow_unstable_loop=False, mode="plain", job=None, preview_sync_ms=25.0,
         preview_force_bound_N=150.0, reference_is_corrected=False, start_tolerance_N=None):
     from robstiff_drake.io import check_outputs
     from robstiff_drake.cell.sensor_checks import DEFAULT_START_TOLERANCE_N
@@ -223,7 +223,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     hold_said = []  # (without a reference: the bound's warning at the hold pose, from the start's work)
     link = _link(protocol, listen_port, ctrl, period_s)
     sensor = NetFTReader(host, port, counts=netft_counts, units=netft_units, http_port=netft_http_port)
-    stream_log = background = remote = None
+    stream_log = background = remote = qos = None
+    qos_held = False
     try:
         if ref.q is None:  # (the hold pose's check: its process started now, asked once the first message comes)
             remote = guard.elsewhere(robot_yaml)
@@ -289,7 +290,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         # millisecond when the loop is busy (the default switch interval, 5 ms, is longer than a cycle)
         switch = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
-        for line in filter(None, (_pin_to_cpu(cpu), _realtime(rt_priority))):  # (not allowed: the run goes on)
+        qos = CpuLatency(cpu_latency_us)  # (held until the run ends: the finally below)
+        qos_held = qos.held
+        for line in filter(None, (_pin_to_cpu(cpu), _realtime(rt_priority), qos.warning)):  # (the run goes on)
             print(f"robstiff: warning: compensate: {line}", file=sys.stderr, flush=True)
             stream_log is not None and stream_log.event(0.0, 0.0, f"warning: {line}")
         for line in start_warnings if stream_log is not None else ():
@@ -322,6 +325,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             _restore_gc(gc_frozen)
             sys.setswitchinterval(switch)
     finally:
+        if qos is not None:
+            qos.release()  # (the CPUs idle as before: the request withdrawn however the run ended)
         if background is not None:
             background.stop()
         if remote is not None:
@@ -340,6 +345,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             "max_correction_mm": max_correction_mm, "max_correction_deg": max_correction_deg,
             "sensor_timeout_ms": sensor_timeout_ms, "start_tolerance_N": start_tolerance_N},
         mode=mode, job=str(job) if job else None,
+        # (what the loop asked of the machine, and what it was given: a wish not allowed says so in the events)
+        scheduling={"rt_priority": rt_priority, "cpu": cpu, "cpu_latency_us": cpu_latency_us,
+                    "cpu_latency_held": qos_held},
         # (None: the correction computed online; else why it was held at zero: a corrected reference)
         correction_held_at_zero=correction_off), notes=(play_line, play_summary, bound_line, start_warnings),
         missing=(servo, cutter_diameter_mm))

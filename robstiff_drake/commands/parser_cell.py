@@ -154,3 +154,8 @@ def add_cell_commands(sub):
     p.add_argument("--cpu", type=_number_in(0, 4095, integer=True), default=None,
                    help="keep the loop's thread on this CPU (Linux; a warning and unpinned when not allowed; "
                         "default: where the scheduler puts it)")
+    p.add_argument("--cpu-latency-us", type=_number_in(0, 100000, "us", integer=True), default=None,
+                   help="ask the kernel to keep every CPU's wake-up latency within this many microseconds while "
+                        "the loop runs (Linux PM QoS, /dev/cpu_dma_latency, as cyclictest does; 0: idle CPUs poll, "
+                        "using power; needs the privilege: a warning and not held when not allowed; default: "
+                        "not asked)")
