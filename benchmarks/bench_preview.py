@@ -51,7 +51,7 @@ class _Loop:
     """What PreviewDeflection.update reads of cell/compensate.CompensatorLoop."""
 
     def __init__(self, comp):
-        self.comp, self.faults, self.t_session, self.q_deg = comp, {}, 0.0, None
+        self.comp, self.faults, self.t_session, self.t_ref, self.q_deg = comp, {}, 0.0, 0.0, None
         self.events = []
 
     def event(self, text):
@@ -98,7 +98,7 @@ def main():
         # the sensor reads the job's model wrench (as the cut it describes would) and noise
         w_model = plan.replica[k].sum(axis=0)
         samples = [(w_model + rng.normal(size=6) * 10.0).tolist() for _ in range(int(RATE_HZ * PERIOD_S))]
-        loop.t_session, loop.q_deg = t, q_deg
+        loop.t_session, loop.t_ref, loop.q_deg = t, t, q_deg
         start, cpu = time.perf_counter(), time.thread_time()
         for w in samples:
             comp.sensor_sample(w)

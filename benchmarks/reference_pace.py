@@ -9,7 +9,19 @@ most the reference was ahead of the slower of the two and behind it (ms).
 
 The figures in docs/real_cell.md ("Sequence and clock") and in
 cell/session.py's docstring come from this script (before: the same script
-over the code before the change)."""
+over the code before the change).
+
+Then a path moving at a rapid's joint speeds (0.6 of the axis speeds) and at
+a cutting feed (2 deg/s) while the controller's clock stalls for 50 messages
+and through a controller restart (tests/test_reference_stop.py's ``drive``:
+the real send path's checks, the
+correction held at zero), with the played reference's rate
+(cell/reference_rate.py) and without it (before): the largest commanded
+second difference over the acceleration limit * T^2 and over the
+supervision's bound (10 times it), the targets refused and the messages
+unanswered, the stop's time (from the stall's first message to the first
+commanded step of zero), the most the played time led the clock and how far
+behind it it ends."""
 
 import os
 import sys
@@ -61,5 +73,36 @@ def main():
               f"at most {(slower - ts).max() * 1e3:.1f} ms", flush=True)
 
 
+def stops():
+    from test_reference_stop import STALL, T, drive, speeds, stalled
+
+    from robstiff_drake.cell.safety import SUPERVISION_ACCEL
+    from robstiff_drake.model.robot import load_robot
+
+    robot = load_robot()
+    acc_T2 = np.asarray(robot.acceleration_limit_deg_per_s2) * T**2
+    k = np.arange(200)
+    scenarios = [("a stall of 50 messages, the clock on from its stalled stamp", stalled(resume="on")),
+                 ("a stall of 50 messages, the stalled time back in one step", stalled(resume="back")),
+                 ("a controller restart after 200 messages", (np.r_[1 + k, 1 + k], np.r_[500 + 4 * k, 4 * k]))]
+    for case in ("rapid", "feed"):
+        for name, (seqs, stamps) in scenarios:
+            for ramp in (False, True):
+                loop, cmd, ts, tr, _ = drive(robot, speeds(robot, case), seqs, stamps, ramp=ramp)
+                worst = (np.asarray(loop.link.tried_d2) / acc_T2).max()  # (of every target checked: refused too)
+                still = np.flatnonzero((np.abs(np.diff(cmd, axis=0)) < 1e-12).all(axis=1))
+                first = still[still >= STALL[0] - 1]
+                stop = ""
+                if "stall" in name and len(cmd) == len(seqs):
+                    stop = f"; stop in {(first[0] - (STALL[0] - 1)) * T:.3f} s" if len(first) else "; no stop"
+                v = speeds(robot, case)
+                print(f"[{name}, {case} (q1 {v[0]:g} deg/s), {'with the rate' if ramp else 'before'}] largest "
+                      f"second difference {worst:.2f} x the acceleration limit * T^2 ({worst / SUPERVISION_ACCEL:.3f} "
+                      f"x the supervision's bound); {loop.n.refused} refused, {loop.n.unanswered_refused} "
+                      f"unanswered{stop}; lead over the clock at most {(tr - ts).max() * 1e3:.1f} ms; behind it at "
+                      f"the end {(ts[-1] - tr[-1]) * 1e3:.1f} ms", flush=True)
+
+
 if __name__ == "__main__":
     main()
+    stops()

@@ -210,7 +210,7 @@ def test_loop_under_a_lying_controller_and_sensor_never_commands_beyond_its_boun
             sent = link.sent
             loop.cycle(msg, t, dt)
             if link.sent > sent:
-                _check_pose(robot, link.commanded[-1], ref.at(loop.t_session)[0], loop.q, comp, max_mm, 0.0, k)
+                _check_pose(robot, link.commanded[-1], ref.at(loop.t_ref)[0], loop.q, comp, max_mm, 0.0, k)
     finally:
         link.close()
         sink.close()
@@ -281,7 +281,7 @@ def _rsi_loop(robot, script, *, max_mm=5.0, n=800, seed=0):
                 loop.cycle(msg, t, dt)
             if link.sent > sent:
                 pose = krc.read(sink.recv(65536))
-                ref_deg = ref.at(loop.t_session)[0]
+                ref_deg = ref.at(loop.t_ref)[0]
                 worst = max(worst, float(np.abs(pose - np.asarray(ref_deg)).max()))
                 lo, hi = np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad)
                 assert ((pose >= lo - 1e-6) & (pose <= hi + 1e-6)).all(), (k, pose)

@@ -22,6 +22,7 @@ T, RATE_HZ = 0.004, 1000.0
 class _Loop:
     def __init__(self, comp):
         self.comp, self.faults, self.t_session, self.q_deg = comp, {}, 0.0, None
+        self.t_ref = 0.0  # (the reference's played time the table follows: the session's here)
 
     def event(self, text):
         raise AssertionError(f"the preview stopped: {text}")
@@ -70,7 +71,7 @@ def test_the_tables_cycle_is_the_drake_blocks(plan):
         ctx.SetDiscreteState(state)
         ref = dq_port.Eval(ctx)
         comp.process_wrench = w.tolist()
-        loop.t_session = t
+        loop.t_session = loop.t_ref = t
         prev.update(loop, type("M", (), {"tm_ms": int(round(t * 1e3))})())
         got = np.asarray(prev.dq(w.tolist(), q.tolist()))
         worst = max(worst, float(np.max(np.abs(got - ref))))

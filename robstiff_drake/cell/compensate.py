@@ -8,8 +8,10 @@ For every message the controller sends (every 4 ms on an IRC5; RSI 4 or
    cell/session_faults.py): a duplicate or
    an older datagram is dropped unanswered; a jump or a clock that
    disagrees with the sequence is a fault; the reference advances by a
-   bounded step, its time never ahead of the sequence's nor of the
-   controller's clock since the run's start;
+   bounded step, its time never ahead of the sequence's nor (but for a
+   stop's lead, cell/reference_rate.py: a stalled clock's stop and
+   restart within the robot's accelerations) of the controller's clock
+   since the run's start;
 2. reads the measured joint angles (the controller's degrees, mapped to
    the model's joints through the robot file's ``controller:`` block);
 3. takes every Net F/T record received since the last message through
@@ -52,6 +54,7 @@ from robstiff_drake.cell.loop_settings import LoopSettings  # noqa: F401 (tests 
 from robstiff_drake.cell.loop_stats import loop_stats
 from robstiff_drake.cell.realtime_thread import collect_if_due
 from robstiff_drake.cell.reference import Reference  # noqa: F401 (the loop's reference; commands import it here)
+from robstiff_drake.cell.reference_rate import ReferenceRate
 from robstiff_drake.cell.safety import Envelope, UnsafeTarget, clamp_deg, pose_limits_deg, pose_problem_within, \
     supervision_tolerances
 from robstiff_drake.cell.sensor_checks import SensorChecks
@@ -100,7 +103,11 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         # last clock seen, the run of its steps alike, and the controller's cycle in periods once named, else 1)
         self._cycle_tm, self._cycle_run, self._cycle_periods = None, None, 1.0
         self.ok_since_fault = 0
-        self.t_session = 0.0
+        self.t_session = 0.0  # the controller's time since the session's start (s; cell/session.py)
+        # the reference's played time (s): the session's allowance through the rate bounded by the robot's
+        # accelerations (cell/reference_rate.py; None: no limits, or a held reference: the allowance as it is)
+        self.t_ref = 0.0
+        self.rate = ReferenceRate.of(settings.period_s, robot, reference, say=self.event)
         self.q = None  # the model's joint angles (rad)
         self.q_deg = None  # the controller's (deg)
         self.t_q_good = self.t_sensor_good = self.t_sensor_rejecting = self.t_sensor_invalid = None
@@ -191,6 +198,7 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         (``Counters.over_deadline``; not before the start's catch-up)."""
         self.n.received += 1
         self.t_session += dt
+        self.t_ref += dt if self.rate is None else self.rate.step(dt, msg.seq, self.ref, self.t_ref)
         self._feedback(msg.joints_deg, t_arr)
         self._read_sensor(t_arr)
         if self.gate is not None:
@@ -212,7 +220,7 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
             corr_deg = np.degrees(self._Ginv @ np.asarray(corr)).tolist()
         if self.preview is not None:
             self.preview.sent(corr_deg)
-        ref_deg, m1, mf = self.ref.at(self.t_session)
+        ref_deg, m1, mf = self.ref.at(self.t_ref)
         target = [r + c for r, c in zip(ref_deg, corr_deg)]
         env = Envelope(self._lo, self._hi, tuple(ref_deg), tuple(c + m for c, m in zip(self._clamp, m1)),
                        tuple(self.q_deg), tuple(c + m for c, m in zip(self._clamp, mf)), *self._supervision)

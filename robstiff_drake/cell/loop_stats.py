@@ -45,7 +45,11 @@ def loop_stats(loop):
             "controller_gaps": n.gaps_over, "over_budget": int(sum(n.compute_ms.counts[int(T * 1e3 / BIN_MS):])),
             "sensor_records": n.sensor_records, "sensor_clipped": n.sensor_clipped,
             "moment_spikes": n.moment_spikes, "saturated_cycles": n.saturated_cycles,
-            "stale_correction_s": n.stale_s, "fault_onsets": n.fault_onsets, "ended_by": loop.ended_by,
+            "stale_correction_s": n.stale_s,
+            # (the played reference's stops and restarts within the robot's accelerations: cell/reference_rate.py;
+            # None: the allowance played as it is, no acceleration limits or a held reference)
+            "reference_rate": loop.rate.summary() if getattr(loop, "rate", None) is not None else None,
+            "fault_onsets": n.fault_onsets, "ended_by": loop.ended_by,
             # (the correction's tool-motion bound: faults, cycles beyond, the largest sent; cell/correction_bound.py)
             "correction_bound": loop.bound.summary() if getattr(loop, "bound", None) is not None else None,
             # (the start's reading against the payload calibration, the record rate: cell/sensor_checks.py)

@@ -136,8 +136,10 @@ class PreviewDeflection:
     ``plain``) but for the bracket and the table's correction (module
     docstring); ``update(loop, msg)`` once per controller cycle before the
     chain's tick (the table's row, the checks, the scales); ``sent(corr)``
-    after it.  The table's row is the one nearest the session's time (the
-    controller's clock steps by whole periods)."""
+    after it.  The table's row is the one nearest the played reference's
+    time, ``loop.t_ref`` (the session's time but for a stalled clock's stop
+    and restart: cell/reference_rate.py; the controller's clock steps by
+    whole periods)."""
 
     def __init__(self, plain, plan, *, sync_s, force_bound_N, force_bound_fraction):
         self.plain = plain
@@ -185,14 +187,14 @@ class PreviewDeflection:
     # -- once per cycle -------------------------------------------------------------------------------------------
     def stop(self, loop, why):
         self.active = False
-        self.fallback = (loop.t_session, why)
+        self.fallback = (loop.t_ref, why)
         loop.event(f"preview: {why}; plain compensation from now on (the correction moves to the plain chain's at "
                    "the rate limit)")
 
     def update(self, loop, msg):
         if not self.active:
             return
-        t = loop.t_session
+        t = loop.t_ref  # (the reference's played time: the table is the path's, cell/reference_rate.py)
         if t > self.end_s:
             return self.stop(loop, f"the job's table ended (t = {t:.3f} s, table to {self.end_s:.3f} s)")
         tm = msg.tm_ms

@@ -76,6 +76,22 @@ class Reference:
         b = self._tab[i + 1, :6].tolist()
         return [x + f * (y - x) for x, y in zip(a[:6], b)], m1, mf
 
+    def speed_at(self, t_s):
+        """The reference's own joint speeds around t_s (list, deg/s): per
+        joint the larger of its row segment's at t_s and the next one's
+        (finite differences of the rows; 0 beyond the ends and for a
+        hold) (scalar code: a few microseconds)."""
+        if self._n < 2 or t_s >= self._t_end:
+            return [0.0] * 6
+        i = self._index(t_s)  # (0 before the start: its first segments, a bound)
+        t, tab = self.t, self._tab
+        j = min(i + 2, self._n - 1)
+        a, b, c = tab[i, :6].tolist(), tab[i + 1, :6].tolist(), tab[j, :6].tolist()
+        h1 = float(t[i + 1] - t[i])
+        h2 = float(t[j] - t[i + 1]) if j > i + 1 else 0.0
+        return [max(abs(y - x) / h1 if h1 > 0.0 else 0.0, abs(z - y) / h2 if h2 > 0.0 else 0.0)
+                for x, y, z in zip(a, b, c)]
+
     @property
     def duration_s(self):
         return float(self.t[-1])

@@ -51,7 +51,7 @@ FILES = {
                                    + [f"correction_q{j}_rad" for j in range(1, 7)]
                                    + [f"q{j}_deg" for j in range(1, 7)]),
     "cycles.csv": (["t_s", "seqno"] + [f"measured_q{j}_deg" for j in range(1, 7)]
-                   + ["compute_ms", "age_ms", "fault", "sent", "queued_ms", "late"]),
+                   + ["compute_ms", "age_ms", "fault", "sent", "queued_ms", "late", "t_ref_s"]),
     "events.csv": ["t_s", "t_controller_s", "event"],
 }
 NOTES = {
@@ -75,7 +75,8 @@ NOTES = {
                   "time stamp: the loop's wake-up; empty where the system gives no stamp; compute_ms + queued_ms: "
                   "from its arrival to the answer), and whether the answer was late (1: the controller's next cycle "
                   "came without it: the next message was already waiting when it left, or it left more than the "
-                  "controller's cycle after the message's arrival).",
+                  "controller's cycle after the message's arrival), and the reference's played time (t_ref_s, s: "
+                  "t_s but for a stalled clock's stop and restart within the robot's accelerations).",
     "events.csv": "events: every fault's start and end and every event of the run, with its time (t_s: s since "
                   "the first message, this PC's clock; t_controller_s: the controller's clock, the other logs' t_s).",
 }
@@ -226,4 +227,4 @@ class StreamLog:
         c["cycles.csv"].append(",".join([t, str(msg.seq)] + [format(v, ".7g") for v in loop.q_deg]
                                         + [_num(compute_s * 1e3), _num(age_s * 1e3), "1" if loop.faults else "0",
                                            "1" if sent else "0", _num(msg.queued_s * 1e3),
-                                           "1" if late else "0"]) + "\n")
+                                           "1" if late else "0", format(loop.t_ref, ".6f")]) + "\n")

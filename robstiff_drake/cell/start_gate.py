@@ -205,7 +205,7 @@ class LoopStart:
             self.event(f"preview: the job's table could not be computed ({bg.error}); plain compensation to the end")
             return
         pv = bg.preview
-        pv.t_ctrl = self.t_session  # (its check of the controller's clock counts from the session's time now)
+        pv.t_ctrl = self.t_ref  # (its check of the controller's clock counts from the played reference's time now)
         self.preview = self.comp.model = pv
         self.note(f"preview: the job's table is ready ({pv.n} cycles, computed in {bg.seconds:.2f} s in another "
                    "process); previewing from now on (the correction moves to the preview's at the rate limit)")

@@ -1,0 +1,171 @@
+"""The pace the joint reference is played at: a stop and a restart within
+the robot's acceleration when the controller's clock stalls.
+
+The session's clock (cell/session.py ``SessionClock._pace``) allows the
+reference a step each message, ``dt_allowed_s``: the slower of the
+sequence's and the controller's clock's time since the run's start; 0
+while the clock stalls or went back.  Played as it is, a stall stops the
+streamed path within one cycle at whatever speed it had, and the clock
+running again takes the path to its full speed within one cycle: at a
+rapid's speed a step change the controller's motion supervision refuses
+(cell/safety.py ``SUPERVISION_ACCEL``), at a cutting feed a jerk it lets
+through.  ``ReferenceRate.step`` turns that allowance into the step
+actually played, ``dt_played_s``, through a rate ``r`` in [0, 1]
+(reference seconds per sequence second) whose change per message is
+bounded so that every joint's acceleration from the time-scaling,
+|qdot_ref_j(tau)| * |dr/dt|, stays within ``ACCEL_FRACTION`` of the robot
+file's ``acceleration_limit_deg_per_s2[j]`` (qdot_ref: the reference's own
+joint speed around the played time, ``Reference.speed_at``; dt: the
+sequence's step, the controller's time per message).
+
+Rules:
+
+* Following (r = 1, nothing played ahead of the clock) the step is the
+  allowance, exactly as before, while it is within the clock's resolution
+  (``CLOCK_RESOLUTION_S``) of the sequence's step: an honest clock's 1 ms
+  stamp jitter (steps of 3, 5, 4 ms) plays as it did.
+* Otherwise the step is the one that puts the played time on the allowed
+  time, within [r - dr, r + dr] times the sequence's step and never more
+  than the sequence's own step (the sequence is the other witness of
+  time: the played time is never ahead of the sequence's).
+* Decelerating, the played time runs ahead of the clock's: that lead is
+  kept, and r does not rise while any is left: it stays (0 after a full
+  stop) until the clock's time has caught up, then ramps up, never above
+  1.  What the ramp up plays behind the clock is forgotten (as the time a
+  stalled clock held the reference is): after a stop from full speed v
+  and a restart the played reference is about v / (2 a) s behind where it
+  would have been.
+* A jump or a restart of the session (SessionClock's "jump" verdicts:
+  their step is at most one period) is one more message through the same
+  rule, the rate and the lead carried across: the played path's speed
+  never steps there either (a restarted controller that stands still
+  meanwhile is its own supervision's matter, as before).
+
+The lead.  A stop from full speed takes at most ``stop_bound_s`` =
+max_j v_j / (ACCEL_FRACTION a_j) of the sequence's time (v_j: the robot
+file's axis speeds, which a reference is checked against; about v / a for
+the joint that sets the pace) and plays at most that much reference time
+ahead of a clock that stalled at its start, about v / (2 a) s (v^2 / (2 a)
+of path) at a constant speed; a clock that runs again meanwhile shortens
+it.  ``max_lead_s`` is the most seen (the run log: cycles.csv's t_ref_s
+against its t_s; summary.json's ``reference_rate``).
+
+Without acceleration limits in the robot file, or on a held (constant)
+reference, ``of`` returns None: the loop plays the allowance as before.
+
+Per message: two comparisons while following; a few float operations and
+one ``speed_at`` (two or three rows of the reference) under a ramp.
+"""
+
+import math
+
+from robstiff_drake.cell.session import MAX_JUMP, WRAP
+
+# ASSUMPTION: the time-scaling may use the robot file's whole acceleration limit (1.0 of it), on top of the
+# reference's own acceleration: the limit is what the file says the arm's planner ramps with (models/*.yaml: full
+# axis speed in 0.25 s, no maker publishes it), the controller's supervision lets ten times it through
+# (cell/safety.py SUPERVISION_ACCEL), and a smaller fraction lengthens the stop and the lead in proportion (a stop
+# from 100 deg/s at 400 deg/s^2 takes 0.25 s and plays 0.125 s of the path ahead of the stalled clock; at 0.5 of
+# it, 0.5 s and 0.25 s).
+ACCEL_FRACTION = 1.0
+# The controllers' clock stamps are whole milliseconds (EGM, Stream Motion, RSI's IPOC): an honest clock's step
+# is the sequence's within 1 ms, and an allowance that short of the sequence's step is played as it is.
+CLOCK_RESOLUTION_S = 1e-3
+
+
+class ReferenceRate:
+    """``step(dt_allowed_s, seq, reference, t_ref_s)`` -> the step to
+    play (s); ``r`` the rate, ``lead_s`` the played time ahead of the
+    allowed one (s)."""
+
+    def __init__(self, period_s, accel_deg_per_s2, speed_deg_per_s=None, fraction=ACCEL_FRACTION, say=None):
+        self.T = float(period_s)
+        self.seq = None  # the last message's sequence number
+        self.fraction = float(fraction)
+        self.acc = [self.fraction * float(a) for a in accel_deg_per_s2]
+        v = speed_deg_per_s
+        # (a stop from full speed: at most this long on the sequence's time; None without the axis speeds)
+        self.stop_bound_s = None if v is None else max(float(s) / a for s, a in zip(v, self.acc))
+        self.say = say  # (a line at a ramp's start and at its end; None: silent)
+        self.r = 1.0
+        self.lead_s = 0.0
+        self.following = True
+        self.messages = 0  # messages played under a ramp
+        self.ramps = 0  # ramps begun
+        self.max_lead_s = 0.0
+        self.min_rate = 1.0
+        self._lag_s = 0.0  # the time the ramps up played behind the clock, forgotten (s)
+        self._ramp_messages = self._ramp_lead_s = 0
+
+    @classmethod
+    def of(cls, period_s, robot, reference, say=None):
+        """The rate for ``robot``'s limits, or None (the allowance played as it is): no acceleration limits in
+        the robot file, or a held reference."""
+        a = getattr(robot, "acceleration_limit_deg_per_s2", None)
+        if a is None or getattr(reference, "t", None) is None or len(reference.t) < 2:
+            return None
+        return cls(period_s, list(a), getattr(robot, "speed_limit_deg_per_s", None), say=say)
+
+    def seq_step_s(self, seq):
+        """The sequence's step to message ``seq`` (s: the controller's time
+        this message; one period for a jump or a restart, 0 for the first)."""
+        last, self.seq = self.seq, seq
+        if last is None:
+            return 0.0
+        ds = (seq - last) % WRAP
+        return ds * self.T if 0 < ds <= MAX_JUMP else self.T
+
+    def step(self, dt_allowed_s, seq, reference, t_ref_s):
+        """The step to play this message (s): ``dt_allowed_s`` the session
+        clock's allowance, ``seq`` the message's sequence number,
+        ``reference.speed_at(t_ref_s)`` the reference's joint speeds (deg/s)
+        around the played time."""
+        dt_seq_s = self.seq_step_s(seq)
+        if self.following:
+            if dt_allowed_s >= dt_seq_s - CLOCK_RESOLUTION_S:
+                return dt_allowed_s
+            self.following = False
+            self.ramps += 1
+            self._ramp_messages, self._ramp_lead_s = 0, 0.0
+            if self.say is not None:
+                bound = ("" if self.stop_bound_s is None else
+                         f" (a stop from full speed in at most {self.stop_bound_s:.3f} s)")
+                self.say(f"reference: the controller's clock allows {dt_allowed_s * 1e3:.1f} ms of a "
+                         f"{dt_seq_s * 1e3:.1f} ms message: the played reference slows within the robot's "
+                         f"acceleration limits{bound}")
+        if dt_seq_s <= 0.0:
+            played = 0.0
+        else:
+            # the rate's change this message: |qdot_j| * dr/dt <= acc_j on every joint
+            k = math.inf
+            for a, v in zip(self.acc, reference.speed_at(t_ref_s)):
+                if v * k > a:
+                    k = a / v
+            dr = k * dt_seq_s
+            r, lead = self.r, self.lead_s
+            hi = (min(1.0, r + dr) if lead <= 0.0 else r) * dt_seq_s  # (no rise while ahead of the clock)
+            lo = max(0.0, r - dr) * dt_seq_s
+            played = min(max(dt_allowed_s - lead, lo), hi)
+            self.r = played / dt_seq_s
+        lead = self.lead_s + played - dt_allowed_s
+        if lead < 0.0:
+            self._lag_s -= lead
+            lead = 0.0
+        self.lead_s = lead
+        self.messages += 1
+        self._ramp_messages += 1
+        self.max_lead_s = max(self.max_lead_s, lead)
+        self._ramp_lead_s = max(self._ramp_lead_s, lead)
+        self.min_rate = min(self.min_rate, self.r)
+        if self.r >= 1.0 and lead == 0.0:
+            self.r, self.following = 1.0, True
+            if self.say is not None:
+                self.say(f"reference: played at the clock's pace again after {self._ramp_messages} messages under "
+                         f"the ramp (at most {self._ramp_lead_s * 1e3:.1f} ms of the path played ahead of the "
+                         f"clock; {self._lag_s * 1e3:.1f} ms behind it in all now)")
+        return played
+
+    def summary(self):
+        return {"messages_under_ramp": self.messages, "ramps": self.ramps, "max_lead_ms": self.max_lead_s * 1e3,
+                "lowest_rate": self.min_rate, "behind_clock_ms": self._lag_s * 1e3,
+                "stop_bound_s": self.stop_bound_s, "accel_fraction": self.fraction}

@@ -1,0 +1,207 @@
+"""A controller clock that stalls while its messages keep coming: the
+played reference stops and starts again within the robot's accelerations
+(cell/reference_rate.py), not within one cycle.  The loop's own methods
+(``_session``, ``cycle``) over scripted messages and a send path that makes
+the real one's checks (cell/safety.py ``unsafe_reason``, ``motion_reason``
+with the supervision's step and acceleration tolerances): no socket, no
+timing.  The correction is held at zero (``correction_off``): the commanded
+path is the played reference.
+
+Before: the reference held within one cycle of the stall and took up its
+speed within one cycle when the clock ran again.  At a rapid's joint speeds
+(0.6 of the robot file's axis speeds) the stop's target was refused by the
+supervision (a step change of 0.24 deg on q1 where it allows 0.064), its
+fallback too, and the message went unanswered; at a cutting feed (2 deg/s)
+the stop went through at 1.25 times the acceleration limit * T^2 (within
+the supervision's 10 times: a jerk on a real arm)."""
+
+import io
+import math
+
+import numpy as np
+import pytest
+
+import cell_helpers as h
+from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
+from robstiff_drake.cell.link import Message
+from robstiff_drake.cell.safety import UnsafeTarget, motion_reason, unsafe_reason
+
+T = 0.004
+RAPID = 0.6  # a rapid: this fraction of the robot file's axis speeds on every joint
+FEED_DEG_PER_S = 2.0  # a cutting feed's joint speeds (about 50 mm/s at the tool of a 2.5 m arm)
+STALL = (100, 150)  # the messages whose clock stamp is the one before (the clock stalled)
+
+
+class _CheckedLink:
+    """A send path with the real one's checks (cell/link.PCLink.send_targets): the commanded poses kept, and
+    the largest second difference (deg, per joint) of every target checked, sent or refused."""
+
+    name, option, port, cycles_ms = "EGM", "--egm-port", 0, (4.0,)
+    strangers = malformed = 0
+
+    def __init__(self):
+        self.commanded = []
+        self.tried_d2 = [0.0] * 6
+
+    def send_targets(self, msg, target, env):
+        if len(self.commanded) >= 2:
+            p2, p1 = self.commanded[-2:]
+            self.tried_d2 = [max(m, abs(x - 2.0 * b + a)) for m, x, b, a in zip(self.tried_d2, target, p1, p2)]
+        reason = unsafe_reason(target, env) or motion_reason(target, env, self.commanded[-2:])
+        if reason is not None:
+            raise UnsafeTarget(reason)
+        self.commanded.append(list(target))
+
+
+class _Sensor:
+    def __init__(self, w, clock):
+        self.w, self.clock = w, clock
+
+    def drain(self):
+        return [(list(self.w), self.clock[0], 0, False)]
+
+
+def path(robot, speed_deg_per_s, duration_s=2.0):
+    """A straight joint path at constant joint speeds (deg/s), rows every T, through the working ranges' middle
+    at half its duration: (times s, q deg)."""
+    lo, hi = np.degrees(robot.q_lower_rad), np.degrees(robot.q_upper_rad)
+    v = np.asarray(speed_deg_per_s, dtype=float) * np.ones(6)
+    t = np.arange(0.0, duration_s + 1e-9, T)
+    q = 0.5 * (lo + hi) + v * (t[:, None] - 0.5 * duration_s)
+    assert (q > lo).all() and (q < hi).all()
+    return t, q
+
+
+def drive(robot, speed_deg_per_s, seqs, stamps_ms, ramp=True):
+    """The loop over messages (``seqs``, ``stamps_ms``), the arm at the last pose commanded; returns (loop, the
+    poses commanded (one per answered message, deg), t_session after each message, the played reference's time
+    after each message (t_session where there is none: before), the loop's text).  ``ramp`` False: the loop's
+    rate taken away, the session's allowance played as it is (the loop before cell/reference_rate.py)."""
+    t_ref, q_ref = path(robot, speed_deg_per_s)
+    ref = Reference(t_ref, q_ref, period_s=T)
+    clock = [1000.0]
+    w = h.hold_wrench(robot, np.radians(q_ref[0]))(0.0)
+    out = io.StringIO()
+    link = _CheckedLink()
+    loop = CompensatorLoop(h.hold_compensator(robot, list(w)), link, _Sensor(list(w), clock), ref, robot,
+                           LoopSettings(period_s=T, max_jump_Nm=350.0, max_correction_mm=math.inf,
+                                        max_correction_deg=math.inf, start_tolerance_N=math.inf,
+                                        sensor_rate_hz=250.0, correction_off="held at zero in the test"), out=out)
+    loop.pc_time = lambda: clock[0]
+    if not ramp:
+        loop.rate = None
+    ts, tr = [], []
+    for i, (seq, tm) in enumerate(zip(seqs, stamps_ms)):
+        arm = link.commanded[-1] if link.commanded else q_ref[0].tolist()
+        msg = Message(int(seq) % 2**32, int(tm) % 2**32, list(arm), echo=int(seq))
+        if i == 0:
+            loop.run_start(msg, clock[0])
+        else:
+            clock[0] += T
+            ok, dt = loop._session(msg)
+            if ok:
+                loop.cycle(msg, clock[0], dt)
+        ts.append(loop.t_session)
+        tr.append(getattr(loop, "t_ref", loop.t_session))
+    return loop, np.array(link.commanded), np.array(ts), np.array(tr), out.getvalue()
+
+
+def stalled(n=400, resume="on"):
+    """Seqs and stamps (ms): 4 ms a message, the stamp stuck for the messages in STALL; then on from the stalled
+    stamp ("on") or from where it would have been ("back": the stalled time in one step)."""
+    k = np.arange(n)
+    a, b = STALL
+    after = 4 * (a - 1) + 4 * (k - b + 1) if resume == "on" else 4 * k
+    return 1 + k, 500 + np.where(k < a, 4 * k, np.where(k < b, 4 * (a - 1), after))
+
+
+def speeds(robot, case):
+    return RAPID * robot.speed_limit_deg_per_s if case == "rapid" else FEED_DEG_PER_S * np.ones(6)
+
+
+@pytest.mark.parametrize("resume", ["on", "back"])
+@pytest.mark.parametrize("case", ["rapid", "feed"])
+def test_a_stalled_clock_stops_and_restarts_the_path_within_the_robots_accelerations(robot, case, resume):
+    """Every commanded step changes by at most the acceleration limit * T^2 per joint (the reference's own speed
+    is constant), nothing refused or unanswered, the played time never ahead of the sequence's, and its lead over
+    the stalled clock within v / (2 a) (+ a period).  Before: at a rapid, 0.24 deg where the supervision allows
+    0.064 (refused, unanswered); at a feed 1.25 times the limit."""
+    seqs, stamps = stalled(resume=resume)
+    loop, cmd, ts, tr, text = drive(robot, speeds(robot, case), seqs, stamps)
+    acc_T2 = np.asarray(robot.acceleration_limit_deg_per_s2) * T**2
+    d2 = np.abs(np.diff(cmd, 2, axis=0))
+    assert loop.n.refused == 0 and loop.n.unanswered_refused == 0, text
+    assert len(cmd) == len(seqs)
+    worst = (d2 / acc_T2).max()
+    assert worst <= 1.0 + 1e-6, worst
+    seq_s = (seqs - seqs[0]) * T
+    assert (tr <= seq_s + 1e-12).all(), (tr - seq_s).max()
+    v_over_a = float((speeds(robot, case) / np.asarray(robot.acceleration_limit_deg_per_s2)).max())
+    lead = (tr - ts).max()
+    assert lead <= 0.5 * v_over_a + T + 1e-9, (lead, v_over_a)
+    assert lead <= loop.rate.stop_bound_s
+    # the path stopped within the stall and moves at its speed again at the end
+    a, b = STALL
+    assert cmd[b - 1].tolist() == cmd[b - 2].tolist()
+    assert np.allclose(cmd[-1] - cmd[-2], speeds(robot, case) * T)
+    # said once at the stop's start and once at its end, and counted
+    assert text.count("the played reference slows") == 1 and text.count("at the clock's pace again") == 1, text
+    assert loop.stats()["reference_rate"]["messages_under_ramp"] == loop.rate.messages > 50
+    # the loop without the rate (before): the stop within one cycle
+    loop, cmd, _, _, _ = drive(robot, speeds(robot, case), seqs, stamps, ramp=False)
+    if case == "rapid":
+        assert loop.n.refused > 0 and loop.n.unanswered_refused > 0
+    else:
+        assert loop.n.refused == 0 and (np.abs(np.diff(cmd, 2, axis=0)) / acc_T2).max() > 1.2
+
+
+@pytest.mark.parametrize("case", ["rapid", "feed"])
+def test_a_controller_restart_mid_path_keeps_the_paths_speed_within_the_accelerations(robot, case):
+    """The controller restarts after 200 messages (numbered from 1 again, its clock from 0): the session's
+    "jump", whose step is 0 there (its clock went back), goes through the rate like any message, the rate and
+    its lead carried across.  Before: a stop within one cycle, at a rapid 37.5 times the acceleration limit *
+    T^2: refused, unanswered."""
+    k = np.arange(200)
+    seqs, stamps = np.r_[1 + k, 1 + k], np.r_[500 + 4 * k, 4 * k]
+    acc_T2 = np.asarray(robot.acceleration_limit_deg_per_s2) * T**2
+    for ramp in (True, False):
+        loop, cmd, ts, tr, text = drive(robot, speeds(robot, case), seqs, stamps, ramp=ramp)
+        assert loop.n.jumps == 1, text
+        worst = (np.asarray(loop.link.tried_d2) / acc_T2).max()
+        if ramp:
+            assert loop.n.refused == 0 and loop.n.unanswered_refused == 0 and len(cmd) == len(seqs), text
+            assert worst <= 1.0 + 1e-6, worst
+            assert (tr - ts).max() <= T + 1e-9 and np.allclose(cmd[-1] - cmd[-2], speeds(robot, case) * T)
+        elif case == "rapid":
+            assert loop.n.unanswered_refused > 0 and worst > 10.0
+        else:
+            assert worst > 1.2
+
+
+def test_an_honest_clock_plays_the_path_exactly_as_before(robot):
+    """A rapid under an honest clock whose stamps jitter by -1, 0 or +1 ms (whole ms, fixed seed): the played
+    time is the session's at every message, the commanded poses the reference at it, no ramp."""
+    n = 400
+    k = np.arange(n)
+    jitter = np.random.default_rng(5).integers(-1, 2, n)
+    jitter[0] = 0
+    loop, cmd, ts, tr, text = drive(robot, 0.1 * robot.speed_limit_deg_per_s, 1 + k, 1_000 + 4 * k + jitter)
+    assert np.array_equal(tr, ts)
+    assert loop.rate.messages == 0 and "slows" not in text
+    t_ref, q_ref = path(robot, 0.1 * robot.speed_limit_deg_per_s)
+    want = np.array([np.interp(ts, t_ref, q_ref[:, j]) for j in range(6)]).T
+    assert np.abs(cmd - want).max() < 1e-9
+
+
+def test_without_acceleration_limits_or_on_a_held_reference_the_allowance_is_played_as_it_is(robot):
+    """No acceleration limits in the robot file: the played time is the session's through the stall, as before
+    (the held reference's loop: tests/test_reference_pace.py's, unchanged)."""
+    from dataclasses import replace
+
+    loop, cmd, ts, tr, _ = drive(replace(robot, acceleration_limit_deg_per_s2=None), FEED_DEG_PER_S, *stalled())
+    assert loop.rate is None and np.array_equal(tr, ts)
+    from robstiff_drake.cell.reference_rate import ReferenceRate
+
+    ref = Reference(period_s=T)
+    ref.hold([0.0] * 6)
+    assert ReferenceRate.of(T, robot, ref) is None
