@@ -13,7 +13,8 @@ over the code before the change).
 
 Then a path moving at a rapid's joint speeds (0.6 of the axis speeds) and at
 a cutting feed (2 deg/s) while the controller's clock stalls for 50 messages
-and through a controller restart (tests/test_reference_stop.py's ``drive``:
+and through a controller restart, and under an honest clock whose stamps
+jitter by a millisecond (tests/test_reference_stop.py's ``drive``:
 the real send path's checks, the
 correction held at zero), with the played reference's rate
 (cell/reference_rate.py) and without it (before): the largest commanded
@@ -73,6 +74,14 @@ def main():
               f"at most {(slower - ts).max() * 1e3:.1f} ms", flush=True)
 
 
+def honest(n=400):
+    """tests/test_reference_stop.py's honest clock: seqs and stamps (ms) jittering by -1, 0 or +1 ms (seed 5)."""
+    k = np.arange(n)
+    jitter = np.random.default_rng(5).integers(-1, 2, n)
+    jitter[0] = 0
+    return 1 + k, 1_000 + 4 * k + jitter
+
+
 def stops():
     from test_reference_stop import STALL, T, drive, speeds, stalled
 
@@ -84,7 +93,8 @@ def stops():
     k = np.arange(200)
     scenarios = [("a stall of 50 messages, the clock on from its stalled stamp", stalled(resume="on")),
                  ("a stall of 50 messages, the stalled time back in one step", stalled(resume="back")),
-                 ("a controller restart after 200 messages", (np.r_[1 + k, 1 + k], np.r_[500 + 4 * k, 4 * k]))]
+                 ("a controller restart after 200 messages", (np.r_[1 + k, 1 + k], np.r_[500 + 4 * k, 4 * k])),
+                 ("an honest clock, stamps -1/0/+1 ms, 400 messages", honest())]
     for case in ("rapid", "feed"):
         for name, (seqs, stamps) in scenarios:
             for ramp in (False, True):

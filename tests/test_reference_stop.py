@@ -178,19 +178,30 @@ def test_a_controller_restart_mid_path_keeps_the_paths_speed_within_the_accelera
             assert worst > 1.2
 
 
-def test_an_honest_clock_plays_the_path_exactly_as_before(robot):
-    """A rapid under an honest clock whose stamps jitter by -1, 0 or +1 ms (whole ms, fixed seed): the played
-    time is the session's at every message, the commanded poses the reference at it, no ramp."""
+@pytest.mark.parametrize("fraction", [0.1, RAPID])
+def test_an_honest_clock_plays_the_path_at_its_own_speed_one_step_a_message(robot, fraction):
+    """A path at ``fraction`` of the axis speeds under an honest clock whose stamps jitter by -1, 0 or +1 ms
+    (whole ms, fixed seed): the played time steps by the sequence's period at every message, within 2 ms of the
+    session's (CLOCK_SLACK_S) and never ahead of the sequence's, every commanded step the same, no ramp, nothing
+    refused.  Before: the played step followed the stamps (3, 5, 4 ms): at 0.6 of the axis speeds a step change
+    the supervision refused, and the path never got back within the step tolerance (most messages unanswered)."""
     n = 400
     k = np.arange(n)
     jitter = np.random.default_rng(5).integers(-1, 2, n)
     jitter[0] = 0
-    loop, cmd, ts, tr, text = drive(robot, 0.1 * robot.speed_limit_deg_per_s, 1 + k, 1_000 + 4 * k + jitter)
-    assert np.array_equal(tr, ts)
+    seqs, stamps = 1 + k, 1_000 + 4 * k + jitter
+    v = fraction * robot.speed_limit_deg_per_s
+    loop, cmd, ts, tr, text = drive(robot, v, seqs, stamps)
+    assert loop.n.refused == 0 and loop.n.unanswered_refused == 0 and len(cmd) == n, text
+    assert np.allclose(np.diff(tr), T, rtol=0, atol=1e-12)
+    assert (tr - ts).max() <= 2e-3 + 1e-12 and (tr <= (seqs - seqs[0]) * T + 1e-12).all()
     assert loop.rate.messages == 0 and "slows" not in text
-    t_ref, q_ref = path(robot, 0.1 * robot.speed_limit_deg_per_s)
-    want = np.array([np.interp(ts, t_ref, q_ref[:, j]) for j in range(6)]).T
-    assert np.abs(cmd - want).max() < 1e-9
+    assert np.allclose(np.diff(cmd, axis=0), v * T, rtol=0, atol=1e-9)
+    # the allowance played as it comes (before): the stamps' jitter in the path
+    before, cmd_b, _, tr_b, _ = drive(robot, v, seqs, stamps, ramp=False)
+    assert np.abs(np.diff(tr_b) - T).max() >= 1e-3 - 1e-12
+    if fraction == RAPID:
+        assert before.n.unanswered_refused > n // 2
 
 
 def test_without_acceleration_limits_or_on_a_held_reference_the_allowance_is_played_as_it_is(robot):

@@ -8,10 +8,11 @@ For every message the controller sends (every 4 ms on an IRC5; RSI 4 or
    cell/session_faults.py): a duplicate or
    an older datagram is dropped unanswered; a jump or a clock that
    disagrees with the sequence is a fault; the reference advances by a
-   bounded step, its time never ahead of the sequence's nor (but for a
-   stop's lead, cell/reference_rate.py: a stalled clock's stop and
-   restart within the robot's accelerations) of the controller's clock
-   since the run's start;
+   bounded step, its time never ahead of the sequence's nor (but for
+   the stamps' 2 ms and a stop's lead, cell/reference_rate.py: one step a
+   period on an honest clock, a stalled clock's stop and restart within
+   the robot's accelerations) of the controller's clock since the run's
+   start;
 2. reads the measured joint angles (the controller's degrees, mapped to
    the model's joints through the robot file's ``controller:`` block);
 3. takes every Net F/T record received since the last message through
