@@ -216,3 +216,17 @@ def test_without_acceleration_limits_or_on_a_held_reference_the_allowance_is_pla
     ref = Reference(period_s=T)
     ref.hold([0.0] * 6)
     assert ReferenceRate.of(T, robot, ref) is None
+
+
+def test_a_stall_that_ended_is_not_named_a_wrong_period_nor_keeps_the_correction_off(robot):
+    """The clock stalls for 50 messages and runs on from its stalled stamp at the sequence's pace: its fault ends
+    with the stall.  Before: each stalled step went into the clock's drift (up to the tolerance, -3 ms each),
+    the drift stayed beyond its allowance for seconds after the stall, the loop said "--period-ms is not the
+    controller's cycle" and the clock's fault (the correction at zero) lasted past the end of the run."""
+    seqs, stamps = stalled(n=600, resume="on")
+    loop, cmd, ts, tr, text = drive(robot, FEED_DEG_PER_S, seqs, stamps)
+    assert "is not the controller's cycle" not in text, text
+    assert abs(loop.clock.clock_drift_ms) < 1.0, loop.clock.clock_drift_ms
+    assert "clock" not in loop.faults and "period" not in loop.faults, loop.faults
+    # the stall itself was the clock's fault, every stalled message
+    assert loop.clock.counts["clock"] >= STALL[1] - STALL[0] - 1

@@ -182,8 +182,10 @@ class SessionClock:
             self.counts["clock"] += 1
             self.clock_reason = ("step", dtm, nominal_ms)
             # (into the clock's drift as far as a step may go: one stamp late beyond the tolerance, the next
-            # back, adds nothing; a clock set forward once, a tolerance at most)
-            self._sum_drift(ds, max(-self.tol_ms, min(self.tol_ms, dtm - nominal_ms)))
+            # back, adds nothing; a clock set forward once, a tolerance at most; a clock that stalled or went
+            # back, nothing: that is not a clock at another pace, and its steps counted would name a wrong
+            # --period-ms for PACE_HORIZON_S after a stall that ended, the correction held at zero meanwhile)
+            self._sum_drift(ds, 0.0 if dtm <= 0 else max(-self.tol_ms, min(self.tol_ms, dtm - nominal_ms)))
             # (for the reference, none where the clock went back or stalled (it holds); a step ahead counts, what
             # it allows beyond the sequence kept up to the tolerance (``_pace``): a clock that jumped ahead gives
             # the reference no more than the sequence, and a stamp late beyond the tolerance, the next one back,
