@@ -78,3 +78,23 @@ def test_the_option_outside_its_range_is_one_line_exit_2():
     lines = r.stderr.strip().splitlines()
     assert lines[-1].endswith("--cpu-latency-us: -1 is outside the allowed range [0, 100000] us")
     assert "Traceback" not in r.stderr
+
+
+def test_on_a_virtual_machine_the_request_is_held_with_a_caution(tmp_path):
+    """A CPU with the hypervisor flag: the request holds, and one line says what polling idle CPUs cost there
+    (the host's CPU time; a quota's stalls); on a machine without the flag, or without /proc/cpuinfo, none."""
+    dev = tmp_path / "cpu_dma_latency"
+    dev.write_bytes(b"")
+    vm, metal = tmp_path / "cpuinfo_vm", tmp_path / "cpuinfo_metal"
+    vm.write_text("processor\t: 0\nflags\t\t: fpu vme sse2 hypervisor lahf_lm\n\nprocessor\t: 1\n")
+    metal.write_text("processor\t: 0\nflags\t\t: fpu vme sse2 lahf_lm\n")
+    for info, cautioned in ((vm, True), (metal, False), (tmp_path / "none", False)):
+        qos = CpuLatency(0, path=str(dev), cpuinfo=str(info))
+        try:
+            assert qos.held and qos.warning is None
+            assert (qos.caution is not None) is cautioned
+            if cautioned:
+                assert qos.caution.startswith("--cpu-latency-us 0 on a virtual machine") and "\n" not in qos.caution
+        finally:
+            qos.release()
+    assert CpuLatency(None, path=str(dev), cpuinfo=str(vm)).caution is None  # (not asked: nothing said)

@@ -292,7 +292,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         sys.setswitchinterval(SWITCH_INTERVAL_S)
         qos = CpuLatency(cpu_latency_us)  # (held until the run ends: the finally below)
         qos_held = qos.held
-        for line in filter(None, (_pin_to_cpu(cpu), _realtime(rt_priority), qos.warning)):  # (the run goes on)
+        for line in filter(None, (_pin_to_cpu(cpu), _realtime(rt_priority), qos.warning, qos.caution)):
             print(f"robstiff: warning: compensate: {line}", file=sys.stderr, flush=True)
             stream_log is not None and stream_log.event(0.0, 0.0, f"warning: {line}")
         for line in start_warnings if stream_log is not None else ():
@@ -347,7 +347,7 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         mode=mode, job=str(job) if job else None,
         # (what the loop asked of the machine, and what it was given: a wish not allowed says so in the events)
         scheduling={"rt_priority": rt_priority, "cpu": cpu, "cpu_latency_us": cpu_latency_us,
-                    "cpu_latency_held": qos_held},
+                    "cpu_latency_held": qos_held, "cpu_latency_caution": qos.caution if qos is not None else None},
         # (None: the correction computed online; else why it was held at zero: a corrected reference)
         correction_held_at_zero=correction_off), notes=(play_line, play_summary, bound_line, start_warnings),
         missing=(servo, cutter_diameter_mm))
