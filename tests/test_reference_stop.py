@@ -18,10 +18,11 @@ the supervision's 10 times: a jerk on a real arm)."""
 import io
 import math
 
+import cell_helpers as h
 import numpy as np
 import pytest
+from test_reference_pace import _Sensor  # (one record of the hold's wrench per read, on the test's clock)
 
-import cell_helpers as h
 from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
 from robstiff_drake.cell.link import Message
 from robstiff_drake.cell.safety import UnsafeTarget, motion_reason, unsafe_reason
@@ -51,14 +52,6 @@ class _CheckedLink:
         if reason is not None:
             raise UnsafeTarget(reason)
         self.commanded.append(list(target))
-
-
-class _Sensor:
-    def __init__(self, w, clock):
-        self.w, self.clock = w, clock
-
-    def drain(self):
-        return [(list(self.w), self.clock[0], 0, False)]
 
 
 def path(robot, speed_deg_per_s, duration_s=2.0):
@@ -141,7 +134,7 @@ def test_a_stalled_clock_stops_and_restarts_the_path_within_the_robots_accelerat
     assert lead <= 0.5 * v_over_a + T + 1e-9, (lead, v_over_a)
     assert lead <= loop.rate.stop_bound_s
     # the path stopped within the stall and moves at its speed again at the end
-    a, b = STALL
+    _a, b = STALL
     assert cmd[b - 1].tolist() == cmd[b - 2].tolist()
     assert np.allclose(cmd[-1] - cmd[-2], speeds(robot, case) * T)
     # said once at the stop's start and once at its end, and counted
@@ -198,7 +191,7 @@ def test_an_honest_clock_plays_the_path_at_its_own_speed_one_step_a_message(robo
     assert loop.rate.messages == 0 and "slows" not in text
     assert np.allclose(np.diff(cmd, axis=0), v * T, rtol=0, atol=1e-9)
     # the allowance played as it comes (before): the stamps' jitter in the path
-    before, cmd_b, _, tr_b, _ = drive(robot, v, seqs, stamps, ramp=False)
+    before, _cmd_b, _, tr_b, _ = drive(robot, v, seqs, stamps, ramp=False)
     assert np.abs(np.diff(tr_b) - T).max() >= 1e-3 - 1e-12
     if fraction == RAPID:
         assert before.n.unanswered_refused > n // 2
@@ -209,7 +202,7 @@ def test_without_acceleration_limits_or_on_a_held_reference_the_allowance_is_pla
     (the held reference's loop: tests/test_reference_pace.py's, unchanged)."""
     from dataclasses import replace
 
-    loop, cmd, ts, tr, _ = drive(replace(robot, acceleration_limit_deg_per_s2=None), FEED_DEG_PER_S, *stalled())
+    loop, _cmd, ts, tr, _ = drive(replace(robot, acceleration_limit_deg_per_s2=None), FEED_DEG_PER_S, *stalled())
     assert loop.rate is None and np.array_equal(tr, ts)
     from robstiff_drake.cell.reference_rate import ReferenceRate
 
@@ -224,7 +217,7 @@ def test_a_stall_that_ended_is_not_named_a_wrong_period_nor_keeps_the_correction
     the drift stayed beyond its allowance for seconds after the stall, the loop said "--period-ms is not the
     controller's cycle" and the clock's fault (the correction at zero) lasted past the end of the run."""
     seqs, stamps = stalled(n=600, resume="on")
-    loop, cmd, ts, tr, text = drive(robot, FEED_DEG_PER_S, seqs, stamps)
+    loop, _cmd, _ts, _tr, text = drive(robot, FEED_DEG_PER_S, seqs, stamps)
     assert "is not the controller's cycle" not in text, text
     assert abs(loop.clock.clock_drift_ms) < 1.0, loop.clock.clock_drift_ms
     assert "clock" not in loop.faults and "period" not in loop.faults, loop.faults
