@@ -223,3 +223,27 @@ def test_a_stall_that_ended_is_not_named_a_wrong_period_nor_keeps_the_correction
     assert "clock" not in loop.faults and "period" not in loop.faults, loop.faults
     # the stall itself was the clock's fault, every stalled message
     assert loop.clock.counts["clock"] >= STALL[1] - STALL[0] - 1
+
+
+@pytest.mark.parametrize("case", ["rapid", "feed"])
+def test_a_clock_at_half_the_pace_slows_the_path_to_it_within_the_accelerations(robot, case):
+    """From message 100 on the clock steps 2 ms a 4 ms message (a controller whose cycle is half --period-ms,
+    or a slow clock): the played path slows to the clock's pace (one step of 2 ms a message at the end) within
+    the acceleration limit, nothing refused, never ahead of the sequence's time, its lead over the clock within
+    a stop's (v / (2 a) + a period).  Before: the played step fell from 4 to 2 ms within one message."""
+    n = 400
+    k = np.arange(n)
+    seqs, stamps = 1 + k, 500 + np.where(k < 100, 4 * k, 400 + 2 * (k - 100))
+    v = speeds(robot, case)
+    acc_T2 = np.asarray(robot.acceleration_limit_deg_per_s2) * T**2
+    loop, cmd, ts, tr, text = drive(robot, v, seqs, stamps)
+    assert loop.n.refused == 0 and loop.n.unanswered_refused == 0 and len(cmd) == n, text
+    assert (np.abs(np.diff(cmd, 2, axis=0)) / acc_T2).max() <= 1.0 + 1e-6
+    assert (tr <= (seqs - seqs[0]) * T + 1e-12).all()
+    v_over_a = float((v / np.asarray(robot.acceleration_limit_deg_per_s2)).max())
+    assert (tr - ts).max() <= 0.5 * v_over_a + T + 1e-9
+    assert np.allclose(np.diff(tr[-20:]), 0.002, rtol=0, atol=1e-9)
+    _, _, _, tr_b, _ = drive(robot, v, seqs, stamps, ramp=False)
+    steps = np.diff(tr_b)
+    i = int(np.argmax(steps < 0.004 - 1e-9))
+    assert i > 50 and np.isclose(steps[i - 1], 0.004) and steps[i] <= 0.002 + 1e-9  # (4 -> 2 ms in one message)
