@@ -98,3 +98,14 @@ def test_on_a_virtual_machine_the_request_is_held_with_a_caution(tmp_path):
         finally:
             qos.release()
     assert CpuLatency(None, path=str(dev), cpuinfo=str(vm)).caution is None  # (not asked: nothing said)
+    # a request every halting idle state meets changes nothing: not cautioned (states as this VM's: POLL 0 us,
+    # haltpoll 1 us; one of 200 us as a deep C-state)
+    idle = tmp_path / "cpuidle"
+    for name, us in (("state0", ("POLL", 0)), ("state1", ("haltpoll", 1)), ("state2", ("C6", 200))):
+        (idle / name).mkdir(parents=True)
+        (idle / name / "name").write_text(us[0] + "\n")
+        (idle / name / "latency").write_text(f"{us[1]}\n")
+    for latency, cautioned in ((0, True), (1, False), (100, False)):
+        qos = CpuLatency(latency, path=str(dev), cpuinfo=str(vm), cpuidle=str(idle))
+        qos.release()
+        assert (qos.caution is not None) is cautioned, latency
