@@ -29,6 +29,14 @@ Rules:
   which at 0.6 of the axis speeds the controller's supervision refused,
   and the path never got back within its step tolerance (397 of 400
   messages unanswered, tests/test_reference_stop.py).
+* One answer plays at most one period of the path, whatever the
+  sequence skipped: after a lost datagram (a gap of up to ``MAX_JUMP``)
+  the controller's next target is one period on from the last one it
+  got, the skipped periods counted behind the clock.  Before, the answer
+  after a gap played them all: a step change of v T, which the
+  supervision refused beyond 0.16 of the axis speeds, its fallback too,
+  and every later message as well (150 of 150 unanswered after one lost
+  datagram at 0.2 of the axis speeds; tests/test_reference_rate_fuzz.py).
 * Otherwise the step is the one that puts the played time within
   ``CLOCK_SLACK_S`` ahead of the allowed time, within [r - dr, r + dr]
   times the sequence's step and never more than the sequence's own step
@@ -136,8 +144,13 @@ class ReferenceRate:
         ``reference.speed_at(t_ref_s)`` the reference's joint speeds (deg/s)
         around the played time."""
         dt_seq_s = self.seq_step_s(seq)
+        # (what one answer plays at the full rate: one period, whatever the sequence skipped: after a lost
+        # datagram the controller's next target is one period of the path from the last one it got, as every
+        # other answer, the skipped period counted behind the clock; two periods in one answer were a step
+        # change of v T, refused at more than 0.16 of the axis speeds, and the run locked out after it)
+        step_s = min(dt_seq_s, self.T)
         if self.following:
-            lead = self.lead_s + dt_seq_s - dt_allowed_s
+            lead = self.lead_s + step_s - dt_allowed_s
             if lead <= CLOCK_SLACK_S:
                 # (the sequence's step: the stamps' jitter not played; the allowance beyond the played time, which
                 # pays back this lead, never played beyond the sequence's)
@@ -145,7 +158,7 @@ class ReferenceRate:
                     self._lag_s -= lead
                 self.lead_s = max(lead, 0.0)
                 self.max_lead_s = max(self.max_lead_s, self.lead_s)
-                return dt_seq_s
+                return step_s
             self.following = False
             self.ramps += 1
             self._ramp_messages, self._ramp_lead_s = 0, 0.0
@@ -155,7 +168,7 @@ class ReferenceRate:
                 self.say(f"reference: the controller's clock allows {dt_allowed_s * 1e3:.1f} ms of a "
                          f"{dt_seq_s * 1e3:.1f} ms message: the played reference slows within the robot's "
                          f"acceleration limits{bound}")
-        if dt_seq_s <= 0.0:
+        if step_s <= 0.0:
             played = 0.0
         else:
             # the rate's change this message: |qdot_j| * dr/dt <= acc_j on every joint
@@ -163,14 +176,14 @@ class ReferenceRate:
             for a, v in zip(self.acc, reference.speed_at(t_ref_s)):
                 if v * k > a:
                     k = a / v
-            dr = k * dt_seq_s
+            dr = k * step_s
             r, lead = self.r, self.lead_s
             # (no rise while ahead of the clock by more than the slack; the played time put within the slack of
             # the allowed one, as while following: a 3 ms stamp of an honest clock does not pull the rate down)
-            hi = (min(1.0, r + dr) if lead <= CLOCK_SLACK_S else r) * dt_seq_s
-            lo = max(0.0, r - dr) * dt_seq_s
+            hi = (min(1.0, r + dr) if lead <= CLOCK_SLACK_S else r) * step_s
+            lo = max(0.0, r - dr) * step_s
             played = min(max(dt_allowed_s - lead + CLOCK_SLACK_S, lo), hi)
-            self.r = played / dt_seq_s
+            self.r = played / step_s
         lead = self.lead_s + played - dt_allowed_s
         if lead < 0.0:
             self._lag_s -= lead
