@@ -13,8 +13,8 @@ over the code before the change).
 
 Then a path moving at a rapid's joint speeds (0.6 of the axis speeds) and at
 a cutting feed (2 deg/s) while the controller's clock stalls for 50 messages
-and through a controller restart, and under an honest clock whose stamps
-jitter by a millisecond (tests/test_reference_stop.py's ``drive``:
+and through a controller restart, under an honest clock whose stamps
+jitter by a millisecond and with one datagram lost (tests/test_reference_stop.py's ``drive``:
 the real send path's checks, the
 correction held at zero), with the played reference's rate
 (cell/reference_rate.py) and without it (before): the largest commanded
@@ -82,6 +82,13 @@ def honest(n=400):
     return 1 + k, 1_000 + 4 * k + jitter
 
 
+def lost(n=300, at=150):
+    """Seqs and stamps (ms) of an honest 4 ms clock with one datagram lost (a sequence gap of 2) at ``at``."""
+    k = np.arange(n)
+    seqs = 1 + k + (k >= at)
+    return seqs, 500 + 4 * (seqs - 1)
+
+
 def stops():
     from test_reference_stop import STALL, T, drive, speeds, stalled
 
@@ -94,7 +101,8 @@ def stops():
     scenarios = [("a stall of 50 messages, the clock on from its stalled stamp", stalled(resume="on")),
                  ("a stall of 50 messages, the stalled time back in one step", stalled(resume="back")),
                  ("a controller restart after 200 messages", (np.r_[1 + k, 1 + k], np.r_[500 + 4 * k, 4 * k])),
-                 ("an honest clock, stamps -1/0/+1 ms, 400 messages", honest())]
+                 ("an honest clock, stamps -1/0/+1 ms, 400 messages", honest()),
+                 ("one lost datagram at message 150 of 300", lost())]
     for case in ("rapid", "feed"):
         for name, (seqs, stamps) in scenarios:
             for ramp in (False, True):
