@@ -247,3 +247,27 @@ def test_a_clock_at_half_the_pace_slows_the_path_to_it_within_the_accelerations(
     steps = np.diff(tr_b)
     i = int(np.argmax(steps < 0.004 - 1e-9))
     assert i > 50 and np.isclose(steps[i - 1], 0.004) and steps[i] <= 0.002 + 1e-9  # (4 -> 2 ms in one message)
+
+
+def test_a_clock_slightly_slow_makes_small_ramps_said_five_times_not_each_time(robot):
+    """A clock 0.1 % slow (whole-ms stamps, floored: honest by the session's checks) under a path at 0.1 of the
+    axis speeds for 7.6 s: the played time falls more than 2 ms behind the sequence's now and then, and each time
+    a small ramp (a step of at most a few tenths of a period less) pays it back within the accelerations; the
+    events say the first five ramps' start and end, summary.json counts them all.  Before: a line at each."""
+    import test_reference_stop as trs
+
+    orig = trs.path
+    try:
+        trs.path = lambda robot, v, duration_s=2.0: orig(robot, v, duration_s=8.0)
+        k = np.arange(1900)
+        v = 0.1 * robot.speed_limit_deg_per_s
+        loop, cmd, ts, tr, text = drive(robot, v, 1 + k, 500 + np.floor(4 * k * 0.999).astype(int))
+    finally:
+        trs.path = orig
+    acc_T2 = np.asarray(robot.acceleration_limit_deg_per_s2) * T**2
+    assert loop.n.refused == 0 and loop.n.unanswered_refused == 0
+    assert (np.abs(np.diff(cmd, 2, axis=0)) / acc_T2).max() <= 1.0 + 1e-6
+    assert loop.rate.ramps > 5
+    assert text.count("the played reference slows") == 5 and text.count("at the clock's pace again") == 5
+    assert loop.stats()["reference_rate"]["ramps"] == loop.rate.ramps
+    assert (tr - ts).max() <= 3e-3 and np.diff(tr).min() >= 0.5 * T

@@ -96,6 +96,14 @@ ACCEL_FRACTION = 1.0
 CLOCK_SLACK_S = 2e-3
 
 
+def _said(ramp):
+    """Whether ramp number ``ramp`` (1, 2, ...) has its start and end said in the events: the first five and
+    every hundredth, as the loop says the correction's saturation onsets (a clock 0.1 % slow, still honest by
+    the session's checks, with whole-ms stamps starts a small ramp every second or so: a line each would fill
+    events.csv; summary.json's ``reference_rate`` counts them all)."""
+    return ramp <= 5 or ramp % 100 == 0
+
+
 class ReferenceRate:
     """``step(dt_allowed_s, seq, reference, t_ref_s)`` -> the step to
     play (s); ``r`` the rate, ``lead_s`` the played time ahead of the
@@ -162,7 +170,7 @@ class ReferenceRate:
             self.following = False
             self.ramps += 1
             self._ramp_messages, self._ramp_lead_s = 0, 0.0
-            if self.say is not None:
+            if self.say is not None and _said(self.ramps):
                 bound = ("" if self.stop_bound_s is None else
                          f" (a stop from full speed in at most {self.stop_bound_s:.3f} s)")
                 self.say(f"reference: the controller's clock allows {dt_allowed_s * 1e3:.1f} ms of a "
@@ -196,7 +204,7 @@ class ReferenceRate:
         self.min_rate = min(self.min_rate, self.r)
         if self.r >= 1.0 and lead <= CLOCK_SLACK_S:
             self.r, self.following = 1.0, True
-            if self.say is not None:
+            if self.say is not None and _said(self.ramps):
                 self.say(f"reference: played at the clock's pace again after {self._ramp_messages} messages under "
                          f"the ramp (at most {self._ramp_lead_s * 1e3:.1f} ms of the path played ahead of the "
                          f"clock; {self._lag_s * 1e3:.1f} ms behind it in all now)")
