@@ -29,10 +29,11 @@ Rules:
   which at 0.6 of the axis speeds the controller's supervision refused,
   and the path never got back within its step tolerance (397 of 400
   messages unanswered, tests/test_reference_stop.py).
-* One answer plays at most one period of the path, whatever the
-  sequence skipped: after a lost datagram (a gap of up to ``MAX_JUMP``)
-  the controller's next target is one period on from the last one it
-  got, the skipped periods counted behind the clock.  Before, the answer
+* One answer plays at most one period of the path, and after a lost
+  datagram (a gap of up to ``MAX_JUMP``) what of the skipped time the
+  step's change within the accelerations and the axis speeds allows
+  (``_catch_up_s``: at a 2 deg/s feed 0.8 of a period, at a rapid a few
+  per cent), the rest counted behind the clock.  Before, the answer
   after a gap played them all: a step change of v T, which the
   supervision refused beyond 0.16 of the axis speeds, its fallback too,
   and every later message as well (150 of 150 unanswered after one lost
@@ -50,8 +51,9 @@ Rules:
 * Decelerating, the played time runs ahead of the clock's: that lead is
   kept, and r does not rise while more than the slack is left: it stays
   (0 after a full stop) until the clock's time has caught up, then ramps
-  up, never above 1 (following again at 1 within the slack).  What the ramp up plays behind the clock is forgotten (as the time a
-  stalled clock held the reference is): after a stop from full speed v
+  up, never above 1 (following again at 1 within the slack).  What the
+  ramp up plays behind the clock is forgotten (as the time a stalled
+  clock held the reference is): after a stop from full speed v
   and a restart the played reference is about v / (2 a) s behind where it
   would have been.
 * A jump or a restart of the session (SessionClock's "jump" verdicts:
@@ -115,6 +117,7 @@ class ReferenceRate:
         self.fraction = float(fraction)
         self.acc = [self.fraction * float(a) for a in accel_deg_per_s2]
         v = speed_deg_per_s
+        self.vmax = None if v is None else [float(x) for x in v]
         # (a stop from full speed: at most this long on the sequence's time; None without the axis speeds)
         self.stop_bound_s = None if v is None else max(float(s) / a for s, a in zip(v, self.acc))
         self.say = say  # (a line at a ramp's start and at its end; None: silent)
@@ -157,6 +160,10 @@ class ReferenceRate:
         # other answer, the skipped period counted behind the clock; two periods in one answer were a step
         # change of v T, refused at more than 0.16 of the axis speeds, and the run locked out after it)
         step_s = min(dt_seq_s, self.T)
+        if self.following and dt_seq_s > self.T:
+            # (the speeds over the longer step: at its start and at its end, a path that accelerates included)
+            speeds = [max(a, b) for a, b in zip(reference.speed_at(t_ref_s), reference.speed_at(t_ref_s + dt_seq_s))]
+            step_s = min(dt_seq_s, self.T + self._catch_up_s(speeds))
         if self.following:
             lead = self.lead_s + step_s - dt_allowed_s
             if lead <= CLOCK_SLACK_S:
@@ -209,6 +216,22 @@ class ReferenceRate:
                          f"the ramp (at most {self._ramp_lead_s * 1e3:.1f} ms of the path played ahead of the "
                          f"clock; {self._lag_s * 1e3:.1f} ms behind it in all now)")
         return played
+
+    def _catch_up_s(self, speeds_deg_per_s):
+        """How much more than a period one answer may play after a lost
+        datagram (s): the step's change within the acceleration limit
+        (|qdot_j| dstep <= a_j T) and the step within the axis speeds
+        ((T + dstep) |qdot_j| <= v_j T): at a cutting feed the skipped
+        time whole, as before (2 deg/s: up to 0.8 of a period), at a
+        rapid a few per cent of it."""
+        extra = math.inf
+        T = self.T
+        for j, (a, q) in enumerate(zip(self.acc, speeds_deg_per_s)):
+            if q > 0.0:
+                extra = min(extra, a * T * T / q)
+                if self.vmax is not None:
+                    extra = min(extra, max(0.0, self.vmax[j] / q - 1.0) * T)
+        return extra
 
     def summary(self):
         return {"messages_under_ramp": self.messages, "ramps": self.ramps, "max_lead_ms": self.max_lead_s * 1e3,
