@@ -29,18 +29,18 @@ Rules:
   which at 0.6 of the axis speeds the controller's supervision refused,
   and the path never got back within its step tolerance (397 of 400
   messages unanswered, tests/test_reference_stop.py).
-* One answer plays at most one period of the path, and after a lost
-  datagram (a gap of up to ``MAX_JUMP``) what of the skipped time the
-  step's change within the accelerations and the axis speeds allows
-  (``_catch_up_s``: at a 2 deg/s feed 0.8 of a period, at a rapid a few
-  per cent), the rest counted behind the clock.  Before, the answer
+* One answer plays one period of the path at the full rate, and after a
+  lost datagram (a gap of up to ``MAX_JUMP``) what of the skipped time
+  the step's change within the accelerations and the axis speeds allows
+  (``_catch_up_s``: at a 2 deg/s feed 0.72 of a period, at a rapid 3 %),
+  the rest counted behind the clock.  Before, the answer
   after a gap played them all: a step change of v T, which the
   supervision refused beyond 0.16 of the axis speeds, its fallback too,
   and every later message as well (150 of 150 unanswered after one lost
   datagram at 0.2 of the axis speeds; tests/test_reference_rate_fuzz.py).
 * Otherwise the step is the one that puts the played time within
   ``CLOCK_SLACK_S`` ahead of the allowed time, within [r - dr, r + dr]
-  times the sequence's step and never more than the sequence's own step
+  times a period and never more than the sequence's own step
   (the sequence is the other witness of time: the played time is never
   ahead of the sequence's).  Before, the ramp put it on the allowed time
   and rose only with no lead at all: after a stall, an honest clock's
@@ -74,8 +74,9 @@ against its t_s; summary.json's ``reference_rate``).
 Without acceleration limits in the robot file, or on a held (constant)
 reference, ``of`` returns None: the loop plays the allowance as before.
 
-Per message: two comparisons while following; a few float operations and
-one ``speed_at`` (two or three rows of the reference) under a ramp.
+Per message: two comparisons while following (0.44 us); a few float
+operations and one ``speed_at`` (two or three rows of the reference)
+under a ramp (5.3 us), two after a lost datagram.
 """
 
 import math
