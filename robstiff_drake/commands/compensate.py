@@ -224,7 +224,6 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     link = _link(protocol, listen_port, ctrl, period_s)
     sensor = NetFTReader(host, port, counts=netft_counts, units=netft_units, http_port=netft_http_port)
     stream_log = background = remote = qos = None
-    qos_held = False
     try:
         if ref.q is None:  # (the hold pose's check: its process started now, asked once the first message comes)
             remote = guard.elsewhere(robot_yaml)
@@ -291,7 +290,6 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         switch = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
         qos = CpuLatency(cpu_latency_us)  # (held until the run ends: the finally below)
-        qos_held = qos.held
         for line in filter(None, (_pin_to_cpu(cpu), _realtime(rt_priority), qos.warning, qos.caution)):
             print(f"robstiff: warning: compensate: {line}", file=sys.stderr, flush=True)
             stream_log is not None and stream_log.event(0.0, 0.0, f"warning: {line}")
@@ -347,7 +345,9 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
         mode=mode, job=str(job) if job else None,
         # (what the loop asked of the machine, and what it was given: a wish not allowed says so in the events)
         scheduling={"rt_priority": rt_priority, "cpu": cpu, "cpu_latency_us": cpu_latency_us,
-                    "cpu_latency_held": qos_held, "cpu_latency_caution": qos.caution if qos is not None else None},
+                    # (held: asked, and no warning that it was not; released by now)
+                    "cpu_latency_held": qos is not None and cpu_latency_us is not None and qos.warning is None,
+                    "cpu_latency_caution": qos.caution if qos is not None else None},
         # (None: the correction computed online; else why it was held at zero: a corrected reference)
         correction_held_at_zero=correction_off), notes=(play_line, play_summary, bound_line, start_warnings),
         missing=(servo, cutter_diameter_mm))
