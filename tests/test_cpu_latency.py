@@ -54,8 +54,10 @@ def test_not_asked_opens_nothing(tmp_path):
 
 
 def test_a_machine_that_does_not_allow_it_gives_one_line_and_the_run_goes_on(tmp_path):
-    qos = CpuLatency(0, path=str(tmp_path / "no_such_dir" / "cpu_dma_latency"))
-    assert not qos.held
+    vm = tmp_path / "cpuinfo_vm"
+    vm.write_text("flags\t\t: fpu hypervisor\n")
+    qos = CpuLatency(0, path=str(tmp_path / "no_such_dir" / "cpu_dma_latency"), cpuinfo=str(vm))
+    assert not qos.held and qos.caution is None  # (not held: it costs nothing, no caution)
     assert qos.warning.startswith("--cpu-latency-us 0: cannot open ") and qos.warning.endswith("running without it")
     assert "\n" not in qos.warning
     qos.release()

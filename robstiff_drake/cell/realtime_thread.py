@@ -113,11 +113,6 @@ class CpuLatency:
         self.caution = None
         if latency_us is None:
             return
-        if on_a_virtual_machine(cpuinfo) and latency_us < shallowest_halt_us(cpuidle):
-            self.caution = (f"--cpu-latency-us {latency_us} on a virtual machine (the CPU's hypervisor flag): idle "
-                            "CPUs that poll spend the host's CPU time, and a host with a CPU quota stops the "
-                            "machine once it is spent (here: stalls of about 100 ms, docs/results.md); a "
-                            "setting for a real-time PC")
         try:
             fd = os.open(path, os.O_WRONLY)
         except OSError as e:
@@ -132,6 +127,12 @@ class CpuLatency:
                             "running without it")
             return
         self._fd = fd
+        # (only for a request that holds: one not allowed costs nothing)
+        if on_a_virtual_machine(cpuinfo) and latency_us < shallowest_halt_us(cpuidle):
+            self.caution = (f"--cpu-latency-us {latency_us} on a virtual machine (the CPU's hypervisor flag): idle "
+                            "CPUs that poll spend the host's CPU time, and a host with a CPU quota stops the "
+                            "machine once it is spent (here: stalls of about 100 ms, docs/results.md); a "
+                            "setting for a real-time PC")
 
     @property
     def held(self):
