@@ -7,11 +7,14 @@ from robstiff_drake.model.robot import load_robot
 
 
 # Tests that run `compensate` against a simulated controller and sensor in real time on 127.0.0.1: their
-# timing is the machine's, so the README's test command runs them first, alone (`-m realtime`), and the rest
-# on both cores (`-n 2 -m "not realtime"`, pytest-xdist).  A test of these files that streams nothing live (a
-# refusal before any stream, a codec against its reference package) carries the ``untimed`` marker and runs with
-# the rest (24 tests; and test_cell_sensor_reseed.py's unit tests left the set): the alone part 63 -> 36 tests, 269 s ->
-# 202-211 s in quiet clean clones (issue 32: the README's command under 15 minutes; the part used 67 % of one core).
+# timing is the machine's, so the README's test command runs them first, apart from the rest (`-n 2 -m realtime`),
+# and the rest on both cores (`-n 2 -m "not realtime"`, pytest-xdist).  A test of these files that streams nothing
+# live (a refusal before any stream, a codec against its reference package) carries the ``untimed`` marker and runs
+# with the rest.  The part ran alone, one test at a time, before (63 -> 36 tests, 269 s -> 202-228 s in quiet clean
+# clones, 67 % of one core: the other idle): two at a time it took 136 s on a quiet machine and 168 s with a
+# CPU-bound process beside it, all passed (2026-12-07, issue 32: the README's command under 15 minutes).  Each test takes
+# free ports of its own (tests/cell_helpers.py); a run a late machine can spoil is run once more, saying why
+# (tests/test_sim_cell.py's _run_pair_judged).
 REALTIME_FILES = {"test_cell_attacks.py", "test_cell_io.py", "test_cell_protocols.py", "test_cell_preview.py",
                   "test_sim_cell.py"}
 
