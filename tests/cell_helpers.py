@@ -97,11 +97,12 @@ def cutting_wrench(t0=0.8, ramp_s=0.3, force_N=(-300.0, 260.0, 50.0)):
 
 def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=None, wrench=None, rt_priority=0,
                lockstep=False, link=None, supervise=True, transport_delay_cycles=None, cut_s=None,
-               answer_timeout_s=1.0, cpus=None):
+               answer_timeout_s=1.0, cpus=None, spread_records=False):
     """A simulated cell (stand-in arm) in a thread; returns (thread, network).
     ``rt_priority``: run the thread under SCHED_FIFO (a controller is hard
     real-time; the benchmark's option); ``cut_s``: end after this much of
-    the controller's time once engaged (lockstep)."""
+    the controller's time once engaged (lockstep); ``spread_records``: the
+    sensor's records at their own instants (CellNetwork)."""
     station = ServoArmStandIn(robot=robot, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
                               calibration=calibration(robot), process_wrench=wrench or cutting_wrench(),
                               reference=reference, q_start_rad=reference(0.0), seed=3)
@@ -109,7 +110,9 @@ def start_cell(robot, reference, *, egm_port, netft_port, duration_s, faults=Non
                robot.acceleration_limit_deg_per_s2) if supervise else None)
     net = CellNetwork(station, egm_to=("127.0.0.1", egm_port), netft_port=netft_port, faults=faults or Faults(),
                       netft_http_port=netft_port, lockstep=lockstep, limits=limits, link=link,
-                      transport_delay_cycles=transport_delay_cycles, answer_timeout_s=answer_timeout_s)
+                      transport_delay_cycles=transport_delay_cycles, answer_timeout_s=answer_timeout_s,
+                      spread_records=spread_records)
+
     def run():
         if cpus:
             os.sched_setaffinity(0, set(cpus))

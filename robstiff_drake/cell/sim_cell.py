@@ -102,11 +102,19 @@ class CellNetwork:
     loop's physics without this machine's scheduling (a Python thread on
     shared cores is no hard real-time controller), at a controller's pace
     or slower.  The controller's clock (header.tm) still
-    advances by one period per message."""
+    advances by one period per message.
+
+    ``spread_records``: in real time (not lockstep once engaged), a cycle's
+    sensor records leave at their own instants, one every period / n (a Net
+    F/T streams each record as it samples it: every 1 ms at 1 kHz, in no
+    phase with the controller's cycle), the first at the tick; the default
+    sends them together just before the controller's message (lockstep
+    needs them in before it), so that the compensator's reader thread wakes
+    with its loop at every message, which a real cell's does not."""
 
     def __init__(self, station, *, egm_to, netft_port, period_s=0.004, faults=None, netft_host="127.0.0.1",
                  lockstep=False, answer_timeout_s=1.0, limits=None, netft_http_port=None, netft_units=("N", "N-m"),
-                 netft_counts=None, link=None, transport_delay_cycles=None):
+                 netft_counts=None, link=None, transport_delay_cycles=None, spread_records=False):
         """``limits``: (lower deg, upper deg, axis speed deg/s) of the
         robot (controller convention): a target outside the working
         ranges, or one further from the last than the axis speed allows in
@@ -120,6 +128,8 @@ class CellNetwork:
         self.limits = None if limits is None else tuple(np.asarray(x, dtype=float) for x in limits)
         self._q_prev = None  # the target before the last (deg), for the acceleration supervision
         self.lockstep = bool(lockstep)
+        self.spread_records = bool(spread_records)
+        self._pending = []  # (time due on this PC's clock, record row, fault clock) of a spread cycle's records
         self.answer_timeout_s = float(answer_timeout_s)
         self.period_s = float(period_s)
         self.faults = faults or Faults()
@@ -172,19 +182,45 @@ class CellNetwork:
                         f"{SUPERVISION_ACCEL:g} x its {acc[j]:g} deg/s^2 limit")
         return None
 
-    def _send_wrench(self, w, t):
-        f = self.faults
+    def _send_wrench(self, w, t, t_tick=None):
+        """The cycle's records ``w`` (rows) at the fault clock ``t``: all now, or (``t_tick``: spread_records)
+        the first now and the others queued for t_tick + i period / n (sent by _wait_sending)."""
         rows = np.atleast_2d(np.asarray(w, dtype=float))
-        for row in rows:
-            if f.inside(f.sensor_silent, t):
-                self.rdt.ft_sequence += 1
-                continue
-            row = row.copy()
-            if any(abs(t - ts) < 0.5 * self.period_s for ts in f.sensor_spikes):
-                row[0] += f.spike_N
-            status = 0x80020000 if f.inside(f.sensor_invalid, t) else 0
-            raw = b"\x12\x34garbage" if f.rdt_wrong_header else None
-            self.rdt.send(row.tolist(), status, raw)
+        if t_tick is None:
+            for row in rows:
+                self._send_row(row, t)
+            return
+        self._send_row(rows[0], t)
+        n = len(rows)
+        self._pending += [(t_tick + i * self.period_s / n, rows[i], t) for i in range(1, n)]
+
+    def _send_row(self, row, t):
+        f = self.faults
+        if f.inside(f.sensor_silent, t):
+            self.rdt.ft_sequence += 1
+            return
+        row = row.copy()
+        if any(abs(t - ts) < 0.5 * self.period_s for ts in f.sensor_spikes):
+            row[0] += f.spike_N
+        status = 0x80020000 if f.inside(f.sensor_invalid, t) else 0
+        raw = b"\x12\x34garbage" if f.rdt_wrong_header else None
+        self.rdt.send(row.tolist(), status, raw)
+
+    def _wait_sending(self, t_until):
+        """Wait until ``t_until`` (this PC's monotonic clock: sleep, then spin for the last SPIN_S), sending the
+        queued records as they fall due (slept to, not spun)."""
+        pending = self._pending
+        while True:
+            now = time.monotonic()
+            while pending and pending[0][0] <= now:
+                _, row, t = pending.pop(0)
+                self._send_row(row, t)
+            if now >= t_until:
+                return
+            if pending and pending[0][0] < t_until - SPIN_S:
+                time.sleep(pending[0][0] - now)  # (a record's instant: a sleep's lateness is its jitter)
+            elif t_until - now > SPIN_S:
+                time.sleep(t_until - now - SPIN_S)
 
     def _collect(self, answers):
         for km, targets in self.egm.answers():
@@ -227,10 +263,11 @@ class CellNetwork:
                 # no burst after a stall): the sensor's records and the compensator's clocks keep a
                 # controller's pace, whatever this machine's load
                 time.sleep(t_stepped + T - now)
-            if not stepped and t_tick - now > SPIN_S:
-                time.sleep(t_tick - now - SPIN_S)
-            while not stepped and time.monotonic() < t_tick:
-                pass
+            if not stepped:
+                self._wait_sending(t_tick)
+            while self._pending:  # (a spread cycle's records left when lockstep took over: now, in order)
+                _, row, t_row = self._pending.pop(0)
+                self._send_row(row, t_row)
             t_stepped = time.monotonic()
             t = k * T if stepped else t_stepped - t0
             st.tick_error_s.append(t - k * T)
@@ -310,7 +347,7 @@ class CellNetwork:
             q_meas, w = self.station.step(q_cmd) if engaged or hold is None else hold()
             if engaged:
                 st.step_ms.append((time.perf_counter() - t_s0) * 1e3)
-            self._send_wrench(w, te)
+            self._send_wrench(w, te, t_tick if self.spread_records and not stepped else None)
             if f.restart_at >= 0 and not restarted and te >= f.restart_at:
                 restarted = True
                 self.egm.restart()
