@@ -17,7 +17,8 @@ import numpy as np
 from scripted_compensate import (HANG_GUARD_S, EndWhenIdle, ScriptedController, finish, held_run,  # noqa: F401
                                  start_compensate)
 
-from robstiff_drake.cell.sim_cell import CellNetwork, Faults, ServoArmStandIn
+from robstiff_drake.cell.sim_cell import CellNetwork, Faults
+from robstiff_drake.cell.stand_in_arm import ServoArmStandIn
 from robstiff_drake.model import ik
 from robstiff_drake.model.payload import PayloadCalibration
 from robstiff_drake.model.robot import load_robot

@@ -16,7 +16,8 @@ import pytest
 sys.path.insert(0, os.path.dirname(__file__))
 import cell_helpers as h  # noqa: E402
 
-from robstiff_drake.cell.sim_cell import CellNetwork, ServoArmStandIn  # noqa: E402
+from robstiff_drake.cell.sim_cell import CellNetwork  # noqa: E402
+from robstiff_drake.cell.stand_in_arm import ServoArmStandIn  # noqa: E402
 
 PERIOD_S = 0.004
 SAMPLES = 4  # the stand-in's records a cycle (1 kHz at 4 ms)
