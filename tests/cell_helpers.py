@@ -45,6 +45,32 @@ def calibration(robot):
                               sensor_mount_rpy_deg=[0.0, 0.0, 0.0])
 
 
+_PASSES = {}  # the reference passes solved in this process: (the robot's kinematics and limits, the pass) -> (ts, qs)
+
+
+def _pass(robot, feed_mm_per_s, duration_s, start_mm):
+    """A straight pass along x at the feed for 3 s (60 mm), then at rest; by IK every 4 ms: (t s, joints rad).
+    Solved once a process for the same robot and pass (875 solves, about 0.6 s, in each of some 80 tests
+    before), and copied out."""
+    dh = robot.dh
+    key = (repr([None if v is None else np.asarray(v, dtype=float).tolist()
+                 for v in (dh.d_m, dh.a_m, dh.alpha_rad, dh.home_rad, dh.base, dh.beta_rad)]),
+           np.asarray(robot.payload.tool_point_m).tobytes(),
+           np.asarray(robot.q_lower_rad).tobytes(), np.asarray(robot.q_upper_rad).tobytes(),
+           float(feed_mm_per_s), float(duration_s), None if start_mm is None else tuple(map(float, start_mm)))
+    if key not in _PASSES:
+        ts = np.arange(0.0, min(duration_s, 3.5) + 1e-9, 0.004)
+        q_prev, qs = None, []
+        for t in ts:
+            p = np.array(start_mm or START_MM) / 1e3 + [feed_mm_per_s * min(t, 3.0) / 1e3, 0.0, 0.0]
+            q_prev = ik.solve_ik(robot.dh, ik.tool_down_pose(p, 0.0), robot.payload.tool_point_m, q_ref_rad=q_prev,
+                                 q_lower_rad=robot.q_lower_rad, q_upper_rad=robot.q_upper_rad)
+            qs.append(q_prev)
+        _PASSES[key] = (ts, np.array(qs))
+    ts, qs = _PASSES[key]
+    return ts.copy(), qs.copy()
+
+
 def write_inputs(folder, robot, *, feed_mm_per_s=20.0, duration_s=3.0, robot_name=None, nominal=None, start_mm=None):
     """model.json, payload.yaml and reference.csv in ``folder``; returns
     their paths and the reference as a function of time (rad)."""
@@ -61,15 +87,7 @@ def write_inputs(folder, robot, *, feed_mm_per_s=20.0, duration_s=3.0, robot_nam
                 f"  robot: {robot.name}\n  mass_kg: {float(cal.mass_kg)}\n  com_mm: {[float(v) for v in cal.com_mm]}\n"
                 f"  force_bias_N: {[float(v) for v in cal.force_bias_N]}\n"
                 f"  torque_bias_Nm: {[float(v) for v in cal.torque_bias_Nm]}\n  sensor_mount_rpy_deg: [0.0, 0.0, 0.0]\n")
-    # a straight pass along x at the feed for 3 s (60 mm), then at rest; by IK every 4 ms
-    ts = np.arange(0.0, min(duration_s, 3.5) + 1e-9, 0.004)
-    q_prev, qs = None, []
-    for t in ts:
-        p = np.array(start_mm or START_MM) / 1e3 + [feed_mm_per_s * min(t, 3.0) / 1e3, 0.0, 0.0]
-        q_prev = ik.solve_ik(robot.dh, ik.tool_down_pose(p, 0.0), robot.payload.tool_point_m, q_ref_rad=q_prev,
-                             q_lower_rad=robot.q_lower_rad, q_upper_rad=robot.q_upper_rad)
-        qs.append(q_prev)
-    qs = np.array(qs)
+    ts, qs = _pass(robot, feed_mm_per_s, duration_s, start_mm)
     ref = os.path.join(folder, "reference.csv")
     with open(ref, "w") as f:
         f.write("# test joint reference: a straight pass along +x from (1600, 0, 700) mm for 3 s, IK every 4 ms\n")
