@@ -22,6 +22,7 @@ short line.
 Values quoted in an error go through ``errors.excerpt`` (short, escaped).
 """
 
+import copy
 import json
 import os
 import re
@@ -135,9 +136,29 @@ def _construct_mapping(loader, node, deep=False):
 UserYamlLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
 
+_PARSED = {}  # text -> (document, lines) of the last texts read (PyYAML's pure-Python reader: ~10 ms a robot file)
+_PARSED_MAX = 32
+_PARSED_MAX_CHARS = 200_000  # (a larger text is parsed each time, not kept)
+
+
 def load_yaml(text, source):
     """(document, {key path tuple: line}) of a user's YAML text (see the
-    module docstring); UserFileError naming ``source``, line and column."""
+    module docstring); UserFileError naming ``source``, line and column.
+    A text read before in this process is not parsed again: a copy of its
+    document (a robot file is read several times by one command, and about
+    2,500 times by the test suite, 10 ms each)."""
+    hit = _PARSED.get(text)
+    if hit is None:
+        hit = _parse_yaml(text, source)
+        if len(text) > _PARSED_MAX_CHARS:
+            return hit
+        if len(_PARSED) >= _PARSED_MAX:
+            _PARSED.pop(next(iter(_PARSED)))  # (the oldest)
+        _PARSED[text] = hit
+    return copy.deepcopy(hit[0]), dict(hit[1])
+
+
+def _parse_yaml(text, source):
     try:
         loader = UserYamlLoader(text, source)  # PyYAML checks the characters here
     except yaml.reader.ReaderError as e:  # a raw control character (ESC, NUL, ...) anywhere in the file
