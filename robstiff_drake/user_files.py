@@ -27,6 +27,7 @@ import json
 import os
 import re
 import stat
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -139,6 +140,7 @@ UserYamlLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _
 _PARSED = {}  # text -> (document, lines) of the last texts read (PyYAML's pure-Python reader: ~10 ms a robot file)
 _PARSED_MAX = 32
 _PARSED_MAX_CHARS = 200_000  # (a larger text is parsed each time, not kept)
+_PARSED_LOCK = threading.Lock()
 
 
 def load_yaml(text, source):
@@ -147,14 +149,16 @@ def load_yaml(text, source):
     A text read before in this process is not parsed again: a copy of its
     document (a robot file is read several times by one command, and about
     2,500 times by the test suite, 10 ms each)."""
-    hit = _PARSED.get(text)
+    with _PARSED_LOCK:  # (a sweep's Dask workers may be threads of one process)
+        hit = _PARSED.get(text)
     if hit is None:
         hit = _parse_yaml(text, source)
         if len(text) > _PARSED_MAX_CHARS:
             return hit
-        if len(_PARSED) >= _PARSED_MAX:
-            _PARSED.pop(next(iter(_PARSED)))  # (the oldest)
-        _PARSED[text] = hit
+        with _PARSED_LOCK:
+            while len(_PARSED) >= _PARSED_MAX:
+                _PARSED.pop(next(iter(_PARSED)))  # (the oldest)
+            _PARSED[text] = hit
     return copy.deepcopy(hit[0]), dict(hit[1])
 
 
