@@ -23,15 +23,20 @@ PERIOD_S = 0.004
 SAMPLES = 4  # the stand-in's records a cycle (1 kHz at 4 ms)
 
 
-def _run(robot, spread, duration_s=0.2):
-    """A cell (no compensator: the stand-in at rest) for ``duration_s``; its events in order: 'step' (the
-    station stepped at a tick), 'row' (a record sent), 'msg' (the controller's message sent)."""
+def _cell(robot, spread):
+    """(the stand-in arm at rest, its network: no compensator)."""
     station = ServoArmStandIn(robot=robot, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
                               calibration=h.calibration(robot), process_wrench=h.cutting_wrench(),
                               reference=lambda t: np.zeros(6), q_start_rad=np.zeros(6), seed=3,
                               sensor_samples=SAMPLES)
-    net = CellNetwork(station, egm_to=("127.0.0.1", h.free_udp_port()), netft_port=h.free_udp_port(),
-                      period_s=PERIOD_S, spread_records=spread)
+    return station, CellNetwork(station, egm_to=("127.0.0.1", h.free_udp_port()), netft_port=h.free_udp_port(),
+                                period_s=PERIOD_S, spread_records=spread)
+
+
+def _run(robot, spread, duration_s=0.2):
+    """A cell (no compensator: the stand-in at rest) for ``duration_s``; its events in order: 'step' (the
+    station stepped at a tick), 'row' (a record sent), 'msg' (the controller's message sent)."""
+    station, net = _cell(robot, spread)
     events = []
     send_row, send_state, hold = net._send_row, net.egm.send_state, station.hold
 
@@ -97,11 +102,7 @@ def test_spread_records_are_never_sent_before_their_instant(robot, monkeypatch):
     """_wait_sending's rule on the clock it reads: a record queued for t is sent at t or later."""
     import time
 
-    station = ServoArmStandIn(robot=robot, joint_stiffness_Nm_per_rad=robot.joint_stiffness_Nm_per_rad,
-                              calibration=h.calibration(robot), process_wrench=h.cutting_wrench(),
-                              reference=lambda t: np.zeros(6), q_start_rad=np.zeros(6), seed=3)
-    net = CellNetwork(station, egm_to=("127.0.0.1", h.free_udp_port()), netft_port=h.free_udp_port(),
-                      spread_records=True)
+    _, net = _cell(robot, spread=True)
     sent = []
     try:
         monkeypatch.setattr(net, "_send_row", lambda row, t: sent.append((time.monotonic(), row[0])))

@@ -206,15 +206,20 @@ class CellNetwork:
         raw = b"\x12\x34garbage" if f.rdt_wrong_header else None
         self.rdt.send(row.tolist(), status, raw)
 
+    def _send_due(self, now):
+        """The queued records due by ``now`` (this PC's monotonic clock), in order."""
+        pending = self._pending
+        while pending and pending[0][0] <= now:
+            _, row, t = pending.pop(0)
+            self._send_row(row, t)
+
     def _wait_sending(self, t_until):
         """Wait until ``t_until`` (this PC's monotonic clock: sleep, then spin for the last SPIN_S), sending the
         queued records as they fall due (slept to, not spun)."""
         pending = self._pending
         while True:
             now = time.monotonic()
-            while pending and pending[0][0] <= now:
-                _, row, t = pending.pop(0)
-                self._send_row(row, t)
+            self._send_due(now)
             if now >= t_until:
                 return
             if pending and pending[0][0] < t_until - SPIN_S:
@@ -265,9 +270,7 @@ class CellNetwork:
                 time.sleep(t_stepped + T - now)
             if not stepped:
                 self._wait_sending(t_tick)
-            while self._pending:  # (a spread cycle's records left when lockstep took over: now, in order)
-                _, row, t_row = self._pending.pop(0)
-                self._send_row(row, t_row)
+            self._send_due(math.inf)  # (a spread cycle's records left when lockstep took over: now, in order)
             t_stepped = time.monotonic()
             t = k * T if stepped else t_stepped - t0
             st.tick_error_s.append(t - k * T)
