@@ -84,7 +84,11 @@ def start_compensate(model, payload, sensor, egm_port, *, reference=None, log=No
         cmd += ["--reference", reference]
     if log:
         cmd += ["--log", log]
-    proc = subprocess.Popen(cmd + list(extra), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # (ROBSTIFF_STOP_TRACE: where a SIGTERM that ended the command with "robstiff: terminated" landed, said after
+    # that line: a run that should have ended by itself on the test's SIGTERM, once seen in CI at load, says where)
+    env = dict(os.environ, ROBSTIFF_STOP_TRACE="1")
+    proc = subprocess.Popen(cmd + list(extra), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env=env)
     # ready when it says it waits for the controller (its port is bound); its earlier lines are kept
     proc.early_err, proc.err_bytes = "", b""
     while True:

@@ -90,6 +90,7 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         self.gate = None
         self._wrench_rows = []  # this cycle's sensor records for the log, written after the answer
         self.out = out
+        self.end_hold = None  # cell/end_hold.EndHold: a stop request held once the loop has ended (the command's)
         self.n = Counters()
         self.clock = SessionClock(settings.period_s)
         # this PC's clock (s): every read the loop makes of it (the arrival stamps come with the messages and
@@ -304,71 +305,82 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
 
     # ------------------------------------------------------------ the loop
 
+    def _serve(self):
+        """The loop: each message answered, until the duration or an idle
+        controller ends it (or an exception: ``run``'s)."""
+        T = self.s.period_s
+        while True:
+            got = self.link.receive(self.s.egm_timeout_s)
+            now = self.pc_time()
+            if self.s.duration_s and now - self.t_start >= self.s.duration_s:
+                self.ended_by = "duration"
+                break
+            if not got:
+                self.fault_on("silent", f"{self.link.name}: no message from the controller for "
+                                        f"{self.s.egm_timeout_s * 1e3:.0f} ms")
+                if self.s.idle_exit_s and now - self.t_last_msg > self.s.idle_exit_s:
+                    self.ended_by = "idle"
+                    self.event(f"{self.link.name}: no message for {self.s.idle_exit_s:g} s: the run ends")
+                    break
+                if self.log is not None:
+                    self.log.tick(now)
+                self._safe_point()
+                continue
+            accepted = []
+            for m, t in got:  # every datagram's sequence and clock, oldest first
+                ok, dt = self._session(m)
+                if ok:
+                    accepted.append((m, t, dt))
+            if not accepted:
+                continue  # duplicates or old datagrams only: nothing to answer
+            # before the first answer reaches it the controller holds its own pose: the messages it sent
+            # meanwhile, waiting here until this side first caught up (a message alone; at most a second of
+            # them), are the start's backlog, not late answers, as the controller counts them (from its first
+            # target on): the two sides' verdicts judge the same cycles whatever this PC's load
+            started = self._caught_up
+            if not started and self.n.answered > 0 and (
+                    len(accepted) == 1 or self.n.start_backlog >= START_BACKLOG_S / self.s.period_s):
+                self._caught_up = started = True
+            for m, t, dt in accepted[:-1]:
+                # older ones behind the newest (this PC fell behind): each answered in turn, late; a
+                # controller that takes the newest target loses nothing by it, and one that reads the
+                # targets a cycle after sending (the transport delay) gets the target it is due
+                if started:
+                    self.n.late += 1
+                else:
+                    self.n.start_backlog += 1
+                self.cycle(m, t, dt, late=started)
+            msg, t_arr, dt = accepted[-1]
+            gap = t_arr - self.t_last_msg
+            self.n.gap_ms.add(gap * 1e3)
+            if gap > self.s.sensor_timeout_s:
+                self.t_sensor_grace = t_arr
+            if gap > 1.5 * T:
+                self.n.gaps_over += 1
+            late = self.t_last_answer > t_arr and started
+            if late:
+                self.n.late += 1
+            self.t_last_msg = t_arr
+            self.fault_off("silent", f"{self.link.name}: messages again")
+            # (answered before the next message was read, but more than the controller's cycle after its
+            # own arrival: late too, as the controller counts it: its cycle runs on its own clock)
+            self.cycle(msg, t_arr, dt, late=late, judge=started)
+            if self.log is not None:
+                self.log.tick(self.pc_time())
+            self._safe_point()
+
     def run(self, first):
         """Run from the first message (``first_message``'s result) until the
-        duration, an idle controller or an interrupt ends it."""
+        duration, an idle controller or an interrupt ends it.  Once the loop
+        has ended, ``end_hold`` (cell/end_hold.py; set by the command) holds a
+        stop request until the run's end is written."""
         self.run_start(*first)
-        T = self.s.period_s
         try:
-            while True:
-                got = self.link.receive(self.s.egm_timeout_s)
-                now = self.pc_time()
-                if self.s.duration_s and now - self.t_start >= self.s.duration_s:
-                    self.ended_by = "duration"
-                    break
-                if not got:
-                    self.fault_on("silent", f"{self.link.name}: no message from the controller for "
-                                            f"{self.s.egm_timeout_s * 1e3:.0f} ms")
-                    if self.s.idle_exit_s and now - self.t_last_msg > self.s.idle_exit_s:
-                        self.ended_by = "idle"
-                        self.event(f"{self.link.name}: no message for {self.s.idle_exit_s:g} s: the run ends")
-                        break
-                    if self.log is not None:
-                        self.log.tick(now)
-                    self._safe_point()
-                    continue
-                accepted = []
-                for m, t in got:  # every datagram's sequence and clock, oldest first
-                    ok, dt = self._session(m)
-                    if ok:
-                        accepted.append((m, t, dt))
-                if not accepted:
-                    continue  # duplicates or old datagrams only: nothing to answer
-                # before the first answer reaches it the controller holds its own pose: the messages it sent
-                # meanwhile, waiting here until this side first caught up (a message alone; at most a second of
-                # them), are the start's backlog, not late answers, as the controller counts them (from its first
-                # target on): the two sides' verdicts judge the same cycles whatever this PC's load
-                started = self._caught_up
-                if not started and self.n.answered > 0 and (
-                        len(accepted) == 1 or self.n.start_backlog >= START_BACKLOG_S / self.s.period_s):
-                    self._caught_up = started = True
-                for m, t, dt in accepted[:-1]:
-                    # older ones behind the newest (this PC fell behind): each answered in turn, late; a
-                    # controller that takes the newest target loses nothing by it, and one that reads the
-                    # targets a cycle after sending (the transport delay) gets the target it is due
-                    if started:
-                        self.n.late += 1
-                    else:
-                        self.n.start_backlog += 1
-                    self.cycle(m, t, dt, late=started)
-                msg, t_arr, dt = accepted[-1]
-                gap = t_arr - self.t_last_msg
-                self.n.gap_ms.add(gap * 1e3)
-                if gap > self.s.sensor_timeout_s:
-                    self.t_sensor_grace = t_arr
-                if gap > 1.5 * T:
-                    self.n.gaps_over += 1
-                late = self.t_last_answer > t_arr and started
-                if late:
-                    self.n.late += 1
-                self.t_last_msg = t_arr
-                self.fault_off("silent", f"{self.link.name}: messages again")
-                # (answered before the next message was read, but more than the controller's cycle after its
-                # own arrival: late too, as the controller counts it: its cycle runs on its own clock)
-                self.cycle(msg, t_arr, dt, late=late, judge=started)
-                if self.log is not None:
-                    self.log.tick(self.pc_time())
-                self._safe_point()
+            try:
+                self._serve()
+            finally:
+                if self.end_hold is not None:
+                    self.end_hold.enter()
         except KeyboardInterrupt:
             self.event("interrupted: the run ends")
         except Terminated:  # a service manager's stop: end the run and write its log, as on Ctrl-C

@@ -40,6 +40,7 @@ from robstiff_drake.errors import InputError
 from robstiff_drake.cell.realtime_thread import CpuLatency, pin_to_cpu as _pin_to_cpu, quiet_gc as _quiet_gc, \
     realtime as _realtime, restore_gc as _restore_gc
 from robstiff_drake.cell.correction_bound import DEFAULT_MAX_CORRECTION_DEG, DEFAULT_MAX_CORRECTION_MM
+from robstiff_drake.cell.end_hold import EndHold
 from robstiff_drake.commands.compensate_report import report
 from robstiff_drake.progress import info
 
@@ -224,133 +225,142 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
     link = _link(protocol, listen_port, ctrl, period_s)
     sensor = NetFTReader(host, port, counts=netft_counts, units=netft_units, http_port=netft_http_port)
     stream_log = background = remote = qos = None
+    # a stop request once the loop has ended is held until the run's end is written (cell/end_hold.py)
+    end_hold = EndHold()
     try:
-        if ref.q is None:  # (the hold pose's check: its process started now, asked once the first message comes)
-            remote = guard.elsewhere(robot_yaml)
-        if job is not None and plan is None:
-            # the table in a process of its own from now on (the sensor's start, the controller's first message
-            # and the stream never wait for it: plain compensation until it is ready; cell/preview_job.py)
-            from robstiff_drake.cell import preview_cache
-            from robstiff_drake.cell.preview_job import BackgroundTable
-
-            background = BackgroundTable(preview_cache.build_input(
-                job=job, robot_yaml=robot_yaml, k_Nm_per_rad=k, period_s=period_s, filter_ba=ba,
-                rate_hz=sensor_rate_hz, delay_steps=delay_steps, servo_option=servo, file=table_file), table_file)
-        sensor.open(timeout_s=netft_open_s)
-        good = [w for w, _, _, clipped in sensor.drain() if all(v == v for v in w) and not clipped]
-        # the guard's and filter's start: the median of the first records (a spike among them moves a mean)
-        w0 = np.median(good, axis=0) if good else np.zeros(6)
-        comp = Compensator(predictor=predictor, calibration=cal, tool_m=tool, filter_ba=ba, max_jump_N=max_jump_N,
-                           saturation_rad=math.radians(saturation_deg),
-                           rate_limit_rad_per_s=math.radians(rate_limit_deg_per_s), delay_steps=delay_steps,
-                           initial_wrench=w0)
-        settings = LoopSettings(period_s=period_s, sensor_timeout_s=sensor_timeout_ms / 1e3,
-                                feedback_timeout_s=sensor_timeout_ms / 1e3, idle_exit_s=idle_exit_s,
-                                duration_s=duration_s, rate_limit_rad_per_s=math.radians(rate_limit_deg_per_s),
-                                saturation_deg=saturation_deg, max_jump_Nm=max_jump_Nm,
-                                max_correction_mm=max_correction_mm, max_correction_deg=max_correction_deg,
-                                correction_off=correction_off, sensor_rate_hz=sensor_rate_hz,
-                                start_tolerance_N=start_tolerance_N)
-        c = sensor.calibration
-        cal_text = (f"{c[0]:g} counts/{c[2]}, {c[1]:g} counts/{c[3]} ({'from the sensor' if c[4] == 'sensor' else 'override'})"
-                    if c else "unknown")
-        if log:
-            from robstiff_drake.cell.settings_file import compensator_yaml
-            from robstiff_drake.diagrams.run_inputs import kept_files
-
-            kept = kept_files(robot, {"model": model, "payload": payload, "reference": reference, "job": job})
-            stream_log = StreamLog(log, compensator_yaml(
-                robot=robot, robot_spec=robot_yaml, k=k, cal=cal, tool_m=tool, period_ms=period_ms,
-                delay_steps=delay_steps, filter_kind=filter_kind, cutoff_hz=cutoff_hz, filter_order=filter_order,
-                sensor_rate_hz=sensor_rate_hz, max_jump_N=max_jump_N, spindle_rpm=spindle_rpm,
-                saturation_deg=saturation_deg, rate_limit_deg_per_s=rate_limit_deg_per_s, servo=servo,
-                cutter_diameter_mm=cutter_diameter_mm, robot_ref=kept.robot, mode=mode), f"robot {robot.name}, model {model}",
-                inputs={rel: kept.sources[key].read_bytes() for key, rel in kept.names.items()})
-        preview = None
-        if job is not None:
-            from robstiff_drake.cell.preview_table import PreviewDeflection
-
-            def make_preview(p, plain=comp.model):
-                return PreviewDeflection(plain, p, sync_s=preview_sync_ms / 1e3, force_bound_N=preview_force_bound_N,
-                                         force_bound_fraction=FORCE_BOUND_FRACTION)
-
-            if plan is not None:
-                preview = comp.model = make_preview(plan)
-            else:
-                background.then(make_preview)
-        loop = CompensatorLoop(comp, link, sensor, ref, robot, settings, log=stream_log, preview=preview)
-        loop.pending_preview = background
-        where = f"{ctrl[0]}" + (f":{ctrl[1]}" if ctrl[1] else "")
-        link.open()
-        print(f"robstiff: compensate: sensor {host}:{port} streaming (calibration {cal_text}); waiting for "
-              f"{link.name} messages from {where} on UDP port {link.port}", file=sys.stderr, flush=True)
-        loop.gc_token = gc_frozen = _quiet_gc()  # (the collector off: the loop collects after its answers)
-        # the sensor's records come through pynetft's thread: let it have the interpreter within half a
-        # millisecond when the loop is busy (the default switch interval, 5 ms, is longer than a cycle)
-        switch = sys.getswitchinterval()
-        sys.setswitchinterval(SWITCH_INTERVAL_S)
-        qos = CpuLatency(cpu_latency_us)  # (held until the run ends: the finally below)
-        for line in filter(None, (_pin_to_cpu(cpu), _realtime(rt_priority), qos.warning, qos.caution)):
-            print(f"robstiff: warning: compensate: {line}", file=sys.stderr, flush=True)
-            stream_log is not None and stream_log.event(0.0, 0.0, f"warning: {line}")
-        for line in start_warnings if stream_log is not None else ():
-            stream_log.event(0.0, 0.0, f"warning: {line}")  # (events.csv, as the other start warnings)
-        first = loop.first_message(wait_s)
-        q0 = first[0].joints_deg
-        if ref.q is None:
-            # the loop check at the hold pose (70-220 ms) runs off the real-time path while the loop answers with
-            # zero correction, the controller's own pose (cell/start_gate.py): RSI expects each answer within its
-            # cycle; the loop compensates once the check has passed
-            ref.hold(q0)
-            problem = pose_problem(robot, q0)
-            if problem:
-                raise InputError(f"the hold pose (the controller's first message) is refused: {problem}")
-            loop.start_jobs.append(("the loop check at the hold pose", lambda: _hold_check(remote, q0)))
-            # and the correction bound against 1000 N's deflection there, as --reference's rows before the run
-            loop.start_jobs.append(("the correction bound at the hold pose", lambda: _hold_bound(
-                hold_said, robot, k, q0, max_jump_N, max_correction_mm, max_correction_deg)))
-        elif guard.warning and stream_log is not None:
-            stream_log.event(0.0, 0.0, f"warning: {guard.warning}")  # (events.csv, before the first message's)
-        off = np.abs(np.asarray(q0) - ref.q[0])
-        if off.max() > START_TOLERANCE_DEG:
-            j = int(np.argmax(off))
-            raise InputError(f"{f'--job {job}' if job and not reference else f'--reference {reference}'}: the robot is "
-                             f"{off[j]:.3f} deg from the reference's start on "
-                             f"joint {j + 1} (at most {START_TOLERANCE_DEG:g}); move it there before streaming starts")
         try:
-            loop.run(first)
+            if ref.q is None:  # (the hold pose's check: its process started now, asked once the first message comes)
+                remote = guard.elsewhere(robot_yaml)
+            if job is not None and plan is None:
+                # the table in a process of its own from now on (the sensor's start, the controller's first message
+                # and the stream never wait for it: plain compensation until it is ready; cell/preview_job.py)
+                from robstiff_drake.cell import preview_cache
+                from robstiff_drake.cell.preview_job import BackgroundTable
+
+                background = BackgroundTable(preview_cache.build_input(
+                    job=job, robot_yaml=robot_yaml, k_Nm_per_rad=k, period_s=period_s, filter_ba=ba,
+                    rate_hz=sensor_rate_hz, delay_steps=delay_steps, servo_option=servo, file=table_file), table_file)
+            sensor.open(timeout_s=netft_open_s)
+            good = [w for w, _, _, clipped in sensor.drain() if all(v == v for v in w) and not clipped]
+            # the guard's and filter's start: the median of the first records (a spike among them moves a mean)
+            w0 = np.median(good, axis=0) if good else np.zeros(6)
+            comp = Compensator(predictor=predictor, calibration=cal, tool_m=tool, filter_ba=ba, max_jump_N=max_jump_N,
+                               saturation_rad=math.radians(saturation_deg),
+                               rate_limit_rad_per_s=math.radians(rate_limit_deg_per_s), delay_steps=delay_steps,
+                               initial_wrench=w0)
+            settings = LoopSettings(period_s=period_s, sensor_timeout_s=sensor_timeout_ms / 1e3,
+                                    feedback_timeout_s=sensor_timeout_ms / 1e3, idle_exit_s=idle_exit_s,
+                                    duration_s=duration_s, rate_limit_rad_per_s=math.radians(rate_limit_deg_per_s),
+                                    saturation_deg=saturation_deg, max_jump_Nm=max_jump_Nm,
+                                    max_correction_mm=max_correction_mm, max_correction_deg=max_correction_deg,
+                                    correction_off=correction_off, sensor_rate_hz=sensor_rate_hz,
+                                    start_tolerance_N=start_tolerance_N)
+            c = sensor.calibration
+            cal_text = (f"{c[0]:g} counts/{c[2]}, {c[1]:g} counts/{c[3]} ({'from the sensor' if c[4] == 'sensor' else 'override'})"
+                        if c else "unknown")
+            if log:
+                from robstiff_drake.cell.settings_file import compensator_yaml
+                from robstiff_drake.diagrams.run_inputs import kept_files
+
+                kept = kept_files(robot, {"model": model, "payload": payload, "reference": reference, "job": job})
+                stream_log = StreamLog(log, compensator_yaml(
+                    robot=robot, robot_spec=robot_yaml, k=k, cal=cal, tool_m=tool, period_ms=period_ms,
+                    delay_steps=delay_steps, filter_kind=filter_kind, cutoff_hz=cutoff_hz, filter_order=filter_order,
+                    sensor_rate_hz=sensor_rate_hz, max_jump_N=max_jump_N, spindle_rpm=spindle_rpm,
+                    saturation_deg=saturation_deg, rate_limit_deg_per_s=rate_limit_deg_per_s, servo=servo,
+                    cutter_diameter_mm=cutter_diameter_mm, robot_ref=kept.robot, mode=mode), f"robot {robot.name}, model {model}",
+                    inputs={rel: kept.sources[key].read_bytes() for key, rel in kept.names.items()})
+            preview = None
+            if job is not None:
+                from robstiff_drake.cell.preview_table import PreviewDeflection
+
+                def make_preview(p, plain=comp.model):
+                    return PreviewDeflection(plain, p, sync_s=preview_sync_ms / 1e3,
+                                             force_bound_N=preview_force_bound_N,
+                                             force_bound_fraction=FORCE_BOUND_FRACTION)
+
+                if plan is not None:
+                    preview = comp.model = make_preview(plan)
+                else:
+                    background.then(make_preview)
+            loop = CompensatorLoop(comp, link, sensor, ref, robot, settings, log=stream_log, preview=preview)
+            loop.pending_preview = background
+            loop.end_hold = end_hold
+            where = f"{ctrl[0]}" + (f":{ctrl[1]}" if ctrl[1] else "")
+            link.open()
+            print(f"robstiff: compensate: sensor {host}:{port} streaming (calibration {cal_text}); waiting for "
+                  f"{link.name} messages from {where} on UDP port {link.port}", file=sys.stderr, flush=True)
+            loop.gc_token = gc_frozen = _quiet_gc()  # (the collector off: the loop collects after its answers)
+            # the sensor's records come through pynetft's thread: let it have the interpreter within half a
+            # millisecond when the loop is busy (the default switch interval, 5 ms, is longer than a cycle)
+            switch = sys.getswitchinterval()
+            sys.setswitchinterval(SWITCH_INTERVAL_S)
+            qos = CpuLatency(cpu_latency_us)  # (held until the run ends: the finally below)
+            for line in filter(None, (_pin_to_cpu(cpu), _realtime(rt_priority), qos.warning, qos.caution)):
+                print(f"robstiff: warning: compensate: {line}", file=sys.stderr, flush=True)
+                stream_log is not None and stream_log.event(0.0, 0.0, f"warning: {line}")
+            for line in start_warnings if stream_log is not None else ():
+                stream_log.event(0.0, 0.0, f"warning: {line}")  # (events.csv, as the other start warnings)
+            first = loop.first_message(wait_s)
+            q0 = first[0].joints_deg
+            if ref.q is None:
+                # the loop check at the hold pose (70-220 ms) runs off the real-time path while the loop answers with
+                # zero correction, the controller's own pose (cell/start_gate.py): RSI expects each answer within its
+                # cycle; the loop compensates once the check has passed
+                ref.hold(q0)
+                problem = pose_problem(robot, q0)
+                if problem:
+                    raise InputError(f"the hold pose (the controller's first message) is refused: {problem}")
+                loop.start_jobs.append(("the loop check at the hold pose", lambda: _hold_check(remote, q0)))
+                # and the correction bound against 1000 N's deflection there, as --reference's rows before the run
+                loop.start_jobs.append(("the correction bound at the hold pose", lambda: _hold_bound(
+                    hold_said, robot, k, q0, max_jump_N, max_correction_mm, max_correction_deg)))
+            elif guard.warning and stream_log is not None:
+                stream_log.event(0.0, 0.0, f"warning: {guard.warning}")  # (events.csv, before the first message's)
+            off = np.abs(np.asarray(q0) - ref.q[0])
+            if off.max() > START_TOLERANCE_DEG:
+                j = int(np.argmax(off))
+                named = f"--job {job}" if job and not reference else f"--reference {reference}"
+                raise InputError(f"{named}: the robot is {off[j]:.3f} deg from the reference's start on joint {j + 1} "
+                                 f"(at most {START_TOLERANCE_DEG:g}); move it there before streaming starts")
+            try:
+                loop.run(first)
+            finally:
+                _restore_gc(gc_frozen)
+                sys.setswitchinterval(switch)
         finally:
-            _restore_gc(gc_frozen)
-            sys.setswitchinterval(switch)
+            if qos is not None:
+                qos.release()  # (the CPUs idle as before: the request withdrawn however the run ended)
+            if background is not None:
+                background.stop()
+            if remote is not None:
+                remote.close()
+            sensor.close()
+            link.close()
+        bound_line = bound_line or (hold_said[0] if hold_said else None)
+        report(loop, link, guard, background, stream_log, log=log, job=job, inputs=dict(
+            protocol=protocol, controller=where, netft=f"{host}:{port}", netft_calibration=c, robot=robot.name,
+            model=str(model), payload=str(payload), reference=str(reference) if reference else None,
+            joint_stiffness_Nm_per_rad=k, settings={
+                "period_ms": period_ms, "sensor_rate_hz": sensor_rate_hz, "filter_kind": filter_kind,
+                "cutoff_hz": cutoff_hz, "filter_order": filter_order, "max_jump_N": max_jump_N,
+                "max_jump_Nm": max_jump_Nm, "saturation_deg": saturation_deg,
+                "rate_limit_deg_per_s": rate_limit_deg_per_s, "delay_steps": delay_steps,
+                "max_correction_mm": max_correction_mm, "max_correction_deg": max_correction_deg,
+                "sensor_timeout_ms": sensor_timeout_ms, "start_tolerance_N": start_tolerance_N},
+            mode=mode, job=str(job) if job else None,
+            # (what the loop asked of the machine, and what it was given: a wish not allowed says so in the events)
+            scheduling={"rt_priority": rt_priority, "cpu": cpu, "cpu_latency_us": cpu_latency_us,
+                        # (held: asked, and no warning that it was not; released by now)
+                        "cpu_latency_held": qos is not None and cpu_latency_us is not None and qos.warning is None,
+                        "cpu_latency_caution": qos.caution if qos is not None else None},
+            # (None: the correction computed online; else why it was held at zero: a corrected reference)
+            correction_held_at_zero=correction_off), notes=(play_line, play_summary, bound_line, start_warnings),
+            missing=(servo, cutter_diameter_mm))
     finally:
-        if qos is not None:
-            qos.release()  # (the CPUs idle as before: the request withdrawn however the run ended)
-        if background is not None:
-            background.stop()
-        if remote is not None:
-            remote.close()
-        sensor.close()
-        link.close()
-    bound_line = bound_line or (hold_said[0] if hold_said else None)
-    report(loop, link, guard, background, stream_log, log=log, job=job, inputs=dict(
-        protocol=protocol, controller=where, netft=f"{host}:{port}", netft_calibration=c, robot=robot.name,
-        model=str(model), payload=str(payload), reference=str(reference) if reference else None,
-        joint_stiffness_Nm_per_rad=k, settings={
-            "period_ms": period_ms, "sensor_rate_hz": sensor_rate_hz, "filter_kind": filter_kind,
-            "cutoff_hz": cutoff_hz, "filter_order": filter_order, "max_jump_N": max_jump_N,
-            "max_jump_Nm": max_jump_Nm, "saturation_deg": saturation_deg,
-            "rate_limit_deg_per_s": rate_limit_deg_per_s, "delay_steps": delay_steps,
-            "max_correction_mm": max_correction_mm, "max_correction_deg": max_correction_deg,
-            "sensor_timeout_ms": sensor_timeout_ms, "start_tolerance_N": start_tolerance_N},
-        mode=mode, job=str(job) if job else None,
-        # (what the loop asked of the machine, and what it was given: a wish not allowed says so in the events)
-        scheduling={"rt_priority": rt_priority, "cpu": cpu, "cpu_latency_us": cpu_latency_us,
-                    # (held: asked, and no warning that it was not; released by now)
-                    "cpu_latency_held": qos is not None and cpu_latency_us is not None and qos.warning is None,
-                    "cpu_latency_caution": qos.caution if qos is not None else None},
-        # (None: the correction computed online; else why it was held at zero: a corrected reference)
-        correction_held_at_zero=correction_off), notes=(play_line, play_summary, bound_line, start_warnings),
-        missing=(servo, cutter_diameter_mm))
+        end_hold.release()
+    if end_hold.said():
+        print(f"robstiff: compensate: {end_hold.said()}", file=sys.stderr)
     return 0
 
 

@@ -210,6 +210,25 @@ def _on_sigterm(signum, frame):
     raise Terminated()
 
 
+STOP_TRACE_ENV = "ROBSTIFF_STOP_TRACE"
+
+
+def _stop_trace(e):
+    """With ROBSTIFF_STOP_TRACE set (the tests' scripted runs set it), where
+    the SIGTERM that ended the command landed, innermost first: a run that
+    should have ended on it by itself (compensate's loop) but did not says
+    where it was (a diagnosis aid; nothing is said without the variable)."""
+    import os
+
+    if not os.environ.get(STOP_TRACE_ENV):
+        return
+    import traceback
+
+    frames = traceback.extract_tb(e.__traceback__)[::-1][:6]
+    print("robstiff: (stop trace) " + " <- ".join(f"{os.path.basename(f.filename)}:{f.lineno} {f.name}"
+                                                  for f in frames), file=sys.stderr)
+
+
 def main(argv=None):
     try:
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
@@ -250,8 +269,9 @@ def main(argv=None):
             raise
         print("robstiff: interrupted", file=sys.stderr)
         return INTERRUPTED
-    except Terminated:
+    except Terminated as e:
         print("robstiff: terminated", file=sys.stderr)
+        _stop_trace(e)
         return 143
     except MemoryError:
         print("robstiff: error: out of memory", file=sys.stderr)
