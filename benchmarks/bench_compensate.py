@@ -292,7 +292,7 @@ def main():
     ap.add_argument("--probe-s", type=float, default=10.0,
                     help="the machine's own stalls measured this long on the loop's CPU before each protocol "
                          "(benchmarks/stall_probe.py; 0: not measured; default: %(default)s)")
-    ap.add_argument("--floor-s", type=float, default=15.0,
+    ap.add_argument("--floor-s", type=float, default=8.0,
                     help="after each protocol, the machine's floor for a loop of the same median measured this long "
                          "(benchmarks/loop_floor.py: a fixed Python workload answering a datagram every 4 ms, "
                          "scheduled as compensate; 0: not measured; default: %(default)s)")
