@@ -273,7 +273,8 @@ def slope_mb_per_min(rss):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seconds", type=float, default=60.0, help="length of each run (default: %(default)s)")
+    ap.add_argument("--seconds", type=float, default=40.0,
+                    help="length of each run (default: %(default)s: the three protocols within CI's 4 minutes)")
     ap.add_argument("--protocol", default="all", choices=["all", "egm", "rsi", "stream-motion"])
     ap.add_argument("--rt-priority", type=int, default=0,
                     help="compensate --rt-priority, and the simulated controller 10 above it (default: off)")
