@@ -32,7 +32,7 @@ feedback checks, the sensor's records through guard and filter, the
 model's tick, the target check with the encoding and the send, and the log
 rows and statistics written after the answer has left).
 
-    python benchmarks/bench_compensate.py                  # 60 s per protocol
+    python benchmarks/bench_compensate.py                  # 40 s per protocol
     python benchmarks/bench_compensate.py --seconds 10     # shorter, for CI
     python benchmarks/bench_compensate.py --protocol rsi --seconds 600
     python benchmarks/bench_compensate.py --load 1 --seconds 60   # a busy process beside it
