@@ -86,6 +86,13 @@ class _Link:
         pass
 
 
+class _StopAtFirstAnswer(_Link):
+    """A controller whose first message's answer meets the service manager's stop (inside the run's start)."""
+
+    def send_targets(self, msg, target, env):
+        raise Terminated()
+
+
 class _Sensor:
     def drain(self):
         return []
@@ -121,6 +128,27 @@ def test_the_loop_holds_requests_from_its_end_on(term_raises, hold):
     finally:
         if loop.end_hold is not None:
             loop.end_hold.release()
+
+
+def test_a_stop_during_the_first_answer_ends_the_run_as_any_other(term_raises):
+    """SIGTERM inside the run's start (the first message's answer): the run
+    ends, logged, its statistics made (before: Terminated left the loop
+    unlogged, exit 143 and no log)."""
+    from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
+    from robstiff_drake.model.robot import load_robot
+
+    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
+    robot = load_robot()
+    w = h.hold_wrench(robot, np.radians(q0))(0.0).tolist()
+    ref = Reference(period_s=0.004)
+    ref.hold(q0)
+    link = _StopAtFirstAnswer(q0, 20)
+    loop = CompensatorLoop(h.hold_compensator(robot, w), link, _Sensor(), ref, robot,
+                           LoopSettings(max_jump_Nm=350.0), out=open(os.devnull, "w"))
+    loop.run(link.receive(0.0)[0])
+    assert loop.n.events[-1][2] == "terminated: the run ends", loop.n.events
+    stats = loop.stats()
+    assert stats["messages"] == 1 and stats["answered"] == 0, stats
 
 
 @pytest.mark.skipif(not all(__import__("importlib").util.find_spec(m) for m in ("pynetft", "abb_robot_client")),

@@ -374,9 +374,10 @@ class CompensatorLoop(LoopStart, SensorIntake, SensorChecks, SessionFaults):
         duration, an idle controller or an interrupt ends it.  Once the loop
         has ended, ``end_hold`` (cell/end_hold.py; set by the command) holds a
         stop request until the run's end is written."""
-        self.run_start(*first)
         try:
             try:
+                # (the start inside: a stop during the first message's answer ends the run as any other, logged)
+                self.run_start(*first)
                 self._serve()
             finally:
                 if self.end_hold is not None:
