@@ -56,10 +56,12 @@ class EndHold:
     def release(self):
         """The handlers as before ``enter``; the requests noted are not
         raised again (the run has ended: what they asked is done)."""
-        old, self._old = self._old, None
+        old = self._old
         if old is not None:
             for s, h in old.items():
-                signal.signal(s, h)
+                if h is not None:  # (None: a handler installed outside Python, which cannot be put back)
+                    signal.signal(s, h)
+            self._old = None  # (after: a request meanwhile still finds the hold and is noted)
 
     def said(self):
         """The line for the noted request (None when there was none)."""

@@ -79,7 +79,12 @@ class StartGate:
             self.done = True
 
     def wait(self, timeout_s=None):
-        """Wait for the work (at the run's end, off the loop); whether it is done."""
+        """Wait for the work (at the run's end, off the loop); whether it is
+        done.  Work never started (the run stopped inside its start, between
+        the gate's making and its start) is started now: its log folder
+        opens, and its refusal is the run's as ever."""
+        if self._thread.ident is None:
+            self._thread.start()
         self._thread.join(timeout_s)
         return self.done
 

@@ -359,8 +359,8 @@ def run(*, listen_port, netft, robot_yaml=None, model, payload, reference=None, 
             missing=(servo, cutter_diameter_mm))
     finally:
         end_hold.release()
-    if end_hold.said():
-        print(f"robstiff: compensate: {end_hold.said()}", file=sys.stderr)
+        if end_hold.said():  # (on every path: a refused start's error line follows it)
+            print(f"robstiff: compensate: {end_hold.said()}", file=sys.stderr)
     return 0
 
 

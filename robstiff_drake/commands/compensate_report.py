@@ -49,7 +49,11 @@ def report(loop, link, guard, background, stream_log, *, log, job, inputs, notes
                + list(start_warnings) + ([play_line] if play_line else []) + ([bound_line] if bound_line else [])
                + checks}
     written = stream_log.close(summary)
-    wrote(log, ", ".join(written), folder=True, to_stderr=True)
+    if written:
+        wrote(log, ", ".join(written), folder=True, to_stderr=True)
+    else:  # (stopped before its start had opened the folder: an earlier run's folder there is as it was)
+        print(f"robstiff: warning: compensate: the run ended before its log folder {log} was opened: no log written",
+              file=sys.stderr)
     servo, cutter_diameter_mm = missing
     if servo is None or cutter_diameter_mm is None:
         print("robstiff: note: compensator.yaml lacks " + " and ".join(
