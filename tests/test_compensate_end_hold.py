@@ -98,22 +98,29 @@ class _Sensor:
         return []
 
 
+Q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
+
+
+def _loop(link_class):
+    """(the link, a CompensatorLoop holding Q0 over it, the irb6400, its output discarded)."""
+    from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
+    from robstiff_drake.model.robot import load_robot
+
+    robot = load_robot()
+    w = h.hold_wrench(robot, np.radians(Q0))(0.0).tolist()
+    ref = Reference(period_s=0.004)
+    ref.hold(Q0)
+    link = link_class(Q0, 20)
+    return link, CompensatorLoop(h.hold_compensator(robot, w), link, _Sensor(), ref, robot,
+                                 LoopSettings(max_jump_Nm=350.0), out=open(os.devnull, "w"))
+
+
 @pytest.mark.parametrize("hold", [True, False])
 def test_the_loop_holds_requests_from_its_end_on(term_raises, hold):
     """The loop ended by SIGTERM logs it and returns; with the command's
     hold set, a request after that (here: while its caller writes the end)
     is noted instead of raised; without one (a caller that sets none), as before."""
-    from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
-    from robstiff_drake.model.robot import load_robot
-
-    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
-    robot = load_robot()
-    w = h.hold_wrench(robot, np.radians(q0))(0.0).tolist()
-    ref = Reference(period_s=0.004)
-    ref.hold(q0)
-    link = _Link(q0, 20)
-    loop = CompensatorLoop(h.hold_compensator(robot, w), link, _Sensor(), ref, robot,
-                           LoopSettings(max_jump_Nm=350.0), out=open(os.devnull, "w"))
+    link, loop = _loop(_Link)
     loop.end_hold = EndHold() if hold else None
     try:
         loop.run(link.receive(0.0)[0])
@@ -134,17 +141,7 @@ def test_a_stop_during_the_first_answer_ends_the_run_as_any_other(term_raises):
     """SIGTERM inside the run's start (the first message's answer): the run
     ends, logged, its statistics made (before: Terminated left the loop
     unlogged, exit 143 and no log)."""
-    from robstiff_drake.cell.compensate import CompensatorLoop, LoopSettings, Reference
-    from robstiff_drake.model.robot import load_robot
-
-    q0 = [0.0, 7.008, 29.517, 0.0, 53.476, 0.0]
-    robot = load_robot()
-    w = h.hold_wrench(robot, np.radians(q0))(0.0).tolist()
-    ref = Reference(period_s=0.004)
-    ref.hold(q0)
-    link = _StopAtFirstAnswer(q0, 20)
-    loop = CompensatorLoop(h.hold_compensator(robot, w), link, _Sensor(), ref, robot,
-                           LoopSettings(max_jump_Nm=350.0), out=open(os.devnull, "w"))
+    link, loop = _loop(_StopAtFirstAnswer)
     ran = []
     loop.start_jobs.append(("a start job", lambda: ran.append(True)))  # (as --log's folder start: a gate)
     loop.run(link.receive(0.0)[0])
