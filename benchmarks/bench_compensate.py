@@ -233,27 +233,25 @@ def _run_protocol(tmp, protocol, seconds, rt_priority, cpu, robot, model, payloa
 ECHO_US = 8.0  # benchmarks/loop_floor.py --work-us 0's median computation on this machine (2026-12-08): recvmsg + sendto
 
 
-def stall_probe(cpu, seconds):
-    """benchmarks/stall_probe.py's summary on ``cpu`` for ``seconds`` (a
-    process of its own, at SCHED_FIFO 99 where permitted)."""
+def _script_json(script, *args):
+    """The JSON a reference script of this folder prints with --json (a process of its own)."""
     import subprocess
 
-    out = subprocess.run([sys.executable, os.path.join(os.path.dirname(os.path.abspath(__file__)), "stall_probe.py"),
-                          "--cpu", str(cpu), "--seconds", str(seconds), "--json"], capture_output=True, text=True,
-                         check=True).stdout
-    return json.loads(out)
+    cmd = [sys.executable, os.path.join(os.path.dirname(os.path.abspath(__file__)), script), *map(str, args), "--json"]
+    return json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
+
+
+def stall_probe(cpu, seconds):
+    """benchmarks/stall_probe.py's summary on ``cpu`` for ``seconds`` (at
+    SCHED_FIFO 99 where permitted)."""
+    return _script_json("stall_probe.py", "--cpu", cpu, "--seconds", seconds)
 
 
 def loop_floor(work_us, seconds, cpu, priority, cpu_latency_us):
-    """benchmarks/loop_floor.py's figures (a process of its own, scheduled as
-    compensate was)."""
-    import subprocess
-
-    cmd = [sys.executable, os.path.join(os.path.dirname(os.path.abspath(__file__)), "loop_floor.py"),
-           "--work-us", f"{work_us:.1f}", "--seconds", str(seconds), "--rt-priority", str(priority or 0), "--json"]
-    cmd += ["--cpu", str(cpu)] if cpu is not None else []
-    cmd += ["--cpu-latency-us", str(cpu_latency_us)] if cpu_latency_us is not None else []
-    return json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
+    """benchmarks/loop_floor.py's figures (scheduled as compensate was)."""
+    return _script_json("loop_floor.py", "--work-us", f"{work_us:.1f}", "--seconds", seconds, "--rt-priority",
+                        priority or 0, *(["--cpu", cpu] if cpu is not None else []),
+                        *(["--cpu-latency-us", cpu_latency_us] if cpu_latency_us is not None else []))
 
 
 def _stall(probe):
